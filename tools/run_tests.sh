@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# Installs what is missing, builds with warnings as errors, checks formatting, runs every ctest
+# label that fits CI (unit, recovery, stress), then the address+undefined sanitizer build of the
+# unit tests. Idempotent; incremental when the builds exist.
+#
+# usage: tools/run_tests.sh [--quick]     (--quick: skip the sanitizer build)
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$root"
+quick=0
+[[ "${1:-}" == "--quick" ]] && quick=1
+jobs="$(nproc)"
+
+step() { printf '\n== %s\n' "$*"; }
+
+step "dependencies"
+tools/bootstrap.sh
+
+step "clang-format check"
+mapfile -t sources < <(git ls-files -co --exclude-standard -- '*.h' '*.cc' | grep -v '^build/')
+clang-format-14 --dry-run --Werror "${sources[@]}"
+echo "formatted: ${#sources[@]} files"
+
+step "build (RelWithDebInfo, warnings as errors)"
+cmake --preset default -G Ninja >/dev/null
+cmake --build --preset default -j "$jobs"
+
+step "tests (labels unit, recovery, stress; 'long' is excluded: see README)"
+ctest --preset default -j "$jobs" -LE long
+
+if ((quick == 0)); then
+  step "sanitizer build (address, undefined) of the unit tests"
+  cmake --preset debug -G Ninja >/dev/null
+  cmake --build --preset debug -j "$jobs"
+  ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
+    ctest --preset debug -j "$jobs"
+fi
+step "all checks passed"
