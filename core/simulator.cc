@@ -1,0 +1,558 @@
+#include "core/simulator.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+
+namespace mjsysid {
+namespace {
+
+// deterministic cost of a step that skips stages, relative to a full step (used only to choose a
+// Jacobian mode; BENCHMARKS.md has the measured values)
+constexpr double kCostSkipPos = 0.6;
+constexpr double kCostSkipVel = 0.4;
+
+// a perturbation h*|S| past this (in state units) is no longer a local finite difference
+constexpr double kGrowthLimit = 1e-2;
+
+double StageCost(int skipstage) {
+  if (skipstage == mjSTAGE_VEL) return kCostSkipVel;
+  if (skipstage == mjSTAGE_POS) return kCostSkipPos;
+  return 1.0;
+}
+
+std::string TimeString(double t) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.6g", t);
+  return buf;
+}
+
+}  // namespace
+
+const char* JacobianModeName(JacobianMode mode) {
+  switch (mode) {
+    case JacobianMode::kAuto:
+      return "auto";
+    case JacobianMode::kDirectional:
+      return "directional";
+    case JacobianMode::kMatrix:
+      return "matrix";
+    case JacobianMode::kWholeRollout:
+      return "whole_rollout";
+  }
+  return "?";
+}
+
+// per-worker scratch, allocated once and reused (no allocation in the step loops)
+struct Simulator::Worker {
+  DataPtr data;
+  ModelPtr plus, minus;                           // perturbed copies of the model
+  std::vector<ModelPtr> param_plus, param_minus;  // matrix mode: one per parameter
+  Eigen::VectorXd s, s_next, xp, xm, yp, ym, e;
+  RowMatrix states_p, sensors_p, states_m, sensors_m;
+};
+
+Simulator::Simulator(const mjModel& m, const std::vector<ParameterSpec>& params,
+                     const SimulatorOptions& options)
+    : model_(CopyModel(m)),
+      params_(*model_, params),
+      dims_(*model_),
+      options_(options),
+      pool_(options.threads) {
+  InstallMujocoHandlers();
+  // private model options: fixed solver iterations, sensors only when asked for
+  if (options_.fixed_solver_iterations) model_->opt.tolerance = 0;
+  if (!options_.sensors) model_->opt.disableflags |= mjDSBL_SENSOR;
+  params_.Prepare(model_.get());
+  scratch_ = MakeData(*model_);
+  for (int w = 0; w < pool_.size(); ++w) {
+    auto worker = std::make_unique<Worker>();
+    worker->data = MakeData(*model_);
+    worker->plus = CopyModel(*model_);
+    worker->minus = CopyModel(*model_);
+    workers_.push_back(std::move(worker));
+  }
+}
+
+Simulator::~Simulator() = default;
+
+Eigen::VectorXd Simulator::GetParameters() const {
+  Eigen::VectorXd p(params_.size());
+  params_.Read(*model_, p.data());
+  return p;
+}
+
+void Simulator::SetParameters(const Eigen::VectorXd& values) {
+  if (values.size() != params_.size()) {
+    throw std::invalid_argument("SetParameters: expected " + std::to_string(params_.size()) +
+                                " values, got " + std::to_string(values.size()));
+  }
+  params_.Write(model_.get(), scratch_.get(), values.data());
+}
+
+InitialState Simulator::ReferenceState() const {
+  InitialState x0;
+  x0.qpos = Eigen::Map<const Eigen::VectorXd>(model_->qpos0, dims_.nq);
+  x0.qvel = Eigen::VectorXd::Zero(dims_.nv);
+  x0.act = Eigen::VectorXd::Zero(dims_.na);
+  return x0;
+}
+
+void Simulator::CheckInputs(const std::vector<SequenceInput>& sequences) const {
+  for (size_t i = 0; i < sequences.size(); ++i) {
+    const SequenceInput& s = sequences[i];
+    const std::string where = "sequence " + std::to_string(i) + ": ";
+    if (s.ctrl.rows() < 1) throw std::invalid_argument(where + "no samples (ctrl has 0 rows)");
+    if (s.ctrl.cols() != dims_.nu) {
+      throw std::invalid_argument(where + "ctrl has " + std::to_string(s.ctrl.cols()) +
+                                  " columns, the model has nu = " + std::to_string(dims_.nu));
+    }
+    if (s.x0.qpos.size() != 0 && s.x0.qpos.size() != dims_.nq) {
+      throw std::invalid_argument(where + "initial qpos has " + std::to_string(s.x0.qpos.size()) +
+                                  " entries, expected nq = " + std::to_string(dims_.nq));
+    }
+    if (s.x0.qvel.size() != 0 && s.x0.qvel.size() != dims_.nv) {
+      throw std::invalid_argument(where + "initial qvel has " + std::to_string(s.x0.qvel.size()) +
+                                  " entries, expected nv = " + std::to_string(dims_.nv));
+    }
+    if (s.x0.act.size() != 0 && s.x0.act.size() != dims_.na) {
+      throw std::invalid_argument(where + "initial act has " + std::to_string(s.x0.act.size()) +
+                                  " entries, expected na = " + std::to_string(dims_.na));
+    }
+    if (!s.ctrl.allFinite() || !s.x0.qpos.allFinite() || !s.x0.qvel.allFinite() ||
+        !s.x0.act.allFinite()) {
+      throw std::invalid_argument(where + "controls or initial state contain NaN/Inf");
+    }
+  }
+}
+
+void Simulator::SetInitialState(mjData* d, const InitialState& x0) const {
+  mj_resetData(model_.get(), d);
+  if (x0.qpos.size()) mju_copy(d->qpos, x0.qpos.data(), dims_.nq);
+  if (x0.qvel.size()) mju_copy(d->qvel, x0.qvel.data(), dims_.nv);
+  if (x0.act.size()) mju_copy(d->act, x0.act.data(), dims_.na);
+  d->time = x0.time;
+  ClearSimulationWarnings(d);
+}
+
+void Simulator::CheckStep(const mjData& d, int seq_index, int step, const char* what) const {
+  const std::string warnings = SimulationWarnings(d);
+  if (!warnings.empty()) {
+    throw SimulationError(std::string(what) + ": sequence " + std::to_string(seq_index) +
+                              ", step " + std::to_string(step) + " (t = " + TimeString(d.time) +
+                              " s): MuJoCo warning: " + warnings,
+                          seq_index, step);
+  }
+}
+
+void Simulator::RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq, int seq_index,
+                           RowMatrix* states, RowMatrix* sensors, RowMatrix* full) const {
+  mjData* d = w.data.get();
+  const int T = static_cast<int>(seq.ctrl.rows());
+  const bool want_sensors = options_.sensors && sensors && dims_.ns > 0;
+  // step the model, recording x_k (and the full state) before and y_k after each step
+  for (int k = 0; k < T; ++k) {
+    mju_copy(d->ctrl, seq.ctrl.row(k).data(), dims_.nu);
+    if (full) mj_getState(m, d, full->row(k).data(), kFullStateSig);
+    GetPhysics(*m, *d, states->row(k).data());
+    StepSkip(m, d, mjSTAGE_NONE, !options_.sensors);
+    CheckStep(*d, seq_index, k, "simulation");
+    if (want_sensors) mju_copy(sensors->row(k).data(), d->sensordata, dims_.ns);
+  }
+  GetPhysics(*m, *d, states->row(T).data());
+  if (full) mj_getState(m, d, full->row(T).data(), kFullStateSig);
+  if (!states->row(T).allFinite()) {
+    throw SimulationError(
+        "simulation: sequence " + std::to_string(seq_index) + ": non-finite final state", seq_index,
+        T);
+  }
+}
+
+void Simulator::Rollout(const std::vector<SequenceInput>& sequences, std::vector<Trajectory>* out) {
+  CheckInputs(sequences);
+  out->resize(sequences.size());
+  // size outputs up front, then fill them in parallel across sequences
+  for (size_t i = 0; i < sequences.size(); ++i) {
+    Trajectory& tr = (*out)[i];
+    tr.T = static_cast<int>(sequences[i].ctrl.rows());
+    tr.states.resize(tr.T + 1, dims_.nphys);
+    tr.sensors.resize(tr.T, options_.sensors ? dims_.ns : 0);
+    tr.full.resize(tr.T + 1, dims_.nfull);
+  }
+  pool_.ParallelFor(static_cast<int>(sequences.size()), [&](int worker, int i) {
+    Worker& w = *workers_[worker];
+    Trajectory& tr = (*out)[i];
+    SetInitialState(w.data.get(), sequences[i].x0);
+    RolloutOne(w, model_.get(), sequences[i], i, &tr.states, &tr.sensors, &tr.full);
+  });
+}
+
+Trajectory Simulator::Rollout(const SequenceInput& sequence) {
+  std::vector<Trajectory> out;
+  Rollout({sequence}, &out);
+  return std::move(out[0]);
+}
+
+Eigen::VectorXd Simulator::ParameterSteps(const JacobianOptions& opt) const {
+  const int np = params_.size();
+  if (!opt.parameter_steps.empty() && static_cast<int>(opt.parameter_steps.size()) != np) {
+    throw std::invalid_argument("JacobianOptions::parameter_steps has " +
+                                std::to_string(opt.parameter_steps.size()) + " entries, expected " +
+                                std::to_string(np));
+  }
+  Eigen::VectorXd p = GetParameters();
+  Eigen::VectorXd h(np);
+  for (int j = 0; j < np; ++j) {
+    h[j] = opt.parameter_steps.empty()
+               ? opt.relative_step * std::max(std::abs(p[j]), opt.step_floor)
+               : opt.parameter_steps[j];
+    if (!(h[j] > 0)) throw std::invalid_argument("parameter step must be positive");
+  }
+  return h;
+}
+
+double Simulator::JacobianCostPerStep(JacobianMode mode, const JacobianOptions& opt) const {
+  const int np = params_.size();
+  const int ncol = np + (opt.initial_state ? dims_.nx : 0);
+  const double sides = opt.central ? 2.0 : 1.0;
+  switch (mode) {
+    case JacobianMode::kDirectional:
+    case JacobianMode::kWholeRollout:
+      return sides * ncol;
+    case JacobianMode::kMatrix: {
+      // transitionFD: nominal step, qpos columns (full), qvel (skip POS), act (skip VEL);
+      // one base forward; one perturbed step per parameter skipping its stages
+      double cost = 2.0 + sides * (dims_.nv + kCostSkipPos * dims_.nv + kCostSkipVel * dims_.na);
+      for (int j = 0; j < np; ++j) cost += sides * StageCost(params_[j].stage());
+      return cost;
+    }
+    case JacobianMode::kAuto:
+      break;
+  }
+  return JacobianCostPerStep(ChooseJacobianMode(opt), opt);
+}
+
+JacobianMode Simulator::ChooseJacobianMode(const JacobianOptions& opt) const {
+  if (opt.mode != JacobianMode::kAuto) return opt.mode;
+  // mjd_transitionFD rejects RK4 and history (delays)
+  const bool matrix_ok = model_->opt.integrator != mjINT_RK4 && model_->nhistory == 0;
+  if (matrix_ok && JacobianCostPerStep(JacobianMode::kMatrix, opt) <
+                       JacobianCostPerStep(JacobianMode::kDirectional, opt)) {
+    return JacobianMode::kMatrix;
+  }
+  return JacobianMode::kDirectional;
+}
+
+void Simulator::DirectionalColumn(Worker& w, int seq_index, const Trajectory& nom,
+                                  const JacobianOptions& opt, int col, const Eigen::VectorXd& steps,
+                                  Sensitivity* out, std::string* warning) const {
+  const int np = params_.size(), nx = dims_.nx, ns = options_.sensors ? dims_.ns : 0;
+  const int T = nom.T;
+  mjData* d = w.data.get();
+  const bool is_param = col < np;
+  const double h = is_param ? steps[col] : opt.state_step;
+
+  // perturbed models: parameter col at p +- h (state columns use the nominal values)
+  mj_copyModel(w.plus.get(), model_.get());
+  if (opt.central) mj_copyModel(w.minus.get(), model_.get());
+  if (is_param) {
+    const double p = params_[col].Read(*model_);
+    params_.WriteOne(w.plus.get(), d, col, p + h);
+    if (opt.central) params_.WriteOne(w.minus.get(), d, col, p - h);
+  }
+
+  // S_0: zero for a parameter, the unit tangent direction for an initial-state column
+  w.s.setZero(nx);
+  if (!is_param) w.s[col - np] = 1.0;
+  if (opt.state_jacobians) out->DxDp.block(0, col, nx, 1) = w.s;
+  ClearSimulationWarnings(d);
+  double max_growth = 0;
+  int growth_step = -1;
+
+  for (int k = 0; k < T; ++k) {
+    // plus side: nominal full state moved along h*S_k, parameter at p+h, one step
+    mj_setState(w.plus.get(), d, nom.full.row(k).data(), kFullStateSig);
+    TangentPerturb(*w.plus, d, w.s.data(), h);
+    StepSkip(w.plus.get(), d, mjSTAGE_NONE, !options_.sensors);
+    CheckStep(*d, seq_index, k, "perturbed step");
+    GetPhysics(*w.plus, *d, w.xp.data());
+    if (ns) mju_copy(w.yp.data(), d->sensordata, ns);
+
+    if (opt.central) {
+      // minus side: along -h*S_k with the parameter at p-h
+      mj_setState(w.minus.get(), d, nom.full.row(k).data(), kFullStateSig);
+      TangentPerturb(*w.minus, d, w.s.data(), -h);
+      StepSkip(w.minus.get(), d, mjSTAGE_NONE, !options_.sensors);
+      CheckStep(*d, seq_index, k, "perturbed step");
+      GetPhysics(*w.minus, *d, w.xm.data());
+      if (ns) mju_copy(w.ym.data(), d->sensordata, ns);
+      TangentDifference(*model_, w.xm.data(), w.xp.data(), 0.5 / h, w.s_next.data());
+      for (int i = 0; i < ns; ++i) out->DyDp(k * ns + i, col) = (w.yp[i] - w.ym[i]) * (0.5 / h);
+    } else {
+      TangentDifference(*model_, nom.states.row(k + 1).data(), w.xp.data(), 1.0 / h,
+                        w.s_next.data());
+      for (int i = 0; i < ns; ++i) {
+        out->DyDp(k * ns + i, col) = (w.yp[i] - nom.sensors(k, i)) * (1.0 / h);
+      }
+    }
+
+    // S_{k+1}
+    w.s.swap(w.s_next);
+    if (opt.state_jacobians) out->DxDp.block((k + 1) * nx, col, nx, 1) = w.s;
+    const double growth = h * w.s.lpNorm<Eigen::Infinity>();
+    if (growth > max_growth) {
+      max_growth = growth;
+      if (growth > kGrowthLimit && growth_step < 0) growth_step = k + 1;
+    }
+  }
+  if (!w.s.allFinite()) {
+    throw SimulationError("perturbed step: sequence " + std::to_string(seq_index) +
+                              ": non-finite sensitivity in column " + std::to_string(col),
+                          seq_index, T);
+  }
+  if (growth_step >= 0) {
+    *warning = std::string(
+        "column " + std::to_string(col) +
+        ": sensitivity grew so that h*|S| = " + TimeString(max_growth) + " (> " +
+        TimeString(kGrowthLimit) + ") from step " + std::to_string(growth_step) +
+        ": finite differences are no longer local; shorten the horizon (multiple shooting)");
+  }
+}
+
+void Simulator::WholeRolloutColumn(Worker& w, const SequenceInput& seq, int seq_index,
+                                   const Trajectory& nom, const JacobianOptions& opt, int col,
+                                   const Eigen::VectorXd& steps, Sensitivity* out) const {
+  const int np = params_.size(), nx = dims_.nx, ns = options_.sensors ? dims_.ns : 0;
+  const int T = nom.T;
+  mjData* d = w.data.get();
+  const bool is_param = col < np;
+  const double h = is_param ? steps[col] : opt.state_step;
+  w.e.setZero(nx);
+  if (!is_param) w.e[col - np] = 1.0;
+
+  // one whole rollout per side, from x_0 (+-) h e with the parameter at p +- h
+  auto side = [&](mjModel* m, double sign, RowMatrix* states, RowMatrix* sensors) {
+    mj_copyModel(m, model_.get());
+    if (is_param) params_.WriteOne(m, d, col, params_[col].Read(*model_) + sign * h);
+    SetInitialState(d, seq.x0);
+    TangentPerturb(*m, d, w.e.data(), sign * h);
+    RolloutOne(w, m, seq, seq_index, states, sensors, nullptr);
+  };
+  side(w.plus.get(), 1.0, &w.states_p, &w.sensors_p);
+  if (opt.central) side(w.minus.get(), -1.0, &w.states_m, &w.sensors_m);
+  const RowMatrix& base_states = opt.central ? w.states_m : nom.states;
+  const RowMatrix& base_sensors = opt.central ? w.sensors_m : nom.sensors;
+  const double inv = opt.central ? 0.5 / h : 1.0 / h;
+
+  // differences of the whole trajectories
+  for (int k = 0; k <= T; ++k) {
+    TangentDifference(*model_, base_states.row(k).data(), w.states_p.row(k).data(), inv,
+                      w.s.data());
+    if (opt.state_jacobians) out->DxDp.block(k * nx, col, nx, 1) = w.s;
+    if (k < T) {
+      for (int i = 0; i < ns; ++i) {
+        out->DyDp(k * ns + i, col) = (w.sensors_p(k, i) - base_sensors(k, i)) * inv;
+      }
+    }
+  }
+}
+
+void Simulator::MatrixJacobian(int seq_index, const Trajectory& nom, const JacobianOptions& opt,
+                               const Eigen::VectorXd& steps, Sensitivity* out) {
+  const int np = params_.size(), nx = dims_.nx, ns = options_.sensors ? dims_.ns : 0;
+  const int ncol = out->ncol, T = nom.T;
+  const int chunk = std::min(T, 64 * pool_.size());
+
+  // parameters ordered so that each group's skipped stages were computed by the base forward or
+  // recomputed by an earlier group: actuation first, then velocity, then position parameters
+  std::vector<int> order(np);
+  for (int j = 0; j < np; ++j) order[j] = j;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](int a, int b) { return params_[a].stage() > params_[b].stage(); });
+
+  // per-step blocks of one chunk
+  std::vector<double> A(static_cast<size_t>(chunk) * nx * nx);
+  std::vector<double> C(static_cast<size_t>(chunk) * ns * nx);
+  RowMatrix F(static_cast<size_t>(chunk) * nx, np), G(static_cast<size_t>(chunk) * ns, np);
+
+  // S_0 = [0 | I]
+  RowMatrix S = RowMatrix::Zero(nx, ncol), S_next(nx, ncol);
+  if (opt.initial_state) S.rightCols(nx).setIdentity();
+
+  for (int k0 = 0; k0 < T; k0 += chunk) {
+    const int kn = std::min(chunk, T - k0);
+    // step Jacobians of this chunk, in parallel over time steps
+    pool_.ParallelFor(kn, [&](int worker, int kk) {
+      Worker& w = *workers_[worker];
+      mjData* d = w.data.get();
+      const int k = k0 + kk;
+      const double* full = nom.full.row(k).data();
+      ClearSimulationWarnings(d);
+      mj_setState(model_.get(), d, full, kFullStateSig);
+      mjd_transitionFD(model_.get(), d, opt.state_step, opt.central ? 1 : 0,
+                       A.data() + static_cast<size_t>(kk) * nx * nx, nullptr,
+                       ns ? C.data() + static_cast<size_t>(kk) * ns * nx : nullptr, nullptr);
+      CheckStep(*d, seq_index, k, "mjd_transitionFD");
+      if (np == 0) return;
+      // base: every stage at x_k with the nominal model
+      mj_setState(model_.get(), d, full, kFullStateSig);
+      mj_forward(model_.get(), d);
+      for (int j : order) {
+        const double h = steps[j];
+        const int skip = params_[j].stage();
+        mj_setState(w.param_plus[j].get(), d, full, kFullStateSig);
+        StepSkip(w.param_plus[j].get(), d, skip, !options_.sensors);
+        CheckStep(*d, seq_index, k, "perturbed step");
+        GetPhysics(*model_, *d, w.xp.data());
+        if (ns) mju_copy(w.yp.data(), d->sensordata, ns);
+        double* Fcol = w.s_next.data();
+        if (opt.central) {
+          mj_setState(w.param_minus[j].get(), d, full, kFullStateSig);
+          StepSkip(w.param_minus[j].get(), d, skip, !options_.sensors);
+          CheckStep(*d, seq_index, k, "perturbed step");
+          GetPhysics(*model_, *d, w.xm.data());
+          if (ns) mju_copy(w.ym.data(), d->sensordata, ns);
+          TangentDifference(*model_, w.xm.data(), w.xp.data(), 0.5 / h, Fcol);
+          for (int i = 0; i < ns; ++i) G(kk * ns + i, j) = (w.yp[i] - w.ym[i]) * (0.5 / h);
+        } else {
+          TangentDifference(*model_, nom.states.row(k + 1).data(), w.xp.data(), 1.0 / h, Fcol);
+          for (int i = 0; i < ns; ++i) G(kk * ns + i, j) = (w.yp[i] - nom.sensors(k, i)) / h;
+        }
+        for (int i = 0; i < nx; ++i) F(kk * nx + i, j) = Fcol[i];
+      }
+    });
+
+    // chain through the chunk: dy_k = C_k S_k + G_k, S_{k+1} = A_k S_k + F_k
+    for (int kk = 0; kk < kn; ++kk) {
+      const int k = k0 + kk;
+      Eigen::Map<const RowMatrix> Ak(A.data() + static_cast<size_t>(kk) * nx * nx, nx, nx);
+      if (opt.state_jacobians) out->DxDp.middleRows(k * nx, nx) = S;
+      if (ns) {
+        Eigen::Map<const RowMatrix> Ck(C.data() + static_cast<size_t>(kk) * ns * nx, ns, nx);
+        auto dy = out->DyDp.middleRows(k * ns, ns);
+        dy.noalias() = Ck * S;
+        dy.leftCols(np) += G.middleRows(kk * ns, ns);
+      }
+      S_next.noalias() = Ak * S;
+      S_next.leftCols(np) += F.middleRows(kk * nx, nx);
+      S.swap(S_next);
+    }
+  }
+  if (opt.state_jacobians) out->DxDp.middleRows(T * nx, nx) = S;
+  if (!S.allFinite()) {
+    throw SimulationError(
+        "matrix chain: sequence " + std::to_string(seq_index) + ": non-finite sensitivity",
+        seq_index, T);
+  }
+}
+
+void Simulator::Jacobians(const std::vector<SequenceInput>& sequences,
+                          const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
+                          std::vector<Sensitivity>* out) {
+  CheckInputs(sequences);
+  if (nominal.size() != sequences.size()) {
+    throw std::invalid_argument("Jacobians: " + std::to_string(sequences.size()) +
+                                " sequences but " + std::to_string(nominal.size()) +
+                                " nominal trajectories");
+  }
+  const int np = params_.size(), nx = dims_.nx, ns = options_.sensors ? dims_.ns : 0;
+  const int ncol = np + (opt.initial_state ? nx : 0);
+  const JacobianMode mode = ChooseJacobianMode(opt);
+  if (mode == JacobianMode::kMatrix &&
+      (model_->opt.integrator == mjINT_RK4 || model_->nhistory > 0)) {
+    throw std::invalid_argument(
+        "Jacobian mode 'matrix' needs mjd_transitionFD, which supports neither the RK4 "
+        "integrator nor delays (history); use 'directional'");
+  }
+  const Eigen::VectorXd steps = ParameterSteps(opt);
+
+  // size outputs
+  out->assign(sequences.size(), Sensitivity());
+  for (size_t i = 0; i < sequences.size(); ++i) {
+    const Trajectory& tr = nominal[i];
+    if (tr.T != sequences[i].ctrl.rows() || tr.full.rows() != tr.T + 1) {
+      throw std::invalid_argument("Jacobians: nominal trajectory " + std::to_string(i) +
+                                  " does not match its sequence (call Rollout first)");
+    }
+    Sensitivity& s = (*out)[i];
+    s.mode = mode;
+    s.ncol = ncol;
+    s.DyDp.setZero(static_cast<Eigen::Index>(tr.T) * ns, ncol);
+    if (opt.state_jacobians) s.DxDp.setZero(static_cast<Eigen::Index>(tr.T + 1) * nx, ncol);
+  }
+  if (ncol == 0) return;
+
+  // worker scratch
+  for (auto& w : workers_) {
+    w->s.resize(nx);
+    w->s_next.resize(nx);
+    w->e.resize(nx);
+    w->xp.resize(dims_.nphys);
+    w->xm.resize(dims_.nphys);
+    w->yp.resize(ns);
+    w->ym.resize(ns);
+  }
+
+  if (mode == JacobianMode::kMatrix) {
+    // one perturbed model per parameter and side, per worker
+    for (auto& w : workers_) {
+      w->param_plus.resize(np);
+      w->param_minus.resize(opt.central ? np : 0);
+      for (int j = 0; j < np; ++j) {
+        const double p = params_[j].Read(*model_);
+        if (!w->param_plus[j]) w->param_plus[j] = CopyModel(*model_);
+        mj_copyModel(w->param_plus[j].get(), model_.get());
+        params_.WriteOne(w->param_plus[j].get(), w->data.get(), j, p + steps[j]);
+        if (opt.central) {
+          if (!w->param_minus[j]) w->param_minus[j] = CopyModel(*model_);
+          mj_copyModel(w->param_minus[j].get(), model_.get());
+          params_.WriteOne(w->param_minus[j].get(), w->data.get(), j, p - steps[j]);
+        }
+      }
+    }
+    for (size_t i = 0; i < sequences.size(); ++i) {
+      MatrixJacobian(static_cast<int>(i), nominal[i], opt, steps, &(*out)[i]);
+    }
+    return;
+  }
+
+  // directional and whole-rollout: one task per (sequence, column)
+  if (mode == JacobianMode::kWholeRollout) {
+    for (size_t i = 0; i < sequences.size(); ++i) {
+      for (auto& w : workers_) {
+        const Eigen::Index rows = nominal[i].T + 1;
+        if (w->states_p.rows() < rows) {
+          w->states_p.resize(rows, dims_.nphys);
+          w->states_m.resize(rows, dims_.nphys);
+          w->sensors_p.resize(rows, ns);
+          w->sensors_m.resize(rows, ns);
+        }
+      }
+    }
+  }
+  // each task writes its own column and its own warning slot, so no two tasks share an output
+  const int nseq = static_cast<int>(sequences.size());
+  std::vector<std::string> warnings(static_cast<size_t>(nseq) * ncol);
+  pool_.ParallelFor(nseq * ncol, [&](int worker, int task) {
+    const int i = task / ncol, col = task % ncol;
+    Worker& w = *workers_[worker];
+    if (mode == JacobianMode::kDirectional) {
+      DirectionalColumn(w, i, nominal[i], opt, col, steps, &(*out)[i], &warnings[task]);
+    } else {
+      WholeRolloutColumn(w, sequences[i], i, nominal[i], opt, col, steps, &(*out)[i]);
+    }
+  });
+  for (int task = 0; task < nseq * ncol; ++task) {
+    if (!warnings[task].empty()) (*out)[task / ncol].warnings.push_back(warnings[task]);
+  }
+}
+
+Sensitivity Simulator::Jacobians(const SequenceInput& sequence, const Trajectory& nominal,
+                                 const JacobianOptions& options) {
+  std::vector<Sensitivity> out;
+  Jacobians({sequence}, {nominal}, options, &out);
+  return std::move(out[0]);
+}
+
+}  // namespace mjsysid

@@ -1,0 +1,172 @@
+// Rollouts of a MuJoCo model and their Jacobians with respect to selected model parameters and the
+// initial state, chained through the multi-step simulation.
+//
+// Time convention (../shared/DESIGN.md §3): sample k of a sequence is (t_k, u_k, y_k) with
+//   y_k     = h(x_k, u_k; p)   the sensors MuJoCo computes at state x_k with control u_k,
+//   x_{k+1} = f(x_k, u_k; p)   one mj_step.
+// A rollout of T samples records x_0 .. x_T (T+1 states) and y_0 .. y_{T-1} (T sensor rows).
+//
+// Jacobians (forward mode): S_k = dx_k/dcol in tangent space (nx = 2nv+na rows, layout of
+// mjd_transitionFD), S_{k+1} = A_k S_k + F_k and dy_k/dcol = C_k S_k + G_k. Columns are the
+// selected parameters (in ParameterSet order) followed, if requested, by the nx tangent directions
+// of x_0. Three ways to compute them, equal up to finite-difference error (tested):
+// - kDirectional: one perturbed step per column per time step, from the stored nominal state moved
+//   along h*S_k with the parameter at p+h. Cost ~ T*ncol steps; parallel over columns.
+// - kMatrix: A_k, C_k from mjd_transitionFD and F_k, G_k by one perturbed step per parameter that
+//   skips the pipeline stages the parameter cannot affect; then the chain. Parallel over time
+//   steps.
+// - kWholeRollout: whole perturbed rollouts (what mujoco.sysid does); kept as oracle and baseline.
+// kAuto picks the cheaper of the first two from the counts (ChooseJacobianMode).
+//
+// Ownership and threads: a Simulator owns a private copy of the model (the caller's model is never
+// modified), a persistent thread pool, and one mjData and model copy per worker. Every output is
+// computed by exactly one task whose inputs do not depend on the worker, so results are
+// bit-identical for any thread count.
+//
+// Failure: a MuJoCo warning (bad qpos/qvel/qacc, buffer overflow) or a non-finite value in any
+// nominal or perturbed step throws SimulationError naming the sequence, step and time; MuJoCo
+// errors throw MujocoError. Bad arguments (shapes) throw std::invalid_argument.
+#pragma once
+
+#include <mujoco/mujoco.h>
+
+#include <Eigen/Core>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "core/mujoco_env.h"
+#include "core/parameters.h"
+#include "core/state.h"
+#include "core/thread_pool.h"
+
+namespace mjsysid {
+
+class SimulationError : public std::runtime_error {
+ public:
+  SimulationError(const std::string& what, int sequence, int step)
+      : std::runtime_error(what), sequence_(sequence), step_(step) {}
+  int sequence() const { return sequence_; }
+  int step() const { return step_; }
+
+ private:
+  int sequence_;
+  int step_;
+};
+
+struct SimulatorOptions {
+  int threads = 1;                      // workers; <= 0: all cores
+  bool fixed_solver_iterations = true;  // opt.tolerance = 0 on the private copy, so nominal and
+                                        // perturbed steps run the same solver iterations
+  bool sensors = true;                  // false: no sensor work anywhere (mjDSBL_SENSOR)
+};
+
+// Initial state of a sequence. Empty qvel/act mean zeros; empty qpos means the model's qpos0.
+struct InitialState {
+  Eigen::VectorXd qpos, qvel, act;
+  double time = 0;
+};
+
+// One sequence to simulate: initial state and controls (T x nu, row k = u_k).
+struct SequenceInput {
+  InitialState x0;
+  RowMatrix ctrl;
+};
+
+struct Trajectory {
+  int T = 0;          // samples
+  RowMatrix states;   // (T+1) x (nq+nv+na): x_0 .. x_T
+  RowMatrix sensors;  // T x nsensordata: y_0 .. y_{T-1} (0 columns when sensors are off)
+  RowMatrix full;     // (T+1) x nfull: full state (kFullStateSig) before step k, with u_k set
+};
+
+enum class JacobianMode { kAuto, kDirectional, kMatrix, kWholeRollout };
+const char* JacobianModeName(JacobianMode mode);
+
+struct JacobianOptions {
+  JacobianMode mode = JacobianMode::kAuto;
+  bool central = false;         // central instead of forward differences (twice the steps)
+  double relative_step = 1e-6;  // parameter step h_j = relative_step * max(|p_j|, step_floor)
+  double step_floor = 1e-3;
+  std::vector<double> parameter_steps;  // absolute steps per parameter (overrides), or empty
+  double state_step = 1e-6;     // absolute step for state directions (initial state, mjd_*FD)
+  bool initial_state = false;   // add the nx columns of dx_0
+  bool state_jacobians = true;  // fill DxDp (dy/dcol is always filled when sensors are on)
+};
+
+struct Sensitivity {
+  JacobianMode mode = JacobianMode::kAuto;  // the mode that was used
+  int ncol = 0;                             // np (+ nx with initial_state)
+  RowMatrix DyDp;                           // (T*ns) x ncol: row k*ns + i is d y_k[i] / d column
+  RowMatrix DxDp;  // ((T+1)*nx) x ncol: row k*nx + i is d x_k[i] / d column (tangent space)
+  std::vector<std::string> warnings;  // e.g. a sensitivity that grew past what FD can follow
+};
+
+class Simulator {
+ public:
+  // copies m; resolves the parameters (throws ParameterError)
+  Simulator(const mjModel& m, const std::vector<ParameterSpec>& params,
+            const SimulatorOptions& options = SimulatorOptions());
+  ~Simulator();
+
+  const mjModel& model() const { return *model_; }
+  const ParameterSet& parameters() const { return params_; }
+  const StateDims& dims() const { return dims_; }
+  const SimulatorOptions& options() const { return options_; }
+  int threads() const { return pool_.size(); }
+
+  // current parameter values (length np)
+  Eigen::VectorXd GetParameters() const;
+  // writes parameter values into the private model (mj_setConst where needed)
+  void SetParameters(const Eigen::VectorXd& values);
+
+  // the model's reference state: qpos0, zero velocity and activation
+  InitialState ReferenceState() const;
+
+  // nominal rollouts, in parallel across sequences
+  void Rollout(const std::vector<SequenceInput>& sequences, std::vector<Trajectory>* out);
+  Trajectory Rollout(const SequenceInput& sequence);
+
+  // Jacobians around nominal trajectories computed by Rollout with the current parameters
+  void Jacobians(const std::vector<SequenceInput>& sequences,
+                 const std::vector<Trajectory>& nominal, const JacobianOptions& options,
+                 std::vector<Sensitivity>* out);
+  Sensitivity Jacobians(const SequenceInput& sequence, const Trajectory& nominal,
+                        const JacobianOptions& options);
+
+  // the mode kAuto resolves to for these options (deterministic: counts only)
+  JacobianMode ChooseJacobianMode(const JacobianOptions& options) const;
+
+  // estimated cost of the Jacobian of one time step, in units of one full mj_step
+  double JacobianCostPerStep(JacobianMode mode, const JacobianOptions& options) const;
+
+  // parameter steps h_j used for the current values
+  Eigen::VectorXd ParameterSteps(const JacobianOptions& options) const;
+
+ private:
+  struct Worker;
+  void CheckInputs(const std::vector<SequenceInput>& sequences) const;
+  void SetInitialState(mjData* d, const InitialState& x0) const;
+  void RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq, int seq_index,
+                  RowMatrix* states, RowMatrix* sensors, RowMatrix* full) const;
+  void DirectionalColumn(Worker& w, int seq_index, const Trajectory& nom,
+                         const JacobianOptions& opt, int col, const Eigen::VectorXd& steps,
+                         Sensitivity* out, std::string* warning) const;
+  void WholeRolloutColumn(Worker& w, const SequenceInput& seq, int seq_index, const Trajectory& nom,
+                          const JacobianOptions& opt, int col, const Eigen::VectorXd& steps,
+                          Sensitivity* out) const;
+  void MatrixJacobian(int seq_index, const Trajectory& nom, const JacobianOptions& opt,
+                      const Eigen::VectorXd& steps, Sensitivity* out);
+  void CheckStep(const mjData& d, int seq_index, int step, const char* what) const;
+
+  ModelPtr model_;
+  ParameterSet params_;
+  StateDims dims_;
+  SimulatorOptions options_;
+  ThreadPool pool_;
+  DataPtr scratch_;  // for mj_setConst on model_
+  std::vector<std::unique_ptr<Worker>> workers_;
+};
+
+}  // namespace mjsysid

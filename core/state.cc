@@ -1,0 +1,67 @@
+#include "core/state.h"
+
+namespace mjsysid {
+
+StateDims::StateDims(const mjModel& m)
+    : nq(static_cast<int>(m.nq)),
+      nv(static_cast<int>(m.nv)),
+      na(static_cast<int>(m.na)),
+      nu(static_cast<int>(m.nu)),
+      ns(static_cast<int>(m.nsensordata)),
+      nphys(nq + nv + na),
+      nx(2 * nv + na),
+      nfull(mj_stateSize(&m, kFullStateSig)) {}
+
+void GetPhysics(const mjModel& m, const mjData& d, double* x) {
+  mju_copy(x, d.qpos, static_cast<int>(m.nq));
+  mju_copy(x + m.nq, d.qvel, static_cast<int>(m.nv));
+  mju_copy(x + m.nq + m.nv, d.act, static_cast<int>(m.na));
+}
+
+void SetPhysics(const mjModel& m, mjData* d, const double* x) {
+  mju_copy(d->qpos, x, static_cast<int>(m.nq));
+  mju_copy(d->qvel, x + m.nq, static_cast<int>(m.nv));
+  mju_copy(d->act, x + m.nq + m.nv, static_cast<int>(m.na));
+}
+
+void TangentDifference(const mjModel& m, const double* x1, const double* x2, double inv_scale,
+                       double* dx) {
+  const int nq = static_cast<int>(m.nq), nv = static_cast<int>(m.nv), na = static_cast<int>(m.na);
+  // positions: manifold difference, (q2 - q1) / dt with dt = 1/inv_scale
+  mj_differentiatePos(&m, dx, 1.0 / inv_scale, x1, x2);
+  // velocities and activations: vector difference
+  for (int i = 0; i < nv; ++i) dx[nv + i] = (x2[nq + i] - x1[nq + i]) * inv_scale;
+  for (int i = 0; i < na; ++i) dx[2 * nv + i] = (x2[nq + nv + i] - x1[nq + nv + i]) * inv_scale;
+}
+
+void TangentPerturb(const mjModel& m, mjData* d, const double* dx, double scale) {
+  const int nv = static_cast<int>(m.nv), na = static_cast<int>(m.na);
+  // positions: integrate along the velocity-space direction for "time" scale
+  mj_integratePos(&m, d->qpos, dx, scale);
+  for (int i = 0; i < nv; ++i) d->qvel[i] += scale * dx[nv + i];
+  for (int i = 0; i < na; ++i) d->act[i] += scale * dx[2 * nv + i];
+}
+
+void StepSkip(const mjModel* m, mjData* d, int skipstage, bool skipsensor) {
+  // the calls of mj_step, with the forward pass skipping what is already computed
+  mj_checkPos(m, d);
+  mj_checkVel(m, d);
+  mj_forwardSkip(m, d, skipstage, skipsensor ? 1 : 0);
+  mj_checkAcc(m, d);
+  switch (m->opt.integrator) {
+    case mjINT_EULER:
+      mj_Euler(m, d);
+      break;
+    case mjINT_RK4:
+      mj_RungeKutta(m, d, 4);
+      break;
+    case mjINT_IMPLICIT:
+    case mjINT_IMPLICITFAST:
+      mj_implicit(m, d);
+      break;
+    default:
+      mju_error("StepSkip: invalid integrator %d", m->opt.integrator);
+  }
+}
+
+}  // namespace mjsysid

@@ -1,0 +1,54 @@
+// States, tangent-space arithmetic and the stepping primitive of the core.
+//
+// Vocabulary (see ../shared/DESIGN.md §3-4):
+// - physics vector x = [qpos (nq), qvel (nv), act (na)]: what a log records per sample.
+// - tangent vector dx = [dq (nv), dv (nv), da (na)], nx = 2nv + na: the layout of mjd_transitionFD.
+//   Positions are perturbed with mj_integratePos and compared with mj_differentiatePos, so ball
+//   and free joints (quaternions) are handled in their body frame. Never subtract qpos directly.
+// - full state: everything a step reads (mjSTATE_INTEGRATION: time, qpos, qvel, act, history,
+//   warmstart, ctrl, applied forces, mocap, ...). Saved and restored by mjtState names.
+#pragma once
+
+#include <mujoco/mujoco.h>
+
+#include <Eigen/Core>
+
+namespace mjsysid {
+
+// row-major dense matrix: row k of a trajectory is sample k (and Ceres wants row-major Jacobians)
+using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+// the state signature saved for every recorded step
+constexpr unsigned int kFullStateSig = mjSTATE_INTEGRATION;
+
+// sizes of one model's state spaces
+struct StateDims {
+  explicit StateDims(const mjModel& m);
+  int nq, nv, na, nu;
+  int ns;     // nsensordata
+  int nphys;  // nq + nv + na: physics vector
+  int nx;     // 2 nv + na: tangent vector
+  int nfull;  // mj_stateSize(m, kFullStateSig)
+};
+
+// reads the physics vector [qpos, qvel, act] of d into x (length nphys)
+void GetPhysics(const mjModel& m, const mjData& d, double* x);
+
+// writes the physics vector x into d (qpos, qvel, act)
+void SetPhysics(const mjModel& m, mjData* d, const double* x);
+
+// dx = (x2 (-) x1) * inv_scale in tangent space; x1, x2 physics vectors, dx of length nx
+void TangentDifference(const mjModel& m, const double* x1, const double* x2, double inv_scale,
+                       double* dx);
+
+// perturbs d's qpos, qvel, act in place along the tangent vector dx scaled by scale
+void TangentPerturb(const mjModel& m, mjData* d, const double* dx, double scale);
+
+// one step of the simulation that skips the pipeline stages before skipstage (mjtStage), and the
+// sensors if skipsensor. With mjSTAGE_NONE and skipsensor = false it computes exactly what mj_step
+// computes (same calls in the same order; tested bit for bit). Skipping is valid only when the
+// quantities of the skipped stages in d were computed at the same qpos/qvel by a model that agrees
+// with m in everything those stages read.
+void StepSkip(const mjModel* m, mjData* d, int skipstage, bool skipsensor);
+
+}  // namespace mjsysid
