@@ -16,6 +16,9 @@ constexpr double kCostSkipVel = 0.4;
 // a perturbation h*|S| past this (in state units) is no longer a local finite difference
 constexpr double kGrowthLimit = 1e-2;
 
+// forward and backward differences further apart than this (relative) straddle a kink
+constexpr double kKinkTolerance = 0.1;
+
 double StageCost(int skipstage) {
   if (skipstage == mjSTAGE_VEL) return kCostSkipVel;
   if (skipstage == mjSTAGE_POS) return kCostSkipPos;
@@ -26,6 +29,34 @@ std::string TimeString(double t) {
   char buf[32];
   std::snprintf(buf, sizeof(buf), "%.6g", t);
   return buf;
+}
+
+// Chooses between one-sided differences of a column (states dx and sensors dy, each forward
+// [fx, fy] and backward [bx, by]). Returns true when the sides disagree (a kink): then out = the
+// smaller side; else out = their mean (central) or the forward side.
+template <typename X, typename Y, typename OX, typename OY>
+bool CombineSides(const X& fx, const X& bx, const Y& fy, const Y& by, bool central, OX&& out_x,
+                  OY&& out_y) {
+  const double nfx = fx.template lpNorm<Eigen::Infinity>();
+  const double nbx = bx.template lpNorm<Eigen::Infinity>();
+  const double nfy = fy.size() ? fy.template lpNorm<Eigen::Infinity>() : 0.0;
+  const double nby = by.size() ? by.template lpNorm<Eigen::Infinity>() : 0.0;
+  const double dx = (fx - bx).template lpNorm<Eigen::Infinity>();
+  const double dy = fy.size() ? (fy - by).template lpNorm<Eigen::Infinity>() : 0.0;
+  const bool kink = dx > kKinkTolerance * std::max(nfx, nbx) + 1e-10 ||
+                    dy > kKinkTolerance * std::max(nfy, nby) + 1e-10;
+  if (kink) {
+    const bool forward = nfx + nfy <= nbx + nby;
+    out_x = forward ? fx : bx;
+    out_y = forward ? fy : by;
+  } else if (central) {
+    out_x = 0.5 * (fx + bx);
+    out_y = 0.5 * (fy + by);
+  } else {
+    out_x = fx;
+    out_y = fy;
+  }
+  return kink;
 }
 
 }  // namespace
@@ -147,7 +178,8 @@ void Simulator::CheckStep(const mjData& d, int seq_index, int step, const char* 
 }
 
 void Simulator::RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq, int seq_index,
-                           RowMatrix* states, RowMatrix* sensors, RowMatrix* full) const {
+                           RowMatrix* states, RowMatrix* sensors, RowMatrix* full,
+                           std::vector<int>* ncon) const {
   mjData* d = w.data.get();
   const int T = static_cast<int>(seq.ctrl.rows());
   const bool want_sensors = options_.sensors && sensors && dims_.ns > 0;
@@ -159,6 +191,7 @@ void Simulator::RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq
     StepSkip(m, d, mjSTAGE_NONE, !options_.sensors);
     CheckStep(*d, seq_index, k, "simulation");
     if (want_sensors) mju_copy(sensors->row(k).data(), d->sensordata, dims_.ns);
+    if (ncon) (*ncon)[k] = d->ncon;
   }
   GetPhysics(*m, *d, states->row(T).data());
   if (full) mj_getState(m, d, full->row(T).data(), kFullStateSig);
@@ -179,12 +212,13 @@ void Simulator::Rollout(const std::vector<SequenceInput>& sequences, std::vector
     tr.states.resize(tr.T + 1, dims_.nphys);
     tr.sensors.resize(tr.T, options_.sensors ? dims_.ns : 0);
     tr.full.resize(tr.T + 1, dims_.nfull);
+    tr.ncon.assign(tr.T, 0);
   }
   pool_.ParallelFor(static_cast<int>(sequences.size()), [&](int worker, int i) {
     Worker& w = *workers_[worker];
     Trajectory& tr = (*out)[i];
     SetInitialState(w.data.get(), sequences[i].x0);
-    RolloutOne(w, model_.get(), sequences[i], i, &tr.states, &tr.sensors, &tr.full);
+    RolloutOne(w, model_.get(), sequences[i], i, &tr.states, &tr.sensors, &tr.full, &tr.ncon);
   });
 }
 
@@ -246,20 +280,20 @@ JacobianMode Simulator::ChooseJacobianMode(const JacobianOptions& opt) const {
 
 void Simulator::DirectionalColumn(Worker& w, int seq_index, const Trajectory& nom,
                                   const JacobianOptions& opt, int col, const Eigen::VectorXd& steps,
-                                  Sensitivity* out, std::string* warning) const {
+                                  Sensitivity* out, std::string* warning, int* kinks) const {
   const int np = params_.size(), nx = dims_.nx, ns = options_.sensors ? dims_.ns : 0;
   const int T = nom.T;
   mjData* d = w.data.get();
   const bool is_param = col < np;
   const double h = is_param ? steps[col] : opt.state_step;
 
-  // perturbed models: parameter col at p +- h (state columns use the nominal values)
+  // perturbed models: parameter col at p + h and p - h (state columns use the nominal values)
   mj_copyModel(w.plus.get(), model_.get());
-  if (opt.central) mj_copyModel(w.minus.get(), model_.get());
+  mj_copyModel(w.minus.get(), model_.get());
   if (is_param) {
     const double p = params_[col].Read(*model_);
     params_.WriteOne(w.plus.get(), d, col, p + h);
-    if (opt.central) params_.WriteOne(w.minus.get(), d, col, p - h);
+    params_.WriteOne(w.minus.get(), d, col, p - h);
   }
 
   // S_0: zero for a parameter, the unit tangent direction for an initial-state column
@@ -270,32 +304,28 @@ void Simulator::DirectionalColumn(Worker& w, int seq_index, const Trajectory& no
   double max_growth = 0;
   int growth_step = -1;
 
-  for (int k = 0; k < T; ++k) {
-    // plus side: nominal full state moved along h*S_k, parameter at p+h, one step
-    mj_setState(w.plus.get(), d, nom.full.row(k).data(), kFullStateSig);
-    TangentPerturb(*w.plus, d, w.s.data(), h);
-    StepSkip(w.plus.get(), d, mjSTAGE_NONE, !options_.sensors);
+  // one perturbed step from the nominal x_k moved along sign*h*S_k, parameter at p + sign*h:
+  // leaves the one-sided difference quotients of x_{k+1} and y_k in dx, dy
+  auto side = [&](mjModel* m, double sign, int k, Eigen::VectorXd& dx, Eigen::VectorXd& dy) {
+    mj_setState(m, d, nom.full.row(k).data(), kFullStateSig);
+    TangentPerturb(*m, d, w.s.data(), sign * h);
+    StepSkip(m, d, mjSTAGE_NONE, !options_.sensors);
     CheckStep(*d, seq_index, k, "perturbed step");
-    GetPhysics(*w.plus, *d, w.xp.data());
-    if (ns) mju_copy(w.yp.data(), d->sensordata, ns);
+    GetPhysics(*m, *d, w.xp.data());
+    TangentDifference(*model_, nom.states.row(k + 1).data(), w.xp.data(), sign / h, dx.data());
+    for (int i = 0; i < ns; ++i) dy[i] = (d->sensordata[i] - nom.sensors(k, i)) * (sign / h);
+    return d->ncon;
+  };
 
-    if (opt.central) {
-      // minus side: along -h*S_k with the parameter at p-h
-      mj_setState(w.minus.get(), d, nom.full.row(k).data(), kFullStateSig);
-      TangentPerturb(*w.minus, d, w.s.data(), -h);
-      StepSkip(w.minus.get(), d, mjSTAGE_NONE, !options_.sensors);
-      CheckStep(*d, seq_index, k, "perturbed step");
-      GetPhysics(*w.minus, *d, w.xm.data());
-      if (ns) mju_copy(w.ym.data(), d->sensordata, ns);
-      TangentDifference(*model_, w.xm.data(), w.xp.data(), 0.5 / h, w.s_next.data());
-      for (int i = 0; i < ns; ++i) out->DyDp(k * ns + i, col) = (w.yp[i] - w.ym[i]) * (0.5 / h);
-    } else {
-      TangentDifference(*model_, nom.states.row(k + 1).data(), w.xp.data(), 1.0 / h,
-                        w.s_next.data());
-      for (int i = 0; i < ns; ++i) {
-        out->DyDp(k * ns + i, col) = (w.yp[i] - nom.sensors(k, i)) * (1.0 / h);
-      }
+  for (int k = 0; k < T; ++k) {
+    // forward side; the backward side too for central differences or a contact-set change
+    const int ncon = side(w.plus.get(), 1.0, k, w.s_next, w.yp);
+    if (opt.central || ncon != nom.ncon[k]) {
+      side(w.minus.get(), -1.0, k, w.e, w.ym);
+      if (CombineSides(w.s_next, w.e, w.yp, w.ym, opt.central, w.xm.head(nx), w.yp)) ++*kinks;
+      w.s_next = w.xm.head(nx);
     }
+    for (int i = 0; i < ns; ++i) out->DyDp(k * ns + i, col) = w.yp[i];
 
     // S_{k+1}
     w.s.swap(w.s_next);
@@ -312,11 +342,11 @@ void Simulator::DirectionalColumn(Worker& w, int seq_index, const Trajectory& no
                           seq_index, T);
   }
   if (growth_step >= 0) {
-    *warning = std::string(
-        "column " + std::to_string(col) +
-        ": sensitivity grew so that h*|S| = " + TimeString(max_growth) + " (> " +
-        TimeString(kGrowthLimit) + ") from step " + std::to_string(growth_step) +
-        ": finite differences are no longer local; shorten the horizon (multiple shooting)");
+    *warning = "column " + std::to_string(col) +
+               ": sensitivity grew so that h*|S| = " + TimeString(max_growth) + " (> " +
+               TimeString(kGrowthLimit) + ") from step " + std::to_string(growth_step) +
+               ": finite differences are no longer local; shorten the horizon (multiple "
+               "shooting)";
   }
 }
 
@@ -337,7 +367,7 @@ void Simulator::WholeRolloutColumn(Worker& w, const SequenceInput& seq, int seq_
     if (is_param) params_.WriteOne(m, d, col, params_[col].Read(*model_) + sign * h);
     SetInitialState(d, seq.x0);
     TangentPerturb(*m, d, w.e.data(), sign * h);
-    RolloutOne(w, m, seq, seq_index, states, sensors, nullptr);
+    RolloutOne(w, m, seq, seq_index, states, sensors, nullptr, nullptr);
   };
   side(w.plus.get(), 1.0, &w.states_p, &w.sensors_p);
   if (opt.central) side(w.minus.get(), -1.0, &w.states_m, &w.sensors_m);
@@ -371,10 +401,13 @@ void Simulator::MatrixJacobian(int seq_index, const Trajectory& nom, const Jacob
   std::stable_sort(order.begin(), order.end(),
                    [&](int a, int b) { return params_[a].stage() > params_[b].stage(); });
 
-  // per-step blocks of one chunk
+  // per-step blocks of one chunk (A, C: forward side; Ab, Cb: backward side)
+  const bool both_sides = opt.central;
   std::vector<double> A(static_cast<size_t>(chunk) * nx * nx);
   std::vector<double> C(static_cast<size_t>(chunk) * ns * nx);
+  std::vector<double> Ab(A.size()), Cb(C.size());
   RowMatrix F(static_cast<size_t>(chunk) * nx, np), G(static_cast<size_t>(chunk) * ns, np);
+  std::vector<int> chunk_kinks(chunk, 0);
 
   // S_0 = [0 | I]
   RowMatrix S = RowMatrix::Zero(nx, ncol), S_next(nx, ncol);
@@ -389,39 +422,65 @@ void Simulator::MatrixJacobian(int seq_index, const Trajectory& nom, const Jacob
       const int k = k0 + kk;
       const double* full = nom.full.row(k).data();
       ClearSimulationWarnings(d);
+      chunk_kinks[kk] = 0;
+
+      // state columns: forward differences (eps), and backward ones (-eps) for central, so that
+      // each column can be checked for a kink (centered mjd_transitionFD cannot)
+      double* Ak = A.data() + static_cast<size_t>(kk) * nx * nx;
+      double* Ck = ns ? C.data() + static_cast<size_t>(kk) * ns * nx : nullptr;
       mj_setState(model_.get(), d, full, kFullStateSig);
-      mjd_transitionFD(model_.get(), d, opt.state_step, opt.central ? 1 : 0,
-                       A.data() + static_cast<size_t>(kk) * nx * nx, nullptr,
-                       ns ? C.data() + static_cast<size_t>(kk) * ns * nx : nullptr, nullptr);
+      mjd_transitionFD(model_.get(), d, opt.state_step, 0, Ak, nullptr, Ck, nullptr);
       CheckStep(*d, seq_index, k, "mjd_transitionFD");
+      // forward differences are checked too where the contact set may change near x_k
+      const bool contact_near = nom.ncon[k] > 0 || (k + 1 < T && nom.ncon[k + 1] != nom.ncon[k]) ||
+                                (k > 0 && nom.ncon[k - 1] != nom.ncon[k]);
+      if (both_sides || contact_near) {
+        double* Abk = Ab.data() + static_cast<size_t>(kk) * nx * nx;
+        double* Cbk = ns ? Cb.data() + static_cast<size_t>(kk) * ns * nx : nullptr;
+        mj_setState(model_.get(), d, full, kFullStateSig);
+        mjd_transitionFD(model_.get(), d, -opt.state_step, 0, Abk, nullptr, Cbk, nullptr);
+        CheckStep(*d, seq_index, k, "mjd_transitionFD");
+        Eigen::Map<RowMatrix> Af(Ak, nx, nx), Abm(Abk, nx, nx);
+        Eigen::Map<RowMatrix> Cf(Ck, ns, nx), Cbm(Cbk, ns, nx);
+        for (int c = 0; c < nx; ++c) {
+          if (CombineSides(Af.col(c), Abm.col(c), Cf.col(c), Cbm.col(c), opt.central, Af.col(c),
+                           Cf.col(c))) {
+            ++chunk_kinks[kk];
+          }
+        }
+      }
       if (np == 0) return;
-      // base: every stage at x_k with the nominal model
+
+      // parameter columns: base pass at x_k with the nominal model, then one step per parameter
+      // that skips the stages before the one the parameter enters
       mj_setState(model_.get(), d, full, kFullStateSig);
       mj_forward(model_.get(), d);
+      auto side = [&](mjModel* m, int skip, double sign, double h, Eigen::VectorXd& dx,
+                      Eigen::VectorXd& dy) {
+        mj_setState(m, d, full, kFullStateSig);
+        StepSkip(m, d, skip, !options_.sensors);
+        CheckStep(*d, seq_index, k, "perturbed step");
+        GetPhysics(*model_, *d, w.xp.data());
+        TangentDifference(*model_, nom.states.row(k + 1).data(), w.xp.data(), sign / h, dx.data());
+        for (int i = 0; i < ns; ++i) dy[i] = (d->sensordata[i] - nom.sensors(k, i)) * (sign / h);
+        return d->ncon;
+      };
       for (int j : order) {
         const double h = steps[j];
         const int skip = params_[j].stage();
-        mj_setState(w.param_plus[j].get(), d, full, kFullStateSig);
-        StepSkip(w.param_plus[j].get(), d, skip, !options_.sensors);
-        CheckStep(*d, seq_index, k, "perturbed step");
-        GetPhysics(*model_, *d, w.xp.data());
-        if (ns) mju_copy(w.yp.data(), d->sensordata, ns);
-        double* Fcol = w.s_next.data();
-        if (opt.central) {
-          mj_setState(w.param_minus[j].get(), d, full, kFullStateSig);
-          StepSkip(w.param_minus[j].get(), d, skip, !options_.sensors);
-          CheckStep(*d, seq_index, k, "perturbed step");
-          GetPhysics(*model_, *d, w.xm.data());
-          if (ns) mju_copy(w.ym.data(), d->sensordata, ns);
-          TangentDifference(*model_, w.xm.data(), w.xp.data(), 0.5 / h, Fcol);
-          for (int i = 0; i < ns; ++i) G(kk * ns + i, j) = (w.yp[i] - w.ym[i]) * (0.5 / h);
-        } else {
-          TangentDifference(*model_, nom.states.row(k + 1).data(), w.xp.data(), 1.0 / h, Fcol);
-          for (int i = 0; i < ns; ++i) G(kk * ns + i, j) = (w.yp[i] - nom.sensors(k, i)) / h;
+        const int ncon = side(w.param_plus[j].get(), skip, 1.0, h, w.s_next, w.yp);
+        if (opt.central || ncon != nom.ncon[k]) {
+          side(w.param_minus[j].get(), skip, -1.0, h, w.e, w.ym);
+          if (CombineSides(w.s_next, w.e, w.yp, w.ym, opt.central, w.xm.head(nx), w.yp)) {
+            ++chunk_kinks[kk];
+          }
+          w.s_next = w.xm.head(nx);
         }
-        for (int i = 0; i < nx; ++i) F(kk * nx + i, j) = Fcol[i];
+        F.block(static_cast<Eigen::Index>(kk) * nx, j, nx, 1) = w.s_next;
+        if (ns) G.block(static_cast<Eigen::Index>(kk) * ns, j, ns, 1) = w.yp;
       }
     });
+    for (int kk = 0; kk < kn; ++kk) out->kinks += chunk_kinks[kk];
 
     // chain through the chunk: dy_k = C_k S_k + G_k, S_{k+1} = A_k S_k + F_k
     for (int kk = 0; kk < kn; ++kk) {
@@ -498,24 +557,49 @@ void Simulator::Jacobians(const std::vector<SequenceInput>& sequences,
     // one perturbed model per parameter and side, per worker
     for (auto& w : workers_) {
       w->param_plus.resize(np);
-      w->param_minus.resize(opt.central ? np : 0);
+      w->param_minus.resize(np);
       for (int j = 0; j < np; ++j) {
         const double p = params_[j].Read(*model_);
         if (!w->param_plus[j]) w->param_plus[j] = CopyModel(*model_);
         mj_copyModel(w->param_plus[j].get(), model_.get());
         params_.WriteOne(w->param_plus[j].get(), w->data.get(), j, p + steps[j]);
-        if (opt.central) {
-          if (!w->param_minus[j]) w->param_minus[j] = CopyModel(*model_);
-          mj_copyModel(w->param_minus[j].get(), model_.get());
-          params_.WriteOne(w->param_minus[j].get(), w->data.get(), j, p - steps[j]);
-        }
+        if (!w->param_minus[j]) w->param_minus[j] = CopyModel(*model_);
+        mj_copyModel(w->param_minus[j].get(), model_.get());
+        params_.WriteOne(w->param_minus[j].get(), w->data.get(), j, p - steps[j]);
       }
     }
     for (size_t i = 0; i < sequences.size(); ++i) {
       MatrixJacobian(static_cast<int>(i), nominal[i], opt, steps, &(*out)[i]);
     }
-    return;
+  } else {
+    ColumnJacobians(sequences, nominal, opt, mode, steps, out);
   }
+  if (opt.zero_column_is_error) CheckZeroColumns(*out);
+}
+
+void Simulator::CheckZeroColumns(const std::vector<Sensitivity>& out) const {
+  // a parameter that moves nothing in any sequence cannot be fitted: say so, by name
+  for (int j = 0; j < params_.size(); ++j) {
+    bool zero = true;
+    for (const Sensitivity& s : out) {
+      zero = zero && (s.DyDp.rows() == 0 || s.DyDp.col(j).isZero(0)) &&
+             (s.DxDp.rows() == 0 || s.DxDp.col(j).isZero(0));
+    }
+    if (zero) {
+      throw ParameterError("parameter '" + params_[j].label() +
+                           "' has no effect on the simulated states or sensors of these "
+                           "sequences (its Jacobian column is exactly zero): e.g. contact "
+                           "friction without contact, or a joint that never moves. Remove it "
+                           "or add data that excites it.");
+    }
+  }
+}
+
+void Simulator::ColumnJacobians(const std::vector<SequenceInput>& sequences,
+                                const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
+                                JacobianMode mode, const Eigen::VectorXd& steps,
+                                std::vector<Sensitivity>* out) {
+  const int ncol = (*out)[0].ncol, ns = options_.sensors ? dims_.ns : 0;
 
   // directional and whole-rollout: one task per (sequence, column)
   if (mode == JacobianMode::kWholeRollout) {
@@ -534,17 +618,20 @@ void Simulator::Jacobians(const std::vector<SequenceInput>& sequences,
   // each task writes its own column and its own warning slot, so no two tasks share an output
   const int nseq = static_cast<int>(sequences.size());
   std::vector<std::string> warnings(static_cast<size_t>(nseq) * ncol);
+  std::vector<int> kinks(static_cast<size_t>(nseq) * ncol, 0);
   pool_.ParallelFor(nseq * ncol, [&](int worker, int task) {
     const int i = task / ncol, col = task % ncol;
     Worker& w = *workers_[worker];
     if (mode == JacobianMode::kDirectional) {
-      DirectionalColumn(w, i, nominal[i], opt, col, steps, &(*out)[i], &warnings[task]);
+      DirectionalColumn(w, i, nominal[i], opt, col, steps, &(*out)[i], &warnings[task],
+                        &kinks[task]);
     } else {
       WholeRolloutColumn(w, sequences[i], i, nominal[i], opt, col, steps, &(*out)[i]);
     }
   });
   for (int task = 0; task < nseq * ncol; ++task) {
     if (!warnings[task].empty()) (*out)[task / ncol].warnings.push_back(warnings[task]);
+    (*out)[task / ncol].kinks += kinks[task];
   }
 }
 

@@ -18,6 +18,12 @@
 // - kWholeRollout: whole perturbed rollouts (what mujoco.sysid does); kept as oracle and baseline.
 // kAuto picks the cheaper of the first two from the counts (ChooseJacobianMode).
 //
+// Non-smooth steps (../shared/DESIGN.md §5): a difference that straddles a contact-set change
+// spikes. Central differences are computed as the mean of a forward and a backward difference;
+// where the two disagree by more than 10% the step is non-smooth, and the smaller one-sided value
+// is used and counted in Sensitivity::kinks. Forward differences whose perturbed step finds another
+// number of contacts than the nominal step are checked the same way against the backward side.
+//
 // Ownership and threads: a Simulator owns a private copy of the model (the caller's model is never
 // modified), a persistent thread pool, and one mjData and model copy per worker. Every output is
 // computed by exactly one task whose inputs do not depend on the worker, so results are
@@ -75,10 +81,11 @@ struct SequenceInput {
 };
 
 struct Trajectory {
-  int T = 0;          // samples
-  RowMatrix states;   // (T+1) x (nq+nv+na): x_0 .. x_T
-  RowMatrix sensors;  // T x nsensordata: y_0 .. y_{T-1} (0 columns when sensors are off)
-  RowMatrix full;     // (T+1) x nfull: full state (kFullStateSig) before step k, with u_k set
+  int T = 0;              // samples
+  RowMatrix states;       // (T+1) x (nq+nv+na): x_0 .. x_T
+  RowMatrix sensors;      // T x nsensordata: y_0 .. y_{T-1} (0 columns when sensors are off)
+  RowMatrix full;         // (T+1) x nfull: full state (kFullStateSig) before step k, with u_k set
+  std::vector<int> ncon;  // T: contacts found in step k (at x_k), to detect contact-set changes
 };
 
 enum class JacobianMode { kAuto, kDirectional, kMatrix, kWholeRollout };
@@ -90,9 +97,12 @@ struct JacobianOptions {
   double relative_step = 1e-6;  // parameter step h_j = relative_step * max(|p_j|, step_floor)
   double step_floor = 1e-3;
   std::vector<double> parameter_steps;  // absolute steps per parameter (overrides), or empty
-  double state_step = 1e-6;     // absolute step for state directions (initial state, mjd_*FD)
-  bool initial_state = false;   // add the nx columns of dx_0
-  bool state_jacobians = true;  // fill DxDp (dy/dcol is always filled when sensors are on)
+  double state_step = 1e-6;          // absolute step for state directions (initial state, mjd_*FD)
+  bool initial_state = false;        // add the nx columns of dx_0
+  bool state_jacobians = true;       // fill DxDp (dy/dcol is always filled when sensors are on)
+  bool zero_column_is_error = true;  // a parameter whose column is exactly zero in every
+                                     // sequence (its write changes nothing here) throws
+                                     // ParameterError instead of returning a zero column
 };
 
 struct Sensitivity {
@@ -100,6 +110,7 @@ struct Sensitivity {
   int ncol = 0;                             // np (+ nx with initial_state)
   RowMatrix DyDp;                           // (T*ns) x ncol: row k*ns + i is d y_k[i] / d column
   RowMatrix DxDp;  // ((T+1)*nx) x ncol: row k*nx + i is d x_k[i] / d column (tangent space)
+  int kinks = 0;   // one-sided differences used where the two sides disagreed (contact onset)
   std::vector<std::string> warnings;  // e.g. a sensitivity that grew past what FD can follow
 };
 
@@ -149,15 +160,21 @@ class Simulator {
   void CheckInputs(const std::vector<SequenceInput>& sequences) const;
   void SetInitialState(mjData* d, const InitialState& x0) const;
   void RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq, int seq_index,
-                  RowMatrix* states, RowMatrix* sensors, RowMatrix* full) const;
+                  RowMatrix* states, RowMatrix* sensors, RowMatrix* full,
+                  std::vector<int>* ncon) const;
   void DirectionalColumn(Worker& w, int seq_index, const Trajectory& nom,
                          const JacobianOptions& opt, int col, const Eigen::VectorXd& steps,
-                         Sensitivity* out, std::string* warning) const;
+                         Sensitivity* out, std::string* warning, int* kinks) const;
   void WholeRolloutColumn(Worker& w, const SequenceInput& seq, int seq_index, const Trajectory& nom,
                           const JacobianOptions& opt, int col, const Eigen::VectorXd& steps,
                           Sensitivity* out) const;
   void MatrixJacobian(int seq_index, const Trajectory& nom, const JacobianOptions& opt,
                       const Eigen::VectorXd& steps, Sensitivity* out);
+  void ColumnJacobians(const std::vector<SequenceInput>& sequences,
+                       const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
+                       JacobianMode mode, const Eigen::VectorXd& steps,
+                       std::vector<Sensitivity>* out);
+  void CheckZeroColumns(const std::vector<Sensitivity>& out) const;
   void CheckStep(const mjData& d, int seq_index, int step, const char* what) const;
 
   ModelPtr model_;

@@ -1,0 +1,467 @@
+// rollouts and chained Jacobians of the simulator: time convention, agreement of the three modes
+// with central whole-rollout differences, a closed-form oracle, thread-count invariance, failures
+#include "core/simulator.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "core/mujoco_env.h"
+
+namespace mjsysid {
+namespace {
+
+const std::string kModels = MJSYSID_MODELS_DIR;
+
+ParameterSpec Spec(const std::string& kind, const std::string& object, int index = 0) {
+  ParameterSpec s;
+  s.kind = kind;
+  s.object = object;
+  s.index = index;
+  return s;
+}
+
+// sine controls: actuator i gets amplitude * sin(w_i t + phase_i) + offset
+RowMatrix SineControls(const mjModel& m, int T, double amplitude, double offset = 0) {
+  RowMatrix u(T, m.nu);
+  for (int k = 0; k < T; ++k) {
+    for (int i = 0; i < m.nu; ++i) {
+      u(k, i) = offset +
+                amplitude * std::sin(2.0 * M_PI * (0.7 + 0.45 * i) * k * m.opt.timestep + 0.5 * i);
+    }
+  }
+  return u;
+}
+
+// ---------------------------------------------------------------------------------------------
+// time convention: y_k = h(x_k, u_k), x_{k+1} = f(x_k, u_k)
+
+TEST(SimulatorTest, SensorsAreComputedAtTheStateBeforeTheStep) {
+  ModelPtr m = LoadModel(kModels + "/pendulum.xml");
+  Simulator sim(*m, {});
+  SequenceInput seq;
+  seq.x0 = sim.ReferenceState();
+  seq.x0.qpos[0] = 0.4;
+  seq.ctrl = SineControls(sim.model(), 50, 1.0);
+  const Trajectory tr = sim.Rollout(seq);
+  ASSERT_EQ(tr.T, 50);
+  ASSERT_EQ(tr.states.rows(), 51);
+  ASSERT_EQ(tr.sensors.rows(), 50);
+
+  // independent check with plain MuJoCo calls on the simulator's model
+  DataPtr d = MakeData(sim.model());
+  d->qpos[0] = 0.4;
+  for (int k = 0; k < 50; ++k) {
+    d->ctrl[0] = seq.ctrl(k, 0);
+    // y_k: mj_forward at x_k with u_k
+    mj_forward(&sim.model(), d.get());
+    EXPECT_EQ(tr.states(k, 0), d->qpos[0]) << k;
+    EXPECT_EQ(tr.sensors(k, 0), d->sensordata[0]) << "angle sensor at x_k, step " << k;
+    EXPECT_EQ(tr.sensors(k, 1), d->sensordata[1]) << "rate sensor at x_k, step " << k;
+    mj_step(&sim.model(), d.get());
+  }
+  EXPECT_EQ(tr.states(50, 0), d->qpos[0]);
+  EXPECT_EQ(tr.states(50, 1), d->qvel[0]);
+}
+
+TEST(SimulatorTest, UsersModelIsNotModifiedAndOptionsAreRecorded) {
+  ModelPtr m = LoadModel(kModels + "/cartpole.xml");
+  const double tolerance = m->opt.tolerance;
+  Simulator sim(*m, {Spec("body_mass", "pole")});
+  Eigen::VectorXd p(1);
+  p << 0.5;
+  sim.SetParameters(p);
+  EXPECT_EQ(m->body_mass[mj_name2id(m.get(), mjOBJ_BODY, "pole")], 0.2);
+  EXPECT_EQ(m->opt.tolerance, tolerance);
+  EXPECT_EQ(sim.model().opt.tolerance, 0.0) << "fixed solver iterations on the private copy";
+  EXPECT_EQ(sim.GetParameters()[0], 0.5);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Jacobians against central whole-rollout differences
+
+struct JacobianCase {
+  std::string model;
+  std::vector<ParameterSpec> params;
+  double amplitude, offset;  // controls
+  double qvel0;              // initial velocity of every dof (moves frictional joints off zero)
+  std::string name;
+  int settle_steps;  // steps at zero control before the test's initial state (rest in contact)
+};
+
+// error of J against the reference R, each column scaled by the reference's largest entry
+double ColumnScaledError(const RowMatrix& J, const RowMatrix& R) {
+  double worst = 0;
+  for (Eigen::Index j = 0; j < R.cols(); ++j) {
+    const double scale = std::max(R.col(j).lpNorm<Eigen::Infinity>(), 1e-12);
+    worst = std::max(worst, (J.col(j) - R.col(j)).lpNorm<Eigen::Infinity>() / scale);
+  }
+  return worst;
+}
+
+class JacobianTest
+    : public ::testing::TestWithParam<std::tuple<JacobianCase, int /*T*/, bool /*initial*/>> {};
+
+TEST_P(JacobianTest, ModesAgreeWithCentralWholeRolloutDifferences) {
+  const auto& [c, T, initial] = GetParam();
+  ModelPtr m = LoadModel(kModels + "/" + c.model);
+  Simulator sim(*m, c.params);
+  SequenceInput seq;
+  seq.x0 = sim.ReferenceState();
+  seq.x0.qvel.setConstant(c.qvel0);
+  if (c.settle_steps > 0) {
+    SequenceInput settle{seq.x0, RowMatrix::Zero(c.settle_steps, m->nu)};
+    const Trajectory rest = sim.Rollout(settle);
+    seq.x0.qpos = rest.states.row(c.settle_steps).head(m->nq);
+    seq.x0.qvel = rest.states.row(c.settle_steps).segment(m->nq, m->nv);
+  }
+  seq.ctrl = SineControls(sim.model(), T, c.amplitude, c.offset);
+  const Trajectory nominal = sim.Rollout(seq);
+
+  // with one step, y_0 does not depend on the parameters and a control that is zero at k = 0
+  // leaves a gain column zero: that is right, not an error
+  JacobianOptions ref_opt;
+  ref_opt.zero_column_is_error = T > 1;
+  ref_opt.mode = JacobianMode::kWholeRollout;
+  ref_opt.central = true;
+  ref_opt.initial_state = initial;
+  const Sensitivity ref = sim.Jacobians(seq, nominal, ref_opt);
+  ASSERT_GT(ref.DxDp.lpNorm<Eigen::Infinity>(), 0);
+
+  // tolerances (column-scaled max error): forward differences have truncation error O(h) with
+  // h = 1e-6 relative, so 1e-4 leaves two orders of headroom for curvature and for the growth of
+  // the error through T steps; central differences are O(h^2) + roundoff O(eps/h) ~ 1e-10, so
+  // 2e-6 is loose by the same margin. Contact scenes get 10x more: the solver's fixed iteration
+  // count leaves a non-smooth residual in each step.
+  const bool contact = sim.model().ngeom > 1 && c.model == "box_floor.xml";
+  for (JacobianMode mode : {JacobianMode::kDirectional, JacobianMode::kMatrix}) {
+    for (bool central : {false, true}) {
+      JacobianOptions opt;
+      opt.mode = mode;
+      opt.central = central;
+      opt.initial_state = initial;
+      opt.zero_column_is_error = ref_opt.zero_column_is_error;
+      const Sensitivity s = sim.Jacobians(seq, nominal, opt);
+      EXPECT_EQ(s.mode, mode);
+      const double tol = (central ? 2e-6 : 1e-4) * (contact ? 10 : 1);
+      const double ey = ColumnScaledError(s.DyDp, ref.DyDp);
+      const double ex = ColumnScaledError(s.DxDp, ref.DxDp);
+      EXPECT_LE(ey, tol) << JacobianModeName(mode) << (central ? " central" : " forward")
+                         << " sensors";
+      EXPECT_LE(ex, tol) << JacobianModeName(mode) << (central ? " central" : " forward")
+                         << " states";
+      std::printf("[ measured ] %-16s T=%-3d x0=%d %-11s %-7s err(dy)=%.2e err(dx)=%.2e tol=%.0e\n",
+                  c.name.c_str(), T, initial ? 1 : 0, JacobianModeName(mode),
+                  central ? "central" : "forward", ey, ex, tol);
+    }
+  }
+}
+
+const std::vector<JacobianCase> kCases = {
+    {"pendulum.xml",
+     {Spec("joint_damping", "hinge"), Spec("joint_frictionloss", "hinge"), Spec("body_mass", "bob"),
+      Spec("actuator_gain", "torque")},
+     2.0,
+     0.0,
+     1.0,
+     "pendulum",
+     {}},
+    {"double_pendulum.xml",
+     {Spec("body_mass", "link1"), Spec("body_mass", "link2"), Spec("joint_damping", "hinge2")},
+     1.0,
+     0.0,
+     0.5,
+     "double_pendulum",
+     {}},
+    {"cartpole.xml",
+     {Spec("body_mass", "pole"), Spec("joint_damping", "slider"),
+      Spec("joint_frictionloss", "slider")},
+     8.0,
+     0.0,
+     0.5,
+     "cartpole",
+     {}},
+    {"arm5.xml",
+     {Spec("joint_armature", "j1"), Spec("joint_armature", "j3"), Spec("joint_damping", "j2"),
+      Spec("body_mass_inertia", "link4"), Spec("body_com", "link5", 2)},
+     1.0,
+     0.0,
+     0.3,
+     "arm5",
+     {}},
+    // the box first settles on the floor: at its qpos0 (exactly zero distance) the contact
+    // switches on, and an initial-state derivative there is not defined
+    {"box_floor.xml",
+     {Spec("geom_friction", "box", 0), Spec("body_mass", "box")},
+     5.0,
+     15.0,
+     0.0,
+     "box_floor",
+     1000},
+    {"ball_pendulum.xml",
+     {Spec("joint_damping", "ball"), Spec("body_mass", "bob"), Spec("joint_armature", "ball")},
+     0.5,
+     0.0,
+     0.7,
+     "ball_pendulum",
+     {}},
+};
+
+INSTANTIATE_TEST_SUITE_P(Models, JacobianTest,
+                         ::testing::Combine(::testing::ValuesIn(kCases),
+                                            ::testing::Values(1, 10, 200), ::testing::Bool()),
+                         [](const auto& param_info) {
+                           const auto& p = param_info.param;
+                           return std::get<0>(p).name + "_T" + std::to_string(std::get<1>(p)) +
+                                  (std::get<2>(p) ? "_x0" : "");
+                         });
+
+// ---------------------------------------------------------------------------------------------
+// closed-form oracle: spring-mass-damper on a slide joint under MuJoCo's Euler integrator, which
+// is semi-implicit in velocity and implicit in damping:
+//   a_k = (u_k - b v_k - k x_k) / (m + h b),  v_{k+1} = v_k + h a_k,  x_{k+1} = x_k + h v_{k+1}
+// differentiated exactly with respect to m, b and k.
+
+struct OracleResult {
+  std::vector<double> x, v;          // x_0..x_T, v_0..v_T
+  std::vector<double> dx[3], dv[3];  // d/dm, d/db, d/dk
+};
+
+OracleResult SpringMassOracle(double m, double b, double k, double h, double x0, double v0,
+                              const RowMatrix& u) {
+  const int T = static_cast<int>(u.rows());
+  OracleResult r;
+  r.x = {x0};
+  r.v = {v0};
+  for (auto& d : r.dx) d = {0.0};
+  for (auto& d : r.dv) d = {0.0};
+  for (int t = 0; t < T; ++t) {
+    const double x = r.x[t], v = r.v[t];
+    const double den = m + h * b, num = u(t, 0) - b * v - k * x;
+    const double a = num / den;
+    r.v.push_back(v + h * a);
+    r.x.push_back(x + h * r.v.back());
+    for (int p = 0; p < 3; ++p) {
+      const double dxp = r.dx[p][t], dvp = r.dv[p][t];
+      // d num / dp and d den / dp
+      double dnum = -b * dvp - k * dxp, dden = 0;
+      if (p == 0) dden = 1;
+      if (p == 1) dnum -= v, dden = h;
+      if (p == 2) dnum -= x;
+      const double da = dnum / den - num * dden / (den * den);
+      r.dv[p].push_back(dvp + h * da);
+      r.dx[p].push_back(dxp + h * r.dv[p].back());
+    }
+  }
+  return r;
+}
+
+TEST(OracleTest, SpringMassDamperSensitivitiesMatchClosedForm) {
+  ModelPtr model = LoadModel(kModels + "/spring_mass.xml");
+  Simulator sim(*model, {Spec("body_mass", "mass"), Spec("joint_damping", "slide"),
+                         Spec("joint_stiffness", "slide")});
+  Eigen::VectorXd p(3);
+  p << 1.3, 0.4, 5.0;
+  sim.SetParameters(p);
+  const int T = 300;
+  SequenceInput seq;
+  seq.x0 = sim.ReferenceState();
+  seq.x0.qpos[0] = 0.1;
+  seq.x0.qvel[0] = -0.2;
+  seq.ctrl = SineControls(sim.model(), T, 2.0);
+  const Trajectory nominal = sim.Rollout(seq);
+  const double h = sim.model().opt.timestep;
+  const OracleResult o = SpringMassOracle(1.3, 0.4, 5.0, h, 0.1, -0.2, seq.ctrl);
+
+  // the simulation is the recursion (so the oracle is an oracle for MuJoCo, not for an idea)
+  for (int t = 0; t <= T; ++t) {
+    ASSERT_NEAR(nominal.states(t, 0), o.x[t], 1e-12) << t;
+    ASSERT_NEAR(nominal.states(t, 1), o.v[t], 1e-12) << t;
+  }
+
+  // every mode and difference scheme against the exact sensitivities, 1e-6 relative
+  for (JacobianMode mode :
+       {JacobianMode::kDirectional, JacobianMode::kMatrix, JacobianMode::kWholeRollout}) {
+    for (bool central : {false, true}) {
+      JacobianOptions opt;
+      opt.mode = mode;
+      opt.central = central;
+      // forward differences have O(h) truncation: take a smaller relative step for them
+      opt.relative_step = central ? 1e-5 : 1e-7;
+      const Sensitivity s = sim.Jacobians(seq, nominal, opt);
+      double worst = 0;
+      for (int j = 0; j < 3; ++j) {
+        double scale = 0;
+        for (int t = 0; t <= T; ++t) scale = std::max(scale, std::abs(o.dx[j][t]));
+        for (int t = 0; t <= T; ++t) {
+          worst = std::max(worst, std::abs(s.DxDp(t * 2 + 0, j) - o.dx[j][t]) / scale);
+          worst = std::max(worst, std::abs(s.DxDp(t * 2 + 1, j) - o.dv[j][t]) / scale);
+          if (t < T) {  // sensors: jointpos, jointvel at x_t
+            worst = std::max(worst, std::abs(s.DyDp(t * 2 + 0, j) - o.dx[j][t]) / scale);
+            worst = std::max(worst, std::abs(s.DyDp(t * 2 + 1, j) - o.dv[j][t]) / scale);
+          }
+        }
+      }
+      std::printf("[ measured ] oracle %-13s %-7s max relative error %.2e\n",
+                  JacobianModeName(mode), central ? "central" : "forward", worst);
+      EXPECT_LE(worst, 1e-6) << JacobianModeName(mode) << (central ? " central" : " forward");
+    }
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// threads: every output bit-identical for any thread count
+
+TEST(SimulatorTest, ResultsAreBitIdenticalForAnyThreadCount) {
+  ModelPtr model = LoadModel(kModels + "/arm5.xml");
+  const std::vector<ParameterSpec> params = {
+      Spec("joint_armature", "j2"), Spec("joint_damping", "j4"), Spec("body_mass", "link3")};
+  std::vector<SequenceInput> seqs(3);
+  for (int i = 0; i < 3; ++i) {
+    seqs[i].ctrl = SineControls(*model, 120 + 30 * i, 0.5 + 0.3 * i);
+  }
+  std::vector<std::vector<Sensitivity>> results;
+  std::vector<std::vector<Trajectory>> rollouts;
+  for (int threads : {1, 2, 3}) {
+    SimulatorOptions so;
+    so.threads = threads;
+    Simulator sim(*model, params, so);
+    ASSERT_EQ(sim.threads(), threads);
+    std::vector<Trajectory> nominal;
+    sim.Rollout(seqs, &nominal);
+    rollouts.push_back(nominal);
+    for (JacobianMode mode : {JacobianMode::kDirectional, JacobianMode::kMatrix}) {
+      JacobianOptions opt;
+      opt.mode = mode;
+      opt.initial_state = true;
+      opt.central = mode == JacobianMode::kMatrix;
+      std::vector<Sensitivity> out;
+      sim.Jacobians(seqs, nominal, opt, &out);
+      results.push_back(out);
+    }
+  }
+  for (size_t r = 2; r < results.size(); ++r) {
+    const auto& a = results[r % 2];
+    const auto& b = results[r];
+    for (size_t i = 0; i < a.size(); ++i) {
+      EXPECT_TRUE((a[i].DyDp.array() == b[i].DyDp.array()).all()) << "run " << r << " seq " << i;
+      EXPECT_TRUE((a[i].DxDp.array() == b[i].DxDp.array()).all()) << "run " << r << " seq " << i;
+    }
+  }
+  for (size_t r = 1; r < rollouts.size(); ++r) {
+    for (size_t i = 0; i < seqs.size(); ++i) {
+      EXPECT_TRUE((rollouts[0][i].states.array() == rollouts[r][i].states.array()).all());
+      EXPECT_TRUE((rollouts[0][i].sensors.array() == rollouts[r][i].sensors.array()).all());
+    }
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// skip what the scene does not need
+
+TEST(SimulatorTest, SensorsOffSkipsSensorsAndLeavesDynamicsUnchanged) {
+  ModelPtr model = LoadModel(kModels + "/cartpole.xml");
+  SimulatorOptions off;
+  off.sensors = false;
+  Simulator with(*model, {Spec("joint_damping", "slider")});
+  Simulator without(*model, {Spec("joint_damping", "slider")}, off);
+  SequenceInput seq{with.ReferenceState(), SineControls(*model, 100, 5.0)};
+  const Trajectory a = with.Rollout(seq), b = without.Rollout(seq);
+  EXPECT_EQ(b.sensors.cols(), 0);
+  EXPECT_TRUE((a.states.array() == b.states.array()).all());
+  for (JacobianMode mode : {JacobianMode::kDirectional, JacobianMode::kMatrix}) {
+    JacobianOptions opt;
+    opt.mode = mode;
+    const Sensitivity sa = with.Jacobians(seq, a, opt), sb = without.Jacobians(seq, b, opt);
+    EXPECT_EQ(sb.DyDp.rows(), 0);
+    EXPECT_TRUE((sa.DxDp.array() == sb.DxDp.array()).all()) << JacobianModeName(mode);
+  }
+}
+
+TEST(SimulatorTest, AutoModeFollowsTheCostModel) {
+  ModelPtr arm = LoadModel(kModels + "/arm5.xml");
+  // one parameter: a perturbed step per column beats 2 + nv + ... steps of mjd_transitionFD
+  Simulator one(*arm, {Spec("joint_damping", "j1")});
+  JacobianOptions opt;
+  EXPECT_EQ(one.ChooseJacobianMode(opt), JacobianMode::kDirectional);
+  // five velocity-stage parameters and the initial state: the matrix chain is cheaper
+  Simulator many(
+      *arm, {Spec("joint_damping", "j1"), Spec("joint_damping", "j2"), Spec("joint_damping", "j3"),
+             Spec("joint_damping", "j4"), Spec("joint_damping", "j5")});
+  opt.initial_state = true;
+  EXPECT_LT(many.JacobianCostPerStep(JacobianMode::kMatrix, opt),
+            many.JacobianCostPerStep(JacobianMode::kDirectional, opt));
+  EXPECT_EQ(many.ChooseJacobianMode(opt), JacobianMode::kMatrix);
+  // RK4 has no mjd_transitionFD: auto falls back, an explicit request is an error
+  ModelPtr rk4 = LoadModel(kModels + "/arm5.xml");
+  rk4->opt.integrator = mjINT_RK4;
+  Simulator sim_rk4(
+      *rk4, {Spec("joint_damping", "j1"), Spec("joint_damping", "j2"), Spec("joint_damping", "j3"),
+             Spec("joint_damping", "j4"), Spec("joint_damping", "j5")});
+  EXPECT_EQ(sim_rk4.ChooseJacobianMode(opt), JacobianMode::kDirectional);
+  SequenceInput seq{sim_rk4.ReferenceState(), SineControls(*rk4, 20, 1.0)};
+  const Trajectory tr = sim_rk4.Rollout(seq);
+  opt.mode = JacobianMode::kMatrix;
+  EXPECT_THROW(sim_rk4.Jacobians(seq, tr, opt), std::invalid_argument);
+  opt.mode = JacobianMode::kAuto;
+  EXPECT_EQ(sim_rk4.Jacobians(seq, tr, opt).mode, JacobianMode::kDirectional);
+}
+
+// ---------------------------------------------------------------------------------------------
+// failures are errors with names, never crashes or silent zeros
+
+TEST(SimulatorTest, DivergentSimulationIsASimulationError) {
+  ModelPtr model = LoadModel(kModels + "/pendulum.xml");
+  model->actuator_ctrllimited[0] = 0;
+  Simulator sim(*model, {});
+  SequenceInput seq{sim.ReferenceState(), RowMatrix::Constant(50, 1, 1e200)};
+  try {
+    sim.Rollout(seq);
+    FAIL() << "expected SimulationError";
+  } catch (const SimulationError& e) {
+    EXPECT_NE(std::string(e.what()).find("MuJoCo warning"), std::string::npos) << e.what();
+    EXPECT_EQ(e.sequence(), 0);
+  }
+}
+
+TEST(SimulatorTest, BadShapesAreInvalidArguments) {
+  ModelPtr model = LoadModel(kModels + "/pendulum.xml");
+  Simulator sim(*model, {});
+  SequenceInput seq{sim.ReferenceState(), RowMatrix::Zero(10, 2)};
+  EXPECT_THROW(sim.Rollout(seq), std::invalid_argument);
+  seq.ctrl = RowMatrix::Zero(10, 1);
+  seq.x0.qpos = Eigen::VectorXd::Zero(3);
+  EXPECT_THROW(sim.Rollout(seq), std::invalid_argument);
+  seq.x0.qpos = Eigen::VectorXd::Zero(1);
+  seq.ctrl(3, 0) = std::nan("");
+  EXPECT_THROW(sim.Rollout(seq), std::invalid_argument);
+}
+
+TEST(SimulatorTest, ParameterWithoutEffectIsAnErrorNotAZeroColumn) {
+  // the box held high above the floor never touches it: its contact friction changes nothing
+  ModelPtr model = LoadModel(kModels + "/box_floor.xml");
+  Simulator sim(*model, {Spec("body_mass", "box"), Spec("geom_friction", "box", 0)});
+  SequenceInput seq{sim.ReferenceState(), SineControls(*model, 20, 1.0)};
+  seq.x0.qpos[2] = 2.0;
+  const Trajectory tr = sim.Rollout(seq);
+  for (JacobianMode mode : {JacobianMode::kDirectional, JacobianMode::kMatrix}) {
+    JacobianOptions opt;
+    opt.mode = mode;
+    try {
+      sim.Jacobians(seq, tr, opt);
+      FAIL() << "expected ParameterError";
+    } catch (const ParameterError& e) {
+      EXPECT_NE(std::string(e.what()).find("geom_friction:box[0]"), std::string::npos) << e.what();
+    }
+    opt.zero_column_is_error = false;
+    const Sensitivity s = sim.Jacobians(seq, tr, opt);
+    EXPECT_TRUE(s.DxDp.col(1).isZero(0));
+    EXPECT_FALSE(s.DxDp.col(0).isZero(0));
+  }
+}
+
+}  // namespace
+}  // namespace mjsysid
