@@ -37,13 +37,12 @@ TEST_P(StepSkipTest, NoSkipEqualsMjStepBitForBit) {
   EXPECT_EQ(SimulationWarnings(*a), "");
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Models, StepSkipTest,
-    ::testing::Values(std::make_pair("pendulum.xml", mjINT_EULER),
-                      std::make_pair("cartpole.xml", mjINT_IMPLICITFAST),
-                      std::make_pair("box_floor.xml", mjINT_EULER),
-                      std::make_pair("box_floor.xml", mjINT_IMPLICIT),
-                      std::make_pair("ball_pendulum.xml", mjINT_RK4)));
+INSTANTIATE_TEST_SUITE_P(Models, StepSkipTest,
+                         ::testing::Values(std::make_pair("pendulum.xml", mjINT_EULER),
+                                           std::make_pair("cartpole.xml", mjINT_IMPLICITFAST),
+                                           std::make_pair("box_floor.xml", mjINT_EULER),
+                                           std::make_pair("box_floor.xml", mjINT_IMPLICIT),
+                                           std::make_pair("ball_pendulum.xml", mjINT_RK4)));
 
 // skipping the position stage after an unchanged forward pass changes nothing
 TEST(StepSkipTest, SkipAfterForwardEqualsFullStep) {
