@@ -1,0 +1,340 @@
+#include "sysid/io/csv.h"
+
+#include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <map>
+#include <string>
+#include <tuple>
+#include <utility>
+#include <vector>
+
+namespace mjsysid::io {
+namespace {
+
+// what a column feeds
+enum class Kind { kTime, kCtrl, kSensor, kQpos, kQvel, kAct };
+
+struct Target {
+  Kind kind;
+  int index;      // actuator, sensor or state index
+  int component;  // sensor component
+};
+
+std::string Quote(const std::string& s) { return "'" + s + "'"; }
+
+std::string Exact(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.17g", x);
+  return buf;
+}
+
+[[noreturn]] void Fail(const std::string& file, const std::string& what) {
+  throw LogError(file + ": " + what);
+}
+
+std::string Indexed(const std::string& base, int i) { return base + "[" + std::to_string(i) + "]"; }
+
+// "name[0..n-1]" (or "name[0]") for hints
+std::string Range(const std::string& base, int n) {
+  return n == 1 ? Indexed(base, 0) : base + "[0.." + std::to_string(n - 1) + "]";
+}
+
+// the columns a model accepts, every name with what it feeds (several targets: ambiguous)
+struct Columns {
+  std::map<std::string, std::vector<Target>> targets;
+  std::vector<std::string> names;    // every valid header, for "did you mean"
+  std::vector<std::string> summary;  // compact list for the hint
+};
+
+Columns ModelColumns(const mjModel& m) {
+  Columns c;
+  auto add = [&c](const std::string& name, Target t) {
+    c.targets[name].push_back(t);
+    c.names.push_back(name);
+  };
+  add("time", {Kind::kTime, 0, 0});
+  c.summary.push_back("time");
+  for (int i = 0; i < static_cast<int>(m.nu); ++i) {
+    const char* n = mj_id2name(&m, mjOBJ_ACTUATOR, i);
+    if (!n) continue;
+    add(n, {Kind::kCtrl, i, 0});
+    c.summary.push_back(n);
+  }
+  for (int s = 0; s < static_cast<int>(m.nsensor); ++s) {
+    const char* n = mj_id2name(&m, mjOBJ_SENSOR, s);
+    if (!n) continue;
+    const int dim = m.sensor_dim[s];
+    if (dim == 1) {
+      add(n, {Kind::kSensor, s, 0});
+      c.summary.push_back(n);
+    } else {
+      for (int j = 0; j < dim; ++j) add(Indexed(n, j), {Kind::kSensor, s, j});
+      c.summary.push_back(Range(n, dim));
+    }
+  }
+  const std::tuple<const char*, Kind, int> states[] = {
+      {"qpos", Kind::kQpos, static_cast<int>(m.nq)},
+      {"qvel", Kind::kQvel, static_cast<int>(m.nv)},
+      {"act", Kind::kAct, static_cast<int>(m.na)}};
+  for (const auto& [base, kind, n] : states) {
+    for (int j = 0; j < n; ++j) add(Indexed(base, j), {kind, j, 0});
+    if (n > 0) c.summary.push_back(Range(base, n));
+  }
+  return c;
+}
+
+std::string Trim(const std::string& s) {
+  const size_t b = s.find_first_not_of(" \t");
+  if (b == std::string::npos) return "";
+  const size_t e = s.find_last_not_of(" \t");
+  return s.substr(b, e - b + 1);
+}
+
+// one line into trimmed fields; quoted fields keep their inner spaces
+std::vector<std::string> SplitLine(const std::string& line, const std::string& where) {
+  std::vector<std::string> fields;
+  std::string field;
+  bool quoted = false;      // inside quotes
+  bool was_quoted = false;  // this field was quoted: keep it as it is
+  size_t i = 0;
+  while (i <= line.size()) {
+    const char ch = i < line.size() ? line[i] : ',';
+    if (quoted) {
+      if (i == line.size()) Fail(where, "unterminated quote");
+      if (ch == '"' && i + 1 < line.size() && line[i + 1] == '"') {
+        field += '"';
+        ++i;
+      } else if (ch == '"') {
+        quoted = false;
+      } else {
+        field += ch;
+      }
+    } else if (ch == ',') {
+      fields.push_back(was_quoted ? field : Trim(field));
+      field.clear();
+      was_quoted = false;
+    } else if (ch == '"' && Trim(field).empty()) {
+      quoted = true;
+      was_quoted = true;
+      field.clear();
+    } else if (!(was_quoted && (ch == ' ' || ch == '\t'))) {
+      field += ch;
+    }
+    ++i;
+  }
+  return fields;
+}
+
+// a whole field as a finite double
+double ParseNumber(const std::string& text, const std::string& where) {
+  if (text.empty()) Fail(where, "empty cell (expected a number)");
+  const char* begin = text.data();
+  const char* end = text.data() + text.size();
+  if (*begin == '+') ++begin;
+  double value = 0;
+  const auto [ptr, ec] = std::from_chars(begin, end, value);
+  if (ec == std::errc::result_out_of_range) Fail(where, Quote(text) + " is out of range");
+  if (ec != std::errc() || ptr != end) Fail(where, Quote(text) + " is not a number");
+  if (!std::isfinite(value)) Fail(where, "value " + Quote(text) + " is not finite (NaN/Inf)");
+  return value;
+}
+
+}  // namespace
+
+Sequence ImportCsv(const std::string& path, const mjModel& m, const std::string& sequence_name) {
+  const std::string& file = path;
+  if (sequence_name.empty() || sequence_name == "." ||
+      sequence_name.find('/') != std::string::npos) {
+    Fail(file, "sequence name " + Quote(sequence_name) +
+                   " is not a valid group name (non-empty, no '/', not '.')");
+  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in) Fail(file, std::string("cannot open: ") + std::strerror(errno));
+
+  // header: the first non-blank line
+  std::string line;
+  int line_no = 0;
+  auto next_line = [&]() -> bool {
+    while (std::getline(in, line)) {
+      ++line_no;
+      if (!line.empty() && line.back() == '\r') line.pop_back();
+      if (line_no == 1 && line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);
+      if (!Trim(line).empty()) return true;
+    }
+    return false;
+  };
+  if (!next_line()) Fail(file, "empty file (no header line)");
+  const std::string header_where = file + ":" + std::to_string(line_no);
+  const std::vector<std::string> header = SplitLine(line, header_where);
+
+  // each header to its target
+  const Columns columns = ModelColumns(m);
+  std::vector<Target> targets;
+  std::map<std::string, int> seen;
+  for (size_t c = 0; c < header.size(); ++c) {
+    const std::string& h = header[c];
+    const std::string where =
+        header_where + ": column " + std::to_string(c + 1) + " (" + Quote(h) + ")";
+    if (h.empty()) Fail(where, "empty column header");
+    if (!seen.emplace(h, static_cast<int>(c + 1)).second) {
+      Fail(where, "duplicate column (also column " + std::to_string(seen[h]) + ")");
+    }
+    auto it = columns.targets.find(h);
+    if (it == columns.targets.end()) {
+      std::string hint = internal::NameHint(h, columns.names, "valid columns");
+      // the compact list reads better than every component
+      hint = hint.substr(0, hint.find("; valid columns: ")) + "; valid columns: ";
+      for (size_t i = 0; i < columns.summary.size() && i < 20; ++i) {
+        hint += (i ? ", " : "") + columns.summary[i];
+      }
+      if (columns.summary.size() > 20) hint += ", ...";
+      Fail(where, "unknown column " + hint);
+    }
+    if (it->second.size() > 1) {
+      Fail(where,
+           "ambiguous column: the model has more than one object (actuator, sensor) by "
+           "that name");
+    }
+    targets.push_back(it->second[0]);
+  }
+
+  // required and all-or-nothing columns
+  const int nu = static_cast<int>(m.nu);
+  const int nsensor = static_cast<int>(m.nsensor);
+  std::vector<int> ctrl_col(nu, -1);
+  std::vector<std::vector<int>> sensor_col(nsensor);
+  for (int s = 0; s < nsensor; ++s) sensor_col[s].assign(m.sensor_dim[s], -1);
+  std::map<Kind, std::vector<int>> state_col = {{Kind::kQpos, std::vector<int>(m.nq, -1)},
+                                                {Kind::kQvel, std::vector<int>(m.nv, -1)},
+                                                {Kind::kAct, std::vector<int>(m.na, -1)}};
+  int time_col = -1;
+  for (size_t c = 0; c < targets.size(); ++c) {
+    const Target& t = targets[c];
+    const int col = static_cast<int>(c);
+    switch (t.kind) {
+      case Kind::kTime:
+        time_col = col;
+        break;
+      case Kind::kCtrl:
+        ctrl_col[t.index] = col;
+        break;
+      case Kind::kSensor:
+        sensor_col[t.index][t.component] = col;
+        break;
+      default:
+        state_col[t.kind][t.index] = col;
+    }
+  }
+  if (time_col < 0) Fail(header_where, "missing column 'time' (seconds)");
+  for (int i = 0; i < nu; ++i) {
+    if (ctrl_col[i] >= 0) continue;
+    const char* n = mj_id2name(&m, mjOBJ_ACTUATOR, i);
+    Fail(header_where, n ? "missing actuator column " + Quote(n) +
+                               " (every actuator of the model needs a ctrl column)"
+                         : "actuator " + std::to_string(i) +
+                               " of the model has no name, so no column can hold its control");
+  }
+  std::vector<int> sensors;  // present sensors, model order
+  for (int s = 0; s < nsensor; ++s) {
+    int given = 0;
+    for (int col : sensor_col[s]) given += col >= 0;
+    if (given == 0) continue;
+    const std::string name = mj_id2name(&m, mjOBJ_SENSOR, s);
+    for (int j = 0; j < m.sensor_dim[s]; ++j) {
+      if (sensor_col[s][j] < 0) {
+        Fail(header_where, "sensor " + Quote(name) + " has " + std::to_string(m.sensor_dim[s]) +
+                               " components but column " + Quote(Indexed(name, j)) +
+                               " is missing (give all of them or none)");
+      }
+    }
+    sensors.push_back(s);
+  }
+  const std::pair<Kind, const char*> state_names[] = {
+      {Kind::kQpos, "qpos"}, {Kind::kQvel, "qvel"}, {Kind::kAct, "act"}};
+  for (const auto& [kind, base] : state_names) {
+    const std::vector<int>& cols = state_col[kind];
+    int given = 0;
+    for (int col : cols) given += col >= 0;
+    for (size_t j = 0; given > 0 && j < cols.size(); ++j) {
+      if (cols[j] < 0) {
+        Fail(header_where, "column " + Quote(Indexed(base, static_cast<int>(j))) + " is missing (" +
+                               base + " needs all " + std::to_string(cols.size()) +
+                               " components or none)");
+      }
+    }
+  }
+
+  // data rows, in file column order
+  const size_t ncols = header.size();
+  std::vector<double> values;
+  std::vector<int> row_lines;
+  while (next_line()) {
+    const std::string where_line = file + ":" + std::to_string(line_no);
+    const std::vector<std::string> fields = SplitLine(line, where_line);
+    if (fields.size() != ncols) {
+      Fail(where_line, std::to_string(fields.size()) + " fields, the header (line " +
+                           header_where.substr(file.size() + 1) + ") has " + std::to_string(ncols));
+    }
+    for (size_t c = 0; c < ncols; ++c) {
+      values.push_back(ParseNumber(fields[c], where_line + ": column " + std::to_string(c + 1) +
+                                                  " (" + Quote(header[c]) + ")"));
+    }
+    row_lines.push_back(line_no);
+  }
+  if (in.bad()) Fail(file, "read error");
+  const auto samples = static_cast<Eigen::Index>(row_lines.size());
+  if (samples == 0) Fail(file, "no data rows after the header");
+  auto at = [&](Eigen::Index k, int col) { return values[k * ncols + col]; };
+
+  // assemble the sequence
+  Sequence seq;
+  seq.name = sequence_name;
+  seq.time.resize(samples);
+  for (Eigen::Index k = 0; k < samples; ++k) {
+    seq.time[k] = at(k, time_col);
+    if (k > 0 && !(seq.time[k] > seq.time[k - 1])) {
+      Fail(file + ":" + std::to_string(row_lines[k]),
+           "column " + std::to_string(time_col + 1) + " ('time'): time " + Exact(seq.time[k]) +
+               " is not greater than " + Exact(seq.time[k - 1]) + " on line " +
+               std::to_string(row_lines[k - 1]) + " (time must be strictly increasing)");
+    }
+  }
+  seq.ctrl.resize(samples, nu);
+  for (int i = 0; i < nu; ++i) {
+    seq.actuator_names.push_back(mj_id2name(&m, mjOBJ_ACTUATOR, i));
+    for (Eigen::Index k = 0; k < samples; ++k) seq.ctrl(k, i) = at(k, ctrl_col[i]);
+  }
+  int width = 0;
+  for (int s : sensors) width += m.sensor_dim[s];
+  seq.sensordata.resize(samples, width);
+  int offset = 0;
+  for (int s : sensors) {
+    seq.sensor_names.push_back(mj_id2name(&m, mjOBJ_SENSOR, s));
+    seq.sensor_dims.push_back(m.sensor_dim[s]);
+    for (int j = 0; j < m.sensor_dim[s]; ++j) {
+      for (Eigen::Index k = 0; k < samples; ++k) {
+        seq.sensordata(k, offset + j) = at(k, sensor_col[s][j]);
+      }
+    }
+    offset += m.sensor_dim[s];
+  }
+  const std::pair<Kind, RowMatrix*> state_out[] = {
+      {Kind::kQpos, &seq.qpos}, {Kind::kQvel, &seq.qvel}, {Kind::kAct, &seq.act}};
+  for (const auto& [kind, mat] : state_out) {
+    const std::vector<int>& cols = state_col[kind];
+    if (cols.empty() || cols[0] < 0) continue;
+    mat->resize(samples, static_cast<Eigen::Index>(cols.size()));
+    for (size_t j = 0; j < cols.size(); ++j) {
+      for (Eigen::Index k = 0; k < samples; ++k) {
+        (*mat)(k, static_cast<Eigen::Index>(j)) = at(k, cols[j]);
+      }
+    }
+  }
+  return seq;
+}
+
+}  // namespace mjsysid::io

@@ -1,0 +1,302 @@
+// YAML experiment files (schema version 1, docs/experiment-schema.md): parsing into a plain
+// ExperimentConfig, and checks of a parsed config against a compiled model.
+//
+// Contract:
+// - LoadExperiment/ParseExperiment either return a config that satisfies every rule of the schema
+//   that can be checked without a model, or throw ConfigError pointing at the offending YAML
+//   element (file:line:column, 1-based) with a hint (valid keys, allowed values, "did you mean").
+// - Paths (models, data, output) are resolved against the YAML file's directory and stored
+//   absolute and normalised. Nothing is read besides the YAML file itself.
+// - Every element keeps its source Mark, so that checks made later against a model
+//   (ValidateExperimentAgainstModel, or a caller's own) report the YAML position.
+#pragma once
+
+#include <mujoco/mujoco.h>
+
+#include <cstdint>
+#include <limits>
+#include <map>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace mjsysid::io {
+
+// the schema version this loader reads (the optional top-level key `version`)
+inline constexpr int kExperimentSchemaVersion = 1;
+
+// a position in a YAML file: 1-based line and column; 0 when unknown (e.g. a key left out)
+struct Mark {
+  std::string file;
+  int line = 0;
+  int column = 0;
+
+  // "file:line:column", or "file" when the line is unknown
+  std::string ToString() const;
+};
+
+// the mark of an element (self) and of each of its keys' values (keys), as given in the file
+struct Marks {
+  Mark self;
+  std::map<std::string, Mark> keys;
+
+  // the mark of key's value, or self when the key was not given
+  const Mark& Of(const std::string& key) const;
+};
+
+// a bad experiment file; what() is "FILE:LINE:COLUMN: message (hint: ...)"
+// (without ":LINE:COLUMN" when the position is unknown, without the hint when there is none)
+class ConfigError : public std::runtime_error {
+ public:
+  ConfigError(Mark mark, std::string message, std::string hint = {});
+
+  const std::string& file() const { return mark_.file; }
+  int line() const { return mark_.line; }
+  int column() const { return mark_.column; }
+  const Mark& mark() const { return mark_; }
+  const std::string& message() const { return message_; }
+  const std::string& hint() const { return hint_; }
+
+ private:
+  Mark mark_;
+  std::string message_;
+  std::string hint_;
+};
+
+// one model: `model: PATH` gives a single entry named after the file stem
+struct ModelSpec {
+  std::string name;
+  std::string path;  // absolute
+  Marks marks;
+};
+
+// one HDF5 log file
+struct DataFile {
+  std::string path;  // absolute
+  Mark mark;
+};
+
+// one entry of `sequences`: "seq" or, with several models, "model/seq"
+struct SequenceRef {
+  std::string model;  // "" = the sequence of that name for every model
+  std::string name;
+  Mark mark;
+};
+
+// whether a log's sensor row at step k is read before (pre) or after (post) step k
+enum class SensorTime { kPre, kPost };
+
+// one residual channel group: a sensor and its weight (1/sigma when sigma is given)
+struct SensorSpec {
+  std::string name;
+  std::optional<double> sigma;  // noise standard deviation, > 0
+  double weight = 1.0;          // > 0; unused when sigma is given
+  Marks marks;
+
+  // the factor applied to this sensor's residuals
+  double ResidualWeight() const { return sigma ? 1.0 / *sigma : weight; }
+};
+
+// what a physical parameter writes into the model; order matches ParameterTargetKinds()
+enum class ParameterTarget {
+  kBodyMass,
+  kBodyMassInertia,
+  kBodyInertia,
+  kBodyCom,
+  kJointDamping,
+  kJointFrictionloss,
+  kJointArmature,
+  kJointStiffness,
+  kGeomFriction,
+  kActuatorGain,
+  kActuatorBias,
+  kActuatorGear,
+  kField,
+};
+
+// the YAML spellings of ParameterTarget, in enum order ("body_mass", ..., "field")
+const std::vector<std::string>& ParameterTargetKinds();
+const std::string& ParameterTargetName(ParameterTarget target);
+
+// the optimiser's variable for a parameter: x itself, log(x), or x / scale
+enum class Transform { kNone, kLog, kScale };
+
+// a Gaussian prior on a parameter (added as a residual (x - mean) / sigma)
+struct Prior {
+  double mean = 0.0;
+  double sigma = 1.0;  // > 0
+  Marks marks;
+};
+
+// one physical parameter to identify
+struct ParameterSpec {
+  std::string name;  // unique label
+  ParameterTarget target = ParameterTarget::kBodyMass;
+  std::string object;  // MuJoCo object name; empty for target kField
+  std::string field;   // mjModel array name; only for target kField
+  int index = 0;       // component (kField: flat index into the array)
+  double initial = 0.0;
+  double lower = -std::numeric_limits<double>::infinity();
+  double upper = std::numeric_limits<double>::infinity();
+  Transform transform = Transform::kNone;
+  double scale = 1.0;  // > 0, used by Transform::kScale
+  std::optional<Prior> prior;
+  std::vector<std::string> models;  // empty = every model
+  Marks marks;
+
+  // whether the parameter applies to the named model ("" matches every parameter)
+  bool AppliesTo(const std::string& model_name) const;
+};
+
+// one measurement parameter of a sensor (delay in seconds, gain, bias)
+struct MeasurementTerm {
+  double initial = 0.0;
+  bool fit = false;
+  double lower = -std::numeric_limits<double>::infinity();
+  double upper = std::numeric_limits<double>::infinity();
+  Marks marks;
+};
+
+// measured = gain * simulated(t - delay) + bias, per sensor
+struct MeasurementSpec {
+  std::string sensor;
+  MeasurementTerm delay{0.0, false, 0.0, std::numeric_limits<double>::infinity(), {}};
+  MeasurementTerm gain{1.0,
+                       false,
+                       -std::numeric_limits<double>::infinity(),
+                       std::numeric_limits<double>::infinity(),
+                       {}};
+  MeasurementTerm bias{0.0,
+                       false,
+                       -std::numeric_limits<double>::infinity(),
+                       std::numeric_limits<double>::infinity(),
+                       {}};
+  Marks marks;
+};
+
+// initial states of the sequences as free variables
+struct InitialStateOptions {
+  bool estimate = false;
+  Marks marks;
+};
+
+// segments of segment_steps steps with free initial states; 0 = single shooting
+struct MultipleShootingOptions {
+  int segment_steps = 0;
+  double continuity_weight = 1.0;  // > 0
+  Marks marks;
+};
+
+// how Jacobians are computed (auto: the core picks)
+enum class JacobianMode { kAuto, kDirectional, kMatrix, kWholeRollout, kCeresNumeric };
+enum class Differences { kForward, kCentral };
+enum class LossType { kNone, kHuber, kCauchy };
+
+struct LossOptions {
+  LossType type = LossType::kNone;
+  double scale = 1.0;  // > 0
+  Marks marks;
+};
+
+struct SolverOptions {
+  int max_iterations = 100;  // > 0
+  double function_tolerance = 1e-10;
+  double gradient_tolerance = 1e-10;
+  double parameter_tolerance = 1e-10;
+  JacobianMode jacobian = JacobianMode::kAuto;
+  Differences differences = Differences::kForward;
+  double relative_step = 1e-6;  // > 0
+  int threads = 0;              // 0 = all cores
+  LossOptions loss;
+  bool verbose = true;
+  Marks marks;
+};
+
+enum class ExcitationType { kSines, kChirp, kPrbs, kZero };
+
+// the control signal of one actuator (or of all, actuator == "") in `sysid simulate`
+struct Excitation {
+  std::string actuator;  // "" = every actuator
+  ExcitationType type = ExcitationType::kSines;
+  double amplitude = 1.0;                          // >= 0
+  std::vector<double> frequencies{0.5, 1.3, 2.9};  // Hz, sines
+  double f0 = 0.1;                                 // Hz, chirp start
+  double f1 = 5.0;                                 // Hz, chirp end
+  double switch_period = 0.1;                      // s, prbs
+  Marks marks;
+};
+
+// a name -> number entry (simulate.truth, simulate.noise), in file order
+struct NamedValue {
+  std::string name;
+  double value = 0.0;
+  Mark mark;  // of the key
+};
+
+// the initial state of simulated sequences; an empty vector = the model's default
+struct SimulateInitialState {
+  std::vector<double> qpos;
+  std::vector<double> qvel;
+  Marks marks;
+};
+
+// options of `sysid simulate`; marks.self.line == 0 when the block was not given
+struct SimulateOptions {
+  std::vector<NamedValue> truth;  // parameter name -> true value
+  int sequences = 2;              // > 0
+  int steps = 2000;               // > 0
+  std::uint64_t seed = 42;
+  std::vector<Excitation> excitation{Excitation{}};  // one for all, or one per actuator
+  std::vector<NamedValue> noise;                     // sensor name -> sigma (>= 0)
+  SimulateInitialState initial_state;
+  Marks marks;
+};
+
+// a whole experiment file
+struct ExperimentConfig {
+  int version = kExperimentSchemaVersion;
+  std::string name;         // default: the YAML file's stem
+  std::string source_file;  // the YAML file, absolute
+  std::string base_dir;     // its directory, against which relative paths were resolved
+  std::vector<ModelSpec> models;
+  bool model_list = false;  // true when given as `models` (a list), false for `model`
+  std::vector<DataFile> data;
+  std::vector<SequenceRef> sequences;  // empty = every sequence in the data
+  SensorTime sensor_time = SensorTime::kPre;
+  std::vector<SensorSpec> sensors;  // empty = every sensor, weight 1
+  std::vector<ParameterSpec> parameters;
+  std::vector<MeasurementSpec> measurement;
+  InitialStateOptions initial_state;
+  MultipleShootingOptions multiple_shooting;
+  SolverOptions solver;
+  SimulateOptions simulate;
+  std::string output;  // absolute; default <base_dir>/results/<name>
+  Marks marks;
+
+  // nullptr when absent
+  const ParameterSpec* FindParameter(const std::string& name) const;
+  const ModelSpec* FindModel(const std::string& name) const;
+};
+
+// Reads and parses an experiment file. Throws ConfigError (naming the file when it cannot be
+// read; at the offending element otherwise).
+ExperimentConfig LoadExperiment(const std::string& path);
+
+// Parses experiment text as if read from path_for_messages (used in marks, for the default name
+// and to resolve relative paths). Throws ConfigError.
+ExperimentConfig ParseExperiment(const std::string& yaml_text,
+                                 const std::string& path_for_messages);
+
+// Checks the names and sizes in config against model m, known in the config as model_name (its
+// ModelSpec::name; "" = apply every parameter): sensors, parameter objects and indices (per
+// target kind; for kField an mjtNum array of mjModel and a flat index inside it), measurement and
+// noise sensors, excitation actuators, simulate.initial_state sizes (nq, nv). Throws ConfigError
+// at the first offending element, with a hint listing up to 20 valid names.
+void ValidateExperimentAgainstModel(const ExperimentConfig& config, const mjModel& m,
+                                    const std::string& model_name);
+
+// Throws ConfigError at the model entry whose file does not exist or is not a regular file.
+void CheckModelFilesExist(const ExperimentConfig& config);
+
+}  // namespace mjsysid::io

@@ -1,0 +1,110 @@
+// Logged rollouts: the in-memory form, the HDF5 file format, and checks against a model.
+//
+// Contract:
+// - A Log holds one or more Sequences. Sample k of a sequence is (time(k), ctrl.row(k),
+//   sensordata.row(k)) and, when recorded, (qpos.row(k), qvel.row(k), act.row(k)).
+// - Time convention (docs: DESIGN.md section 3): with sensor_time == "pre" (what mjsysid
+//   writes), sensordata.row(k) = y_k = h(x_k, u_k) is what mj_forward computes at state x_k with
+//   control u_k = ctrl.row(k), *before* the step that produces x_{k+1}; qpos/qvel/act row k are
+//   x_k. With "post", sensordata.row(k) was read after that step (at x_{k+1}), the way
+//   rollout code that copies d->sensordata after mj_step records it.
+// - Units: time in seconds; every other quantity in MuJoCo's units for that quantity (the units
+//   of the model: SI unless the model says otherwise).
+// - Storage order: all matrices are row-major, one row per sample (T rows). In the HDF5 file the
+//   same layout is stored as 2-D datasets of shape (T, columns), C order, float64.
+// - Indices in error messages (row, column) are 0-based, except CSV line and column numbers,
+//   which are 1-based like an editor's.
+// - Failure: every function here throws LogError, whose message names the file, the HDF5 object
+//   (/sequence/dataset) and, where it applies, the row and column. Nothing is printed: HDF5's own
+//   error printing is switched off and its innermost message is appended to ours.
+// - Thread safety: the functions may be called from several threads; the HDF5 calls of this
+//   library are serialized by one process-wide mutex (HDF5 is not thread-safe by default).
+//
+// HDF5 layout (format_version 1):
+//   /                      attributes: format = "mjsysid-log" (string), format_version = 1 (int),
+//                          sensor_time = "pre" | "post" (string), and one string attribute per
+//                          Log::attributes entry
+//   /<sequence name>/      one group per sequence, in Log::sequences order (creation order)
+//     time                 float64 (T)           attribute units = "s"
+//     ctrl                 float64 (T, nu)       attribute names: string (nu), actuator names
+//     sensordata           float64 (T, ns)       attribute names: string (nsensor), sensor names;
+//                                                attribute dims: int32 (nsensor), columns each
+//     qpos, qvel, act      float64 (T, nq|nv|na) optional
+// Strings are variable-length UTF-8. A zero-width matrix (nu = 0, ns = 0) is stored as a
+// dataset with a zero dimension. On reading, fixed-length strings, integer or float32 data and
+// scalar numeric attributes (stored in Log::attributes as decimal text) are accepted too.
+#pragma once
+
+#include <mujoco/mujoco.h>
+
+#include <Eigen/Core>
+#include <map>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace mjsysid::io {
+
+using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+// One logged rollout. T = time.size() >= 1.
+struct Sequence {
+  std::string name;                         // HDF5 group name: non-empty, no '/', not "."
+  Eigen::VectorXd time;                     // T, seconds, strictly increasing, finite
+  RowMatrix ctrl;                           // T x nu (row k = control applied at sample k)
+  RowMatrix sensordata;                     // T x nsensordata (row k = y_k, see Log::sensor_time)
+  RowMatrix qpos, qvel, act;                // optional: 0 x 0 when absent, else T x nq / nv / na
+  std::vector<std::string> sensor_names;    // one per sensor (not per column)
+  std::vector<int> sensor_dims;             // columns of each sensor (>= 1); sum = cols
+  std::vector<std::string> actuator_names;  // one per ctrl column
+};
+
+// A set of sequences recorded with one convention, plus free-form metadata.
+struct Log {
+  std::vector<Sequence> sequences;  // at least one; names unique
+  // "pre": y_k computed at x_k before the step (mjsysid's convention); "post": after it
+  std::string sensor_time = "pre";
+  // free-form metadata (model, seed, versions...); keys non-empty and not one of the reserved
+  // root attribute names "format", "format_version", "sensor_time"
+  std::map<std::string, std::string> attributes;
+};
+
+// Any failure to read, write or check a log. The message names file, object, row and column.
+class LogError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Writes `log` to `path` atomically: the file is written to path + ".tmp-<pid>", flushed to
+// disk and renamed over `path`. On any failure (the log fails the checks ReadLog applies, HDF5
+// or the file system fails) LogError is thrown, an existing file at `path` is left as it was and
+// the temporary file is removed.
+void WriteLog(const std::string& path, const Log& log);
+
+// Reads and checks a log written by WriteLog (or by any tool following the layout above).
+// Checks: the format attributes; every required dataset present with rank 1 (time) or 2 (others)
+// and T rows; names/dims counts matching the columns; no NaN or Inf anywhere; time strictly
+// increasing; no unknown datasets in a sequence group and no objects other than groups at the
+// root. Sequences come back in the order they were written.
+Log ReadLog(const std::string& path);
+
+// Checks a log against the model it is meant for (`path_for_messages` names the log in
+// messages). Per sequence: every sensor name is a sensor of `m` with the same dimension
+// (m.sensor_dim), names unique; ctrl has exactly the model's actuators, in model order (missing,
+// extra and misplaced names are named); qpos/qvel/act, when present, are nq/nv/na wide; at least
+// two samples, and the sample period (median of diff(time)) is a whole multiple n >= 1 of
+// m.opt.timestep within 1e-9 relative (the ratio is reported otherwise). Unknown names come with
+// the model's names (up to 20) as a hint. Throws LogError on the first problem found.
+void ValidateLogAgainstModel(const Log& log, const mjModel& m,
+                             const std::string& path_for_messages);
+
+namespace internal {
+
+// Shared by log.cc and csv.cc, not part of the API: "'x' (did you mean 'y'?); valid: a, b, ..."
+// style hint listing up to 20 of `valid`, with the closest one first when one is close.
+std::string NameHint(const std::string& wrong, const std::vector<std::string>& valid,
+                     const std::string& what);
+
+}  // namespace internal
+
+}  // namespace mjsysid::io
