@@ -93,7 +93,11 @@ Simulator::Simulator(const mjModel& m, const std::vector<ParameterSpec>& params,
       pool_(options.threads) {
   InstallMujocoHandlers();
   // private model options: fixed solver iterations, sensors only when asked for
-  if (options_.fixed_solver_iterations) model_->opt.tolerance = 0;
+  if (options_.fixed_solver_iterations) {
+    model_->opt.tolerance = 0;
+  } else if (options_.solver_tolerance > 0) {
+    model_->opt.tolerance = std::min(model_->opt.tolerance, options_.solver_tolerance);
+  }
   if (!options_.sensors) model_->opt.disableflags |= mjDSBL_SENSOR;
   params_.Prepare(model_.get());
   scratch_ = MakeData(*model_);

@@ -76,7 +76,10 @@ TEST(SimulatorTest, UsersModelIsNotModifiedAndOptionsAreRecorded) {
   sim.SetParameters(p);
   EXPECT_EQ(m->body_mass[mj_name2id(m.get(), mjOBJ_BODY, "pole")], 0.2);
   EXPECT_EQ(m->opt.tolerance, tolerance);
-  EXPECT_EQ(sim.model().opt.tolerance, 0.0) << "fixed solver iterations on the private copy";
+  EXPECT_EQ(sim.model().opt.tolerance, 1e-10) << "tight solver tolerance on the private copy";
+  SimulatorOptions fixed;
+  fixed.fixed_solver_iterations = true;
+  EXPECT_EQ(Simulator(*m, {}, fixed).model().opt.tolerance, 0.0);
   EXPECT_EQ(sim.GetParameters()[0], 0.5);
 }
 
