@@ -1,0 +1,907 @@
+#include "sysid/problem.h"
+
+#include <ceres/ceres.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <set>
+#include <stdexcept>
+
+#include "sysid/state_manifold.h"
+
+namespace mjsysid {
+namespace {
+
+constexpr double kZ95 = 1.959963984540054;
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// robust loss on one weighted residual e: returns rhat with rhat^2 = rho(e^2), and d rhat / d e
+double RobustResidual(FitOptions::Loss loss, double c, double e, double* derivative) {
+  const double s = e * e;
+  double rho = s, rho1 = 1;
+  switch (loss) {
+    case FitOptions::Loss::kNone:
+      *derivative = 1;
+      return e;
+    case FitOptions::Loss::kHuber:
+      if (s > c * c) {
+        const double r = std::sqrt(s);
+        rho = 2 * c * r - c * c;
+        rho1 = c / r;
+      }
+      break;
+    case FitOptions::Loss::kCauchy:
+      rho = c * c * std::log1p(s / (c * c));
+      rho1 = 1 / (1 + s / (c * c));
+      break;
+  }
+  if (s == 0) {
+    *derivative = 1;
+    return 0;
+  }
+  const double rhat = std::copysign(std::sqrt(rho), e);
+  *derivative = rho1 * e / rhat;
+  return rhat;
+}
+
+}  // namespace
+
+// -----------------------------------------------------------------------------------------------
+// problem state
+
+struct Problem::Impl {
+  struct Model {
+    std::string name;
+    ModelPtr model;
+    std::unique_ptr<Simulator> sim;
+    std::vector<int> global;  // global parameter index of each simulator parameter
+    std::unique_ptr<StateManifold> manifold;
+  };
+  // one fitted sensor column of a sequence
+  struct Channel {
+    int column;       // in the model's sensordata
+    double weight;    // 1/sigma or weight
+    int measurement;  // index into measurements, or -1
+  };
+  struct Segment {
+    int seq = 0;        // sequence index
+    int k0 = 0, T = 0;  // first sample and samples
+    int block = -1;     // state block of x_0 (or -1: fixed, given by the sequence)
+    int next = -1;      // state block of the next segment's x_0 (continuity), or -1
+  };
+
+  std::vector<Model> models;
+  std::vector<FitParameter> params;
+  std::vector<FitMeasurement> measurements;
+  std::vector<FitSequence> sequences;
+
+  // fit-time state
+  FitOptions options;
+  std::vector<std::vector<Channel>> channels;  // per sequence
+  std::vector<Segment> segments;
+  std::vector<double> z;                      // transformed physical parameters
+  std::vector<double> m;                      // fitted measurement terms
+  std::vector<std::vector<double>> states;    // state blocks (physics vectors)
+  std::vector<std::vector<double>> fixed_x0;  // per sequence: the given x0 as physics vector
+  struct MeasIndex {
+    int delay = -1, gain = -1, bias = -1;  // index into m, -1 = fixed at initial
+  };
+  std::vector<MeasIndex> meas_index;
+
+  Model& ModelOf(const std::string& name) {
+    for (Model& mo : models) {
+      if (mo.name == name) return mo;
+    }
+    throw std::invalid_argument("no model named '" + name + "' (add it with AddModel)");
+  }
+
+  double Physical(int g, double zg) const {
+    switch (params[g].transform) {
+      case Transform::kLog:
+        return std::exp(zg);
+      case Transform::kScale:
+        return zg * params[g].scale;
+      default:
+        return zg;
+    }
+  }
+  double ToZ(int g, double p) const {
+    switch (params[g].transform) {
+      case Transform::kLog:
+        return p > 0 ? std::log(p) : -kInf;
+      case Transform::kScale:
+        return p / params[g].scale;
+      default:
+        return p;
+    }
+  }
+  // dp/dz at z
+  double DpDz(int g, double zg) const {
+    switch (params[g].transform) {
+      case Transform::kLog:
+        return std::exp(zg);
+      case Transform::kScale:
+        return params[g].scale;
+      default:
+        return 1.0;
+    }
+  }
+
+  // current measurement term values of measurement i, from the fitted vector mv (or initial)
+  void Terms(int i, const double* mv, double* delay, double* gain, double* bias) const {
+    const FitMeasurement& me = measurements[i];
+    const MeasIndex& ix = meas_index[i];
+    *delay = ix.delay >= 0 && mv ? mv[ix.delay] : me.delay.initial;
+    *gain = ix.gain >= 0 && mv ? mv[ix.gain] : me.gain.initial;
+    *bias = ix.bias >= 0 && mv ? mv[ix.bias] : me.bias.initial;
+  }
+
+  // writes the model's parameters from z into its simulator (only when they changed)
+  void Apply(Model& mo, const double* zv) {
+    const int n = mo.sim->parameters().size();
+    if (n == 0) return;
+    Eigen::VectorXd p(n);
+    for (int j = 0; j < n; ++j) p[j] = Physical(mo.global[j], zv[mo.global[j]]);
+    if (p != mo.sim->GetParameters()) mo.sim->SetParameters(p);
+  }
+
+  InitialState ToInitialState(const Model& mo, const double* x, double time) const {
+    const StateDims& d = mo.sim->dims();
+    InitialState s;
+    s.qpos = Eigen::Map<const Eigen::VectorXd>(x, d.nq);
+    s.qvel = Eigen::Map<const Eigen::VectorXd>(x + d.nq, d.nv);
+    s.act = Eigen::Map<const Eigen::VectorXd>(x + d.nq + d.nv, d.na);
+    s.time = time;
+    return s;
+  }
+
+  // simulated value of a channel at local sample k with delay (linear interpolation), and its
+  // derivative with respect to the delay; rows: a function returning the value at sample i
+  template <typename F>
+  static double Delayed(const F& at, int k, int T, double delay, double dt, double* ddelay) {
+    if (delay == 0) {
+      *ddelay = 0;  // one-sided at zero: the derivative below would see the future
+      const int i0 = k, i1 = std::max(k - 1, 0);
+      *ddelay = i1 == i0 ? 0.0 : -(at(i0) - at(i1)) / dt;
+      return at(k);
+    }
+    const double q = k - delay / dt;
+    int i0 = static_cast<int>(std::floor(q));
+    const double a = q - i0;
+    if (i0 < 0) {
+      *ddelay = 0;
+      return at(0);
+    }
+    if (i0 >= T - 1) {
+      *ddelay = 0;
+      return at(T - 1);
+    }
+    *ddelay = -(at(i0 + 1) - at(i0)) / dt;
+    return (1 - a) * at(i0) + a * at(i0 + 1);
+  }
+};
+
+// -----------------------------------------------------------------------------------------------
+// cost functions
+
+namespace {
+
+// residuals of one segment: its sensor samples and (not last) its continuity with the next
+class SegmentCost : public ceres::CostFunction {
+ public:
+  SegmentCost(Problem::Impl* impl, int segment) : impl_(impl), segment_(segment) {
+    const auto& seg = impl->segments[segment];
+    const auto& mo = impl->ModelOf(impl->sequences[seg.seq].model);
+    const int nch = static_cast<int>(impl->channels[seg.seq].size());
+    set_num_residuals(seg.T * nch + (seg.next >= 0 ? mo.sim->dims().nx : 0));
+    if (!impl->z.empty()) mutable_parameter_block_sizes()->push_back(impl->z.size());
+    if (!impl->m.empty()) mutable_parameter_block_sizes()->push_back(impl->m.size());
+    if (seg.block >= 0) mutable_parameter_block_sizes()->push_back(mo.sim->dims().nphys);
+    if (seg.next >= 0) mutable_parameter_block_sizes()->push_back(mo.sim->dims().nphys);
+  }
+
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    try {
+      return EvaluateOrThrow(parameters, residuals, jacobians);
+    } catch (const std::exception&) {
+      // a divergent or warning trial point: reject it, the trust region shrinks
+      return false;
+    }
+  }
+
+ private:
+  bool EvaluateOrThrow(double const* const* parameters, double* residuals,
+                       double** jacobians) const {
+    Problem::Impl& I = *impl_;
+    const auto& seg = I.segments[segment_];
+    const FitSequence& sq = I.sequences[seg.seq];
+    Problem::Impl::Model& mo = I.ModelOf(sq.model);
+    Simulator& sim = *mo.sim;
+    const StateDims& dims = sim.dims();
+    const int nx = dims.nx, npm = sim.parameters().size();
+    const auto& chans = I.channels[seg.seq];
+    const int nch = static_cast<int>(chans.size());
+    const double dt = sim.model().opt.timestep;
+
+    // unpack blocks
+    int b = 0;
+    const double* zv = I.z.empty() ? nullptr : parameters[b++];
+    const int zb = I.z.empty() ? -1 : b - 1;
+    const double* mv = I.m.empty() ? nullptr : parameters[b++];
+    const int mb = I.m.empty() ? -1 : b - 1;
+    const double* x0 = seg.block >= 0 ? parameters[b++] : I.fixed_x0[seg.seq].data();
+    const int xb = seg.block >= 0 ? b - 1 : -1;
+    const double* xn = seg.next >= 0 ? parameters[b++] : nullptr;
+    const int nb = seg.next >= 0 ? b - 1 : -1;
+
+    // rollout (and Jacobians only when asked for)
+    if (zv) I.Apply(mo, zv);
+    SequenceInput in;
+    in.x0 = I.ToInitialState(mo, x0, seg.k0 * dt);
+    in.ctrl = sq.ctrl.middleRows(seg.k0, seg.T);
+    const Trajectory tr = sim.Rollout(in);
+    const bool want = jacobians != nullptr;
+    Sensitivity s;
+    if (want) {
+      JacobianOptions jo = I.options.jacobian;
+      jo.initial_state = xb >= 0;
+      jo.zero_column_is_error = false;
+      s = sim.Jacobians(in, tr, jo);
+    }
+    const int ns = dims.ns;
+    const int ncol = want ? s.ncol : 0;
+    std::vector<double> row_t(want ? ncol : 0);  // d(simulated)/d(column) of one residual
+
+    // zero the Jacobian blocks
+    if (want) {
+      for (int i = 0; i < static_cast<int>(parameter_block_sizes().size()); ++i) {
+        if (jacobians[i]) {
+          std::fill(jacobians[i], jacobians[i] + num_residuals() * parameter_block_sizes()[i], 0.0);
+        }
+      }
+    }
+    std::vector<double> pinv;
+    if (want && xb >= 0 && jacobians[xb]) {
+      pinv.resize(static_cast<size_t>(nx) * dims.nphys);
+      mo.manifold->PlusJacobianPseudoInverse(x0, pinv.data());
+    }
+
+    // sensor residuals
+    for (int k = 0; k < seg.T; ++k) {
+      for (int c = 0; c < nch; ++c) {
+        const auto& ch = chans[c];
+        double delay = 0, gain = 1, bias = 0;
+        if (ch.measurement >= 0) I.Terms(ch.measurement, mv, &delay, &gain, &bias);
+        double dydelay = 0;
+        const double y = Problem::Impl::Delayed([&](int i) { return tr.sensors(i, ch.column); }, k,
+                                                seg.T, delay, dt, &dydelay);
+        const double e = ch.weight * (gain * y + bias - sq.measured(seg.k0 + k, ch.column));
+        double de = 1;
+        const int row = k * nch + c;
+        residuals[row] = RobustResidual(I.options.loss, I.options.loss_scale, e, &de);
+        if (!want) continue;
+        const double f = de * ch.weight;
+        // d(simulated y)/d(column), interpolated like the value
+        for (int j = 0; j < ncol; ++j) {
+          double unused = 0;
+          row_t[j] = Problem::Impl::Delayed(
+              [&](int i) { return s.DyDp(static_cast<Eigen::Index>(i) * ns + ch.column, j); }, k,
+              seg.T, delay, dt, &unused);
+        }
+        if (zb >= 0 && jacobians[zb]) {
+          const int nz = static_cast<int>(I.z.size());
+          for (int j = 0; j < npm; ++j) {
+            const int g = mo.global[j];
+            jacobians[zb][row * nz + g] = f * gain * row_t[j] * I.DpDz(g, zv[g]);
+          }
+        }
+        if (mb >= 0 && jacobians[mb] && ch.measurement >= 0) {
+          const int nm = static_cast<int>(I.m.size());
+          const auto& ix = I.meas_index[ch.measurement];
+          if (ix.delay >= 0) jacobians[mb][row * nm + ix.delay] = f * gain * dydelay;
+          if (ix.gain >= 0) jacobians[mb][row * nm + ix.gain] = f * y;
+          if (ix.bias >= 0) jacobians[mb][row * nm + ix.bias] = f;
+        }
+        if (xb >= 0 && jacobians[xb]) {
+          for (int a = 0; a < dims.nphys; ++a) {
+            double v = 0;
+            for (int i = 0; i < nx; ++i) v += row_t[npm + i] * pinv[i * dims.nphys + a];
+            jacobians[xb][row * dims.nphys + a] = f * gain * v;
+          }
+        }
+      }
+    }
+
+    // continuity: w * (x_end (-) x_next) in tangent space
+    if (seg.next >= 0) {
+      const double w = I.options.continuity_weight;
+      const int r0 = seg.T * nch;
+      std::vector<double> d(nx);
+      TangentDifference(sim.model(), xn, tr.states.row(seg.T).data(), 1.0, d.data());
+      for (int i = 0; i < nx; ++i) residuals[r0 + i] = w * d[i];
+      if (want) {
+        const auto S = s.DxDp.middleRows(static_cast<Eigen::Index>(seg.T) * nx, nx);
+        if (zb >= 0 && jacobians[zb]) {
+          const int nz = static_cast<int>(I.z.size());
+          for (int i = 0; i < nx; ++i) {
+            for (int j = 0; j < npm; ++j) {
+              const int g = mo.global[j];
+              jacobians[zb][(r0 + i) * nz + g] = w * S(i, j) * I.DpDz(g, zv[g]);
+            }
+          }
+        }
+        if (xb >= 0 && jacobians[xb]) {
+          for (int i = 0; i < nx; ++i) {
+            for (int a = 0; a < dims.nphys; ++a) {
+              double v = 0;
+              for (int t = 0; t < nx; ++t) v += S(i, npm + t) * pinv[t * dims.nphys + a];
+              jacobians[xb][(r0 + i) * dims.nphys + a] = w * v;
+            }
+          }
+        }
+        if (nb >= 0 && jacobians[nb]) {
+          // d(x_end (-) y)/dy = -I in tangent space (exact off quaternions, first order on them)
+          std::vector<double> pn(static_cast<size_t>(nx) * dims.nphys);
+          mo.manifold->PlusJacobianPseudoInverse(xn, pn.data());
+          for (int i = 0; i < nx; ++i) {
+            for (int a = 0; a < dims.nphys; ++a) {
+              jacobians[nb][(r0 + i) * dims.nphys + a] = -w * pn[i * dims.nphys + a];
+            }
+          }
+        }
+      }
+    }
+    for (int i = 0; i < num_residuals(); ++i) {
+      if (!std::isfinite(residuals[i])) return false;
+    }
+    return true;
+  }
+
+  Problem::Impl* impl_;
+  int segment_;
+};
+
+// Gaussian prior on one physical parameter: (p - mean) / sigma
+class PriorCost : public ceres::CostFunction {
+ public:
+  PriorCost(const Problem::Impl* impl, int g) : impl_(impl), g_(g) {
+    set_num_residuals(1);
+    mutable_parameter_block_sizes()->push_back(impl->z.size());
+  }
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    const FitParameter& p = impl_->params[g_];
+    const double zg = parameters[0][g_];
+    residuals[0] = (impl_->Physical(g_, zg) - p.prior_mean) / p.prior_sigma;
+    if (jacobians && jacobians[0]) {
+      std::fill(jacobians[0], jacobians[0] + impl_->z.size(), 0.0);
+      jacobians[0][g_] = impl_->DpDz(g_, zg) / p.prior_sigma;
+    }
+    return std::isfinite(residuals[0]);
+  }
+
+ private:
+  const Problem::Impl* impl_;
+  int g_;
+};
+
+// progress lines, trace, checkpoint callback and interruption
+class Progress : public ceres::IterationCallback {
+ public:
+  Progress(Problem::Impl* impl, FitResult* result, std::chrono::steady_clock::time_point start)
+      : impl_(impl), result_(result), start_(start) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& s) override {
+    IterationInfo info;
+    info.iteration = s.iteration;
+    info.cost = s.cost;
+    info.step_norm = s.step_norm;
+    info.gradient_norm = s.gradient_max_norm;
+    info.successful = s.step_is_successful || s.iteration == 0;
+    info.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    const int np = static_cast<int>(impl_->params.size());
+    info.parameters.resize(np + static_cast<int>(impl_->m.size()));
+    for (int g = 0; g < np; ++g) info.parameters[g] = impl_->Physical(g, impl_->z[g]);
+    for (size_t i = 0; i < impl_->m.size(); ++i) info.parameters[np + i] = impl_->m[i];
+    if (impl_->options.verbose) {
+      std::fprintf(stderr, "iter %3d  cost %.6e  |step| %.2e  |grad| %.2e  %s  %7.2f s\n",
+                   info.iteration, info.cost, info.step_norm, info.gradient_norm,
+                   info.successful ? "ok      " : "rejected", info.seconds);
+    }
+    result_->trace.push_back(info);
+    if (impl_->options.on_iteration && info.successful) impl_->options.on_iteration(info);
+    if (impl_->options.interrupt && impl_->options.interrupt->load()) {
+      result_->interrupted = true;
+      return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
+    }
+    return ceres::SOLVER_CONTINUE;
+  }
+
+ private:
+  Problem::Impl* impl_;
+  FitResult* result_;
+  std::chrono::steady_clock::time_point start_;
+};
+
+}  // namespace
+
+// -----------------------------------------------------------------------------------------------
+// building
+
+Problem::Problem() : impl_(std::make_unique<Impl>()) { InstallMujocoHandlers(); }
+Problem::~Problem() = default;
+
+void Problem::AddModel(const std::string& name, const mjModel& m) {
+  for (const auto& mo : impl_->models) {
+    if (mo.name == name) throw std::invalid_argument("model '" + name + "' added twice");
+  }
+  Impl::Model mo;
+  mo.name = name;
+  mo.model = CopyModel(m);
+  impl_->models.push_back(std::move(mo));
+}
+
+void Problem::AddParameter(const FitParameter& p) {
+  for (const auto& q : impl_->params) {
+    if (q.name == p.name) throw std::invalid_argument("parameter '" + p.name + "' added twice");
+  }
+  impl_->params.push_back(p);
+}
+
+void Problem::AddMeasurement(const FitMeasurement& me) { impl_->measurements.push_back(me); }
+
+void Problem::AddSequence(const FitSequence& s) { impl_->sequences.push_back(s); }
+
+FitResult Problem::Fit(const FitOptions& options) {
+  Impl& I = *impl_;
+  const auto start = std::chrono::steady_clock::now();
+  I.options = options;
+  FitResult result;
+  if (I.models.empty()) throw std::invalid_argument("no model: call AddModel first");
+  if (I.sequences.empty()) throw std::invalid_argument("no sequence: call AddSequence first");
+  const int np = static_cast<int>(I.params.size());
+
+  // parameters: bounds, transforms, initial values
+  for (int g = 0; g < np; ++g) {
+    const FitParameter& p = I.params[g];
+    const std::string where = "parameter '" + p.name + "': ";
+    if (!std::isfinite(p.initial)) throw std::invalid_argument(where + "initial value not finite");
+    if (!(p.lower < p.upper)) throw std::invalid_argument(where + "lower bound >= upper bound");
+    if (p.initial < p.lower || p.initial > p.upper) {
+      throw std::invalid_argument(where + "initial value " + std::to_string(p.initial) +
+                                  " outside its bounds");
+    }
+    if (p.transform == Transform::kLog && !(p.initial > 0)) {
+      throw std::invalid_argument(where + "log transform needs a positive initial value");
+    }
+    if (p.transform == Transform::kLog && p.lower < 0) {
+      throw std::invalid_argument(where + "log transform needs a lower bound >= 0");
+    }
+    if (p.transform == Transform::kScale && !(p.scale > 0)) {
+      throw std::invalid_argument(where + "scale must be positive");
+    }
+    if (p.has_prior && !(p.prior_sigma > 0)) {
+      throw std::invalid_argument(where + "prior sigma must be positive");
+    }
+    for (const std::string& mname : p.models) I.ModelOf(mname);
+  }
+
+  // simulators: each model with the parameters that apply to it
+  SimulatorOptions so;
+  so.threads = options.threads;
+  for (auto& mo : I.models) {
+    std::vector<ParameterSpec> specs;
+    mo.global.clear();
+    for (int g = 0; g < np; ++g) {
+      const FitParameter& p = I.params[g];
+      if (!p.models.empty() &&
+          std::find(p.models.begin(), p.models.end(), mo.name) == p.models.end()) {
+        continue;
+      }
+      ParameterSpec spec = p.target;
+      spec.label = p.name;
+      specs.push_back(spec);
+      mo.global.push_back(g);
+    }
+    try {
+      mo.sim = std::make_unique<Simulator>(*mo.model, specs, so);
+    } catch (const ParameterError& e) {
+      throw ParameterError("model '" + mo.name + "': " + e.what());
+    }
+    mo.manifold = std::make_unique<StateManifold>(&mo.sim->model());
+  }
+  I.z.resize(np);
+  for (int g = 0; g < np; ++g) I.z[g] = I.ToZ(g, I.params[g].initial);
+
+  // measurement terms
+  I.m.clear();
+  I.meas_index.assign(I.measurements.size(), Impl::MeasIndex());
+  std::vector<std::string> names;
+  for (int g = 0; g < np; ++g) names.push_back(I.params[g].name);
+  std::vector<std::pair<double, double>> mbounds;
+  for (size_t i = 0; i < I.measurements.size(); ++i) {
+    const FitMeasurement& me = I.measurements[i];
+    auto add = [&](const FitMeasurement::Term& t, int* index, const char* what) {
+      if (!t.fit) return;
+      if (t.initial < t.lower || t.initial > t.upper) {
+        throw std::invalid_argument("measurement " + std::string(what) + " of sensor '" +
+                                    me.sensor + "': initial value outside its bounds");
+      }
+      *index = static_cast<int>(I.m.size());
+      I.m.push_back(t.initial);
+      mbounds.emplace_back(t.lower, t.upper);
+      names.push_back(me.sensor + "." + what);
+    };
+    add(me.delay, &I.meas_index[i].delay, "delay");
+    add(me.gain, &I.meas_index[i].gain, "gain");
+    add(me.bias, &I.meas_index[i].bias, "bias");
+  }
+
+  // sequences: shapes, finite data, channels
+  I.channels.assign(I.sequences.size(), {});
+  I.fixed_x0.assign(I.sequences.size(), {});
+  for (size_t q = 0; q < I.sequences.size(); ++q) {
+    FitSequence& sq = I.sequences[q];
+    Impl::Model& mo = I.ModelOf(sq.model);
+    const StateDims& d = mo.sim->dims();
+    const std::string where = "sequence '" + sq.name + "': ";
+    const int T = static_cast<int>(sq.ctrl.rows());
+    if (T < 1 || sq.ctrl.cols() != d.nu) {
+      throw std::invalid_argument(
+          where + "ctrl must be T x nu with T >= 1 and nu = " + std::to_string(d.nu));
+    }
+    if (sq.measured.rows() != T || sq.measured.cols() != d.ns) {
+      throw std::invalid_argument(where + "measured must be " + std::to_string(T) + " x " +
+                                  std::to_string(d.ns) + " (T x nsensordata), got " +
+                                  std::to_string(sq.measured.rows()) + " x " +
+                                  std::to_string(sq.measured.cols()));
+    }
+    const mjModel& m = mo.sim->model();
+    std::vector<std::string> used = sq.sensors;
+    if (used.empty()) {
+      for (int i = 0; i < m.nsensor; ++i) {
+        const char* nm = mj_id2name(&m, mjOBJ_SENSOR, i);
+        used.push_back(nm ? nm : "");
+      }
+    }
+    for (const std::string& sname : used) {
+      const int id = mj_name2id(&m, mjOBJ_SENSOR, sname.c_str());
+      if (id < 0) {
+        throw std::invalid_argument(where + "no sensor named '" + sname + "' in model '" + mo.name +
+                                    "'");
+      }
+      double weight = 1.0;
+      const auto it = options.sensor_weights.find(sname);
+      if (it != options.sensor_weights.end()) weight = it->second;
+      if (!(weight > 0) || !std::isfinite(weight)) {
+        throw std::invalid_argument("sensor '" + sname + "': weight must be positive");
+      }
+      int meas = -1;
+      for (size_t i = 0; i < I.measurements.size(); ++i) {
+        if (I.measurements[i].sensor == sname) meas = static_cast<int>(i);
+      }
+      for (int c = 0; c < m.sensor_dim[id]; ++c) {
+        const int col = m.sensor_adr[id] + c;
+        for (int k = 0; k < T; ++k) {
+          if (!std::isfinite(sq.measured(k, col))) {
+            throw std::invalid_argument(where + "measured sensor '" + sname +
+                                        "' is not finite at row " + std::to_string(k));
+          }
+        }
+        I.channels[q].push_back({col, weight, meas});
+      }
+    }
+    if (!sq.ctrl.allFinite()) throw std::invalid_argument(where + "ctrl contains NaN/Inf");
+    // the given initial state as a physics vector
+    InitialState x0 = sq.x0;
+    if (x0.qpos.size() == 0) x0.qpos = Eigen::Map<const Eigen::VectorXd>(m.qpos0, d.nq);
+    if (x0.qvel.size() == 0) x0.qvel = Eigen::VectorXd::Zero(d.nv);
+    if (x0.act.size() == 0) x0.act = Eigen::VectorXd::Zero(d.na);
+    if (x0.qpos.size() != d.nq || x0.qvel.size() != d.nv || x0.act.size() != d.na) {
+      throw std::invalid_argument(where + "initial state sizes differ from nq/nv/na");
+    }
+    I.fixed_x0[q].resize(d.nphys);
+    Eigen::Map<Eigen::VectorXd>(I.fixed_x0[q].data(), d.nq) = x0.qpos;
+    Eigen::Map<Eigen::VectorXd>(I.fixed_x0[q].data() + d.nq, d.nv) = x0.qvel;
+    Eigen::Map<Eigen::VectorXd>(I.fixed_x0[q].data() + d.nq + d.nv, d.na) = x0.act;
+    sq.x0 = x0;
+  }
+  for (const FitMeasurement& me : I.measurements) {
+    bool found = false;
+    for (const auto& ch : I.channels) {
+      for (const auto& c : ch)
+        found = found || (c.measurement >= 0 && I.measurements[c.measurement].sensor == me.sensor);
+    }
+    if (!found) {
+      throw std::invalid_argument("measurement terms for sensor '" + me.sensor +
+                                  "', which no sequence fits");
+    }
+  }
+
+  // initial rollouts at the initial parameters; the Jacobian there must see every parameter
+  std::vector<Trajectory> initial(I.sequences.size());
+  std::vector<bool> moves(np, false);
+  for (auto& mo : I.models) {
+    I.Apply(mo, I.z.data());
+    std::vector<SequenceInput> ins;
+    std::vector<int> which;
+    for (size_t q = 0; q < I.sequences.size(); ++q) {
+      if (I.sequences[q].model != mo.name) continue;
+      ins.push_back({I.sequences[q].x0, I.sequences[q].ctrl});
+      which.push_back(static_cast<int>(q));
+    }
+    if (ins.empty()) continue;
+    std::vector<Trajectory> trs;
+    mo.sim->Rollout(ins, &trs);
+    for (size_t i = 0; i < which.size(); ++i) initial[which[i]] = trs[i];
+    if (mo.sim->parameters().size() == 0) continue;
+    JacobianOptions jo = options.jacobian;
+    jo.zero_column_is_error = false;
+    jo.state_jacobians = true;
+    std::vector<Sensitivity> sens;
+    mo.sim->Jacobians(ins, trs, jo, &sens);
+    for (const Sensitivity& s : sens) {
+      for (int j = 0; j < mo.sim->parameters().size(); ++j) {
+        if (!s.DxDp.col(j).isZero(0) || (s.DyDp.rows() && !s.DyDp.col(j).isZero(0))) {
+          moves[mo.global[j]] = true;
+        }
+      }
+    }
+    result.jacobian_mode = JacobianModeName(sens.empty() ? jo.mode : sens[0].mode);
+  }
+  for (int g = 0; g < np; ++g) {
+    if (!moves[g]) {
+      throw ParameterError("parameter '" + I.params[g].name +
+                           "' has no effect on the simulated states or sensors of any sequence "
+                           "(its Jacobian column is exactly zero): remove it or add data that "
+                           "excites it");
+    }
+  }
+
+  // segments (multiple shooting) and state blocks
+  I.segments.clear();
+  I.states.clear();
+  for (size_t q = 0; q < I.sequences.size(); ++q) {
+    const int T = static_cast<int>(I.sequences[q].ctrl.rows());
+    const int len = options.segment_steps > 0 ? options.segment_steps : T;
+    const size_t first = I.segments.size();
+    for (int k0 = 0; k0 < T; k0 += len) {
+      Impl::Segment seg;
+      seg.seq = static_cast<int>(q);
+      seg.k0 = k0;
+      seg.T = std::min(len, T - k0);
+      const bool free = k0 > 0 || options.estimate_initial_state;
+      if (free) {
+        seg.block = static_cast<int>(I.states.size());
+        // start from the initial-parameter rollout (continuity holds at the start)
+        const auto row = initial[q].states.row(k0);
+        I.states.emplace_back(row.data(), row.data() + row.size());
+      }
+      I.segments.push_back(seg);
+    }
+    for (size_t s = first; s + 1 < I.segments.size(); ++s) {
+      I.segments[s].next = I.segments[s + 1].block;
+    }
+  }
+
+  // ceres problem
+  ceres::Problem::Options po;
+  po.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(po);
+  if (np) {
+    problem.AddParameterBlock(I.z.data(), np);
+    for (int g = 0; g < np; ++g) {
+      const FitParameter& p = I.params[g];
+      const double zl = I.ToZ(g, p.lower), zu = I.ToZ(g, p.upper);
+      const double lo = p.transform == Transform::kScale ? std::min(zl, zu) : zl;
+      const double hi = p.transform == Transform::kScale ? std::max(zl, zu) : zu;
+      if (std::isfinite(lo) && p.lower > -kInf) problem.SetParameterLowerBound(I.z.data(), g, lo);
+      if (std::isfinite(hi) && p.upper < kInf) problem.SetParameterUpperBound(I.z.data(), g, hi);
+    }
+  }
+  if (!I.m.empty()) {
+    problem.AddParameterBlock(I.m.data(), static_cast<int>(I.m.size()));
+    for (size_t i = 0; i < I.m.size(); ++i) {
+      if (std::isfinite(mbounds[i].first)) {
+        problem.SetParameterLowerBound(I.m.data(), static_cast<int>(i), mbounds[i].first);
+      }
+      if (std::isfinite(mbounds[i].second)) {
+        problem.SetParameterUpperBound(I.m.data(), static_cast<int>(i), mbounds[i].second);
+      }
+    }
+  }
+  for (size_t s = 0; s < I.segments.size(); ++s) {
+    const Impl::Segment& seg = I.segments[s];
+    Impl::Model& mo = I.ModelOf(I.sequences[seg.seq].model);
+    std::vector<double*> blocks;
+    if (np) blocks.push_back(I.z.data());
+    if (!I.m.empty()) blocks.push_back(I.m.data());
+    if (seg.block >= 0) blocks.push_back(I.states[seg.block].data());
+    if (seg.next >= 0) blocks.push_back(I.states[seg.next].data());
+    problem.AddResidualBlock(new SegmentCost(&I, static_cast<int>(s)), nullptr, blocks);
+    if (seg.block >= 0) problem.SetManifold(I.states[seg.block].data(), mo.manifold.get());
+  }
+  for (int g = 0; g < np; ++g) {
+    if (I.params[g].has_prior) problem.AddResidualBlock(new PriorCost(&I, g), nullptr, I.z.data());
+  }
+
+  // solve
+  ceres::Solver::Options so_ceres;
+  so_ceres.minimizer_type = ceres::TRUST_REGION;
+  so_ceres.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+  int tangent = np + static_cast<int>(I.m.size());
+  for (const auto& st : I.states) tangent += static_cast<int>(st.size());
+  so_ceres.linear_solver_type = tangent <= 200 ? ceres::DENSE_QR : ceres::SPARSE_NORMAL_CHOLESKY;
+  so_ceres.max_num_iterations = options.max_iterations;
+  so_ceres.function_tolerance = options.function_tolerance;
+  so_ceres.gradient_tolerance = options.gradient_tolerance;
+  so_ceres.parameter_tolerance = options.parameter_tolerance;
+  so_ceres.num_threads = 1;  // the simulator is parallel inside
+  so_ceres.update_state_every_iteration = true;
+  so_ceres.logging_type = ceres::SILENT;
+  Progress progress(&I, &result, start);
+  so_ceres.callbacks.push_back(&progress);
+  ceres::Solver::Summary summary;
+  ceres::Solve(so_ceres, &problem, &summary);
+
+  result.initial_cost = summary.initial_cost;
+  result.final_cost = summary.final_cost;
+  result.iterations = static_cast<int>(summary.iterations.size()) - 1;
+  result.converged = summary.termination_type == ceres::CONVERGENCE && !result.interrupted;
+  result.termination = summary.message;
+  result.num_residuals = summary.num_residuals;
+  if (summary.termination_type == ceres::FAILURE) {
+    result.warnings.push_back("Ceres failed: " + summary.message);
+  }
+
+  // Jacobian at the estimate, in physical units (tangent space for states)
+  ceres::Problem::EvaluateOptions eo;
+  double cost = 0;
+  ceres::CRSMatrix crs;
+  std::vector<double> residuals;
+  const bool evaluated = problem.Evaluate(eo, &cost, &residuals, nullptr, &crs);
+  const int nm = static_cast<int>(I.m.size());
+  const int nvar = np + nm;
+  if (evaluated) {
+    RowMatrix J = RowMatrix::Zero(crs.num_rows, crs.num_cols);
+    for (int r = 0; r < crs.num_rows; ++r) {
+      for (int i = crs.rows[r]; i < crs.rows[r + 1]; ++i) J(r, crs.cols[i]) = crs.values[i];
+    }
+    for (int g = 0; g < np; ++g) J.col(g) /= I.DpDz(g, I.z[g]);
+    // parameters first (as Ceres ordered the blocks: z, m, states)
+    Eigen::VectorXd values(J.cols());
+    values.setZero();
+    std::vector<bool> fixed(J.cols(), false);
+    std::vector<std::string> all_names = names;
+    for (int g = 0; g < np; ++g) values[g] = I.Physical(g, I.z[g]);
+    for (int i = 0; i < nm; ++i) values[np + i] = I.m[i];
+    for (Eigen::Index c = nvar; c < J.cols(); ++c) {
+      all_names.push_back("x0[" + std::to_string(c - nvar) + "]");
+    }
+    // parameters stopped on a bound are not estimated
+    auto on_bound = [&](int v, bool lower) {
+      double lo, hi, val;
+      if (v < np) {
+        lo = I.params[v].lower;
+        hi = I.params[v].upper;
+        val = values[v];
+      } else {
+        lo = mbounds[v - np].first;
+        hi = mbounds[v - np].second;
+        val = values[v];
+      }
+      const double tol = 1e-6 * std::max(1.0, std::abs(val));
+      return lower ? (std::isfinite(lo) && val - lo <= tol)
+                   : (std::isfinite(hi) && hi - val <= tol);
+    };
+    result.parameters.resize(nvar);
+    for (int v = 0; v < nvar; ++v) {
+      ParameterEstimate& e = result.parameters[v];
+      e.name = names[v];
+      e.value = values[v];
+      e.initial = v < np ? I.params[v].initial : mbounds.empty() ? 0 : 0;
+      e.at_lower = on_bound(v, true);
+      e.at_upper = on_bound(v, false);
+      fixed[v] = e.at_lower || e.at_upper;
+    }
+    result.uncertainty = AnalyzeUncertainty(J, cost, all_names, values, fixed, options.uncertainty);
+    // keep the parameter block of the covariance
+    Eigen::MatrixXd cov = result.uncertainty.covariance.topLeftCorner(nvar, nvar);
+    result.uncertainty.covariance = cov;
+    Eigen::VectorXd se = result.uncertainty.std_error.head(nvar);
+    result.uncertainty.std_error = se;
+    result.uncertainty.identifiable.resize(nvar);
+    for (int v = 0; v < nvar; ++v) {
+      ParameterEstimate& e = result.parameters[v];
+      e.std_error = se[v];
+      e.identifiable = result.uncertainty.identifiable[v];
+      e.ci95_low = e.value - kZ95 * e.std_error;
+      e.ci95_high = e.value + kZ95 * e.std_error;
+    }
+    result.jacobian = J.leftCols(nvar);
+  } else {
+    result.warnings.push_back("the residuals could not be evaluated at the estimate");
+  }
+  // measurement terms' initial values
+  for (size_t i = 0; i < I.measurements.size(); ++i) {
+    const auto& ix = I.meas_index[i];
+    const auto& me = I.measurements[i];
+    if (ix.delay >= 0) result.parameters[np + ix.delay].initial = me.delay.initial;
+    if (ix.gain >= 0) result.parameters[np + ix.gain].initial = me.gain.initial;
+    if (ix.bias >= 0) result.parameters[np + ix.bias].initial = me.bias.initial;
+  }
+  for (const auto& p : result.parameters) {
+    if (p.at_lower || p.at_upper) {
+      result.warnings.push_back("parameter '" + p.name + "' stopped on its " +
+                                (p.at_lower ? "lower" : "upper") +
+                                " bound: not estimated (no interval); the data may prefer a value "
+                                "outside the bounds");
+    }
+  }
+  for (const std::string& line : result.uncertainty.unidentifiable) {
+    result.warnings.push_back("unidentifiable: " + line);
+  }
+
+  // simulated signals before and after, per sequence (segment-wise in multiple shooting)
+  for (size_t q = 0; q < I.sequences.size(); ++q) {
+    const FitSequence& sq = I.sequences[q];
+    Impl::Model& mo = I.ModelOf(sq.model);
+    SequenceResult sr;
+    sr.name = sq.name;
+    sr.model = sq.model;
+    sr.measured = sq.measured;
+    sr.simulated_initial = initial[q].sensors;
+    sr.simulated_final.resize(sq.measured.rows(), sq.measured.cols());
+    for (const auto& ch : I.channels[q]) {
+      const int id = [&] {
+        for (int i = 0; i < mo.sim->model().nsensor; ++i) {
+          if (ch.column >= mo.sim->model().sensor_adr[i] &&
+              ch.column < mo.sim->model().sensor_adr[i] + mo.sim->model().sensor_dim[i]) {
+            return i;
+          }
+        }
+        return -1;
+      }();
+      const char* sensor_name = mj_id2name(&mo.sim->model(), mjOBJ_SENSOR, id);
+      if (sensor_name &&
+          std::find(sr.sensors.begin(), sr.sensors.end(), sensor_name) == sr.sensors.end()) {
+        sr.sensors.push_back(sensor_name);
+      }
+    }
+    if (np) I.Apply(mo, I.z.data());
+    const double dt = mo.sim->model().opt.timestep;
+    for (const Impl::Segment& seg : I.segments) {
+      if (seg.seq != static_cast<int>(q)) continue;
+      const double* x0 = seg.block >= 0 ? I.states[seg.block].data() : I.fixed_x0[q].data();
+      if (seg.k0 == 0) sr.x0_final = Eigen::Map<const Eigen::VectorXd>(x0, mo.sim->dims().nphys);
+      SequenceInput in{I.ToInitialState(mo, x0, seg.k0 * dt), sq.ctrl.middleRows(seg.k0, seg.T)};
+      try {
+        const Trajectory tr = mo.sim->Rollout(in);
+        sr.simulated_final.middleRows(seg.k0, seg.T) = tr.sensors;
+        // apply the measurement terms to the fitted columns
+        for (const auto& ch : I.channels[q]) {
+          if (ch.measurement < 0) continue;
+          double delay, gain, bias;
+          I.Terms(ch.measurement, I.m.empty() ? nullptr : I.m.data(), &delay, &gain, &bias);
+          for (int k = 0; k < seg.T; ++k) {
+            double unused;
+            sr.simulated_final(seg.k0 + k, ch.column) =
+                gain * Impl::Delayed([&](int i) { return tr.sensors(i, ch.column); }, k, seg.T,
+                                     delay, dt, &unused) +
+                bias;
+          }
+        }
+      } catch (const std::exception& e) {
+        result.warnings.push_back("sequence '" + sq.name +
+                                  "': final simulation failed: " + e.what());
+      }
+    }
+    result.sequences.push_back(std::move(sr));
+  }
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+}  // namespace mjsysid

@@ -1,0 +1,102 @@
+#include "sysid/uncertainty.h"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+namespace mjsysid {
+
+Uncertainty AnalyzeUncertainty(const RowMatrix& J, double cost,
+                               const std::vector<std::string>& names, const Eigen::VectorXd& values,
+                               const std::vector<bool>& fixed, const UncertaintyOptions& options) {
+  const int m = static_cast<int>(J.rows()), n = static_cast<int>(J.cols());
+  Uncertainty u;
+  u.covariance.setZero(n, n);
+  u.std_error.setZero(n);
+  u.identifiable.assign(n, true);
+
+  // free variables, with their column norms
+  std::vector<int> free;
+  for (int j = 0; j < n; ++j) {
+    if (!fixed[j]) free.push_back(j);
+  }
+  const int nf = static_cast<int>(free.size());
+  if (nf == 0) return u;
+  Eigen::VectorXd D(nf);
+  for (int a = 0; a < nf; ++a) D[a] = J.col(free[a]).norm();
+
+  // normal matrix of the column-scaled Jacobian (a zero column stays zero: lost direction)
+  Eigen::MatrixXd N(nf, nf);
+  for (int a = 0; a < nf; ++a) {
+    for (int b = a; b < nf; ++b) {
+      const double da = D[a] > 0 ? D[a] : 1.0, db = D[b] > 0 ? D[b] : 1.0;
+      N(a, b) = N(b, a) = J.col(free[a]).dot(J.col(free[b])) / (da * db);
+    }
+  }
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(N);
+  // descending singular values
+  Eigen::VectorXd lambda = eig.eigenvalues().reverse();
+  Eigen::MatrixXd V = eig.eigenvectors().rowwise().reverse();
+  u.singular_values = lambda.cwiseMax(0.0).cwiseSqrt();
+  const double smax = u.singular_values.size() ? u.singular_values[0] : 0.0;
+  std::vector<bool> kept(nf, false);
+  for (int i = 0; i < nf; ++i) {
+    kept[i] = smax > 0 && u.singular_values[i] > options.rank_tolerance * smax;
+    u.rank += kept[i] ? 1 : 0;
+  }
+  u.dof = m - u.rank;
+  u.residual_variance = u.dof > 0 ? 2.0 * cost / u.dof : std::numeric_limits<double>::quiet_NaN();
+  const double s2 = options.scale_by_residual_variance ? u.residual_variance : 1.0;
+
+  // lost directions: the variables taking part cannot be told apart
+  for (int i = 0; i < nf; ++i) {
+    if (kept[i]) continue;
+    // relative change of each variable along the direction: v_a / (D_a |p_a|)
+    Eigen::VectorXd rel(nf);
+    for (int a = 0; a < nf; ++a) {
+      const double scale = (D[a] > 0 ? D[a] : 1.0) * std::max(std::abs(values[free[a]]), 1e-12);
+      rel[a] = V(a, i) / scale;
+    }
+    // scale to a largest entry of +1 (the sign of an eigenvector is arbitrary)
+    Eigen::Index big = 0;
+    rel.cwiseAbs().maxCoeff(&big);
+    rel /= rel[big] != 0 ? rel[big] : 1.0;
+    std::string line;
+    int members = 0;
+    for (int a = 0; a < nf; ++a) {
+      if (std::abs(V(a, i)) < options.participation) continue;
+      u.identifiable[free[a]] = false;
+      char buf[64];
+      std::snprintf(buf, sizeof(buf), "%+.3g", rel[a]);
+      line += (members++ ? ", " : "") + names[free[a]] + " " + buf;
+    }
+    char head[96];
+    std::snprintf(head, sizeof(head), "singular value %.3g (relative %.2g): ", u.singular_values[i],
+                  smax > 0 ? u.singular_values[i] / smax : 0.0);
+    u.unidentifiable.push_back(
+        std::string(head) + (members == 1 ? "no effect: " : "") + line +
+        (members > 1 ? " (relative changes that leave the fit unchanged)" : ""));
+  }
+
+  // covariance on the kept directions, back in the variables' units
+  Eigen::MatrixXd Cn = Eigen::MatrixXd::Zero(nf, nf);
+  for (int i = 0; i < nf; ++i) {
+    if (kept[i]) Cn += V.col(i) * V.col(i).transpose() / lambda[i];
+  }
+  for (int a = 0; a < nf; ++a) {
+    for (int b = 0; b < nf; ++b) {
+      const double da = D[a] > 0 ? D[a] : 1.0, db = D[b] > 0 ? D[b] : 1.0;
+      u.covariance(free[a], free[b]) = s2 * Cn(a, b) / (da * db);
+    }
+  }
+  for (int j = 0; j < n; ++j) {
+    u.std_error[j] = fixed[j]            ? 0.0
+                     : u.identifiable[j] ? std::sqrt(std::max(u.covariance(j, j), 0.0))
+                                         : std::numeric_limits<double>::infinity();
+  }
+  return u;
+}
+
+}  // namespace mjsysid

@@ -1,0 +1,49 @@
+// Uncertainty and identifiability at a least-squares optimum, from the residual Jacobian.
+//
+// Contract:
+// - J (m x n, row-major) is the Jacobian of the residuals r (cost = 0.5 |r|^2) with respect to n
+//   variables in the units the user reads (physical parameters; nuisance variables such as initial
+//   states may follow them). Variables flagged fixed (e.g. active bounds) are left out: their
+//   covariance rows are zero and they are reported as fixed, not as estimated.
+// - The columns are scaled to unit norm and J^T J is decomposed; directions whose singular value is
+//   below rank_tolerance times the largest cannot be determined from the data. Their variables
+//   are reported unidentifiable (infinite standard error), with the combination of relative changes
+//   that leaves the residuals unchanged, instead of a meaningless number.
+// - Covariance = s^2 (J^T J)^+ on the determined directions, s^2 = 2 cost / (m - rank), the
+// residual
+//   variance (the noise scale when residuals are weighted by 1/sigma: s^2 ~ 1).
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "core/state.h"
+
+namespace mjsysid {
+
+struct UncertaintyOptions {
+  double rank_tolerance = 1e-7;  // relative singular value below which a direction is lost
+  double participation = 0.1;    // |component| of a lost direction that makes a variable
+                                 // unidentifiable
+  bool scale_by_residual_variance = true;
+};
+
+struct Uncertainty {
+  Eigen::MatrixXd covariance;       // n x n (zero rows for fixed and unidentifiable variables)
+  Eigen::VectorXd std_error;        // n; +inf for unidentifiable, 0 for fixed
+  std::vector<bool> identifiable;   // n
+  Eigen::VectorXd singular_values;  // of the column-scaled J of the free variables, descending
+  int rank = 0;
+  double residual_variance = 0;             // s^2
+  int dof = 0;                              // m - rank
+  std::vector<std::string> unidentifiable;  // one line per lost direction
+};
+
+// names: n labels; values: n current values (for relative directions); fixed: n flags
+Uncertainty AnalyzeUncertainty(const RowMatrix& J, double cost,
+                               const std::vector<std::string>& names, const Eigen::VectorXd& values,
+                               const std::vector<bool>& fixed,
+                               const UncertaintyOptions& options = UncertaintyOptions());
+
+}  // namespace mjsysid
