@@ -175,7 +175,8 @@ void Simulator::CheckStep(const mjData& d, int seq_index, int step, const char* 
   const std::string warnings = SimulationWarnings(d);
   if (!warnings.empty()) {
     throw SimulationError(std::string(what) + ": sequence " + std::to_string(seq_index) +
-                              ", step " + std::to_string(step) + " (t = " + TimeString(d.time) +
+                              ", step " + std::to_string(step) +
+                              " (t = " + TimeString(d.time - model_->opt.timestep) +
                               " s): MuJoCo warning: " + warnings,
                           seq_index, step);
   }

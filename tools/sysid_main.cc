@@ -1,31 +1,122 @@
-// sysid: the mjsysid command line.
+// sysid: the mjsysid command line (docs/cli.md).
 //
-// exit codes: 0 success, 1 run failed (e.g. fit did not converge), 2 bad input.
+// Each subcommand is a function RunX(const XArgs&) and one registration function AddX(app) that
+// declares its arguments and returns the subcommand with a closure calling RunX; main() parses,
+// runs the chosen one and maps exceptions to exit codes:
+//   0 success
+//   1 the run failed (a simulation failed, MuJoCo raised an error)
+//   2 bad input (command line, experiment file, model, parameters, data files)
 #include <CLI/CLI.hpp>
+#include <chrono>
 #include <cmath>
+#include <cstdarg>
+#include <cstdint>
 #include <cstdio>
 #include <exception>
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <memory>
+#include <set>
+#include <stdexcept>
 #include <string>
+#include <system_error>
+#include <vector>
 
 #include "core/mujoco_env.h"
+#include "core/parameters.h"
+#include "core/simulator.h"
 #include "mjsysid/version.h"
+#include "sysid/io/experiment.h"
+#include "sysid/io/log.h"
+#include "sysid/sim/simulate.h"
 
 namespace {
+
+namespace fs = std::filesystem;
 
 constexpr int kExitOk = 0;
 constexpr int kExitFailed = 1;
 constexpr int kExitBadInput = 2;
 
+const char* const kExitCodesFooter =
+    "Exit codes: 0 success, 1 the run failed (simulation or MuJoCo error), 2 bad input (command "
+    "line, experiment file, model, parameters or data files).";
+
+// a bad input found by the command line itself (exit code 2)
+class InputError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// a registered subcommand: its CLI11 app and what runs it
+struct Command {
+  CLI::App* app;
+  std::function<int()> run;
+};
+
+// seconds since start
+double Seconds(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+std::string Join(const std::vector<std::string>& items, const char* sep = ", ") {
+  std::string out;
+  for (const std::string& s : items) out += (out.empty() ? "" : sep) + s;
+  return out;
+}
+
+// printf into a string
+__attribute__((format(printf, 2, 3))) void Appendf(std::string* out, const char* format, ...) {
+  va_list args;
+  va_start(args, format);
+  va_list copy;
+  va_copy(copy, args);
+  const int n = std::vsnprintf(nullptr, 0, format, copy);
+  va_end(copy);
+  if (n > 0) {
+    std::vector<char> buf(static_cast<size_t>(n) + 1);
+    std::vsnprintf(buf.data(), buf.size(), format, args);
+    out->append(buf.data(), static_cast<size_t>(n));
+  }
+  va_end(args);
+}
+
+// a number written with %.17g, shown with 6 digits
+std::string Short(const std::string& exact) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.6g", std::stod(exact));
+  return buf;
+}
+
+// a short description of a model's sizes
+std::string ModelSizes(const mjModel& m) {
+  char buf[160];
+  std::snprintf(buf, sizeof(buf), "nq=%d nv=%d nu=%d nsensor=%d, timestep %g s",
+                static_cast<int>(m.nq), static_cast<int>(m.nv), static_cast<int>(m.nu),
+                static_cast<int>(m.nsensor), m.opt.timestep);
+  return buf;
+}
+
+// ---------------------------------------------------------------------------------------------
+// sysid rollout MODEL.xml
+
+struct RolloutArgs {
+  std::string model_path;
+  int steps = 1000;
+  double amplitude = 1.0;
+};
+
 // rolls a model out from its reference state under a sinusoidal control and prints a summary
-int RunRollout(const std::string& model_path, int steps, double amplitude) {
-  mjsysid::ModelPtr m = mjsysid::LoadModel(model_path);
+int RunRollout(const RolloutArgs& args) {
+  mjsysid::ModelPtr m = mjsysid::LoadModel(args.model_path);
   mjsysid::DataPtr d = mjsysid::MakeData(*m);
-  std::printf("model %s: nq=%d nv=%d nu=%d nsensordata=%d timestep=%g\n", model_path.c_str(),
+  std::printf("model %s: nq=%d nv=%d nu=%d nsensordata=%d timestep=%g\n", args.model_path.c_str(),
               static_cast<int>(m->nq), static_cast<int>(m->nv), static_cast<int>(m->nu),
               static_cast<int>(m->nsensordata), m->opt.timestep);
-  for (int k = 0; k < steps; ++k) {
+  for (int k = 0; k < args.steps; ++k) {
     for (int i = 0; i < m->nu; ++i) {
-      d->ctrl[i] = amplitude * std::sin(2.0 * M_PI * (0.5 + 0.3 * i) * d->time);
+      d->ctrl[i] = args.amplitude * std::sin(2.0 * M_PI * (0.5 + 0.3 * i) * d->time);
     }
     mj_step(m.get(), d.get());
     const std::string warnings = mjsysid::SimulationWarnings(*d);
@@ -35,7 +126,7 @@ int RunRollout(const std::string& model_path, int steps, double amplitude) {
       return kExitFailed;
     }
   }
-  std::printf("rolled out %d steps to t=%.4f s\n", steps, d->time);
+  std::printf("rolled out %d steps to t=%.4f s\n", args.steps, d->time);
   for (int i = 0; i < m->nsensor; ++i) {
     const char* name = mj_id2name(m.get(), mjOBJ_SENSOR, i);
     std::printf("  sensor %-12s", name ? name : "?");
@@ -47,22 +138,336 @@ int RunRollout(const std::string& model_path, int steps, double amplitude) {
   return kExitOk;
 }
 
+Command AddRollout(CLI::App* app) {
+  auto args = std::make_shared<RolloutArgs>();
+  CLI::App* sub = app->add_subcommand(
+      "rollout",
+      "Roll a model out from its reference state under a sine control and print the "
+      "final sensor readings");
+  sub->add_option("model", args->model_path, "MJCF (or MJB) model file")->required();
+  sub->add_option("--steps", args->steps, "number of steps")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  sub->add_option("--amplitude", args->amplitude, "control amplitude, in control units")
+      ->capture_default_str();
+  sub->footer(kExitCodesFooter);
+  return {sub, [args] { return RunRollout(*args); }};
+}
+
+// ---------------------------------------------------------------------------------------------
+// sysid simulate EXP.yaml
+
+struct SimulateArgs {
+  std::string experiment;
+  std::string out;           // "" = the first data path of the experiment
+  std::uint64_t seed = 0;    // used when has_seed
+  bool has_seed = false;     // --seed given
+  int threads = 0;           // used when has_threads
+  bool has_threads = false;  // --threads given
+};
+
+// warns (stderr) about truth values outside their parameter's bounds: a fit could not reach them
+void WarnTruthOutsideBounds(const mjsysid::io::ExperimentConfig& config) {
+  for (const mjsysid::io::NamedValue& t : config.simulate.truth) {
+    const mjsysid::io::ParameterSpec* p = config.FindParameter(t.name);
+    if (p && (t.value < p->lower || t.value > p->upper)) {
+      std::fprintf(stderr,
+                   "sysid simulate: warning: %s: truth %s = %g lies outside the parameter's "
+                   "bounds [%g, %g]\n",
+                   t.mark.ToString().c_str(), t.name.c_str(), t.value, p->lower, p->upper);
+    }
+  }
+}
+
+// simulates the experiment's `simulate` block and writes the log
+int RunSimulate(const SimulateArgs& args) {
+  const auto start = std::chrono::steady_clock::now();
+  mjsysid::io::ExperimentConfig config = mjsysid::io::LoadExperiment(args.experiment);
+  mjsysid::io::CheckModelFilesExist(config);
+  if (args.has_seed) config.simulate.seed = args.seed;
+
+  // the output: --out, else the first `data:` path
+  std::string out = args.out;
+  if (out.empty()) {
+    if (config.data.empty()) {
+      throw InputError(args.experiment +
+                       ": no output file: give --out LOG.h5 or a `data:` path in the experiment");
+    }
+    out = config.data.front().path;
+  }
+  WarnTruthOutsideBounds(config);
+
+  // simulate, then write atomically (creating the folder)
+  mjsysid::sim::SimulateSettings settings;
+  settings.threads = args.has_threads ? args.threads : config.solver.threads;
+  const mjsysid::io::Log log = mjsysid::sim::SimulateExperiment(config, settings);
+  const fs::path parent = fs::path(out).parent_path();
+  if (!parent.empty()) {
+    std::error_code ec;
+    fs::create_directories(parent, ec);
+    if (ec) {
+      throw InputError(out + ": cannot create the folder " + parent.string() + ": " + ec.message());
+    }
+  }
+  mjsysid::io::WriteLog(out, log);
+
+  // summary
+  const mjsysid::io::Sequence& first = log.sequences.front();
+  std::vector<std::string> sensors;
+  for (size_t i = 0; i < first.sensor_names.size(); ++i) {
+    std::string s = first.sensor_names[i];
+    if (first.sensor_dims[i] > 1) s += "(" + std::to_string(first.sensor_dims[i]) + ")";
+    auto noise = log.attributes.find("noise." + first.sensor_names[i]);
+    if (noise != log.attributes.end() && noise->second != "0") {
+      s += " sigma " + Short(noise->second);
+    }
+    sensors.push_back(s);
+  }
+  std::vector<std::string> models;
+  for (const mjsysid::io::ModelSpec& spec : config.models) models.push_back(spec.name);
+  std::printf("simulated %s (%s)\n", config.name.c_str(), args.experiment.c_str());
+  std::printf("  models      %s\n", Join(models).c_str());
+  std::printf("  sequences   %d%s x %d steps (%.3g s each), seed %llu\n", config.simulate.sequences,
+              config.models.size() > 1 ? " per model" : "", config.simulate.steps,
+              first.time[first.time.size() - 1] +
+                  (first.time.size() > 1 ? first.time[1] - first.time[0] : 0.0),
+              static_cast<unsigned long long>(config.simulate.seed));
+  std::printf("  excitation  %s\n", log.attributes.at("excitation").c_str());
+  std::printf("  sensors     %s\n", Join(sensors).c_str());
+  std::string from_model;
+  if (auto it = log.attributes.find("truth_from_model"); it != log.attributes.end()) {
+    from_model = "," + it->second + ",";
+  }
+  for (const mjsysid::io::ParameterSpec& p : config.parameters) {
+    const bool kept = from_model.find("," + p.name + ",") != std::string::npos;
+    // one value, or one per model when they differ
+    std::vector<std::string> keys = {p.name};
+    for (const mjsysid::io::ModelSpec& spec : config.models) {
+      keys.push_back(spec.name + "." + p.name);
+    }
+    for (const std::string& key : keys) {
+      auto it = log.attributes.find("truth." + key);
+      if (it == log.attributes.end()) continue;
+      std::printf("  truth       %s = %s%s\n", key.c_str(), Short(it->second).c_str(),
+                  kept ? " (model value)" : "");
+    }
+  }
+  std::printf("  wrote       %s in %.2f s\n", out.c_str(), Seconds(start));
+  return kExitOk;
+}
+
+Command AddSimulate(CLI::App* app) {
+  auto args = std::make_shared<SimulateArgs>();
+  CLI::App* sub = app->add_subcommand(
+      "simulate",
+      "Simulate the experiment's `simulate` block (true parameter values, excitation, noise) "
+      "and write a synthetic HDF5 log");
+  sub->add_option("experiment", args->experiment,
+                  "YAML experiment file (docs/experiment-schema.md)")
+      ->required();
+  sub->add_option("--out", args->out,
+                  "output HDF5 log (default: the first `data:` path of the experiment, relative to "
+                  "the YAML file; --out is relative to the current directory); written "
+                  "atomically, folders created");
+  CLI::Option* seed = sub->add_option("--seed", args->seed,
+                                      "random seed (default: simulate.seed of the experiment)");
+  CLI::Option* threads = sub->add_option(
+      "--threads", args->threads,
+      "simulation threads, 0 = all cores (default: solver.threads of the experiment)");
+  threads->check(CLI::Range(0, 4096));
+  sub->footer(std::string("Sequences are named seq0, seq1, ... (MODEL_seq0, ... with several "
+                          "models); sensor rows are read before each step (sensor_time pre).\n") +
+              kExitCodesFooter);
+  return {sub, [args, seed, threads] {
+            args->has_seed = seed->count() > 0;
+            args->has_threads = threads->count() > 0;
+            return RunSimulate(*args);
+          }};
+}
+
+// ---------------------------------------------------------------------------------------------
+// sysid check EXP.yaml
+
+struct CheckArgs {
+  std::string experiment;
+};
+
+// the model a logged sequence belongs to: "MODEL_..." names a model of several; "" otherwise
+std::string ModelOfSequence(const mjsysid::io::ExperimentConfig& config, const std::string& seq) {
+  if (config.models.size() < 2) return config.models.front().name;
+  std::string best;
+  for (const mjsysid::io::ModelSpec& spec : config.models) {
+    if (seq.rfind(spec.name + "_", 0) == 0 && spec.name.size() > best.size()) best = spec.name;
+  }
+  return best;
+}
+
+// checks a data file against the models: a sequence named MODEL_... against that model, any
+// other against every model (it must fit one of them)
+void CheckDataFile(const mjsysid::io::ExperimentConfig& config,
+                   const std::map<std::string, mjsysid::ModelPtr>& models, const std::string& path,
+                   const mjsysid::io::Log& log) {
+  for (const mjsysid::io::Sequence& seq : log.sequences) {
+    mjsysid::io::Log one;
+    one.sensor_time = log.sensor_time;
+    one.sequences.push_back(seq);
+    const std::string owner = ModelOfSequence(config, seq.name);
+    if (!owner.empty()) {
+      mjsysid::io::ValidateLogAgainstModel(one, *models.at(owner), path);
+      continue;
+    }
+    std::string first_error;
+    bool fits = false;
+    for (const mjsysid::io::ModelSpec& spec : config.models) {
+      try {
+        mjsysid::io::ValidateLogAgainstModel(one, *models.at(spec.name), path);
+        fits = true;
+        break;
+      } catch (const mjsysid::io::LogError& e) {
+        if (first_error.empty()) first_error = e.what();
+      }
+    }
+    if (!fits) {
+      throw mjsysid::io::LogError(first_error + " (sequence '" + seq.name +
+                                  "' fits none of the experiment's models)");
+    }
+  }
+}
+
+// checks the experiment file, its models and its data files; prints a summary and OK
+int RunCheck(const CheckArgs& args) {
+  namespace io = mjsysid::io;
+  const io::ExperimentConfig config = io::LoadExperiment(args.experiment);
+  io::CheckModelFilesExist(config);
+  std::string summary;  // printed with OK at the end; an error prints only itself
+  Appendf(&summary, "experiment %s (%s)\n", config.name.c_str(), config.source_file.c_str());
+
+  // models: they compile, the config's names exist in them, the parameters resolve
+  std::map<std::string, mjsysid::ModelPtr> models;
+  for (const io::ModelSpec& spec : config.models) {
+    mjsysid::ModelPtr m = mjsysid::LoadModel(spec.path);
+    io::ValidateExperimentAgainstModel(config, *m, spec.name);
+    const std::vector<mjsysid::ParameterSpec> params =
+        mjsysid::sim::CoreParameterSpecs(config, *m, spec.name);
+    Appendf(&summary, "  model      %s: %s (%s), %zu parameters\n", spec.name.c_str(),
+            spec.path.c_str(), ModelSizes(*m).c_str(), params.size());
+    models[spec.name] = std::move(m);
+  }
+  std::vector<std::string> params;
+  for (const io::ParameterSpec& p : config.parameters) {
+    params.push_back(p.name + " (" + io::ParameterTargetName(p.target) + " " +
+                     (p.target == io::ParameterTarget::kField ? p.field : p.object) +
+                     (p.index ? "[" + std::to_string(p.index) + "]" : "") + ")");
+  }
+  Appendf(&summary, "  parameters %s\n", params.empty() ? "none" : Join(params).c_str());
+  std::vector<std::string> sensors;
+  for (const io::SensorSpec& s : config.sensors) sensors.push_back(s.name);
+  Appendf(&summary, "  sensors    %s\n", sensors.empty() ? "all" : Join(sensors).c_str());
+
+  // data files: present, readable, consistent with the models
+  std::set<std::string> sequence_names;
+  for (const io::DataFile& data : config.data) {
+    std::error_code ec;
+    if (!fs::exists(data.path, ec)) {
+      throw io::ConfigError(data.mark, "data file not found: " + data.path,
+                            "`sysid simulate " + args.experiment + "` writes it");
+    }
+    const io::Log log = io::ReadLog(data.path);
+    CheckDataFile(config, models, data.path, log);
+    if (log.sensor_time != (config.sensor_time == io::SensorTime::kPre ? "pre" : "post")) {
+      std::fprintf(stderr,
+                   "sysid check: warning: %s records sensor_time '%s', the experiment says '%s'\n",
+                   data.path.c_str(), log.sensor_time.c_str(),
+                   config.sensor_time == io::SensorTime::kPre ? "pre" : "post");
+    }
+    std::vector<std::string> names;
+    for (const io::Sequence& seq : log.sequences) {
+      names.push_back(seq.name + " (" + std::to_string(seq.time.size()) + ")");
+      sequence_names.insert(seq.name);
+    }
+    Appendf(&summary, "  data       %s: %zu sequences: %s\n", data.path.c_str(),
+            log.sequences.size(), Join(names).c_str());
+  }
+  if (config.data.empty()) Appendf(&summary, "  data       none (`sysid simulate` writes it)\n");
+
+  // the selected sequences exist: "seq", or with a model "model/seq" as seq or model_seq
+  for (const io::SequenceRef& ref : config.sequences) {
+    const bool found = sequence_names.count(ref.name) > 0 ||
+                       (!ref.model.empty() && sequence_names.count(ref.model + "_" + ref.name));
+    if (!config.data.empty() && !found) {
+      throw io::ConfigError(
+          ref.mark,
+          "sequence '" + (ref.model.empty() ? "" : ref.model + "/") + ref.name +
+              "' is in none of the data files",
+          "sequences in the data: " + Join({sequence_names.begin(), sequence_names.end()}));
+    }
+  }
+  std::printf("%sOK\n", summary.c_str());
+  return kExitOk;
+}
+
+Command AddCheck(CLI::App* app) {
+  auto args = std::make_shared<CheckArgs>();
+  CLI::App* sub = app->add_subcommand(
+      "check",
+      "Check an experiment without fitting: the YAML file, its model(s) (exist, compile, names "
+      "and parameters resolve) and its data files (readable, consistent with the models)");
+  sub->add_option("experiment", args->experiment,
+                  "YAML experiment file (docs/experiment-schema.md)")
+      ->required();
+  sub->footer(std::string("Prints a summary and OK, or the first error.\n") + kExitCodesFooter);
+  return {sub, [args] { return RunCheck(*args); }};
+}
+
+// ---------------------------------------------------------------------------------------------
+// errors -> exit codes
+
+// runs a subcommand, printing any error as "sysid NAME: message" and mapping it to an exit code
+int RunGuarded(const std::string& name, const std::function<int()>& run) {
+  auto fail = [&name](const char* what, int code) {
+    std::fprintf(stderr, "sysid %s: %s\n", name.c_str(), what);
+    return code;
+  };
+  try {
+    return run();
+  } catch (const mjsysid::io::ConfigError& e) {
+    return fail(e.what(), kExitBadInput);
+  } catch (const mjsysid::io::LogError& e) {
+    return fail(e.what(), kExitBadInput);
+  } catch (const mjsysid::ModelLoadError& e) {
+    return fail(e.what(), kExitBadInput);
+  } catch (const mjsysid::ParameterError& e) {
+    return fail(e.what(), kExitBadInput);
+  } catch (const InputError& e) {
+    return fail(e.what(), kExitBadInput);
+  } catch (const mjsysid::SimulationError& e) {
+    return fail(e.what(), kExitFailed);
+  } catch (const std::exception& e) {
+    return fail(e.what(), kExitFailed);
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   mjsysid::InstallMujocoHandlers();
-  CLI::App app{"mjsysid: system identification for MuJoCo models"};
+  CLI::App app{
+      "mjsysid: system identification for MuJoCo models.\n"
+      "Run `sysid SUBCOMMAND --help` for the arguments of a subcommand."};
   app.set_version_flag("--version", std::string("mjsysid ") + MJSYSID_VERSION + " (MuJoCo " +
                                         mjsysid::MujocoVersion() + ")");
   app.require_subcommand(1);
+  app.footer(std::string("Examples:\n"
+                         "  sysid simulate experiments/pendulum.yaml\n"
+                         "  sysid check experiments/pendulum.yaml\n"
+                         "  sysid rollout models/pendulum.xml --steps 500\n") +
+             kExitCodesFooter);
 
-  std::string model_path;
-  int steps = 1000;
-  double amplitude = 1.0;
-  CLI::App* rollout = app.add_subcommand("rollout", "Roll a model out under a sine control");
-  rollout->add_option("model", model_path, "MJCF model file")->required();
-  rollout->add_option("--steps", steps, "number of steps")->check(CLI::PositiveNumber);
-  rollout->add_option("--amplitude", amplitude, "control amplitude");
+  // subcommands, in the order --help lists them
+  std::vector<Command> commands;
+  commands.push_back(AddSimulate(&app));
+  commands.push_back(AddCheck(&app));
+  commands.push_back(AddRollout(&app));
 
   try {
     app.parse(argc, argv);
@@ -70,14 +475,8 @@ int main(int argc, char** argv) {
     const int rc = app.exit(e);
     return rc == 0 ? kExitOk : kExitBadInput;
   }
-  try {
-    if (*rollout) return RunRollout(model_path, steps, amplitude);
-  } catch (const mjsysid::ModelLoadError& e) {
-    std::fprintf(stderr, "sysid: %s\n", e.what());
-    return kExitBadInput;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "sysid: %s\n", e.what());
-    return kExitFailed;
+  for (const Command& c : commands) {
+    if (*c.app) return RunGuarded(c.app->get_name(), c.run);
   }
-  return kExitOk;
+  return kExitBadInput;
 }

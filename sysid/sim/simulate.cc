@@ -1,0 +1,263 @@
+#include "sysid/sim/simulate.h"
+
+#include <mujoco/mujoco.h>
+
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "core/mujoco_env.h"
+#include "core/parameters.h"
+#include "core/simulator.h"
+#include "mjsysid/version.h"
+#include "sysid/sim/excitation.h"
+
+namespace mjsysid::sim {
+namespace {
+
+// a number as text that reads back to the same double
+std::string Exact(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof(buf), "%.17g", v);
+  return buf;
+}
+
+std::string JoinNumbers(const std::vector<double>& values) {
+  std::string out;
+  for (double v : values) out += (out.empty() ? "" : ",") + Exact(v);
+  return out;
+}
+
+std::string Join(const std::vector<std::string>& names) {
+  std::string out;
+  for (const std::string& n : names) out += (out.empty() ? "" : ",") + n;
+  return out;
+}
+
+// the mark of a model entry (its path)
+const io::Mark& ModelMark(const io::ExperimentConfig& config, const io::ModelSpec& spec) {
+  return config.model_list ? spec.marks.Of("path") : spec.marks.self;
+}
+
+// every truth entry names a parameter, with a finite value
+void CheckTruth(const io::ExperimentConfig& config) {
+  std::vector<std::string> names;
+  for (const io::ParameterSpec& p : config.parameters) names.push_back(p.name);
+  for (const io::NamedValue& t : config.simulate.truth) {
+    if (!config.FindParameter(t.name)) {
+      throw io::ConfigError(
+          t.mark, "simulate.truth: '" + t.name + "' is not a parameter",
+          names.empty() ? "the experiment has no parameters" : "parameters: " + Join(names));
+    }
+    if (!std::isfinite(t.value)) {
+      throw io::ConfigError(t.mark, "simulate.truth." + t.name + ": the value must be finite");
+    }
+  }
+}
+
+// the parameters of config that apply to a model, as core specs, and which entries they are
+std::vector<ParameterSpec> CoreParameters(const io::ExperimentConfig& config, const mjModel& m,
+                                          const std::string& model_name,
+                                          std::vector<const io::ParameterSpec*>* used) {
+  std::vector<ParameterSpec> specs;
+  for (const io::ParameterSpec& p : config.parameters) {
+    if (!p.AppliesTo(model_name)) continue;
+    ParameterSpec s;
+    s.kind = io::ParameterTargetName(p.target);
+    s.object = p.object;
+    s.field = p.field;
+    s.index = p.index;
+    s.label = p.name;
+    try {
+      Parameter::Resolve(m, s);
+    } catch (const ParameterError& e) {
+      throw io::ConfigError(p.marks.self, "parameter '" + p.name + "': " + e.what());
+    }
+    specs.push_back(s);
+    used->push_back(&p);
+  }
+  return specs;
+}
+
+// the initial state of every sequence: simulate.initial_state, else qpos0 and zero velocity
+InitialState InitialStateOf(const io::ExperimentConfig& config, const Simulator& sim) {
+  InitialState x0 = sim.ReferenceState();
+  const io::SimulateInitialState& is = config.simulate.initial_state;
+  if (!is.qpos.empty()) x0.qpos = Eigen::Map<const Eigen::VectorXd>(is.qpos.data(), is.qpos.size());
+  if (!is.qvel.empty()) x0.qvel = Eigen::Map<const Eigen::VectorXd>(is.qvel.data(), is.qvel.size());
+  x0.time = 0;
+  return x0;
+}
+
+// sensor names and dimensions of a model, in model order; every sensor must be named
+void SensorColumns(const io::ExperimentConfig& config, const io::ModelSpec& spec, const mjModel& m,
+                   std::vector<std::string>* names, std::vector<int>* dims) {
+  for (int i = 0; i < static_cast<int>(m.nsensor); ++i) {
+    const char* name = mj_id2name(&m, mjOBJ_SENSOR, i);
+    if (!name || !*name) {
+      throw io::ConfigError(ModelMark(config, spec),
+                            "model '" + spec.name + "': sensor " + std::to_string(i) +
+                                " has no name; logs name every sensor column",
+                            "add name=\"...\" to every sensor of " + spec.path);
+    }
+    names->push_back(name);
+    dims->push_back(m.sensor_dim[i]);
+  }
+}
+
+// per-parameter true values of every model, for the attributes
+struct TruthRecord {
+  std::vector<std::pair<std::string, double>> by_model;  // (model, value)
+  bool from_model = false;                               // no truth entry: the model's value
+};
+
+}  // namespace
+
+std::vector<ParameterSpec> CoreParameterSpecs(const io::ExperimentConfig& config, const mjModel& m,
+                                              const std::string& model_name) {
+  std::vector<const io::ParameterSpec*> used;
+  return CoreParameters(config, m, model_name, &used);
+}
+
+std::string SimulatedSequenceName(const io::ExperimentConfig& config, const std::string& model,
+                                  int s) {
+  const std::string base = "seq" + std::to_string(s);
+  return config.models.size() > 1 ? model + "_" + base : base;
+}
+
+io::Log SimulateExperiment(const io::ExperimentConfig& config, const SimulateSettings& settings) {
+  InstallMujocoHandlers();
+  const io::SimulateOptions& so = config.simulate;
+  CheckTruth(config);
+  if (config.models.empty()) {
+    throw io::ConfigError(config.marks.self, "the experiment names no model");
+  }
+  if (so.sequences < 1 || so.steps < 1) {
+    throw io::ConfigError(so.marks.self, "simulate: sequences and steps must be >= 1");
+  }
+  const bool several = config.models.size() > 1;
+
+  io::Log log;
+  log.sensor_time = "pre";
+  std::map<std::string, std::string>& attr = log.attributes;
+  std::map<std::string, TruthRecord> truth_records;
+
+  for (size_t mi = 0; mi < config.models.size(); ++mi) {
+    const io::ModelSpec& spec = config.models[mi];
+
+    // the model, checked against the config
+    ModelPtr model = LoadModel(spec.path);
+    io::ValidateExperimentAgainstModel(config, *model, spec.name);
+    std::vector<const io::ParameterSpec*> used;
+    const std::vector<ParameterSpec> params = CoreParameters(config, *model, spec.name, &used);
+    std::vector<std::string> sensor_names;
+    std::vector<int> sensor_dims;
+    SensorColumns(config, spec, *model, &sensor_names, &sensor_dims);
+
+    // the simulator at the true parameter values
+    SimulatorOptions options;
+    options.threads = settings.threads;
+    options.sensors = true;
+    Simulator sim(*model, params, options);
+    Eigen::VectorXd values = sim.GetParameters();
+    for (size_t i = 0; i < used.size(); ++i) {
+      TruthRecord& rec = truth_records[used[i]->name];
+      rec.from_model = true;
+      for (const io::NamedValue& t : so.truth) {
+        if (t.name == used[i]->name) {
+          values[static_cast<Eigen::Index>(i)] = t.value;
+          rec.from_model = false;
+        }
+      }
+      rec.by_model.emplace_back(spec.name, values[static_cast<Eigen::Index>(i)]);
+    }
+    sim.SetParameters(values);
+
+    // controls and initial states, then the rollouts (in parallel across sequences)
+    const mjModel& m = sim.model();
+    const StateDims& dims = sim.dims();
+    const double dt = m.opt.timestep;
+    std::vector<SequenceInput> inputs(so.sequences);
+    for (int s = 0; s < so.sequences; ++s) {
+      inputs[s].x0 = InitialStateOf(config, sim);
+      inputs[s].ctrl = GenerateControls(m, so.excitation, so.steps, so.seed + s);
+    }
+    std::vector<Trajectory> traj;
+    sim.Rollout(inputs, &traj);
+
+    // one log sequence per rollout
+    std::vector<std::string> actuator_names;
+    for (int i = 0; i < dims.nu; ++i) {
+      const char* name = mj_id2name(&m, mjOBJ_ACTUATOR, i);
+      actuator_names.push_back(name ? name : "");
+    }
+    std::vector<std::string> names;
+    for (int s = 0; s < so.sequences; ++s) {
+      const int T = so.steps;
+      io::Sequence seq;
+      seq.name = SimulatedSequenceName(config, spec.name, s);
+      seq.time.resize(T);
+      for (int k = 0; k < T; ++k) seq.time[k] = k * dt;
+      seq.ctrl = inputs[s].ctrl;
+      seq.sensordata = traj[s].sensors;
+      AddSensorNoise(m, so.noise, SeedFor(so.seed + s, kNoiseStream + mi), &seq.sensordata);
+      seq.qpos = traj[s].states.block(0, 0, T, dims.nq);
+      seq.qvel = traj[s].states.block(0, dims.nq, T, dims.nv);
+      if (dims.na > 0) seq.act = traj[s].states.block(0, dims.nq + dims.nv, T, dims.na);
+      seq.sensor_names = sensor_names;
+      seq.sensor_dims = sensor_dims;
+      seq.actuator_names = actuator_names;
+      names.push_back(seq.name);
+      log.sequences.push_back(std::move(seq));
+    }
+
+    // per-model attributes
+    if (several) {
+      attr["model." + spec.name] = spec.path;
+      attr["timestep." + spec.name] = Exact(dt);
+      attr["sequences." + spec.name] = Join(names);
+    } else {
+      attr["model"] = spec.path;
+      attr["timestep"] = Exact(dt);
+    }
+  }
+
+  // what was simulated, and how
+  attr["generator"] = std::string("mjsysid ") + MJSYSID_VERSION + " simulate";
+  attr["mujoco_version"] = MujocoVersion();
+  attr["experiment"] = config.source_file;
+  attr["name"] = config.name;
+  attr["seed"] = std::to_string(so.seed);
+  attr["sequences"] = std::to_string(so.sequences);
+  attr["steps"] = std::to_string(so.steps);
+  attr["excitation"] = DescribeExcitation(so.excitation);
+  for (const io::NamedValue& n : so.noise) attr["noise." + n.name] = Exact(n.value);
+  std::vector<std::string> from_model;
+  for (const io::ParameterSpec& p : config.parameters) {
+    auto it = truth_records.find(p.name);
+    if (it == truth_records.end()) continue;
+    const TruthRecord& rec = it->second;
+    if (rec.from_model) from_model.push_back(p.name);
+    bool same = true;
+    for (const auto& entry : rec.by_model) same = same && entry.second == rec.by_model[0].second;
+    if (same) {
+      attr["truth." + p.name] = Exact(rec.by_model[0].second);
+    } else {
+      for (const auto& [model_name, value] : rec.by_model) {
+        attr["truth." + model_name + "." + p.name] = Exact(value);
+      }
+    }
+  }
+  if (!from_model.empty()) attr["truth_from_model"] = Join(from_model);
+  if (!so.initial_state.qpos.empty()) {
+    attr["initial_state.qpos"] = JoinNumbers(so.initial_state.qpos);
+  }
+  if (!so.initial_state.qvel.empty()) {
+    attr["initial_state.qvel"] = JoinNumbers(so.initial_state.qvel);
+  }
+  return log;
+}
+
+}  // namespace mjsysid::sim

@@ -1,0 +1,69 @@
+// Synthetic logs from an experiment file: what `sysid simulate` does.
+//
+// Contract:
+// - For each model of the experiment (in config order): load it, check the config against it
+//   (io::ValidateExperimentAgainstModel), build a core Simulator with the parameters that apply
+//   to that model (fixed solver iterations, sensors on), set the true values (simulate.truth;
+//   parameters without a truth entry keep the model's value), generate simulate.sequences control
+//   sequences of simulate.steps samples (sysid/sim/excitation.h), roll them out from
+//   simulate.initial_state (default: qpos0, zero velocity, time 0) and add the sensor noise.
+// - The returned log (sensor_time "pre", ../../shared/DESIGN.md §3) has one sequence per rollout:
+//   "seq0", "seq1", ... with one model; with several models, "MODEL_seq0", "MODEL_seq1", ... (a
+//   '/' is not allowed in a group name), model by model. Each sequence holds time (k * timestep),
+//   ctrl (clipped to the ctrlranges), sensordata (every sensor of the model, model order, with
+//   noise), and the true qpos, qvel (and act when na > 0) x_0 .. x_{T-1}, so that a user can
+//   check state estimation. Re-simulating ctrl from x_0 with the true parameters through a
+//   Simulator with the same options reproduces sensordata bit for bit when the noise is zero.
+// - Randomness (all reproducible from simulate.seed): the controls of sequence s use seed
+//   `seed + s` (the same for every model, so models see the same excitation), the noise of
+//   sequence s of model i uses SeedFor(seed + s, kNoiseStream + i).
+// - Log attributes (text): generator ("mjsysid <version> simulate"), mujoco_version, experiment
+//   (the YAML file), name, model (path; with several models model.NAME per model), timestep (per
+//   model with several: timestep.NAME), seed, sequences, steps, excitation (DescribeExcitation),
+//   noise.SENSOR (sigma, %.17g), truth.PARAM (the value simulated, %.17g; with several models and
+//   a value that differs between them, truth.MODEL.PARAM), truth_from_model (comma-separated
+//   names of the parameters that kept the model's value, when any), initial_state.qpos and
+//   initial_state.qvel (when given; comma-separated %.17g), and with several models
+//   sequences.MODEL (that model's sequence names, comma-separated).
+// - Failure: a bad config or a name the model lacks throws io::ConfigError (at the YAML position
+//   when known), e.g. a truth name that is not a parameter or a model with an unnamed sensor;
+//   a model that does not load throws ModelLoadError; a parameter that does not resolve throws
+//   ParameterError; a rollout that fails (MuJoCo warning, non-finite state) throws
+//   SimulationError.
+#pragma once
+
+#include <mujoco/mujoco.h>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/parameters.h"
+#include "sysid/io/experiment.h"
+#include "sysid/io/log.h"
+
+namespace mjsysid::sim {
+
+// stream index of the sensor noise (see SeedFor); model i uses kNoiseStream + i
+inline constexpr std::uint64_t kNoiseStream = 0x6e6f697365;  // "noise"
+
+struct SimulateSettings {
+  int threads = 0;  // simulator workers; <= 0: all cores
+};
+
+// simulates the experiment's `simulate` block; see the contract above
+io::Log SimulateExperiment(const io::ExperimentConfig& config,
+                           const SimulateSettings& settings = SimulateSettings());
+
+// the parameters of config that apply to model m (known in config as model_name; "" = all), as
+// core specs in config order: kind = io::ParameterTargetName(target), object, field, index,
+// label = name. Each is resolved against m; a failure throws io::ConfigError at its YAML entry.
+std::vector<ParameterSpec> CoreParameterSpecs(const io::ExperimentConfig& config, const mjModel& m,
+                                              const std::string& model_name);
+
+// the log's sequence name of sequence s of a model ("seq<s>", or "<model>_seq<s>" when the
+// experiment has several models)
+std::string SimulatedSequenceName(const io::ExperimentConfig& config, const std::string& model,
+                                  int s);
+
+}  // namespace mjsysid::sim
