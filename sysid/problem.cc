@@ -1,6 +1,7 @@
 #include "sysid/problem.h"
 
 #include <ceres/ceres.h>
+#include <ceres/gradient_checker.h>
 
 #include <algorithm>
 #include <chrono>
@@ -454,13 +455,14 @@ void Problem::AddMeasurement(const FitMeasurement& me) { impl_->measurements.pus
 
 void Problem::AddSequence(const FitSequence& s) { impl_->sequences.push_back(s); }
 
-FitResult Problem::Fit(const FitOptions& options) {
+void Problem::Prepare(const FitOptions& options, Prepared* out) {
   Impl& I = *impl_;
-  const auto start = std::chrono::steady_clock::now();
   I.options = options;
-  FitResult result;
   if (I.models.empty()) throw std::invalid_argument("no model: call AddModel first");
   if (I.sequences.empty()) throw std::invalid_argument("no sequence: call AddSequence first");
+  std::vector<Trajectory>& initial = out->initial;
+  std::vector<std::string>& names = out->names;
+  std::vector<std::pair<double, double>>& mbounds = out->mbounds;
   const int np = static_cast<int>(I.params.size());
 
   // parameters: bounds, transforms, initial values
@@ -518,9 +520,9 @@ FitResult Problem::Fit(const FitOptions& options) {
   // measurement terms
   I.m.clear();
   I.meas_index.assign(I.measurements.size(), Impl::MeasIndex());
-  std::vector<std::string> names;
+  names.clear();
   for (int g = 0; g < np; ++g) names.push_back(I.params[g].name);
-  std::vector<std::pair<double, double>> mbounds;
+  mbounds.clear();
   for (size_t i = 0; i < I.measurements.size(); ++i) {
     const FitMeasurement& me = I.measurements[i];
     auto add = [&](const FitMeasurement::Term& t, int* index, const char* what) {
@@ -621,7 +623,7 @@ FitResult Problem::Fit(const FitOptions& options) {
   }
 
   // initial rollouts at the initial parameters; the Jacobian there must see every parameter
-  std::vector<Trajectory> initial(I.sequences.size());
+  initial.assign(I.sequences.size(), Trajectory());
   std::vector<bool> moves(np, false);
   for (auto& mo : I.models) {
     I.Apply(mo, I.z.data());
@@ -649,7 +651,7 @@ FitResult Problem::Fit(const FitOptions& options) {
         }
       }
     }
-    result.jacobian_mode = JacobianModeName(sens.empty() ? jo.mode : sens[0].mode);
+    out->jacobian_mode = JacobianModeName(sens.empty() ? jo.mode : sens[0].mode);
   }
   for (int g = 0; g < np; ++g) {
     if (!moves[g]) {
@@ -685,6 +687,19 @@ FitResult Problem::Fit(const FitOptions& options) {
       I.segments[s].next = I.segments[s + 1].block;
     }
   }
+}
+
+FitResult Problem::Fit(const FitOptions& options) {
+  Impl& I = *impl_;
+  const auto start = std::chrono::steady_clock::now();
+  FitResult result;
+  Prepared prepared;
+  Prepare(options, &prepared);
+  const int np = static_cast<int>(I.params.size());
+  const std::vector<Trajectory>& initial = prepared.initial;
+  const std::vector<std::string>& names = prepared.names;
+  const std::vector<std::pair<double, double>>& mbounds = prepared.mbounds;
+  result.jacobian_mode = prepared.jacobian_mode;
 
   // ceres problem
   ceres::Problem::Options po;
@@ -902,6 +917,79 @@ FitResult Problem::Fit(const FitOptions& options) {
   }
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
+}
+
+JacobianCheck Problem::CheckJacobians(const FitOptions& options) {
+  Impl& I = *impl_;
+  Prepared prepared;
+  Prepare(options, &prepared);
+  const int np = static_cast<int>(I.params.size());
+  const int nm = static_cast<int>(I.m.size());
+  JacobianCheck check;
+  std::map<std::string, double> worst;
+  std::vector<std::string> order = prepared.names;
+
+  // each residual block against Ceres' central differences of the same block
+  // GradientChecker extrapolates with Ridders' method, whose first step (1e-2 relative by default)
+  // would straddle the kinks of the sensor-delay interpolation (one per timestep): start small
+  ceres::NumericDiffOptions nd;
+  nd.relative_step_size = 1e-6;
+  nd.ridders_relative_initial_step_size = 1e-5;
+  for (size_t s = 0; s < I.segments.size(); ++s) {
+    const Impl::Segment& seg = I.segments[s];
+    Impl::Model& mo = I.ModelOf(I.sequences[seg.seq].model);
+    SegmentCost cost(&I, static_cast<int>(s));
+    std::vector<const double*> blocks;
+    std::vector<const ceres::Manifold*> manifolds;
+    std::vector<std::vector<std::string>> labels;
+    if (np) {
+      blocks.push_back(I.z.data());
+      manifolds.push_back(nullptr);
+      labels.emplace_back(prepared.names.begin(), prepared.names.begin() + np);
+    }
+    if (nm) {
+      blocks.push_back(I.m.data());
+      manifolds.push_back(nullptr);
+      labels.emplace_back(prepared.names.begin() + np, prepared.names.end());
+    }
+    const std::string seq_name = I.sequences[seg.seq].name;
+    for (int b : {seg.block, seg.next}) {
+      if (b < 0) continue;
+      blocks.push_back(I.states[b].data());
+      manifolds.push_back(mo.manifold.get());
+      const std::string label = "x0 of " + seq_name + (b == seg.block ? "" : " (next segment)");
+      labels.emplace_back(mo.sim->dims().nx, label);
+      if (std::find(order.begin(), order.end(), label) == order.end()) order.push_back(label);
+    }
+    ceres::GradientChecker checker(&cost, &manifolds, nd);
+    ceres::GradientChecker::ProbeResults results;
+    checker.Probe(blocks.data(), 1.0, &results);
+    if (!results.return_value) {
+      throw SimulationError("CheckJacobians: the residuals of sequence '" + seq_name +
+                                "' cannot be evaluated at the initial values",
+                            seg.seq, seg.k0);
+    }
+    // worst column-scaled error of each variable
+    for (size_t b = 0; b < blocks.size(); ++b) {
+      const auto& A = results.local_jacobians[b];
+      const auto& N = results.local_numeric_jacobians[b];
+      for (Eigen::Index c = 0; c < A.cols(); ++c) {
+        const double scale = std::max(N.col(c).lpNorm<Eigen::Infinity>(), 1e-12);
+        const double err = (A.col(c) - N.col(c)).lpNorm<Eigen::Infinity>() / scale;
+        const std::string& label = labels[b][std::min<size_t>(c, labels[b].size() - 1)];
+        worst[label] = std::max(worst[label], err);
+        if (err > check.worst_relative_error) {
+          check.worst_relative_error = err;
+          check.worst_where = label + ", residual block of sequence '" + seq_name + "' from step " +
+                              std::to_string(seg.k0);
+        }
+      }
+    }
+  }
+  for (const std::string& label : order) {
+    if (worst.count(label)) check.per_variable.emplace_back(label, worst[label]);
+  }
+  return check;
 }
 
 }  // namespace mjsysid

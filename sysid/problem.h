@@ -182,6 +182,14 @@ struct FitResult {
   std::string jacobian_mode;  // the core mode used
 };
 
+// result of Problem::CheckJacobians
+struct JacobianCheck {
+  double worst_relative_error = 0;  // over every residual block and variable
+  std::vector<std::pair<std::string, double>> per_variable;  // parameters, measurement terms,
+                                                             // then "x0 of <sequence>"
+  std::string worst_where;  // the variable and block of the worst error
+};
+
 class Problem {
  public:
   Problem();
@@ -198,9 +206,23 @@ class Problem {
   // runs the fit; throws std::invalid_argument / ParameterError on bad input
   FitResult Fit(const FitOptions& options);
 
+  // Checks the core's analytic Jacobians of every residual block at the initial point against
+  // Ceres' numeric differentiation (ceres::GradientChecker, central differences of whole
+  // rollouts). Returns the worst relative error per variable. Throws like Fit on bad input.
+  JacobianCheck CheckJacobians(const FitOptions& options);
+
   struct Impl;  // the state behind the API (named here for the cost functions in problem.cc)
 
  private:
+  struct Prepared {
+    std::vector<Trajectory> initial;                 // rollouts at the initial values
+    std::vector<std::string> names;                  // parameters, then measurement terms
+    std::vector<std::pair<double, double>> mbounds;  // bounds of the measurement terms
+    std::string jacobian_mode;
+  };
+  // validates the inputs, builds the simulators, variables and segments
+  void Prepare(const FitOptions& options, Prepared* out);
+
   std::unique_ptr<Impl> impl_;
 };
 

@@ -523,5 +523,42 @@ TEST(RecoveryTest, MultipleShootingOnChaoticDoublePendulum) {
   for (const Truth& t : truth) EXPECT_NEAR(Estimate(r, t.name).value / t.value, 1.0, 1e-5);
 }
 
+// the Ceres cost functions' Jacobians (from the core) against ceres::GradientChecker's central
+// differences of whole residual blocks: parameters in log space, measurement terms, initial
+// states on the quaternion manifold, continuity residuals of multiple shooting. Tolerance 1e-4
+// column-scaled: the core's forward differences are O(1e-6) accurate, Ceres' central ones O(1e-10)
+TEST(JacobianCheckTest, CostFunctionsAgreeWithCeresNumericDifferentiation) {
+  ModelPtr m = LoadModel(kModels + "/ball_pendulum.xml");
+  InitialState x0;
+  const double a = 0.4;
+  x0.qpos = Eigen::Vector4d(std::cos(a), std::sin(a) * 0.6, std::sin(a) * 0.8, 0.0);
+  x0.qvel = Eigen::Vector3d(0.3, -0.2, 0.5);
+  const RowMatrix u = Excitation(*m, 300, 0.3, 8);
+  const RowMatrix y = Measure(*m, {}, x0, u, 0.001, 3);
+  Problem problem;
+  problem.AddModel("ball", *m);
+  problem.AddParameter(
+      FitParameter("damping", Spec("joint_damping", "ball"), 0.2).Bounds(1e-4, 10).Log());
+  problem.AddParameter(FitParameter("mass", Spec("body_mass", "bob"), 1.3).Bounds(0.1, 10));
+  FitMeasurement me;
+  me.sensor = "bob_pos";
+  me.delay = {0.003, true, 0.0, 0.05};
+  me.gain = {1.05, true};
+  me.bias = {0.01, true};
+  problem.AddMeasurement(me);
+  problem.AddSequence(FitSequence("seq0", "ball", x0, u, y));
+  FitOptions opt;
+  opt.estimate_initial_state = true;
+  opt.segment_steps = 100;
+  const JacobianCheck check = problem.CheckJacobians(opt);
+  for (const auto& [name, err] : check.per_variable) {
+    std::printf("[ measured ] %-28s worst relative error %.2e\n", name.c_str(), err);
+  }
+  std::printf("[ measured ] worst %.2e at %s\n", check.worst_relative_error,
+              check.worst_where.c_str());
+  EXPECT_GE(check.per_variable.size(), 6u);
+  EXPECT_LE(check.worst_relative_error, 1e-4) << check.worst_where;
+}
+
 }  // namespace
 }  // namespace mjsysid
