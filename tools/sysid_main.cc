@@ -7,8 +7,10 @@
 //   1 the run failed (a simulation failed, MuJoCo raised an error)
 //   2 bad input (command line, experiment file, model, parameters, data files)
 #include <CLI/CLI.hpp>
+#include <atomic>
 #include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstdarg>
 #include <cstdint>
 #include <cstdio>
@@ -29,7 +31,9 @@
 #include "mjsysid/version.h"
 #include "sysid/io/experiment.h"
 #include "sysid/io/log.h"
+#include "sysid/run/fit_experiment.h"
 #include "sysid/sim/simulate.h"
+#include "tools/report/report.h"
 
 namespace {
 
@@ -290,6 +294,8 @@ Command AddSimulate(CLI::App* app) {
 
 struct CheckArgs {
   std::string experiment;
+  bool jacobians = true;
+  double tolerance = 1e-4;
 };
 
 // the model a logged sequence belongs to: "MODEL_..." names a model of several; "" otherwise
@@ -402,8 +408,31 @@ int RunCheck(const CheckArgs& args) {
           "sequences in the data: " + Join({sequence_names.begin(), sequence_names.end()}));
     }
   }
+  // Jacobians of every residual block against Ceres' numeric differentiation
+  int rc = kExitOk;
+  if (args.jacobians && !config.data.empty()) {
+    mjsysid::run::BuiltProblem built = mjsysid::run::BuildProblem(config);
+    const mjsysid::JacobianCheck check = built.problem->CheckJacobians(built.options);
+    Appendf(&summary,
+            "  jacobians  core (%s differences) vs ceres::GradientChecker, "
+            "column-scaled relative error:\n",
+            built.options.jacobian.central ? "central" : "forward");
+    for (const auto& [name, err] : check.per_variable) {
+      Appendf(&summary, "             %-32s %.2e\n", name.c_str(), err);
+    }
+    Appendf(&summary, "  worst      %.2e (%s)\n", check.worst_relative_error,
+            check.worst_where.c_str());
+    if (check.worst_relative_error > args.tolerance) {
+      std::printf("%s", summary.c_str());
+      std::fprintf(stderr,
+                   "sysid check: Jacobian error %.2e exceeds --tolerance %.1e at %s: the fit may "
+                   "be unreliable (non-smooth contact? try differences: central)\n",
+                   check.worst_relative_error, args.tolerance, check.worst_where.c_str());
+      return kExitFailed;
+    }
+  }
   std::printf("%sOK\n", summary.c_str());
-  return kExitOk;
+  return rc;
 }
 
 Command AddCheck(CLI::App* app) {
@@ -415,8 +444,129 @@ Command AddCheck(CLI::App* app) {
   sub->add_option("experiment", args->experiment,
                   "YAML experiment file (docs/experiment-schema.md)")
       ->required();
-  sub->footer(std::string("Prints a summary and OK, or the first error.\n") + kExitCodesFooter);
+  sub->add_flag("!--no-jacobians", args->jacobians,
+                "skip the Jacobian check (core vs ceres::GradientChecker at the initial values)");
+  sub->add_option("--tolerance", args->tolerance,
+                  "largest acceptable column-scaled relative Jacobian error")
+      ->capture_default_str();
+  sub->footer(std::string("Prints a summary and OK, or the first error. With data, also checks "
+                          "the Jacobians of every residual block at the initial values and prints "
+                          "the worst relative error per parameter.\n") +
+              kExitCodesFooter);
   return {sub, [args] { return RunCheck(*args); }};
+}
+
+// ---------------------------------------------------------------------------------------------
+// sysid fit EXP.yaml --out DIR
+
+std::atomic<bool> g_interrupted{false};
+
+// first Ctrl-C: stop after the current iteration and write results; second: default (exit)
+extern "C" void OnInterrupt(int) {
+  g_interrupted.store(true);
+  std::signal(SIGINT, SIG_DFL);
+}
+
+struct FitArgs {
+  std::string experiment;
+  std::string out;
+  int threads = -1;
+  bool quiet = false;
+};
+
+std::string Flags(const mjsysid::io::ResultParameter& p) {
+  std::vector<std::string> f;
+  if (p.at_lower) f.push_back("at lower bound");
+  if (p.at_upper) f.push_back("at upper bound");
+  if (!p.identifiable) f.push_back("UNIDENTIFIABLE");
+  return Join(f);
+}
+
+int RunFit(const FitArgs& args) {
+  namespace io = mjsysid::io;
+  const io::ExperimentConfig config = io::LoadExperiment(args.experiment);
+  mjsysid::run::FitRunOptions options;
+  options.out_dir = args.out;
+  options.threads = args.threads;
+  options.verbose = !args.quiet;
+  options.interrupt = &g_interrupted;
+  std::signal(SIGINT, OnInterrupt);
+  const mjsysid::run::FitRunOutcome out = mjsysid::run::RunFit(config, options);
+  std::signal(SIGINT, SIG_DFL);
+  const io::FitResultFile& f = out.file;
+
+  // the estimates against the start (and the truth, for simulated data)
+  std::printf("%s: %s after %d iterations (%s), cost %.6g -> %.6g, %.2f s\n", f.name.c_str(),
+              f.status.c_str(), f.iterations, f.termination.c_str(), f.initial_cost, f.final_cost,
+              f.wall_time_s);
+  std::printf("  %-24s %14s %14s %14s %12s  %-29s %s\n", "parameter", "initial", "estimate",
+              "truth", "std", "95% interval", "flags");
+  for (const io::ResultParameter& p : f.parameters) {
+    char truth[32] = "-", ci[64];
+    if (p.truth) std::snprintf(truth, sizeof(truth), "%.6g", *p.truth);
+    std::snprintf(ci, sizeof(ci), "[%.6g, %.6g]", p.ci95_low, p.ci95_high);
+    std::printf("  %-24s %14.6g %14.8g %14s %12.3g  %-29s %s\n", p.name.c_str(), p.initial, p.value,
+                truth, p.std_error, ci, Flags(p).c_str());
+  }
+  for (const std::string& u : f.unidentifiable) std::printf("  unidentifiable: %s\n", u.c_str());
+  for (const std::string& w : f.warnings)
+    std::fprintf(stderr, "sysid fit: warning: %s\n", w.c_str());
+  std::printf("  wrote %s/{result.yaml, result.h5", out.out_dir.c_str());
+  for (const auto& [model, file] : f.identified_models) std::printf(", %s", file.c_str());
+  std::printf("}\n");
+  if (out.fit.interrupted)
+    std::fprintf(stderr, "sysid fit: interrupted: results of the last good iterate written\n");
+  return out.exit_code;
+}
+
+Command AddFit(CLI::App* app) {
+  auto args = std::make_shared<FitArgs>();
+  CLI::App* sub = app->add_subcommand(
+      "fit", "Fit the experiment's parameters to its data files (Ceres, analytic Jacobians)");
+  sub->add_option("experiment", args->experiment, "YAML experiment file")->required();
+  sub->add_option("--out", args->out,
+                  "output folder (default: the experiment's `output`, results/<name>)");
+  sub->add_option("--threads", args->threads, "simulation threads (default: solver.threads)")
+      ->check(CLI::NonNegativeNumber);
+  sub->add_flag("--quiet", args->quiet, "no progress line per iteration");
+  sub->footer(
+      std::string("Writes DIR/result.yaml (values, std, 95% intervals, flags, costs, versions), "
+                  "DIR/result.h5 (trace, Jacobian, covariance, signals) and "
+                  "DIR/<model>_identified.xml. result.yaml is rewritten after every successful "
+                  "iteration; Ctrl-C stops after the current one and writes the results of the "
+                  "last good iterate. Exit code 1 when the fit did not converge.\n") +
+      kExitCodesFooter);
+  return {sub, [args] { return RunFit(*args); }};
+}
+
+// ---------------------------------------------------------------------------------------------
+// sysid report DIR
+
+struct ReportArgs {
+  std::string dir;
+};
+
+int RunReport(const ReportArgs& args) {
+  std::string summary;
+  try {
+    mjsysid::report::WriteReport(args.dir, &summary);
+  } catch (const mjsysid::io::ResultError& e) {
+    throw InputError(e.what());
+  }
+  std::printf("%s", summary.c_str());
+  return kExitOk;
+}
+
+Command AddReport(CLI::App* app) {
+  auto args = std::make_shared<ReportArgs>();
+  CLI::App* sub = app->add_subcommand(
+      "report", "Plot a fit's results: measured vs simulated signals, parameters, cost trace");
+  sub->add_option("dir", args->dir, "output folder of `sysid fit` (result.yaml, result.h5)")
+      ->required();
+  sub->footer(std::string("Writes DIR/report.html (self-contained: no network), DIR/cost.png, "
+                          "DIR/parameters.png and DIR/seq_<name>.png.\n") +
+              kExitCodesFooter);
+  return {sub, [args] { return RunReport(*args); }};
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -459,6 +609,8 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   app.footer(std::string("Examples:\n"
                          "  sysid simulate experiments/pendulum.yaml\n"
+                         "  sysid fit experiments/pendulum.yaml --out results/pendulum\n"
+                         "  sysid report results/pendulum\n"
                          "  sysid check experiments/pendulum.yaml\n"
                          "  sysid rollout models/pendulum.xml --steps 500\n") +
              kExitCodesFooter);
@@ -466,6 +618,8 @@ int main(int argc, char** argv) {
   // subcommands, in the order --help lists them
   std::vector<Command> commands;
   commands.push_back(AddSimulate(&app));
+  commands.push_back(AddFit(&app));
+  commands.push_back(AddReport(&app));
   commands.push_back(AddCheck(&app));
   commands.push_back(AddRollout(&app));
 

@@ -1,23 +1,19 @@
 #include "sysid/io/log.h"
 
-#include <fcntl.h>
 #include <hdf5.h>
-#include <unistd.h>
 
 #include <algorithm>
-#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <cstring>
-#include <filesystem>
 #include <mutex>
-#include <new>
 #include <set>
 #include <string>
 #include <tuple>
 #include <utility>
 #include <vector>
+
+#include "sysid/io/hdf5_util.h"
 
 namespace mjsysid::io {
 namespace {
@@ -87,168 +83,27 @@ size_t EditDistance(const std::string& a, const std::string& b) {
 // ---------------------------------------------------------------------------------------------
 // hdf5 plumbing
 
-// hdf5 is not thread-safe in its default build: every call of this file runs under this lock
-std::mutex& Hdf5Mutex() {
-  static std::mutex mu;
-  return mu;
-}
-
-// no automatic printing of hdf5's error stack (the setting is per thread in thread-safe builds)
-void SilenceHdf5() { H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); }
-
-herr_t InnermostError(unsigned n, const H5E_error2_t* err, void* data) {
-  // the upward walk starts at the most specific error
-  if (n == 0 && err != nullptr && err->desc != nullptr)
-    *static_cast<std::string*>(data) = err->desc;
-  return 0;
-}
-
-// the most specific message on hdf5's error stack: read it right after the failing call, before
-// any other hdf5 call clears the stack
-std::string Hdf5Detail() {
-  std::string detail;
-  H5Ewalk2(H5E_DEFAULT, H5E_WALK_UPWARD, InnermostError, &detail);
-  return detail;
-}
-
-// Fail, with hdf5's own message appended
-[[noreturn]] void FailH5(const std::string& file, const std::string& object,
-                         const std::string& what) {
-  const std::string detail = Hdf5Detail();
-  Fail(file, object, detail.empty() ? what : what + " (HDF5: " + detail + ")");
-}
-
-// an owned hdf5 identifier, closed by its own close function
-class H5Id {
- public:
-  using Closer = herr_t (*)(hid_t);
-  H5Id() = default;
-  H5Id(hid_t id, Closer close) : id_(id), close_(close) {}
-  H5Id(const H5Id&) = delete;
-  H5Id& operator=(const H5Id&) = delete;
-  H5Id(H5Id&& o) noexcept : id_(std::exchange(o.id_, H5I_INVALID_HID)), close_(o.close_) {}
-  H5Id& operator=(H5Id&& o) noexcept {
-    if (this != &o) {
-      Reset();
-      id_ = std::exchange(o.id_, H5I_INVALID_HID);
-      close_ = o.close_;
-    }
-    return *this;
-  }
-  ~H5Id() { Reset(); }
-
-  hid_t get() const { return id_; }
-
-  // closes now; false when hdf5 reports a failure (for files: the final flush failed)
-  bool Close() {
-    const herr_t status = id_ >= 0 ? close_(id_) : 0;
-    id_ = H5I_INVALID_HID;
-    return status >= 0;
-  }
-
- private:
-  void Reset() {
-    if (id_ >= 0) close_(id_);
-    id_ = H5I_INVALID_HID;
-  }
-  hid_t id_ = H5I_INVALID_HID;
-  Closer close_ = nullptr;
-};
-
-// wraps a freshly returned identifier; a negative one becomes a LogError
-H5Id Own(hid_t id, H5Id::Closer close, const std::string& file, const std::string& object,
-         const std::string& what) {
-  if (id < 0) FailH5(file, object, what);
-  return H5Id(id, close);
-}
-
-void Check(herr_t status, const std::string& file, const std::string& object,
-           const std::string& what) {
-  if (status < 0) FailH5(file, object, what);
-}
-
-// variable-length utf-8 string type
-H5Id Utf8Type(const std::string& file, const std::string& object) {
-  H5Id type = Own(H5Tcopy(H5T_C_S1), H5Tclose, file, object, "cannot create a string type");
-  Check(H5Tset_size(type.get(), H5T_VARIABLE), file, object, "cannot create a string type");
-  Check(H5Tset_cset(type.get(), H5T_CSET_UTF8), file, object, "cannot create a string type");
-  return type;
-}
-
-// property list making link and attribute names utf-8
-H5Id Utf8Names(hid_t cls, const std::string& file) {
-  H5Id plist = Own(H5Pcreate(cls), H5Pclose, file, "", "cannot create a property list");
-  Check(H5Pset_char_encoding(plist.get(), H5T_CSET_UTF8), file, "",
-        "cannot set utf-8 name encoding");
-  return plist;
-}
-
-// 1-D dataspace of n elements (n = 0 allowed)
-H5Id Space1(hsize_t n, const std::string& file, const std::string& object) {
-  return Own(H5Screate_simple(1, &n, nullptr), H5Sclose, file, object, "cannot create a dataspace");
-}
+// the shared hdf5 helpers (sysid/io/hdf5_util.h); they throw h5::Error, which the API functions
+// below turn into LogError
+using h5::Check;
+using h5::FailH5;
+using h5::Own;
+using H5Id = h5::Id;
+using h5::Array;
+using h5::AttributeNames;
+using h5::Elements;
+using h5::LinkNames;
+using h5::OpenAttrIfAny;
+using h5::ReadInts;
+using h5::ReadScalarString;
+using h5::ReadStrings;
+using h5::WriteDataset;
+using h5::WriteIntAttr;
+using h5::WriteStringArrayAttr;
+using h5::WriteStringAttr;
 
 // ---------------------------------------------------------------------------------------------
 // writing
-
-void WriteStringAttr(hid_t obj, const std::string& name, const std::string& value,
-                     const std::string& file, const std::string& object) {
-  const std::string where = object + " attribute " + Quote(name);
-  H5Id type = Utf8Type(file, where);
-  H5Id space = Own(H5Screate(H5S_SCALAR), H5Sclose, file, where, "cannot create a dataspace");
-  H5Id acpl = Utf8Names(H5P_ATTRIBUTE_CREATE, file);
-  H5Id attr = Own(H5Acreate2(obj, name.c_str(), type.get(), space.get(), acpl.get(), H5P_DEFAULT),
-                  H5Aclose, file, where, "cannot create attribute");
-  const char* ptr = value.c_str();
-  Check(H5Awrite(attr.get(), type.get(), &ptr), file, where, "cannot write attribute");
-}
-
-void WriteStringArrayAttr(hid_t obj, const std::string& name,
-                          const std::vector<std::string>& values, const std::string& file,
-                          const std::string& object) {
-  const std::string where = object + " attribute " + Quote(name);
-  H5Id type = Utf8Type(file, where);
-  H5Id space = Space1(values.size(), file, where);
-  H5Id attr = Own(H5Acreate2(obj, name.c_str(), type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT),
-                  H5Aclose, file, where, "cannot create attribute");
-  if (values.empty()) return;
-  std::vector<const char*> ptrs;
-  for (const std::string& v : values) ptrs.push_back(v.c_str());
-  Check(H5Awrite(attr.get(), type.get(), ptrs.data()), file, where, "cannot write attribute");
-}
-
-void WriteIntAttr(hid_t obj, const std::string& name, const std::vector<int>& values, bool scalar,
-                  const std::string& file, const std::string& object) {
-  const std::string where = object + " attribute " + Quote(name);
-  H5Id space = scalar
-                   ? Own(H5Screate(H5S_SCALAR), H5Sclose, file, where, "cannot create a dataspace")
-                   : Space1(values.size(), file, where);
-  H5Id attr =
-      Own(H5Acreate2(obj, name.c_str(), H5T_STD_I32LE, space.get(), H5P_DEFAULT, H5P_DEFAULT),
-          H5Aclose, file, where, "cannot create attribute");
-  if (values.empty()) return;
-  Check(H5Awrite(attr.get(), H5T_NATIVE_INT, values.data()), file, where, "cannot write attribute");
-}
-
-// a float64 dataset of the given shape, row-major; returns it open for attributes
-H5Id WriteDataset(hid_t group, const char* name, const double* data, int rank, const hsize_t* dims,
-                  const std::string& file, const std::string& object) {
-  H5Id space = Own(H5Screate_simple(rank, dims, nullptr), H5Sclose, file, object,
-                   "cannot create a dataspace");
-  // no modification times: the same log gives the same bytes
-  H5Id dcpl = Own(H5Pcreate(H5P_DATASET_CREATE), H5Pclose, file, object, "cannot create a plist");
-  Check(H5Pset_obj_track_times(dcpl.get(), false), file, object, "cannot set dataset properties");
-  H5Id dset = Own(
-      H5Dcreate2(group, name, H5T_IEEE_F64LE, space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT),
-      H5Dclose, file, object, "cannot create dataset");
-  hsize_t count = 1;
-  for (int i = 0; i < rank; ++i) count *= dims[i];
-  if (count > 0) {
-    Check(H5Dwrite(dset.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), file,
-          object, "cannot write dataset");
-  }
-  return dset;
-}
 
 H5Id WriteMatrix(hid_t group, const char* name, const RowMatrix& mat, const std::string& file,
                  const std::string& object) {
@@ -258,11 +113,7 @@ H5Id WriteMatrix(hid_t group, const char* name, const RowMatrix& mat, const std:
 
 void WriteSequence(hid_t file_id, const Sequence& seq, const std::string& file) {
   const std::string gpath = "/" + seq.name;
-  H5Id lcpl = Utf8Names(H5P_LINK_CREATE, file);
-  H5Id gcpl = Own(H5Pcreate(H5P_GROUP_CREATE), H5Pclose, file, gpath, "cannot create a plist");
-  Check(H5Pset_obj_track_times(gcpl.get(), false), file, gpath, "cannot set group properties");
-  H5Id group = Own(H5Gcreate2(file_id, seq.name.c_str(), lcpl.get(), gcpl.get(), H5P_DEFAULT),
-                   H5Gclose, file, gpath, "cannot create group");
+  H5Id group = h5::CreateGroup(file_id, seq.name, false, file, gpath);
 
   // time, with its unit
   const hsize_t t_dims[1] = {static_cast<hsize_t>(seq.time.size())};
@@ -286,46 +137,6 @@ void WriteSequence(hid_t file_id, const Sequence& seq, const std::string& file) 
     WriteMatrix(group.get(), name, *mat, file, gpath + "/" + name);
   }
 }
-
-// flushes a written file to disk
-void SyncFile(const std::string& path, const std::string& file) {
-  const int fd = ::open(path.c_str(), O_RDONLY);
-  if (fd < 0) Fail(file, "", "cannot open " + path + " to flush it: " + std::strerror(errno));
-  const int status = ::fsync(fd);
-  const int err = errno;
-  ::close(fd);
-  if (status != 0) Fail(file, "", "cannot flush " + path + ": " + std::strerror(err));
-}
-
-// best effort: makes the rename itself durable
-void SyncDirectory(const std::string& path) {
-  std::filesystem::path dir = std::filesystem::path(path).parent_path();
-  if (dir.empty()) dir = ".";
-  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY);
-  if (fd < 0) return;
-  ::fsync(fd);
-  ::close(fd);
-}
-
-// removes the temporary file unless the write committed
-class TempFile {
- public:
-  explicit TempFile(std::string path) : path_(std::move(path)) {}
-  TempFile(const TempFile&) = delete;
-  TempFile& operator=(const TempFile&) = delete;
-  ~TempFile() {
-    if (!committed_) {
-      std::error_code ec;
-      std::filesystem::remove(path_, ec);
-    }
-  }
-  const std::string& path() const { return path_; }
-  void Commit() { committed_ = true; }
-
- private:
-  std::string path_;
-  bool committed_ = false;
-};
 
 // ---------------------------------------------------------------------------------------------
 // checks shared by reading and writing
@@ -478,116 +289,6 @@ void CheckLog(const Log& log, const std::string& file) {
 // ---------------------------------------------------------------------------------------------
 // reading
 
-// names of the links in a group, in creation order when the file tracks it, else by name
-std::vector<std::string> LinkNames(hid_t group, const std::string& file,
-                                   const std::string& object) {
-  H5G_info_t info;
-  Check(H5Gget_info(group, &info), file, object, "cannot read group (corrupt file?)");
-  H5Id gcpl = Own(H5Gget_create_plist(group), H5Pclose, file, object, "cannot read group");
-  unsigned order_flags = 0;
-  Check(H5Pget_link_creation_order(gcpl.get(), &order_flags), file, object, "cannot read group");
-  const H5_index_t index =
-      (order_flags & H5P_CRT_ORDER_INDEXED) ? H5_INDEX_CRT_ORDER : H5_INDEX_NAME;
-  std::vector<std::string> names;
-  for (hsize_t i = 0; i < info.nlinks; ++i) {
-    const ssize_t len =
-        H5Lget_name_by_idx(group, ".", index, H5_ITER_INC, i, nullptr, 0, H5P_DEFAULT);
-    if (len < 0) FailH5(file, object, "cannot list group members (corrupt file?)");
-    std::string name(static_cast<size_t>(len) + 1, '\0');
-    if (H5Lget_name_by_idx(group, ".", index, H5_ITER_INC, i, name.data(), name.size(),
-                           H5P_DEFAULT) < 0) {
-      FailH5(file, object, "cannot list group members (corrupt file?)");
-    }
-    name.resize(static_cast<size_t>(len));
-    names.push_back(name);
-  }
-  return names;
-}
-
-// number of elements of an attribute or dataset space; scalar counts as 1, null as 0
-hsize_t Elements(hid_t space, const std::string& file, const std::string& where) {
-  const hssize_t n = H5Sget_simple_extent_npoints(space);
-  if (n < 0) FailH5(file, where, "cannot read the dataspace");
-  return static_cast<hsize_t>(n);
-}
-
-// a string attribute (scalar or 1-D), variable or fixed length
-std::vector<std::string> ReadStrings(hid_t attr, const std::string& file,
-                                     const std::string& where) {
-  H5Id ftype = Own(H5Aget_type(attr), H5Tclose, file, where, "cannot read attribute type");
-  if (H5Tget_class(ftype.get()) != H5T_STRING) Fail(file, where, "is not a string attribute");
-  H5Id space = Own(H5Aget_space(attr), H5Sclose, file, where, "cannot read attribute space");
-  if (H5Sget_simple_extent_ndims(space.get()) > 1) Fail(file, where, "has rank > 1");
-  const hsize_t n = Elements(space.get(), file, where);
-  std::vector<std::string> out;
-  if (n == 0) return out;
-  const htri_t variable = H5Tis_variable_str(ftype.get());
-  if (variable < 0) FailH5(file, where, "cannot read attribute type");
-  if (variable) {
-    // variable length: hdf5 allocates each string; reclaim them whatever happens
-    H5Id mtype = Own(H5Tcopy(H5T_C_S1), H5Tclose, file, where, "cannot create a string type");
-    Check(H5Tset_size(mtype.get(), H5T_VARIABLE), file, where, "cannot create a string type");
-    Check(H5Tset_cset(mtype.get(), H5Tget_cset(ftype.get())), file, where,
-          "cannot create a string type");
-    std::vector<char*> ptrs(n, nullptr);
-    if (H5Aread(attr, mtype.get(), ptrs.data()) < 0) FailH5(file, where, "cannot read attribute");
-    for (char* p : ptrs) out.emplace_back(p ? p : "");
-#if H5_VERSION_GE(1, 12, 0)
-    H5Treclaim(mtype.get(), space.get(), H5P_DEFAULT, ptrs.data());
-#else
-    H5Dvlen_reclaim(mtype.get(), space.get(), H5P_DEFAULT, ptrs.data());
-#endif
-    return out;
-  }
-  // fixed length: nul-terminated or nul/space padded
-  const size_t size = H5Tget_size(ftype.get());
-  if (size == 0) FailH5(file, where, "cannot read attribute type");
-  const H5T_str_t pad = H5Tget_strpad(ftype.get());
-  std::vector<char> buf(n * size);
-  if (H5Aread(attr, ftype.get(), buf.data()) < 0) FailH5(file, where, "cannot read attribute");
-  for (hsize_t i = 0; i < n; ++i) {
-    const char* p = buf.data() + i * size;
-    std::string s(p, strnlen(p, size));
-    if (pad == H5T_STR_SPACEPAD) s.erase(s.find_last_not_of(' ') + 1);
-    out.push_back(s);
-  }
-  return out;
-}
-
-// an integer attribute (scalar or 1-D)
-std::vector<long long> ReadInts(hid_t attr, const std::string& file, const std::string& where) {
-  H5Id ftype = Own(H5Aget_type(attr), H5Tclose, file, where, "cannot read attribute type");
-  if (H5Tget_class(ftype.get()) != H5T_INTEGER) Fail(file, where, "is not an integer attribute");
-  H5Id space = Own(H5Aget_space(attr), H5Sclose, file, where, "cannot read attribute space");
-  if (H5Sget_simple_extent_ndims(space.get()) > 1) Fail(file, where, "has rank > 1");
-  std::vector<long long> out(Elements(space.get(), file, where));
-  if (!out.empty() && H5Aread(attr, H5T_NATIVE_LLONG, out.data()) < 0) {
-    FailH5(file, where, "cannot read attribute");
-  }
-  return out;
-}
-
-// an attribute of obj when it exists; an invalid H5Id otherwise
-H5Id OpenAttrIfAny(hid_t obj, const char* name, const std::string& file,
-                   const std::string& object) {
-  const htri_t exists = H5Aexists(obj, name);
-  if (exists < 0) FailH5(file, object, "cannot read attributes (corrupt file?)");
-  if (!exists) return H5Id();
-  return Own(H5Aopen(obj, name, H5P_DEFAULT), H5Aclose, file, object + " attribute " + Quote(name),
-             "cannot open attribute");
-}
-
-// a required scalar string attribute
-std::string ReadScalarString(hid_t obj, const char* name, const std::string& file,
-                             const std::string& object, const std::string& missing_hint) {
-  H5Id attr = OpenAttrIfAny(obj, name, file, object);
-  const std::string where = object + " attribute " + Quote(name);
-  if (attr.get() < 0) Fail(file, where, "is missing" + missing_hint);
-  std::vector<std::string> v = ReadStrings(attr.get(), file, where);
-  if (v.size() != 1) Fail(file, where, "must hold one string, holds " + std::to_string(v.size()));
-  return v[0];
-}
-
 // a free-form root attribute: strings as they are, numeric scalars as decimal text
 std::string ReadAttributeAsText(hid_t obj, const std::string& name, const std::string& file) {
   const std::string where = "/ attribute " + Quote(name);
@@ -611,66 +312,11 @@ std::string ReadAttributeAsText(hid_t obj, const std::string& name, const std::s
   return Exact(value);
 }
 
-herr_t CollectAttrName(hid_t, const char* name, const H5A_info_t*, void* data) {
-  static_cast<std::vector<std::string>*>(data)->push_back(name);
-  return 0;
-}
-
-std::vector<std::string> AttributeNames(hid_t obj, const std::string& file,
-                                        const std::string& object) {
-  std::vector<std::string> names;
-  hsize_t idx = 0;
-  Check(H5Aiterate2(obj, H5_INDEX_NAME, H5_ITER_INC, &idx, CollectAttrName, &names), file, object,
-        "cannot list attributes (corrupt file?)");
-  return names;
-}
-
-std::string ShapeText(const std::vector<hsize_t>& dims) {
-  std::string s = "(";
-  for (size_t i = 0; i < dims.size(); ++i) s += (i ? ", " : "") + std::to_string(dims[i]);
-  return s + ")";
-}
-
 // a numeric dataset of the expected rank, as doubles in row-major order
-struct Array {
-  std::vector<hsize_t> dims;
-  std::vector<double> data;
-};
-
 Array ReadArray(hid_t group, const char* name, int rank, const std::string& file,
                 const std::string& object) {
-  H5Id dset = Own(H5Dopen2(group, name, H5P_DEFAULT), H5Dclose, file, object,
-                  "cannot open dataset (not a dataset, or corrupt file?)");
-  H5Id type = Own(H5Dget_type(dset.get()), H5Tclose, file, object, "cannot read data type");
-  const H5T_class_t cls = H5Tget_class(type.get());
-  if (cls != H5T_FLOAT && cls != H5T_INTEGER) Fail(file, object, "must hold numbers (float64)");
-  H5Id space = Own(H5Dget_space(dset.get()), H5Sclose, file, object, "cannot read dataspace");
-  const int ndims = H5Sget_simple_extent_ndims(space.get());
-  if (ndims < 0) FailH5(file, object, "cannot read dataspace");
-  Array out;
-  out.dims.resize(static_cast<size_t>(ndims));
-  if (ndims > 0 && H5Sget_simple_extent_dims(space.get(), out.dims.data(), nullptr) < 0) {
-    FailH5(file, object, "cannot read dataspace");
-  }
-  if (ndims != rank) {
-    Fail(file, object,
-         "has rank " + std::to_string(ndims) + " (shape " + ShapeText(out.dims) +
-             "), expected rank " + std::to_string(rank) +
-             (rank == 1 ? " (T samples)" : " (T samples x columns)"));
-  }
-  const hsize_t n = Elements(space.get(), file, object);
-  try {
-    out.data.resize(n);
-  } catch (const std::bad_alloc&) {
-    Fail(file, object, "shape " + ShapeText(out.dims) + " is too large (corrupt file?)");
-  } catch (const std::length_error&) {
-    Fail(file, object, "shape " + ShapeText(out.dims) + " is too large (corrupt file?)");
-  }
-  if (n > 0 &&
-      H5Dread(dset.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data.data()) < 0) {
-    FailH5(file, object, "cannot read data (truncated or corrupt file?)");
-  }
-  return out;
+  return h5::ReadArray(group, name, rank, file, object,
+                       rank == 1 ? " (T samples)" : " (T samples x columns)");
 }
 
 RowMatrix ToMatrix(const Array& a) {
@@ -802,58 +448,36 @@ std::string NameHint(const std::string& wrong, const std::vector<std::string>& v
 
 void WriteLog(const std::string& path, const Log& log) {
   CheckLog(log, path);
-  std::lock_guard<std::mutex> lock(Hdf5Mutex());
-  SilenceHdf5();
-  TempFile tmp(path + ".tmp-" + std::to_string(::getpid()));
+  std::lock_guard<std::mutex> lock(h5::Mutex());
+  h5::Silence();
   const std::string& file = path;
-
-  // everything into the temporary file; all handles closed before the rename
-  {
-    H5Id fcpl = Own(H5Pcreate(H5P_FILE_CREATE), H5Pclose, file, "", "cannot create a plist");
-    Check(H5Pset_link_creation_order(fcpl.get(), H5P_CRT_ORDER_TRACKED | H5P_CRT_ORDER_INDEXED),
-          file, "", "cannot set link creation order");
-    H5Id f = Own(H5Fcreate(tmp.path().c_str(), H5F_ACC_TRUNC, fcpl.get(), H5P_DEFAULT), H5Fclose,
-                 file, "", "cannot create temporary file " + tmp.path());
-    H5Id root = Own(H5Gopen2(f.get(), "/", H5P_DEFAULT), H5Gclose, file, "/", "cannot open root");
-    WriteStringAttr(root.get(), "format", kFormat, file, "/");
-    WriteIntAttr(root.get(), "format_version", {kFormatVersion}, true, file, "/");
-    WriteStringAttr(root.get(), "sensor_time", log.sensor_time, file, "/");
-    for (const auto& [key, value] : log.attributes) {
-      WriteStringAttr(root.get(), key, value, file, "/");
-    }
-    for (const Sequence& seq : log.sequences) WriteSequence(f.get(), seq, file);
-    root.Close();
-    if (!f.Close()) FailH5(file, "", "cannot finish writing temporary file " + tmp.path());
+  try {
+    // everything into the temporary file; all handles closed before the rename
+    h5::ReplaceAtomically(path, [&](const std::string& tmp) {
+      H5Id f = h5::CreateFile(tmp, file);
+      H5Id root = Own(H5Gopen2(f.get(), "/", H5P_DEFAULT), H5Gclose, file, "/", "cannot open root");
+      WriteStringAttr(root.get(), "format", kFormat, file, "/");
+      WriteIntAttr(root.get(), "format_version", {kFormatVersion}, true, file, "/");
+      WriteStringAttr(root.get(), "sensor_time", log.sensor_time, file, "/");
+      for (const auto& [key, value] : log.attributes) {
+        WriteStringAttr(root.get(), key, value, file, "/");
+      }
+      for (const Sequence& seq : log.sequences) WriteSequence(f.get(), seq, file);
+      root.Close();
+      if (!f.Close()) FailH5(file, "", "cannot finish writing temporary file " + tmp);
+    });
+  } catch (const h5::Error& e) {
+    throw LogError(e.what());
   }
-
-  // durable, then atomically in place
-  SyncFile(tmp.path(), file);
-  if (std::rename(tmp.path().c_str(), path.c_str()) != 0) {
-    Fail(file, "", "cannot rename " + tmp.path() + " to it: " + std::strerror(errno));
-  }
-  tmp.Commit();
-  SyncDirectory(path);
 }
 
-Log ReadLog(const std::string& path) {
-  const std::string& file = path;
-  std::error_code ec;
-  const auto status = std::filesystem::status(path, ec);
-  if (ec || !std::filesystem::exists(status)) Fail(file, "", "no such file");
-  if (!std::filesystem::is_regular_file(status)) Fail(file, "", "is not a regular file");
+namespace {
 
-  std::lock_guard<std::mutex> lock(Hdf5Mutex());
-  SilenceHdf5();
-  // signature first: a clear message for files that are not hdf5 at all
-#if H5_VERSION_GE(1, 12, 0)
-  const htri_t is_hdf5 = H5Fis_accessible(path.c_str(), H5P_DEFAULT);
-#else
-  const htri_t is_hdf5 = H5Fis_hdf5(path.c_str());
-#endif
-  if (is_hdf5 < 0) FailH5(file, "", "cannot read the file");
-  if (is_hdf5 == 0) Fail(file, "", "is not an HDF5 file");
-  H5Id f = Own(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose, file, "",
-               "cannot open HDF5 file (truncated or corrupt?)");
+Log ReadLogFile(const std::string& path) {
+  const std::string& file = path;
+  std::lock_guard<std::mutex> lock(h5::Mutex());
+  h5::Silence();
+  H5Id f = h5::OpenFile(path, file);
   H5Id root = Own(H5Gopen2(f.get(), "/", H5P_DEFAULT), H5Gclose, file, "/",
                   "cannot open the root group (corrupt file?)");
 
@@ -901,6 +525,16 @@ Log ReadLog(const std::string& path) {
   // the same checks as on writing
   CheckLog(log, file);
   return log;
+}
+
+}  // namespace
+
+Log ReadLog(const std::string& path) {
+  try {
+    return ReadLogFile(path);
+  } catch (const h5::Error& e) {
+    throw LogError(e.what());
+  }
 }
 
 void ValidateLogAgainstModel(const Log& log, const mjModel& m,

@@ -1,0 +1,774 @@
+#include "sysid/io/result.h"
+
+#include <hdf5.h>
+#include <yaml-cpp/yaml.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <mutex>
+#include <set>
+#include <sstream>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "sysid/io/hdf5_util.h"
+
+namespace mjsysid::io {
+namespace {
+
+constexpr char kFormat[] = "mjsysid-result";
+constexpr int kFormatVersion = 1;
+constexpr const char* kFlags[] = {"at_lower_bound", "at_upper_bound", "unidentifiable"};
+constexpr const char* kTraceColumns[] = {"iteration",     "cost",    "step_norm",
+                                         "gradient_norm", "seconds", "successful"};
+constexpr const char* kSequenceDatasets[] = {"time", "measured", "simulated_initial",
+                                             "simulated_final"};
+
+// ---------------------------------------------------------------------------------------------
+// messages and numbers
+
+std::string Quote(const std::string& s) { return "'" + s + "'"; }
+
+// "<file>: <where>: <what>"
+[[noreturn]] void Fail(const std::string& file, const std::string& where, const std::string& what) {
+  throw ResultError(file + (where.empty() ? "" : ": " + where) + ": " + what);
+}
+
+// the shortest of %.15g..%.17g that reads back as x; YAML's .inf, -.inf, .nan otherwise
+std::string Number(double x) {
+  if (std::isnan(x)) return ".nan";
+  if (std::isinf(x)) return x > 0 ? ".inf" : "-.inf";
+  char buf[32];
+  for (int digits = 15; digits <= 17; ++digits) {
+    std::snprintf(buf, sizeof(buf), "%.*g", digits, x);
+    if (std::strtod(buf, nullptr) == x) break;
+  }
+  return buf;
+}
+
+// ---------------------------------------------------------------------------------------------
+// checks shared by the writers and the reader
+
+void CheckParameters(const FitResultFile& r, const std::string& file) {
+  std::set<std::string> seen;
+  for (size_t i = 0; i < r.parameters.size(); ++i) {
+    const std::string& name = r.parameters[i].name;
+    const std::string where = "parameters[" + std::to_string(i) + "]";
+    if (name.empty()) Fail(file, where, "the parameter name is empty");
+    if (name.find('\0') != std::string::npos) Fail(file, where, "the name contains a NUL");
+    if (!seen.insert(name).second) Fail(file, where, "two parameters are named " + Quote(name));
+  }
+}
+
+// a T x cols matrix of a sequence
+void CheckSequenceMatrix(const RowMatrix& m, Eigen::Index rows, Eigen::Index cols,
+                         const std::string& file, const std::string& object) {
+  if (m.rows() != rows || m.cols() != cols) {
+    Fail(file, object,
+         "has shape (" + std::to_string(m.rows()) + ", " + std::to_string(m.cols()) +
+             "), expected (" + std::to_string(rows) + ", " + std::to_string(cols) +
+             ") = (samples in time, columns of the sensors)");
+  }
+}
+
+void CheckSequence(const ResultSequence& s, const std::string& file) {
+  const std::string g = "/sequences/" + s.name;
+  if (s.name.empty() || s.name == "." || s.name.find('/') != std::string::npos ||
+      s.name.find('\0') != std::string::npos) {
+    Fail(file, g, "sequence name " + Quote(s.name) + " is not a valid group name");
+  }
+  if (s.sensor_names.size() != s.sensor_dims.size()) {
+    Fail(file, g,
+         std::to_string(s.sensor_names.size()) + " sensor names but " +
+             std::to_string(s.sensor_dims.size()) + " sensor dims");
+  }
+  Eigen::Index cols = 0;
+  for (size_t i = 0; i < s.sensor_dims.size(); ++i) {
+    if (s.sensor_dims[i] < 1) {
+      Fail(file, g,
+           "sensor " + Quote(s.sensor_names[i]) + " has dimension " +
+               std::to_string(s.sensor_dims[i]) + " (must be >= 1)");
+    }
+    cols += s.sensor_dims[i];
+  }
+  const Eigen::Index samples = s.time.size();
+  CheckSequenceMatrix(s.measured, samples, cols, file, g + "/measured");
+  CheckSequenceMatrix(s.simulated_initial, samples, cols, file, g + "/simulated_initial");
+  CheckSequenceMatrix(s.simulated_final, samples, cols, file, g + "/simulated_final");
+}
+
+// sizes tying the trace, covariance and jacobian to the parameters
+void CheckMatrices(const FitResultFile& r, const std::string& file) {
+  const auto np = static_cast<Eigen::Index>(r.parameters.size());
+  const std::string nps = std::to_string(np);
+
+  // trace: every entry holds np values, or none holds any
+  const size_t width = r.trace.empty() ? 0 : r.trace[0].parameters.size();
+  for (size_t i = 0; i < r.trace.size(); ++i) {
+    const size_t n = r.trace[i].parameters.size();
+    if (n != width || (n != 0 && n != r.parameters.size())) {
+      Fail(file, "/trace/parameters",
+           "trace entry " + std::to_string(i) + " holds " + std::to_string(n) +
+               " parameter values, expected " + nps + " (or none in every entry)");
+    }
+  }
+
+  // covariance np x np (or 0 x 0: not computed), jacobian nres x np (or 0 x 0)
+  const bool cov_empty = r.covariance.rows() == 0 && r.covariance.cols() == 0;
+  if (!cov_empty && (r.covariance.rows() != np || r.covariance.cols() != np)) {
+    Fail(file, "/covariance",
+         "has shape (" + std::to_string(r.covariance.rows()) + ", " +
+             std::to_string(r.covariance.cols()) + "), expected (" + nps + ", " + nps + ") for " +
+             nps + " parameters (or (0, 0))");
+  }
+  const bool jac_empty = r.jacobian.rows() == 0 && r.jacobian.cols() == 0;
+  if (!jac_empty && r.jacobian.cols() != np) {
+    Fail(file, "/jacobian",
+         "has " + std::to_string(r.jacobian.cols()) + " columns, expected " + nps +
+             " (one per parameter)");
+  }
+}
+
+// every check of the arrays: matrices, then sequences (valid, unique names; consistent shapes)
+void CheckArrays(const FitResultFile& r, const std::string& file) {
+  CheckMatrices(r, file);
+  std::set<std::string> seen;
+  for (const ResultSequence& s : r.sequences) {
+    if (!seen.insert(s.name).second) {
+      Fail(file, "/sequences/" + s.name, "two sequences are named " + Quote(s.name));
+    }
+    CheckSequence(s, file);
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// result.yaml
+
+std::string EmitYaml(const FitResultFile& r) {
+  YAML::Emitter out;
+  out.SetIndent(2);
+  out << YAML::Comment("mjsysid fit result (layout: sysid/io/result.h)");
+  out << YAML::BeginMap;
+
+  // summary
+  out << YAML::Key << "format" << YAML::Value << kFormat;
+  out << YAML::Key << "format_version" << YAML::Value << kFormatVersion;
+  const std::pair<const char*, const std::string*> texts[] = {
+      {"name", &r.name},
+      {"experiment", &r.experiment},
+      {"status", &r.status},
+      {"termination", &r.termination},
+      {"created", &r.created},
+      {"mjsysid_version", &r.mjsysid_version},
+      {"mujoco_version", &r.mujoco_version},
+      {"jacobian_mode", &r.jacobian_mode}};
+  for (const auto& [key, value] : texts) out << YAML::Key << key << YAML::Value << *value;
+  out << YAML::Key << "iterations" << YAML::Value << r.iterations;
+  out << YAML::Key << "initial_cost" << YAML::Value << Number(r.initial_cost);
+  out << YAML::Key << "final_cost" << YAML::Value << Number(r.final_cost);
+  out << YAML::Key << "residual_variance" << YAML::Value << Number(r.residual_variance);
+  out << YAML::Key << "num_residuals" << YAML::Value << r.num_residuals;
+  out << YAML::Key << "wall_time_s" << YAML::Value << Number(r.wall_time_s);
+
+  // solver settings, as text
+  out << YAML::Key << "solver" << YAML::Value << YAML::BeginMap;
+  for (const auto& [key, value] : r.solver) out << YAML::Key << key << YAML::Value << value;
+  out << YAML::EndMap;
+
+  // parameters
+  out << YAML::Key << "parameters" << YAML::Value << YAML::BeginSeq;
+  for (const ResultParameter& p : r.parameters) {
+    out << YAML::BeginMap;
+    out << YAML::Key << "name" << YAML::Value << p.name;
+    out << YAML::Key << "value" << YAML::Value << Number(p.value);
+    out << YAML::Key << "initial" << YAML::Value << Number(p.initial);
+    out << YAML::Key << "std" << YAML::Value << Number(p.std_error);
+    out << YAML::Key << "ci95" << YAML::Value << YAML::Flow << YAML::BeginSeq << Number(p.ci95_low)
+        << Number(p.ci95_high) << YAML::EndSeq;
+    out << YAML::Key << "flags" << YAML::Value << YAML::Flow << YAML::BeginSeq;
+    if (p.at_lower) out << "at_lower_bound";
+    if (p.at_upper) out << "at_upper_bound";
+    if (!p.identifiable) out << "unidentifiable";
+    out << YAML::EndSeq;
+    if (p.truth) out << YAML::Key << "truth" << YAML::Value << Number(*p.truth);
+    out << YAML::EndMap;
+  }
+  out << YAML::EndSeq;
+
+  // lists of text, models
+  const std::pair<const char*, const std::vector<std::string>*> lists[] = {
+      {"unidentifiable", &r.unidentifiable}, {"warnings", &r.warnings}};
+  for (const auto& [key, items] : lists) {
+    out << YAML::Key << key << YAML::Value;
+    if (items->empty()) out << YAML::Flow;
+    out << YAML::BeginSeq;
+    for (const std::string& item : *items) out << item;
+    out << YAML::EndSeq;
+  }
+  out << YAML::Key << "identified_models" << YAML::Value;
+  if (r.identified_models.empty()) out << YAML::Flow;
+  out << YAML::BeginMap;
+  for (const auto& [model, file] : r.identified_models) {
+    out << YAML::Key << model << YAML::Value << file;
+  }
+  out << YAML::EndMap;
+  out << YAML::EndMap;
+  if (!out.good()) throw ResultError("cannot format result.yaml: " + out.GetLastError());
+  return std::string(out.c_str()) + "\n";
+}
+
+// typed access to result.yaml with "FILE:LINE:COLUMN: key 'a.b': what" messages
+class YamlReader {
+ public:
+  explicit YamlReader(std::string file) : file_(std::move(file)) {}
+
+  [[noreturn]] void Fail(const YAML::Node& at, const std::string& key,
+                         const std::string& what) const {
+    std::string where = file_;
+    if (at.IsDefined() && !at.Mark().is_null()) {
+      where +=
+          ":" + std::to_string(at.Mark().line + 1) + ":" + std::to_string(at.Mark().column + 1);
+    }
+    throw ResultError(where + ": key " + Quote(key) + ": " + what);
+  }
+
+  // map[key], which must exist
+  YAML::Node Get(const YAML::Node& map, const std::string& key, const std::string& path) const {
+    const YAML::Node node = map[key];
+    if (!node.IsDefined()) Fail(map, path, "is missing");
+    return node;
+  }
+
+  std::string Text(const YAML::Node& node, const std::string& path) const {
+    if (node.IsNull()) return "";
+    if (!node.IsScalar()) Fail(node, path, "expected text, found " + Kind(node));
+    return node.Scalar();
+  }
+
+  double Double(const YAML::Node& node, const std::string& path) const {
+    if (!node.IsScalar()) Fail(node, path, "expected a number, found " + Kind(node));
+    const std::string& s = node.Scalar();
+    // yaml's spellings of the special values
+    if (s == ".inf" || s == ".Inf" || s == ".INF" || s == "+.inf" || s == "+.Inf" || s == "+.INF")
+      return std::numeric_limits<double>::infinity();
+    if (s == "-.inf" || s == "-.Inf" || s == "-.INF")
+      return -std::numeric_limits<double>::infinity();
+    if (s == ".nan" || s == ".NaN" || s == ".NAN") return std::numeric_limits<double>::quiet_NaN();
+    char* end = nullptr;
+    errno = 0;
+    const double v = std::strtod(s.c_str(), &end);
+    if (s.empty() || end != s.c_str() + s.size() ||
+        std::isspace(static_cast<unsigned char>(s[0])) || !std::isfinite(v)) {
+      Fail(node, path, "expected a number, found " + Quote(s));
+    }
+    return v;
+  }
+
+  int Int(const YAML::Node& node, const std::string& path) const {
+    if (!node.IsScalar()) Fail(node, path, "expected an integer, found " + Kind(node));
+    const std::string& s = node.Scalar();
+    char* end = nullptr;
+    errno = 0;
+    const long long v = std::strtoll(s.c_str(), &end, 10);
+    if (s.empty() || end != s.c_str() + s.size() || errno == ERANGE ||
+        v < std::numeric_limits<int>::min() || v > std::numeric_limits<int>::max()) {
+      Fail(node, path, "expected an integer, found " + Quote(s));
+    }
+    return static_cast<int>(v);
+  }
+
+  // a list of text
+  std::vector<std::string> Texts(const YAML::Node& node, const std::string& path) const {
+    if (node.IsNull()) return {};
+    if (!node.IsSequence()) Fail(node, path, "expected a list, found " + Kind(node));
+    std::vector<std::string> out;
+    for (size_t i = 0; i < node.size(); ++i) {
+      out.push_back(Text(node[i], path + "[" + std::to_string(i) + "]"));
+    }
+    return out;
+  }
+
+  // a map of text to text, in key order
+  std::map<std::string, std::string> TextMap(const YAML::Node& node,
+                                             const std::string& path) const {
+    std::map<std::string, std::string> out;
+    if (node.IsNull()) return out;
+    if (!node.IsMap()) Fail(node, path, "expected a map, found " + Kind(node));
+    for (const auto& kv : node) {
+      const std::string key = Text(kv.first, path);
+      out[key] = Text(kv.second, path + "." + key);
+    }
+    return out;
+  }
+
+  static std::string Kind(const YAML::Node& node) {
+    if (node.IsSequence()) return "a list";
+    if (node.IsMap()) return "a map";
+    if (node.IsNull()) return "nothing";
+    return Quote(node.Scalar());
+  }
+
+  const std::string& file() const { return file_; }
+
+ private:
+  std::string file_;
+};
+
+ResultParameter ReadParameter(const YamlReader& y, const YAML::Node& node, size_t index) {
+  const std::string path = "parameters[" + std::to_string(index) + "]";
+  if (!node.IsMap()) y.Fail(node, path, "expected a map, found " + YamlReader::Kind(node));
+  ResultParameter p;
+  p.name = y.Text(y.Get(node, "name", path + ".name"), path + ".name");
+  const std::string& at = path;
+  p.value = y.Double(y.Get(node, "value", at + ".value"), at + ".value");
+  p.initial = y.Double(y.Get(node, "initial", at + ".initial"), at + ".initial");
+  p.std_error = y.Double(y.Get(node, "std", at + ".std"), at + ".std");
+
+  // ci95: [low, high]
+  const YAML::Node ci = y.Get(node, "ci95", at + ".ci95");
+  if (!ci.IsSequence() || ci.size() != 2) {
+    y.Fail(ci, at + ".ci95", "expected [low, high], found " + YamlReader::Kind(ci));
+  }
+  p.ci95_low = y.Double(ci[0], at + ".ci95[0]");
+  p.ci95_high = y.Double(ci[1], at + ".ci95[1]");
+
+  // flags
+  const YAML::Node flags = y.Get(node, "flags", at + ".flags");
+  for (const std::string& flag : y.Texts(flags, at + ".flags")) {
+    if (flag == kFlags[0]) {
+      p.at_lower = true;
+    } else if (flag == kFlags[1]) {
+      p.at_upper = true;
+    } else if (flag == kFlags[2]) {
+      p.identifiable = false;
+    } else {
+      y.Fail(flags, at + ".flags",
+             "unknown flag " + Quote(flag) +
+                 " (valid flags: at_lower_bound, at_upper_bound, unidentifiable)");
+    }
+  }
+
+  // truth: optional
+  const YAML::Node truth = node["truth"];
+  if (truth.IsDefined()) p.truth = y.Double(truth, at + ".truth");
+  return p;
+}
+
+void ReadYaml(const std::string& path, FitResultFile* r) {
+  const YamlReader y(path);
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) {
+    throw ResultError(path +
+                      ": no such file (a fit writes result.yaml and result.h5 into its "
+                      "output folder)");
+  }
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream text;
+  text << in.rdbuf();
+  if (!in) throw ResultError(path + ": cannot read the file: " + std::strerror(errno));
+  YAML::Node root;
+  try {
+    root = YAML::Load(text.str());
+  } catch (const YAML::Exception& e) {
+    throw ResultError(path + ":" + std::to_string(e.mark.line + 1) + ":" +
+                      std::to_string(e.mark.column + 1) + ": invalid YAML: " + e.msg);
+  }
+  if (!root.IsMap()) {
+    throw ResultError(path + ": not an mjsysid result (expected a map with format: " + kFormat +
+                      ")");
+  }
+
+  // format
+  const std::string format = y.Text(y.Get(root, "format", "format"), "format");
+  if (format != kFormat) {
+    y.Fail(root["format"], "format",
+           "is " + Quote(format) + ", expected " + Quote(kFormat) + " (not an mjsysid result)");
+  }
+  const int version = y.Int(y.Get(root, "format_version", "format_version"), "format_version");
+  if (version != kFormatVersion) {
+    y.Fail(root["format_version"], "format_version",
+           "version " + std::to_string(version) + " is not supported (this build reads version " +
+               std::to_string(kFormatVersion) + ")");
+  }
+
+  // summary
+  const std::pair<const char*, std::string*> texts[] = {{"name", &r->name},
+                                                        {"experiment", &r->experiment},
+                                                        {"status", &r->status},
+                                                        {"termination", &r->termination},
+                                                        {"created", &r->created},
+                                                        {"mjsysid_version", &r->mjsysid_version},
+                                                        {"mujoco_version", &r->mujoco_version},
+                                                        {"jacobian_mode", &r->jacobian_mode}};
+  for (const auto& [key, value] : texts) *value = y.Text(y.Get(root, key, key), key);
+  const std::pair<const char*, int*> ints[] = {{"iterations", &r->iterations},
+                                               {"num_residuals", &r->num_residuals}};
+  for (const auto& [key, value] : ints) *value = y.Int(y.Get(root, key, key), key);
+  const std::pair<const char*, double*> doubles[] = {{"initial_cost", &r->initial_cost},
+                                                     {"final_cost", &r->final_cost},
+                                                     {"residual_variance", &r->residual_variance},
+                                                     {"wall_time_s", &r->wall_time_s}};
+  for (const auto& [key, value] : doubles) *value = y.Double(y.Get(root, key, key), key);
+  r->solver = y.TextMap(y.Get(root, "solver", "solver"), "solver");
+
+  // parameters
+  const YAML::Node params = y.Get(root, "parameters", "parameters");
+  if (!params.IsNull() && !params.IsSequence()) {
+    y.Fail(params, "parameters", "expected a list, found " + YamlReader::Kind(params));
+  }
+  for (size_t i = 0; i < params.size(); ++i) {
+    r->parameters.push_back(ReadParameter(y, params[i], i));
+  }
+
+  // lists, models
+  r->unidentifiable = y.Texts(y.Get(root, "unidentifiable", "unidentifiable"), "unidentifiable");
+  r->warnings = y.Texts(y.Get(root, "warnings", "warnings"), "warnings");
+  r->identified_models =
+      y.TextMap(y.Get(root, "identified_models", "identified_models"), "identified_models");
+  CheckParameters(*r, path);
+}
+
+// ---------------------------------------------------------------------------------------------
+// result.h5
+
+// a 1-D int32 dataset
+void WriteInts(hid_t group, const char* name, const std::vector<int>& values,
+               const std::string& file, const std::string& object) {
+  h5::Id space = h5::Space1(values.size(), file, object);
+  h5::Id dcpl =
+      h5::Own(H5Pcreate(H5P_DATASET_CREATE), H5Pclose, file, object, "cannot create a plist");
+  h5::Check(H5Pset_obj_track_times(dcpl.get(), false), file, object,
+            "cannot set dataset properties");
+  h5::Id dset = h5::Own(
+      H5Dcreate2(group, name, H5T_STD_I32LE, space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT),
+      H5Dclose, file, object, "cannot create dataset");
+  if (values.empty()) return;
+  h5::Check(H5Dwrite(dset.get(), H5T_NATIVE_INT, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()),
+            file, object, "cannot write dataset");
+}
+
+void WriteVector(hid_t group, const char* name, const std::vector<double>& values,
+                 const std::string& file, const std::string& object) {
+  const hsize_t dims[1] = {values.size()};
+  h5::WriteDataset(group, name, values.data(), 1, dims, file, object);
+}
+
+void WriteMatrix(hid_t group, const char* name, const double* data, Eigen::Index rows,
+                 Eigen::Index cols, const std::string& file, const std::string& object) {
+  const hsize_t dims[2] = {static_cast<hsize_t>(rows), static_cast<hsize_t>(cols)};
+  h5::WriteDataset(group, name, data, 2, dims, file, object);
+}
+
+void WriteH5Parameters(hid_t root, const FitResultFile& r, const std::string& file) {
+  h5::Id group = h5::CreateGroup(root, "parameters", true, file, "/parameters");
+  std::vector<std::string> names;
+  std::vector<double> columns[5];
+  for (const ResultParameter& p : r.parameters) {
+    names.push_back(p.name);
+    const double values[5] = {p.value, p.initial, p.std_error, p.ci95_low, p.ci95_high};
+    for (int i = 0; i < 5; ++i) columns[i].push_back(values[i]);
+  }
+  h5::WriteStringArrayAttr(group.get(), "names", names, file, "/parameters");
+  const char* datasets[5] = {"value", "initial", "std", "ci95_low", "ci95_high"};
+  for (int i = 0; i < 5; ++i) {
+    WriteVector(group.get(), datasets[i], columns[i], file,
+                std::string("/parameters/") + datasets[i]);
+  }
+}
+
+void WriteH5Trace(hid_t root, const FitResultFile& r, const std::string& file) {
+  h5::Id group = h5::CreateGroup(root, "trace", true, file, "/trace");
+  std::vector<int> iteration, successful;
+  std::vector<double> cost, step_norm, gradient_norm, seconds;
+  const size_t width = r.trace.empty() ? r.parameters.size() : r.trace[0].parameters.size();
+  RowMatrix params(static_cast<Eigen::Index>(r.trace.size()), static_cast<Eigen::Index>(width));
+  for (size_t i = 0; i < r.trace.size(); ++i) {
+    const ResultTraceEntry& e = r.trace[i];
+    iteration.push_back(e.iteration);
+    successful.push_back(e.successful ? 1 : 0);
+    cost.push_back(e.cost);
+    step_norm.push_back(e.step_norm);
+    gradient_norm.push_back(e.gradient_norm);
+    seconds.push_back(e.seconds);
+    for (size_t j = 0; j < width; ++j) {
+      params(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = e.parameters[j];
+    }
+  }
+  WriteInts(group.get(), "iteration", iteration, file, "/trace/iteration");
+  WriteVector(group.get(), "cost", cost, file, "/trace/cost");
+  WriteVector(group.get(), "step_norm", step_norm, file, "/trace/step_norm");
+  WriteVector(group.get(), "gradient_norm", gradient_norm, file, "/trace/gradient_norm");
+  WriteVector(group.get(), "seconds", seconds, file, "/trace/seconds");
+  WriteInts(group.get(), "successful", successful, file, "/trace/successful");
+  WriteMatrix(group.get(), "parameters", params.data(), params.rows(), params.cols(), file,
+              "/trace/parameters");
+}
+
+void WriteH5Sequence(hid_t sequences, const ResultSequence& s, const std::string& file) {
+  const std::string g = "/sequences/" + s.name;
+  h5::Id group = h5::CreateGroup(sequences, s.name, true, file, g);
+  h5::WriteStringAttr(group.get(), "model", s.model, file, g);
+  h5::WriteStringArrayAttr(group.get(), "sensor_names", s.sensor_names, file, g);
+  h5::WriteIntAttr(group.get(), "sensor_dims", s.sensor_dims, false, file, g);
+  const hsize_t t_dims[1] = {static_cast<hsize_t>(s.time.size())};
+  h5::Id time = h5::WriteDataset(group.get(), "time", s.time.data(), 1, t_dims, file, g + "/time");
+  h5::WriteStringAttr(time.get(), "units", "s", file, g + "/time");
+  const std::pair<const char*, const RowMatrix*> mats[] = {
+      {"measured", &s.measured},
+      {"simulated_initial", &s.simulated_initial},
+      {"simulated_final", &s.simulated_final}};
+  for (const auto& [name, m] : mats) {
+    WriteMatrix(group.get(), name, m->data(), m->rows(), m->cols(), file, g + "/" + name);
+  }
+}
+
+void WriteH5(const std::string& tmp, const FitResultFile& r, const std::string& file) {
+  h5::Id f = h5::CreateFile(tmp, file);
+  {
+    h5::Id root =
+        h5::Own(H5Gopen2(f.get(), "/", H5P_DEFAULT), H5Gclose, file, "/", "cannot open root");
+    h5::WriteStringAttr(root.get(), "format", kFormat, file, "/");
+    h5::WriteIntAttr(root.get(), "format_version", {kFormatVersion}, true, file, "/");
+    h5::WriteStringAttr(root.get(), "status", r.status, file, "/");
+    WriteH5Parameters(root.get(), r, file);
+
+    // covariance (np x np) and jacobian (nres x np); ColMajor covariance stored row-major
+    const RowMatrix cov = r.covariance;
+    WriteMatrix(root.get(), "covariance", cov.data(), cov.rows(), cov.cols(), file, "/covariance");
+    WriteMatrix(root.get(), "jacobian", r.jacobian.data(), r.jacobian.rows(), r.jacobian.cols(),
+                file, "/jacobian");
+    WriteH5Trace(root.get(), r, file);
+
+    // sequences, in order; each checked as it is written
+    h5::Id seqs = h5::CreateGroup(root.get(), "sequences", true, file, "/sequences");
+    std::set<std::string> seen;
+    for (const ResultSequence& s : r.sequences) {
+      if (!seen.insert(s.name).second) {
+        Fail(file, "/sequences/" + s.name, "two sequences are named " + Quote(s.name));
+      }
+      CheckSequence(s, file);
+      WriteH5Sequence(seqs.get(), s, file);
+    }
+  }
+  if (!f.Close()) h5::FailH5(file, "", "cannot finish writing temporary file " + tmp);
+}
+
+// a required dataset of `group`, as doubles
+h5::Array ReadRequired(hid_t group, const char* name, int rank, const std::string& file,
+                       const std::string& object) {
+  if (!h5::HasLink(group, name, file, object)) Fail(file, object, "required dataset is missing");
+  return h5::ReadArray(group, name, rank, file, object);
+}
+
+h5::Id OpenGroup(hid_t parent, const char* name, const std::string& file,
+                 const std::string& object) {
+  if (!h5::HasLink(parent, name, file, object)) Fail(file, object, "required group is missing");
+  return h5::Own(H5Gopen2(parent, name, H5P_DEFAULT), H5Gclose, file, object,
+                 "cannot open group (not a group, or corrupt file?)");
+}
+
+RowMatrix ToMatrix(const h5::Array& a) {
+  RowMatrix m(static_cast<Eigen::Index>(a.dims[0]), static_cast<Eigen::Index>(a.dims[1]));
+  if (!a.data.empty()) std::copy(a.data.begin(), a.data.end(), m.data());
+  return m;
+}
+
+// a 1-D dataset of n values
+std::vector<double> ReadColumn(hid_t group, const char* name, size_t n, const std::string& file,
+                               const std::string& object) {
+  h5::Array a = ReadRequired(group, name, 1, file, object);
+  if (a.dims[0] != n) {
+    Fail(file, object,
+         "has " + std::to_string(a.dims[0]) + " values, expected " + std::to_string(n));
+  }
+  return a.data;
+}
+
+// a required attribute
+h5::Id RequiredAttr(hid_t obj, const char* name, const std::string& file,
+                    const std::string& object) {
+  h5::Id attr = h5::OpenAttrIfAny(obj, name, file, object);
+  if (attr.get() < 0) Fail(file, object + " attribute " + Quote(name), "is missing");
+  return attr;
+}
+
+void ReadH5Parameters(hid_t root, const std::string& file, const FitResultFile& r) {
+  h5::Id group = OpenGroup(root, "parameters", file, "/parameters");
+  h5::Id names_attr = RequiredAttr(group.get(), "names", file, "/parameters");
+  const std::vector<std::string> names =
+      h5::ReadStrings(names_attr.get(), file, "/parameters attribute 'names'");
+  std::vector<std::string> expected;
+  for (const ResultParameter& p : r.parameters) expected.push_back(p.name);
+  if (names != expected) {
+    Fail(file, "/parameters attribute 'names'",
+         "the parameters differ from result.yaml's (" + std::to_string(names.size()) + " vs " +
+             std::to_string(expected.size()) + "; written by different fits?)");
+  }
+  for (const char* name : {"value", "initial", "std", "ci95_low", "ci95_high"}) {
+    ReadColumn(group.get(), name, names.size(), file, std::string("/parameters/") + name);
+  }
+}
+
+void ReadH5Trace(hid_t root, const std::string& file, FitResultFile* r) {
+  h5::Id group = OpenGroup(root, "trace", file, "/trace");
+  const h5::Array it = ReadRequired(group.get(), "iteration", 1, file, "/trace/iteration");
+  const size_t n = it.dims[0];
+  std::vector<double> cols[6];
+  cols[0] = it.data;
+  for (int c = 1; c < 6; ++c) {
+    cols[c] = ReadColumn(group.get(), kTraceColumns[c], n, file,
+                         std::string("/trace/") + kTraceColumns[c]);
+  }
+  const RowMatrix params =
+      ToMatrix(ReadRequired(group.get(), "parameters", 2, file, "/trace/parameters"));
+  if (static_cast<size_t>(params.rows()) != n) {
+    Fail(file, "/trace/parameters",
+         "has " + std::to_string(params.rows()) + " rows, expected " + std::to_string(n) +
+             " (one per trace entry)");
+  }
+  for (size_t i = 0; i < n; ++i) {
+    if (!(std::abs(cols[0][i]) < 1e9)) {
+      Fail(file, "/trace/iteration",
+           "row " + std::to_string(i) + ": " + Number(cols[0][i]) + " is not an iteration number");
+    }
+    ResultTraceEntry e;
+    e.iteration = static_cast<int>(cols[0][i]);
+    e.cost = cols[1][i];
+    e.step_norm = cols[2][i];
+    e.gradient_norm = cols[3][i];
+    e.seconds = cols[4][i];
+    e.successful = cols[5][i] != 0;
+    const auto row = params.row(static_cast<Eigen::Index>(i));
+    e.parameters.assign(row.data(), row.data() + row.size());
+    r->trace.push_back(std::move(e));
+  }
+}
+
+ResultSequence ReadH5Sequence(hid_t sequences, const std::string& name, const std::string& file) {
+  const std::string g = "/sequences/" + name;
+  h5::Id group = h5::Own(H5Gopen2(sequences, name.c_str(), H5P_DEFAULT), H5Gclose, file, g,
+                         "cannot open group (not a group, or corrupt file?)");
+  ResultSequence s;
+  s.name = name;
+  s.model = h5::ReadScalarString(group.get(), "model", file, g, "");
+  {
+    h5::Id attr = RequiredAttr(group.get(), "sensor_names", file, g);
+    s.sensor_names = h5::ReadStrings(attr.get(), file, g + " attribute 'sensor_names'");
+  }
+  {
+    h5::Id attr = RequiredAttr(group.get(), "sensor_dims", file, g);
+    for (long long d : h5::ReadInts(attr.get(), file, g + " attribute 'sensor_dims'")) {
+      if (d < 1 || d > 1000000000) {
+        Fail(file, g + " attribute 'sensor_dims'",
+             "dimension " + std::to_string(d) + " is out of range (must be >= 1)");
+      }
+      s.sensor_dims.push_back(static_cast<int>(d));
+    }
+  }
+  const h5::Array t = ReadRequired(group.get(), "time", 1, file, g + "/time");
+  s.time = Eigen::Map<const Eigen::VectorXd>(t.data.data(), static_cast<Eigen::Index>(t.dims[0]));
+  const std::pair<const char*, RowMatrix*> mats[] = {{"measured", &s.measured},
+                                                     {"simulated_initial", &s.simulated_initial},
+                                                     {"simulated_final", &s.simulated_final}};
+  for (const auto& [dname, m] : mats) {
+    *m = ToMatrix(ReadRequired(group.get(), dname, 2, file, g + "/" + dname));
+  }
+  return s;
+}
+
+void ReadH5(const std::string& path, FitResultFile* r) {
+  const std::string& file = path;
+  std::lock_guard<std::mutex> lock(h5::Mutex());
+  h5::Silence();
+  h5::Id f = h5::OpenFile(path, file);
+  h5::Id root = h5::Own(H5Gopen2(f.get(), "/", H5P_DEFAULT), H5Gclose, file, "/",
+                        "cannot open the root group (corrupt file?)");
+
+  // format attributes
+  const std::string format = h5::ReadScalarString(
+      root.get(), "format", file, "/", " (not an mjsysid result: expected \"mjsysid-result\")");
+  if (format != kFormat) {
+    Fail(file, "/ attribute 'format'",
+         "is \"" + format + "\", expected \"" + kFormat + "\" (not an mjsysid result)");
+  }
+  {
+    h5::Id version = RequiredAttr(root.get(), "format_version", file, "/");
+    const std::vector<long long> v =
+        h5::ReadInts(version.get(), file, "/ attribute 'format_version'");
+    if (v.size() != 1 || v[0] != kFormatVersion) {
+      Fail(file, "/ attribute 'format_version'",
+           "version " + (v.empty() ? std::string("?") : std::to_string(v[0])) +
+               " is not supported (this build reads version " + std::to_string(kFormatVersion) +
+               ")");
+    }
+  }
+  h5::ReadScalarString(root.get(), "status", file, "/", "");
+
+  // arrays
+  ReadH5Parameters(root.get(), file, *r);
+  r->covariance = ToMatrix(ReadRequired(root.get(), "covariance", 2, file, "/covariance"));
+  r->jacobian = ToMatrix(ReadRequired(root.get(), "jacobian", 2, file, "/jacobian"));
+  ReadH5Trace(root.get(), file, r);
+  h5::Id seqs = OpenGroup(root.get(), "sequences", file, "/sequences");
+  for (const std::string& name : h5::LinkNames(seqs.get(), file, "/sequences")) {
+    r->sequences.push_back(ReadH5Sequence(seqs.get(), name, file));
+  }
+  CheckArrays(*r, file);
+}
+
+}  // namespace
+
+// -----------------------------------------------------------------------------------------------
+
+void WriteResultYaml(const std::string& path, const FitResultFile& result) {
+  CheckParameters(result, path);
+  const std::string text = EmitYaml(result);
+  try {
+    h5::ReplaceAtomically(path, [&](const std::string& tmp) {
+      std::FILE* f = std::fopen(tmp.c_str(), "wb");
+      if (f == nullptr) {
+        Fail(path, "", "cannot create temporary file " + tmp + ": " + std::strerror(errno));
+      }
+      const bool written = std::fwrite(text.data(), 1, text.size(), f) == text.size();
+      const int err = errno;
+      if (std::fclose(f) != 0 || !written) {
+        Fail(path, "", "cannot write temporary file " + tmp + ": " + std::strerror(err));
+      }
+    });
+  } catch (const h5::Error& e) {
+    throw ResultError(e.what());
+  }
+}
+
+void WriteResultH5(const std::string& path, const FitResultFile& result) {
+  CheckParameters(result, path);
+  CheckMatrices(result, path);  // the sequences are checked as they are written
+  std::lock_guard<std::mutex> lock(h5::Mutex());
+  h5::Silence();
+  try {
+    h5::ReplaceAtomically(path, [&](const std::string& tmp) { WriteH5(tmp, result, path); });
+  } catch (const h5::Error& e) {
+    throw ResultError(e.what());
+  }
+}
+
+FitResultFile ReadResult(const std::string& dir) {
+  const std::filesystem::path d(dir);
+  FitResultFile r;
+  ReadYaml((d / "result.yaml").string(), &r);
+  try {
+    ReadH5((d / "result.h5").string(), &r);
+  } catch (const h5::Error& e) {
+    throw ResultError(e.what());
+  }
+  return r;
+}
+
+}  // namespace mjsysid::io

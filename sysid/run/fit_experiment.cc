@@ -1,0 +1,547 @@
+#include "sysid/run/fit_experiment.h"
+
+#include <mujoco/mujoco.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+#include <limits>
+#include <map>
+#include <thread>
+
+#include "mjsysid/version.h"
+#include "sysid/io/log.h"
+#include "sysid/sim/simulate.h"
+
+// MuJoCo's XML writer prints 6 significant digits unless told otherwise; its (exported, private)
+// precision setter is declared weak so that a MuJoCo without it still links (then the check
+// after writing reports the rounding)
+extern "C" {
+int _mjPRIVATE__get_xml_precision() __attribute__((weak));
+void _mjPRIVATE__set_xml_precision(int precision) __attribute__((weak));
+}
+
+namespace mjsysid::run {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string Num(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof(buf), "%.17g", v);
+  return buf;
+}
+
+std::string NowIso() {
+  const std::time_t t = std::time(nullptr);
+  char buf[32];
+  std::strftime(buf, sizeof(buf), "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&t));
+  return buf;
+}
+
+FitOptions::Loss LossOf(io::LossType t) {
+  switch (t) {
+    case io::LossType::kHuber:
+      return FitOptions::Loss::kHuber;
+    case io::LossType::kCauchy:
+      return FitOptions::Loss::kCauchy;
+    default:
+      return FitOptions::Loss::kNone;
+  }
+}
+
+const char* LossName(io::LossType t) {
+  switch (t) {
+    case io::LossType::kHuber:
+      return "huber";
+    case io::LossType::kCauchy:
+      return "cauchy";
+    default:
+      return "none";
+  }
+}
+
+// the model a log sequence belongs to: the only one, or the one its "<model>_" prefix names
+int ModelOfSequence(const io::ExperimentConfig& cfg, const std::string& seq,
+                    const std::string& file) {
+  if (cfg.models.size() == 1) return 0;
+  for (size_t i = 0; i < cfg.models.size(); ++i) {
+    const std::string prefix = cfg.models[i].name + "_";
+    if (seq.rfind(prefix, 0) == 0) return static_cast<int>(i);
+  }
+  throw io::LogError(file + ": sequence '" + seq +
+                     "': with several models a sequence must be named <model>_<name> "
+                     "(as `sysid simulate` writes it)");
+}
+
+bool Selected(const io::ExperimentConfig& cfg, const std::string& model, const std::string& seq) {
+  if (cfg.sequences.empty()) return true;
+  for (const io::SequenceRef& r : cfg.sequences) {
+    if (seq == r.name && (r.model.empty() || r.model == model)) return true;
+    if (seq == model + "_" + r.name && (r.model.empty() || r.model == model)) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
+BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
+  BuiltProblem out;
+  out.problem = std::make_unique<Problem>();
+  io::CheckModelFilesExist(cfg);
+
+  // models, checked against the config
+  for (const io::ModelSpec& ms : cfg.models) {
+    ModelPtr m = LoadModel(ms.path);
+    io::ValidateExperimentAgainstModel(cfg, *m, ms.name);
+    sim::CoreParameterSpecs(cfg, *m, ms.name);  // resolves every parameter (ConfigError at YAML)
+    out.problem->AddModel(ms.name, *m);
+    out.model_names.push_back(ms.name);
+    out.models.push_back(std::move(m));
+  }
+
+  // parameters and measurement terms
+  for (const io::ParameterSpec& p : cfg.parameters) {
+    FitParameter fp;
+    fp.name = p.name;
+    fp.target.kind = io::ParameterTargetName(p.target);
+    fp.target.object = p.object;
+    fp.target.field = p.field;
+    fp.target.index = p.index;
+    fp.initial = p.initial;
+    fp.lower = p.lower;
+    fp.upper = p.upper;
+    fp.transform = p.transform == io::Transform::kLog     ? Transform::kLog
+                   : p.transform == io::Transform::kScale ? Transform::kScale
+                                                          : Transform::kNone;
+    fp.scale = p.scale;
+    if (p.prior) fp.Prior(p.prior->mean, p.prior->sigma);
+    fp.models = p.models;
+    out.problem->AddParameter(fp);
+  }
+  for (const io::MeasurementSpec& me : cfg.measurement) {
+    FitMeasurement fm;
+    fm.sensor = me.sensor;
+    auto term = [](const io::MeasurementTerm& t) {
+      return FitMeasurement::Term{t.initial, t.fit, t.lower, t.upper};
+    };
+    fm.delay = term(me.delay);
+    fm.gain = term(me.gain);
+    fm.bias = term(me.bias);
+    out.problem->AddMeasurement(fm);
+  }
+
+  // sequences from the logs
+  if (cfg.data.empty()) {
+    throw io::ConfigError(cfg.marks.self, "no `data:` log files to fit",
+                          "run `sysid simulate` first, or list HDF5 logs under data:");
+  }
+  for (const io::DataFile& df : cfg.data) {
+    if (!fs::exists(df.path)) {
+      throw io::ConfigError(df.mark, "data file not found: " + df.path,
+                            "run `sysid simulate EXP.yaml` to generate it");
+    }
+    const io::Log log = io::ReadLog(df.path);
+    // one validation per model over the sequences that belong to it
+    std::vector<io::Log> per_model(cfg.models.size());
+    for (const io::Sequence& s : log.sequences) {
+      const int mi = ModelOfSequence(cfg, s.name, df.path);
+      if (!Selected(cfg, cfg.models[mi].name, s.name)) continue;
+      per_model[mi].sequences.push_back(s);
+      per_model[mi].sensor_time = log.sensor_time;
+    }
+    for (size_t mi = 0; mi < cfg.models.size(); ++mi) {
+      const mjModel& m = *out.models[mi];
+      if (per_model[mi].sequences.empty()) continue;
+      io::ValidateLogAgainstModel(per_model[mi], m, df.path);
+      const bool post = log.sensor_time == "post" || cfg.sensor_time == io::SensorTime::kPost;
+      for (const io::Sequence& s : per_model[mi].sequences) {
+        const std::string where = df.path + ": /" + s.name;
+        const int rows = static_cast<int>(s.time.size());
+        const double period = (s.time[rows - 1] - s.time[0]) / (rows - 1);
+        if (std::abs(period - m.opt.timestep) > 1e-9 * m.opt.timestep * rows) {
+          throw io::LogError(where + ": sample period " + Num(period) +
+                             " s differs from the model timestep " + Num(m.opt.timestep) +
+                             " s; resample the log or set the model's <option timestep>");
+        }
+        // sensor_time post: the sensors of row k+1 are y_k
+        const int T = post ? rows - 1 : rows;
+        if (T < 2) throw io::LogError(where + ": too few samples");
+        FitSequence fs_;
+        fs_.name = s.name;
+        fs_.model = cfg.models[mi].name;
+        fs_.ctrl = s.ctrl.topRows(T);
+        fs_.measured = RowMatrix::Zero(T, m.nsensordata);
+        // log columns into the model's sensordata layout
+        std::vector<std::string> logged;
+        int col = 0;
+        for (size_t i = 0; i < s.sensor_names.size(); ++i) {
+          const int id = mj_name2id(&m, mjOBJ_SENSOR, s.sensor_names[i].c_str());
+          for (int c = 0; c < s.sensor_dims[i]; ++c) {
+            fs_.measured.col(m.sensor_adr[id] + c) =
+                s.sensordata.block(post ? 1 : 0, col + c, T, 1);
+          }
+          col += s.sensor_dims[i];
+          logged.push_back(s.sensor_names[i]);
+        }
+        // fitted sensors: the config's, or every logged one
+        if (cfg.sensors.empty()) {
+          fs_.sensors = logged;
+        } else {
+          for (const io::SensorSpec& ss : cfg.sensors) {
+            if (std::find(logged.begin(), logged.end(), ss.name) == logged.end()) {
+              throw io::ConfigError(ss.marks.self, "sensor '" + ss.name + "' is not in the log " +
+                                                       df.path + " (sequence " + s.name + ")");
+            }
+            fs_.sensors.push_back(ss.name);
+          }
+        }
+        // initial state: the logged one, else the model's reference state
+        if (s.qpos.rows() > 0) fs_.x0.qpos = s.qpos.row(0).transpose();
+        if (s.qvel.rows() > 0) fs_.x0.qvel = s.qvel.row(0).transpose();
+        if (s.act.rows() > 0) fs_.x0.act = s.act.row(0).transpose();
+        fs_.x0.time = s.time[0];
+        if (s.qpos.rows() == 0 && !cfg.initial_state.estimate) {
+          out.warnings.push_back(where +
+                                 ": the log has no qpos: the fit starts from the model's "
+                                 "reference state (set initial_state: {estimate: true} to fit it)");
+        }
+        out.sequence_names.push_back(s.name);
+        out.sensors.push_back(fs_.sensors);
+        out.times.push_back(s.time.head(T));
+        out.problem->AddSequence(fs_);
+      }
+    }
+  }
+  if (out.sequence_names.empty()) {
+    throw io::ConfigError(cfg.marks.Of("sequences"), "no log sequence selected",
+                          "check `sequences:` against the group names in the logs");
+  }
+
+  // options
+  const io::SolverOptions& so = cfg.solver;
+  FitOptions& o = out.options;
+  o.max_iterations = so.max_iterations;
+  o.function_tolerance = so.function_tolerance;
+  o.gradient_tolerance = so.gradient_tolerance;
+  o.parameter_tolerance = so.parameter_tolerance;
+  switch (so.jacobian) {
+    case io::JacobianMode::kDirectional:
+      o.jacobian.mode = JacobianMode::kDirectional;
+      break;
+    case io::JacobianMode::kMatrix:
+      o.jacobian.mode = JacobianMode::kMatrix;
+      break;
+    case io::JacobianMode::kWholeRollout:
+      o.jacobian.mode = JacobianMode::kWholeRollout;
+      break;
+    case io::JacobianMode::kCeresNumeric:
+      throw io::ConfigError(so.marks.Of("jacobian"),
+                            "jacobian: ceres_numeric is a benchmark baseline, not a fit mode",
+                            "use auto, directional, matrix or whole_rollout");
+    default:
+      o.jacobian.mode = JacobianMode::kAuto;
+  }
+  o.jacobian.central = so.differences == io::Differences::kCentral;
+  o.jacobian.relative_step = so.relative_step;
+  o.threads = threads >= 0 ? threads : so.threads;
+  if (o.threads <= 0)
+    o.threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  o.loss = LossOf(so.loss.type);
+  o.loss_scale = so.loss.scale;
+  o.verbose = so.verbose;
+  for (const io::SensorSpec& ss : cfg.sensors) o.sensor_weights[ss.name] = ss.ResidualWeight();
+  o.estimate_initial_state = cfg.initial_state.estimate;
+  o.segment_steps = cfg.multiple_shooting.segment_steps;
+  o.continuity_weight = cfg.multiple_shooting.continuity_weight;
+  return out;
+}
+
+std::vector<std::string> WriteIdentifiedModel(const io::ExperimentConfig& cfg,
+                                              const std::string& model_name,
+                                              const std::string& model_path,
+                                              const std::vector<ParameterEstimate>& estimates,
+                                              const std::string& out_path) {
+  std::vector<std::string> warnings;
+  // the identified compiled model: every parameter written with the core's writers
+  ModelPtr m = LoadModel(model_path);
+  std::vector<ParameterSpec> specs;
+  std::vector<double> values;
+  std::vector<const io::ParameterSpec*> used;
+  for (const io::ParameterSpec& p : cfg.parameters) {
+    if (!p.AppliesTo(model_name)) continue;
+    for (const ParameterEstimate& e : estimates) {
+      if (e.name != p.name) continue;
+      ParameterSpec s;
+      s.kind = io::ParameterTargetName(p.target);
+      s.object = p.object;
+      s.field = p.field;
+      s.index = p.index;
+      s.label = p.name;
+      specs.push_back(s);
+      values.push_back(e.value);
+      used.push_back(&p);
+    }
+  }
+  ParameterSet params(*m, specs);
+  params.Prepare(m.get());
+  DataPtr scratch = MakeData(*m);
+  params.Write(m.get(), scratch.get(), values.data());
+
+  // the same values written into the model's spec, element by element
+  char error[1024] = "";
+  mjSpec* spec = mj_parseXML(model_path.c_str(), nullptr, error, sizeof(error));
+  if (!spec) throw ModelLoadError(model_path + ": " + error);
+  for (size_t i = 0; i < used.size(); ++i) {
+    const io::ParameterSpec& p = *used[i];
+    const int idx = p.index;
+    switch (p.target) {
+      case io::ParameterTarget::kBodyMass:
+      case io::ParameterTarget::kBodyMassInertia:
+      case io::ParameterTarget::kBodyInertia:
+      case io::ParameterTarget::kBodyCom: {
+        // an explicit inertial clause with the identified compiled values
+        mjsBody* b = mjs_findBody(spec, p.object.c_str());
+        const int id = mj_name2id(m.get(), mjOBJ_BODY, p.object.c_str());
+        if (!b || id < 0) break;
+        b->explicitinertial = 1;
+        b->mass = m->body_mass[id];
+        for (int k = 0; k < 3; ++k) b->ipos[k] = m->body_ipos[3 * id + k];
+        for (int k = 0; k < 4; ++k) b->iquat[k] = m->body_iquat[4 * id + k];
+        for (int k = 0; k < 3; ++k) b->inertia[k] = m->body_inertia[3 * id + k];
+        b->fullinertia[0] = std::numeric_limits<double>::quiet_NaN();
+        b->ialt.type = mjORIENTATION_QUAT;
+        break;
+      }
+      case io::ParameterTarget::kJointDamping:
+      case io::ParameterTarget::kJointFrictionloss:
+      case io::ParameterTarget::kJointArmature:
+      case io::ParameterTarget::kJointStiffness: {
+        mjsJoint* j = mjs_asJoint(mjs_findElement(spec, mjOBJ_JOINT, p.object.c_str()));
+        if (!j) break;
+        if (p.target == io::ParameterTarget::kJointDamping) j->damping[0] = values[i];
+        if (p.target == io::ParameterTarget::kJointFrictionloss) j->frictionloss = values[i];
+        if (p.target == io::ParameterTarget::kJointArmature) j->armature = values[i];
+        if (p.target == io::ParameterTarget::kJointStiffness) j->stiffness[0] = values[i];
+        break;
+      }
+      case io::ParameterTarget::kGeomFriction: {
+        mjsGeom* g = mjs_asGeom(mjs_findElement(spec, mjOBJ_GEOM, p.object.c_str()));
+        if (g) g->friction[idx] = values[i];
+        break;
+      }
+      case io::ParameterTarget::kActuatorGain:
+      case io::ParameterTarget::kActuatorBias:
+      case io::ParameterTarget::kActuatorGear: {
+        mjsActuator* a = mjs_asActuator(mjs_findElement(spec, mjOBJ_ACTUATOR, p.object.c_str()));
+        if (!a) break;
+        if (p.target == io::ParameterTarget::kActuatorGain) a->gainprm[idx] = values[i];
+        if (p.target == io::ParameterTarget::kActuatorBias) a->biasprm[idx] = values[i];
+        if (p.target == io::ParameterTarget::kActuatorGear) a->gear[idx] = values[i];
+        break;
+      }
+      case io::ParameterTarget::kField:
+        warnings.push_back("parameter '" + p.name + "' (field " + p.field +
+                           ") has no MJCF attribute: not written into " + out_path);
+        break;
+    }
+  }
+
+  // compile, save atomically, and check the saved file reproduces the values
+  mjModel* compiled = nullptr;
+  try {
+    compiled = mj_compile(spec, nullptr);
+  } catch (const MujocoError& e) {
+    mj_deleteSpec(spec);
+    throw ModelLoadError(model_path + ": identified model does not compile: " + e.what());
+  }
+  if (!compiled) {
+    const std::string msg = mjs_getError(spec);
+    mj_deleteSpec(spec);
+    throw ModelLoadError(model_path + ": identified model does not compile: " + msg);
+  }
+  mj_deleteModel(compiled);
+  const std::string tmp = out_path + ".tmp";
+  const bool full_precision = _mjPRIVATE__get_xml_precision && _mjPRIVATE__set_xml_precision;
+  const int saved_precision = full_precision ? _mjPRIVATE__get_xml_precision() : 0;
+  if (full_precision) _mjPRIVATE__set_xml_precision(17);
+  const bool ok = mj_saveXML(spec, tmp.c_str(), error, sizeof(error)) == 0;
+  if (full_precision) _mjPRIVATE__set_xml_precision(saved_precision);
+  mj_deleteSpec(spec);
+  if (!ok) throw std::runtime_error("cannot write " + out_path + ": " + error);
+  fs::rename(tmp, out_path);
+  ModelPtr back = LoadModel(out_path);
+  ParameterSet check(*back, specs);
+  std::vector<double> read(values.size());
+  check.Read(*back, read.data());
+  for (size_t i = 0; i < values.size(); ++i) {
+    if (used[i]->target == io::ParameterTarget::kField) continue;
+    if (std::abs(read[i] - values[i]) > 1e-9 * std::max(1.0, std::abs(values[i]))) {
+      warnings.push_back("identified model " + out_path + ": '" + specs[i].label + "' reads " +
+                         Num(read[i]) + " instead of " + Num(values[i]));
+    }
+  }
+  return warnings;
+}
+
+FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
+  FitRunOutcome out;
+  out.out_dir = ro.out_dir.empty() ? cfg.output : ro.out_dir;
+  fs::create_directories(out.out_dir);
+  BuiltProblem bp = BuildProblem(cfg, ro.threads);
+  FitOptions options = bp.options;
+  options.verbose = ro.verbose && options.verbose;
+  options.interrupt = ro.interrupt;
+
+  // what every result file says about the run
+  io::FitResultFile& file = out.file;
+  file.name = cfg.name;
+  file.experiment = cfg.source_file;
+  file.mjsysid_version = MJSYSID_VERSION;
+  file.mujoco_version = MujocoVersion();
+  file.created = NowIso();
+  const SimulatorOptions sim_defaults;
+  file.solver = {
+      {"max_iterations", std::to_string(options.max_iterations)},
+      {"function_tolerance", Num(options.function_tolerance)},
+      {"gradient_tolerance", Num(options.gradient_tolerance)},
+      {"parameter_tolerance", Num(options.parameter_tolerance)},
+      {"jacobian", JacobianModeName(options.jacobian.mode)},
+      {"differences", options.jacobian.central ? "central" : "forward"},
+      {"relative_step", Num(options.jacobian.relative_step)},
+      {"threads", std::to_string(options.threads)},
+      {"loss", LossName(cfg.solver.loss.type)},
+      {"loss_scale", Num(options.loss_scale)},
+      {"estimate_initial_state", options.estimate_initial_state ? "true" : "false"},
+      {"segment_steps", std::to_string(options.segment_steps)},
+      {"continuity_weight", Num(options.continuity_weight)},
+      {"mujoco_solver_tolerance", "min(model, " + Num(sim_defaults.solver_tolerance) + ")"},
+      {"minimizer", "ceres levenberg-marquardt"},
+  };
+  std::map<std::string, double> truth;
+  for (const io::NamedValue& t : cfg.simulate.truth) truth[t.name] = t.value;
+
+  // checkpoint after every good iteration: status running, current values
+  const std::string yaml_path = (fs::path(out.out_dir) / "result.yaml").string();
+  const std::string h5_path = (fs::path(out.out_dir) / "result.h5").string();
+  std::vector<std::string> names;
+  for (const io::ParameterSpec& p : cfg.parameters) names.push_back(p.name);
+  for (const io::MeasurementSpec& me : cfg.measurement) {
+    if (me.delay.fit) names.push_back(me.sensor + ".delay");
+    if (me.gain.fit) names.push_back(me.sensor + ".gain");
+    if (me.bias.fit) names.push_back(me.sensor + ".bias");
+  }
+  options.on_iteration = [&](const IterationInfo& it) {
+    io::FitResultFile cp = file;
+    cp.status = "running";
+    cp.termination = "checkpoint after iteration " + std::to_string(it.iteration);
+    cp.iterations = it.iteration;
+    cp.final_cost = it.cost;
+    for (int i = 0; i < it.parameters.size() && i < static_cast<int>(names.size()); ++i) {
+      io::ResultParameter rp;
+      rp.name = names[i];
+      rp.value = it.parameters[i];
+      rp.std_error = std::numeric_limits<double>::quiet_NaN();
+      rp.ci95_low = rp.ci95_high = std::numeric_limits<double>::quiet_NaN();
+      if (truth.count(rp.name)) rp.truth = truth[rp.name];
+      cp.parameters.push_back(rp);
+    }
+    io::WriteResultYaml(yaml_path, cp);
+  };
+
+  // fit
+  for (const std::string& w : bp.warnings)
+    std::fprintf(stderr, "sysid fit: warning: %s\n", w.c_str());
+  out.fit = bp.problem->Fit(options);
+  const FitResult& r = out.fit;
+
+  // results
+  file.status = r.interrupted ? "interrupted" : r.converged ? "converged" : "not_converged";
+  file.termination = r.termination;
+  file.jacobian_mode = r.jacobian_mode;
+  file.iterations = r.iterations;
+  file.num_residuals = r.num_residuals;
+  file.initial_cost = r.initial_cost;
+  file.final_cost = r.final_cost;
+  file.residual_variance = r.uncertainty.residual_variance;
+  file.wall_time_s = r.seconds;
+  for (const ParameterEstimate& e : r.parameters) {
+    io::ResultParameter rp;
+    rp.name = e.name;
+    rp.value = e.value;
+    rp.initial = e.initial;
+    rp.std_error = e.std_error;
+    rp.ci95_low = e.ci95_low;
+    rp.ci95_high = e.ci95_high;
+    rp.at_lower = e.at_lower;
+    rp.at_upper = e.at_upper;
+    rp.identifiable = e.identifiable;
+    if (truth.count(e.name)) rp.truth = truth[e.name];
+    file.parameters.push_back(rp);
+  }
+  file.unidentifiable = r.uncertainty.unidentifiable;
+  file.warnings = bp.warnings;
+  file.warnings.insert(file.warnings.end(), r.warnings.begin(), r.warnings.end());
+  for (const IterationInfo& it : r.trace) {
+    io::ResultTraceEntry te;
+    te.iteration = it.iteration;
+    te.cost = it.cost;
+    te.step_norm = it.step_norm;
+    te.gradient_norm = it.gradient_norm;
+    te.seconds = it.seconds;
+    te.successful = it.successful;
+    te.parameters.assign(it.parameters.data(), it.parameters.data() + it.parameters.size());
+    file.trace.push_back(te);
+  }
+  file.covariance = r.uncertainty.covariance;
+  file.jacobian = r.jacobian;
+  // signals: the fitted sensor columns of each sequence
+  for (size_t q = 0; q < r.sequences.size(); ++q) {
+    const SequenceResult& sr = r.sequences[q];
+    const int mi = static_cast<int>(
+        std::find(bp.model_names.begin(), bp.model_names.end(), sr.model) - bp.model_names.begin());
+    const mjModel& m = *bp.models[mi];
+    io::ResultSequence rs;
+    rs.name = sr.name;
+    rs.model = sr.model;
+    rs.time = bp.times[q];
+    std::vector<int> cols;
+    for (const std::string& s : bp.sensors[q]) {
+      const int id = mj_name2id(&m, mjOBJ_SENSOR, s.c_str());
+      rs.sensor_names.push_back(s);
+      rs.sensor_dims.push_back(m.sensor_dim[id]);
+      for (int c = 0; c < m.sensor_dim[id]; ++c) cols.push_back(m.sensor_adr[id] + c);
+    }
+    const Eigen::Index T = sr.measured.rows();
+    rs.measured.resize(T, cols.size());
+    rs.simulated_initial.resize(T, cols.size());
+    rs.simulated_final.resize(T, cols.size());
+    for (size_t c = 0; c < cols.size(); ++c) {
+      rs.measured.col(c) = sr.measured.col(cols[c]);
+      rs.simulated_initial.col(c) = sr.simulated_initial.col(cols[c]);
+      rs.simulated_final.col(c) = sr.simulated_final.col(cols[c]);
+    }
+    file.sequences.push_back(std::move(rs));
+  }
+  // identified models
+  for (size_t i = 0; i < cfg.models.size(); ++i) {
+    const std::string fname = cfg.models[i].name + "_identified.xml";
+    try {
+      const std::vector<std::string> w =
+          WriteIdentifiedModel(cfg, cfg.models[i].name, cfg.models[i].path, r.parameters,
+                               (fs::path(out.out_dir) / fname).string());
+      file.warnings.insert(file.warnings.end(), w.begin(), w.end());
+      file.identified_models[cfg.models[i].name] = fname;
+    } catch (const std::exception& e) {
+      file.warnings.push_back(std::string("identified model not written: ") + e.what());
+    }
+  }
+  io::WriteResultH5(h5_path, file);
+  io::WriteResultYaml(yaml_path, file);
+  out.exit_code = r.converged ? 0 : 1;
+  return out;
+}
+
+}  // namespace mjsysid::run

@@ -1,0 +1,67 @@
+// `sysid fit` and the Jacobian part of `sysid check`: an experiment file and its logs turned into a
+// Problem, fitted, and written to DIR (result.yaml, result.h5, <model>_identified.xml).
+//
+// Contract:
+// - BuildProblem reads the models and every `data:` log, validates them against each other and the
+//   config (io::ConfigError / io::LogError / ModelLoadError / ParameterError on bad input), and
+//   maps them onto a Problem: one FitSequence per selected log sequence; a log sequence belongs to
+//   the only model, or with several models to the model named by its "<model>_" prefix; with
+//   sensor_time: post, row k+1 of a log is taken as y_k (the first control row is kept, the last
+//   dropped). The log's sample period must equal the model's timestep.
+// - RunFit writes DIR/result.yaml with status "running" after every successful iteration (the last
+//   good iterate survives an interruption), then the full results atomically, and the identified
+//   models. It never throws for a fit that merely fails to converge: see FitRunOutcome.
+#pragma once
+
+#include <atomic>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/mujoco_env.h"
+#include "sysid/io/experiment.h"
+#include "sysid/io/result.h"
+#include "sysid/problem.h"
+
+namespace mjsysid::run {
+
+struct BuiltProblem {
+  std::unique_ptr<Problem> problem;
+  FitOptions options;
+  std::vector<std::string> model_names;
+  std::vector<ModelPtr> models;  // as loaded (before any fit)
+  std::vector<std::string> sequence_names;
+  std::vector<std::vector<std::string>> sensors;  // fitted sensors of each sequence
+  std::vector<Eigen::VectorXd> times;             // sample times of each sequence
+  std::vector<std::string> warnings;
+};
+
+// threads < 0: the config's solver.threads
+BuiltProblem BuildProblem(const io::ExperimentConfig& config, int threads = -1);
+
+struct FitRunOptions {
+  std::string out_dir;                           // "" = config.output
+  int threads = -1;                              // < 0: the config's solver.threads
+  bool verbose = true;                           // progress lines on stderr
+  const std::atomic<bool>* interrupt = nullptr;  // set (e.g. by SIGINT) to stop after an iteration
+};
+
+struct FitRunOutcome {
+  FitResult fit;
+  io::FitResultFile file;
+  std::string out_dir;
+  int exit_code = 0;  // 0 converged, 1 not converged, interrupted or failed
+};
+
+FitRunOutcome RunFit(const io::ExperimentConfig& config, const FitRunOptions& options);
+
+// Writes the model of model_path with the fitted values of the parameters that apply to it into
+// out_path (atomically) as MJCF, and checks that the written file compiles to those values.
+// Returns warnings (e.g. "field" parameters, which have no MJCF attribute).
+std::vector<std::string> WriteIdentifiedModel(const io::ExperimentConfig& config,
+                                              const std::string& model_name,
+                                              const std::string& model_path,
+                                              const std::vector<ParameterEstimate>& estimates,
+                                              const std::string& out_path);
+
+}  // namespace mjsysid::run

@@ -1,0 +1,552 @@
+#include "sysid/io/result.h"
+
+#include <gtest/gtest.h>
+#include <hdf5.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <limits>
+#include <sstream>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace mjsysid::io {
+namespace {
+
+namespace fs = std::filesystem;
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// ---------------------------------------------------------------------------------------------
+// helpers
+
+// a fresh directory per test, removed afterwards
+class ResultTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    dir_ = fs::temp_directory_path() /
+           ("mjsysid_result_test_" + std::to_string(::getpid()) + "_" + info->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string Dir() const { return dir_.string(); }
+  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
+
+  // names of the files in the test directory
+  std::vector<std::string> Files() const {
+    std::vector<std::string> out;
+    for (const auto& e : fs::directory_iterator(dir_)) out.push_back(e.path().filename());
+    std::sort(out.begin(), out.end());
+    return out;
+  }
+
+  // writes both files
+  void WriteBoth(const FitResultFile& r) const {
+    WriteResultYaml(Path("result.yaml"), r);
+    WriteResultH5(Path("result.h5"), r);
+  }
+
+  // the message of the ResultError that ReadResult throws
+  std::string ReadError() const {
+    try {
+      ReadResult(Dir());
+    } catch (const ResultError& e) {
+      return e.what();
+    }
+    ADD_FAILURE() << "ReadResult did not throw";
+    return "";
+  }
+
+  fs::path dir_;
+};
+
+std::string ReadText(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+void WriteText(const std::string& path, const std::string& text) {
+  std::ofstream(path, std::ios::binary) << text;
+}
+
+// replaces the one occurrence of `from` in the file
+void ReplaceInFile(const std::string& path, const std::string& from, const std::string& to) {
+  std::string text = ReadText(path);
+  const size_t at = text.find(from);
+  ASSERT_NE(at, std::string::npos) << from << " not in\n" << text;
+  ASSERT_EQ(text.find(from, at + 1), std::string::npos) << from << " twice in\n" << text;
+  WriteText(path, text.replace(at, from.size(), to));
+}
+
+// deterministic, varied values
+RowMatrix Matrix(Eigen::Index rows, Eigen::Index cols, int seed) {
+  RowMatrix m(rows, cols);
+  for (Eigen::Index r = 0; r < rows; ++r) {
+    for (Eigen::Index c = 0; c < cols; ++c) {
+      m(r, c) = std::sin(1.3 * seed + 0.7 * static_cast<double>(r) + 2.9 * static_cast<double>(c)) *
+                std::pow(10.0, static_cast<double>((r + c) % 7) - 3.0);
+    }
+  }
+  return m;
+}
+
+ResultSequence Sequence(const std::string& name, std::vector<std::string> sensors,
+                        std::vector<int> dims, Eigen::Index samples, int seed) {
+  ResultSequence s;
+  s.name = name;
+  s.model = "pendulum";
+  s.sensor_names = std::move(sensors);
+  s.sensor_dims = std::move(dims);
+  Eigen::Index cols = 0;
+  for (int d : s.sensor_dims) cols += d;
+  s.time.resize(samples);
+  for (Eigen::Index k = 0; k < samples; ++k) s.time[k] = 0.002 * static_cast<double>(k);
+  s.measured = Matrix(samples, cols, seed);
+  s.simulated_initial = Matrix(samples, cols, seed + 1);
+  s.simulated_final = Matrix(samples, cols, seed + 2);
+  return s;
+}
+
+// every field set, with awkward values: infinities, values that need 17 digits, odd text
+FitResultFile FullResult() {
+  FitResultFile r;
+  r.name = "pendulum";
+  r.experiment = "/work/experiments/pendulum.yaml";
+  r.status = "converged";
+  r.termination = "function tolerance reached: |dcost|/cost = 3e-11 < 1e-10";
+  r.created = "2024-05-01T12:00:00Z";
+  r.mjsysid_version = "0.1.0";
+  r.mujoco_version = "4.0.0";
+  r.jacobian_mode = "analytic";
+  r.iterations = 7;
+  r.num_residuals = 8000;
+  r.initial_cost = 1.0 / 3.0;
+  r.final_cost = 0.1 + 0.2;
+  r.residual_variance = 1e-300;
+  r.wall_time_s = 12.5;
+  r.solver = {{"max_iterations", "100"},
+              {"function_tolerance", "1e-10"},
+              {"linear_solver", "dense_qr"},
+              {"note", "a: b # c"}};
+
+  // identified, at a bound, unidentifiable
+  ResultParameter damping;
+  damping.name = "damping";
+  damping.value = 0.0800000000000001;
+  damping.initial = 0.1;
+  damping.std_error = 1.234e-4;
+  damping.ci95_low = damping.value - 1.96 * damping.std_error;
+  damping.ci95_high = damping.value + 1.96 * damping.std_error;
+  damping.truth = 0.08;
+  ResultParameter friction;
+  friction.name = "frictionloss";
+  friction.value = 0;
+  friction.initial = 0.05;
+  friction.std_error = 2e-3;
+  friction.ci95_low = -3.92e-3;
+  friction.ci95_high = 3.92e-3;
+  friction.at_lower = true;
+  ResultParameter mass;
+  mass.name = "bob_mass";
+  mass.value = 1.7;
+  mass.initial = 1.0;
+  mass.std_error = kInf;
+  mass.ci95_low = -kInf;
+  mass.ci95_high = kInf;
+  mass.at_upper = true;
+  mass.identifiable = false;
+  mass.truth = 1.2;
+  r.parameters = {damping, friction, mass};
+  r.unidentifiable = {"bob_mass - 0.3 damping (singular value 1e-14)"};
+  r.warnings = {"sequence seq1: MuJoCo warning at t = 1.5 s", "two\nlines: 'quoted' \"too\""};
+  r.identified_models = {{"pendulum", "pendulum_identified.xml"}};
+
+  // three iterations
+  for (int i = 0; i < 3; ++i) {
+    ResultTraceEntry e;
+    e.iteration = i;
+    e.cost = 1.0 / (1 + i * i * 7.0);
+    e.step_norm = 0.1 * i;
+    e.gradient_norm = std::exp(-i);
+    e.seconds = 0.25 * (i + 1);
+    e.successful = i != 1;
+    e.parameters = {0.1 - 0.01 * i, 0.05 / (i + 1), 1.0 + 0.3 * i};
+    r.trace.push_back(e);
+  }
+  r.covariance = Matrix(3, 3, 7);
+  r.covariance(2, 2) = kInf;
+  r.jacobian = Matrix(11, 3, 9);
+  r.sequences = {Sequence("seq0", {"angle", "accel"}, {1, 3}, 25, 1),
+                 Sequence("pendulum_seq1", {"rate"}, {1}, 4, 5),
+                 Sequence("a", {"angle"}, {1}, 1, 11)};
+  return r;
+}
+
+// doubles compared bit for bit (infinities included)
+void ExpectSame(const Eigen::Ref<const Eigen::MatrixXd>& a,
+                const Eigen::Ref<const Eigen::MatrixXd>& b, const std::string& what) {
+  ASSERT_EQ(a.rows(), b.rows()) << what;
+  ASSERT_EQ(a.cols(), b.cols()) << what;
+  for (Eigen::Index r = 0; r < a.rows(); ++r) {
+    for (Eigen::Index c = 0; c < a.cols(); ++c) {
+      EXPECT_EQ(a(r, c), b(r, c)) << what << " (" << r << ", " << c << ")";
+    }
+  }
+}
+
+void ExpectSame(const FitResultFile& a, const FitResultFile& b) {
+  // summary
+  EXPECT_EQ(a.name, b.name);
+  EXPECT_EQ(a.experiment, b.experiment);
+  EXPECT_EQ(a.status, b.status);
+  EXPECT_EQ(a.termination, b.termination);
+  EXPECT_EQ(a.created, b.created);
+  EXPECT_EQ(a.mjsysid_version, b.mjsysid_version);
+  EXPECT_EQ(a.mujoco_version, b.mujoco_version);
+  EXPECT_EQ(a.jacobian_mode, b.jacobian_mode);
+  EXPECT_EQ(a.iterations, b.iterations);
+  EXPECT_EQ(a.num_residuals, b.num_residuals);
+  EXPECT_EQ(a.initial_cost, b.initial_cost);
+  EXPECT_EQ(a.final_cost, b.final_cost);
+  EXPECT_EQ(a.residual_variance, b.residual_variance);
+  EXPECT_EQ(a.wall_time_s, b.wall_time_s);
+  EXPECT_EQ(a.solver, b.solver);
+  EXPECT_EQ(a.unidentifiable, b.unidentifiable);
+  EXPECT_EQ(a.warnings, b.warnings);
+  EXPECT_EQ(a.identified_models, b.identified_models);
+
+  // parameters
+  ASSERT_EQ(a.parameters.size(), b.parameters.size());
+  for (size_t i = 0; i < a.parameters.size(); ++i) {
+    const ResultParameter& p = a.parameters[i];
+    const ResultParameter& q = b.parameters[i];
+    EXPECT_EQ(p.name, q.name);
+    EXPECT_EQ(p.value, q.value) << p.name;
+    EXPECT_EQ(p.initial, q.initial) << p.name;
+    EXPECT_EQ(p.std_error, q.std_error) << p.name;
+    EXPECT_EQ(p.ci95_low, q.ci95_low) << p.name;
+    EXPECT_EQ(p.ci95_high, q.ci95_high) << p.name;
+    EXPECT_EQ(p.at_lower, q.at_lower) << p.name;
+    EXPECT_EQ(p.at_upper, q.at_upper) << p.name;
+    EXPECT_EQ(p.identifiable, q.identifiable) << p.name;
+    EXPECT_EQ(p.truth, q.truth) << p.name;
+  }
+
+  // trace
+  ASSERT_EQ(a.trace.size(), b.trace.size());
+  for (size_t i = 0; i < a.trace.size(); ++i) {
+    EXPECT_EQ(a.trace[i].iteration, b.trace[i].iteration);
+    EXPECT_EQ(a.trace[i].cost, b.trace[i].cost);
+    EXPECT_EQ(a.trace[i].step_norm, b.trace[i].step_norm);
+    EXPECT_EQ(a.trace[i].gradient_norm, b.trace[i].gradient_norm);
+    EXPECT_EQ(a.trace[i].seconds, b.trace[i].seconds);
+    EXPECT_EQ(a.trace[i].successful, b.trace[i].successful);
+    EXPECT_EQ(a.trace[i].parameters, b.trace[i].parameters);
+  }
+
+  // arrays
+  ExpectSame(a.covariance, b.covariance, "covariance");
+  ExpectSame(a.jacobian, b.jacobian, "jacobian");
+  ASSERT_EQ(a.sequences.size(), b.sequences.size());
+  for (size_t i = 0; i < a.sequences.size(); ++i) {
+    const ResultSequence& s = a.sequences[i];
+    const ResultSequence& t = b.sequences[i];
+    EXPECT_EQ(s.name, t.name);
+    EXPECT_EQ(s.model, t.model);
+    EXPECT_EQ(s.sensor_names, t.sensor_names);
+    EXPECT_EQ(s.sensor_dims, t.sensor_dims);
+    ExpectSame(s.time, t.time, s.name + " time");
+    ExpectSame(s.measured, t.measured, s.name + " measured");
+    ExpectSame(s.simulated_initial, t.simulated_initial, s.name + " simulated_initial");
+    ExpectSame(s.simulated_final, t.simulated_final, s.name + " simulated_final");
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// round trips
+
+TEST_F(ResultTest, RoundTripKeepsEveryFieldExactly) {
+  const FitResultFile r = FullResult();
+  WriteBoth(r);
+  EXPECT_EQ(Files(), (std::vector<std::string>{"result.h5", "result.yaml"}));
+  ExpectSame(ReadResult(Dir()), r);
+}
+
+TEST_F(ResultTest, RoundTripOfAnEmptyishResultAndOddText) {
+  // no trace, no covariance or jacobian, no sequences, no lists; text YAML could misread
+  FitResultFile r;
+  r.name = "null";
+  r.experiment = "";
+  r.status = "yes";
+  r.termination = "- not a list";
+  r.created = "~";
+  r.mjsysid_version = "1.0";
+  r.mujoco_version = "#x";
+  r.jacobian_mode = " padded ";
+  r.solver = {{"true", "false"}, {"k", ""}, {"ü", "[1, 2]"}};
+  ResultParameter p;
+  p.name = "0.5";
+  p.value = -0.0;
+  p.std_error = 5e-324;
+  p.ci95_low = -1.7976931348623157e308;
+  p.ci95_high = 1.7976931348623157e308;
+  r.parameters = {p};
+  WriteBoth(r);
+  ExpectSame(ReadResult(Dir()), r);
+  EXPECT_TRUE(std::signbit(ReadResult(Dir()).parameters[0].value));
+}
+
+TEST_F(ResultTest, TraceWithoutParameterValuesRoundTrips) {
+  FitResultFile r = FullResult();
+  for (ResultTraceEntry& e : r.trace) e.parameters.clear();
+  WriteBoth(r);
+  ExpectSame(ReadResult(Dir()), r);
+}
+
+TEST_F(ResultTest, YamlIsReadableWithYamlInfinitiesAndShortNumbers) {
+  WriteResultYaml(Path("result.yaml"), FullResult());
+  const std::string text = ReadText(Path("result.yaml"));
+  EXPECT_NE(text.find("format: mjsysid-result\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("format_version: 1\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("std: .inf\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("ci95: [-.inf, .inf]"), std::string::npos) << text;
+  EXPECT_NE(text.find("flags: [at_upper_bound, unidentifiable]"), std::string::npos) << text;
+  EXPECT_NE(text.find("initial: 0.1\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("truth: 1.2\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("final_cost: 0.30000000000000004\n"), std::string::npos) << text;
+}
+
+// ---------------------------------------------------------------------------------------------
+// atomic writes
+
+TEST_F(ResultTest, FailingWritesLeaveThePreviousFilesAndNoTemporary) {
+  const FitResultFile good = FullResult();
+  WriteBoth(good);
+  const std::string yaml_before = ReadText(Path("result.yaml"));
+  const std::string h5_before = ReadText(Path("result.h5"));
+
+  // h5: the last sequence is malformed, found after the others were written
+  FitResultFile bad = good;
+  bad.name = "changed";
+  bad.sequences.back().simulated_final.resize(0, 0);
+  try {
+    WriteResultH5(Path("result.h5"), bad);
+    FAIL() << "no error";
+  } catch (const ResultError& e) {
+    EXPECT_NE(std::string(e.what()).find("result.h5: /sequences/a/simulated_final: has shape"),
+              std::string::npos)
+        << e.what();
+  }
+
+  // yaml: two parameters with one name
+  bad.parameters[1].name = bad.parameters[0].name;
+  EXPECT_THROW(WriteResultYaml(Path("result.yaml"), bad), ResultError);
+  EXPECT_THROW(WriteResultH5(Path("result.h5"), bad), ResultError);
+
+  EXPECT_EQ(ReadText(Path("result.yaml")), yaml_before);
+  EXPECT_EQ(ReadText(Path("result.h5")), h5_before);
+  EXPECT_EQ(Files(), (std::vector<std::string>{"result.h5", "result.yaml"}));
+  ExpectSame(ReadResult(Dir()), good);
+}
+
+TEST_F(ResultTest, FailedRenameRemovesTheTemporary) {
+  // the target is a non-empty directory: everything is written, then the rename fails
+  fs::create_directories(Path("result.yaml/x"));
+  fs::create_directories(Path("result.h5/x"));
+  EXPECT_THROW(WriteResultYaml(Path("result.yaml"), FullResult()), ResultError);
+  EXPECT_THROW(WriteResultH5(Path("result.h5"), FullResult()), ResultError);
+  EXPECT_EQ(Files(), (std::vector<std::string>{"result.h5", "result.yaml"}));
+  EXPECT_TRUE(fs::is_directory(Path("result.yaml/x")));
+}
+
+TEST_F(ResultTest, WriterRejectsInconsistentSizesNamingTheDataset) {
+  FitResultFile r = FullResult();
+  r.covariance.resize(2, 2);
+  try {
+    WriteResultH5(Path("result.h5"), r);
+    FAIL() << "no error";
+  } catch (const ResultError& e) {
+    EXPECT_NE(
+        std::string(e.what()).find("result.h5: /covariance: has shape (2, 2), expected (3, 3)"),
+        std::string::npos)
+        << e.what();
+  }
+  r = FullResult();
+  r.trace[1].parameters.pop_back();
+  EXPECT_THROW(WriteResultH5(Path("result.h5"), r), ResultError);
+  r = FullResult();
+  r.sequences[0].sensor_dims = {1, 2};
+  EXPECT_THROW(WriteResultH5(Path("result.h5"), r), ResultError);
+  EXPECT_TRUE(Files().empty());
+}
+
+// ---------------------------------------------------------------------------------------------
+// errors on reading
+
+TEST_F(ResultTest, MissingFilesAreNamed) {
+  std::string msg = ReadError();
+  EXPECT_NE(msg.find(Path("result.yaml") + ": no such file"), std::string::npos) << msg;
+  WriteResultYaml(Path("result.yaml"), FullResult());
+  msg = ReadError();
+  EXPECT_NE(msg.find(Path("result.h5") + ": no such file"), std::string::npos) << msg;
+}
+
+TEST_F(ResultTest, MissingYamlKeyIsNamed) {
+  WriteBoth(FullResult());
+  ReplaceInFile(Path("result.yaml"), "final_cost: 0.30000000000000004\n", "");
+  const std::string msg = ReadError();
+  EXPECT_NE(msg.find(Path("result.yaml")), std::string::npos) << msg;
+  EXPECT_NE(msg.find("key 'final_cost': is missing"), std::string::npos) << msg;
+}
+
+TEST_F(ResultTest, WrongYamlTypesAreNamedWithTheirPosition) {
+  WriteBoth(FullResult());
+  ReplaceInFile(Path("result.yaml"), "iterations: 7\n", "iterations: seven\n");
+  std::string msg = ReadError();
+  EXPECT_NE(msg.find(Path("result.yaml") + ":"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("key 'iterations': expected an integer, found 'seven'"), std::string::npos)
+      << msg;
+
+  WriteBoth(FullResult());
+  ReplaceInFile(Path("result.yaml"), "std: .inf\n", "std: [1, 2]\n");
+  msg = ReadError();
+  EXPECT_NE(msg.find("key 'parameters[2].std': expected a number, found a list"), std::string::npos)
+      << msg;
+
+  WriteBoth(FullResult());
+  ReplaceInFile(Path("result.yaml"), "[at_upper_bound, unidentifiable]",
+                "[at_upper_bound, unidentifyable]");
+  msg = ReadError();
+  EXPECT_NE(msg.find("key 'parameters[2].flags': unknown flag 'unidentifyable'"), std::string::npos)
+      << msg;
+
+  WriteText(Path("result.yaml"), "format: [unclosed\n");
+  msg = ReadError();
+  EXPECT_NE(msg.find(Path("result.yaml") + ":"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("invalid YAML"), std::string::npos) << msg;
+}
+
+TEST_F(ResultTest, FilesOfDifferentFitsAreRejected) {
+  WriteBoth(FullResult());
+  FitResultFile other = FullResult();
+  other.parameters.pop_back();
+  other.covariance.resize(0, 0);
+  other.jacobian.resize(0, 0);
+  for (ResultTraceEntry& e : other.trace) e.parameters.pop_back();
+  WriteResultYaml(Path("result.yaml"), other);
+  const std::string msg = ReadError();
+  EXPECT_NE(msg.find(Path("result.h5") + ": /parameters attribute 'names': the parameters differ"),
+            std::string::npos)
+      << msg;
+}
+
+// opens result.h5 for editing
+hid_t OpenForEdit(const std::string& path) {
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  const hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+  EXPECT_GE(f, 0);
+  return f;
+}
+
+TEST_F(ResultTest, MissingH5DatasetIsNamed) {
+  WriteBoth(FullResult());
+  const hid_t f = OpenForEdit(Path("result.h5"));
+  ASSERT_GE(H5Ldelete(f, "/parameters/std", H5P_DEFAULT), 0);
+  H5Fclose(f);
+  const std::string msg = ReadError();
+  EXPECT_NE(msg.find(Path("result.h5") + ": /parameters/std: required dataset is missing"),
+            std::string::npos)
+      << msg;
+}
+
+TEST_F(ResultTest, WrongH5TypesAndShapesAreNamed) {
+  // text instead of numbers
+  WriteBoth(FullResult());
+  hid_t f = OpenForEdit(Path("result.h5"));
+  ASSERT_GE(H5Ldelete(f, "/trace/cost", H5P_DEFAULT), 0);
+  {
+    const hid_t type = H5Tcopy(H5T_C_S1);
+    H5Tset_size(type, 8);
+    const hsize_t n = 3;
+    const hid_t space = H5Screate_simple(1, &n, nullptr);
+    const hid_t d =
+        H5Dcreate2(f, "/trace/cost", type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    ASSERT_GE(d, 0);
+    H5Dclose(d);
+    H5Sclose(space);
+    H5Tclose(type);
+  }
+  H5Fclose(f);
+  std::string msg = ReadError();
+  EXPECT_NE(msg.find(Path("result.h5") + ": /trace/cost: must hold numbers"), std::string::npos)
+      << msg;
+
+  // a vector instead of a matrix
+  WriteBoth(FullResult());
+  f = OpenForEdit(Path("result.h5"));
+  ASSERT_GE(H5Ldelete(f, "/covariance", H5P_DEFAULT), 0);
+  {
+    const hsize_t n = 9;
+    const hid_t space = H5Screate_simple(1, &n, nullptr);
+    const hid_t d =
+        H5Dcreate2(f, "/covariance", H5T_IEEE_F64LE, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    ASSERT_GE(d, 0);
+    H5Dclose(d);
+    H5Sclose(space);
+  }
+  H5Fclose(f);
+  msg = ReadError();
+  EXPECT_NE(msg.find(Path("result.h5") + ": /covariance: has rank 1 (shape (9)), expected rank 2"),
+            std::string::npos)
+      << msg;
+
+  // an attribute of the wrong type
+  WriteBoth(FullResult());
+  f = OpenForEdit(Path("result.h5"));
+  ASSERT_GE(H5Adelete_by_name(f, "/sequences/seq0", "sensor_dims", H5P_DEFAULT), 0);
+  {
+    const hid_t g = H5Gopen2(f, "/sequences/seq0", H5P_DEFAULT);
+    const hid_t space = H5Screate(H5S_SCALAR);
+    const hid_t a = H5Acreate2(g, "sensor_dims", H5T_IEEE_F64LE, space, H5P_DEFAULT, H5P_DEFAULT);
+    ASSERT_GE(a, 0);
+    H5Aclose(a);
+    H5Sclose(space);
+    H5Gclose(g);
+  }
+  H5Fclose(f);
+  msg = ReadError();
+  EXPECT_NE(msg.find(Path("result.h5") +
+                     ": /sequences/seq0 attribute 'sensor_dims': is not an integer attribute"),
+            std::string::npos)
+      << msg;
+}
+
+TEST_F(ResultTest, TruncatedH5IsNamed) {
+  WriteBoth(FullResult());
+  fs::resize_file(Path("result.h5"), fs::file_size(Path("result.h5")) / 2);
+  const std::string msg = ReadError();
+  EXPECT_NE(msg.find(Path("result.h5") + ": "), std::string::npos) << msg;
+  EXPECT_NE(msg.find("truncated"), std::string::npos) << msg;
+}
+
+TEST_F(ResultTest, NotAResultIsNamed) {
+  WriteBoth(FullResult());
+  ReplaceInFile(Path("result.yaml"), "format: mjsysid-result\n", "format: mjsysid-log\n");
+  std::string msg = ReadError();
+  EXPECT_NE(msg.find("key 'format': is 'mjsysid-log', expected 'mjsysid-result'"),
+            std::string::npos)
+      << msg;
+  WriteBoth(FullResult());
+  WriteText(Path("result.h5"), "not hdf5");
+  msg = ReadError();
+  EXPECT_NE(msg.find(Path("result.h5") + ": is not an HDF5 file"), std::string::npos) << msg;
+}
+
+}  // namespace
+}  // namespace mjsysid::io

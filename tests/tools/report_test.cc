@@ -1,0 +1,352 @@
+#include "tools/report/report.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+#include <zlib.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "tools/report/png.h"
+
+namespace mjsysid::report {
+namespace {
+
+namespace fs = std::filesystem;
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// ---------------------------------------------------------------------------------------------
+// helpers
+
+// a fresh directory per test, removed afterwards
+class ReportTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    dir_ = fs::temp_directory_path() /
+           ("mjsysid_report_test_" + std::to_string(::getpid()) + "_" + info->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string Dir() const { return dir_.string(); }
+  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
+
+  fs::path dir_;
+};
+
+std::string ReadBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+// a damped oscillation with a given frequency and damping
+double Swing(double t, double freq, double damping) {
+  return std::exp(-damping * t) * std::sin(2 * M_PI * freq * t);
+}
+
+// two parameters (one unidentifiable), a short trace, one sequence with two sensor columns
+io::FitResultFile Result(Eigen::Index samples = 600) {
+  io::FitResultFile r;
+  r.name = "pendulum";
+  r.experiment = "experiments/pendulum.yaml";
+  r.status = "converged";
+  r.termination = "function tolerance reached";
+  r.created = "2024-05-01T12:00:00Z";
+  r.mjsysid_version = "0.1.0";
+  r.mujoco_version = "4.0.0";
+  r.jacobian_mode = "analytic";
+  r.iterations = 6;
+  r.num_residuals = static_cast<int>(2 * samples);
+  r.initial_cost = 12.5;
+  r.final_cost = 0.0031;
+  r.residual_variance = 2.6e-6;
+  r.wall_time_s = 1.75;
+  r.solver = {{"max_iterations", "100"}, {"function_tolerance", "1e-10"}};
+
+  io::ResultParameter damping;
+  damping.name = "damping";
+  damping.initial = 0.2;
+  damping.value = 0.0803;
+  damping.std_error = 0.0011;
+  damping.ci95_low = damping.value - 1.96 * damping.std_error;
+  damping.ci95_high = damping.value + 1.96 * damping.std_error;
+  damping.truth = 0.08;
+  io::ResultParameter mass;
+  mass.name = "bob_mass";
+  mass.initial = 1.0;
+  mass.value = 1.37;
+  mass.std_error = kInf;
+  mass.ci95_low = -kInf;
+  mass.ci95_high = kInf;
+  mass.identifiable = false;
+  mass.truth = 1.2;
+  r.parameters = {damping, mass};
+  r.unidentifiable = {"bob_mass (no sensor sees the mass: singular value 3e-15)"};
+  r.warnings = {"sequence seq0: sensor 'rate' saturates at 10 rad/s <check>"};
+
+  // cost and parameters converging over the iterations; one rejected step
+  for (int i = 0; i <= 6; ++i) {
+    io::ResultTraceEntry e;
+    e.iteration = i;
+    e.cost = 12.5 * std::pow(0.25, i * i / 2.0) + 0.0031;
+    e.step_norm = 0.5 / (i + 1);
+    e.gradient_norm = std::exp(-2.0 * i);
+    e.seconds = 0.25 * (i + 1);
+    e.successful = i != 3;
+    e.parameters = {0.08 + 0.12 * std::exp(-1.2 * i), 1.0 + 0.37 * (1 - std::exp(-0.8 * i))};
+    r.trace.push_back(e);
+  }
+
+  // a swinging pendulum: angle and rate, before and after the fit
+  io::ResultSequence s;
+  s.name = "seq0";
+  s.model = "pendulum";
+  s.sensor_names = {"angle", "rate"};
+  s.sensor_dims = {1, 1};
+  s.time.resize(samples);
+  s.measured.resize(samples, 2);
+  s.simulated_initial.resize(samples, 2);
+  s.simulated_final.resize(samples, 2);
+  for (Eigen::Index k = 0; k < samples; ++k) {
+    const double t = 0.01 * static_cast<double>(k);
+    s.time[k] = t;
+    const double noise = 0.02 * std::sin(37.0 * k) * std::cos(11.0 * k);
+    s.measured(k, 0) = Swing(t, 0.8, 0.3) + noise;
+    s.measured(k, 1) = 5.0 * Swing(t + 0.3, 0.8, 0.3) + 5 * noise;
+    s.simulated_initial(k, 0) = 1.2 * Swing(t, 0.7, 0.8);
+    s.simulated_initial(k, 1) = 6.0 * Swing(t + 0.3, 0.7, 0.8);
+    s.simulated_final(k, 0) = Swing(t, 0.8, 0.3);
+    s.simulated_final(k, 1) = 5.0 * Swing(t + 0.3, 0.8, 0.3);
+  }
+  r.sequences = {s};
+  r.covariance = Eigen::MatrixXd::Identity(2, 2);
+  r.covariance(1, 1) = kInf;
+  return r;
+}
+
+// a decoded png: header facts and the rgb pixels
+struct Png {
+  uint32_t width = 0, height = 0;
+  std::vector<uint8_t> rgb;
+};
+
+uint32_t Be32(const std::string& b, size_t at) {
+  return (static_cast<uint32_t>(static_cast<uint8_t>(b[at])) << 24) |
+         (static_cast<uint32_t>(static_cast<uint8_t>(b[at + 1])) << 16) |
+         (static_cast<uint32_t>(static_cast<uint8_t>(b[at + 2])) << 8) |
+         static_cast<uint32_t>(static_cast<uint8_t>(b[at + 3]));
+}
+
+// checks signature, chunk crcs, IHDR (8-bit rgb), the IDAT size and filter bytes; fills `out`
+::testing::AssertionResult Decode(const std::string& bytes, Png* out) {
+  if (bytes.compare(0, 8, std::string("\x89PNG\r\n\x1a\n", 8)) != 0) {
+    return ::testing::AssertionFailure() << "no png signature";
+  }
+  std::string idat;
+  bool header = false, end = false;
+  for (size_t at = 8; at + 12 <= bytes.size() && !end;) {
+    const uint32_t len = Be32(bytes, at);
+    if (at + 12 + len > bytes.size()) return ::testing::AssertionFailure() << "chunk overruns";
+    const std::string type = bytes.substr(at + 4, 4), data = bytes.substr(at + 8, len);
+    const uLong crc = crc32(0, reinterpret_cast<const Bytef*>(bytes.data() + at + 4), len + 4);
+    if (crc != Be32(bytes, at + 8 + len)) return ::testing::AssertionFailure() << type << " crc";
+    if (type == "IHDR") {
+      if (len != 13) return ::testing::AssertionFailure() << "IHDR length " << len;
+      out->width = Be32(data, 0);
+      out->height = Be32(data, 4);
+      if (data[8] != 8 || data[9] != 2) return ::testing::AssertionFailure() << "not 8-bit rgb";
+      header = true;
+    } else if (type == "IDAT") {
+      idat += data;
+    } else if (type == "IEND") {
+      end = true;
+    }
+    at += 12 + len;
+  }
+  if (!header || !end || idat.empty()) return ::testing::AssertionFailure() << "missing chunks";
+
+  // inflate: one filter byte and 3 bytes per pixel per row
+  const size_t stride = 1 + 3 * static_cast<size_t>(out->width);
+  std::string raw(stride * out->height + 1, '\0');
+  uLongf size = raw.size();
+  if (uncompress(reinterpret_cast<Bytef*>(raw.data()), &size,
+                 reinterpret_cast<const Bytef*>(idat.data()), idat.size()) != Z_OK) {
+    return ::testing::AssertionFailure() << "IDAT does not inflate";
+  }
+  if (size != stride * out->height) {
+    return ::testing::AssertionFailure()
+           << "IDAT inflates to " << size << " bytes, expected " << stride * out->height;
+  }
+  out->rgb.clear();
+  for (uint32_t y = 0; y < out->height; ++y) {
+    if (raw[y * stride] != 0) return ::testing::AssertionFailure() << "filter type in row " << y;
+    out->rgb.insert(out->rgb.end(), raw.begin() + y * stride + 1, raw.begin() + (y + 1) * stride);
+  }
+  return ::testing::AssertionSuccess();
+}
+
+// grey-or-white and coloured pixels counted
+struct Colors {
+  size_t grey = 0, colored = 0;
+};
+Colors CountColors(const Png& png) {
+  Colors c;
+  for (size_t i = 0; i + 2 < png.rgb.size(); i += 3) {
+    const int r = png.rgb[i], g = png.rgb[i + 1], b = png.rgb[i + 2];
+    const int spread = std::max({r, g, b}) - std::min({r, g, b});
+    if (spread == 0) ++c.grey;
+    if (spread > 80) ++c.colored;
+  }
+  return c;
+}
+
+void ExpectPlot(const std::string& path, uint32_t width, uint32_t height) {
+  SCOPED_TRACE(path);
+  Png png;
+  ASSERT_TRUE(Decode(ReadBytes(path), &png));
+  EXPECT_EQ(png.width, width);
+  EXPECT_EQ(png.height, height);
+  const Colors c = CountColors(png);
+  EXPECT_GT(c.grey, png.rgb.size() / 6) << "background";
+  EXPECT_GT(c.colored, 500u) << "lines";
+}
+
+// ---------------------------------------------------------------------------------------------
+// the report
+
+TEST_F(ReportTest, WritesAPageAndPlotsFromTheResultFiles) {
+  const io::FitResultFile r = Result();
+  io::WriteResultYaml(Path("result.yaml"), r);
+  io::WriteResultH5(Path("result.h5"), r);
+  std::string summary;
+  EXPECT_EQ(WriteReport(Dir(), &summary), 4);
+
+  // the page: self-contained, with the parameters and the identifiability finding
+  const std::string html = ReadBytes(Path("report.html"));
+  ASSERT_FALSE(html.empty());
+  for (const char* needle : {"<!DOCTYPE html>", "pendulum", "damping", "bob_mass", "unidentifiable",
+                             "converged", "function tolerance reached", "max_iterations", "4.0.0",
+                             "no sensor sees the mass", "saturates at 10 rad/s &lt;check&gt;",
+                             "<svg", "data:image/png;base64,", "class=\"unid\""}) {
+    EXPECT_NE(html.find(needle), std::string::npos) << needle;
+  }
+  for (const char* banned : {"http://", "https://", "<script src", "<link", "@import"}) {
+    EXPECT_EQ(html.find(banned), std::string::npos) << banned;
+  }
+
+  // the plots: sizes follow the layout (cost 900 x 440; parameter panels 400 x 260 under a
+  // 44 px legend, 3 per row; sequence panels 1200 x 230 under a 76 px header)
+  ExpectPlot(Path("cost.png"), 900, 440);
+  ExpectPlot(Path("parameters.png"), 800, 44 + 260);
+  ExpectPlot(Path("seq_seq0.png"), 1200, 76 + 2 * 230);
+
+  // the summary names the files; nothing else is left behind
+  EXPECT_NE(summary.find("report pendulum"), std::string::npos) << summary;
+  EXPECT_NE(summary.find("1 unidentifiable: bob_mass"), std::string::npos) << summary;
+  EXPECT_NE(summary.find("seq_seq0.png"), std::string::npos) << summary;
+  size_t files = 0;
+  for (const auto& e : fs::directory_iterator(dir_)) {
+    EXPECT_EQ(e.path().string().find(".tmp-"), std::string::npos) << e.path();
+    ++files;
+  }
+  EXPECT_EQ(files, 6u);
+}
+
+TEST_F(ReportTest, LongSequencesAreDecimatedAndManyColumnsTiled) {
+  io::FitResultFile r = Result(200000);
+  r.trace.clear();  // no trace: first and last values only
+  io::ResultSequence& s = r.sequences[0];
+  s.name = "long run/1";
+  // a one-sample spike survives decimation: it sets the y range of the angle panel
+  s.measured(123457, 0) = 40;
+  // 6 columns: two per row
+  s.sensor_names = {"angle", "rate", "acc"};
+  s.sensor_dims = {1, 1, 4};
+  for (RowMatrix* m : {&s.measured, &s.simulated_initial, &s.simulated_final}) {
+    m->conservativeResize(Eigen::NoChange, 6);
+    for (Eigen::Index j = 2; j < 6; ++j) m->col(j) = m->col(j % 2) * static_cast<double>(j);
+  }
+  const auto start = std::chrono::steady_clock::now();
+  EXPECT_EQ(WriteReport(r, Dir(), nullptr), 4);
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 20);
+  ExpectPlot(Path("seq_long_run_1.png"), 1200, 76 + 3 * 230);
+  ExpectPlot(Path("cost.png"), 900, 440);
+  EXPECT_LT(fs::file_size(Path("report.html")), 3u << 20);
+}
+
+TEST_F(ReportTest, EmptyResultsStillMakeAPage) {
+  io::FitResultFile r;
+  r.name = "nothing";
+  r.status = "failed";
+  EXPECT_EQ(WriteReport(r, Dir(), nullptr), 3);
+  const std::string html = ReadBytes(Path("report.html"));
+  EXPECT_NE(html.find("no parameters"), std::string::npos);
+  EXPECT_NE(html.find("badge bad"), std::string::npos);
+  Png png;
+  EXPECT_TRUE(Decode(ReadBytes(Path("parameters.png")), &png));
+}
+
+TEST_F(ReportTest, MissingResultsAndFoldersAreErrors) {
+  EXPECT_THROW(WriteReport(Dir(), nullptr), io::ResultError);
+  EXPECT_THROW(WriteReport(Result(), Path("nope"), nullptr), ReportError);
+}
+
+TEST(SequenceFileNameTest, KeepsSafeCharactersOnly) {
+  EXPECT_EQ(SequenceFileName("seq0"), "seq_seq0.png");
+  EXPECT_EQ(SequenceFileName("arm5_seq-1.b"), "seq_arm5_seq-1.b.png");
+  EXPECT_EQ(SequenceFileName("a b/c\xC3\xA9"), "seq_a_b_c__.png");
+}
+
+// ---------------------------------------------------------------------------------------------
+// png and drawing
+
+TEST(PngTest, EncodesPixelsExactly) {
+  Image img(3, 2, Rgb{10, 20, 30});
+  img.FillRect(1, 0, 2, 1, Rgb{255, 0, 0});
+  img.FillRect(2, 1, 3, 2, Rgb{0, 0, 255});
+  Png png;
+  ASSERT_TRUE(Decode(EncodePng(img), &png));
+  EXPECT_EQ(png.width, 3u);
+  EXPECT_EQ(png.height, 2u);
+  const std::vector<uint8_t> want = {10, 20, 30, 255, 0,  0,  10, 20, 30,
+                                     10, 20, 30, 10,  20, 30, 0,  0,  255};
+  EXPECT_EQ(png.rgb, want);
+}
+
+TEST(PngTest, EveryPrintableCharacterHasAGlyph) {
+  for (int ch = 33; ch < 127; ++ch) {
+    Image img(8, 11, Rgb{255, 255, 255});
+    img.Text(1, 1, std::string(1, static_cast<char>(ch)), Rgb{0, 0, 0});
+    int ink = 0;
+    for (const uint8_t v : img.rgb()) ink += v == 0;
+    EXPECT_GT(ink, 0) << "character " << static_cast<char>(ch);
+  }
+  EXPECT_EQ(Image::TextWidth("abc", 2), (3 * 6 - 1) * 2);
+  EXPECT_EQ(Image::TextWidth("\xC3\xA9t\xC3\xA9"), 3 * 6 - 1);  // one cell per utf-8 character
+}
+
+TEST(PngTest, LinesAreClippedAndAntiAliased) {
+  Image img(40, 40, Rgb{255, 255, 255});
+  img.SetClip(10, 10, 30, 30);
+  img.Line(-1e9, 20, 1e9, 20, Rgb{0, 0, 0}, 2);  // far ends: clipped, cheap
+  img.Line(0, 0, 40, 37, Rgb{0, 0, 0}, 1.5);
+  EXPECT_EQ(img.Pixel(5, 20).r, 255);  // outside the clip
+  EXPECT_EQ(img.Pixel(20, 19).r, 0);   // the horizontal line, 2 px wide
+  EXPECT_EQ(img.Pixel(20, 20).r, 0);
+  EXPECT_EQ(img.Pixel(20, 25).r, 255);  // away from both
+  int partial = 0;                      // edge pixels of the diagonal are blended
+  for (size_t i = 0; i < img.rgb().size(); i += 3)
+    partial += img.rgb()[i] > 0 && img.rgb()[i] < 255;
+  EXPECT_GT(partial, 5);
+}
+
+}  // namespace
+}  // namespace mjsysid::report

@@ -1,0 +1,51 @@
+// `sysid report DIR`: a fit's results (DIR/result.yaml + DIR/result.h5) as one self-contained
+// HTML page and PNG plots, written into DIR.
+//
+// Files written (each atomically: FILE.tmp-<pid>, then renamed):
+//   report.html      one page, no external resources (inline CSS; the cost and parameter plots as
+//                    inline SVG; the sequence plots as base64 PNG data URIs): header (name,
+//                    status, termination, versions, solver settings), costs, iterations, wall
+//                    time, parameter table (initial, value, std, 95% CI, truth, flags;
+//                    unidentifiable rows highlighted, unidentifiable combinations listed),
+//                    warnings, plots
+//   cost.png         cost vs iteration, log scale (linear when a cost is <= 0)
+//   parameters.png   one panel per parameter: value over the iterations, final value with its 95%
+//                    interval as an error bar, truth as a dashed line when known
+//   seq_<name>.png   per sequence, one panel per fitted sensor column vs time: measured (grey),
+//                    simulated with the initial parameters (blue, dashed), with the fitted ones
+//                    (red). <name> keeps [A-Za-z0-9_.-] of the sequence name, '_' for the rest.
+// Lines of more than 2000 points are decimated (min and max per bucket, peaks kept).
+#pragma once
+
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "sysid/io/result.h"
+
+namespace mjsysid::report {
+
+// the report could not be written (the results could not be read: io::ResultError)
+class ReportError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Reads the results with io::ReadResult(dir) and writes the report files into dir. Returns the
+// number of files written; `summary` (optional) receives a few lines for the terminal ending in a
+// newline (name, status, parameters, the files). Throws io::ResultError when the results cannot
+// be read and ReportError when a file cannot be written.
+int WriteReport(const std::string& dir, std::string* summary);
+
+// the same for results already in memory (`result` as ReadResult would return it)
+int WriteReport(const io::FitResultFile& result, const std::string& dir, std::string* summary);
+
+// the pieces, for tests and other front ends
+std::string ReportHtml(const io::FitResultFile& result);  // the page, PNGs embedded
+std::string CostPng(const io::FitResultFile& result);
+std::string ParametersPng(const io::FitResultFile& result);
+std::string SequencePng(const io::FitResultFile& result, const io::ResultSequence& sequence);
+// "seq_<name>.png", sanitized as above
+std::string SequenceFileName(const std::string& sequence_name);
+
+}  // namespace mjsysid::report
