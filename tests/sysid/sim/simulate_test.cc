@@ -385,7 +385,7 @@ TEST_F(SimulateTest, EveryShippedExperimentParsesValidatesAndSimulates) {
       EXPECT_EQ(*s.sigma, n->value) << s.name;
     }
     EXPECT_GE(cfg.simulate.sequences, 2);
-    EXPECT_GE(cfg.simulate.steps, 1000);
+    EXPECT_GE(cfg.simulate.steps, 300);
     EXPECT_LE(cfg.simulate.steps, 3000);
 
     // a short simulation, checked against the model(s)
