@@ -296,6 +296,7 @@ struct CheckArgs {
   std::string experiment;
   bool jacobians = true;
   double tolerance = 1e-4;
+  bool strict = false;
 };
 
 // the model a logged sequence belongs to: "MODEL_..." names a model of several; "" otherwise
@@ -409,7 +410,6 @@ int RunCheck(const CheckArgs& args) {
     }
   }
   // Jacobians of every residual block against Ceres' numeric differentiation
-  int rc = kExitOk;
   if (args.jacobians && !config.data.empty()) {
     mjsysid::run::BuiltProblem built = mjsysid::run::BuildProblem(config);
     const mjsysid::JacobianCheck check = built.problem->CheckJacobians(built.options);
@@ -423,16 +423,22 @@ int RunCheck(const CheckArgs& args) {
     Appendf(&summary, "  worst      %.2e (%s)\n", check.worst_relative_error,
             check.worst_where.c_str());
     if (check.worst_relative_error > args.tolerance) {
-      std::printf("%s", summary.c_str());
-      std::fprintf(stderr,
-                   "sysid check: Jacobian error %.2e exceeds --tolerance %.1e at %s: the fit may "
-                   "be unreliable (non-smooth contact? try differences: central)\n",
-                   check.worst_relative_error, args.tolerance, check.worst_where.c_str());
-      return kExitFailed;
+      // friction and contact make residuals non-smooth: Ceres' Ridders differences (steps of
+      // ~1e-5 relative and up) then see kinks that the core's local differences do not
+      Appendf(&summary,
+              "  warning    the worst error exceeds --tolerance %.1e: the residuals are not "
+              "smooth at the scale of Ceres' numeric steps (friction, contact), or the "
+              "Jacobian is wrong; compare `jacobian: whole_rollout` with `differences: "
+              "central` before trusting the fit\n",
+              args.tolerance);
+      if (args.strict) {
+        std::printf("%s", summary.c_str());
+        return kExitFailed;
+      }
     }
   }
   std::printf("%sOK\n", summary.c_str());
-  return rc;
+  return kExitOk;
 }
 
 Command AddCheck(CLI::App* app) {
@@ -449,6 +455,7 @@ Command AddCheck(CLI::App* app) {
   sub->add_option("--tolerance", args->tolerance,
                   "largest acceptable column-scaled relative Jacobian error")
       ->capture_default_str();
+  sub->add_flag("--strict", args->strict, "exit 1 when the Jacobian error exceeds --tolerance");
   sub->footer(std::string("Prints a summary and OK, or the first error. With data, also checks "
                           "the Jacobians of every residual block at the initial values and prints "
                           "the worst relative error per parameter.\n") +
