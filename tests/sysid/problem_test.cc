@@ -186,7 +186,7 @@ TEST(RecoveryTest, CartPoleMassDampingFriction) {
 // start 0.3 and 3.0, noise-free. Tolerance 3% relative: MuJoCo's soft contact switches on and off
 // ~140 times in such a rollout (the box hovers at the contact threshold), which leaves the cost
 // rugged at the 1% level in mu and mass; measured landing points over excitations and solimp
-// settings lie 0.5-2.5% from the truth (see docs/stress.md). The exact local Jacobian is tested
+// settings lie 0.6-16% from the truth (see docs/numerics.md). The exact local Jacobian is tested
 // in tests/core/simulator_test.cc.
 TEST(RecoveryTest, BoxOnFloorFrictionAndMass) {
   ModelPtr m = LoadModel(kModels + "/box_slide.xml");
