@@ -106,10 +106,7 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
   for (const io::ParameterSpec& p : cfg.parameters) {
     FitParameter fp;
     fp.name = p.name;
-    fp.target.kind = io::ParameterTargetName(p.target);
-    fp.target.object = p.object;
-    fp.target.field = p.field;
-    fp.target.index = p.index;
+    fp.target = sim::ToCoreSpec(p);
     fp.initial = p.initial;
     fp.lower = p.lower;
     fp.upper = p.upper;
@@ -274,13 +271,7 @@ std::vector<std::string> WriteIdentifiedModel(const io::ExperimentConfig& cfg,
     if (!p.AppliesTo(model_name)) continue;
     for (const ParameterEstimate& e : estimates) {
       if (e.name != p.name) continue;
-      ParameterSpec s;
-      s.kind = io::ParameterTargetName(p.target);
-      s.object = p.object;
-      s.field = p.field;
-      s.index = p.index;
-      s.label = p.name;
-      specs.push_back(s);
+      specs.push_back(sim::ToCoreSpec(p));
       values.push_back(e.value);
       used.push_back(&p);
     }

@@ -64,12 +64,7 @@ std::vector<ParameterSpec> CoreParameters(const io::ExperimentConfig& config, co
   std::vector<ParameterSpec> specs;
   for (const io::ParameterSpec& p : config.parameters) {
     if (!p.AppliesTo(model_name)) continue;
-    ParameterSpec s;
-    s.kind = io::ParameterTargetName(p.target);
-    s.object = p.object;
-    s.field = p.field;
-    s.index = p.index;
-    s.label = p.name;
+    const ParameterSpec s = ToCoreSpec(p);
     try {
       Parameter::Resolve(m, s);
     } catch (const ParameterError& e) {
@@ -114,6 +109,16 @@ struct TruthRecord {
 };
 
 }  // namespace
+
+ParameterSpec ToCoreSpec(const io::ParameterSpec& p) {
+  ParameterSpec s;
+  s.kind = io::ParameterTargetName(p.target);
+  s.object = p.object;
+  s.field = p.field;
+  s.index = p.index;
+  s.label = p.name;
+  return s;
+}
 
 std::vector<ParameterSpec> CoreParameterSpecs(const io::ExperimentConfig& config, const mjModel& m,
                                               const std::string& model_name) {
