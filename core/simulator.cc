@@ -251,7 +251,9 @@ Eigen::VectorXd Simulator::ParameterSteps(const JacobianOptions& opt) const {
   return h;
 }
 
-double Simulator::JacobianCostPerStep(JacobianMode mode, const JacobianOptions& opt) const {
+double Simulator::JacobianCostPerStep(JacobianMode mode, const JacobianOptions& opt,
+                                      double contact_fraction) const {
+  if (contact_fraction < 0) contact_fraction = ContactsPossible() ? 1.0 : 0.0;
   const int np = params_.size();
   const int ncol = np + (opt.initial_state ? dims_.nx : 0);
   const double sides = opt.central ? 2.0 : 1.0;
@@ -260,24 +262,37 @@ double Simulator::JacobianCostPerStep(JacobianMode mode, const JacobianOptions& 
     case JacobianMode::kWholeRollout:
       return sides * ncol;
     case JacobianMode::kMatrix: {
-      // transitionFD: nominal step, qpos columns (full), qvel (skip POS), act (skip VEL);
-      // one base forward; one perturbed step per parameter skipping its stages
-      double cost = 2.0 + sides * (dims_.nv + kCostSkipPos * dims_.nv + kCostSkipVel * dims_.na);
+      // transitionFD: nominal step, qpos columns (full), qvel (skip POS), act (skip VEL); run on
+      // both sides for central differences, and for forward ones too where contacts may change
+      // (the kink check); one base forward; one perturbed step per parameter skipping its stages
+      const double fd_sides = opt.central ? 2.0 : 1.0 + contact_fraction;
+      double cost = 2.0 + fd_sides * (dims_.nv + kCostSkipPos * dims_.nv + kCostSkipVel * dims_.na);
       for (int j = 0; j < np; ++j) cost += sides * StageCost(params_[j].stage());
       return cost;
     }
     case JacobianMode::kAuto:
       break;
   }
-  return JacobianCostPerStep(ChooseJacobianMode(opt), opt);
+  return JacobianCostPerStep(ChooseJacobianMode(opt, contact_fraction), opt, contact_fraction);
 }
 
-JacobianMode Simulator::ChooseJacobianMode(const JacobianOptions& opt) const {
+bool Simulator::ContactsPossible() const {
+  // contacts need collisions enabled and two geoms that may collide
+  if (model_->opt.disableflags & mjDSBL_CONTACT) return false;
+  int colliding = 0;
+  for (int g = 0; g < model_->ngeom; ++g) {
+    if (model_->geom_contype[g] || model_->geom_conaffinity[g]) ++colliding;
+  }
+  return colliding >= 2 || model_->npair > 0;
+}
+
+JacobianMode Simulator::ChooseJacobianMode(const JacobianOptions& opt,
+                                           double contact_fraction) const {
   if (opt.mode != JacobianMode::kAuto) return opt.mode;
   // mjd_transitionFD rejects RK4 and history (delays)
   const bool matrix_ok = model_->opt.integrator != mjINT_RK4 && model_->nhistory == 0;
-  if (matrix_ok && JacobianCostPerStep(JacobianMode::kMatrix, opt) <
-                       JacobianCostPerStep(JacobianMode::kDirectional, opt)) {
+  if (matrix_ok && JacobianCostPerStep(JacobianMode::kMatrix, opt, contact_fraction) <
+                       JacobianCostPerStep(JacobianMode::kDirectional, opt, contact_fraction)) {
     return JacobianMode::kMatrix;
   }
   return JacobianMode::kDirectional;
@@ -522,7 +537,16 @@ void Simulator::Jacobians(const std::vector<SequenceInput>& sequences,
   }
   const int np = params_.size(), nx = dims_.nx, ns = options_.sensors ? dims_.ns : 0;
   const int ncol = np + (opt.initial_state ? nx : 0);
-  const JacobianMode mode = ChooseJacobianMode(opt);
+  // the share of steps with contacts near, where forward matrix mode differences both sides
+  long near = 0, total = 0;
+  for (const Trajectory& tr : nominal) {
+    for (int k = 0; k < tr.T && k < static_cast<int>(tr.ncon.size()); ++k) {
+      near += tr.ncon[k] > 0 || (k + 1 < tr.T && tr.ncon[k + 1] != tr.ncon[k]);
+      ++total;
+    }
+  }
+  const JacobianMode mode =
+      ChooseJacobianMode(opt, total ? static_cast<double>(near) / total : 0.0);
   if (mode == JacobianMode::kMatrix &&
       (model_->opt.integrator == mjINT_RK4 || model_->nhistory > 0)) {
     throw std::invalid_argument(

@@ -152,11 +152,19 @@ class Simulator {
   Sensitivity Jacobians(const SequenceInput& sequence, const Trajectory& nominal,
                         const JacobianOptions& options);
 
-  // the mode kAuto resolves to for these options (deterministic: counts only)
-  JacobianMode ChooseJacobianMode(const JacobianOptions& options) const;
+  // the mode kAuto resolves to for these options (deterministic: counts only). contact_fraction:
+  // the share of time steps with contacts near (there forward matrix mode differences both
+  // sides); < 0: 1 if the model can have contacts, else 0. Jacobians() passes the share measured
+  // on the nominal trajectories.
+  JacobianMode ChooseJacobianMode(const JacobianOptions& options,
+                                  double contact_fraction = -1) const;
 
   // estimated cost of the Jacobian of one time step, in units of one full mj_step
-  double JacobianCostPerStep(JacobianMode mode, const JacobianOptions& options) const;
+  double JacobianCostPerStep(JacobianMode mode, const JacobianOptions& options,
+                             double contact_fraction = -1) const;
+
+  // whether the model can have contacts (two colliding geoms or an explicit pair, contacts on)
+  bool ContactsPossible() const;
 
   // parameter steps h_j used for the current values
   Eigen::VectorXd ParameterSteps(const JacobianOptions& options) const;

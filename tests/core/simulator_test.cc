@@ -395,9 +395,15 @@ TEST(SimulatorTest, AutoModeFollowsTheCostModel) {
       *arm, {Spec("joint_damping", "j1"), Spec("joint_damping", "j2"), Spec("joint_damping", "j3"),
              Spec("joint_damping", "j4"), Spec("joint_damping", "j5")});
   opt.initial_state = true;
-  EXPECT_LT(many.JacobianCostPerStep(JacobianMode::kMatrix, opt),
-            many.JacobianCostPerStep(JacobianMode::kDirectional, opt));
-  EXPECT_EQ(many.ChooseJacobianMode(opt), JacobianMode::kMatrix);
+  EXPECT_LT(many.JacobianCostPerStep(JacobianMode::kMatrix, opt, 0.0),
+            many.JacobianCostPerStep(JacobianMode::kDirectional, opt, 0.0));
+  EXPECT_EQ(many.ChooseJacobianMode(opt, 0.0), JacobianMode::kMatrix);
+  // with contacts at every step, forward matrix mode differences both sides: twice the cost
+  EXPECT_EQ(many.ChooseJacobianMode(opt, 1.0), JacobianMode::kDirectional);
+  // Jacobians() measures the share on the trajectory: the arm swings free of contacts
+  SequenceInput free_swing{many.ReferenceState(), SineControls(*arm, 30, 0.5)};
+  const Trajectory swing = many.Rollout(free_swing);
+  EXPECT_EQ(many.Jacobians(free_swing, swing, opt).mode, JacobianMode::kMatrix);
   // RK4 has no mjd_transitionFD: auto falls back, an explicit request is an error
   ModelPtr rk4 = LoadModel(kModels + "/arm5.xml");
   rk4->opt.integrator = mjINT_RK4;
