@@ -61,6 +61,17 @@ bool CombineSides(const X& fx, const X& bx, const Y& fy, const Y& by, bool centr
 
 }  // namespace
 
+double ContactFraction(const std::vector<Trajectory>& trajectories) {
+  long near = 0, total = 0;
+  for (const Trajectory& tr : trajectories) {
+    for (int k = 0; k < tr.T && k < static_cast<int>(tr.ncon.size()); ++k) {
+      near += tr.ncon[k] > 0 || (k + 1 < tr.T && tr.ncon[k + 1] != tr.ncon[k]);
+      ++total;
+    }
+  }
+  return total ? static_cast<double>(near) / static_cast<double>(total) : 0.0;
+}
+
 const char* JacobianModeName(JacobianMode mode) {
   switch (mode) {
     case JacobianMode::kAuto:
@@ -537,16 +548,7 @@ void Simulator::Jacobians(const std::vector<SequenceInput>& sequences,
   }
   const int np = params_.size(), nx = dims_.nx, ns = options_.sensors ? dims_.ns : 0;
   const int ncol = np + (opt.initial_state ? nx : 0);
-  // the share of steps with contacts near, where forward matrix mode differences both sides
-  long near = 0, total = 0;
-  for (const Trajectory& tr : nominal) {
-    for (int k = 0; k < tr.T && k < static_cast<int>(tr.ncon.size()); ++k) {
-      near += tr.ncon[k] > 0 || (k + 1 < tr.T && tr.ncon[k + 1] != tr.ncon[k]);
-      ++total;
-    }
-  }
-  const JacobianMode mode =
-      ChooseJacobianMode(opt, total ? static_cast<double>(near) / total : 0.0);
+  const JacobianMode mode = ChooseJacobianMode(opt, ContactFraction(nominal));
   if (mode == JacobianMode::kMatrix &&
       (model_->opt.integrator == mjINT_RK4 || model_->nhistory > 0)) {
     throw std::invalid_argument(

@@ -94,6 +94,10 @@ struct Trajectory {
   std::vector<int> ncon;  // T: contacts found in step k (at x_k), to detect contact-set changes
 };
 
+// the share of time steps of these trajectories with contacts, or a change of the contact count
+// at the next step (where forward matrix mode differences both sides)
+double ContactFraction(const std::vector<Trajectory>& trajectories);
+
 enum class JacobianMode { kAuto, kDirectional, kMatrix, kWholeRollout };
 const char* JacobianModeName(JacobianMode mode);
 
