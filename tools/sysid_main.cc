@@ -29,6 +29,7 @@
 #include "core/parameters.h"
 #include "core/simulator.h"
 #include "mjsysid/version.h"
+#include "sysid/io/csv.h"
 #include "sysid/io/experiment.h"
 #include "sysid/io/log.h"
 #include "sysid/run/fit_experiment.h"
@@ -577,6 +578,56 @@ Command AddReport(CLI::App* app) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// sysid import MODEL.xml CSV... --out LOG.h5
+
+struct ImportArgs {
+  std::string model;
+  std::vector<std::string> csv;
+  std::string out;
+  std::string sensor_time = "pre";
+};
+
+// CSV files (one sequence each, named after the file) into one validated HDF5 log
+int RunImport(const ImportArgs& args) {
+  namespace io = mjsysid::io;
+  mjsysid::ModelPtr m = mjsysid::LoadModel(args.model);
+  io::Log log;
+  log.sensor_time = args.sensor_time;
+  log.attributes["generator"] = std::string("mjsysid ") + MJSYSID_VERSION + " import";
+  log.attributes["model"] = fs::absolute(args.model).string();
+  for (const std::string& path : args.csv) {
+    log.sequences.push_back(io::ImportCsv(path, *m, fs::path(path).stem().string()));
+  }
+  io::ValidateLogAgainstModel(log, *m, args.out);
+  io::WriteLog(args.out, log);
+  std::printf("imported %zu sequence(s) into %s\n", log.sequences.size(), args.out.c_str());
+  for (const io::Sequence& s : log.sequences) {
+    std::printf("  %-16s %6zu samples, sensors: %s\n", s.name.c_str(),
+                static_cast<size_t>(s.time.size()), Join(s.sensor_names).c_str());
+  }
+  return kExitOk;
+}
+
+Command AddImport(CLI::App* app) {
+  auto args = std::make_shared<ImportArgs>();
+  CLI::App* sub = app->add_subcommand(
+      "import", "Convert CSV logs (header row of names) into an HDF5 log that `fit` reads");
+  sub->add_option("model", args->model, "MJCF model the logs were recorded on")->required();
+  sub->add_option("csv", args->csv, "CSV files, one sequence each (named after the file)")
+      ->required();
+  sub->add_option("--out", args->out, "HDF5 log to write (atomically)")->required();
+  sub->add_option("--sensor-time", args->sensor_time,
+                  "pre: sensors read before the step (y_k at x_k); post: after it")
+      ->check(CLI::IsMember({"pre", "post"}))
+      ->capture_default_str();
+  sub->footer(std::string("CSV columns: time, one per actuator (its name), one per sensor "
+                          "component (NAME or NAME[i]), optional qpos[i], qvel[i], act[i]; "
+                          "any order. Checked against the model before writing.\n") +
+              kExitCodesFooter);
+  return {sub, [args] { return RunImport(*args); }};
+}
+
+// ---------------------------------------------------------------------------------------------
 // errors -> exit codes
 
 // runs a subcommand, printing any error as "sysid NAME: message" and mapping it to an exit code
@@ -627,6 +678,7 @@ int main(int argc, char** argv) {
   commands.push_back(AddSimulate(&app));
   commands.push_back(AddFit(&app));
   commands.push_back(AddReport(&app));
+  commands.push_back(AddImport(&app));
   commands.push_back(AddCheck(&app));
   commands.push_back(AddRollout(&app));
 
