@@ -346,6 +346,8 @@ std::vector<Row> BenchModel(const std::string& name, const std::string& path,
       std::vector<Trajectory> nom1, nom2;
       sim1.Rollout(seqs, &nom1);
       sim2.Rollout(seqs, &nom2);
+      // estimates with the contact share of the nominal trajectory, as Jacobians() uses it
+      const double contacts = ContactFraction(nom1);
       std::vector<Sensitivity> sens;
       std::vector<Trajectory> scratch;
       // the nominal rollout of sim1, timed before every timed Jacobian, so that each ratio
@@ -394,8 +396,8 @@ std::vector<Row> BenchModel(const std::string& name, const std::string& path,
             tr.push_back(rollout());
             tj.push_back(timed(jac));
           }
-          const double cost =
-              emit(JacobianModeName(mode), diff, tr, tj, sim1.JacobianCostPerStep(mode, opt));
+          const double cost = emit(JacobianModeName(mode), diff, tr, tj,
+                                   sim1.JacobianCostPerStep(mode, opt, contacts));
           if (!central && mode == JacobianMode::kDirectional) sum.directional = cost;
         }
         // matrix: 1 and 2 parameters, interleaved, and the median of the paired differences;
@@ -412,8 +414,8 @@ std::vector<Row> BenchModel(const std::string& name, const std::string& path,
           t1.push_back(a);
           dt.push_back(b - a);
         }
-        const double est1 = sim1.JacobianCostPerStep(JacobianMode::kMatrix, opt);
-        const double est2 = sim2.JacobianCostPerStep(JacobianMode::kMatrix, opt);
+        const double est1 = sim1.JacobianCostPerStep(JacobianMode::kMatrix, opt, contacts);
+        const double est2 = sim2.JacobianCostPerStep(JacobianMode::kMatrix, opt, contacts);
         const double matrix = emit("matrix", diff, tr, t1, est1);
         const double marginal = emit("matrix_marginal", diff, tr, dt, est2 - est1);
         if (!central) {
