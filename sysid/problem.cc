@@ -80,7 +80,8 @@ struct Problem::Impl {
 
   // fit-time state
   FitOptions options;
-  std::vector<std::vector<Channel>> channels;  // per sequence
+  std::vector<std::vector<Channel>> channels;    // per sequence
+  std::vector<std::vector<std::string>> fitted;  // per sequence: the fitted sensors, in order
   std::vector<Segment> segments;
   std::vector<double> z;                      // transformed physical parameters
   std::vector<double> m;                      // fitted measurement terms
@@ -523,6 +524,7 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
   names.clear();
   for (int g = 0; g < np; ++g) names.push_back(I.params[g].name);
   mbounds.clear();
+  out->minitial.clear();
   for (size_t i = 0; i < I.measurements.size(); ++i) {
     const FitMeasurement& me = I.measurements[i];
     auto add = [&](const FitMeasurement::Term& t, int* index, const char* what) {
@@ -534,6 +536,7 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
       *index = static_cast<int>(I.m.size());
       I.m.push_back(t.initial);
       mbounds.emplace_back(t.lower, t.upper);
+      out->minitial.push_back(t.initial);
       names.push_back(me.sensor + "." + what);
     };
     add(me.delay, &I.meas_index[i].delay, "delay");
@@ -543,6 +546,7 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
 
   // sequences: shapes, finite data, channels
   I.channels.assign(I.sequences.size(), {});
+  I.fitted.assign(I.sequences.size(), {});
   I.fixed_x0.assign(I.sequences.size(), {});
   for (size_t q = 0; q < I.sequences.size(); ++q) {
     FitSequence& sq = I.sequences[q];
@@ -593,6 +597,9 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
           }
         }
         I.channels[q].push_back({col, weight, meas});
+      }
+      if (std::find(I.fitted[q].begin(), I.fitted[q].end(), sname) == I.fitted[q].end()) {
+        I.fitted[q].push_back(sname);
       }
     }
     if (!sq.ctrl.allFinite()) throw std::invalid_argument(where + "ctrl contains NaN/Inf");
@@ -816,7 +823,7 @@ FitResult Problem::Fit(const FitOptions& options) {
       ParameterEstimate& e = result.parameters[v];
       e.name = names[v];
       e.value = values[v];
-      e.initial = v < np ? I.params[v].initial : mbounds.empty() ? 0 : 0;
+      e.initial = v < np ? I.params[v].initial : prepared.minitial[v - np];
       e.at_lower = on_bound(v, true);
       e.at_upper = on_bound(v, false);
       fixed[v] = e.at_lower || e.at_upper;
@@ -838,14 +845,6 @@ FitResult Problem::Fit(const FitOptions& options) {
     result.jacobian = J.leftCols(nvar);
   } else {
     result.warnings.push_back("the residuals could not be evaluated at the estimate");
-  }
-  // measurement terms' initial values
-  for (size_t i = 0; i < I.measurements.size(); ++i) {
-    const auto& ix = I.meas_index[i];
-    const auto& me = I.measurements[i];
-    if (ix.delay >= 0) result.parameters[np + ix.delay].initial = me.delay.initial;
-    if (ix.gain >= 0) result.parameters[np + ix.gain].initial = me.gain.initial;
-    if (ix.bias >= 0) result.parameters[np + ix.bias].initial = me.bias.initial;
   }
   for (const auto& p : result.parameters) {
     if (p.at_lower || p.at_upper) {
@@ -869,22 +868,7 @@ FitResult Problem::Fit(const FitOptions& options) {
     sr.measured = sq.measured;
     sr.simulated_initial = initial[q].sensors;
     sr.simulated_final.resize(sq.measured.rows(), sq.measured.cols());
-    for (const auto& ch : I.channels[q]) {
-      const int id = [&] {
-        for (int i = 0; i < mo.sim->model().nsensor; ++i) {
-          if (ch.column >= mo.sim->model().sensor_adr[i] &&
-              ch.column < mo.sim->model().sensor_adr[i] + mo.sim->model().sensor_dim[i]) {
-            return i;
-          }
-        }
-        return -1;
-      }();
-      const char* sensor_name = mj_id2name(&mo.sim->model(), mjOBJ_SENSOR, id);
-      if (sensor_name &&
-          std::find(sr.sensors.begin(), sr.sensors.end(), sensor_name) == sr.sensors.end()) {
-        sr.sensors.push_back(sensor_name);
-      }
-    }
+    sr.sensors = I.fitted[q];
     if (np) I.Apply(mo, I.z.data());
     const double dt = mo.sim->model().opt.timestep;
     for (const Impl::Segment& seg : I.segments) {

@@ -218,6 +218,7 @@ class Problem {
     std::vector<Trajectory> initial;                 // rollouts at the initial values
     std::vector<std::string> names;                  // parameters, then measurement terms
     std::vector<std::pair<double, double>> mbounds;  // bounds of the measurement terms
+    std::vector<double> minitial;                    // their initial values
     std::string jacobian_mode;
   };
   // validates the inputs, builds the simulators, variables and segments
