@@ -93,6 +93,7 @@ struct Simulator::Worker {
   std::vector<ModelPtr> param_plus, param_minus;  // matrix mode: one per parameter
   Eigen::VectorXd s, s_next, xp, xm, yp, ym, e;
   RowMatrix states_p, sensors_p, states_m, sensors_m;
+  long long steps = 0;  // step calls made by this worker (see Simulator::StepCount)
 };
 
 Simulator::Simulator(const mjModel& m, const std::vector<ParameterSpec>& params,
@@ -122,6 +123,16 @@ Simulator::Simulator(const mjModel& m, const std::vector<ParameterSpec>& params,
 }
 
 Simulator::~Simulator() = default;
+
+long long Simulator::StepCount() const {
+  long long n = 0;
+  for (const auto& w : workers_) n += w->steps;
+  return n;
+}
+
+void Simulator::ResetStepCount() {
+  for (auto& w : workers_) w->steps = 0;
+}
 
 Eigen::VectorXd Simulator::GetParameters() const {
   Eigen::VectorXd p(params_.size());
@@ -205,6 +216,7 @@ void Simulator::RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq
     if (full) mj_getState(m, d, full->row(k).data(), kFullStateSig);
     GetPhysics(*m, *d, states->row(k).data());
     StepSkip(m, d, mjSTAGE_NONE, !options_.sensors);
+    ++w.steps;
     CheckStep(*d, seq_index, k, "simulation");
     if (want_sensors) mju_copy(sensors->row(k).data(), d->sensordata, dims_.ns);
     if (ncon) (*ncon)[k] = d->ncon;
@@ -341,6 +353,7 @@ void Simulator::DirectionalColumn(Worker& w, int seq_index, const Trajectory& no
     mj_setState(m, d, nom.full.row(k).data(), kFullStateSig);
     TangentPerturb(*m, d, w.s.data(), sign * h);
     StepSkip(m, d, mjSTAGE_NONE, !options_.sensors);
+    ++w.steps;
     CheckStep(*d, seq_index, k, "perturbed step");
     GetPhysics(*m, *d, w.xp.data());
     TangentDifference(*model_, nom.states.row(k + 1).data(), w.xp.data(), sign / h, dx.data());
@@ -461,6 +474,7 @@ void Simulator::MatrixJacobian(int seq_index, const Trajectory& nom, const Jacob
       double* Ck = ns ? C.data() + static_cast<size_t>(kk) * ns * nx : nullptr;
       mj_setState(model_.get(), d, full, kFullStateSig);
       mjd_transitionFD(model_.get(), d, opt.state_step, 0, Ak, nullptr, Ck, nullptr);
+      w.steps += 1 + nx;
       CheckStep(*d, seq_index, k, "mjd_transitionFD");
       // forward differences are checked too where the contact set may change near x_k
       const bool contact_near = nom.ncon[k] > 0 || (k + 1 < T && nom.ncon[k + 1] != nom.ncon[k]) ||
@@ -470,6 +484,7 @@ void Simulator::MatrixJacobian(int seq_index, const Trajectory& nom, const Jacob
         double* Cbk = ns ? Cb.data() + static_cast<size_t>(kk) * ns * nx : nullptr;
         mj_setState(model_.get(), d, full, kFullStateSig);
         mjd_transitionFD(model_.get(), d, -opt.state_step, 0, Abk, nullptr, Cbk, nullptr);
+        w.steps += 1 + nx;
         CheckStep(*d, seq_index, k, "mjd_transitionFD");
         Eigen::Map<RowMatrix> Af(Ak, nx, nx), Abm(Abk, nx, nx);
         Eigen::Map<RowMatrix> Cf(Ck, ns, nx), Cbm(Cbk, ns, nx);
@@ -486,10 +501,12 @@ void Simulator::MatrixJacobian(int seq_index, const Trajectory& nom, const Jacob
       // that skips the stages before the one the parameter enters
       mj_setState(model_.get(), d, full, kFullStateSig);
       mj_forward(model_.get(), d);
+      ++w.steps;
       auto side = [&](mjModel* m, int skip, double sign, double h, Eigen::VectorXd& dx,
                       Eigen::VectorXd& dy) {
         mj_setState(m, d, full, kFullStateSig);
         StepSkip(m, d, skip, !options_.sensors);
+        ++w.steps;
         CheckStep(*d, seq_index, k, "perturbed step");
         GetPhysics(*model_, *d, w.xp.data());
         TangentDifference(*model_, nom.states.row(k + 1).data(), w.xp.data(), sign / h, dx.data());

@@ -173,6 +173,13 @@ class Simulator {
   // parameter steps h_j used for the current values
   Eigen::VectorXd ParameterSteps(const JacobianOptions& options) const;
 
+  // Step calls made since construction or ResetStepCount(), over all workers: every mj_step of
+  // a rollout or a perturbed step (also those skipping stages) counts 1, a call of
+  // mjd_transitionFD counts 1 + nx (its nominal and perturbed state steps). Not thread-safe
+  // against a running Rollout/Jacobians call.
+  long long StepCount() const;
+  void ResetStepCount();
+
  private:
   struct Worker;
   void CheckInputs(const std::vector<SequenceInput>& sequences) const;

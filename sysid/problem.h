@@ -179,7 +179,8 @@ struct FitResult {
   std::vector<SequenceResult> sequences;
   std::vector<std::string> warnings;
   double seconds = 0;
-  std::string jacobian_mode;  // the core mode used
+  long long simulation_steps = 0;  // step calls of all simulators (Simulator::StepCount)
+  std::string jacobian_mode;       // the core mode used
 };
 
 // result of Problem::CheckJacobians
