@@ -117,6 +117,7 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
     if (p.prior) fp.Prior(p.prior->mean, p.prior->sigma);
     fp.models = p.models;
     out.problem->AddParameter(fp);
+    out.parameters.push_back(fp);
   }
   for (const io::MeasurementSpec& me : cfg.measurement) {
     FitMeasurement fm;
@@ -128,6 +129,7 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
     fm.gain = term(me.gain);
     fm.bias = term(me.bias);
     out.problem->AddMeasurement(fm);
+    out.measurements.push_back(fm);
   }
 
   // sequences from the logs
@@ -209,6 +211,7 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
         out.sensors.push_back(fs_.sensors);
         out.times.push_back(s.time.head(T));
         out.problem->AddSequence(fs_);
+        out.sequences.push_back(fs_);
       }
     }
   }

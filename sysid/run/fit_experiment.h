@@ -34,6 +34,11 @@ struct BuiltProblem {
   std::vector<std::vector<std::string>> sensors;  // fitted sensors of each sequence
   std::vector<Eigen::VectorXd> times;             // sample times of each sequence
   std::vector<std::string> warnings;
+  // what was added to the problem, for programs that build their own fit of the same data
+  // (tools/bench): parameters, measurement terms and sequences, in the order added
+  std::vector<FitParameter> parameters;
+  std::vector<FitMeasurement> measurements;
+  std::vector<FitSequence> sequences;
 };
 
 // threads < 0: the config's solver.threads

@@ -1,0 +1,679 @@
+// bench_fit: run time against parameter error of whole fits, per experiment and method, side by
+// side with the peers (issue 6).
+//
+// For every case (an experiment file with a `simulate:` block: its log is simulated when missing)
+// and every method it fits the same data from the same start within the same bounds, and records
+// wall time, LM iterations, simulation step calls, initial and final cost and the parameter
+// error against the truth of `simulate.truth`:
+// - ours/<mode>/<differences>/<threads>t: Problem::Fit with the core Jacobians, mode directional
+//   or matrix, forward or central differences, 1 or 2 simulator threads;
+// - oracle/whole/forward/2t: Problem::Fit with whole-rollout finite differences (kWholeRollout);
+// - ceres-numdiff/forward/1t: what a C++ user writes by hand: ceres::DynamicNumericDiffCostFunction
+//   around a plain mj_step loop over every sequence (one residual block, Ceres' default relative
+//   step), same residual, bounds, log transforms and solver settings as ours;
+// - mujoco.sysid/<threads>t: rows read from the peer driver's peer_result.json files
+//   (tools/peer/mujoco_sysid_fit.py, run by tools/bench/run_fit_benchmarks.sh) in
+//   --peer-dir/<case>-<threads>t/.
+// Also, per case, the nominal step time t_step (a 1-thread rollout of every sequence) and, per
+// row, the ratio of the time per iteration to the floor (1 + np) * sum(T) * t_step / threads.
+//
+// Output: a table on stdout, DIR/fit_bench.csv, DIR/fit_bench.json (rows, machine, versions,
+// command) and DIR/error_vs_time.svg (one panel per case). Timings are wall clock; nothing here
+// is asserted.
+#include <ceres/ceres.h>
+#include <mujoco/mujoco.h>
+
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "core/mujoco_env.h"
+#include "core/parameters.h"
+#include "core/simulator.h"
+#include "core/state.h"
+#include "mjsysid/version.h"
+#include "sysid/io/experiment.h"
+#include "sysid/io/log.h"
+#include "sysid/problem.h"
+#include "sysid/run/fit_experiment.h"
+#include "sysid/sim/simulate.h"
+
+namespace mjsysid {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+double Seconds(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+// one row of the table
+struct Row {
+  std::string case_name, method, status, note;
+  int threads = 1, np = 0, sequences = 0;
+  long long samples = 0;  // sum of T over the sequences
+  double wall_s = NAN;
+  int iterations = 0;
+  long long steps = 0;  // simulation step calls (Simulator::StepCount; own count for the others)
+  double initial_cost = NAN, final_cost = NAN;
+  double max_rel_error = NAN, rms_rel_error = NAN;
+  double t_step_us = NAN;    // nominal step time of the case
+  double floor_ratio = NAN;  // (wall / iteration) / ((1 + np) * samples * t_step / threads)
+  std::vector<std::pair<std::string, double>> estimates;
+};
+
+// the case: experiment, truth, data
+struct Case {
+  std::string name;
+  io::ExperimentConfig config;
+  std::map<std::string, double> truth;
+  double t_step = 0;  // seconds per nominal step (1 thread)
+  long long samples = 0;
+  int sequences = 0;
+};
+
+void Errors(const Case& c, Row* row) {
+  double worst = 0, sum = 0;
+  int n = 0;
+  for (const auto& [name, value] : row->estimates) {
+    const auto it = c.truth.find(name);
+    if (it == c.truth.end() || it->second == 0) continue;
+    const double e = std::abs(value / it->second - 1.0);
+    worst = std::max(worst, std::isfinite(e) ? e : INFINITY);
+    sum += e * e;
+    ++n;
+  }
+  row->max_rel_error = n ? worst : NAN;
+  row->rms_rel_error = n ? std::sqrt(sum / n) : NAN;
+}
+
+void Floor(const Case& c, Row* row) {
+  if (!(row->iterations > 0) || !std::isfinite(row->wall_s)) return;
+  const double floor = (1.0 + row->np) * static_cast<double>(c.samples) * c.t_step / row->threads;
+  row->floor_ratio = row->wall_s / row->iterations / floor;
+}
+
+// loads the case and simulates its log when it is missing
+Case LoadCase(const std::string& experiments_dir, const std::string& name) {
+  Case c;
+  c.name = name;
+  c.config = io::LoadExperiment(experiments_dir + "/" + name + ".yaml");
+  for (const io::NamedValue& t : c.config.simulate.truth) c.truth[t.name] = t.value;
+  for (const io::DataFile& d : c.config.data) {
+    if (!fs::exists(d.path)) {
+      std::fprintf(stderr, "bench_fit: simulating %s -> %s\n", name.c_str(), d.path.c_str());
+      fs::create_directories(fs::path(d.path).parent_path());
+      io::WriteLog(d.path, sim::SimulateExperiment(c.config));
+    }
+  }
+  return c;
+}
+
+// nominal step time: 1-thread rollouts of every sequence at the initial values, >= 0.3 s
+void MeasureStep(Case* c) {
+  run::BuiltProblem b = run::BuildProblem(c->config, 1);
+  c->sequences = static_cast<int>(b.sequences.size());
+  c->samples = 0;
+  for (const FitSequence& s : b.sequences) c->samples += s.ctrl.rows();
+  double best = INFINITY;
+  for (size_t mi = 0; mi < b.models.size(); ++mi) {
+    SimulatorOptions so;
+    so.threads = 1;
+    Simulator sim(*b.models[mi], {}, so);
+    std::vector<SequenceInput> ins;
+    for (const FitSequence& s : b.sequences) {
+      if (s.model == b.model_names[mi]) ins.push_back({s.x0, s.ctrl});
+    }
+    if (ins.empty()) continue;
+    std::vector<Trajectory> trs;
+    sim.Rollout(ins, &trs);  // warm up
+    const auto t0 = Clock::now();
+    int reps = 0;
+    do {
+      sim.ResetStepCount();
+      const auto t1 = Clock::now();
+      sim.Rollout(ins, &trs);
+      best = std::min(best, Seconds(t1) / static_cast<double>(sim.StepCount()));
+      ++reps;
+    } while (Seconds(t0) < 0.3 || reps < 3);
+  }
+  c->t_step = best;
+}
+
+// ours and the whole-rollout oracle: the product's own fit with one Jacobian setting
+Row FitOurs(const Case& c, const std::string& method, JacobianMode mode, bool central, int threads,
+            int max_iterations) {
+  Row row;
+  row.method = method;
+  row.threads = threads;
+  run::BuiltProblem b = run::BuildProblem(c.config, threads);
+  FitOptions o = b.options;
+  o.jacobian.mode = mode;
+  o.jacobian.central = central;
+  o.threads = threads;
+  o.verbose = false;
+  o.on_iteration = nullptr;
+  if (max_iterations > 0) o.max_iterations = max_iterations;
+  row.np = static_cast<int>(b.parameters.size());
+  try {
+    const FitResult r = b.problem->Fit(o);
+    row.wall_s = r.seconds;
+    row.iterations = r.iterations;
+    row.steps = r.simulation_steps;
+    row.initial_cost = r.initial_cost;
+    row.final_cost = r.final_cost;
+    row.status = r.converged ? "converged" : "stopped";
+    for (size_t i = 0; i < b.parameters.size(); ++i) {
+      row.estimates.emplace_back(r.parameters[i].name, r.parameters[i].value);
+    }
+  } catch (const std::exception& e) {
+    row.status = "failed";
+    row.note = e.what();
+  }
+  return row;
+}
+
+// ---------------------------------------------------------------------------------------------
+// the hand-written baseline: Ceres numeric differentiation of whole rollouts
+
+class WholeRolloutResidual {
+ public:
+  WholeRolloutResidual(const run::BuiltProblem& b, const FitOptions& o)
+      : b_(b), model_(CopyModel(*b.models[0])), data_(MakeData(*model_)) {
+    // the same solver tolerance as the product's simulator (core/simulator.h)
+    model_->opt.tolerance = std::min(model_->opt.tolerance, 1e-10);
+    std::vector<ParameterSpec> specs;
+    for (const FitParameter& p : b.parameters) specs.push_back(p.target);
+    params_ = ParameterSet(*model_, specs);
+    params_.Prepare(model_.get());
+    for (const FitSequence& s : b.sequences) {
+      std::vector<std::pair<int, double>> ch;
+      std::vector<std::string> names = s.sensors;
+      if (names.empty()) {
+        for (int i = 0; i < model_->nsensor; ++i)
+          names.push_back(mj_id2name(model_.get(), mjOBJ_SENSOR, i));
+      }
+      for (const std::string& n : names) {
+        const int id = mj_name2id(model_.get(), mjOBJ_SENSOR, n.c_str());
+        const auto it = o.sensor_weights.find(n);
+        const double w = it == o.sensor_weights.end() ? 1.0 : it->second;
+        for (int k = 0; k < model_->sensor_dim[id]; ++k)
+          ch.emplace_back(model_->sensor_adr[id] + k, w);
+      }
+      residuals_ += static_cast<int>(s.ctrl.rows() * ch.size());
+      channels_.push_back(ch);
+    }
+  }
+  int num_residuals() const { return residuals_; }
+  long long steps() const { return steps_; }
+
+  bool operator()(double const* const* z, double* r) const {
+    std::vector<double> p(params_.size());
+    for (int j = 0; j < params_.size(); ++j) {
+      const FitParameter& fp = b_.parameters[j];
+      p[j] = fp.transform == Transform::kLog     ? std::exp(z[0][j])
+             : fp.transform == Transform::kScale ? z[0][j] * fp.scale
+                                                 : z[0][j];
+    }
+    mjModel* m = model_.get();
+    mjData* d = data_.get();
+    params_.Write(m, d, p.data());
+    int row = 0;
+    for (size_t q = 0; q < b_.sequences.size(); ++q) {
+      const FitSequence& s = b_.sequences[q];
+      mj_resetData(m, d);
+      mju_copy(d->qpos, s.x0.qpos.data(), m->nq);
+      mju_copy(d->qvel, s.x0.qvel.data(), m->nv);
+      if (m->na) mju_copy(d->act, s.x0.act.data(), m->na);
+      d->time = s.x0.time;
+      for (int k = 0; k < s.ctrl.rows(); ++k) {
+        mju_copy(d->ctrl, s.ctrl.row(k).data(), m->nu);
+        mj_step(m, d);  // sensors of x_k (mj_step evaluates them before integrating)
+        ++steps_;
+        for (const auto& [col, w] : channels_[q]) {
+          r[row++] = w * (d->sensordata[col] - s.measured(k, col));
+        }
+      }
+      for (int i = 0; i < mjNWARNING; ++i) {
+        if (d->warning[i].number > 0) return false;  // a divergent trial point: rejected
+      }
+    }
+    for (int i = 0; i < row; ++i) {
+      if (!std::isfinite(r[i])) return false;
+    }
+    return true;
+  }
+
+ private:
+  const run::BuiltProblem& b_;
+  ModelPtr model_;
+  DataPtr data_;
+  ParameterSet params_;
+  std::vector<std::vector<std::pair<int, double>>> channels_;
+  int residuals_ = 0;
+  mutable long long steps_ = 0;
+};
+
+// what the numeric-diff baseline cannot express (it is one model, one shooting segment)
+std::string NumDiffUnsupported(const run::BuiltProblem& b) {
+  if (b.models.size() != 1) return "several models";
+  if (b.options.segment_steps > 0) return "multiple shooting";
+  if (b.options.estimate_initial_state) return "initial-state estimation";
+  if (!b.measurements.empty()) return "measurement terms";
+  if (b.options.loss != FitOptions::Loss::kNone) return "per-residual robust loss";
+  for (const FitParameter& p : b.parameters) {
+    if (p.has_prior) return "priors";
+  }
+  return "";
+}
+
+Row FitNumDiff(const Case& c, int max_iterations) {
+  Row row;
+  row.method = "ceres-numdiff/forward";
+  row.threads = 1;
+  run::BuiltProblem b = run::BuildProblem(c.config, 1);
+  row.np = static_cast<int>(b.parameters.size());
+  const std::string why = NumDiffUnsupported(b);
+  if (!why.empty()) {
+    row.status = "n/a";
+    row.note = why;
+    return row;
+  }
+  const auto t0 = Clock::now();
+  auto* functor = new WholeRolloutResidual(b, b.options);
+  auto* cost = new ceres::DynamicNumericDiffCostFunction<WholeRolloutResidual, ceres::FORWARD>(
+      functor, ceres::TAKE_OWNERSHIP);
+  const int np = row.np;
+  cost->AddParameterBlock(np);
+  cost->SetNumResiduals(functor->num_residuals());
+  std::vector<double> z(np);
+  for (int j = 0; j < np; ++j) {
+    const FitParameter& p = b.parameters[j];
+    z[j] = p.transform == Transform::kLog     ? std::log(p.initial)
+           : p.transform == Transform::kScale ? p.initial / p.scale
+                                              : p.initial;
+  }
+  ceres::Problem problem;
+  problem.AddResidualBlock(cost, nullptr, z.data());
+  for (int j = 0; j < np; ++j) {
+    const FitParameter& p = b.parameters[j];
+    auto map = [&](double v) {
+      return p.transform == Transform::kLog     ? (v > 0 ? std::log(v) : -INFINITY)
+             : p.transform == Transform::kScale ? v / p.scale
+                                                : v;
+    };
+    const double lo = map(p.lower), hi = map(p.upper);
+    if (std::isfinite(lo)) problem.SetParameterLowerBound(z.data(), j, std::min(lo, hi));
+    if (std::isfinite(hi)) problem.SetParameterUpperBound(z.data(), j, std::max(lo, hi));
+  }
+  ceres::Solver::Options so;
+  so.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+  so.linear_solver_type = ceres::DENSE_QR;
+  so.max_num_iterations = max_iterations > 0 ? max_iterations : b.options.max_iterations;
+  so.function_tolerance = b.options.function_tolerance;
+  so.gradient_tolerance = b.options.gradient_tolerance;
+  so.parameter_tolerance = b.options.parameter_tolerance;
+  so.logging_type = ceres::SILENT;
+  so.max_num_line_search_step_size_iterations = 0;  // as sysid/problem.cc: no projected line
+                                                    // search (its gradient evaluations)
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, &problem, &summary);
+  row.wall_s = Seconds(t0);
+  row.iterations = static_cast<int>(summary.iterations.size()) - 1;
+  row.steps = functor->steps();
+  row.initial_cost = summary.initial_cost;
+  row.final_cost = summary.final_cost;
+  row.status = summary.termination_type == ceres::CONVERGENCE ? "converged"
+               : summary.termination_type == ceres::FAILURE   ? "failed"
+                                                              : "stopped";
+  for (int j = 0; j < np; ++j) {
+    const FitParameter& p = b.parameters[j];
+    const double v = p.transform == Transform::kLog     ? std::exp(z[j])
+                     : p.transform == Transform::kScale ? z[j] * p.scale
+                                                        : z[j];
+    row.estimates.emplace_back(p.name, v);
+  }
+  return row;
+}
+
+// ---------------------------------------------------------------------------------------------
+// the peer's rows, from the driver's JSON (a tiny reader for the flat fields it writes)
+
+bool JsonNumber(const std::string& text, const std::string& key, double* out, size_t from = 0,
+                size_t to = std::string::npos) {
+  const size_t at = text.find("\"" + key + "\":", from);
+  if (at == std::string::npos || at >= to) return false;
+  const char* p = text.c_str() + at + key.size() + 3;
+  char* end = nullptr;
+  const double v = std::strtod(p, &end);
+  if (end == p) return false;
+  *out = v;
+  return true;
+}
+
+Row PeerRow(const Case& c, const std::string& dir, int threads) {
+  Row row;
+  row.method = "mujoco.sysid";
+  row.threads = threads;
+  const std::string path = dir + "/peer_result.json";
+  const std::string skip = dir + "/unsupported.txt";
+  if (!fs::exists(path)) {
+    row.status = "n/a";
+    std::ifstream in(skip);
+    std::string line;
+    if (in && std::getline(in, line))
+      row.note = line;
+    else
+      row.note = "no peer result (run tools/bench/run_fit_benchmarks.sh)";
+    return row;
+  }
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  const std::string t = ss.str();
+  double v = 0;
+  if (JsonNumber(t, "wall_time_s", &v)) row.wall_s = v;
+  if (JsonNumber(t, "iterations", &v)) row.iterations = static_cast<int>(v);
+  if (JsonNumber(t, "initial_cost", &v)) row.initial_cost = v;
+  if (JsonNumber(t, "final_cost", &v)) row.final_cost = v;
+  double columns = 0;
+  if (JsonNumber(t, "rollout_columns", &columns)) {
+    row.steps = static_cast<long long>(columns) * c.samples;
+  }
+  // estimates: "<name>": {... "estimate": v ...} inside "parameters"
+  const size_t params = t.find("\"parameters\":");
+  for (const io::ParameterSpec& p : c.config.parameters) {
+    const size_t at = t.find("\"" + p.name + "\": {", params);
+    if (params == std::string::npos || at == std::string::npos) continue;
+    if (JsonNumber(t, "estimate", &v, at, t.find('}', at))) row.estimates.emplace_back(p.name, v);
+  }
+  row.np = static_cast<int>(c.config.parameters.size());
+  row.status = "done";
+  row.note = "stops on its own tolerances";
+  return row;
+}
+
+// ---------------------------------------------------------------------------------------------
+// output
+
+std::string Num(double v, const char* fmt = "%.6g") {
+  if (std::isnan(v)) return "";
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), fmt, v);
+  return buf;
+}
+
+std::string JsonString(const std::string& s) {
+  std::string o = "\"";
+  for (char ch : s) {
+    if (ch == '"' || ch == '\\') o += '\\';
+    if (ch == '\n') {
+      o += "\\n";
+      continue;
+    }
+    o += ch;
+  }
+  return o + "\"";
+}
+
+std::string JsonNum(double v) { return std::isfinite(v) ? Num(v, "%.10g") : "null"; }
+
+void PrintRow(const Row& r) {
+  std::printf("%-16s %-28s %2d %-10s %9s %5d %12lld %11s %11s %10s %8s  %s\n", r.case_name.c_str(),
+              r.method.c_str(), r.threads, r.status.c_str(), Num(r.wall_s, "%.3f").c_str(),
+              r.iterations, r.steps, Num(r.final_cost, "%.6g").c_str(),
+              Num(r.max_rel_error, "%.2e").c_str(), Num(r.rms_rel_error, "%.2e").c_str(),
+              Num(r.floor_ratio, "%.2f").c_str(), r.note.c_str());
+  std::fflush(stdout);
+}
+
+void WriteCsv(const std::string& path, const std::vector<Row>& rows) {
+  std::ofstream f(path + ".tmp");
+  f << "case,method,threads,status,wall_s,iterations,sim_steps,np,sequences,samples,t_step_us,"
+       "floor_ratio,initial_cost,final_cost,max_rel_error,rms_rel_error,note\n";
+  for (const Row& r : rows) {
+    std::string note = r.note;
+    std::replace(note.begin(), note.end(), ',', ';');
+    std::replace(note.begin(), note.end(), '\n', ' ');
+    f << r.case_name << ',' << r.method << ',' << r.threads << ',' << r.status << ','
+      << Num(r.wall_s) << ',' << r.iterations << ',' << r.steps << ',' << r.np << ',' << r.sequences
+      << ',' << r.samples << ',' << Num(r.t_step_us) << ',' << Num(r.floor_ratio) << ','
+      << Num(r.initial_cost, "%.10g") << ',' << Num(r.final_cost, "%.10g") << ','
+      << Num(r.max_rel_error) << ',' << Num(r.rms_rel_error) << ',' << note << '\n';
+  }
+  f.close();
+  fs::rename(path + ".tmp", path);
+}
+
+std::string Machine() {
+  std::ifstream cpu("/proc/cpuinfo");
+  std::string line;
+  while (std::getline(cpu, line)) {
+    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
+  }
+  return "unknown";
+}
+
+void WriteJson(const std::string& path, const std::vector<Row>& rows, const std::string& command) {
+  std::ofstream f(path + ".tmp");
+  char date[32];
+  const std::time_t now = std::time(nullptr);
+  std::strftime(date, sizeof(date), "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&now));
+  f << "{\n  \"tool\": \"bench_fit\",\n  \"created\": \"" << date << "\",\n";
+  f << "  \"command\": " << JsonString(command) << ",\n";
+  f << "  \"machine\": {\"cpu\": " << JsonString(Machine())
+    << ", \"hardware_threads\": " << std::thread::hardware_concurrency() << "},\n";
+  f << "  \"versions\": {\"mjsysid\": " << JsonString(MJSYSID_VERSION)
+    << ", \"mujoco\": " << JsonString(mj_versionString())
+    << ", \"ceres\": " << JsonString(CERES_VERSION_STRING)
+    << ", \"compiler\": " << JsonString(MJSYSID_COMPILER)
+    << ", \"build_type\": " << JsonString(MJSYSID_BUILD_TYPE) << "},\n";
+  f << "  \"rows\": [\n";
+  for (size_t i = 0; i < rows.size(); ++i) {
+    const Row& r = rows[i];
+    f << "    {\"case\": " << JsonString(r.case_name) << ", \"method\": " << JsonString(r.method)
+      << ", \"threads\": " << r.threads << ", \"status\": " << JsonString(r.status)
+      << ", \"wall_s\": " << JsonNum(r.wall_s) << ", \"iterations\": " << r.iterations
+      << ", \"sim_steps\": " << r.steps << ", \"np\": " << r.np
+      << ", \"sequences\": " << r.sequences << ", \"samples\": " << r.samples
+      << ", \"t_step_us\": " << JsonNum(r.t_step_us)
+      << ", \"floor_ratio\": " << JsonNum(r.floor_ratio)
+      << ", \"initial_cost\": " << JsonNum(r.initial_cost)
+      << ", \"final_cost\": " << JsonNum(r.final_cost)
+      << ", \"max_rel_error\": " << JsonNum(r.max_rel_error)
+      << ", \"rms_rel_error\": " << JsonNum(r.rms_rel_error) << ", \"note\": " << JsonString(r.note)
+      << ", \"estimates\": {";
+    for (size_t j = 0; j < r.estimates.size(); ++j) {
+      f << (j ? ", " : "") << JsonString(r.estimates[j].first) << ": "
+        << JsonNum(r.estimates[j].second);
+    }
+    f << "}}" << (i + 1 < rows.size() ? "," : "") << "\n";
+  }
+  f << "  ]\n}\n";
+  f.close();
+  fs::rename(path + ".tmp", path);
+}
+
+// error against time, one log-log panel per case; a point per method that finished
+void WriteSvg(const std::string& path, const std::vector<std::string>& cases,
+              const std::vector<Row>& rows) {
+  const int cols = 2, pw = 520, ph = 300, ml = 70, mb = 40, mt = 30, mr = 190;
+  const int nrows = (static_cast<int>(cases.size()) + cols - 1) / cols;
+  std::ofstream f(path + ".tmp");
+  f << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << cols * pw << "\" height=\""
+    << nrows * ph << "\" font-family=\"sans-serif\" font-size=\"10\">\n"
+    << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
+  auto color = [](const std::string& m) {
+    if (m.rfind("ours/directional", 0) == 0) return "#1f77b4";
+    if (m.rfind("ours/matrix", 0) == 0) return "#2ca02c";
+    if (m.rfind("oracle", 0) == 0) return "#9467bd";
+    if (m.rfind("ceres", 0) == 0) return "#ff7f0e";
+    return "#d62728";
+  };
+  for (size_t ci = 0; ci < cases.size(); ++ci) {
+    const int x0 = static_cast<int>(ci % cols) * pw, y0 = static_cast<int>(ci / cols) * ph;
+    std::vector<const Row*> pts;
+    for (const Row& r : rows) {
+      if (r.case_name == cases[ci] && std::isfinite(r.wall_s) && std::isfinite(r.max_rel_error))
+        pts.push_back(&r);
+    }
+    f << "<text x=\"" << x0 + ml << "\" y=\"" << y0 + 18 << "\" font-size=\"13\">" << cases[ci]
+      << ": max relative parameter error vs wall time</text>\n";
+    if (pts.empty()) continue;
+    double tmin = INFINITY, tmax = 0, emin = INFINITY, emax = 0;
+    for (const Row* r : pts) {
+      tmin = std::min(tmin, r->wall_s);
+      tmax = std::max(tmax, r->wall_s);
+      const double e = std::max(r->max_rel_error, 1e-12);
+      emin = std::min(emin, e);
+      emax = std::max(emax, e);
+    }
+    const double lt0 = std::floor(std::log10(tmin)), lt1 = std::ceil(std::log10(tmax) + 1e-9);
+    const double le0 = std::floor(std::log10(emin)), le1 = std::ceil(std::log10(emax) + 1e-9);
+    const int w = pw - ml - mr, h = ph - mt - mb;
+    auto X = [&](double t) { return x0 + ml + (std::log10(t) - lt0) / (lt1 - lt0) * w; };
+    auto Y = [&](double e) {
+      return y0 + mt + h - (std::log10(std::max(e, 1e-12)) - le0) / std::max(le1 - le0, 1.0) * h;
+    };
+    f << "<rect x=\"" << x0 + ml << "\" y=\"" << y0 + mt << "\" width=\"" << w << "\" height=\""
+      << h << "\" fill=\"none\" stroke=\"#888\"/>\n";
+    for (double d = lt0; d <= lt1; d += 1) {
+      f << "<text x=\"" << X(std::pow(10, d)) - 10 << "\" y=\"" << y0 + mt + h + 14 << "\">1e" << d
+        << "</text>\n";
+    }
+    for (double d = le0; d <= std::max(le1, le0 + 1); d += 1) {
+      f << "<text x=\"" << x0 + 30 << "\" y=\"" << Y(std::pow(10, d)) + 3 << "\">1e" << d
+        << "</text>\n";
+    }
+    f << "<text x=\"" << x0 + ml + w / 2 - 30 << "\" y=\"" << y0 + ph - 8
+      << "\">wall time [s]</text>\n";
+    int legend = 0;
+    for (const Row* r : pts) {
+      const double x = X(r->wall_s), y = Y(r->max_rel_error);
+      f << "<circle cx=\"" << x << "\" cy=\"" << y << "\" r=\"4\" fill=\"" << color(r->method)
+        << "\" fill-opacity=\"0.7\"/>\n";
+      f << "<text x=\"" << x0 + ml + w + 8 << "\" y=\"" << y0 + mt + 10 + 12 * legend++
+        << "\" fill=\"" << color(r->method) << "\">" << r->method << " " << r->threads
+        << "t: " << Num(r->wall_s, "%.3g") << " s, " << Num(r->max_rel_error, "%.1e")
+        << "</text>\n";
+    }
+  }
+  f << "</svg>\n";
+  f.close();
+  fs::rename(path + ".tmp", path);
+}
+
+std::vector<std::string> Split(const std::string& s) {
+  std::vector<std::string> out;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    if (!item.empty()) out.push_back(item);
+  }
+  return out;
+}
+
+int Main(int argc, char** argv) {
+  CLI::App app{"bench_fit: run time against parameter error of whole fits, per method"};
+  std::string cases_arg =
+      "spring_mass,pendulum,double_pendulum,cartpole,arm5,box_floor,humanoid,arm7";
+  std::string methods_arg = "ours,oracle,numdiff,peer";
+  std::string out_dir = "results/bench", peer_dir, experiments = MJSYSID_EXPERIMENTS_DIR;
+  std::vector<std::string> caps;
+  app.add_option("--cases", cases_arg, "comma-separated experiment names")->capture_default_str();
+  app.add_option("--methods", methods_arg, "comma-separated: ours, oracle, numdiff, peer")
+      ->capture_default_str();
+  app.add_option("--out", out_dir, "output folder")->capture_default_str();
+  app.add_option("--peer-dir", peer_dir, "folder of the peer driver's results (<case>-<n>t/)");
+  app.add_option("--experiments", experiments, "folder of the experiment files")
+      ->capture_default_str();
+  app.add_option("--max-iterations", caps, "per-case iteration cap, e.g. humanoid=10");
+  CLI11_PARSE(app, argc, argv);
+  std::string command;
+  for (int i = 0; i < argc; ++i) command += (i ? " " : "") + std::string(argv[i]);
+
+  InstallMujocoHandlers();
+  std::map<std::string, int> cap;
+  for (const std::string& c : caps) {
+    const size_t eq = c.find('=');
+    if (eq == std::string::npos) {
+      std::fprintf(stderr, "bench_fit: --max-iterations expects case=N, got '%s'\n", c.c_str());
+      return 2;
+    }
+    cap[c.substr(0, eq)] = std::stoi(c.substr(eq + 1));
+  }
+  const std::vector<std::string> cases = Split(cases_arg), methods = Split(methods_arg);
+  auto want = [&](const char* m) {
+    return std::find(methods.begin(), methods.end(), m) != methods.end();
+  };
+  fs::create_directories(out_dir);
+  std::printf("machine: %s, %u hardware threads; MuJoCo %s, Ceres %s, mjsysid %s (%s)\n",
+              Machine().c_str(), std::thread::hardware_concurrency(), mj_versionString(),
+              CERES_VERSION_STRING, MJSYSID_VERSION, MJSYSID_BUILD_TYPE);
+  std::printf("%-16s %-28s %2s %-10s %9s %5s %12s %11s %11s %10s %8s  %s\n", "case", "method", "th",
+              "status", "wall [s]", "iter", "sim steps", "final cost", "max rel err", "rms rel",
+              "/floor", "note");
+  std::vector<Row> rows;
+  for (const std::string& name : cases) {
+    Case c;
+    try {
+      c = LoadCase(experiments, name);
+      MeasureStep(&c);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "bench_fit: case %s: %s\n", name.c_str(), e.what());
+      return 2;
+    }
+    const int max_it = cap.count(name) ? cap[name] : 0;
+    auto add = [&](Row r) {
+      r.case_name = name;
+      r.sequences = c.sequences;
+      r.samples = c.samples;
+      r.t_step_us = c.t_step * 1e6;
+      Errors(c, &r);
+      Floor(c, &r);
+      PrintRow(r);
+      rows.push_back(std::move(r));
+      WriteCsv(out_dir + "/fit_bench.csv", rows);  // each row on disk as soon as it exists
+    };
+    if (want("ours")) {
+      for (JacobianMode mode : {JacobianMode::kDirectional, JacobianMode::kMatrix}) {
+        for (bool central : {false, true}) {
+          for (int threads : {1, 2}) {
+            const std::string m =
+                std::string("ours/") + JacobianModeName(mode) + (central ? "/central" : "/forward");
+            add(FitOurs(c, m, mode, central, threads, max_it));
+          }
+        }
+      }
+    }
+    if (want("oracle")) {
+      add(FitOurs(c, "oracle/whole/forward", JacobianMode::kWholeRollout, false, 2, max_it));
+    }
+    if (want("numdiff")) add(FitNumDiff(c, max_it));
+    if (want("peer")) {
+      for (int threads : {1, 2}) {
+        add(PeerRow(c, peer_dir + "/" + name + "-" + std::to_string(threads) + "t", threads));
+      }
+    }
+  }
+  WriteJson(out_dir + "/fit_bench.json", rows, command);
+  WriteSvg(out_dir + "/error_vs_time.svg", cases, rows);
+  std::printf("wrote %s/{fit_bench.csv, fit_bench.json, error_vs_time.svg}\n", out_dir.c_str());
+  return 0;
+}
+
+}  // namespace
+}  // namespace mjsysid
+
+int main(int argc, char** argv) { return mjsysid::Main(argc, argv); }
