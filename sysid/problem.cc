@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <mutex>
 #include <set>
 #include <stdexcept>
 
@@ -17,6 +18,9 @@ namespace {
 
 constexpr double kZ95 = 1.959963984540054;
 constexpr double kInf = std::numeric_limits<double>::infinity();
+// multiple shooting: a continuity gap (tangent space: m, rad, m/s, rad/s) above this at the
+// estimate is reported as segments that do not join
+constexpr double kContinuityGapWarning = 1e-3;
 
 // robust loss on one weighted residual e: returns rhat with rhat^2 = rho(e^2), and d rhat / d e
 double RobustResidual(FitOptions::Loss loss, double c, double e, double* derivative) {
@@ -91,6 +95,24 @@ struct Problem::Impl {
     int delay = -1, gain = -1, bias = -1;  // index into m, -1 = fixed at initial
   };
   std::vector<MeasIndex> meas_index;
+
+  // What the cost functions met during a fit, so that FitResult::warnings can say it (a rejected
+  // trial point or a Jacobian past its validity is otherwise invisible to the user): the number
+  // of evaluations that failed (simulation warning, NaN, exception) with the first message, and
+  // the first core Jacobian warning per segment (e.g. a chaotic sensitivity that outgrew finite
+  // differences). Guarded by a mutex: Ceres may evaluate residual blocks in parallel.
+  std::mutex diagnostics_mutex;
+  int rejected_evaluations = 0;
+  std::string first_rejection;
+  std::map<int, std::string> jacobian_warnings;  // segment -> first warning
+  void NoteRejection(const std::string& what) {
+    std::lock_guard<std::mutex> lock(diagnostics_mutex);
+    if (rejected_evaluations++ == 0) first_rejection = what;
+  }
+  void NoteJacobianWarning(int segment, const std::string& what) {
+    std::lock_guard<std::mutex> lock(diagnostics_mutex);
+    jacobian_warnings.emplace(segment, what);
+  }
 
   Model& ModelOf(const std::string& name) {
     for (Model& mo : models) {
@@ -207,9 +229,12 @@ class SegmentCost : public ceres::CostFunction {
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override {
     try {
-      return EvaluateOrThrow(parameters, residuals, jacobians);
-    } catch (const std::exception&) {
+      if (EvaluateOrThrow(parameters, residuals, jacobians)) return true;
+      impl_->NoteRejection("non-finite residual");
+      return false;
+    } catch (const std::exception& e) {
       // a divergent or warning trial point: reject it, the trust region shrinks
+      impl_->NoteRejection(e.what());
       return false;
     }
   }
@@ -252,6 +277,7 @@ class SegmentCost : public ceres::CostFunction {
       jo.initial_state = xb >= 0;
       jo.zero_column_is_error = false;
       s = sim.Jacobians(in, tr, jo);
+      if (!s.warnings.empty()) I.NoteJacobianWarning(segment_, s.warnings[0]);
     }
     const int ns = dims.ns;
     const int ncol = want ? s.ncol : 0;
@@ -766,6 +792,8 @@ FitResult Problem::Fit(const FitOptions& options) {
   Progress progress(&I, &result, start);
   so_ceres.callbacks.push_back(&progress);
   ceres::Solver::Summary summary;
+  I.rejected_evaluations = 0;
+  I.jacobian_warnings.clear();
   ceres::Solve(so_ceres, &problem, &summary);
 
   result.initial_cost = summary.initial_cost;
@@ -776,6 +804,20 @@ FitResult Problem::Fit(const FitOptions& options) {
   result.num_residuals = summary.num_residuals;
   if (summary.termination_type == ceres::FAILURE) {
     result.warnings.push_back("Ceres failed: " + summary.message);
+  }
+  if (I.rejected_evaluations > 0) {
+    result.warnings.push_back(std::to_string(I.rejected_evaluations) +
+                              " evaluation(s) rejected (trial points where the simulation "
+                              "diverged or was not finite; the trust region shrank); first: " +
+                              I.first_rejection);
+  }
+  if (!I.jacobian_warnings.empty()) {
+    const auto& [segment, what] = *I.jacobian_warnings.begin();
+    const Impl::Segment& seg = I.segments[segment];
+    result.warnings.push_back(
+        "Jacobian not reliable in " + std::to_string(I.jacobian_warnings.size()) + " of " +
+        std::to_string(I.segments.size()) + " segment(s); first: sequence '" +
+        I.sequences[seg.seq].name + "' from step " + std::to_string(seg.k0) + ": " + what);
   }
 
   // Jacobian at the estimate, in physical units (tangent space for states)
@@ -858,7 +900,12 @@ FitResult Problem::Fit(const FitOptions& options) {
     result.warnings.push_back("unidentifiable: " + line);
   }
 
-  // simulated signals before and after, per sequence (segment-wise in multiple shooting)
+  // simulated signals before and after, per sequence (segment-wise in multiple shooting); in
+  // multiple shooting also the largest continuity gap at the estimate: segments that do not join
+  // describe no single trajectory (a chaotic fit stuck far from the data), which the user must
+  // be told (docs/stress.md)
+  double worst_gap = 0;
+  std::string worst_gap_where;
   for (size_t q = 0; q < I.sequences.size(); ++q) {
     const FitSequence& sq = I.sequences[q];
     Impl::Model& mo = I.ModelOf(sq.model);
@@ -879,6 +926,17 @@ FitResult Problem::Fit(const FitOptions& options) {
       try {
         const Trajectory tr = mo.sim->Rollout(in);
         sr.simulated_final.middleRows(seg.k0, seg.T) = tr.sensors;
+        if (seg.next >= 0) {
+          const int nx = mo.sim->dims().nx;
+          Eigen::VectorXd gap(nx);
+          TangentDifference(mo.sim->model(), I.states[seg.next].data(), tr.states.row(seg.T).data(),
+                            1.0, gap.data());
+          if (gap.lpNorm<Eigen::Infinity>() > worst_gap) {
+            worst_gap = gap.lpNorm<Eigen::Infinity>();
+            worst_gap_where =
+                "sequence '" + sq.name + "' at step " + std::to_string(seg.k0 + seg.T);
+          }
+        }
         // apply the measurement terms to the fitted columns
         for (const auto& ch : I.channels[q]) {
           if (ch.measurement < 0) continue;
@@ -898,6 +956,16 @@ FitResult Problem::Fit(const FitOptions& options) {
       }
     }
     result.sequences.push_back(std::move(sr));
+  }
+  if (worst_gap > kContinuityGapWarning) {
+    char buf[64];
+    std::snprintf(buf, sizeof(buf), "%.3g", worst_gap);
+    result.warnings.push_back(
+        std::string("multiple shooting: segments do not join at the estimate (largest continuity "
+                    "gap ") +
+        buf + " in state units, " + worst_gap_where +
+        "): it describes no single trajectory; try shorter segments, a larger continuity_weight "
+        "or a start closer to the data");
   }
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
