@@ -457,6 +457,14 @@ void Simulator::MatrixJacobian(int seq_index, const Trajectory& nom, const Jacob
   RowMatrix S = RowMatrix::Zero(nx, ncol), S_next(nx, ncol);
   if (opt.initial_state) S.rightCols(nx).setIdentity();
 
+  // growth of each column, h*|S| as in DirectionalColumn: the chain of one-step linearisations
+  // stays finite where directional differences stop being local, but past kGrowthLimit the
+  // derivative describes the trajectory only for parameter changes far below any useful step (a
+  // chaotic horizon): warn the same way instead of returning huge values silently
+  Eigen::VectorXd col_step(ncol), max_growth = Eigen::VectorXd::Zero(ncol);
+  std::vector<int> growth_step(ncol, -1);
+  for (int c = 0; c < ncol; ++c) col_step[c] = c < np ? steps[c] : opt.state_step;
+
   for (int k0 = 0; k0 < T; k0 += chunk) {
     const int kn = std::min(chunk, T - k0);
     // step Jacobians of this chunk, in parallel over time steps
@@ -544,7 +552,23 @@ void Simulator::MatrixJacobian(int seq_index, const Trajectory& nom, const Jacob
       S_next.noalias() = Ak * S;
       S_next.leftCols(np) += F.middleRows(kk * nx, nx);
       S.swap(S_next);
+      for (int c = 0; c < ncol; ++c) {
+        const double growth = col_step[c] * S.col(c).lpNorm<Eigen::Infinity>();
+        if (growth > max_growth[c]) {
+          max_growth[c] = growth;
+          if (growth > kGrowthLimit && growth_step[c] < 0) growth_step[c] = k + 1;
+        }
+      }
     }
+  }
+  for (int c = 0; c < ncol; ++c) {
+    if (growth_step[c] < 0) continue;
+    out->warnings.push_back(
+        "column " + std::to_string(c) +
+        ": sensitivity grew so that h*|S| = " + TimeString(max_growth[c]) + " (> " +
+        TimeString(kGrowthLimit) + ") from step " + std::to_string(growth_step[c]) +
+        ": the linearisation holds only for far smaller changes; shorten the horizon (multiple "
+        "shooting)");
   }
   if (opt.state_jacobians) out->DxDp.middleRows(T * nx, nx) = S;
   if (!S.allFinite()) {

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <mutex>
 #include <set>
 #include <stdexcept>
 
@@ -17,6 +18,9 @@ namespace {
 
 constexpr double kZ95 = 1.959963984540054;
 constexpr double kInf = std::numeric_limits<double>::infinity();
+// multiple shooting: a continuity gap (tangent space: m, rad, m/s, rad/s) above this at the
+// estimate is reported as segments that do not join
+constexpr double kContinuityGapWarning = 1e-3;
 
 // robust loss on one weighted residual e: returns rhat with rhat^2 = rho(e^2), and d rhat / d e
 double RobustResidual(FitOptions::Loss loss, double c, double e, double* derivative) {
@@ -102,11 +106,30 @@ struct Problem::Impl {
     bool failed = false;      // the rollout at key failed (MuJoCo warning, non-finite)
     bool has_jacobians = false;
     bool jacobians_failed = false;
+    std::string error;  // why the rollout or the Jacobians failed
     Trajectory tr;
     Sensitivity s;
   };
   std::vector<Cached> cache;
   std::vector<Sensitivity> initial_sensitivity;  // per sequence, from Prepare (parameters only)
+
+  // What the cost functions met during a fit, so that FitResult::warnings can say it (a rejected
+  // trial point or a Jacobian past its validity is otherwise invisible to the user): the number
+  // of evaluations that failed (simulation warning, NaN, exception) with the first message, and
+  // the first core Jacobian warning per segment (e.g. a chaotic sensitivity that outgrew finite
+  // differences). Guarded by a mutex: Ceres may evaluate residual blocks in parallel.
+  std::mutex diagnostics_mutex;
+  int rejected_evaluations = 0;
+  std::string first_rejection;
+  std::map<int, std::string> jacobian_warnings;  // segment -> first warning
+  void NoteRejection(const std::string& what) {
+    std::lock_guard<std::mutex> lock(diagnostics_mutex);
+    if (rejected_evaluations++ == 0) first_rejection = what;
+  }
+  void NoteJacobianWarning(int segment, const std::string& what) {
+    std::lock_guard<std::mutex> lock(diagnostics_mutex);
+    jacobian_warnings.emplace(segment, what);
+  }
 
   Model& ModelOf(const std::string& name) {
     for (Model& mo : models) {
@@ -210,8 +233,11 @@ struct Problem::Impl {
       try {
         mo.sim->Rollout(ins, &trs);
         for (size_t i = 0; i < roll.size(); ++i) cache[roll[i]].tr = std::move(trs[i]);
-      } catch (const std::exception&) {
-        for (int s : roll) cache[s].failed = true;  // a divergent trial point: rejected
+      } catch (const std::exception& e) {
+        for (int s : roll) {  // a divergent trial point: rejected
+          cache[s].failed = true;
+          cache[s].error = e.what();
+        }
       }
     }
     if (!jacobians) return;
@@ -237,16 +263,19 @@ struct Problem::Impl {
       jo.zero_column_is_error = false;
       std::vector<Sensitivity> sens;
       bool ok = true;
+      std::string error;
       try {
         mo.sim->Jacobians(jins, nominal, jo, &sens);
-      } catch (const std::exception&) {
+      } catch (const std::exception& e) {
         ok = false;
+        error = e.what();
       }
       for (size_t i = 0; i < jac.size(); ++i) {
         Cached& c = cache[jac[i]];
         c.tr = std::move(nominal[i]);
         c.has_jacobians = ok;
         c.jacobians_failed = !ok;
+        c.error = error;
         if (ok) c.s = std::move(sens[i]);
       }
     }
@@ -333,9 +362,12 @@ class SegmentCost : public ceres::CostFunction {
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override {
     try {
-      return EvaluateOrThrow(parameters, residuals, jacobians);
-    } catch (const std::exception&) {
+      if (EvaluateOrThrow(parameters, residuals, jacobians)) return true;
+      impl_->NoteRejection("non-finite residual");
+      return false;
+    } catch (const std::exception& e) {
       // a divergent or warning trial point: reject it, the trust region shrinks
+      impl_->NoteRejection(e.what());
       return false;
     }
   }
@@ -369,9 +401,11 @@ class SegmentCost : public ceres::CostFunction {
     // evaluation at this point computed them
     const bool want = jacobians != nullptr;
     const Problem::Impl::Cached& cached = I.Evaluated(segment_, zv, x0, want);
-    if (cached.failed || (want && !cached.has_jacobians)) return false;
+    // a divergent or warning trial point: rejected in Evaluate, the trust region shrinks
+    if (cached.failed || (want && !cached.has_jacobians)) throw std::runtime_error(cached.error);
     const Trajectory& tr = cached.tr;
     const Sensitivity& s = cached.s;
+    if (want && !s.warnings.empty()) I.NoteJacobianWarning(segment_, s.warnings[0]);
     const int ns = dims.ns;
     const int ncol = want ? s.ncol : 0;
     std::vector<double> row_t(want ? ncol : 0);  // d(simulated)/d(column) of one residual
@@ -912,18 +946,21 @@ FitResult Problem::Fit(const FitOptions& options) {
   so_ceres.gradient_tolerance = options.gradient_tolerance;
   so_ceres.parameter_tolerance = options.parameter_tolerance;
   so_ceres.num_threads = 1;  // the simulator is parallel inside
-  // with bounds, Ceres' trust region minimizer otherwise runs a projected Armijo line search
-  // along every step that evaluates the gradient, i.e. the full Jacobian, at each trial length
-  // (4-6 Jacobians per iteration on the pendulum). The step is projected onto the box either
-  // way; without the search an iteration costs one rollout, plus one Jacobian when accepted.
-  // Measured (bench_fit, simulation steps of whole fits, cubic search / quadratic search / none):
-  // pendulum 918k / 558k / 528k, arm7 1722k / 1338k / 1212k, same estimates.
-  so_ceres.max_num_line_search_step_size_iterations = 0;
+  // with bounds, Ceres' trust region minimizer runs a projected Armijo line search along every
+  // step. With its default cubic interpolation each trial length evaluates the gradient, i.e.
+  // the full Jacobian (4-6 per iteration on the pendulum); quadratic interpolation needs cost
+  // values only, one rollout each. Measured (bench_fit, simulation steps of whole fits; cubic /
+  // quadratic / no line search): pendulum 918k / 558k / 528k, arm7 1722k / 1338k / 1212k, same
+  // estimates; without the search two stress fits (tests/stress: chaotic multiple shooting,
+  // dt 0.05 contact) no longer converge, so the search stays.
+  so_ceres.line_search_interpolation_type = ceres::QUADRATIC;
   so_ceres.update_state_every_iteration = true;
   so_ceres.logging_type = ceres::SILENT;
   Progress progress(&I, &result, start);
   so_ceres.callbacks.push_back(&progress);
   ceres::Solver::Summary summary;
+  I.rejected_evaluations = 0;
+  I.jacobian_warnings.clear();
   ceres::Solve(so_ceres, &problem, &summary);
 
   result.initial_cost = summary.initial_cost;
@@ -934,6 +971,20 @@ FitResult Problem::Fit(const FitOptions& options) {
   result.num_residuals = summary.num_residuals;
   if (summary.termination_type == ceres::FAILURE) {
     result.warnings.push_back("Ceres failed: " + summary.message);
+  }
+  if (I.rejected_evaluations > 0) {
+    result.warnings.push_back(std::to_string(I.rejected_evaluations) +
+                              " evaluation(s) rejected (trial points where the simulation "
+                              "diverged or was not finite; the trust region shrank); first: " +
+                              I.first_rejection);
+  }
+  if (!I.jacobian_warnings.empty()) {
+    const auto& [segment, what] = *I.jacobian_warnings.begin();
+    const Impl::Segment& seg = I.segments[segment];
+    result.warnings.push_back(
+        "Jacobian not reliable in " + std::to_string(I.jacobian_warnings.size()) + " of " +
+        std::to_string(I.segments.size()) + " segment(s); first: sequence '" +
+        I.sequences[seg.seq].name + "' from step " + std::to_string(seg.k0) + ": " + what);
   }
 
   // Jacobian at the estimate, in physical units (tangent space for states)
@@ -1016,7 +1067,12 @@ FitResult Problem::Fit(const FitOptions& options) {
     result.warnings.push_back("unidentifiable: " + line);
   }
 
-  // simulated signals before and after, per sequence (segment-wise in multiple shooting)
+  // simulated signals before and after, per sequence (segment-wise in multiple shooting); in
+  // multiple shooting also the largest continuity gap at the estimate: segments that do not join
+  // describe no single trajectory (a chaotic fit stuck far from the data), which the user must
+  // be told (docs/stress.md)
+  double worst_gap = 0;
+  std::string worst_gap_where;
   for (size_t q = 0; q < I.sequences.size(); ++q) {
     const FitSequence& sq = I.sequences[q];
     Impl::Model& mo = I.ModelOf(sq.model);
@@ -1037,6 +1093,17 @@ FitResult Problem::Fit(const FitOptions& options) {
       try {
         const Trajectory tr = mo.sim->Rollout(in);
         sr.simulated_final.middleRows(seg.k0, seg.T) = tr.sensors;
+        if (seg.next >= 0) {
+          const int nx = mo.sim->dims().nx;
+          Eigen::VectorXd gap(nx);
+          TangentDifference(mo.sim->model(), I.states[seg.next].data(), tr.states.row(seg.T).data(),
+                            1.0, gap.data());
+          if (gap.lpNorm<Eigen::Infinity>() > worst_gap) {
+            worst_gap = gap.lpNorm<Eigen::Infinity>();
+            worst_gap_where =
+                "sequence '" + sq.name + "' at step " + std::to_string(seg.k0 + seg.T);
+          }
+        }
         // apply the measurement terms to the fitted columns
         for (const auto& ch : I.channels[q]) {
           if (ch.measurement < 0) continue;
@@ -1056,6 +1123,16 @@ FitResult Problem::Fit(const FitOptions& options) {
       }
     }
     result.sequences.push_back(std::move(sr));
+  }
+  if (worst_gap > kContinuityGapWarning) {
+    char buf[64];
+    std::snprintf(buf, sizeof(buf), "%.3g", worst_gap);
+    result.warnings.push_back(
+        std::string("multiple shooting: segments do not join at the estimate (largest continuity "
+                    "gap ") +
+        buf + " in state units, " + worst_gap_where +
+        "): it describes no single trajectory; try shorter segments, a larger continuity_weight "
+        "or a start closer to the data");
   }
   for (const auto& mo : I.models) result.simulation_steps += mo.sim->StepCount();
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
