@@ -31,11 +31,22 @@ import yaml
 
 SUPPORTED_KINDS = (
     "body_mass",
+    "body_mass_inertia",
+    "geom_friction",
     "joint_damping",
     "joint_frictionloss",
     "joint_armature",
     "joint_stiffness",
 )
+
+
+STRICT = False  # --strict: features the peer cannot express fail (exit 3) instead of a warning
+
+
+def unsupported(msg: str):
+  if STRICT:
+    fail(f"unsupported: {msg}", 3)
+  print(f"warning: {msg}", file=sys.stderr)
 
 
 def fail(msg: str, code: int = 2):
@@ -76,10 +87,11 @@ def load_experiment(path: pathlib.Path) -> dict:
   exp["_model_path"] = (path.parent / exp["model"]).resolve()
   for key in ("measurement", "multiple_shooting"):
     if exp.get(key):
-      print(f"warning: `{key}` is ignored by the peer driver", file=sys.stderr)
+      unsupported(f"`{key}` is ignored by the peer driver")
+  if ((exp.get("solver") or {}).get("loss") or {}).get("type", "none") != "none":
+    unsupported("solver.loss (a robust loss per residual) is ignored by the peer driver")
   if (exp.get("initial_state") or {}).get("estimate"):
-    print("warning: initial_state.estimate is ignored (initial states are taken from the log)",
-          file=sys.stderr)
+    unsupported("initial_state.estimate is ignored (initial states are taken from the log)")
   params = []
   for p in exp.get("parameters") or []:
     kind = p["target"]
@@ -87,8 +99,7 @@ def load_experiment(path: pathlib.Path) -> dict:
       fail(f"parameter {p['name']}: target {kind} not supported (supported: "
            f"{', '.join(SUPPORTED_KINDS)})")
     if p.get("prior"):
-      print(f"warning: parameter {p['name']}: prior ignored (mujoco.sysid has no priors)",
-            file=sys.stderr)
+      unsupported(f"parameter {p['name']}: prior ignored (mujoco.sysid has no priors)")
     lo, hi = p.get("bounds", [-math.inf, math.inf])
     params.append({
         "name": p["name"],
@@ -132,7 +143,7 @@ def prepare_spec(model_path: pathlib.Path, params: list[dict]) -> mujoco.MjSpec:
   spec.option.tolerance = min(spec.option.tolerance, 1e-10)
   compiled = spec.compile()
   for p in params:
-    if p["target"] == "body_mass":
+    if p["target"] in ("body_mass", "body_mass_inertia"):
       # Freeze the compiled inertial (often derived from geoms) as an explicit <inertial>, so
       # writing body.mass changes the mass only, like our body_mass writer (inertia kept).
       # Done once here, not per compile as mujoco.sysid's apply_body_mass_ipos does.
@@ -146,6 +157,10 @@ def prepare_spec(model_path: pathlib.Path, params: list[dict]) -> mujoco.MjSpec:
       b.inertia = np.array(cb.inertia)
       b.ipos = np.array(cb.ipos)
       b.iquat = np.array(cb.iquat)
+      p["_mass0"], p["_inertia0"] = float(cb.mass[0]), np.array(cb.inertia)
+    elif p["target"] == "geom_friction":
+      if spec.geom(p["object"]) is None:
+        fail(f"parameter {p['name']}: no geom {p['object']}")
     else:
       j = spec.joint(p["object"])
       if j is None:
@@ -172,6 +187,17 @@ def make_modifier(p: dict):
   if kind == "body_mass":
     def mod(spec, param):
       spec.body(obj).mass = value(param)
+  elif kind == "body_mass_inertia":
+    # mass and the principal inertia scaled with it (our body_mass_inertia writer)
+    def mod(spec, param):
+      v = value(param)
+      spec.body(obj).mass = v
+      spec.body(obj).inertia = p["_inertia0"] * (v / p["_mass0"])
+  elif kind == "geom_friction":
+    index = p["index"]
+
+    def mod(spec, param):
+      spec.geom(obj).friction[index] = value(param)
   elif kind == "joint_damping":
     def mod(spec, param):
       spec.joint(obj).damping[0] = value(param)  # MjSpec: array, [0] = dof_damping
@@ -191,7 +217,8 @@ def make_modifier(p: dict):
 
 def check_writer(spec: mujoco.MjSpec, p: dict, param) -> None:
   """Every writer must change the compiled model (DESIGN.md §5): compare with the model field."""
-  field = {"body_mass": ("body", "mass"), "joint_damping": ("dof", "damping"),
+  field = {"body_mass": ("body", "mass"), "body_mass_inertia": ("body", "mass"),
+           "geom_friction": ("geom", "friction"), "joint_damping": ("dof", "damping"),
            "joint_stiffness": ("jnt", "stiffness"), "joint_frictionloss": ("dof", "frictionloss"),
            "joint_armature": ("dof", "armature")}[p["target"]]
   s = spec.copy()
@@ -199,6 +226,8 @@ def check_writer(spec: mujoco.MjSpec, p: dict, param) -> None:
   m = s.compile()
   if field[0] == "body":
     got = m.body(p["object"]).mass[0]
+  elif field[0] == "geom":
+    got = m.geom(p["object"]).friction[p["index"]]
   else:
     jid = m.joint(p["object"]).id
     adr = m.jnt_dofadr[jid] if field[0] == "dof" else jid
@@ -341,7 +370,12 @@ def main() -> int:
                   help="default: the experiment's solver.max_iterations (100)")
   ap.add_argument("--threads", type=int, default=os.cpu_count() or 1)
   ap.add_argument("--verbose", action="store_true")
+  ap.add_argument("--strict", action="store_true",
+                  help="exit 3 on experiment features the peer cannot express (instead of a "
+                       "warning and a different problem)")
   args = ap.parse_args()
+  global STRICT
+  STRICT = args.strict
 
   t_start = time.perf_counter()
   exp = load_experiment(args.experiment)
