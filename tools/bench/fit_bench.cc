@@ -13,7 +13,8 @@
 //   step), same residual, bounds, log transforms and solver settings as ours;
 // - mujoco.sysid/<threads>t: rows read from the peer driver's peer_result.json files
 //   (tools/peer/mujoco_sysid_fit.py, run by tools/bench/run_fit_benchmarks.sh) in
-//   --peer-dir/<case>-<threads>t/.
+//   --peer-dir/<case>-<threads>t/ (parameters with `transform: log` optimised as log p, like ours)
+//   and mujoco.sysid/physical from <case>-phys-2t/ (physical units, the peer's own way).
 // Also, per case, the nominal step time t_step (a 1-thread rollout of every sequence) and, per
 // row, the ratio of the time per iteration to the floor (1 + np) * sum(T) * t_step / threads.
 //
@@ -362,9 +363,9 @@ bool JsonNumber(const std::string& text, const std::string& key, double* out, si
   return true;
 }
 
-Row PeerRow(const Case& c, const std::string& dir, int threads) {
+Row PeerRow(const Case& c, const std::string& dir, int threads, const std::string& method) {
   Row row;
-  row.method = "mujoco.sysid";
+  row.method = method;
   row.threads = threads;
   const std::string path = dir + "/peer_result.json";
   const std::string skip = dir + "/unsupported.txt";
@@ -663,8 +664,10 @@ int Main(int argc, char** argv) {
     if (want("numdiff")) add(FitNumDiff(c, max_it));
     if (want("peer")) {
       for (int threads : {1, 2}) {
-        add(PeerRow(c, peer_dir + "/" + name + "-" + std::to_string(threads) + "t", threads));
+        add(PeerRow(c, peer_dir + "/" + name + "-" + std::to_string(threads) + "t", threads,
+                    "mujoco.sysid"));
       }
+      add(PeerRow(c, peer_dir + "/" + name + "-phys-2t", 2, "mujoco.sysid/physical"));
     }
   }
   WriteJson(out_dir + "/fit_bench.json", rows, command);

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The fit benchmark end to end (BENCHMARKS.md): installs what is missing (incl. the pinned peer,
 # mujoco[sysid]), builds the release preset, simulates the logs that are missing, fits every case
-# with the peer mujoco.sysid (1 and 2 threads), then runs bench_fit, which fits the same data with
+# with the peer mujoco.sysid (1 and 2 threads, log parameters as ours; and 2 threads in physical
+# units, its own parametrization), then runs bench_fit, which fits the same data with
 # every one of our methods and the Ceres numeric-diff baseline and merges the peer's rows into
 # one table (stdout, OUT/fit_bench.csv, OUT/fit_bench.json, OUT/error_vs_time.svg).
 #
@@ -25,7 +26,10 @@ while (($#)); do
   esac
 done
 caps=(humanoid=10)
-cap_of() { for c in "${caps[@]}"; do [[ "${c%%=*}" == "$1" ]] && echo "${c#*=}"; done; }
+cap_of() {
+  for c in "${caps[@]}"; do [[ "${c%%=*}" == "$1" ]] && echo "${c#*=}"; done
+  return 0
+}
 
 step() { printf '\n== %s\n' "$*"; }
 step "dependencies (with the benchmark peer)"
@@ -44,27 +48,33 @@ for c in ${cases//,/ }; do
 done
 
 step "peer: mujoco.sysid (tools/peer/mujoco_sysid_fit.py --strict)"
+# the same problem as ours: parameters with `transform: log` optimised as log p (--log-transform),
+# 1 and 2 threads; and once (2 threads) in physical units, mujoco.sysid's own parametrization
 for c in ${cases//,/ }; do
   cap="$(cap_of "$c")"
-  for t in 1 2; do
-    dir="$out/peer/$c-${t}t"
+  for run in 1t 2t phys-2t; do
+    t="${run%t}"
+    t="${t#phys-}"
+    transform=--log-transform
+    [[ "$run" == phys-* ]] && transform=
+    dir="$out/peer/$c-$run"
     rm -rf "$dir"
     mkdir -p "$dir"
     set +e
     .venv/bin/python tools/peer/mujoco_sysid_fit.py "experiments/$c.yaml" \
-      "experiments/logs/$c.h5" --out "$dir" --threads "$t" --strict \
+      "experiments/logs/$c.h5" --out "$dir" --threads "$t" --strict $transform \
       ${cap:+--max-iters "$cap"} >"$dir/driver.log" 2>&1
     rc=$?
     set -e
     if ((rc == 3)); then
       grep -m1 'unsupported' "$dir/driver.log" | sed 's/^mujoco_sysid_fit: unsupported: //' \
         >"$dir/unsupported.txt"
-      echo "$c ${t}t: n/a ($(cat "$dir/unsupported.txt"))"
+      echo "$c $run: n/a ($(cat "$dir/unsupported.txt"))"
     elif ((rc != 0)); then
-      echo "$c ${t}t: the peer driver failed (exit $rc), see $dir/driver.log" | tee \
+      echo "$c $run: the peer driver failed (exit $rc), see $dir/driver.log" | tee \
         "$dir/unsupported.txt"
     else
-      echo "$c ${t}t: $(grep -m1 '^mujoco.sysid' "$dir/driver.log")"
+      echo "$c $run: $(grep -m1 '^mujoco.sysid' "$dir/driver.log")"
     fi
   done
 done
