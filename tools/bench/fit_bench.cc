@@ -19,7 +19,8 @@
 // row, the ratio of the time per iteration to the floor (1 + np) * sum(T) * t_step / threads.
 //
 // Output: a table on stdout, DIR/fit_bench.csv, DIR/fit_bench.json (rows, machine, versions,
-// command) and DIR/error_vs_time.svg (one panel per case). Timings are wall clock; nothing here
+// command), DIR/fit_bench.md (the table in Markdown) and DIR/error_vs_time.svg (one panel per
+// case). Timings are wall clock; nothing here
 // is asserted.
 #include <ceres/ceres.h>
 #include <mujoco/mujoco.h>
@@ -457,6 +458,22 @@ void WriteCsv(const std::string& path, const std::vector<Row>& rows) {
   fs::rename(path + ".tmp", path);
 }
 
+// the table as Markdown (BENCHMARKS.md is made from it)
+void WriteMarkdown(const std::string& path, const std::vector<Row>& rows) {
+  std::ofstream f(path + ".tmp");
+  f << "| case | method | threads | status | wall [s] | iterations | sim steps | final cost | "
+       "max rel. error | time/iteration / floor | note |\n"
+    << "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n";
+  for (const Row& r : rows) {
+    f << "| " << r.case_name << " | " << r.method << " | " << r.threads << " | " << r.status
+      << " | " << Num(r.wall_s, "%.3f") << " | " << r.iterations << " | " << r.steps << " | "
+      << Num(r.final_cost, "%.6g") << " | " << Num(r.max_rel_error, "%.2e") << " | "
+      << Num(r.floor_ratio, "%.2f") << " | " << r.note << " |\n";
+  }
+  f.close();
+  fs::rename(path + ".tmp", path);
+}
+
 std::string Machine() {
   std::ifstream cpu("/proc/cpuinfo");
   std::string line;
@@ -671,8 +688,10 @@ int Main(int argc, char** argv) {
     }
   }
   WriteJson(out_dir + "/fit_bench.json", rows, command);
+  WriteMarkdown(out_dir + "/fit_bench.md", rows);
   WriteSvg(out_dir + "/error_vs_time.svg", cases, rows);
-  std::printf("wrote %s/{fit_bench.csv, fit_bench.json, error_vs_time.svg}\n", out_dir.c_str());
+  std::printf("wrote %s/{fit_bench.csv, fit_bench.json, fit_bench.md, error_vs_time.svg}\n",
+              out_dir.c_str());
   return 0;
 }
 
