@@ -24,16 +24,18 @@ const mjModel* ShippedModel(const std::string& path) {
   static std::map<std::string, mjsysid::ModelPtr>* cache =
       new std::map<std::string, mjsysid::ModelPtr>();
   static const std::string models_dir = fs::canonical(MJSYSID_MODELS_DIR).string() + "/";
+  // only files directly in models/: the cache stays as small as that folder
+  std::error_code ec;
+  if (path.rfind(models_dir, 0) != 0 || path.find('/', models_dir.size()) != std::string::npos ||
+      !fs::is_regular_file(path, ec)) {
+    return nullptr;
+  }
   auto it = cache->find(path);
   if (it != cache->end()) return it->second.get();
   mjsysid::ModelPtr m;
-  std::error_code ec;
-  if (path.rfind(models_dir, 0) == 0 && path.find('/', models_dir.size()) == std::string::npos &&
-      fs::is_regular_file(path, ec)) {
-    try {
-      m = mjsysid::LoadModel(path);
-    } catch (const mjsysid::ModelLoadError&) {
-    }
+  try {
+    m = mjsysid::LoadModel(path);
+  } catch (const mjsysid::ModelLoadError&) {
   }
   return cache->emplace(path, std::move(m)).first->second.get();
 }
