@@ -438,6 +438,27 @@ Array ReadArray(hid_t group, const char* name, int rank, const std::string& file
              "), expected rank " + std::to_string(rank) + rank_hint);
   }
   const hsize_t n = Elements(space.get(), file, object);
+  // a corrupt dataspace can claim any shape: before allocating, check that the data can be in the
+  // file (all of it when stored uncompressed, at most 1000:1 compressed)
+  if (n > 0) {
+    Id dcpl = Own(H5Dget_create_plist(dset.get()), H5Pclose, file, object,
+                  "cannot read dataset properties");
+    hsize_t file_size = 0;
+    const hid_t fid = H5Iget_file_id(dset.get());
+    if (fid >= 0) {
+      if (H5Fget_filesize(fid, &file_size) < 0) file_size = 0;
+      H5Fclose(fid);
+    }
+    const int filters = H5Pget_nfilters(dcpl.get());
+    const double bytes = static_cast<double>(n) * static_cast<double>(H5Tget_size(type.get()));
+    const double room = static_cast<double>(file_size) * (filters > 0 ? 1000.0 : 1.0);
+    if (file_size > 0 && H5Pget_external_count(dcpl.get()) <= 0 && bytes > room) {
+      Fail(file, object,
+           "shape " + ShapeText(out.dims) + " needs " + std::to_string(bytes / 1e6) +
+               " MB, more than a file of " + std::to_string(file_size) +
+               " bytes can hold (truncated or corrupt file?)");
+    }
+  }
   try {
     out.data.resize(n);
   } catch (const std::bad_alloc&) {

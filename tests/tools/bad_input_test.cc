@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 #include <hdf5.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cstdint>
@@ -63,7 +64,8 @@ class BadInputTest : public ::testing::Test {
  protected:
   // a good log, a previous fit's result folder and a previous log, shared by every case
   static void SetUpTestSuite() {
-    dir_ = (fs::temp_directory_path() / "mjsysid_bad_input").string();
+    // one folder per process: ctest runs each case as its own process, in parallel
+    dir_ = (fs::temp_directory_path() / ("mjsysid_bad_input_" + std::to_string(getpid()))).string();
     fs::remove_all(dir_);
     fs::create_directories(dir_);
     good_log_ = dir_ + "/good.h5";

@@ -665,6 +665,22 @@ TEST_F(LogReadErrorTest, GlobalHeapObjectOfSizeZero) {
   ExpectMentions(ReadError(), {path_, "corrupt global heap collection", "byte"});
 }
 
+// a dataspace claiming far more data than the file holds is refused before anything is allocated
+// (found by tests/fuzz/log_fuzz: a corrupt shape made ReadLog allocate and zero 8 GB)
+TEST_F(LogReadErrorTest, ShapeLargerThanTheFile) {
+  EditFile(path_, [](hid_t f) {
+    ASSERT_GE(H5Ldelete(f, "/run1/sensordata", H5P_DEFAULT), 0);
+    const hsize_t dims[2] = {10, hsize_t{1} << 30};  // 80 GB, never written
+    const hid_t space = H5Screate_simple(2, dims, nullptr);
+    const hid_t d = H5Dcreate2(f, "/run1/sensordata", H5T_IEEE_F64LE, space, H5P_DEFAULT,
+                               H5P_DEFAULT, H5P_DEFAULT);
+    ASSERT_GE(d, 0);
+    H5Dclose(d);
+    H5Sclose(space);
+  });
+  ExpectMentions(ReadError(), {path_, "/run1/sensordata", "(10, 1073741824)", "can hold"});
+}
+
 TEST_F(LogTest, NonHdf5File) {
   const std::string path = Path("notes.h5");
   std::ofstream(path) << "time,ctrl\n0,1\n";
