@@ -27,11 +27,11 @@ max_allocation_size_mb=1024:allocator_may_return_null=1:${ASAN_OPTIONS:-}"
 export LSAN_OPTIONS="suppressions=$root/tests/fuzz/lsan.supp:print_suppressions=0:${LSAN_OPTIONS:-}"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1:${UBSAN_OPTIONS:-}"
 # an AddressSanitizer error (SEGV, bad free, overflow...) whose innermost frame outside the
-# sanitizer runtime is in libhdf5
+# sanitizer runtime and libc's memory/string functions is in libhdf5
 hdf5_internal_crash() {
   grep -qE '^==[0-9]+==ERROR: AddressSanitizer: ' "$1" &&
     awk '/ERROR: AddressSanitizer/ { found = 1 }
-         found && /#[0-9]+ / && !/__asan|__interceptor|__sanitizer|__lsan| in (malloc|calloc|realloc|free|memcpy|memmove|memset) / {
+         found && /#[0-9]+ / && !/__asan|__interceptor|__sanitizer|__lsan| in (malloc|calloc|realloc|free|memcpy|memmove|memset) |libc\.so|sysdeps|__mem|__str/ {
            print; exit }' "$1" | grep -q 'libhdf5'
 }
 

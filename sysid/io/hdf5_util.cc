@@ -453,10 +453,11 @@ Array ReadArray(hid_t group, const char* name, int rank, const std::string& file
     const double bytes = static_cast<double>(n) * static_cast<double>(H5Tget_size(type.get()));
     const double room = static_cast<double>(file_size) * (filters > 0 ? 1000.0 : 1.0);
     if (file_size > 0 && H5Pget_external_count(dcpl.get()) <= 0 && bytes > room) {
+      char mb[32];
+      std::snprintf(mb, sizeof(mb), "%.1f", bytes / 1e6);
       Fail(file, object,
-           "shape " + ShapeText(out.dims) + " needs " + std::to_string(bytes / 1e6) +
-               " MB, more than a file of " + std::to_string(file_size) +
-               " bytes can hold (truncated or corrupt file?)");
+           "shape " + ShapeText(out.dims) + " needs " + mb + " MB, more than a file of " +
+               std::to_string(file_size) + " bytes can hold (truncated or corrupt file?)");
     }
   }
   try {
