@@ -306,6 +306,14 @@ TEST_F(BadInputTest, CorruptGlobalHeap) {
   ExpectBadLog(log, {log, "corrupt global heap collection"});
 }
 
+TEST_F(BadInputTest, FileThatCrashesHdf5) {
+  // HDF5 1.10 itself dies of SIGSEGV on this file (found by tests/fuzz/log_fuzz): ReadLog reads
+  // logs in a child process, so the crash is an error naming the file
+  const std::string log = dir_ + "/segv.h5";
+  fs::copy_file(MJSYSID_SOURCE_DIR "/tests/fuzz/corpus/log/regression-hdf5-segv.h5", log);
+  ExpectBadLog(log, {log, "the HDF5 library crashed reading the file (Segmentation fault)"});
+}
+
 TEST_F(BadInputTest, CorruptRegions) {
   // 32 bytes overwritten at pseudo-random places: where they hit metadata, exit 2; where they hit
   // sample values, the file may still be a valid log (exit 0); never a signal, a hang or exit 1
