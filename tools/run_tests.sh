@@ -3,7 +3,10 @@
 # label that fits CI (unit, recovery, stress), then the address+undefined sanitizer build of the
 # unit tests. Idempotent; incremental when the builds exist.
 #
-# usage: tools/run_tests.sh [--quick]     (--quick: skip the sanitizer build)
+# Then fuzzes the YAML and HDF5 loaders for a bounded time (libFuzzer, clang-14; docs/bad-input.md).
+#
+# usage: tools/run_tests.sh [--quick]     (--quick: skip the sanitizer build and the fuzzing)
+# MJSYSID_FUZZ_SECONDS: seconds per fuzz target (default 60; 0 skips the fuzzing)
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$root"
@@ -34,5 +37,13 @@ if ((quick == 0)); then
   cmake --build --preset debug -j "$jobs"
   ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
     ctest --preset debug -j "$jobs"
+
+  fuzz_seconds="${MJSYSID_FUZZ_SECONDS:-60}"
+  if ((fuzz_seconds > 0)); then
+    step "fuzzing the YAML and HDF5 loaders (libFuzzer + ASan/UBSan/LSan, ${fuzz_seconds} s each)"
+    cmake --preset fuzz -G Ninja >/dev/null
+    cmake --build --preset fuzz -j "$jobs"
+    tools/run_fuzz.sh "$fuzz_seconds"
+  fi
 fi
 step "all checks passed"

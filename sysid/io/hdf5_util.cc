@@ -1,9 +1,12 @@
 #include "sysid/io/hdf5_util.h"
 
 #include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -35,6 +38,82 @@ std::string Hdf5Detail() {
 herr_t CollectAttrName(hid_t, const char* name, const H5A_info_t*, void* data) {
   static_cast<std::vector<std::string>*>(data)->push_back(name);
   return 0;
+}
+
+// little-endian unsigned of n bytes (n <= 8)
+uint64_t DecodeLE(const unsigned char* p, size_t n) {
+  uint64_t v = 0;
+  for (size_t i = n; i-- > 0;) v = (v << 8) | p[i];
+  return v;
+}
+
+// HDF5 1.10's reader of global heap collections (where variable-length strings, such as our
+// names attributes, live) trusts the object sizes it finds: an object 0 of size 0 never advances
+// its parse loop (the process hangs at 100% CPU), and objects overrunning the collection make it
+// read past its buffer. Newer HDF5 releases check this; for 1.10 we walk every collection of the
+// file the way HDF5 will, before HDF5 does, and refuse the file when the objects do not tile the
+// collection exactly (they always do in a file HDF5 wrote).
+void CheckGlobalHeaps(const std::string& path, const std::string& file) {
+  const int fd = open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return;  // H5Fopen reports it
+  struct stat st {};
+  if (fstat(fd, &st) != 0 || st.st_size <= 0) {
+    close(fd);
+    return;
+  }
+  const auto size = static_cast<size_t>(st.st_size);
+  void* map = mmap(nullptr, size, PROT_READ, MAP_PRIVATE, fd, 0);
+  close(fd);
+  if (map == MAP_FAILED) return;  // H5Fopen reads it or reports it
+  struct Unmap {
+    void* p;
+    size_t n;
+    ~Unmap() { munmap(p, n); }
+  } unmap{map, size};
+  const auto* bytes = static_cast<const unsigned char*>(map);
+
+  // the superblock (at 0, 512, 1024, ...) gives the size of lengths
+  static const unsigned char kSignature[8] = {0x89, 'H', 'D', 'F', '\r', '\n', 0x1a, '\n'};
+  size_t lengths = 0;
+  for (size_t at = 0; at + 16 <= size; at = at == 0 ? 512 : at * 2) {
+    if (std::memcmp(bytes + at, kSignature, 8) != 0) continue;
+    const unsigned version = bytes[at + 8];
+    lengths = version <= 1 ? bytes[at + 14] : bytes[at + 10];
+    break;
+  }
+  if (lengths != 2 && lengths != 4 && lengths != 8) return;  // H5Fopen rejects or copes
+
+  // each collection: "GCOL", version 1, 3 reserved bytes, its size; then objects, each with a
+  // header (index u16, references u16, 4 reserved bytes, size) and its data padded to 8 bytes,
+  // object 0 (free space) last and unpadded, header included
+  const size_t header = 8 + lengths;
+  const size_t object_header = 8 + lengths;
+  for (const unsigned char* hit = bytes; hit + header <= bytes + size; ++hit) {
+    hit = static_cast<const unsigned char*>(
+        memmem(hit, static_cast<size_t>(bytes + size - hit), "GCOL", 4));
+    if (hit == nullptr || hit + header > bytes + size) break;
+    if (hit[4] != 1) continue;  // HDF5 rejects other versions itself
+    const uint64_t collection = DecodeLE(hit + 8, lengths);
+    const auto offset = static_cast<size_t>(hit - bytes);
+    if (collection > size - offset) continue;  // runs past the end: HDF5 fails to read it
+    const size_t end = offset + static_cast<size_t>(collection);
+    size_t p = offset + header;
+    while (p < end) {
+      if (p + object_header > end) break;  // too small for an object: free space
+      const uint64_t index = DecodeLE(bytes + p, 2);
+      const uint64_t object = DecodeLE(bytes + p + 8, lengths);
+      const uint64_t need =
+          index > 0 ? object_header + ((object + 7) & ~static_cast<uint64_t>(7)) : object;
+      if (need == 0 || need > end - p || (index > 0 && object > end - p)) {
+        Fail(file, "",
+             "corrupt global heap collection at byte " + std::to_string(offset) + ": object " +
+                 std::to_string(index) + " at byte " + std::to_string(p) + " has size " +
+                 std::to_string(object) + ", which does not fit the collection of " +
+                 std::to_string(collection) + " bytes (truncated or corrupt file)");
+      }
+      p += static_cast<size_t>(need);
+    }
+  }
 }
 
 }  // namespace
@@ -208,6 +287,7 @@ Id OpenFile(const std::string& path, const std::string& file) {
 #endif
   if (is_hdf5 < 0) FailH5(file, "", "cannot read the file");
   if (is_hdf5 == 0) Fail(file, "", "is not an HDF5 file");
+  CheckGlobalHeaps(path, file);
   return Own(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose, file, "",
              "cannot open HDF5 file (truncated or corrupt?)");
 }
@@ -358,6 +438,28 @@ Array ReadArray(hid_t group, const char* name, int rank, const std::string& file
              "), expected rank " + std::to_string(rank) + rank_hint);
   }
   const hsize_t n = Elements(space.get(), file, object);
+  // a corrupt dataspace can claim any shape: before allocating, check that the data can be in the
+  // file (all of it when stored uncompressed, at most 1000:1 compressed)
+  if (n > 0) {
+    Id dcpl = Own(H5Dget_create_plist(dset.get()), H5Pclose, file, object,
+                  "cannot read dataset properties");
+    hsize_t file_size = 0;
+    const hid_t fid = H5Iget_file_id(dset.get());
+    if (fid >= 0) {
+      if (H5Fget_filesize(fid, &file_size) < 0) file_size = 0;
+      H5Fclose(fid);
+    }
+    const int filters = H5Pget_nfilters(dcpl.get());
+    const double bytes = static_cast<double>(n) * static_cast<double>(H5Tget_size(type.get()));
+    const double room = static_cast<double>(file_size) * (filters > 0 ? 1000.0 : 1.0);
+    if (file_size > 0 && H5Pget_external_count(dcpl.get()) <= 0 && bytes > room) {
+      char mb[32];
+      std::snprintf(mb, sizeof(mb), "%.1f", bytes / 1e6);
+      Fail(file, object,
+           "shape " + ShapeText(out.dims) + " needs " + mb + " MB, more than a file of " +
+               std::to_string(file_size) + " bytes can hold (truncated or corrupt file?)");
+    }
+  }
   try {
     out.data.resize(n);
   } catch (const std::bad_alloc&) {

@@ -82,6 +82,10 @@ class LogError : public std::runtime_error {
 void WriteLog(const std::string& path, const Log& log);
 
 // Reads and checks a log written by WriteLog (or by any tool following the layout above).
+// HDF5 runs in a forked child process that sends the checked Log back: HDF5 1.10 can crash, hang
+// or allocate gigabytes on a corrupt file (docs/bad-input.md), which then becomes a LogError
+// ("the HDF5 library crashed reading the file", "did not finish ... in N s", "killed (out of
+// memory?)"). The child's address space may grow by max(1 GiB, 64 x the file size).
 // Checks: the format attributes; every required dataset present with rank 1 (time) or 2 (others)
 // and T rows; names/dims counts matching the columns; no NaN or Inf anywhere; time strictly
 // increasing; no unknown datasets in a sequence group and no objects other than groups at the
@@ -99,6 +103,10 @@ void ValidateLogAgainstModel(const Log& log, const mjModel& m,
                              const std::string& path_for_messages);
 
 namespace internal {
+
+// ReadLog without the child process: HDF5 runs in this process (a corrupt file can crash it).
+// For the fuzz harness, whose coverage feedback needs the parsing in its own process.
+Log ReadLogInProcess(const std::string& path);
 
 // Shared by log.cc and csv.cc, not part of the API: "'x' (did you mean 'y'?); valid: a, b, ..."
 // style hint listing up to 20 of `valid`, with the closest one first when one is close.

@@ -28,8 +28,6 @@ constexpr int kFormatVersion = 1;
 constexpr const char* kFlags[] = {"at_lower_bound", "at_upper_bound", "unidentifiable"};
 constexpr const char* kTraceColumns[] = {"iteration",     "cost",    "step_norm",
                                          "gradient_norm", "seconds", "successful"};
-constexpr const char* kSequenceDatasets[] = {"time", "measured", "simulated_initial",
-                                             "simulated_final"};
 
 // ---------------------------------------------------------------------------------------------
 // messages and numbers

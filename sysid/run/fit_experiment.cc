@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <limits>
 #include <map>
+#include <system_error>
 #include <thread>
 
 #include "mjsysid/version.h"
@@ -383,8 +384,17 @@ std::vector<std::string> WriteIdentifiedModel(const io::ExperimentConfig& cfg,
 FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   FitRunOutcome out;
   out.out_dir = ro.out_dir.empty() ? cfg.output : ro.out_dir;
-  fs::create_directories(out.out_dir);
   BuiltProblem bp = BuildProblem(cfg, ro.threads);
+  // the folder only once the input is known good: bad input leaves nothing behind
+  std::error_code ec;
+  fs::create_directories(out.out_dir, ec);
+  if (ec) {
+    // the folder comes from --out, or from `output:` (or its default) in the experiment
+    const io::Mark where = ro.out_dir.empty() ? cfg.marks.Of("output") : io::Mark{"--out", 0, 0};
+    throw io::ConfigError(where,
+                          "cannot create the output folder " + out.out_dir + ": " + ec.message(),
+                          "a file of that name exists, or the parent folder is not writable");
+  }
   FitOptions options = bp.options;
   options.verbose = ro.verbose && options.verbose;
   options.interrupt = ro.interrupt;

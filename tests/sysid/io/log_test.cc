@@ -647,6 +647,40 @@ TEST_F(LogReadErrorTest, TruncatedFile) {
   ExpectMentions(ReadError(), {path_});
 }
 
+// HDF5 1.10 itself loops forever on a global heap object of size 0 (found by tests/fuzz/log_fuzz,
+// reproducer tests/fuzz/corpus/log/regression-global-heap-loop.h5): ReadLog refuses such a file
+// before HDF5 parses it
+TEST_F(LogReadErrorTest, GlobalHeapObjectOfSizeZero) {
+  std::string bytes;
+  {
+    std::ifstream in(path_, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  const size_t gcol = bytes.find("GCOL");
+  ASSERT_NE(gcol, std::string::npos) << "no global heap: the names are not variable-length?";
+  // the first object (header at byte 16 of the collection): index 0, size 0
+  const size_t object = gcol + 16;
+  for (size_t i = 0; i < 16; ++i) bytes[object + i] = '\0';
+  std::ofstream(path_, std::ios::binary | std::ios::trunc) << bytes;
+  ExpectMentions(ReadError(), {path_, "corrupt global heap collection", "byte"});
+}
+
+// a dataspace claiming far more data than the file holds is refused before anything is allocated
+// (found by tests/fuzz/log_fuzz: a corrupt shape made ReadLog allocate and zero 8 GB)
+TEST_F(LogReadErrorTest, ShapeLargerThanTheFile) {
+  EditFile(path_, [](hid_t f) {
+    ASSERT_GE(H5Ldelete(f, "/run1/sensordata", H5P_DEFAULT), 0);
+    const hsize_t dims[2] = {10, hsize_t{1} << 30};  // 80 GB, never written
+    const hid_t space = H5Screate_simple(2, dims, nullptr);
+    const hid_t d = H5Dcreate2(f, "/run1/sensordata", H5T_IEEE_F64LE, space, H5P_DEFAULT,
+                               H5P_DEFAULT, H5P_DEFAULT);
+    ASSERT_GE(d, 0);
+    H5Dclose(d);
+    H5Sclose(space);
+  });
+  ExpectMentions(ReadError(), {path_, "/run1/sensordata", "(10, 1073741824)", "can hold"});
+}
+
 TEST_F(LogTest, NonHdf5File) {
   const std::string path = Path("notes.h5");
   std::ofstream(path) << "time,ctrl\n0,1\n";

@@ -1,0 +1,592 @@
+// Bad input through the real `sysid` binary (issue 7, docs/bad-input.md): truncated and corrupt
+// HDF5 logs, wrong shapes, NaN rows, unknown names, malformed YAML, models that fail to compile,
+// missing and empty files. Every case must
+//   - exit with code 2 (not 1, not a signal),
+//   - say on stderr which file (and dataset/row, YAML line:column or name) and what was expected,
+//   - leave what was already written untouched: a previous fit's result folder given as --out and
+//     a previous log given as --out stay byte-identical.
+#include <gtest/gtest.h>
+#include <hdf5.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <initializer_list>
+#include <limits>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "sysid/io/log.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+namespace io = mjsysid::io;
+
+const std::string kModels = MJSYSID_MODELS_DIR;
+
+struct CliRun {
+  int code = -1;    // exit code; -1 when killed by a signal
+  int signal = 0;   // the signal that ended it, 0 when it exited
+  std::string err;  // stderr
+  std::string out;  // stdout
+};
+
+std::string ReadFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+void WriteFile(const std::string& path, const std::string& bytes) {
+  std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes;
+}
+
+// every regular file under dir (relative path -> bytes)
+std::map<std::string, std::string> Snapshot(const std::string& dir) {
+  std::map<std::string, std::string> files;
+  for (const auto& e : fs::recursive_directory_iterator(dir)) {
+    if (e.is_regular_file()) files[fs::relative(e.path(), dir).string()] = ReadFile(e.path());
+  }
+  return files;
+}
+
+class BadInputTest : public ::testing::Test {
+ protected:
+  // a good log, a previous fit's result folder and a previous log, shared by every case
+  static void SetUpTestSuite() {
+    // one folder per process: ctest runs each case as its own process, in parallel
+    dir_ = (fs::temp_directory_path() / ("mjsysid_bad_input_" + std::to_string(getpid()))).string();
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    good_log_ = dir_ + "/good.h5";
+    WriteFile(dir_ + "/good.yaml", Experiment(good_log_));
+    CliRun r = Sysid("simulate " + dir_ + "/good.yaml --out " + good_log_);
+    ASSERT_EQ(r.code, 0) << r.err;
+    prev_ = dir_ + "/prev";
+    r = Sysid("fit " + dir_ + "/good.yaml --out " + prev_ + " --quiet");
+    ASSERT_EQ(r.code, 0) << r.err;
+    ASSERT_TRUE(fs::exists(prev_ + "/result.yaml"));
+    ASSERT_TRUE(fs::exists(prev_ + "/result.h5"));
+    prev_log_ = dir_ + "/prev_log.h5";
+    fs::copy_file(good_log_, prev_log_);
+    prev_files_ = Snapshot(prev_);
+    prev_log_bytes_ = ReadFile(prev_log_);
+  }
+  static void TearDownTestSuite() { fs::remove_all(dir_); }
+
+  // the pendulum experiment on `data`, with a short simulate block
+  static std::string Experiment(const std::string& data) {
+    return "name: pend\n"
+           "model: " +
+           kModels +
+           "/pendulum.xml\n"
+           "data: " +
+           data +
+           "\n"
+           "sensors:\n"
+           "  - {name: angle, sigma: 0.001}\n"
+           "  - {name: rate, sigma: 0.01}\n"
+           "parameters:\n"
+           "  - {name: damping, target: joint_damping, object: hinge, initial: 0.1,\n"
+           "     bounds: [1.0e-4, 5.0], transform: log}\n"
+           "solver: {max_iterations: 20, verbose: false}\n"
+           "simulate:\n"
+           "  truth: {damping: 0.08}\n"
+           "  sequences: 1\n"
+           "  steps: 200\n"
+           "  noise: {angle: 0.001, rate: 0.01}\n";
+  }
+
+  // runs `sysid ARGS` (stdout and stderr kept apart)
+  static CliRun Sysid(const std::string& args) {
+    const std::string err_path = dir_ + "/stderr.txt";
+    // a hang (HDF5 1.10 loops forever on some corrupt files) ends as SIGKILL after a minute
+    const std::string cmd =
+        "timeout -s KILL 60 " + std::string(MJSYSID_SYSID_BIN) + " " + args + " 2>" + err_path;
+    FILE* pipe = popen(cmd.c_str(), "r");
+    CliRun r;
+    char buf[4096];
+    while (size_t n = fread(buf, 1, sizeof(buf), pipe)) r.out.append(buf, n);
+    const int status = pclose(pipe);
+    if (WIFEXITED(status)) {
+      r.code = WEXITSTATUS(status);
+      // a shell reports a child killed by a signal as 128 + signal
+      if (r.code > 128) r.signal = r.code - 128;
+    } else if (WIFSIGNALED(status)) {
+      r.signal = WTERMSIG(status);
+    }
+    r.err = ReadFile(err_path);
+    return r;
+  }
+
+  // `sysid ARGS` must exit with 2, without a signal, saying each of `pieces` on stderr, and
+  // leave the previous results as they were
+  static CliRun ExpectBadInput(const std::string& args, std::initializer_list<std::string> pieces) {
+    SCOPED_TRACE("sysid " + args);
+    const CliRun r = Sysid(args);
+    EXPECT_EQ(r.signal, 0) << "killed by signal " << r.signal << "\n" << r.err;
+    EXPECT_EQ(r.code, 2) << r.err;
+    EXPECT_NE(r.err.find("sysid "), std::string::npos) << r.err;
+    for (const std::string& p : pieces) {
+      EXPECT_NE(r.err.find(p), std::string::npos) << "stderr lacks '" << p << "':\n" << r.err;
+    }
+    // one message, no HDF5 or MuJoCo error stack dumped
+    EXPECT_EQ(r.err.find("HDF5-DIAG"), std::string::npos) << r.err;
+    EXPECT_LE(std::count(r.err.begin(), r.err.end(), '\n'), 3) << r.err;
+    // MJSYSID_BAD_INPUT_TABLE=FILE: one line per case, for docs/bad-input.md
+    if (const char* table = std::getenv("MJSYSID_BAD_INPUT_TABLE")) {
+      std::string args_short = args, err = r.err;
+      for (std::string* t : {&args_short, &err}) {
+        for (size_t p = t->find(dir_ + "/"); p != std::string::npos; p = t->find(dir_ + "/")) {
+          t->erase(p, dir_.size() + 1);
+        }
+        for (size_t p = t->find(kModels); p != std::string::npos; p = t->find(kModels)) {
+          t->replace(p, kModels.size(), "models");
+        }
+      }
+      while (!err.empty() && err.back() == '\n') err.pop_back();
+      std::ofstream(table, std::ios::app)
+          << ::testing::UnitTest::GetInstance()->current_test_info()->name() << "\t" << args_short
+          << "\t" << r.code << "\t" << err << "\n";
+    }
+    EXPECT_EQ(Snapshot(prev_), prev_files_) << "the previous result folder changed";
+    EXPECT_EQ(ReadFile(prev_log_), prev_log_bytes_) << "the previous log changed";
+    return r;
+  }
+
+  // an experiment file named `name` whose data is `log`
+  static std::string ExperimentOn(const std::string& name, const std::string& log) {
+    const std::string path = dir_ + "/" + name;
+    WriteFile(path, Experiment(log));
+    return path;
+  }
+
+  // `fit` and `check` of an experiment on the log `log` must fail as bad input naming `pieces`
+  static void ExpectBadLog(const std::string& log, std::initializer_list<std::string> pieces) {
+    const std::string exp = ExperimentOn(fs::path(log).stem().string() + ".yaml", log);
+    ExpectBadInput("fit " + exp + " --out " + prev_ + " --quiet", pieces);
+    ExpectBadInput("check " + exp, pieces);
+  }
+
+  // a copy of the good log, edited
+  static std::string LogVariant(const std::string& name,
+                                const std::function<void(io::Log*)>& edit) {
+    io::Log log = io::ReadLog(good_log_);
+    edit(&log);
+    const std::string path = dir_ + "/" + name;
+    io::WriteLog(path, log);
+    return path;
+  }
+
+  // a copy of the good log with its bytes edited
+  static std::string BytesVariant(const std::string& name,
+                                  const std::function<void(std::string*)>& edit) {
+    std::string bytes = ReadFile(good_log_);
+    edit(&bytes);
+    const std::string path = dir_ + "/" + name;
+    WriteFile(path, bytes);
+    return path;
+  }
+
+  // a copy of the good log with one element of a dataset set to `value` (HDF5 C API: WriteLog
+  // refuses non-finite values)
+  static std::string ElementVariant(const std::string& name, const std::string& dataset,
+                                    hsize_t row, hsize_t col, double value) {
+    const std::string path = dir_ + "/" + name;
+    fs::copy_file(good_log_, path, fs::copy_options::overwrite_existing);
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+    const hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+    EXPECT_GE(f, 0);
+    const hid_t d = H5Dopen2(f, dataset.c_str(), H5P_DEFAULT);
+    EXPECT_GE(d, 0) << dataset;
+    const hid_t space = H5Dget_space(d);
+    const int rank = H5Sget_simple_extent_ndims(space);
+    const hsize_t start[2] = {row, col};
+    const hsize_t count[2] = {1, 1};
+    EXPECT_GE(H5Sselect_hyperslab(space, H5S_SELECT_SET, start, nullptr, count, nullptr), 0);
+    (void)rank;
+    const hsize_t one = 1;
+    const hid_t mem = H5Screate_simple(1, &one, nullptr);
+    EXPECT_GE(H5Dwrite(d, H5T_NATIVE_DOUBLE, mem, space, H5P_DEFAULT, &value), 0);
+    H5Sclose(mem);
+    H5Sclose(space);
+    H5Dclose(d);
+    H5Fclose(f);
+    return path;
+  }
+
+  // an experiment file with the given text; `yaml` may use @LOG@, @MODELS@ and @BASE@ (three
+  // good lines: the pendulum model, the good log and one parameter)
+  static std::string Yaml(const std::string& name, std::string yaml) {
+    const std::string base =
+        "model: @MODELS@/pendulum.xml\ndata: @LOG@\n"
+        "parameters: [{name: damping, target: joint_damping, object: hinge, initial: 0.1}]\n";
+    for (auto [key, value] : {std::pair<std::string, std::string>{"@BASE@", base},
+                              std::pair<std::string, std::string>{"@LOG@", good_log_},
+                              std::pair<std::string, std::string>{"@MODELS@", kModels}}) {
+      for (size_t p = yaml.find(key); p != std::string::npos; p = yaml.find(key)) {
+        yaml.replace(p, key.size(), value);
+      }
+    }
+    const std::string path = dir_ + "/" + name;
+    WriteFile(path, yaml);
+    return path;
+  }
+
+  // `check`, `fit` and `simulate` of an experiment must fail as bad input naming `pieces`
+  static void ExpectBadExperiment(const std::string& exp, std::initializer_list<std::string> pieces,
+                                  bool simulate = true) {
+    ExpectBadInput("check " + exp, pieces);
+    ExpectBadInput("fit " + exp + " --out " + prev_ + " --quiet", pieces);
+    if (simulate) ExpectBadInput("simulate " + exp + " --out " + prev_log_, pieces);
+  }
+
+  static std::string dir_, good_log_, prev_, prev_log_, prev_log_bytes_;
+  static std::map<std::string, std::string> prev_files_;
+};
+
+std::string BadInputTest::dir_, BadInputTest::good_log_, BadInputTest::prev_,
+    BadInputTest::prev_log_, BadInputTest::prev_log_bytes_;
+std::map<std::string, std::string> BadInputTest::prev_files_;
+
+// ---------------------------------------------------------------------------------------------
+// HDF5 logs
+
+TEST_F(BadInputTest, TruncatedLog) {
+  const size_t size = ReadFile(good_log_).size();
+  for (size_t cut : {size_t{4}, size_t{64}, size_t{512}, size / 3, size / 2, size - 64}) {
+    SCOPED_TRACE("cut at " + std::to_string(cut));
+    const std::string log = BytesVariant("cut" + std::to_string(cut) + ".h5",
+                                         [cut](std::string* b) { b->resize(cut); });
+    ExpectBadLog(log, {log});
+  }
+}
+
+TEST_F(BadInputTest, EmptyLog) {
+  const std::string log = BytesVariant("empty.h5", [](std::string* b) { b->clear(); });
+  ExpectBadLog(log, {log, "not an HDF5 file"});
+}
+
+TEST_F(BadInputTest, MissingLog) {
+  ExpectBadLog(dir_ + "/missing.h5", {"missing.h5", "not found"});
+}
+
+TEST_F(BadInputTest, CorruptSignature) {
+  const std::string log =
+      BytesVariant("badsig.h5", [](std::string* b) { b->replace(0, 8, "GARBAGE!"); });
+  ExpectBadLog(log, {log, "not an HDF5 file"});
+}
+
+TEST_F(BadInputTest, CorruptSuperblock) {
+  // the bytes right after the signature: versions, sizes, addresses
+  const std::string log = BytesVariant("badsuper.h5", [](std::string* b) {
+    for (size_t i = 8; i < 48; ++i) (*b)[i] = static_cast<char>(0xA5 ^ i);
+  });
+  ExpectBadLog(log, {log});
+}
+
+TEST_F(BadInputTest, CorruptGlobalHeap) {
+  // the collection holding the names: its first object's header zeroed (index 0, size 0), on
+  // which HDF5 1.10 itself would loop forever
+  const std::string log = BytesVariant("gheap.h5", [](std::string* b) {
+    const size_t gcol = b->find("GCOL");
+    ASSERT_NE(gcol, std::string::npos);
+    for (size_t i = 16; i < 32; ++i) (*b)[gcol + i] = '\0';
+  });
+  ExpectBadLog(log, {log, "corrupt global heap collection"});
+}
+
+TEST_F(BadInputTest, FileThatCrashesHdf5) {
+  // HDF5 1.10 itself dies of SIGSEGV on this file (found by tests/fuzz/log_fuzz): ReadLog reads
+  // logs in a child process, so the crash is an error naming the file
+  const std::string log = dir_ + "/segv.h5";
+  fs::copy_file(MJSYSID_SOURCE_DIR "/tests/fuzz/corpus/log/regression-hdf5-segv.h5", log);
+  ExpectBadLog(log, {log, "the HDF5 library crashed reading the file (Segmentation fault)"});
+}
+
+TEST_F(BadInputTest, CorruptRegions) {
+  // 32 bytes overwritten at pseudo-random places: where they hit metadata, exit 2; where they hit
+  // sample values, the file may still be a valid log (exit 0); never a signal, a hang or exit 1
+  const std::string good = ReadFile(good_log_);
+  uint64_t state = 12345;
+  auto next = [&state] {
+    state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+    return state >> 33;
+  };
+  int bad = 0;
+  for (int i = 0; i < 24; ++i) {
+    const size_t at = next() % (good.size() - 32);
+    SCOPED_TRACE("region at byte " + std::to_string(at));
+    const std::string log = BytesVariant("region" + std::to_string(i) + ".h5", [&](std::string* b) {
+      for (size_t k = 0; k < 32; ++k) (*b)[at + k] = static_cast<char>(next());
+    });
+    const std::string exp = ExperimentOn("region" + std::to_string(i) + ".yaml", log);
+    const CliRun r = Sysid("check --no-jacobians " + exp);
+    EXPECT_EQ(r.signal, 0) << r.err;
+    EXPECT_TRUE(r.code == 0 || r.code == 2) << r.code << ": " << r.err;
+    if (r.code == 2) {
+      ++bad;
+      EXPECT_NE(r.err.find(log), std::string::npos) << r.err;
+    }
+    EXPECT_EQ(ReadFile(prev_log_), prev_log_bytes_);
+  }
+  EXPECT_GT(bad, 0);
+}
+
+TEST_F(BadInputTest, TextFileAsLog) {
+  const std::string log = dir_ + "/notes.h5";
+  WriteFile(log, "time,torque\n0,1\n");
+  ExpectBadLog(log, {log, "not an HDF5 file"});
+}
+
+TEST_F(BadInputTest, CtrlColumnsDifferFromActuators) {
+  const std::string log = LogVariant("ctrl_cols.h5", [](io::Log* l) {
+    io::Sequence& s = l->sequences[0];
+    s.ctrl.conservativeResize(Eigen::NoChange, 2);
+    s.ctrl.col(1).setZero();
+    s.actuator_names.push_back("extra");
+  });
+  ExpectBadLog(log, {log, "/seq0/ctrl", "extra"});
+}
+
+TEST_F(BadInputTest, SensorColumnsDifferFromModel) {
+  // a 3-wide "angle" where the model's is 1 wide
+  const std::string log = LogVariant("sensor_cols.h5", [](io::Log* l) {
+    io::Sequence& s = l->sequences[0];
+    s.sensordata.conservativeResize(Eigen::NoChange, 4);
+    s.sensordata.rightCols(2).setZero();
+    s.sensor_dims = {3, 1};
+  });
+  ExpectBadLog(log, {log, "/seq0/sensordata", "angle"});
+}
+
+TEST_F(BadInputTest, TimeLengthDiffersFromRows) {
+  const std::string log = dir_ + "/short_time.h5";
+  fs::copy_file(good_log_, log, fs::copy_options::overwrite_existing);
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  const hid_t f = H5Fopen(log.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+  ASSERT_GE(f, 0);
+  ASSERT_GE(H5Ldelete(f, "/seq0/time", H5P_DEFAULT), 0);
+  std::vector<double> t(150);
+  for (size_t k = 0; k < t.size(); ++k) t[k] = 0.002 * static_cast<double>(k);
+  const hsize_t n = t.size();
+  const hid_t space = H5Screate_simple(1, &n, nullptr);
+  const hid_t d =
+      H5Dcreate2(f, "/seq0/time", H5T_IEEE_F64LE, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  ASSERT_GE(H5Dwrite(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, t.data()), 0);
+  H5Dclose(d);
+  H5Sclose(space);
+  H5Fclose(f);
+  ExpectBadLog(log, {log, "/seq0/", "rows", "150"});
+}
+
+TEST_F(BadInputTest, NanRows) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (const char* dataset : {"ctrl", "sensordata", "time"}) {
+    SCOPED_TRACE(dataset);
+    const std::string log = ElementVariant(std::string("nan_") + dataset + ".h5",
+                                           std::string("/seq0/") + dataset, 17, 0, nan);
+    ExpectBadLog(log, {log, std::string("/seq0/") + dataset, "row 17"});
+  }
+}
+
+TEST_F(BadInputTest, LogOfAnotherModel) {
+  // a log with a sensor the model does not have
+  const std::string log = LogVariant("renamed.h5", [](io::Log* l) {
+    l->sequences[0].sensor_names = {"angel", "rate"};
+  });
+  ExpectBadLog(log, {log, "angel", "did you mean 'angle'"});
+}
+
+// ---------------------------------------------------------------------------------------------
+// YAML experiments
+
+TEST_F(BadInputTest, EmptyExperiment) {
+  const std::string exp = Yaml("empty.yaml", "");
+  ExpectBadExperiment(exp, {exp});
+}
+
+TEST_F(BadInputTest, MissingExperiment) { ExpectBadExperiment(dir_ + "/nope.yaml", {"nope.yaml"}); }
+
+TEST_F(BadInputTest, TabIndentation) {
+  const std::string exp = Yaml("tabs.yaml", "@BASE@solver:\n\tmax_iterations: 5\n");
+  ExpectBadExperiment(exp, {exp + ":5:", "YAML syntax error", "tabs"});
+}
+
+TEST_F(BadInputTest, UnclosedBracket) {
+  const std::string exp =
+      Yaml("bracket.yaml", "@BASE@sensors: [angle, rate\nsolver: {max_iterations: 5}\n");
+  ExpectBadExperiment(exp, {exp + ":", "YAML syntax error", "brackets"});
+}
+
+TEST_F(BadInputTest, WrongTypes) {
+  std::string exp = Yaml("type_int.yaml", "@BASE@solver: {max_iterations: many}\n");
+  ExpectBadExperiment(exp, {exp + ":4:", "max_iterations", "many"});
+  exp = Yaml("type_list.yaml",
+             "model: @MODELS@/pendulum.xml\ndata: @LOG@\nparameters:\n"
+             "  - {name: d, target: joint_damping, object: hinge, initial: 0.1, bounds: 3}\n");
+  ExpectBadExperiment(exp, {exp + ":4:", "bounds"});
+  exp = Yaml("type_map.yaml", "@BASE@solver: [1, 2]\n");
+  ExpectBadExperiment(exp, {exp + ":4:", "solver"});
+}
+
+TEST_F(BadInputTest, MissingRequiredKeys) {
+  std::string exp = Yaml("no_model.yaml", "data: @LOG@\nsensors: [angle]\n");
+  ExpectBadExperiment(exp, {exp, "model"});
+  exp = Yaml("no_target.yaml",
+             "model: @MODELS@/pendulum.xml\ndata: @LOG@\nparameters:\n"
+             "  - {name: d, object: hinge, initial: 0.1}\n");
+  ExpectBadExperiment(exp, {exp + ":4:", "target"});
+}
+
+TEST_F(BadInputTest, DuplicateKeys) {
+  std::string exp = Yaml("dup_top.yaml", "@BASE@data: other.h5\n");
+  ExpectBadExperiment(exp, {exp + ":4:", "data", "duplicate"});
+  exp = Yaml("dup_inner.yaml", "@BASE@solver:\n  max_iterations: 5\n  max_iterations: 6\n");
+  ExpectBadExperiment(exp, {exp + ":6:", "max_iterations", "duplicate"});
+}
+
+TEST_F(BadInputTest, UnknownSensor) {
+  const std::string exp = Yaml("unknown_sensor.yaml", "@BASE@sensors: [angle, rat]\n");
+  ExpectBadExperiment(exp, {exp + ":4:", "rat", "did you mean 'rate'"});
+}
+
+TEST_F(BadInputTest, UnknownBodyAndJoint) {
+  std::string exp = Yaml("unknown_body.yaml",
+                         "model: @MODELS@/pendulum.xml\ndata: @LOG@\nparameters:\n"
+                         "  - {name: m, target: body_mass, object: bobb, initial: 1.0}\n");
+  ExpectBadExperiment(exp, {exp + ":4:", "bobb", "did you mean 'bob'"});
+  exp = Yaml("unknown_joint.yaml",
+             "model: @MODELS@/pendulum.xml\ndata: @LOG@\nparameters:\n"
+             "  - {name: d, target: joint_damping, object: hnge, initial: 0.1}\n");
+  ExpectBadExperiment(exp, {exp + ":4:", "hnge", "did you mean 'hinge'"});
+}
+
+TEST_F(BadInputTest, UnknownParameterName) {
+  // simulate.truth names a parameter that is not declared
+  const std::string exp =
+      Yaml("unknown_param.yaml",
+           "model: @MODELS@/pendulum.xml\ndata: @LOG@\nparameters:\n"
+           "  - {name: damping, target: joint_damping, object: hinge, initial: 0.1}\n"
+           "simulate:\n  truth: {dampng: 0.08}\n");
+  ExpectBadExperiment(exp, {exp + ":6:", "dampng", "did you mean 'damping'"});
+}
+
+TEST_F(BadInputTest, UnknownKey) {
+  const std::string exp = Yaml("unknown_key.yaml", "@BASE@solvr: {}\n");
+  ExpectBadExperiment(exp, {exp + ":4:1", "solvr", "did you mean 'solver'"});
+}
+
+// ---------------------------------------------------------------------------------------------
+// models
+
+TEST_F(BadInputTest, ModelThatFailsToCompile) {
+  const std::string broken = dir_ + "/broken.xml";
+  WriteFile(broken, "<mujoco><worldbody><body name='b'><geom size='0.1'/></worldbody></mujoco>\n");
+  const std::string attr = dir_ + "/attr.xml";
+  WriteFile(attr,
+            "<mujoco><worldbody><body name='b'><joint type='hinge' stifness='1'/>"
+            "<geom size='0.1'/></body></worldbody></mujoco>\n");
+  const std::string empty = dir_ + "/empty.xml";
+  WriteFile(empty, "");
+  for (const std::string& model : {broken, attr, empty}) {
+    SCOPED_TRACE(model);
+    const std::string exp =
+        Yaml(fs::path(model).stem().string() + "_model.yaml",
+             "model: " + model +
+                 "\ndata: @LOG@\nparameters: [{name: s, target: joint_stiffness, "
+                 "object: j, initial: 1.0}]\n");
+    ExpectBadExperiment(exp, {model});
+    ExpectBadInput("rollout " + model, {model});
+    ExpectBadInput("import " + model + " " + dir_ + "/none.csv --out " + prev_log_, {model});
+  }
+  ExpectBadInput("rollout " + attr, {"stifness"});
+}
+
+TEST_F(BadInputTest, MissingModel) {
+  const std::string exp =
+      Yaml("missing_model.yaml", "model: " + dir_ +
+                                     "/nomodel.xml\ndata: @LOG@\nparameters: [{name: s, target: "
+                                     "joint_stiffness, object: j, initial: 1.0}]\n");
+  ExpectBadExperiment(exp, {exp + ":1:", "nomodel.xml"});
+  ExpectBadInput("rollout " + dir_ + "/nomodel.xml", {"nomodel.xml"});
+}
+
+// ---------------------------------------------------------------------------------------------
+// output paths
+
+TEST_F(BadInputTest, OutputFolderUnderAFile) {
+  const std::string exp = ExperimentOn("good_copy.yaml", good_log_);
+  const std::string file = dir_ + "/a_file";
+  WriteFile(file, "keep me\n");
+  ExpectBadInput("fit " + exp + " --out " + file + "/out --quiet",
+                 {"--out", file + "/out", "cannot create the output folder"});
+  ExpectBadInput("fit " + exp + " --out " + file + " --quiet", {file});
+  ExpectBadInput("simulate " + exp + " --out " + file + "/log.h5", {file});
+  EXPECT_EQ(ReadFile(file), "keep me\n");
+}
+
+TEST_F(BadInputTest, BadInputLeavesNoOutputBehind) {
+  const std::string fresh = dir_ + "/fresh";
+  const std::string exp = ExperimentOn("nan_for_fresh.yaml", dir_ + "/missing_for_fresh.h5");
+  ExpectBadInput("fit " + exp + " --out " + fresh + " --quiet", {"missing_for_fresh.h5"});
+  EXPECT_FALSE(fs::exists(fresh));
+  ExpectBadInput("simulate " + Yaml("fresh_sim.yaml", "@BASE@sensors: [nope]\n") + " --out " +
+                     fresh + "/log.h5",
+                 {"nope"});
+  EXPECT_FALSE(fs::exists(fresh));
+}
+
+// ---------------------------------------------------------------------------------------------
+// CSV import and fit results
+
+TEST_F(BadInputTest, CsvWithNanRowsAndUnknownColumns) {
+  const std::string nan_csv = dir_ + "/nan.csv";
+  WriteFile(nan_csv, "time,torque,angle,rate\n0,0,0,0\n0.002,nan,0,0\n");
+  ExpectBadInput("import " + kModels + "/pendulum.xml " + nan_csv + " --out " + prev_log_,
+                 {nan_csv, ":3:"});
+  const std::string unknown_csv = dir_ + "/unknown.csv";
+  WriteFile(unknown_csv, "time,torque,angel,rate\n0,0,0,0\n0.002,0,0,0\n");
+  ExpectBadInput("import " + kModels + "/pendulum.xml " + unknown_csv + " --out " + prev_log_,
+                 {unknown_csv, "angel"});
+  const std::string empty_csv = dir_ + "/empty.csv";
+  WriteFile(empty_csv, "");
+  ExpectBadInput("import " + kModels + "/pendulum.xml " + empty_csv + " --out " + prev_log_,
+                 {empty_csv});
+  ExpectBadInput("import " + kModels + "/pendulum.xml " + dir_ + "/nocsv.csv --out " + prev_log_,
+                 {"nocsv.csv"});
+}
+
+TEST_F(BadInputTest, ReportOfBrokenResults) {
+  // a copy of the previous results, with each file broken in turn
+  for (const char* file : {"result.yaml", "result.h5"}) {
+    for (const char* how : {"empty", "truncated", "missing"}) {
+      SCOPED_TRACE(std::string(file) + " " + how);
+      const std::string res = dir_ + "/res_" + how;
+      fs::remove_all(res);
+      fs::copy(prev_, res);
+      const std::string path = res + "/" + file;
+      const std::string bytes = ReadFile(path);
+      if (std::string(how) == "missing") {
+        fs::remove(path);
+      } else {
+        WriteFile(path, std::string(how) == "empty" ? "" : bytes.substr(0, bytes.size() / 2));
+      }
+      const auto before = Snapshot(res);
+      ExpectBadInput("report " + res, {path});
+      EXPECT_EQ(Snapshot(res), before) << "report changed the result folder";
+    }
+  }
+}
+
+}  // namespace
