@@ -9,7 +9,7 @@
 # usage: tools/bench/run_fit_benchmarks.sh [--out DIR] [--cases a,b,...] [--columns]
 #   --columns  also run bench_jacobian_cost (cost of one Jacobian column per parameter kind, with
 #              and without stage skipping; ~3 min) into OUT/jacobian_cost.csv
-# Defaults: OUT=results/bench, every shipped experiment; the humanoid is capped at 10 iterations.
+# Defaults: OUT=results/bench, every shipped experiment; the humanoid is capped at 5 iterations.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 cd "$root"
@@ -25,7 +25,7 @@ while (($#)); do
     *) echo "run_fit_benchmarks.sh: unknown argument '$1' (see --help)" >&2; exit 2 ;;
   esac
 done
-caps=(humanoid=10)
+caps=(humanoid=5)
 cap_of() {
   for c in "${caps[@]}"; do [[ "${c%%=*}" == "$1" ]] && echo "${c#*=}"; done
   return 0
