@@ -556,7 +556,9 @@ Log ReadLogFileLocked(const std::string& path) {
 // cap in the child becomes a LogError naming the file, and the parent never runs HDF5 on it.
 
 // plain binary encoding of a Log for the pipe (same process image on both ends)
-void Put(std::string* out, const void* p, size_t n) { out->append(static_cast<const char*>(p), n); }
+void Put(std::string* out, const void* p, size_t n) {
+  if (n > 0) out->append(static_cast<const char*>(p), n);  // p is null for empty matrices
+}
 void PutSize(std::string* out, uint64_t n) { Put(out, &n, sizeof(n)); }
 void PutString(std::string* out, const std::string& s) {
   PutSize(out, s.size());
@@ -599,7 +601,7 @@ class Decoder {
   Decoder(const std::string& in, const std::string& file) : in_(in), file_(file) {}
   void Get(void* p, size_t n) {
     if (n > in_.size() - at_) h5::Fail(file_, "", "internal error: short reply from the reader");
-    std::memcpy(p, in_.data() + at_, n);
+    if (n > 0) std::memcpy(p, in_.data() + at_, n);
     at_ += n;
   }
   uint64_t Size() {

@@ -310,7 +310,7 @@ TEST_F(BadInputTest, FileThatCrashesHdf5) {
   // HDF5 1.10 itself dies of SIGSEGV on this file (found by tests/fuzz/log_fuzz): ReadLog reads
   // logs in a child process, so the crash is an error naming the file
   const std::string log = dir_ + "/segv.h5";
-  fs::copy_file(MJSYSID_SOURCE_DIR "/tests/fuzz/corpus/log/regression-hdf5-segv.h5", log);
+  fs::copy_file(MJSYSID_SOURCE_DIR "/tests/tools/data/hdf5_segv.h5", log);
   ExpectBadLog(log, {log, "the HDF5 library crashed reading the file (Segmentation fault)"});
 }
 
