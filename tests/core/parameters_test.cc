@@ -10,6 +10,7 @@
 
 #include "core/mujoco_env.h"
 #include "core/state.h"
+#include "tests/test_util.h"
 
 namespace mjsysid {
 namespace {
@@ -131,13 +132,7 @@ TEST_P(WriterTest, InPlaceWriteMatchesCompiledXml) {
   EXPECT_LE(MaxAbsDiff(traj_written, traj_xml), 1e-12) << params[0].label();
 }
 
-ParameterSpec Spec(const std::string& kind, const std::string& object, int index = 0) {
-  ParameterSpec s;
-  s.kind = kind;
-  s.object = object;
-  s.index = index;
-  return s;
-}
+using test::Spec;
 
 INSTANTIATE_TEST_SUITE_P(
     Writers, WriterTest,

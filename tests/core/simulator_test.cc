@@ -10,19 +10,14 @@
 #include <vector>
 
 #include "core/mujoco_env.h"
+#include "tests/test_util.h"
 
 namespace mjsysid {
 namespace {
 
 const std::string kModels = MJSYSID_MODELS_DIR;
 
-ParameterSpec Spec(const std::string& kind, const std::string& object, int index = 0) {
-  ParameterSpec s;
-  s.kind = kind;
-  s.object = object;
-  s.index = index;
-  return s;
-}
+using test::Spec;
 
 // sine controls: actuator i gets amplitude * sin(w_i t + phase_i) + offset
 RowMatrix SineControls(const mjModel& m, int T, double amplitude, double offset = 0) {
