@@ -53,6 +53,28 @@ double RobustResidual(FitOptions::Loss loss, double c, double e, double* derivat
 
 }  // namespace
 
+double FitParameter::ToVariable(double p) const {
+  switch (transform) {
+    case Transform::kLog:
+      return p > 0 ? std::log(p) : -kInf;
+    case Transform::kScale:
+      return p / scale;
+    default:
+      return p;
+  }
+}
+
+double FitParameter::FromVariable(double z) const {
+  switch (transform) {
+    case Transform::kLog:
+      return std::exp(z);
+    case Transform::kScale:
+      return z * scale;
+    default:
+      return z;
+  }
+}
+
 // -----------------------------------------------------------------------------------------------
 // problem state
 
@@ -111,7 +133,6 @@ struct Problem::Impl {
     Sensitivity s;
   };
   std::vector<Cached> cache;
-  std::vector<Sensitivity> initial_sensitivity;  // per sequence, from Prepare (parameters only)
 
   // What the cost functions met during a fit, so that FitResult::warnings can say it (a rejected
   // trial point or a Jacobian past its validity is otherwise invisible to the user): the number
@@ -131,33 +152,18 @@ struct Problem::Impl {
     jacobian_warnings.emplace(segment, what);
   }
 
-  Model& ModelOf(const std::string& name) {
-    for (Model& mo : models) {
+  const Model& ModelOf(const std::string& name) const {
+    for (const Model& mo : models) {
       if (mo.name == name) return mo;
     }
     throw std::invalid_argument("no model named '" + name + "' (add it with AddModel)");
   }
+  Model& ModelOf(const std::string& name) {
+    return const_cast<Model&>(static_cast<const Impl&>(*this).ModelOf(name));
+  }
 
-  double Physical(int g, double zg) const {
-    switch (params[g].transform) {
-      case Transform::kLog:
-        return std::exp(zg);
-      case Transform::kScale:
-        return zg * params[g].scale;
-      default:
-        return zg;
-    }
-  }
-  double ToZ(int g, double p) const {
-    switch (params[g].transform) {
-      case Transform::kLog:
-        return p > 0 ? std::log(p) : -kInf;
-      case Transform::kScale:
-        return p / params[g].scale;
-      default:
-        return p;
-    }
-  }
+  double Physical(int g, double zg) const { return params[g].FromVariable(zg); }
+  double ToZ(int g, double p) const { return params[g].ToVariable(p); }
   // dp/dz at z
   double DpDz(int g, double zg) const {
     switch (params[g].transform) {
@@ -194,13 +200,10 @@ struct Problem::Impl {
     return seg.block >= 0 ? states[seg.block].data() : fixed_x0[seg.seq].data();
   }
   std::vector<double> KeyOf(int segment, const double* zv, const double* x0) const {
-    const Model& mo = ModelOfConst(sequences[segments[segment].seq].model);
+    const Model& mo = ModelOf(sequences[segments[segment].seq].model);
     std::vector<double> key(zv, zv + (zv ? z.size() : 0));
     key.insert(key.end(), x0, x0 + mo.sim->dims().nphys);
     return key;
-  }
-  const Model& ModelOfConst(const std::string& name) const {
-    return const_cast<Impl*>(this)->ModelOf(name);
   }
 
   // fills the cache of segments segs (all of model mo) at parameters zv and initial states x0s:
@@ -796,7 +799,7 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
 
   // initial rollouts at the initial parameters; the Jacobian there must see every parameter
   initial.assign(I.sequences.size(), Trajectory());
-  I.initial_sensitivity.assign(I.sequences.size(), Sensitivity());
+  std::vector<Sensitivity> initial_sensitivity(I.sequences.size());  // parameter columns
   std::vector<bool> moves(np, false);
   for (auto& mo : I.models) {
     I.Apply(mo, I.z.data());
@@ -817,7 +820,6 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
     jo.state_jacobians = true;
     std::vector<Sensitivity> sens;
     mo.sim->Jacobians(ins, trs, jo, &sens);
-    for (size_t i = 0; i < which.size(); ++i) I.initial_sensitivity[which[i]] = sens[i];
     for (const Sensitivity& s : sens) {
       for (int j = 0; j < mo.sim->parameters().size(); ++j) {
         if (!s.DxDp.col(j).isZero(0) || (s.DyDp.rows() && !s.DyDp.col(j).isZero(0))) {
@@ -826,6 +828,7 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
       }
     }
     out->jacobian_mode = JacobianModeName(sens.empty() ? jo.mode : sens[0].mode);
+    for (size_t i = 0; i < which.size(); ++i) initial_sensitivity[which[i]] = std::move(sens[i]);
   }
   for (int g = 0; g < np; ++g) {
     if (!moves[g]) {
@@ -870,13 +873,12 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
     Impl::Cached& c = I.cache[s];
     c.key = I.KeyOf(static_cast<int>(s), I.z.empty() ? nullptr : I.z.data(), I.X0(s));
     c.tr = initial[seg.seq];
-    c.s = I.initial_sensitivity[seg.seq];
+    c.s = std::move(initial_sensitivity[seg.seq]);
     c.has_jacobians =
         c.s.ncol ==
             static_cast<int>(I.ModelOf(I.sequences[seg.seq].model).sim->parameters().size()) &&
         c.s.ncol > 0;
   }
-  I.initial_sensitivity.clear();
 }
 
 FitResult Problem::Fit(const FitOptions& options) {
@@ -1085,13 +1087,18 @@ FitResult Problem::Fit(const FitOptions& options) {
     sr.sensors = I.fitted[q];
     if (np) I.Apply(mo, I.z.data());
     const double dt = mo.sim->model().opt.timestep;
-    for (const Impl::Segment& seg : I.segments) {
+    for (size_t s = 0; s < I.segments.size(); ++s) {
+      const Impl::Segment& seg = I.segments[s];
       if (seg.seq != static_cast<int>(q)) continue;
-      const double* x0 = seg.block >= 0 ? I.states[seg.block].data() : I.fixed_x0[q].data();
+      const double* x0 = I.X0(static_cast<int>(s));
       if (seg.k0 == 0) sr.x0_final = Eigen::Map<const Eigen::VectorXd>(x0, mo.sim->dims().nphys);
-      SequenceInput in{I.ToInitialState(mo, x0, seg.k0 * dt), sq.ctrl.middleRows(seg.k0, seg.T)};
       try {
-        const Trajectory tr = mo.sim->Rollout(in);
+        // the rollout at the estimate, from the evaluation cache (the final evaluation above ran
+        // it; simulated here only if that evaluation failed)
+        const Impl::Cached& cached =
+            I.Evaluated(static_cast<int>(s), np ? I.z.data() : nullptr, x0, false);
+        if (cached.failed) throw std::runtime_error(cached.error);
+        const Trajectory& tr = cached.tr;
         sr.simulated_final.middleRows(seg.k0, seg.T) = tr.sensors;
         if (seg.next >= 0) {
           const int nx = mo.sim->dims().nx;

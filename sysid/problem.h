@@ -72,6 +72,11 @@ struct FitParameter {
     return *this;
   }
 
+  // the optimisation variable of a physical value: z = p, log p (-inf for p <= 0) or p / scale
+  double ToVariable(double p) const;
+  // the physical value of an optimisation variable (the inverse of ToVariable)
+  double FromVariable(double z) const;
+
   std::string name;      // unique label (results use it)
   ParameterSpec target;  // what it writes: kind, object, field, index (core/parameters.h)
   double initial = 0;

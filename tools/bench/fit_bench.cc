@@ -222,12 +222,7 @@ class WholeRolloutResidual {
 
   bool operator()(double const* const* z, double* r) const {
     std::vector<double> p(params_.size());
-    for (int j = 0; j < params_.size(); ++j) {
-      const FitParameter& fp = b_.parameters[j];
-      p[j] = fp.transform == Transform::kLog     ? std::exp(z[0][j])
-             : fp.transform == Transform::kScale ? z[0][j] * fp.scale
-                                                 : z[0][j];
-    }
+    for (int j = 0; j < params_.size(); ++j) p[j] = b_.parameters[j].FromVariable(z[0][j]);
     mjModel* m = model_.get();
     mjData* d = data_.get();
     params_.Write(m, d, p.data());
@@ -300,22 +295,12 @@ Row FitNumDiff(const Case& c, int max_iterations) {
   cost->AddParameterBlock(np);
   cost->SetNumResiduals(functor->num_residuals());
   std::vector<double> z(np);
-  for (int j = 0; j < np; ++j) {
-    const FitParameter& p = b.parameters[j];
-    z[j] = p.transform == Transform::kLog     ? std::log(p.initial)
-           : p.transform == Transform::kScale ? p.initial / p.scale
-                                              : p.initial;
-  }
+  for (int j = 0; j < np; ++j) z[j] = b.parameters[j].ToVariable(b.parameters[j].initial);
   ceres::Problem problem;
   problem.AddResidualBlock(cost, nullptr, z.data());
   for (int j = 0; j < np; ++j) {
     const FitParameter& p = b.parameters[j];
-    auto map = [&](double v) {
-      return p.transform == Transform::kLog     ? (v > 0 ? std::log(v) : -INFINITY)
-             : p.transform == Transform::kScale ? v / p.scale
-                                                : v;
-    };
-    const double lo = map(p.lower), hi = map(p.upper);
+    const double lo = p.ToVariable(p.lower), hi = p.ToVariable(p.upper);
     if (std::isfinite(lo)) problem.SetParameterLowerBound(z.data(), j, std::min(lo, hi));
     if (std::isfinite(hi)) problem.SetParameterUpperBound(z.data(), j, std::max(lo, hi));
   }
@@ -340,11 +325,7 @@ Row FitNumDiff(const Case& c, int max_iterations) {
                : summary.termination_type == ceres::FAILURE   ? "failed"
                                                               : "stopped";
   for (int j = 0; j < np; ++j) {
-    const FitParameter& p = b.parameters[j];
-    const double v = p.transform == Transform::kLog     ? std::exp(z[j])
-                     : p.transform == Transform::kScale ? z[j] * p.scale
-                                                        : z[j];
-    row.estimates.emplace_back(p.name, v);
+    row.estimates.emplace_back(b.parameters[j].name, b.parameters[j].FromVariable(z[j]));
   }
   return row;
 }
