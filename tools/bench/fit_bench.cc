@@ -606,11 +606,14 @@ int Main(int argc, char** argv) {
   std::map<std::string, int> cap;
   for (const std::string& c : caps) {
     const size_t eq = c.find('=');
-    if (eq == std::string::npos) {
-      std::fprintf(stderr, "bench_fit: --max-iterations expects case=N, got '%s'\n", c.c_str());
+    char* end = nullptr;
+    const long n = eq == std::string::npos ? 0 : std::strtol(c.c_str() + eq + 1, &end, 10);
+    if (eq == std::string::npos || end == c.c_str() + eq + 1 || *end != '\0' || n <= 0) {
+      std::fprintf(stderr, "bench_fit: --max-iterations expects case=N with N > 0, got '%s'\n",
+                   c.c_str());
       return 2;
     }
-    cap[c.substr(0, eq)] = std::stoi(c.substr(eq + 1));
+    cap[c.substr(0, eq)] = static_cast<int>(n);
   }
   const std::vector<std::string> cases = Split(cases_arg), methods = Split(methods_arg);
   auto want = [&](const char* m) {
