@@ -23,21 +23,21 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kContinuityGapWarning = 1e-3;
 
 // robust loss on one weighted residual e: returns rhat with rhat^2 = rho(e^2), and d rhat / d e
-double RobustResidual(FitOptions::Loss loss, double c, double e, double* derivative) {
+double RobustResidual(LossType loss, double c, double e, double* derivative) {
   const double s = e * e;
   double rho = s, rho1 = 1;
   switch (loss) {
-    case FitOptions::Loss::kNone:
+    case LossType::kNone:
       *derivative = 1;
       return e;
-    case FitOptions::Loss::kHuber:
+    case LossType::kHuber:
       if (s > c * c) {
         const double r = std::sqrt(s);
         rho = 2 * c * r - c * c;
         rho1 = c / r;
       }
       break;
-    case FitOptions::Loss::kCauchy:
+    case LossType::kCauchy:
       rho = c * c * std::log1p(s / (c * c));
       rho1 = 1 / (1 + s / (c * c));
       break;
@@ -51,29 +51,32 @@ double RobustResidual(FitOptions::Loss loss, double c, double e, double* derivat
   return rhat;
 }
 
+// Reduces the sequence's matrices (T x nsensordata, the model's layout) to the columns of the
+// fitted sensors, in the order given, and fills their names, dimensions and the sample times.
+void KeepFittedColumns(const mjModel& m, const std::vector<std::string>& fitted,
+                       const FitSequence& sq, SequenceResult* sr) {
+  std::vector<int> cols;
+  for (const std::string& name : fitted) {
+    const int id = mj_name2id(&m, mjOBJ_SENSOR, name.c_str());
+    sr->sensor_names.push_back(name);
+    sr->sensor_dims.push_back(m.sensor_dim[id]);
+    for (int c = 0; c < m.sensor_dim[id]; ++c) cols.push_back(m.sensor_adr[id] + c);
+  }
+  const Eigen::Index T = sr->measured.rows();
+  for (RowMatrix* mat : {&sr->measured, &sr->simulated_initial, &sr->simulated_final}) {
+    RowMatrix kept(T, static_cast<Eigen::Index>(cols.size()));
+    for (size_t c = 0; c < cols.size(); ++c) kept.col(c) = mat->col(cols[c]);
+    *mat = std::move(kept);
+  }
+  if (sq.time.size() == T) {
+    sr->time = sq.time;
+  } else {
+    sr->time = Eigen::VectorXd::LinSpaced(T, 0, static_cast<double>(T - 1)) * m.opt.timestep;
+    sr->time.array() += sq.x0.time;
+  }
+}
+
 }  // namespace
-
-double FitParameter::ToVariable(double p) const {
-  switch (transform) {
-    case Transform::kLog:
-      return p > 0 ? std::log(p) : -kInf;
-    case Transform::kScale:
-      return p / scale;
-    default:
-      return p;
-  }
-}
-
-double FitParameter::FromVariable(double z) const {
-  switch (transform) {
-    case Transform::kLog:
-      return std::exp(z);
-    case Transform::kScale:
-      return z * scale;
-    default:
-      return z;
-  }
-}
 
 // -----------------------------------------------------------------------------------------------
 // problem state
@@ -732,6 +735,10 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
                                   std::to_string(sq.measured.rows()) + " x " +
                                   std::to_string(sq.measured.cols()));
     }
+    if (sq.time.size() != 0 && sq.time.size() != T) {
+      throw std::invalid_argument(where + "time must be empty or have " + std::to_string(T) +
+                                  " entries, got " + std::to_string(sq.time.size()));
+    }
     const mjModel& m = mo.sim->model();
     std::vector<std::string> used = sq.sensors;
     if (used.empty()) {
@@ -1084,7 +1091,6 @@ FitResult Problem::Fit(const FitOptions& options) {
     sr.measured = sq.measured;
     sr.simulated_initial = initial[q].sensors;
     sr.simulated_final.resize(sq.measured.rows(), sq.measured.cols());
-    sr.sensors = I.fitted[q];
     if (np) I.Apply(mo, I.z.data());
     const double dt = mo.sim->model().opt.timestep;
     for (size_t s = 0; s < I.segments.size(); ++s) {
@@ -1129,6 +1135,7 @@ FitResult Problem::Fit(const FitOptions& options) {
                                   "': final simulation failed: " + e.what());
       }
     }
+    KeepFittedColumns(mo.sim->model(), I.fitted[q], sq, &sr);
     result.sequences.push_back(std::move(sr));
   }
   if (worst_gap > kContinuityGapWarning) {

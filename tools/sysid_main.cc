@@ -204,7 +204,7 @@ int RunSimulate(const SimulateArgs& args) {
 
   // simulate, then write atomically (creating the folder)
   mjsysid::sim::SimulateSettings settings;
-  settings.threads = args.has_threads ? args.threads : config.solver.threads;
+  settings.threads = args.has_threads ? args.threads : config.options.threads;
   const mjsysid::io::Log log = mjsysid::sim::SimulateExperiment(config, settings);
   const fs::path parent = fs::path(out).parent_path();
   if (!parent.empty()) {
@@ -482,7 +482,7 @@ struct FitArgs {
   bool quiet = false;
 };
 
-std::string Flags(const mjsysid::io::ResultParameter& p) {
+std::string Flags(const mjsysid::ParameterEstimate& p) {
   std::vector<std::string> f;
   if (p.at_lower) f.push_back("at lower bound");
   if (p.at_upper) f.push_back("at upper bound");
@@ -506,23 +506,24 @@ int RunFit(const FitArgs& args) {
   // the estimates against the start (and the truth, for simulated data)
   std::printf("%s: %s after %d iterations (%s), cost %.6g -> %.6g, %.2f s\n", f.name.c_str(),
               f.status.c_str(), f.iterations, f.termination.c_str(), f.initial_cost, f.final_cost,
-              f.wall_time_s);
+              f.seconds);
   std::printf("  %-24s %14s %14s %14s %12s  %-29s %s\n", "parameter", "initial", "estimate",
               "truth", "std", "95% interval", "flags");
-  for (const io::ResultParameter& p : f.parameters) {
+  for (const mjsysid::ParameterEstimate& p : f.parameters) {
     char truth[32] = "-", ci[64];
     if (p.truth) std::snprintf(truth, sizeof(truth), "%.6g", *p.truth);
     std::snprintf(ci, sizeof(ci), "[%.6g, %.6g]", p.ci95_low, p.ci95_high);
     std::printf("  %-24s %14.6g %14.8g %14s %12.3g  %-29s %s\n", p.name.c_str(), p.initial, p.value,
                 truth, p.std_error, ci, Flags(p).c_str());
   }
-  for (const std::string& u : f.unidentifiable) std::printf("  unidentifiable: %s\n", u.c_str());
+  for (const std::string& u : f.uncertainty.unidentifiable)
+    std::printf("  unidentifiable: %s\n", u.c_str());
   for (const std::string& w : f.warnings)
     std::fprintf(stderr, "sysid fit: warning: %s\n", w.c_str());
   std::printf("  wrote %s/{result.yaml, result.h5", out.out_dir.c_str());
   for (const auto& [model, file] : f.identified_models) std::printf(", %s", file.c_str());
   std::printf("}\n");
-  if (out.fit.interrupted)
+  if (out.file.interrupted)
     std::fprintf(stderr, "sysid fit: interrupted: results of the last good iterate written\n");
   return out.exit_code;
 }

@@ -235,8 +235,8 @@ class Parser {
   void ParseSensors(const Field& f, ExperimentConfig* c) const;
   ParameterSpec ParseParameter(const Field& f, const ExperimentConfig& c) const;
   MeasurementSpec ParseMeasurement(const Field& f, const ExperimentConfig& c) const;
-  void ParseTerm(const Field& f, bool is_delay, MeasurementTerm* term) const;
-  void ParseSolver(const Field& f, SolverOptions* s) const;
+  void ParseTerm(const Field& f, bool is_delay, FitMeasurement::Term* term, Marks* marks) const;
+  void ParseSolver(const Field& f, ExperimentConfig* c) const;
   void ParseSimulate(const Field& f, const ExperimentConfig& c, SimulateOptions* s) const;
   Excitation ParseExcitation(const Field& f, bool needs_actuator) const;
 
@@ -437,8 +437,8 @@ const std::vector<std::string> kParameterKeys = {"name",  "target",  "object", "
                                                  "scale", "prior",   "models"};
 const std::vector<std::string> kSensorTimes = {"pre", "post"};
 const std::vector<std::string> kTransforms = {"none", "log", "scale"};
-const std::vector<std::string> kJacobianModes = {"auto", "directional", "matrix", "whole_rollout",
-                                                 "ceres_numeric"};
+// in the order of core's JacobianMode
+const std::vector<std::string> kJacobianModes = {"auto", "directional", "matrix", "whole_rollout"};
 const std::vector<std::string> kDifferences = {"forward", "central"};
 const std::vector<std::string> kLossTypes = {"none", "huber", "cauchy"};
 const std::vector<std::string> kExcitationTypes = {"sines", "chirp", "prbs", "zero"};
@@ -565,21 +565,20 @@ ExperimentConfig Parser::Parse(const YAML::Node& root) {
 
   if (r.Has("initial_state")) {
     const MapReader s(*this, r.Get("initial_state"), {"estimate"});
-    c.initial_state.marks = s.marks();
-    if (s.Has("estimate")) c.initial_state.estimate = Bool(s.Get("estimate"));
+    if (s.Has("estimate")) c.options.estimate_initial_state = Bool(s.Get("estimate"));
   }
   if (r.Has("multiple_shooting")) {
     const MapReader s(*this, r.Get("multiple_shooting"), {"segment_steps", "continuity_weight"});
-    c.multiple_shooting.marks = s.marks();
     if (s.Has("segment_steps")) {
-      c.multiple_shooting.segment_steps =
+      c.options.segment_steps =
           static_cast<int>(Integer(s.Get("segment_steps"), 0, std::numeric_limits<int>::max()));
     }
     if (s.Has("continuity_weight")) {
-      c.multiple_shooting.continuity_weight = Positive(s.Get("continuity_weight"));
+      c.options.continuity_weight = Positive(s.Get("continuity_weight"));
     }
   }
-  if (r.Has("solver")) ParseSolver(r.Get("solver"), &c.solver);
+  c.options.verbose = true;  // a file's default; `solver: {verbose: false}` turns it off
+  if (r.Has("solver")) ParseSolver(r.Get("solver"), &c);
   if (r.Has("simulate")) ParseSimulate(r.Get("simulate"), c, &c.simulate);
 
   // output folder
@@ -809,9 +808,10 @@ ParameterSpec Parser::ParseParameter(const Field& f, const ExperimentConfig& c) 
   return p;
 }
 
-void Parser::ParseTerm(const Field& f, bool is_delay, MeasurementTerm* term) const {
+void Parser::ParseTerm(const Field& f, bool is_delay, FitMeasurement::Term* term,
+                       Marks* marks) const {
   const MapReader r(*this, f, {"initial", "fit", "bounds"});
-  term->marks = r.marks();
+  *marks = r.marks();
   if (r.Has("initial")) term->initial = Finite(r.Get("initial"));
   if (r.Has("fit")) term->fit = Bool(r.Get("fit"));
   if (r.Has("bounds")) {
@@ -824,7 +824,7 @@ void Parser::ParseTerm(const Field& f, bool is_delay, MeasurementTerm* term) con
     }
   }
   if (term->initial < term->lower || term->initial > term->upper) {
-    const Mark& at = term->marks.Of("initial");
+    const Mark& at = marks->Of("initial");
     Fail(at,
          r.Path("initial") + ": " + FormatNumber(term->initial) + " is outside bounds [" +
              FormatNumber(term->lower) + ", " + FormatNumber(term->upper) + "]",
@@ -847,42 +847,40 @@ MeasurementSpec Parser::ParseMeasurement(const Field& f, const ExperimentConfig&
            NamesHint(ms.sensor, names, "sensors"));
     }
   }
-  if (r.Has("delay")) ParseTerm(r.Get("delay"), true, &ms.delay);
-  if (r.Has("gain")) ParseTerm(r.Get("gain"), false, &ms.gain);
-  if (r.Has("bias")) ParseTerm(r.Get("bias"), false, &ms.bias);
+  if (r.Has("delay")) ParseTerm(r.Get("delay"), true, &ms.delay, &ms.delay_marks);
+  if (r.Has("gain")) ParseTerm(r.Get("gain"), false, &ms.gain, &ms.gain_marks);
+  if (r.Has("bias")) ParseTerm(r.Get("bias"), false, &ms.bias, &ms.bias_marks);
   return ms;
 }
 
-void Parser::ParseSolver(const Field& f, SolverOptions* s) const {
+void Parser::ParseSolver(const Field& f, ExperimentConfig* c) const {
   const MapReader r(
       *this, f,
       {"max_iterations", "function_tolerance", "gradient_tolerance", "parameter_tolerance",
        "jacobian", "differences", "relative_step", "threads", "loss", "verbose"});
-  s->marks = r.marks();
+  c->solver_marks = r.marks();
+  FitOptions* o = &c->options;
   const long long kIntMax = std::numeric_limits<int>::max();
   if (r.Has("max_iterations")) {
-    s->max_iterations = static_cast<int>(Integer(r.Get("max_iterations"), 1, kIntMax));
+    o->max_iterations = static_cast<int>(Integer(r.Get("max_iterations"), 1, kIntMax));
   }
-  if (r.Has("function_tolerance")) s->function_tolerance = NonNegative(r.Get("function_tolerance"));
-  if (r.Has("gradient_tolerance")) s->gradient_tolerance = NonNegative(r.Get("gradient_tolerance"));
+  if (r.Has("function_tolerance")) o->function_tolerance = NonNegative(r.Get("function_tolerance"));
+  if (r.Has("gradient_tolerance")) o->gradient_tolerance = NonNegative(r.Get("gradient_tolerance"));
   if (r.Has("parameter_tolerance")) {
-    s->parameter_tolerance = NonNegative(r.Get("parameter_tolerance"));
+    o->parameter_tolerance = NonNegative(r.Get("parameter_tolerance"));
   }
   if (r.Has("jacobian")) {
-    s->jacobian = static_cast<JacobianMode>(Enum(r.Get("jacobian"), kJacobianModes));
+    o->jacobian.mode = static_cast<JacobianMode>(Enum(r.Get("jacobian"), kJacobianModes));
   }
-  if (r.Has("differences")) {
-    s->differences = static_cast<Differences>(Enum(r.Get("differences"), kDifferences));
-  }
-  if (r.Has("relative_step")) s->relative_step = Positive(r.Get("relative_step"));
-  if (r.Has("threads")) s->threads = static_cast<int>(Integer(r.Get("threads"), 0, kIntMax));
+  if (r.Has("differences")) o->jacobian.central = Enum(r.Get("differences"), kDifferences) == 1;
+  if (r.Has("relative_step")) o->jacobian.relative_step = Positive(r.Get("relative_step"));
+  if (r.Has("threads")) o->threads = static_cast<int>(Integer(r.Get("threads"), 0, kIntMax));
   if (r.Has("loss")) {
     const MapReader l(*this, r.Get("loss"), {"type", "scale"});
-    s->loss.marks = l.marks();
-    if (l.Has("type")) s->loss.type = static_cast<LossType>(Enum(l.Get("type"), kLossTypes));
-    if (l.Has("scale")) s->loss.scale = Positive(l.Get("scale"));
+    if (l.Has("type")) o->loss = static_cast<LossType>(Enum(l.Get("type"), kLossTypes));
+    if (l.Has("scale")) o->loss_scale = Positive(l.Get("scale"));
   }
-  if (r.Has("verbose")) s->verbose = Bool(r.Get("verbose"));
+  if (r.Has("verbose")) o->verbose = Bool(r.Get("verbose"));
 }
 
 Excitation Parser::ParseExcitation(const Field& f, bool needs_actuator) const {

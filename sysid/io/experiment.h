@@ -21,6 +21,8 @@
 #include <string>
 #include <vector>
 
+#include "sysid/types.h"
+
 namespace mjsysid::io {
 
 // the schema version this loader reads (the optional top-level key `version`)
@@ -119,9 +121,6 @@ enum class ParameterTarget {
 const std::vector<std::string>& ParameterTargetKinds();
 const std::string& ParameterTargetName(ParameterTarget target);
 
-// the optimiser's variable for a parameter: x itself, log(x), or x / scale
-enum class Transform { kNone, kLog, kScale };
-
 // a Gaussian prior on a parameter (added as a residual (x - mean) / sigma)
 struct Prior {
   double mean = 0.0;
@@ -149,68 +148,11 @@ struct ParameterSpec {
   bool AppliesTo(const std::string& model_name) const;
 };
 
-// one measurement parameter of a sensor (delay in seconds, gain, bias)
-struct MeasurementTerm {
-  double initial = 0.0;
-  bool fit = false;
-  double lower = -std::numeric_limits<double>::infinity();
-  double upper = std::numeric_limits<double>::infinity();
+// measured = gain * simulated(t - delay) + bias, per sensor (sysid/types.h), with the YAML marks
+// of the entry and of each term's map
+struct MeasurementSpec : FitMeasurement {
   Marks marks;
-};
-
-// measured = gain * simulated(t - delay) + bias, per sensor
-struct MeasurementSpec {
-  std::string sensor;
-  MeasurementTerm delay{0.0, false, 0.0, std::numeric_limits<double>::infinity(), {}};
-  MeasurementTerm gain{1.0,
-                       false,
-                       -std::numeric_limits<double>::infinity(),
-                       std::numeric_limits<double>::infinity(),
-                       {}};
-  MeasurementTerm bias{0.0,
-                       false,
-                       -std::numeric_limits<double>::infinity(),
-                       std::numeric_limits<double>::infinity(),
-                       {}};
-  Marks marks;
-};
-
-// initial states of the sequences as free variables
-struct InitialStateOptions {
-  bool estimate = false;
-  Marks marks;
-};
-
-// segments of segment_steps steps with free initial states; 0 = single shooting
-struct MultipleShootingOptions {
-  int segment_steps = 0;
-  double continuity_weight = 1.0;  // > 0
-  Marks marks;
-};
-
-// how Jacobians are computed (auto: the core picks)
-enum class JacobianMode { kAuto, kDirectional, kMatrix, kWholeRollout, kCeresNumeric };
-enum class Differences { kForward, kCentral };
-enum class LossType { kNone, kHuber, kCauchy };
-
-struct LossOptions {
-  LossType type = LossType::kNone;
-  double scale = 1.0;  // > 0
-  Marks marks;
-};
-
-struct SolverOptions {
-  int max_iterations = 100;  // > 0
-  double function_tolerance = 1e-10;
-  double gradient_tolerance = 1e-10;
-  double parameter_tolerance = 1e-10;
-  JacobianMode jacobian = JacobianMode::kAuto;
-  Differences differences = Differences::kForward;
-  double relative_step = 1e-6;  // > 0
-  int threads = 0;              // 0 = all cores
-  LossOptions loss;
-  bool verbose = true;
-  Marks marks;
+  Marks delay_marks, gain_marks, bias_marks;
 };
 
 enum class ExcitationType { kSines, kChirp, kPrbs, kZero };
@@ -267,9 +209,11 @@ struct ExperimentConfig {
   std::vector<SensorSpec> sensors;  // empty = every sensor, weight 1
   std::vector<ParameterSpec> parameters;
   std::vector<MeasurementSpec> measurement;
-  InitialStateOptions initial_state;
-  MultipleShootingOptions multiple_shooting;
-  SolverOptions solver;
+  // the fit's options from the blocks `solver` (iterations, tolerances, jacobian, differences,
+  // relative_step, threads, loss, verbose), `initial_state` (estimate_initial_state) and
+  // `multiple_shooting` (segment_steps, continuity_weight); sensor weights are in `sensors`
+  FitOptions options;
+  Marks solver_marks;  // of the keys of the `solver` block
   SimulateOptions simulate;
   std::string output;  // absolute; default <base_dir>/results/<name>
   Marks marks;

@@ -76,7 +76,7 @@ void CheckSequenceMatrix(const RowMatrix& m, Eigen::Index rows, Eigen::Index col
   }
 }
 
-void CheckSequence(const ResultSequence& s, const std::string& file) {
+void CheckSequence(const SequenceResult& s, const std::string& file) {
   const std::string g = "/sequences/" + s.name;
   if (s.name.empty() || s.name == "." || s.name.find('/') != std::string::npos ||
       s.name.find('\0') != std::string::npos) {
@@ -119,12 +119,14 @@ void CheckMatrices(const FitResultFile& r, const std::string& file) {
   }
 
   // covariance np x np (or 0 x 0: not computed), jacobian nres x np (or 0 x 0)
-  const bool cov_empty = r.covariance.rows() == 0 && r.covariance.cols() == 0;
-  if (!cov_empty && (r.covariance.rows() != np || r.covariance.cols() != np)) {
+  const bool cov_empty =
+      r.uncertainty.covariance.rows() == 0 && r.uncertainty.covariance.cols() == 0;
+  if (!cov_empty &&
+      (r.uncertainty.covariance.rows() != np || r.uncertainty.covariance.cols() != np)) {
     Fail(file, "/covariance",
-         "has shape (" + std::to_string(r.covariance.rows()) + ", " +
-             std::to_string(r.covariance.cols()) + "), expected (" + nps + ", " + nps + ") for " +
-             nps + " parameters (or (0, 0))");
+         "has shape (" + std::to_string(r.uncertainty.covariance.rows()) + ", " +
+             std::to_string(r.uncertainty.covariance.cols()) + "), expected (" + nps + ", " + nps +
+             ") for " + nps + " parameters (or (0, 0))");
   }
   const bool jac_empty = r.jacobian.rows() == 0 && r.jacobian.cols() == 0;
   if (!jac_empty && r.jacobian.cols() != np) {
@@ -138,7 +140,7 @@ void CheckMatrices(const FitResultFile& r, const std::string& file) {
 void CheckArrays(const FitResultFile& r, const std::string& file) {
   CheckMatrices(r, file);
   std::set<std::string> seen;
-  for (const ResultSequence& s : r.sequences) {
+  for (const SequenceResult& s : r.sequences) {
     if (!seen.insert(s.name).second) {
       Fail(file, "/sequences/" + s.name, "two sequences are named " + Quote(s.name));
     }
@@ -171,9 +173,9 @@ std::string EmitYaml(const FitResultFile& r) {
   out << YAML::Key << "iterations" << YAML::Value << r.iterations;
   out << YAML::Key << "initial_cost" << YAML::Value << Number(r.initial_cost);
   out << YAML::Key << "final_cost" << YAML::Value << Number(r.final_cost);
-  out << YAML::Key << "residual_variance" << YAML::Value << Number(r.residual_variance);
+  out << YAML::Key << "residual_variance" << YAML::Value << Number(r.uncertainty.residual_variance);
   out << YAML::Key << "num_residuals" << YAML::Value << r.num_residuals;
-  out << YAML::Key << "wall_time_s" << YAML::Value << Number(r.wall_time_s);
+  out << YAML::Key << "wall_time_s" << YAML::Value << Number(r.seconds);
 
   // solver settings, as text
   out << YAML::Key << "solver" << YAML::Value << YAML::BeginMap;
@@ -182,7 +184,7 @@ std::string EmitYaml(const FitResultFile& r) {
 
   // parameters
   out << YAML::Key << "parameters" << YAML::Value << YAML::BeginSeq;
-  for (const ResultParameter& p : r.parameters) {
+  for (const ParameterEstimate& p : r.parameters) {
     out << YAML::BeginMap;
     out << YAML::Key << "name" << YAML::Value << p.name;
     out << YAML::Key << "value" << YAML::Value << Number(p.value);
@@ -202,7 +204,7 @@ std::string EmitYaml(const FitResultFile& r) {
 
   // lists of text, models
   const std::pair<const char*, const std::vector<std::string>*> lists[] = {
-      {"unidentifiable", &r.unidentifiable}, {"warnings", &r.warnings}};
+      {"unidentifiable", &r.uncertainty.unidentifiable}, {"warnings", &r.warnings}};
   for (const auto& [key, items] : lists) {
     out << YAML::Key << key << YAML::Value;
     if (items->empty()) out << YAML::Flow;
@@ -319,10 +321,10 @@ class YamlReader {
   std::string file_;
 };
 
-ResultParameter ReadParameter(const YamlReader& y, const YAML::Node& node, size_t index) {
+ParameterEstimate ReadParameter(const YamlReader& y, const YAML::Node& node, size_t index) {
   const std::string path = "parameters[" + std::to_string(index) + "]";
   if (!node.IsMap()) y.Fail(node, path, "expected a map, found " + YamlReader::Kind(node));
-  ResultParameter p;
+  ParameterEstimate p;
   p.name = y.Text(y.Get(node, "name", path + ".name"), path + ".name");
   const std::string& at = path;
   p.value = y.Double(y.Get(node, "value", at + ".value"), at + ".value");
@@ -406,13 +408,16 @@ void ReadYaml(const std::string& path, FitResultFile* r) {
                                                         {"mujoco_version", &r->mujoco_version},
                                                         {"jacobian_mode", &r->jacobian_mode}};
   for (const auto& [key, value] : texts) *value = y.Text(y.Get(root, key, key), key);
+  r->converged = r->status == "converged";
+  r->interrupted = r->status == "interrupted";
   const std::pair<const char*, int*> ints[] = {{"iterations", &r->iterations},
                                                {"num_residuals", &r->num_residuals}};
   for (const auto& [key, value] : ints) *value = y.Int(y.Get(root, key, key), key);
-  const std::pair<const char*, double*> doubles[] = {{"initial_cost", &r->initial_cost},
-                                                     {"final_cost", &r->final_cost},
-                                                     {"residual_variance", &r->residual_variance},
-                                                     {"wall_time_s", &r->wall_time_s}};
+  const std::pair<const char*, double*> doubles[] = {
+      {"initial_cost", &r->initial_cost},
+      {"final_cost", &r->final_cost},
+      {"residual_variance", &r->uncertainty.residual_variance},
+      {"wall_time_s", &r->seconds}};
   for (const auto& [key, value] : doubles) *value = y.Double(y.Get(root, key, key), key);
   r->solver = y.TextMap(y.Get(root, "solver", "solver"), "solver");
 
@@ -426,7 +431,8 @@ void ReadYaml(const std::string& path, FitResultFile* r) {
   }
 
   // lists, models
-  r->unidentifiable = y.Texts(y.Get(root, "unidentifiable", "unidentifiable"), "unidentifiable");
+  r->uncertainty.unidentifiable =
+      y.Texts(y.Get(root, "unidentifiable", "unidentifiable"), "unidentifiable");
   r->warnings = y.Texts(y.Get(root, "warnings", "warnings"), "warnings");
   r->identified_models =
       y.TextMap(y.Get(root, "identified_models", "identified_models"), "identified_models");
@@ -468,7 +474,7 @@ void WriteH5Parameters(hid_t root, const FitResultFile& r, const std::string& fi
   h5::Id group = h5::CreateGroup(root, "parameters", true, file, "/parameters");
   std::vector<std::string> names;
   std::vector<double> columns[5];
-  for (const ResultParameter& p : r.parameters) {
+  for (const ParameterEstimate& p : r.parameters) {
     names.push_back(p.name);
     const double values[5] = {p.value, p.initial, p.std_error, p.ci95_low, p.ci95_high};
     for (int i = 0; i < 5; ++i) columns[i].push_back(values[i]);
@@ -488,7 +494,7 @@ void WriteH5Trace(hid_t root, const FitResultFile& r, const std::string& file) {
   const size_t width = r.trace.empty() ? r.parameters.size() : r.trace[0].parameters.size();
   RowMatrix params(static_cast<Eigen::Index>(r.trace.size()), static_cast<Eigen::Index>(width));
   for (size_t i = 0; i < r.trace.size(); ++i) {
-    const ResultTraceEntry& e = r.trace[i];
+    const IterationInfo& e = r.trace[i];
     iteration.push_back(e.iteration);
     successful.push_back(e.successful ? 1 : 0);
     cost.push_back(e.cost);
@@ -509,7 +515,7 @@ void WriteH5Trace(hid_t root, const FitResultFile& r, const std::string& file) {
               "/trace/parameters");
 }
 
-void WriteH5Sequence(hid_t sequences, const ResultSequence& s, const std::string& file) {
+void WriteH5Sequence(hid_t sequences, const SequenceResult& s, const std::string& file) {
   const std::string g = "/sequences/" + s.name;
   h5::Id group = h5::CreateGroup(sequences, s.name, true, file, g);
   h5::WriteStringAttr(group.get(), "model", s.model, file, g);
@@ -538,7 +544,7 @@ void WriteH5(const std::string& tmp, const FitResultFile& r, const std::string& 
     WriteH5Parameters(root.get(), r, file);
 
     // covariance (np x np) and jacobian (nres x np); ColMajor covariance stored row-major
-    const RowMatrix cov = r.covariance;
+    const RowMatrix cov = r.uncertainty.covariance;
     WriteMatrix(root.get(), "covariance", cov.data(), cov.rows(), cov.cols(), file, "/covariance");
     WriteMatrix(root.get(), "jacobian", r.jacobian.data(), r.jacobian.rows(), r.jacobian.cols(),
                 file, "/jacobian");
@@ -547,7 +553,7 @@ void WriteH5(const std::string& tmp, const FitResultFile& r, const std::string& 
     // sequences, in order; each checked as it is written
     h5::Id seqs = h5::CreateGroup(root.get(), "sequences", true, file, "/sequences");
     std::set<std::string> seen;
-    for (const ResultSequence& s : r.sequences) {
+    for (const SequenceResult& s : r.sequences) {
       if (!seen.insert(s.name).second) {
         Fail(file, "/sequences/" + s.name, "two sequences are named " + Quote(s.name));
       }
@@ -603,7 +609,7 @@ void ReadH5Parameters(hid_t root, const std::string& file, const FitResultFile& 
   const std::vector<std::string> names =
       h5::ReadStrings(names_attr.get(), file, "/parameters attribute 'names'");
   std::vector<std::string> expected;
-  for (const ResultParameter& p : r.parameters) expected.push_back(p.name);
+  for (const ParameterEstimate& p : r.parameters) expected.push_back(p.name);
   if (names != expected) {
     Fail(file, "/parameters attribute 'names'",
          "the parameters differ from result.yaml's (" + std::to_string(names.size()) + " vs " +
@@ -636,7 +642,7 @@ void ReadH5Trace(hid_t root, const std::string& file, FitResultFile* r) {
       Fail(file, "/trace/iteration",
            "row " + std::to_string(i) + ": " + Number(cols[0][i]) + " is not an iteration number");
     }
-    ResultTraceEntry e;
+    IterationInfo e;
     e.iteration = static_cast<int>(cols[0][i]);
     e.cost = cols[1][i];
     e.step_norm = cols[2][i];
@@ -644,16 +650,16 @@ void ReadH5Trace(hid_t root, const std::string& file, FitResultFile* r) {
     e.seconds = cols[4][i];
     e.successful = cols[5][i] != 0;
     const auto row = params.row(static_cast<Eigen::Index>(i));
-    e.parameters.assign(row.data(), row.data() + row.size());
+    e.parameters = row.transpose();
     r->trace.push_back(std::move(e));
   }
 }
 
-ResultSequence ReadH5Sequence(hid_t sequences, const std::string& name, const std::string& file) {
+SequenceResult ReadH5Sequence(hid_t sequences, const std::string& name, const std::string& file) {
   const std::string g = "/sequences/" + name;
   h5::Id group = h5::Own(H5Gopen2(sequences, name.c_str(), H5P_DEFAULT), H5Gclose, file, g,
                          "cannot open group (not a group, or corrupt file?)");
-  ResultSequence s;
+  SequenceResult s;
   s.name = name;
   s.model = h5::ReadScalarString(group.get(), "model", file, g, "");
   {
@@ -711,7 +717,8 @@ void ReadH5(const std::string& path, FitResultFile* r) {
 
   // arrays
   ReadH5Parameters(root.get(), file, *r);
-  r->covariance = ToMatrix(ReadRequired(root.get(), "covariance", 2, file, "/covariance"));
+  r->uncertainty.covariance =
+      ToMatrix(ReadRequired(root.get(), "covariance", 2, file, "/covariance"));
   r->jacobian = ToMatrix(ReadRequired(root.get(), "jacobian", 2, file, "/jacobian"));
   ReadH5Trace(root.get(), file, r);
   h5::Id seqs = OpenGroup(root.get(), "sequences", file, "/sequences");

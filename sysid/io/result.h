@@ -28,6 +28,7 @@
 #include <vector>
 
 #include "core/state.h"
+#include "sysid/types.h"
 
 namespace mjsysid::io {
 
@@ -36,43 +37,17 @@ class ResultError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-struct ResultParameter {
-  std::string name;
-  double value = 0, initial = 0;
-  double std_error = 0;  // +inf when unidentifiable
-  double ci95_low = 0, ci95_high = 0;
-  bool at_lower = false, at_upper = false, identifiable = true;
-  std::optional<double> truth;  // from the experiment's simulate.truth, when known
-};
-
-struct ResultTraceEntry {
-  int iteration = 0;
-  double cost = 0, step_norm = 0, gradient_norm = 0, seconds = 0;
-  bool successful = true;
-  std::vector<double> parameters;  // np, physical values after the iteration
-};
-
-struct ResultSequence {
-  std::string name, model;
-  std::vector<std::string> sensor_names;  // fitted sensors
-  std::vector<int> sensor_dims;           // their dimensions; columns below are these, in order
-  Eigen::VectorXd time;                   // T
-  RowMatrix measured, simulated_initial, simulated_final;  // T x sum(sensor_dims)
-};
-
-struct FitResultFile {
-  std::string name, experiment, status, termination, created;
-  std::string mjsysid_version, mujoco_version, jacobian_mode;
-  int iterations = 0, num_residuals = 0;
-  double initial_cost = 0, final_cost = 0, residual_variance = 0, wall_time_s = 0;
-  std::map<std::string, std::string> solver;
-  std::vector<ResultParameter> parameters;
-  std::vector<std::string> unidentifiable, warnings;
+// A fit's result as stored: the fit itself (sysid/types.h) and what the run adds about it.
+// Of FitResult the files keep: parameters (truth included), initial_cost, final_cost,
+// iterations, termination, num_residuals, jacobian_mode, seconds (wall_time_s),
+// uncertainty.{residual_variance, unidentifiable, covariance}, jacobian, trace, sequences
+// (x0_final excepted), warnings; converged and interrupted are read back from status.
+struct FitResultFile : FitResult {
+  std::string name, experiment, created;
+  std::string status;  // running, converged, not_converged, interrupted
+  std::string mjsysid_version, mujoco_version;
+  std::map<std::string, std::string> solver;             // setting -> value as text
   std::map<std::string, std::string> identified_models;  // model name -> file name in DIR
-  std::vector<ResultTraceEntry> trace;
-  Eigen::MatrixXd covariance;  // np x np
-  RowMatrix jacobian;          // nres x np
-  std::vector<ResultSequence> sequences;
 };
 
 void WriteResultYaml(const std::string& path, const FitResultFile& result);

@@ -42,28 +42,6 @@ std::string NowIso() {
   return buf;
 }
 
-FitOptions::Loss LossOf(io::LossType t) {
-  switch (t) {
-    case io::LossType::kHuber:
-      return FitOptions::Loss::kHuber;
-    case io::LossType::kCauchy:
-      return FitOptions::Loss::kCauchy;
-    default:
-      return FitOptions::Loss::kNone;
-  }
-}
-
-const char* LossName(io::LossType t) {
-  switch (t) {
-    case io::LossType::kHuber:
-      return "huber";
-    case io::LossType::kCauchy:
-      return "cauchy";
-    default:
-      return "none";
-  }
-}
-
 // the model a log sequence belongs to: the only one, or the one its "<model>_" prefix names
 int ModelOfSequence(const io::ExperimentConfig& cfg, const std::string& seq,
                     const std::string& file) {
@@ -111,26 +89,16 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
     fp.initial = p.initial;
     fp.lower = p.lower;
     fp.upper = p.upper;
-    fp.transform = p.transform == io::Transform::kLog     ? Transform::kLog
-                   : p.transform == io::Transform::kScale ? Transform::kScale
-                                                          : Transform::kNone;
+    fp.transform = p.transform;
     fp.scale = p.scale;
     if (p.prior) fp.Prior(p.prior->mean, p.prior->sigma);
     fp.models = p.models;
     out.problem->AddParameter(fp);
     out.parameters.push_back(fp);
   }
-  for (const io::MeasurementSpec& me : cfg.measurement) {
-    FitMeasurement fm;
-    fm.sensor = me.sensor;
-    auto term = [](const io::MeasurementTerm& t) {
-      return FitMeasurement::Term{t.initial, t.fit, t.lower, t.upper};
-    };
-    fm.delay = term(me.delay);
-    fm.gain = term(me.gain);
-    fm.bias = term(me.bias);
-    out.problem->AddMeasurement(fm);
-    out.measurements.push_back(fm);
+  for (const FitMeasurement& me : cfg.measurement) {
+    out.problem->AddMeasurement(me);
+    out.measurements.push_back(me);
   }
 
   // sequences from the logs
@@ -203,60 +171,29 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
         if (s.qvel.rows() > 0) fs_.x0.qvel = s.qvel.row(0).transpose();
         if (s.act.rows() > 0) fs_.x0.act = s.act.row(0).transpose();
         fs_.x0.time = s.time[0];
-        if (s.qpos.rows() == 0 && !cfg.initial_state.estimate) {
+        if (s.qpos.rows() == 0 && !cfg.options.estimate_initial_state) {
           out.warnings.push_back(where +
                                  ": the log has no qpos: the fit starts from the model's "
                                  "reference state (set initial_state: {estimate: true} to fit it)");
         }
-        out.sequence_names.push_back(s.name);
-        out.sensors.push_back(fs_.sensors);
-        out.times.push_back(s.time.head(T));
+        fs_.time = s.time.head(T);
         out.problem->AddSequence(fs_);
         out.sequences.push_back(fs_);
       }
     }
   }
-  if (out.sequence_names.empty()) {
+  if (out.sequences.empty()) {
     throw io::ConfigError(cfg.marks.Of("sequences"), "no log sequence selected",
                           "check `sequences:` against the group names in the logs");
   }
 
-  // options
-  const io::SolverOptions& so = cfg.solver;
+  // options: the experiment's, the threads resolved, the sensors' weights
   FitOptions& o = out.options;
-  o.max_iterations = so.max_iterations;
-  o.function_tolerance = so.function_tolerance;
-  o.gradient_tolerance = so.gradient_tolerance;
-  o.parameter_tolerance = so.parameter_tolerance;
-  switch (so.jacobian) {
-    case io::JacobianMode::kDirectional:
-      o.jacobian.mode = JacobianMode::kDirectional;
-      break;
-    case io::JacobianMode::kMatrix:
-      o.jacobian.mode = JacobianMode::kMatrix;
-      break;
-    case io::JacobianMode::kWholeRollout:
-      o.jacobian.mode = JacobianMode::kWholeRollout;
-      break;
-    case io::JacobianMode::kCeresNumeric:
-      throw io::ConfigError(so.marks.Of("jacobian"),
-                            "jacobian: ceres_numeric is a benchmark baseline, not a fit mode",
-                            "use auto, directional, matrix or whole_rollout");
-    default:
-      o.jacobian.mode = JacobianMode::kAuto;
-  }
-  o.jacobian.central = so.differences == io::Differences::kCentral;
-  o.jacobian.relative_step = so.relative_step;
-  o.threads = threads >= 0 ? threads : so.threads;
+  o = cfg.options;
+  o.threads = threads >= 0 ? threads : cfg.options.threads;
   if (o.threads <= 0)
     o.threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  o.loss = LossOf(so.loss.type);
-  o.loss_scale = so.loss.scale;
-  o.verbose = so.verbose;
   for (const io::SensorSpec& ss : cfg.sensors) o.sensor_weights[ss.name] = ss.ResidualWeight();
-  o.estimate_initial_state = cfg.initial_state.estimate;
-  o.segment_steps = cfg.multiple_shooting.segment_steps;
-  o.continuity_weight = cfg.multiple_shooting.continuity_weight;
   return out;
 }
 
@@ -416,7 +353,7 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
       {"differences", options.jacobian.central ? "central" : "forward"},
       {"relative_step", Num(options.jacobian.relative_step)},
       {"threads", std::to_string(options.threads)},
-      {"loss", LossName(cfg.solver.loss.type)},
+      {"loss", LossTypeName(options.loss)},
       {"loss_scale", Num(options.loss_scale)},
       {"estimate_initial_state", options.estimate_initial_state ? "true" : "false"},
       {"segment_steps", std::to_string(options.segment_steps)},
@@ -444,13 +381,13 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
     cp.iterations = it.iteration;
     cp.final_cost = it.cost;
     for (int i = 0; i < it.parameters.size() && i < static_cast<int>(names.size()); ++i) {
-      io::ResultParameter rp;
-      rp.name = names[i];
-      rp.value = it.parameters[i];
-      rp.std_error = std::numeric_limits<double>::quiet_NaN();
-      rp.ci95_low = rp.ci95_high = std::numeric_limits<double>::quiet_NaN();
-      if (truth.count(rp.name)) rp.truth = truth[rp.name];
-      cp.parameters.push_back(rp);
+      ParameterEstimate e;
+      e.name = names[i];
+      e.value = it.parameters[i];
+      e.std_error = std::numeric_limits<double>::quiet_NaN();
+      e.ci95_low = e.ci95_high = std::numeric_limits<double>::quiet_NaN();
+      if (truth.count(e.name)) e.truth = truth[e.name];
+      cp.parameters.push_back(e);
     }
     io::WriteResultYaml(yaml_path, cp);
   };
@@ -458,77 +395,15 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   // fit
   for (const std::string& w : bp.warnings)
     std::fprintf(stderr, "sysid fit: warning: %s\n", w.c_str());
-  out.fit = bp.problem->Fit(options);
-  const FitResult& r = out.fit;
+  static_cast<FitResult&>(file) = bp.problem->Fit(options);
+  const FitResult& r = file;
 
-  // results
+  // results: the fit as it came, the truth where known, the run's warnings first
   file.status = r.interrupted ? "interrupted" : r.converged ? "converged" : "not_converged";
-  file.termination = r.termination;
-  file.jacobian_mode = r.jacobian_mode;
-  file.iterations = r.iterations;
-  file.num_residuals = r.num_residuals;
-  file.initial_cost = r.initial_cost;
-  file.final_cost = r.final_cost;
-  file.residual_variance = r.uncertainty.residual_variance;
-  file.wall_time_s = r.seconds;
-  for (const ParameterEstimate& e : r.parameters) {
-    io::ResultParameter rp;
-    rp.name = e.name;
-    rp.value = e.value;
-    rp.initial = e.initial;
-    rp.std_error = e.std_error;
-    rp.ci95_low = e.ci95_low;
-    rp.ci95_high = e.ci95_high;
-    rp.at_lower = e.at_lower;
-    rp.at_upper = e.at_upper;
-    rp.identifiable = e.identifiable;
-    if (truth.count(e.name)) rp.truth = truth[e.name];
-    file.parameters.push_back(rp);
+  for (ParameterEstimate& e : file.parameters) {
+    if (truth.count(e.name)) e.truth = truth[e.name];
   }
-  file.unidentifiable = r.uncertainty.unidentifiable;
-  file.warnings = bp.warnings;
-  file.warnings.insert(file.warnings.end(), r.warnings.begin(), r.warnings.end());
-  for (const IterationInfo& it : r.trace) {
-    io::ResultTraceEntry te;
-    te.iteration = it.iteration;
-    te.cost = it.cost;
-    te.step_norm = it.step_norm;
-    te.gradient_norm = it.gradient_norm;
-    te.seconds = it.seconds;
-    te.successful = it.successful;
-    te.parameters.assign(it.parameters.data(), it.parameters.data() + it.parameters.size());
-    file.trace.push_back(te);
-  }
-  file.covariance = r.uncertainty.covariance;
-  file.jacobian = r.jacobian;
-  // signals: the fitted sensor columns of each sequence
-  for (size_t q = 0; q < r.sequences.size(); ++q) {
-    const SequenceResult& sr = r.sequences[q];
-    const int mi = static_cast<int>(
-        std::find(bp.model_names.begin(), bp.model_names.end(), sr.model) - bp.model_names.begin());
-    const mjModel& m = *bp.models[mi];
-    io::ResultSequence rs;
-    rs.name = sr.name;
-    rs.model = sr.model;
-    rs.time = bp.times[q];
-    std::vector<int> cols;
-    for (const std::string& s : bp.sensors[q]) {
-      const int id = mj_name2id(&m, mjOBJ_SENSOR, s.c_str());
-      rs.sensor_names.push_back(s);
-      rs.sensor_dims.push_back(m.sensor_dim[id]);
-      for (int c = 0; c < m.sensor_dim[id]; ++c) cols.push_back(m.sensor_adr[id] + c);
-    }
-    const Eigen::Index T = sr.measured.rows();
-    rs.measured.resize(T, cols.size());
-    rs.simulated_initial.resize(T, cols.size());
-    rs.simulated_final.resize(T, cols.size());
-    for (size_t c = 0; c < cols.size(); ++c) {
-      rs.measured.col(c) = sr.measured.col(cols[c]);
-      rs.simulated_initial.col(c) = sr.simulated_initial.col(cols[c]);
-      rs.simulated_final.col(c) = sr.simulated_final.col(cols[c]);
-    }
-    file.sequences.push_back(std::move(rs));
-  }
+  file.warnings.insert(file.warnings.begin(), bp.warnings.begin(), bp.warnings.end());
   // identified models
   for (size_t i = 0; i < cfg.models.size(); ++i) {
     const std::string fname = cfg.models[i].name + "_identified.xml";

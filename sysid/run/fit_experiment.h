@@ -30,9 +30,6 @@ struct BuiltProblem {
   FitOptions options;
   std::vector<std::string> model_names;
   std::vector<ModelPtr> models;  // as loaded (before any fit)
-  std::vector<std::string> sequence_names;
-  std::vector<std::vector<std::string>> sensors;  // fitted sensors of each sequence
-  std::vector<Eigen::VectorXd> times;             // sample times of each sequence
   std::vector<std::string> warnings;
   // what was added to the problem, for programs that build their own fit of the same data
   // (tools/bench): parameters, measurement terms and sequences, in the order added
@@ -52,8 +49,7 @@ struct FitRunOptions {
 };
 
 struct FitRunOutcome {
-  FitResult fit;
-  io::FitResultFile file;
+  io::FitResultFile file;  // the fit (a FitResult) and what the run adds
   std::string out_dir;
   int exit_code = 0;  // 0 converged, 1 not converged, interrupted or failed
 };

@@ -285,7 +285,7 @@ TEST(FitStressTest, OutliersWithRobustLosses) {
   std::uniform_int_distribution<Eigen::Index> pick(0, y.size() - 1);
   const Eigen::Index n_out = y.size() / 20;
   for (Eigen::Index i = 0; i < n_out; ++i) y.data()[pick(rng)] += (i % 2 ? 0.5 : -0.5);
-  auto fit = [&](FitOptions::Loss loss, double start_mass, double start_damping) {
+  auto fit = [&](LossType loss, double start_mass, double start_damping) {
     Problem problem;
     problem.AddModel("cp", *m);
     problem.AddParameter(
@@ -301,12 +301,12 @@ TEST(FitStressTest, OutliersWithRobustLosses) {
     }
     return problem.Fit(opt);
   };
-  const FitResult huber = fit(FitOptions::Loss::kHuber, 0.5, 2.0);
-  const FitResult cauchy_far = fit(FitOptions::Loss::kCauchy, 0.5, 2.0);
+  const FitResult huber = fit(LossType::kHuber, 0.5, 2.0);
+  const FitResult cauchy_far = fit(LossType::kCauchy, 0.5, 2.0);
   // the usual two-stage use of a redescending loss: Cauchy started from the Huber estimate
-  const FitResult cauchy = fit(FitOptions::Loss::kCauchy, Estimate(huber, "pole_mass").value,
-                               Estimate(huber, "damping").value);
-  const FitResult plain = fit(FitOptions::Loss::kNone, 0.5, 2.0);
+  const FitResult cauchy =
+      fit(LossType::kCauchy, Estimate(huber, "pole_mass").value, Estimate(huber, "damping").value);
+  const FitResult plain = fit(LossType::kNone, 0.5, 2.0);
   const double eh = stress::WorstRelativeError(huber, truth);
   const double ef = stress::WorstRelativeError(cauchy_far, truth);
   const double ec = stress::WorstRelativeError(cauchy, truth);

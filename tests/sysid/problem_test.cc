@@ -405,7 +405,7 @@ TEST(RecoveryTest, RobustLossRejectsOutliers) {
   std::mt19937_64 rng(3);
   std::uniform_int_distribution<int> row(0, 999);
   for (int i = 0; i < 20; ++i) y(row(rng), 0) += (i % 2 ? 1.0 : -1.0);
-  auto fit = [&](FitOptions::Loss loss) {
+  auto fit = [&](LossType loss) {
     Problem problem;
     problem.AddModel("spring", *m);
     problem.AddParameter(FitParameter("m", truth[0].spec, 2.0).Bounds(1e-3, 100).Log());
@@ -415,8 +415,8 @@ TEST(RecoveryTest, RobustLossRejectsOutliers) {
     opt.loss_scale = 0.05;
     return Estimate(problem.Fit(opt), "m").value;
   };
-  const double huber = fit(FitOptions::Loss::kHuber), cauchy = fit(FitOptions::Loss::kCauchy);
-  const double plain = fit(FitOptions::Loss::kNone);
+  const double huber = fit(LossType::kHuber), cauchy = fit(LossType::kCauchy);
+  const double plain = fit(LossType::kNone);
   std::printf("[ measured ] mass with outliers: huber %.6f cauchy %.6f plain %.6f (truth 1)\n",
               huber, cauchy, plain);
   EXPECT_NEAR(huber, 1.0, 1e-3);

@@ -67,11 +67,11 @@ io::FitResultFile Result(Eigen::Index samples = 600) {
   r.num_residuals = static_cast<int>(2 * samples);
   r.initial_cost = 12.5;
   r.final_cost = 0.0031;
-  r.residual_variance = 2.6e-6;
-  r.wall_time_s = 1.75;
+  r.uncertainty.residual_variance = 2.6e-6;
+  r.seconds = 1.75;
   r.solver = {{"max_iterations", "100"}, {"function_tolerance", "1e-10"}};
 
-  io::ResultParameter damping;
+  ParameterEstimate damping;
   damping.name = "damping";
   damping.initial = 0.2;
   damping.value = 0.0803;
@@ -79,7 +79,7 @@ io::FitResultFile Result(Eigen::Index samples = 600) {
   damping.ci95_low = damping.value - 1.96 * damping.std_error;
   damping.ci95_high = damping.value + 1.96 * damping.std_error;
   damping.truth = 0.08;
-  io::ResultParameter mass;
+  ParameterEstimate mass;
   mass.name = "bob_mass";
   mass.initial = 1.0;
   mass.value = 1.37;
@@ -89,24 +89,25 @@ io::FitResultFile Result(Eigen::Index samples = 600) {
   mass.identifiable = false;
   mass.truth = 1.2;
   r.parameters = {damping, mass};
-  r.unidentifiable = {"bob_mass (no sensor sees the mass: singular value 3e-15)"};
+  r.uncertainty.unidentifiable = {"bob_mass (no sensor sees the mass: singular value 3e-15)"};
   r.warnings = {"sequence seq0: sensor 'rate' saturates at 10 rad/s <check>"};
 
   // cost and parameters converging over the iterations; one rejected step
   for (int i = 0; i <= 6; ++i) {
-    io::ResultTraceEntry e;
+    IterationInfo e;
     e.iteration = i;
     e.cost = 12.5 * std::pow(0.25, i * i / 2.0) + 0.0031;
     e.step_norm = 0.5 / (i + 1);
     e.gradient_norm = std::exp(-2.0 * i);
     e.seconds = 0.25 * (i + 1);
     e.successful = i != 3;
-    e.parameters = {0.08 + 0.12 * std::exp(-1.2 * i), 1.0 + 0.37 * (1 - std::exp(-0.8 * i))};
+    e.parameters =
+        Eigen::Vector2d(0.08 + 0.12 * std::exp(-1.2 * i), 1.0 + 0.37 * (1 - std::exp(-0.8 * i)));
     r.trace.push_back(e);
   }
 
   // a swinging pendulum: angle and rate, before and after the fit
-  io::ResultSequence s;
+  SequenceResult s;
   s.name = "seq0";
   s.model = "pendulum";
   s.sensor_names = {"angle", "rate"};
@@ -127,8 +128,8 @@ io::FitResultFile Result(Eigen::Index samples = 600) {
     s.simulated_final(k, 1) = 5.0 * Swing(t + 0.3, 0.8, 0.3);
   }
   r.sequences = {s};
-  r.covariance = Eigen::MatrixXd::Identity(2, 2);
-  r.covariance(1, 1) = kInf;
+  r.uncertainty.covariance = Eigen::MatrixXd::Identity(2, 2);
+  r.uncertainty.covariance(1, 1) = kInf;
   return r;
 }
 
@@ -263,7 +264,7 @@ TEST_F(ReportTest, WritesAPageAndPlotsFromTheResultFiles) {
 TEST_F(ReportTest, LongSequencesAreDecimatedAndManyColumnsTiled) {
   io::FitResultFile r = Result(200000);
   r.trace.clear();  // no trace: first and last values only
-  io::ResultSequence& s = r.sequences[0];
+  SequenceResult& s = r.sequences[0];
   s.name = "long run/1";
   // a one-sample spike survives decimation: it sets the y range of the angle panel
   s.measured(123457, 0) = 40;

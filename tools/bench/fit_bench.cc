@@ -268,7 +268,7 @@ std::string NumDiffUnsupported(const run::BuiltProblem& b) {
   if (b.options.segment_steps > 0) return "multiple shooting";
   if (b.options.estimate_initial_state) return "initial-state estimation";
   if (!b.measurements.empty()) return "measurement terms";
-  if (b.options.loss != FitOptions::Loss::kNone) return "per-residual robust loss";
+  if (b.options.loss != LossType::kNone) return "per-residual robust loss";
   for (const FitParameter& p : b.parameters) {
     if (p.has_prior) return "priors";
   }

@@ -25,8 +25,8 @@ namespace mjsysid::report {
 namespace {
 
 using io::FitResultFile;
-using io::ResultParameter;
-using io::ResultSequence;
+using mjsysid::ParameterEstimate;
+using mjsysid::SequenceResult;
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr int kMaxPoints = 2000;  // per plotted line
@@ -493,7 +493,7 @@ constexpr int kSeqWidth = 1200, kSeqPanelHeight = 230, kSeqHeaderHeight = 76;
 void DrawCost(Canvas& c, const FitResultFile& r) {
   // the trace, or the first and last cost without one
   std::vector<double> xs, ys, bad_x, bad_y;
-  for (const io::ResultTraceEntry& e : r.trace) {
+  for (const IterationInfo& e : r.trace) {
     xs.push_back(e.iteration);
     ys.push_back(e.cost);
     if (!e.successful) {
@@ -536,10 +536,10 @@ int ParamRows(const FitResultFile& r) {
 
 // one parameter: its values over the iterations, the final value with its interval, the truth
 void DrawParameter(Canvas& c, const FitResultFile& r, size_t j, const Box& box) {
-  const ResultParameter& par = r.parameters[j];
+  const ParameterEstimate& par = r.parameters[j];
   std::vector<double> xs, ys;
-  for (const io::ResultTraceEntry& e : r.trace) {
-    if (e.parameters.size() != r.parameters.size()) continue;
+  for (const IterationInfo& e : r.trace) {
+    if (e.parameters.size() != static_cast<Eigen::Index>(r.parameters.size())) continue;
     xs.push_back(e.iteration);
     ys.push_back(e.parameters[j]);
   }
@@ -607,7 +607,7 @@ void DrawParameters(Canvas& c, const FitResultFile& r) {
 }
 
 // the column labels of a sequence: the sensor name, with [i] for multi-column sensors
-std::vector<std::string> ColumnLabels(const ResultSequence& s) {
+std::vector<std::string> ColumnLabels(const SequenceResult& s) {
   std::vector<std::string> out;
   for (size_t i = 0; i < s.sensor_names.size() && i < s.sensor_dims.size(); ++i) {
     for (int k = 0; k < s.sensor_dims[i]; ++k) {
@@ -621,13 +621,13 @@ std::vector<std::string> ColumnLabels(const ResultSequence& s) {
   return out;
 }
 
-int SeqColumns(const ResultSequence& s) { return s.measured.cols() > 4 ? 2 : 1; }
-int SeqRows(const ResultSequence& s) {
+int SeqColumns(const SequenceResult& s) { return s.measured.cols() > 4 ? 2 : 1; }
+int SeqRows(const SequenceResult& s) {
   const auto n = static_cast<int>(std::max<Eigen::Index>(1, s.measured.cols()));
   return (n + SeqColumns(s) - 1) / SeqColumns(s);
 }
 
-void DrawSequence(Canvas& c, const ResultSequence& s) {
+void DrawSequence(Canvas& c, const SequenceResult& s) {
   // header: what this is, and the legend
   const Eigen::Index samples = s.time.size();
   std::string header = "sequence " + s.name;
@@ -741,7 +741,7 @@ void ParameterSection(std::ostringstream& h, const FitResultFile& r) {
     h << "<table class=\"params\">\n<tr><th>parameter</th><th>initial</th><th>value</th>"
          "<th>std</th><th>rel. std</th><th>95% CI</th><th>truth</th><th>truth in CI</th>"
          "<th>flags</th></tr>\n";
-    for (const ResultParameter& p : r.parameters) {
+    for (const ParameterEstimate& p : r.parameters) {
       h << "<tr" << (p.identifiable ? "" : " class=\"unid\"") << "><td>" << HtmlEscape(p.name)
         << "</td><td class=\"n\">" << HtmlNum(p.initial) << "</td><td class=\"n\"><b>"
         << HtmlNum(p.value) << "</b></td><td class=\"n\">" << HtmlNum(p.std_error, 3)
@@ -761,11 +761,12 @@ void ParameterSection(std::ostringstream& h, const FitResultFile& r) {
     h << "</table>\n";
   }
   h << "<h3>Unidentifiable combinations</h3>\n";
-  if (r.unidentifiable.empty()) {
+  if (r.uncertainty.unidentifiable.empty()) {
     h << "<p class=\"muted\">none: the data determine every parameter</p>\n";
   } else {
     h << "<ul>\n";
-    for (const std::string& u : r.unidentifiable) h << "<li>" << HtmlEscape(u) << "</li>\n";
+    for (const std::string& u : r.uncertainty.unidentifiable)
+      h << "<li>" << HtmlEscape(u) << "</li>\n";
     h << "</ul>\n";
   }
 }
@@ -792,9 +793,9 @@ std::string Html(const FitResultFile& r, const std::vector<std::string>& sequenc
       {"initial cost", HtmlNum(r.initial_cost)},
       {"final cost", HtmlNum(r.final_cost) + " <span class=\"muted\">(" + HtmlNum(ratio, 3) +
                          " of the initial)</span>"},
-      {"residual variance", HtmlNum(r.residual_variance)},
+      {"residual variance", HtmlNum(r.uncertainty.residual_variance)},
       {"residuals", std::to_string(r.num_residuals)},
-      {"wall time", HtmlNum(r.wall_time_s, 4) + " s"},
+      {"wall time", HtmlNum(r.seconds, 4) + " s"},
       {"jacobian", HtmlEscape(r.jacobian_mode)},
       {"versions",
        "mjsysid " + HtmlEscape(r.mjsysid_version) + ", MuJoCo " + HtmlEscape(r.mujoco_version)}};
@@ -901,7 +902,7 @@ std::string ParametersPng(const FitResultFile& result) {
   return EncodePng(c.image());
 }
 
-std::string SequencePng(const FitResultFile&, const ResultSequence& sequence) {
+std::string SequencePng(const FitResultFile&, const SequenceResult& sequence) {
   RasterCanvas c(kSeqWidth, kSeqHeaderHeight + SeqRows(sequence) * kSeqPanelHeight);
   DrawSequence(c, sequence);
   return EncodePng(c.image());
@@ -909,7 +910,7 @@ std::string SequencePng(const FitResultFile&, const ResultSequence& sequence) {
 
 std::string ReportHtml(const FitResultFile& result) {
   std::vector<std::string> pngs;
-  for (const ResultSequence& s : result.sequences) pngs.push_back(SequencePng(result, s));
+  for (const SequenceResult& s : result.sequences) pngs.push_back(SequencePng(result, s));
   return Html(result, pngs);
 }
 
@@ -927,7 +928,7 @@ int WriteReport(const FitResultFile& result, const std::string& dir, std::string
   written.push_back("parameters.png");
   std::vector<std::string> pngs;
   std::set<std::string> names;
-  for (const ResultSequence& s : result.sequences) {
+  for (const SequenceResult& s : result.sequences) {
     // two names that sanitize alike: _2, _3, ...
     std::string file = SequenceFileName(s.name);
     for (int k = 2; !names.insert(file).second; ++k) {
@@ -944,7 +945,7 @@ int WriteReport(const FitResultFile& result, const std::string& dir, std::string
     // a few lines for the terminal
     size_t unidentifiable = 0;
     std::string unid_names;
-    for (const ResultParameter& p : result.parameters) {
+    for (const ParameterEstimate& p : result.parameters) {
       if (p.identifiable) continue;
       unid_names += (unidentifiable++ ? ", " : "") + p.name;
     }

@@ -44,7 +44,7 @@ int WriteReport(const io::FitResultFile& result, const std::string& dir, std::st
 std::string ReportHtml(const io::FitResultFile& result);  // the page, PNGs embedded
 std::string CostPng(const io::FitResultFile& result);
 std::string ParametersPng(const io::FitResultFile& result);
-std::string SequencePng(const io::FitResultFile& result, const io::ResultSequence& sequence);
+std::string SequencePng(const io::FitResultFile& result, const SequenceResult& sequence);
 // "seq_<name>.png", sanitized as above
 std::string SequenceFileName(const std::string& sequence_name);
 

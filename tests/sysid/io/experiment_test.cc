@@ -206,21 +206,21 @@ output: results/pendulum
   EXPECT_TRUE(ms.bias.fit);
   EXPECT_EQ(ms.bias.lower, -kInf);
 
-  EXPECT_TRUE(c.initial_state.estimate);
-  EXPECT_EQ(c.multiple_shooting.segment_steps, 50);
-  EXPECT_DOUBLE_EQ(c.multiple_shooting.continuity_weight, 2.5);
+  EXPECT_TRUE(c.options.estimate_initial_state);
+  EXPECT_EQ(c.options.segment_steps, 50);
+  EXPECT_DOUBLE_EQ(c.options.continuity_weight, 2.5);
 
-  EXPECT_EQ(c.solver.max_iterations, 30);
-  EXPECT_DOUBLE_EQ(c.solver.function_tolerance, 1e-8);
-  EXPECT_DOUBLE_EQ(c.solver.gradient_tolerance, 1e-9);
-  EXPECT_DOUBLE_EQ(c.solver.parameter_tolerance, 1e-7);
-  EXPECT_EQ(c.solver.jacobian, JacobianMode::kWholeRollout);
-  EXPECT_EQ(c.solver.differences, Differences::kCentral);
-  EXPECT_DOUBLE_EQ(c.solver.relative_step, 1e-5);
-  EXPECT_EQ(c.solver.threads, 4);
-  EXPECT_EQ(c.solver.loss.type, LossType::kHuber);
-  EXPECT_DOUBLE_EQ(c.solver.loss.scale, 0.2);
-  EXPECT_FALSE(c.solver.verbose);
+  EXPECT_EQ(c.options.max_iterations, 30);
+  EXPECT_DOUBLE_EQ(c.options.function_tolerance, 1e-8);
+  EXPECT_DOUBLE_EQ(c.options.gradient_tolerance, 1e-9);
+  EXPECT_DOUBLE_EQ(c.options.parameter_tolerance, 1e-7);
+  EXPECT_EQ(c.options.jacobian.mode, JacobianMode::kWholeRollout);
+  EXPECT_TRUE(c.options.jacobian.central);
+  EXPECT_DOUBLE_EQ(c.options.jacobian.relative_step, 1e-5);
+  EXPECT_EQ(c.options.threads, 4);
+  EXPECT_EQ(c.options.loss, LossType::kHuber);
+  EXPECT_DOUBLE_EQ(c.options.loss_scale, 0.2);
+  EXPECT_FALSE(c.options.verbose);
 
   const SimulateOptions& s = c.simulate;
   ASSERT_EQ(s.truth.size(), 2u);
@@ -258,20 +258,20 @@ TEST_F(ExperimentTest, MinimalFileGetsTheDefaults) {
   EXPECT_EQ(p.transform, Transform::kNone);
   EXPECT_DOUBLE_EQ(p.scale, 1.0);
   EXPECT_TRUE(c.measurement.empty());
-  EXPECT_FALSE(c.initial_state.estimate);
-  EXPECT_EQ(c.multiple_shooting.segment_steps, 0);
-  EXPECT_DOUBLE_EQ(c.multiple_shooting.continuity_weight, 1.0);
-  EXPECT_EQ(c.solver.max_iterations, 100);
-  EXPECT_DOUBLE_EQ(c.solver.function_tolerance, 1e-10);
-  EXPECT_DOUBLE_EQ(c.solver.gradient_tolerance, 1e-10);
-  EXPECT_DOUBLE_EQ(c.solver.parameter_tolerance, 1e-10);
-  EXPECT_EQ(c.solver.jacobian, JacobianMode::kAuto);
-  EXPECT_EQ(c.solver.differences, Differences::kForward);
-  EXPECT_DOUBLE_EQ(c.solver.relative_step, 1e-6);
-  EXPECT_EQ(c.solver.threads, 0);
-  EXPECT_EQ(c.solver.loss.type, LossType::kNone);
-  EXPECT_DOUBLE_EQ(c.solver.loss.scale, 1.0);
-  EXPECT_TRUE(c.solver.verbose);
+  EXPECT_FALSE(c.options.estimate_initial_state);
+  EXPECT_EQ(c.options.segment_steps, 0);
+  EXPECT_DOUBLE_EQ(c.options.continuity_weight, 1.0);
+  EXPECT_EQ(c.options.max_iterations, 100);
+  EXPECT_DOUBLE_EQ(c.options.function_tolerance, 1e-10);
+  EXPECT_DOUBLE_EQ(c.options.gradient_tolerance, 1e-10);
+  EXPECT_DOUBLE_EQ(c.options.parameter_tolerance, 1e-10);
+  EXPECT_EQ(c.options.jacobian.mode, JacobianMode::kAuto);
+  EXPECT_FALSE(c.options.jacobian.central);
+  EXPECT_DOUBLE_EQ(c.options.jacobian.relative_step, 1e-6);
+  EXPECT_EQ(c.options.threads, 0);
+  EXPECT_EQ(c.options.loss, LossType::kNone);
+  EXPECT_DOUBLE_EQ(c.options.loss_scale, 1.0);
+  EXPECT_TRUE(c.options.verbose);
   EXPECT_EQ(c.simulate.marks.self.line, 0);
   EXPECT_EQ(c.simulate.sequences, 2);
   EXPECT_EQ(c.simulate.steps, 2000);
@@ -564,8 +564,7 @@ solver:
   jacobian: matrx
 )",
               5, 13, "solver.jacobian: 'matrx' is not one of",
-              "did you mean 'matrix'? allowed values: auto, directional, matrix, whole_rollout, "
-              "ceres_numeric");
+              "did you mean 'matrix'? allowed values: auto, directional, matrix, whole_rollout");
   ExpectError(R"(model: pendulum.xml
 sensor_time: during
 parameters:

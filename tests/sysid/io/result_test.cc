@@ -96,9 +96,9 @@ RowMatrix Matrix(Eigen::Index rows, Eigen::Index cols, int seed) {
   return m;
 }
 
-ResultSequence Sequence(const std::string& name, std::vector<std::string> sensors,
+SequenceResult Sequence(const std::string& name, std::vector<std::string> sensors,
                         std::vector<int> dims, Eigen::Index samples, int seed) {
-  ResultSequence s;
+  SequenceResult s;
   s.name = name;
   s.model = "pendulum";
   s.sensor_names = std::move(sensors);
@@ -128,15 +128,15 @@ FitResultFile FullResult() {
   r.num_residuals = 8000;
   r.initial_cost = 1.0 / 3.0;
   r.final_cost = 0.1 + 0.2;
-  r.residual_variance = 1e-300;
-  r.wall_time_s = 12.5;
+  r.uncertainty.residual_variance = 1e-300;
+  r.seconds = 12.5;
   r.solver = {{"max_iterations", "100"},
               {"function_tolerance", "1e-10"},
               {"linear_solver", "dense_qr"},
               {"note", "a: b # c"}};
 
   // identified, at a bound, unidentifiable
-  ResultParameter damping;
+  ParameterEstimate damping;
   damping.name = "damping";
   damping.value = 0.0800000000000001;
   damping.initial = 0.1;
@@ -144,7 +144,7 @@ FitResultFile FullResult() {
   damping.ci95_low = damping.value - 1.96 * damping.std_error;
   damping.ci95_high = damping.value + 1.96 * damping.std_error;
   damping.truth = 0.08;
-  ResultParameter friction;
+  ParameterEstimate friction;
   friction.name = "frictionloss";
   friction.value = 0;
   friction.initial = 0.05;
@@ -152,7 +152,7 @@ FitResultFile FullResult() {
   friction.ci95_low = -3.92e-3;
   friction.ci95_high = 3.92e-3;
   friction.at_lower = true;
-  ResultParameter mass;
+  ParameterEstimate mass;
   mass.name = "bob_mass";
   mass.value = 1.7;
   mass.initial = 1.0;
@@ -163,24 +163,24 @@ FitResultFile FullResult() {
   mass.identifiable = false;
   mass.truth = 1.2;
   r.parameters = {damping, friction, mass};
-  r.unidentifiable = {"bob_mass - 0.3 damping (singular value 1e-14)"};
+  r.uncertainty.unidentifiable = {"bob_mass - 0.3 damping (singular value 1e-14)"};
   r.warnings = {"sequence seq1: MuJoCo warning at t = 1.5 s", "two\nlines: 'quoted' \"too\""};
   r.identified_models = {{"pendulum", "pendulum_identified.xml"}};
 
   // three iterations
   for (int i = 0; i < 3; ++i) {
-    ResultTraceEntry e;
+    IterationInfo e;
     e.iteration = i;
     e.cost = 1.0 / (1 + i * i * 7.0);
     e.step_norm = 0.1 * i;
     e.gradient_norm = std::exp(-i);
     e.seconds = 0.25 * (i + 1);
     e.successful = i != 1;
-    e.parameters = {0.1 - 0.01 * i, 0.05 / (i + 1), 1.0 + 0.3 * i};
+    e.parameters = Eigen::Vector3d(0.1 - 0.01 * i, 0.05 / (i + 1), 1.0 + 0.3 * i);
     r.trace.push_back(e);
   }
-  r.covariance = Matrix(3, 3, 7);
-  r.covariance(2, 2) = kInf;
+  r.uncertainty.covariance = Matrix(3, 3, 7);
+  r.uncertainty.covariance(2, 2) = kInf;
   r.jacobian = Matrix(11, 3, 9);
   r.sequences = {Sequence("seq0", {"angle", "accel"}, {1, 3}, 25, 1),
                  Sequence("pendulum_seq1", {"rate"}, {1}, 4, 5),
@@ -214,18 +214,18 @@ void ExpectSame(const FitResultFile& a, const FitResultFile& b) {
   EXPECT_EQ(a.num_residuals, b.num_residuals);
   EXPECT_EQ(a.initial_cost, b.initial_cost);
   EXPECT_EQ(a.final_cost, b.final_cost);
-  EXPECT_EQ(a.residual_variance, b.residual_variance);
-  EXPECT_EQ(a.wall_time_s, b.wall_time_s);
+  EXPECT_EQ(a.uncertainty.residual_variance, b.uncertainty.residual_variance);
+  EXPECT_EQ(a.seconds, b.seconds);
   EXPECT_EQ(a.solver, b.solver);
-  EXPECT_EQ(a.unidentifiable, b.unidentifiable);
+  EXPECT_EQ(a.uncertainty.unidentifiable, b.uncertainty.unidentifiable);
   EXPECT_EQ(a.warnings, b.warnings);
   EXPECT_EQ(a.identified_models, b.identified_models);
 
   // parameters
   ASSERT_EQ(a.parameters.size(), b.parameters.size());
   for (size_t i = 0; i < a.parameters.size(); ++i) {
-    const ResultParameter& p = a.parameters[i];
-    const ResultParameter& q = b.parameters[i];
+    const ParameterEstimate& p = a.parameters[i];
+    const ParameterEstimate& q = b.parameters[i];
     EXPECT_EQ(p.name, q.name);
     EXPECT_EQ(p.value, q.value) << p.name;
     EXPECT_EQ(p.initial, q.initial) << p.name;
@@ -251,12 +251,12 @@ void ExpectSame(const FitResultFile& a, const FitResultFile& b) {
   }
 
   // arrays
-  ExpectSame(a.covariance, b.covariance, "covariance");
+  ExpectSame(a.uncertainty.covariance, b.uncertainty.covariance, "covariance");
   ExpectSame(a.jacobian, b.jacobian, "jacobian");
   ASSERT_EQ(a.sequences.size(), b.sequences.size());
   for (size_t i = 0; i < a.sequences.size(); ++i) {
-    const ResultSequence& s = a.sequences[i];
-    const ResultSequence& t = b.sequences[i];
+    const SequenceResult& s = a.sequences[i];
+    const SequenceResult& t = b.sequences[i];
     EXPECT_EQ(s.name, t.name);
     EXPECT_EQ(s.model, t.model);
     EXPECT_EQ(s.sensor_names, t.sensor_names);
@@ -290,7 +290,7 @@ TEST_F(ResultTest, RoundTripOfAnEmptyishResultAndOddText) {
   r.mujoco_version = "#x";
   r.jacobian_mode = " padded ";
   r.solver = {{"true", "false"}, {"k", ""}, {"ü", "[1, 2]"}};
-  ResultParameter p;
+  ParameterEstimate p;
   p.name = "0.5";
   p.value = -0.0;
   p.std_error = 5e-324;
@@ -304,7 +304,7 @@ TEST_F(ResultTest, RoundTripOfAnEmptyishResultAndOddText) {
 
 TEST_F(ResultTest, TraceWithoutParameterValuesRoundTrips) {
   FitResultFile r = FullResult();
-  for (ResultTraceEntry& e : r.trace) e.parameters.clear();
+  for (IterationInfo& e : r.trace) e.parameters.resize(0);
   WriteBoth(r);
   ExpectSame(ReadResult(Dir()), r);
 }
@@ -367,7 +367,7 @@ TEST_F(ResultTest, FailedRenameRemovesTheTemporary) {
 
 TEST_F(ResultTest, WriterRejectsInconsistentSizesNamingTheDataset) {
   FitResultFile r = FullResult();
-  r.covariance.resize(2, 2);
+  r.uncertainty.covariance.resize(2, 2);
   try {
     WriteResultH5(Path("result.h5"), r);
     FAIL() << "no error";
@@ -378,7 +378,7 @@ TEST_F(ResultTest, WriterRejectsInconsistentSizesNamingTheDataset) {
         << e.what();
   }
   r = FullResult();
-  r.trace[1].parameters.pop_back();
+  r.trace[1].parameters.conservativeResize(r.trace[1].parameters.size() - 1);
   EXPECT_THROW(WriteResultH5(Path("result.h5"), r), ResultError);
   r = FullResult();
   r.sequences[0].sensor_dims = {1, 2};
@@ -436,9 +436,9 @@ TEST_F(ResultTest, FilesOfDifferentFitsAreRejected) {
   WriteBoth(FullResult());
   FitResultFile other = FullResult();
   other.parameters.pop_back();
-  other.covariance.resize(0, 0);
+  other.uncertainty.covariance.resize(0, 0);
   other.jacobian.resize(0, 0);
-  for (ResultTraceEntry& e : other.trace) e.parameters.pop_back();
+  for (IterationInfo& e : other.trace) e.parameters.conservativeResize(e.parameters.size() - 1);
   WriteResultYaml(Path("result.yaml"), other);
   const std::string msg = ReadError();
   EXPECT_NE(msg.find(Path("result.h5") + ": /parameters attribute 'names': the parameters differ"),

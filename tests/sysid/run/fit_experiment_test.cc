@@ -76,8 +76,8 @@ TEST(FitExperimentTest, EveryShippedExperimentRecoversItsTruth) {
     SCOPED_TRACE(name);
     const std::string dir = TempDir(name);
     io::ExperimentConfig cfg = Simulated(name, dir);
-    if (expect.max_iterations) cfg.solver.max_iterations = expect.max_iterations;
-    cfg.solver.verbose = false;
+    if (expect.max_iterations) cfg.options.max_iterations = expect.max_iterations;
+    cfg.options.verbose = false;
     FitRunOptions opt;
     opt.out_dir = dir + "/out";
     opt.verbose = false;
@@ -85,9 +85,9 @@ TEST(FitExperimentTest, EveryShippedExperimentRecoversItsTruth) {
     std::map<std::string, double> truth;
     for (const io::NamedValue& t : cfg.simulate.truth) truth[t.name] = t.value;
     std::printf("[ measured ] %-16s %-13s %2d iterations, %6.2f s, cost %.4g -> %.4g\n",
-                name.c_str(), out.file.status.c_str(), out.file.iterations, out.file.wall_time_s,
+                name.c_str(), out.file.status.c_str(), out.file.iterations, out.file.seconds,
                 out.file.initial_cost, out.file.final_cost);
-    for (const io::ResultParameter& p : out.file.parameters) {
+    for (const ParameterEstimate& p : out.file.parameters) {
       ASSERT_TRUE(p.truth.has_value()) << p.name;
       const double t = *p.truth;
       std::printf(
@@ -125,7 +125,7 @@ TEST(FitExperimentTest, EveryShippedExperimentRecoversItsTruth) {
 TEST(FitExperimentTest, IdentifiedModelReproducesTheEstimates) {
   const std::string dir = TempDir("identified");
   io::ExperimentConfig cfg = Simulated("pendulum", dir);
-  cfg.solver.max_iterations = 3;
+  cfg.options.max_iterations = 3;
   FitRunOptions opt;
   opt.out_dir = dir;
   opt.verbose = false;
@@ -160,7 +160,7 @@ TEST(FitExperimentTest, InterruptKeepsTheLastGoodIterate) {
   const FitRunOutcome out = RunFit(cfg, opt);
   EXPECT_EQ(out.file.status, "interrupted");
   EXPECT_EQ(out.exit_code, 1);
-  EXPECT_TRUE(out.fit.interrupted);
+  EXPECT_TRUE(out.file.interrupted);
   const io::FitResultFile back = io::ReadResult(dir);
   EXPECT_EQ(back.status, "interrupted");
   ASSERT_EQ(back.parameters.size(), cfg.parameters.size());

@@ -1,0 +1,185 @@
+// The plain data of a fit, defined once and used by every layer above core/: the Ceres problem
+// (sysid/problem.h), the experiment files (sysid/io/experiment.h), the result files
+// (sysid/io/result.h), the runner (sysid/run/), the command line and the report. No Ceres here.
+//
+// What goes in: FitParameter (a model quantity to identify, in physical units), FitMeasurement
+// (a sensor's delay/gain/bias terms), FitSequence (one logged sequence of one model), FitOptions.
+// What comes out: FitResult with one ParameterEstimate per variable, the IterationInfo trace and
+// one SequenceResult per sequence.
+//
+// Shapes: RowMatrix is row-major (core/state.h); T is the number of samples of a sequence, ns the
+// model's nsensordata, np the number of estimated variables (physical parameters first, then the
+// fitted measurement terms, as in FitResult::parameters).
+#pragma once
+
+#include <Eigen/Core>
+#include <atomic>
+#include <functional>
+#include <limits>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/parameters.h"
+#include "core/simulator.h"
+#include "core/state.h"
+#include "sysid/uncertainty.h"
+
+namespace mjsysid {
+
+// the optimiser's variable of a physical value p: z = p, log p, or p / scale
+enum class Transform { kNone, kLog, kScale };
+
+// the robust loss applied to each scalar weighted residual
+enum class LossType { kNone, kHuber, kCauchy };
+
+// "none", "huber", "cauchy" (the YAML spelling)
+const char* LossTypeName(LossType loss);
+
+// one physical parameter to identify
+struct FitParameter {
+  FitParameter() = default;
+  FitParameter(std::string name_, ParameterSpec target_, double initial_)
+      : name(std::move(name_)), target(std::move(target_)), initial(initial_) {}
+  FitParameter& Bounds(double lo, double hi) {
+    lower = lo;
+    upper = hi;
+    return *this;
+  }
+  FitParameter& Log() {
+    transform = Transform::kLog;
+    return *this;
+  }
+  FitParameter& Prior(double mean, double sigma) {
+    has_prior = true;
+    prior_mean = mean;
+    prior_sigma = sigma;
+    return *this;
+  }
+
+  // the optimisation variable of a physical value: z = p, log p (-inf for p <= 0) or p / scale
+  double ToVariable(double p) const;
+  // the physical value of an optimisation variable (the inverse of ToVariable)
+  double FromVariable(double z) const;
+  // whether the parameter applies to the named model (models empty: every model)
+  bool AppliesTo(const std::string& model_name) const;
+
+  std::string name;      // unique label (results use it)
+  ParameterSpec target;  // what it writes: kind, object, field, index (core/parameters.h)
+  double initial = 0;
+  double lower = -std::numeric_limits<double>::infinity();
+  double upper = std::numeric_limits<double>::infinity();
+  Transform transform = Transform::kNone;
+  double scale = 1.0;  // Transform::kScale: z = p / scale, > 0
+  bool has_prior = false;
+  double prior_mean = 0, prior_sigma = 1;  // Gaussian prior residual (p - mean) / sigma
+  std::vector<std::string> models;         // models it applies to; empty = all
+};
+
+// measurement terms of one sensor: measured = gain * simulated(t - delay) + bias
+struct FitMeasurement {
+  struct Term {
+    double initial = 0;
+    bool fit = false;
+    double lower = -std::numeric_limits<double>::infinity();
+    double upper = std::numeric_limits<double>::infinity();
+  };
+  std::string sensor;
+  Term delay{0.0, false, 0.0, std::numeric_limits<double>::infinity()};  // seconds, >= 0
+  Term gain{1.0, false};
+  Term bias{0.0, false};
+};
+
+// one recorded sequence of one model
+struct FitSequence {
+  FitSequence() = default;
+  FitSequence(std::string name_, std::string model_, InitialState x0_, RowMatrix ctrl_,
+              RowMatrix measured_)
+      : name(std::move(name_)),
+        model(std::move(model_)),
+        x0(std::move(x0_)),
+        ctrl(std::move(ctrl_)),
+        measured(std::move(measured_)) {}
+
+  std::string name;
+  std::string model;   // a name given to Problem::AddModel
+  InitialState x0;     // initial state (the estimate's start when initial states are fitted)
+  RowMatrix ctrl;      // T x nu
+  RowMatrix measured;  // T x nsensordata of the model: y_k in the model's sensordata layout
+  std::vector<std::string> sensors;  // sensors whose columns are fitted; empty = all sensors
+  Eigen::VectorXd time;              // T sample times (s); empty: x0.time + k * timestep
+};
+
+// one Gauss-Newton/LM iteration, as reported to callbacks and kept in FitResult::trace
+struct IterationInfo {
+  int iteration = 0;
+  double cost = 0;
+  double step_norm = 0;
+  double gradient_norm = 0;
+  double seconds = 0;  // since the fit started
+  bool successful = false;
+  Eigen::VectorXd parameters;  // physical values after the iteration (FitResult order)
+};
+
+struct FitOptions {
+  int max_iterations = 100;  // > 0
+  double function_tolerance = 1e-10;
+  double gradient_tolerance = 1e-10;
+  double parameter_tolerance = 1e-10;
+  JacobianOptions jacobian;  // mode, differences, steps (core/simulator.h)
+  int threads = 0;           // simulator threads; <= 0: all cores
+  LossType loss = LossType::kNone;
+  double loss_scale = 1.0;  // in weighted residual units, > 0
+  bool estimate_initial_state = false;
+  int segment_steps = 0;  // multiple shooting: samples per segment; 0 = single
+  double continuity_weight = 1.0;
+  std::map<std::string, double> sensor_weights;  // sensor name -> weight (1/sigma); default 1
+  UncertaintyOptions uncertainty;
+  bool verbose = false;  // one progress line per iteration on stderr
+  std::function<void(const IterationInfo&)> on_iteration;  // e.g. checkpoint the iterate
+  const std::atomic<bool>* interrupt = nullptr;  // set to stop after the current iteration
+};
+
+// one estimated variable: a physical parameter or a measurement term ("<sensor>.delay", ...)
+struct ParameterEstimate {
+  std::string name;
+  double value = 0, initial = 0;
+  double std_error = 0;  // +inf when unidentifiable, 0 when fixed on a bound
+  double ci95_low = 0, ci95_high = 0;
+  bool at_lower = false, at_upper = false;  // stopped on a bound (then not estimated: fixed)
+  bool identifiable = true;
+  std::optional<double> truth;  // the true value when known (synthetic data), for reports
+};
+
+// the fitted sensor columns of one sequence: measured and simulated, sensor by sensor
+struct SequenceResult {
+  std::string name, model;
+  std::vector<std::string> sensor_names;  // fitted sensors, in model order
+  std::vector<int> sensor_dims;           // their dimensions; the columns below, in order
+  Eigen::VectorXd time;                   // T
+  RowMatrix measured;                     // T x sum(sensor_dims)
+  RowMatrix simulated_initial;            // T x sum(sensor_dims), at the initial parameters
+  RowMatrix simulated_final;  // T x sum(sensor_dims), at the estimate (measurement terms on)
+  Eigen::VectorXd x0_final;   // estimated initial physics vector (or the given one); may be empty
+};
+
+struct FitResult {
+  std::vector<ParameterEstimate> parameters;  // physical parameters, then measurement terms
+  double initial_cost = 0, final_cost = 0;    // 0.5 |r|^2
+  int iterations = 0;
+  bool converged = false;
+  bool interrupted = false;
+  std::string termination;  // why the optimiser stopped
+  int num_residuals = 0;
+  Uncertainty uncertainty;  // over FitResult::parameters (order as there)
+  RowMatrix jacobian;       // dr/dp at the estimate (physical units), num_residuals x np
+  std::vector<IterationInfo> trace;
+  std::vector<SequenceResult> sequences;
+  std::vector<std::string> warnings;
+  double seconds = 0;              // wall time of the fit
+  long long simulation_steps = 0;  // step calls of all simulators (Simulator::StepCount)
+  std::string jacobian_mode;       // the core mode used
+};
+
+}  // namespace mjsysid
