@@ -43,9 +43,9 @@
 #include <string>
 #include <vector>
 
-namespace mjsysid::io {
+#include "core/state.h"
 
-using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+namespace mjsysid::io {
 
 // One logged rollout. T = time.size() >= 1.
 struct Sequence {

@@ -14,6 +14,7 @@
 
 #include "mjsysid/version.h"
 #include "sysid/io/log.h"
+#include "sysid/io/sequence_models.h"
 #include "sysid/sim/simulate.h"
 
 // MuJoCo's XML writer prints 6 significant digits unless told otherwise; its (exported, private)
@@ -40,28 +41,6 @@ std::string NowIso() {
   char buf[32];
   std::strftime(buf, sizeof(buf), "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&t));
   return buf;
-}
-
-// the model a log sequence belongs to: the only one, or the one its "<model>_" prefix names
-int ModelOfSequence(const io::ExperimentConfig& cfg, const std::string& seq,
-                    const std::string& file) {
-  if (cfg.models.size() == 1) return 0;
-  for (size_t i = 0; i < cfg.models.size(); ++i) {
-    const std::string prefix = cfg.models[i].name + "_";
-    if (seq.rfind(prefix, 0) == 0) return static_cast<int>(i);
-  }
-  throw io::LogError(file + ": sequence '" + seq +
-                     "': with several models a sequence must be named <model>_<name> "
-                     "(as `sysid simulate` writes it)");
-}
-
-bool Selected(const io::ExperimentConfig& cfg, const std::string& model, const std::string& seq) {
-  if (cfg.sequences.empty()) return true;
-  for (const io::SequenceRef& r : cfg.sequences) {
-    if (seq == r.name && (r.model.empty() || r.model == model)) return true;
-    if (seq == model + "_" + r.name && (r.model.empty() || r.model == model)) return true;
-  }
-  return false;
 }
 
 }  // namespace
@@ -106,19 +85,20 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
     throw io::ConfigError(cfg.marks.self, "no `data:` log files to fit",
                           "run `sysid simulate` first, or list HDF5 logs under data:");
   }
+  std::vector<bool> entry_used(cfg.sequences.size(), false);
+  std::vector<std::string> all_groups;
   for (const io::DataFile& df : cfg.data) {
     if (!fs::exists(df.path)) {
       throw io::ConfigError(df.mark, "data file not found: " + df.path,
                             "run `sysid simulate EXP.yaml` to generate it");
     }
     const io::Log log = io::ReadLog(df.path);
+    for (const io::Sequence& s : log.sequences) all_groups.push_back(s.name);
     // one validation per model over the sequences that belong to it
     std::vector<io::Log> per_model(cfg.models.size());
-    for (const io::Sequence& s : log.sequences) {
-      const int mi = ModelOfSequence(cfg, s.name, df.path);
-      if (!Selected(cfg, cfg.models[mi].name, s.name)) continue;
-      per_model[mi].sequences.push_back(s);
-      per_model[mi].sensor_time = log.sensor_time;
+    for (const io::SequenceOwner& o : io::AssignSequences(cfg, log, df.path, &entry_used)) {
+      per_model[o.model].sequences.push_back(log.sequences[o.sequence]);
+      per_model[o.model].sensor_time = log.sensor_time;
     }
     for (size_t mi = 0; mi < cfg.models.size(); ++mi) {
       const mjModel& m = *out.models[mi];
@@ -182,6 +162,7 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
       }
     }
   }
+  io::CheckSequenceEntriesUsed(cfg, entry_used, all_groups);
   if (out.sequences.empty()) {
     throw io::ConfigError(cfg.marks.Of("sequences"), "no log sequence selected",
                           "check `sequences:` against the group names in the logs");

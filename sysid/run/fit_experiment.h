@@ -4,10 +4,10 @@
 // Contract:
 // - BuildProblem reads the models and every `data:` log, validates them against each other and the
 //   config (io::ConfigError / io::LogError / ModelLoadError / ParameterError on bad input), and
-//   maps them onto a Problem: one FitSequence per selected log sequence; a log sequence belongs to
-//   the only model, or with several models to the model named by its "<model>_" prefix; with
-//   sensor_time: post, row k+1 of a log is taken as y_k (the first control row is kept, the last
-//   dropped). The log's sample period must equal the model's timestep.
+//   maps them onto a Problem: one FitSequence per selected log sequence, fitted with the model
+//   io::AssignSequences gives it (sysid/io/sequence_models.h: an explicit record, never a name);
+//   with sensor_time: post, row k+1 of a log is taken as y_k (the first control row is kept, the
+//   last dropped). The log's sample period must equal the model's timestep.
 // - RunFit writes DIR/result.yaml with status "running" after every successful iteration (the last
 //   good iterate survives an interruption), then the full results atomically, and the identified
 //   models. It never throws for a fit that merely fails to converge: see FitRunOutcome.

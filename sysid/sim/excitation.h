@@ -39,8 +39,6 @@
 
 namespace mjsysid::sim {
 
-using io::RowMatrix;
-
 // a seed for the independent stream `stream` of `seed` (splitmix64 of both)
 std::uint64_t SeedFor(std::uint64_t seed, std::uint64_t stream);
 

@@ -172,6 +172,56 @@ TEST(FitExperimentTest, InterruptKeepsTheLastGoodIterate) {
   fs::remove_all(dir);
 }
 
+// Two models whose names are prefixes of each other: each sequence is fitted with the model the
+// log records for it (sequences.<model>, written by simulate), never by a name prefix (which
+// fitted the cart_payload sequences with `cart` and returned mass 3.82, gear 4.78).
+// Truth: cart mass 2, gear 3 (shared); start 40 % off; noise sigma 1e-3 on x, 1e-2 on xdot;
+// tolerance: within 4 standard errors and 1 % of the truth.
+TEST(FitExperimentTest, ModelsWhoseNamesArePrefixesGetTheirOwnSequences) {
+  const std::string dir = TempDir("cart_pair");
+  io::ExperimentConfig cfg = io::ParseExperiment(R"(
+models:
+  - {name: cart, path: ../models/cart.xml}
+  - {name: cart_payload, path: ../models/cart_payload.xml}
+sensors:
+  - {name: x, sigma: 0.001}
+  - {name: xdot, sigma: 0.01}
+parameters:
+  - {name: mass, target: body_mass, object: cart, initial: 1.2, bounds: [0.1, 10], transform: log}
+  - {name: gear, target: actuator_gear, object: drive, initial: 1.8, bounds: [0.1, 10],
+     transform: log}
+solver: {verbose: false}
+simulate:
+  truth: {mass: 2.0, gear: 3.0}
+  sequences: 2
+  steps: 1000
+  seed: 5
+  excitation: {type: prbs, amplitude: 5.0, switch_period: 0.2}
+  noise: {x: 0.001, xdot: 0.01}
+)",
+                                                 kExperiments + "/cart_pair.yaml");
+  const std::string log = dir + "/log.h5";
+  cfg.data = {io::DataFile{log, {}}};
+  io::WriteLog(log, sim::SimulateExperiment(cfg, sim::SimulateSettings{}));
+  const BuiltProblem built = BuildProblem(cfg);
+  ASSERT_EQ(built.sequences.size(), 4u);
+  for (const FitSequence& s : built.sequences) {
+    EXPECT_EQ(s.name.rfind(s.model + "_seq", 0), 0u) << s.name << " fitted with " << s.model;
+  }
+  FitRunOptions opt;
+  opt.out_dir = dir;
+  opt.verbose = false;
+  const FitRunOutcome out = RunFit(cfg, opt);
+  ASSERT_TRUE(out.file.converged) << out.file.termination;
+  const std::map<std::string, double> truth = {{"mass", 2.0}, {"gear", 3.0}};
+  for (const ParameterEstimate& e : out.file.parameters) {
+    SCOPED_TRACE(e.name);
+    EXPECT_LT(std::abs(e.value - truth.at(e.name)), 4 * e.std_error);
+    EXPECT_LT(std::abs(e.value - truth.at(e.name)), 0.01 * truth.at(e.name));
+  }
+  fs::remove_all(dir);
+}
+
 TEST(FitExperimentTest, BadInputsAreNamedErrors) {
   const std::string dir = TempDir("bad");
   io::ExperimentConfig cfg = io::LoadExperiment(kExperiments + "/pendulum.yaml");

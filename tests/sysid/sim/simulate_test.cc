@@ -185,7 +185,7 @@ TEST_F(SimulateTest, NoiseIsAddedToTheNamedSensorsWithTheirSigma) {
   const io::Log a = SimulateExperiment(clean);
   const io::Log b = SimulateExperiment(noisy);
   for (size_t s = 0; s < a.sequences.size(); ++s) {
-    const io::RowMatrix diff = b.sequences[s].sensordata - a.sequences[s].sensordata;
+    const RowMatrix diff = b.sequences[s].sensordata - a.sequences[s].sensordata;
     EXPECT_TRUE(diff.col(0).isZero(0)) << "angle has no noise";
     const double rms = std::sqrt(diff.col(1).squaredNorm() / 3000.0);
     EXPECT_NEAR(rms, 0.05, 0.004) << "sequence " << s;
@@ -194,8 +194,8 @@ TEST_F(SimulateTest, NoiseIsAddedToTheNamedSensorsWithTheirSigma) {
     EXPECT_TRUE(b.sequences[s].ctrl == a.sequences[s].ctrl);
   }
   // each sequence has its own noise
-  const io::RowMatrix n0 = b.sequences[0].sensordata - a.sequences[0].sensordata;
-  const io::RowMatrix n1 = b.sequences[1].sensordata - a.sequences[1].sensordata;
+  const RowMatrix n0 = b.sequences[0].sensordata - a.sequences[0].sensordata;
+  const RowMatrix n1 = b.sequences[1].sensordata - a.sequences[1].sensordata;
   EXPECT_GT((n0 - n1).cwiseAbs().maxCoeff(), 0.01);
   EXPECT_EQ(b.attributes.at("noise.rate"), "0.050000000000000003");
 }

@@ -1,0 +1,113 @@
+#include "sysid/io/sequence_models.h"
+
+#include <map>
+#include <sstream>
+
+namespace mjsysid::io {
+namespace {
+
+constexpr char kRecordPrefix[] = "sequences.";
+
+std::string Join(const std::vector<std::string>& names) {
+  std::string out;
+  for (const std::string& n : names) out += (out.empty() ? "" : ", ") + n;
+  return out;
+}
+
+// group name -> model name, from the log's "sequences.<model>" attributes
+std::map<std::string, std::string> RecordedModels(const Log& log, const std::string& path) {
+  std::map<std::string, std::string> owner;
+  for (const auto& [key, value] : log.attributes) {
+    if (key.rfind(kRecordPrefix, 0) != 0) continue;
+    const std::string model = key.substr(sizeof(kRecordPrefix) - 1);
+    std::stringstream list(value);
+    std::string group;
+    while (std::getline(list, group, ',')) {
+      if (group.empty()) continue;
+      const auto [it, added] = owner.emplace(group, model);
+      if (!added && it->second != model) {
+        throw LogError(path + ": sequence '" + group + "' is recorded for two models ('" +
+                       it->second + "' and '" + model + "', attributes " + kRecordPrefix +
+                       it->second + " and " + key + ")");
+      }
+    }
+  }
+  return owner;
+}
+
+int ModelIndex(const ExperimentConfig& config, const std::string& name) {
+  for (size_t i = 0; i < config.models.size(); ++i) {
+    if (config.models[i].name == name) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+}  // namespace
+
+std::vector<SequenceOwner> AssignSequences(const ExperimentConfig& config, const Log& log,
+                                           const std::string& path, std::vector<bool>* entry_used) {
+  const std::map<std::string, std::string> recorded = RecordedModels(log, path);
+  std::vector<SequenceOwner> out;
+  for (size_t q = 0; q < log.sequences.size(); ++q) {
+    const std::string& group = log.sequences[q].name;
+    const auto rec = recorded.find(group);
+    const int rec_model = rec == recorded.end() ? -1 : ModelIndex(config, rec->second);
+
+    // 1. the experiment's entries for this group (only these groups when there are entries)
+    int model = -1;
+    bool selected = config.sequences.empty();
+    for (size_t e = 0; e < config.sequences.size(); ++e) {
+      const SequenceRef& ref = config.sequences[e];
+      if (ref.name != group) continue;
+      selected = true;
+      if (entry_used) (*entry_used)[e] = true;
+      if (ref.model.empty()) continue;
+      const int named = ModelIndex(config, ref.model);
+      if (rec != recorded.end() && rec->second != ref.model) {
+        throw LogError(path + ": sequence '" + group + "' is recorded for model '" + rec->second +
+                       "' (attribute " + kRecordPrefix + rec->second + "), but " +
+                       ref.mark.ToString() + " fits it with model '" + ref.model + "'");
+      }
+      model = named;
+    }
+    if (!selected) continue;
+
+    // 2. the log's record; 3. the only model
+    if (model < 0 && rec != recorded.end()) {
+      if (rec_model < 0) {
+        if (!config.sequences.empty()) {
+          throw LogError(path + ": sequence '" + group + "' is recorded for model '" + rec->second +
+                         "', which the experiment does not have");
+        }
+        continue;  // another experiment's data
+      }
+      model = rec_model;
+    }
+    if (model < 0 && config.models.size() == 1) model = 0;
+    if (model < 0) {
+      std::vector<std::string> names;
+      for (const ModelSpec& m : config.models) names.push_back(m.name);
+      throw LogError(path + ": sequence '" + group +
+                     "' belongs to none of the experiment's models (" + Join(names) +
+                     "): the log records no model for it (attribute " + kRecordPrefix +
+                     "<model>) and the experiment's `sequences:` does not name one; list it as " +
+                     "`<model>/" + group + "`");
+    }
+    out.push_back({static_cast<int>(q), model});
+  }
+  return out;
+}
+
+void CheckSequenceEntriesUsed(const ExperimentConfig& config, const std::vector<bool>& entry_used,
+                              const std::vector<std::string>& all_groups) {
+  for (size_t e = 0; e < config.sequences.size(); ++e) {
+    if (entry_used[e]) continue;
+    const SequenceRef& ref = config.sequences[e];
+    throw ConfigError(ref.mark,
+                      "sequence '" + (ref.model.empty() ? "" : ref.model + "/") + ref.name +
+                          "' is in none of the data files",
+                      "sequences in the data: " + Join(all_groups));
+  }
+}
+
+}  // namespace mjsysid::io

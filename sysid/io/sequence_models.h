@@ -1,0 +1,44 @@
+// Which model each logged sequence is fitted with: the one rule that `sysid fit`, `sysid check`
+// and every other reader of an experiment's data use.
+//
+// A sequence belongs to exactly one model, by an explicit record and never by its name:
+// 1. the experiment's `sequences:` entry "model/seq" names the model of group "seq";
+// 2. else the log's record: the attribute "sequences.<model>" (comma-separated group names, written
+//    by `sysid simulate` for experiments with several models) that lists the group;
+// 3. else, when the experiment has a single model, that model.
+// With `sequences:` given, only the groups it names are selected (an entry without a model takes
+// the model from 2 or 3). Without it, every group of the log is selected, except groups the log
+// records for a model the experiment does not have (they are skipped: another experiment's data).
+//
+// Failure (bad input, exit 2): a selected group with no model by these rules (several models, no
+// record), an entry whose model contradicts the log's record, or a group recorded for two models
+// throws LogError naming the file and the group, with the fix.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "sysid/io/experiment.h"
+#include "sysid/io/log.h"
+
+namespace mjsysid::io {
+
+struct SequenceOwner {
+  int sequence = 0;  // index into Log::sequences
+  int model = 0;     // index into ExperimentConfig::models
+};
+
+// The selected sequences of `log` (read from `path`, for messages) in log order, each with its
+// model. entry_used (optional, size config.sequences.size()) is set true for every `sequences:`
+// entry that named a group of this log, so that a caller reading several files can report an
+// entry that named none (UnusedSequenceEntries).
+std::vector<SequenceOwner> AssignSequences(const ExperimentConfig& config, const Log& log,
+                                           const std::string& path,
+                                           std::vector<bool>* entry_used = nullptr);
+
+// Throws ConfigError at the first `sequences:` entry that no data file had (entry_used false),
+// listing the groups that exist (all_groups).
+void CheckSequenceEntriesUsed(const ExperimentConfig& config, const std::vector<bool>& entry_used,
+                              const std::vector<std::string>& all_groups);
+
+}  // namespace mjsysid::io
