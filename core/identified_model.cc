@@ -47,7 +47,8 @@ std::string SaveXml(const mjSpec* spec, const std::string& model_path) {
   if (rc != 0) {
     throw ModelLoadError(model_path + ": cannot save the identified model as XML: " + error);
   }
-  xml.resize(xml.find('\0'));
+  const size_t end = xml.find('\0');
+  if (end != std::string::npos) xml.resize(end);
   return xml;
 }
 
