@@ -1,18 +1,21 @@
-// Model parameters that a fit can change, and the writers that change them in a compiled mjModel.
+// Model parameters that a fit can change: the table of parameter kinds (the only definition of
+// what a kind is), and the writers that change a parameter in a compiled mjModel.
 //
 // Contract:
-// - A ParameterSpec names a parameter the way a user writes it in YAML: a kind (the strings of
-//   ParameterKindName), a MuJoCo object name, and a component index. Resolve() checks it against a
-//   model and throws ParameterError naming the kind, object and what was expected.
+// - A ParameterSpec names a parameter the way a user writes it in YAML: a kind (a name of
+//   ParameterKindTable()), a MuJoCo object name, and a component index. CheckParameterSpec()
+//   checks what needs no model, Resolve() checks it against a model; both throw ParameterError
+//   naming the kind, object and index, what was expected, and which part of the spec is wrong.
 // - Writing a value makes the edited model behave exactly like a model compiled from XML with that
 //   value: derived constants are recomputed with mj_setConst (on a scratch mjData: it overwrites
 //   qpos) where the parameter feeds them (masses, inertias, armature, gear), and engine shortcuts
 //   that would ignore the edit (a body's "same frame" and "simple" flags for centre-of-mass and
 //   inertia edits) are turned off when the parameter is resolved. Tested against models compiled
 //   from XML.
-// - Joint parameters apply to every dof of the joint (as the XML attribute does): a ball joint's
-//   damping is one parameter for its three dofs.
-// - stage(): the first pipeline stage the parameter enters (mjSTAGE_NONE: positions, mjSTAGE_POS:
+// - Joint parameters apply to every dof of the joint, as the MJCF attribute does (mjsJoint has one
+//   damping, frictionloss, armature and stiffness per joint): a ball joint's damping is one
+//   parameter for its three dofs, and joint kinds take index 0 only, for every joint type.
+// - stage: the first pipeline stage the parameter enters (mjSTAGE_NONE: positions, mjSTAGE_POS:
 //   velocities, mjSTAGE_VEL: actuation). Steps after a parameter change may skip the stages before.
 #pragma once
 
@@ -24,9 +27,24 @@
 
 namespace mjsysid {
 
+// The part of a ParameterSpec an error is about (a YAML reader points at that key).
+enum class ParameterSpecPart { kNone, kKind, kObject, kField, kIndex };
+
+// A parameter spec that does not fit the kind table or the model. what() is the message followed
+// by " (hint: <hint>)" when there is a hint.
 class ParameterError : public std::runtime_error {
  public:
-  using std::runtime_error::runtime_error;
+  explicit ParameterError(const std::string& message);
+  ParameterError(ParameterSpecPart part, const std::string& message, const std::string& hint = {});
+
+  ParameterSpecPart part() const { return part_; }
+  const std::string& message() const { return message_; }
+  const std::string& hint() const { return hint_; }
+
+ private:
+  ParameterSpecPart part_ = ParameterSpecPart::kNone;
+  std::string message_;
+  std::string hint_;
 };
 
 enum class ParameterKind {
@@ -45,8 +63,47 @@ enum class ParameterKind {
   kField,              // any mjtNum array of mjModel, by field name and flat index
 };
 
+// Writes an identified value back into the MJCF element of its object.
+//   element:    the object's element in the mjSpec (nullptr for kinds without an object)
+//   identified: the compiled model with every identified value written (ParameterSet::Write)
+//   id, index:  the object's id in identified, and the component
+//   value:      the identified value
+// Returns false when the kind has no MJCF attribute (the value is not written).
+using MjcfWriter = bool (*)(mjsElement* element, const mjModel& identified, int id, int index,
+                            double value);
+
+// What a parameter kind is. One row per ParameterKind, in enum order.
+struct ParameterKindInfo {
+  ParameterKind kind;
+  const char* name;          // YAML spelling, e.g. "joint_damping"
+  mjtObj object;             // type of the object ParameterSpec::object names;
+                             // mjOBJ_UNKNOWN: none (field: an mjModel array named in spec.field)
+  int num_indices;           // valid indices [0, num_indices), the same for every object;
+                             // 0: the size of the named mjModel array (field)
+  const char* indices;       // what the index selects
+  const char* units;         // units of the value
+  const char* model_fields;  // the mjModel array(s) the value is written to
+  int stage;                 // first pipeline stage the value enters
+  bool set_const;            // derived constants depend on it: mj_setConst after writing
+  const char* mjcf;          // how the value is written back into MJCF (for docs)
+  MjcfWriter write_mjcf;     // that writer
+
+  // display name of the object type: "body", "joint", "geom", "actuator"; "mjModel array" for
+  // field
+  const char* object_name() const;
+};
+
+// every kind, in ParameterKind order
+const std::vector<ParameterKindInfo>& ParameterKindTable();
+
+// the row of a kind name; nullptr when unknown
+const ParameterKindInfo* FindParameterKind(const std::string& name);
+
+// the row of a kind
+const ParameterKindInfo& ParameterKindInfoOf(ParameterKind kind);
+
 // the YAML spelling of each kind: "body_mass", "body_mass_inertia", ..., "field"
-const char* ParameterKindName(ParameterKind kind);
+const std::string& ParameterKindName(ParameterKind kind);
 const std::vector<std::string>& ParameterKindNames();
 
 struct ParameterSpec {
@@ -58,15 +115,28 @@ struct ParameterSpec {
   std::string label;   // display name; defaults to "kind:object[index]"
 };
 
+// Checks what needs no model: the kind name, and the index against the kind's fixed range (every
+// kind but field). Throws ParameterError (the same message Resolve gives).
+void CheckParameterSpec(const ParameterSpec& spec);
+
+// The number of valid indices of spec in m: the kind's num_indices, or the number of elements of
+// the named mjModel array (field). Throws ParameterError for an unknown kind or array.
+int ParameterIndexCount(const mjModel& m, const ParameterSpec& spec);
+
 // A parameter resolved against one model: where it lives and how to write it.
 class Parameter {
  public:
+  // Throws ParameterError: unknown kind, object or array, index out of range, the world body,
+  // a massless body for body_mass_inertia, an actuator without output for actuator_gear.
   static Parameter Resolve(const mjModel& m, const ParameterSpec& spec);
 
   const std::string& label() const { return label_; }
-  ParameterKind kind() const { return kind_; }
-  int stage() const { return stage_; }
-  bool needs_set_const() const { return needs_set_const_; }
+  ParameterKind kind() const { return info_->kind; }
+  const ParameterKindInfo& info() const { return *info_; }
+  int id() const { return id_; }  // object id; -1 for field
+  int index() const { return index_; }
+  int stage() const { return info_->stage; }
+  bool needs_set_const() const { return info_->set_const; }
 
   // the value currently in m
   double Read(const mjModel& m) const;
@@ -78,15 +148,15 @@ class Parameter {
   void Prepare(mjModel* m) const;
 
  private:
-  ParameterKind kind_ = ParameterKind::kField;
+  Parameter() = default;
+
+  const ParameterKindInfo* info_ = nullptr;  // a row of ParameterKindTable()
   std::string label_;
   int id_ = -1;            // object id
   int index_ = 0;          // component index
   int field_offset_ = -1;  // byte offset of the mjtNum array in mjModel (kField)
   int field_size_ = 0;     // number of entries of the array (kField)
-  int stage_ = mjSTAGE_NONE;
-  bool needs_set_const_ = false;
-  double ref_mass_ = 0;  // kBodyMassInertia: mass and inertia at resolution
+  double ref_mass_ = 0;    // kBodyMassInertia: mass and inertia at resolution
   double ref_inertia_[3] = {0, 0, 0};
 };
 

@@ -1,6 +1,5 @@
 #include "sysid/io/experiment.h"
 
-#include <mujoco/mjxmacro.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -12,7 +11,6 @@
 #include <fstream>
 #include <set>
 #include <sstream>
-#include <type_traits>
 #include <utility>
 
 namespace mjsysid::io {
@@ -443,60 +441,39 @@ const std::vector<std::string> kDifferences = {"forward", "central"};
 const std::vector<std::string> kLossTypes = {"none", "huber", "cauchy"};
 const std::vector<std::string> kExcitationTypes = {"sines", "chirp", "prbs", "zero"};
 
-// the largest index a target kind accepts without a model (-1: no model-free limit)
-int StaticMaxIndex(ParameterTarget target) {
-  switch (target) {
-    case ParameterTarget::kBodyMass:
-    case ParameterTarget::kBodyMassInertia:
-    case ParameterTarget::kJointStiffness:
-      return 0;
-    case ParameterTarget::kBodyInertia:
-    case ParameterTarget::kBodyCom:
-    case ParameterTarget::kGeomFriction:
-      return 2;
-    case ParameterTarget::kJointDamping:
-    case ParameterTarget::kJointFrictionloss:
-    case ParameterTarget::kJointArmature:
-    case ParameterTarget::kActuatorGear:
-      return 5;
-    case ParameterTarget::kActuatorGain:
-      return mjNGAIN - 1;
-    case ParameterTarget::kActuatorBias:
-      return mjNBIAS - 1;
-    case ParameterTarget::kField:
-      break;
-  }
-  return -1;
+// core's spelling of a parameter: kind, object, field, index, label = name
+::mjsysid::ParameterSpec CoreSpec(const ParameterSpec& p) {
+  ::mjsysid::ParameterSpec s;
+  s.kind = ParameterKindName(p.target);
+  s.object = p.object;
+  s.field = p.field;
+  s.index = p.index;
+  s.label = p.name;
+  return s;
 }
 
-// what the components of a target kind are
-std::string IndexHint(ParameterTarget target) {
-  switch (target) {
-    case ParameterTarget::kBodyMass:
-    case ParameterTarget::kBodyMassInertia:
-      return "a body has one mass: use index 0";
-    case ParameterTarget::kJointStiffness:
-      return "a joint has one stiffness: use index 0";
-    case ParameterTarget::kBodyInertia:
-      return "principal moments of inertia: 0, 1, 2";
-    case ParameterTarget::kBodyCom:
-      return "centre of mass in the body frame: 0 = x, 1 = y, 2 = z";
-    case ParameterTarget::kGeomFriction:
-      return "0 = sliding, 1 = torsional, 2 = rolling";
-    case ParameterTarget::kJointDamping:
-    case ParameterTarget::kJointFrictionloss:
-    case ParameterTarget::kJointArmature:
-      return "the dof of the joint: 0 for hinge and slide, 0..2 for ball, 0..5 for free";
-    case ParameterTarget::kActuatorGain:
-      return "an element of gainprm: 0.." + std::to_string(mjNGAIN - 1);
-    case ParameterTarget::kActuatorBias:
-      return "an element of biasprm: 0.." + std::to_string(mjNBIAS - 1);
-    case ParameterTarget::kActuatorGear:
-      return "an element of gear: 0..5";
-    case ParameterTarget::kField:
+// core's ParameterError as a ConfigError at the parameter's key it is about, with core's message
+// (followed by context) and hint
+ConfigError AtSpecPart(const ParameterSpec& p, const ParameterError& e,
+                       const std::string& context = {}) {
+  const char* key = "";
+  switch (e.part()) {
+    case ParameterSpecPart::kKind:
+      key = "target";
+      break;
+    case ParameterSpecPart::kObject:
+      key = "object";
+      break;
+    case ParameterSpecPart::kField:
+      key = "field";
+      break;
+    case ParameterSpecPart::kIndex:
+      key = "index";
+      break;
+    case ParameterSpecPart::kNone:
       break;
   }
-  return "a flat index into the mjModel array (row * columns + column)";
+  return ConfigError(p.marks.Of(key), e.message() + context, e.hint());
 }
 
 ExperimentConfig Parser::Parse(const YAML::Node& root) {
@@ -709,9 +686,10 @@ ParameterSpec Parser::ParseParameter(const Field& f, const ExperimentConfig& c) 
   p.marks = r.marks();
   r.Require("name");
   p.name = Name(r.Get("name"));
-  r.Require("target", "one of: " + JoinNames(ParameterTargetKinds()));
-  p.target = static_cast<ParameterTarget>(Enum(r.Get("target"), ParameterTargetKinds()));
-  const std::string& kind = ParameterTargetName(p.target);
+  r.Require("target", "one of: " + JoinNames(ParameterKindNames()));
+  const ParameterKindInfo& info = ParameterKindTable()[Enum(r.Get("target"), ParameterKindNames())];
+  p.target = info.kind;
+  const std::string kind = info.name;
 
   // object for the named kinds, field for `field`
   if (p.target == ParameterTarget::kField) {
@@ -726,22 +704,19 @@ ParameterSpec Parser::ParseParameter(const Field& f, const ExperimentConfig& c) 
       Fail(r.KeyMark("field"), r.Path("field") + ": only used by target 'field', not " + kind,
            "name the MuJoCo object in 'object'");
     }
-    r.Require("object", "the MuJoCo name of the " + kind.substr(0, kind.find('_')) + " that '" +
+    r.Require("object", std::string("the MuJoCo name of the ") + info.object_name() + " that '" +
                             kind + "' applies to");
     p.object = Name(r.Get("object"));
   }
 
-  // component
+  // component: core's model-free check (the kind's index range)
   if (r.Has("index")) {
-    const Field fi = r.Get("index");
-    p.index = static_cast<int>(Integer(fi, 0, std::numeric_limits<int>::max()));
-    const int max_index = StaticMaxIndex(p.target);
-    if (max_index >= 0 && p.index > max_index) {
-      Fail(fi.mark,
-           fi.path + ": " + std::to_string(p.index) + " is out of range for " + kind + " (0.." +
-               std::to_string(max_index) + ")",
-           IndexHint(p.target));
-    }
+    p.index = static_cast<int>(Integer(r.Get("index"), 0, std::numeric_limits<int>::max()));
+  }
+  try {
+    CheckParameterSpec(CoreSpec(p));
+  } catch (const ParameterError& e) {
+    throw AtSpecPart(p, e);
   }
 
   // value, bounds, transform
@@ -997,103 +972,12 @@ int RequireObject(const mjModel& m, mjtObj type, long long count, const std::str
   return id;
 }
 
-// an mjtNum array of mjModel: its name and number of elements
-struct NumericField {
-  std::string name;
-  long long size;
-};
-
-std::vector<NumericField> NumericFields(const mjModel& model) {
-  std::vector<NumericField> out;
-  const mjModel* m = &model;
-  MJMODEL_POINTERS_PREAMBLE(m)
-#define X(type, name, nr, nc)                                                           \
-  if (std::is_same_v<type, mjtNum>) {                                                   \
-    out.push_back({#name, static_cast<long long>(m->nr) * static_cast<long long>(nc)}); \
-  }
-  MJMODEL_POINTERS
-#undef X
-  return out;
-}
-
-void CheckIndex(const ParameterSpec& p, int max_index, const std::string& what) {
-  if (p.index > max_index) {
-    throw ConfigError(p.marks.Of("index"),
-                      "index " + std::to_string(p.index) + " is out of range for " +
-                          ParameterTargetName(p.target) + " of " + what + " (0.." +
-                          std::to_string(max_index) + ")",
-                      IndexHint(p.target));
-  }
-}
-
+// a parameter resolved against m by core; its ParameterError as a ConfigError
 void ValidateParameter(const ParameterSpec& p, const mjModel& m, const std::string& label) {
-  const Mark& at = p.marks.Of("object");
-  const std::string object = Quote(p.object);
-  switch (p.target) {
-    case ParameterTarget::kBodyMass:
-    case ParameterTarget::kBodyMassInertia:
-    case ParameterTarget::kBodyInertia:
-    case ParameterTarget::kBodyCom: {
-      const int id = RequireObject(m, mjOBJ_BODY, m.nbody, "body", p.object, at, label);
-      if (id == 0) {
-        throw ConfigError(at, "the world body has no mass, inertia or centre of mass to identify",
-                          "name a moving body");
-      }
-      CheckIndex(p, StaticMaxIndex(p.target), "body " + object);
-      return;
-    }
-    case ParameterTarget::kJointDamping:
-    case ParameterTarget::kJointFrictionloss:
-    case ParameterTarget::kJointArmature:
-    case ParameterTarget::kJointStiffness: {
-      const int id = RequireObject(m, mjOBJ_JOINT, m.njnt, "joint", p.object, at, label);
-      int dofs = 1;
-      if (p.target != ParameterTarget::kJointStiffness) {
-        const int type = m.jnt_type[id];
-        dofs = type == mjJNT_FREE ? 6 : type == mjJNT_BALL ? 3 : 1;
-      }
-      CheckIndex(p, dofs - 1, "joint " + object);
-      return;
-    }
-    case ParameterTarget::kGeomFriction:
-      RequireObject(m, mjOBJ_GEOM, m.ngeom, "geom", p.object, at, label);
-      CheckIndex(p, 2, "geom " + object);
-      return;
-    case ParameterTarget::kActuatorGain:
-    case ParameterTarget::kActuatorBias:
-    case ParameterTarget::kActuatorGear:
-      RequireObject(m, mjOBJ_ACTUATOR, m.nu, "actuator", p.object, at, label);
-      CheckIndex(p, StaticMaxIndex(p.target), "actuator " + object);
-      return;
-    case ParameterTarget::kField: {
-      const std::vector<NumericField> fields = NumericFields(m);
-      const auto it = std::find_if(fields.begin(), fields.end(),
-                                   [&](const NumericField& f) { return f.name == p.field; });
-      if (it == fields.end()) {
-        // list the closest names first: the full list is long
-        std::vector<std::string> names;
-        for (const NumericField& f : fields) names.push_back(f.name);
-        std::stable_sort(names.begin(), names.end(),
-                         [&](const std::string& a, const std::string& b) {
-                           return EditDistance(p.field, a) < EditDistance(p.field, b);
-                         });
-        throw ConfigError(p.marks.Of("field"),
-                          Quote(p.field) + " is not an mjtNum array of mjModel",
-                          NamesHint(p.field, names, "arrays (closest first)"));
-      }
-      if (it->size == 0) {
-        throw ConfigError(p.marks.Of("field"),
-                          "mjModel array " + Quote(p.field) + " is empty in " + label);
-      }
-      if (p.index >= it->size) {
-        throw ConfigError(p.marks.Of("index"),
-                          "index " + std::to_string(p.index) + " is out of range for " +
-                              Quote(p.field) + " (0.." + std::to_string(it->size - 1) + ") in " +
-                              label,
-                          IndexHint(p.target));
-      }
-      return;
-    }
+  try {
+    Parameter::Resolve(m, CoreSpec(p));
+  } catch (const ParameterError& e) {
+    throw AtSpecPart(p, e, " in " + label);
   }
 }
 
@@ -1133,19 +1017,6 @@ ConfigError::ConfigError(Mark mark, std::string message, std::string hint)
       mark_(std::move(mark)),
       message_(std::move(message)),
       hint_(std::move(hint)) {}
-
-const std::vector<std::string>& ParameterTargetKinds() {
-  static const std::vector<std::string> kinds = {
-      "body_mass",     "body_mass_inertia",  "body_inertia",   "body_com",
-      "joint_damping", "joint_frictionloss", "joint_armature", "joint_stiffness",
-      "geom_friction", "actuator_gain",      "actuator_bias",  "actuator_gear",
-      "field"};
-  return kinds;
-}
-
-const std::string& ParameterTargetName(ParameterTarget target) {
-  return ParameterTargetKinds().at(static_cast<size_t>(target));
-}
 
 bool ParameterSpec::AppliesTo(const std::string& model_name) const {
   return model_name.empty() || models.empty() ||

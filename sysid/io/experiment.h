@@ -7,6 +7,8 @@
 //   element (file:line:column, 1-based) with a hint (valid keys, allowed values, "did you mean").
 // - Paths (models, data, output) are resolved against the YAML file's directory and stored
 //   absolute and normalised. Nothing is read besides the YAML file itself.
+// - Parameter kinds, their objects and index ranges are core's (core/parameters.h): a parameter's
+//   error carries core's message and hint, at the YAML key it is about.
 // - Every element keeps its source Mark, so that checks made later against a model
 //   (ValidateExperimentAgainstModel, or a caller's own) report the YAML position.
 #pragma once
@@ -21,6 +23,7 @@
 #include <string>
 #include <vector>
 
+#include "core/parameters.h"
 #include "sysid/types.h"
 
 namespace mjsysid::io {
@@ -100,26 +103,16 @@ struct SensorSpec {
   double ResidualWeight() const { return sigma ? 1.0 / *sigma : weight; }
 };
 
-// what a physical parameter writes into the model; order matches ParameterTargetKinds()
-enum class ParameterTarget {
-  kBodyMass,
-  kBodyMassInertia,
-  kBodyInertia,
-  kBodyCom,
-  kJointDamping,
-  kJointFrictionloss,
-  kJointArmature,
-  kJointStiffness,
-  kGeomFriction,
-  kActuatorGain,
-  kActuatorBias,
-  kActuatorGear,
-  kField,
-};
+// what a physical parameter writes into the model: core's ParameterKind (core/parameters.h holds
+// the only definition of a kind: name, object, indices, stage, how written back)
+using ParameterTarget = ParameterKind;
 
-// the YAML spellings of ParameterTarget, in enum order ("body_mass", ..., "field")
-const std::vector<std::string>& ParameterTargetKinds();
-const std::string& ParameterTargetName(ParameterTarget target);
+// the YAML spellings of the kinds, in enum order ("body_mass", ..., "field"): core's
+// ParameterKindNames() and ParameterKindName() under io's names
+inline const std::vector<std::string>& ParameterTargetKinds() { return ParameterKindNames(); }
+inline const std::string& ParameterTargetName(ParameterTarget target) {
+  return ParameterKindName(target);
+}
 
 // a Gaussian prior on a parameter (added as a residual (x - mean) / sigma)
 struct Prior {
@@ -128,7 +121,7 @@ struct Prior {
   Marks marks;
 };
 
-// one physical parameter to identify
+// one physical parameter to identify (kind, object, field and index as in core's ParameterSpec)
 struct ParameterSpec {
   std::string name;  // unique label
   ParameterTarget target = ParameterTarget::kBodyMass;
@@ -233,10 +226,11 @@ ExperimentConfig ParseExperiment(const std::string& yaml_text,
                                  const std::string& path_for_messages);
 
 // Checks the names and sizes in config against model m, known in the config as model_name (its
-// ModelSpec::name; "" = apply every parameter): sensors, parameter objects and indices (per
-// target kind; for kField an mjtNum array of mjModel and a flat index inside it), measurement and
-// noise sensors, excitation actuators, simulate.initial_state sizes (nq, nv). Throws ConfigError
-// at the first offending element, with a hint listing up to 20 valid names.
+// ModelSpec::name; "" = apply every parameter): sensors, parameters (each resolved by core's
+// Parameter::Resolve: its ParameterError becomes a ConfigError at the offending key with core's
+// message followed by " in <model>", and core's hint), measurement and noise sensors, excitation
+// actuators, simulate.initial_state sizes (nq, nv). Throws ConfigError at the first offending
+// element, with a hint listing up to 20 valid names.
 void ValidateExperimentAgainstModel(const ExperimentConfig& config, const mjModel& m,
                                     const std::string& model_name);
 

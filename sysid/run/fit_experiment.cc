@@ -7,23 +7,16 @@
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
-#include <limits>
+#include <fstream>
 #include <map>
 #include <system_error>
 #include <thread>
 
+#include "core/identified_model.h"
 #include "mjsysid/version.h"
 #include "sysid/io/log.h"
 #include "sysid/io/sequence_models.h"
 #include "sysid/sim/simulate.h"
-
-// MuJoCo's XML writer prints 6 significant digits unless told otherwise; its (exported, private)
-// precision setter is declared weak so that a MuJoCo without it still links (then the check
-// after writing reports the rounding)
-extern "C" {
-int _mjPRIVATE__get_xml_precision() __attribute__((weak));
-void _mjPRIVATE__set_xml_precision(int precision) __attribute__((weak));
-}
 
 namespace mjsysid::run {
 namespace {
@@ -183,119 +176,31 @@ std::vector<std::string> WriteIdentifiedModel(const io::ExperimentConfig& cfg,
                                               const std::string& model_path,
                                               const std::vector<ParameterEstimate>& estimates,
                                               const std::string& out_path) {
-  std::vector<std::string> warnings;
-  // the identified compiled model: every parameter written with the core's writers
-  ModelPtr m = LoadModel(model_path);
+  // the estimates of the parameters that apply to this model
   std::vector<ParameterSpec> specs;
   std::vector<double> values;
-  std::vector<const io::ParameterSpec*> used;
   for (const io::ParameterSpec& p : cfg.parameters) {
     if (!p.AppliesTo(model_name)) continue;
     for (const ParameterEstimate& e : estimates) {
       if (e.name != p.name) continue;
       specs.push_back(sim::ToCoreSpec(p));
       values.push_back(e.value);
-      used.push_back(&p);
-    }
-  }
-  ParameterSet params(*m, specs);
-  params.Prepare(m.get());
-  DataPtr scratch = MakeData(*m);
-  params.Write(m.get(), scratch.get(), values.data());
-
-  // the same values written into the model's spec, element by element
-  char error[1024] = "";
-  mjSpec* spec = mj_parseXML(model_path.c_str(), nullptr, error, sizeof(error));
-  if (!spec) throw ModelLoadError(model_path + ": " + error);
-  for (size_t i = 0; i < used.size(); ++i) {
-    const io::ParameterSpec& p = *used[i];
-    const int idx = p.index;
-    switch (p.target) {
-      case io::ParameterTarget::kBodyMass:
-      case io::ParameterTarget::kBodyMassInertia:
-      case io::ParameterTarget::kBodyInertia:
-      case io::ParameterTarget::kBodyCom: {
-        // an explicit inertial clause with the identified compiled values
-        mjsBody* b = mjs_findBody(spec, p.object.c_str());
-        const int id = mj_name2id(m.get(), mjOBJ_BODY, p.object.c_str());
-        if (!b || id < 0) break;
-        b->explicitinertial = 1;
-        b->mass = m->body_mass[id];
-        for (int k = 0; k < 3; ++k) b->ipos[k] = m->body_ipos[3 * id + k];
-        for (int k = 0; k < 4; ++k) b->iquat[k] = m->body_iquat[4 * id + k];
-        for (int k = 0; k < 3; ++k) b->inertia[k] = m->body_inertia[3 * id + k];
-        b->fullinertia[0] = std::numeric_limits<double>::quiet_NaN();
-        b->ialt.type = mjORIENTATION_QUAT;
-        break;
-      }
-      case io::ParameterTarget::kJointDamping:
-      case io::ParameterTarget::kJointFrictionloss:
-      case io::ParameterTarget::kJointArmature:
-      case io::ParameterTarget::kJointStiffness: {
-        mjsJoint* j = mjs_asJoint(mjs_findElement(spec, mjOBJ_JOINT, p.object.c_str()));
-        if (!j) break;
-        if (p.target == io::ParameterTarget::kJointDamping) j->damping[0] = values[i];
-        if (p.target == io::ParameterTarget::kJointFrictionloss) j->frictionloss = values[i];
-        if (p.target == io::ParameterTarget::kJointArmature) j->armature = values[i];
-        if (p.target == io::ParameterTarget::kJointStiffness) j->stiffness[0] = values[i];
-        break;
-      }
-      case io::ParameterTarget::kGeomFriction: {
-        mjsGeom* g = mjs_asGeom(mjs_findElement(spec, mjOBJ_GEOM, p.object.c_str()));
-        if (g) g->friction[idx] = values[i];
-        break;
-      }
-      case io::ParameterTarget::kActuatorGain:
-      case io::ParameterTarget::kActuatorBias:
-      case io::ParameterTarget::kActuatorGear: {
-        mjsActuator* a = mjs_asActuator(mjs_findElement(spec, mjOBJ_ACTUATOR, p.object.c_str()));
-        if (!a) break;
-        if (p.target == io::ParameterTarget::kActuatorGain) a->gainprm[idx] = values[i];
-        if (p.target == io::ParameterTarget::kActuatorBias) a->biasprm[idx] = values[i];
-        if (p.target == io::ParameterTarget::kActuatorGear) a->gear[idx] = values[i];
-        break;
-      }
-      case io::ParameterTarget::kField:
-        warnings.push_back("parameter '" + p.name + "' (field " + p.field +
-                           ") has no MJCF attribute: not written into " + out_path);
-        break;
     }
   }
 
-  // compile, save atomically, and check the saved file reproduces the values
-  mjModel* compiled = nullptr;
-  try {
-    compiled = mj_compile(spec, nullptr);
-  } catch (const MujocoError& e) {
-    mj_deleteSpec(spec);
-    throw ModelLoadError(model_path + ": identified model does not compile: " + e.what());
-  }
-  if (!compiled) {
-    const std::string msg = mjs_getError(spec);
-    mj_deleteSpec(spec);
-    throw ModelLoadError(model_path + ": identified model does not compile: " + msg);
-  }
-  mj_deleteModel(compiled);
+  // core writes them into the model's MJCF (and checks it); saved atomically: a temporary file
+  // next to out_path, renamed over it
+  std::vector<std::string> warnings;
+  const std::string xml = IdentifiedModelXml(model_path, specs, values, &warnings);
   const std::string tmp = out_path + ".tmp";
-  const bool full_precision = _mjPRIVATE__get_xml_precision && _mjPRIVATE__set_xml_precision;
-  const int saved_precision = full_precision ? _mjPRIVATE__get_xml_precision() : 0;
-  if (full_precision) _mjPRIVATE__set_xml_precision(17);
-  const bool ok = mj_saveXML(spec, tmp.c_str(), error, sizeof(error)) == 0;
-  if (full_precision) _mjPRIVATE__set_xml_precision(saved_precision);
-  mj_deleteSpec(spec);
-  if (!ok) throw std::runtime_error("cannot write " + out_path + ": " + error);
-  fs::rename(tmp, out_path);
-  ModelPtr back = LoadModel(out_path);
-  ParameterSet check(*back, specs);
-  std::vector<double> read(values.size());
-  check.Read(*back, read.data());
-  for (size_t i = 0; i < values.size(); ++i) {
-    if (used[i]->target == io::ParameterTarget::kField) continue;
-    if (std::abs(read[i] - values[i]) > 1e-9 * std::max(1.0, std::abs(values[i]))) {
-      warnings.push_back("identified model " + out_path + ": '" + specs[i].label + "' reads " +
-                         Num(read[i]) + " instead of " + Num(values[i]));
-    }
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    out << xml;
+    out.close();
+    if (!out) throw std::runtime_error("cannot write " + tmp);
   }
+  fs::rename(tmp, out_path);
+  for (std::string& w : warnings) w = out_path + ": " + w;
   return warnings;
 }
 

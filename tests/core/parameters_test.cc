@@ -4,7 +4,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <fstream>
 #include <map>
+#include <set>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -39,7 +42,7 @@ const char* kTemplate = R"(
       <geom type="sphere" size="0.05" contype="0" conaffinity="0"/>
     </body>
     <body name="box" pos="0 2 0.1">
-      <freejoint/>
+      <freejoint name="free"/>
       <geom name="box" type="box" size=".1 .1 .1" mass="1" friction="{box_mu} 0.005 0.0001"/>
       <site name="push"/>
     </body>
@@ -191,8 +194,8 @@ TEST(WriterTest, FieldByNameMatchesCompiledXml) {
   EXPECT_LE(MaxAbsDiff(Simulate(*written), Simulate(*edited_xml)), 1e-12);
 }
 
-// the traps of ../shared/DESIGN.md §5 are real: without mj_setConst a simple body ignores its
-// new mass, and the "same frame" flag ignores a new centre of mass
+// the traps the contract of core/parameters.h works around are real: without mj_setConst a simple
+// body ignores its new mass, and the "same frame" flag ignores a new centre of mass
 TEST(WriterTest, TrapsAreRealWithoutSetConstAndPrepare) {
   ModelPtr base = LoadModelFromString(Xml({}));
   const int slider = mj_name2id(base.get(), mjOBJ_BODY, "slider");
@@ -203,7 +206,7 @@ TEST(WriterTest, TrapsAreRealWithoutSetConstAndPrepare) {
   ModelPtr raw = CopyModel(*base);
   Parameter::Resolve(*raw, Spec("body_mass", "slider")).WriteRaw(raw.get(), 3.1);
   EXPECT_EQ(MaxAbsDiff(Simulate(*raw), Simulate(*base)), 0.0)
-      << "MuJoCo no longer ignores a raw mass write on a simple body: update DESIGN.md";
+      << "MuJoCo no longer ignores a raw mass write on a simple body: update core/parameters.h";
 
   // a raw centre-of-mass write on a "same frame" body is ignored or rejected by MuJoCo
   ModelPtr com_raw = CopyModel(*base);
@@ -217,7 +220,7 @@ TEST(WriterTest, TrapsAreRealWithoutSetConstAndPrepare) {
     rejected = true;
   }
   EXPECT_TRUE(rejected || MaxAbsDiff(traj, xml) > 1e-6)
-      << "MuJoCo honours a raw body_ipos write on a same-frame body: update DESIGN.md";
+      << "MuJoCo honours a raw body_ipos write on a same-frame body: update core/parameters.h";
 }
 
 TEST(ParameterTest, BadSpecsAreClearErrors) {
@@ -254,6 +257,169 @@ TEST(ParameterTest, StagesFollowThePipeline) {
   EXPECT_EQ(Parameter::Resolve(*m, Spec("joint_stiffness", "hinge")).stage(), mjSTAGE_POS);
   EXPECT_EQ(Parameter::Resolve(*m, Spec("actuator_gain", "act")).stage(), mjSTAGE_VEL);
   EXPECT_EQ(Parameter::Resolve(*m, Spec("geom_friction", "box")).stage(), mjSTAGE_NONE);
+}
+
+// ---------------------------------------------------------------------------------------------
+// the kind table
+
+TEST(KindTableTest, EveryKindIsCompleteAndNamedOnce) {
+  const std::vector<ParameterKindInfo>& table = ParameterKindTable();
+  ASSERT_EQ(table.size(), ParameterKindNames().size());
+  std::set<std::string> names;
+  for (size_t i = 0; i < table.size(); ++i) {
+    const ParameterKindInfo& k = table[i];
+    SCOPED_TRACE(k.name);
+    // one row per enum value, in enum order, found by name and by kind
+    EXPECT_EQ(static_cast<size_t>(k.kind), i);
+    EXPECT_TRUE(names.insert(k.name).second) << "name listed twice";
+    EXPECT_EQ(FindParameterKind(k.name), &k);
+    EXPECT_EQ(&ParameterKindInfoOf(k.kind), &k);
+    EXPECT_EQ(ParameterKindName(k.kind), k.name);
+    EXPECT_EQ(ParameterKindNames()[i], k.name);
+    // a writer, a stage, an object type with a display name, indices, units and docs
+    EXPECT_NE(k.write_mjcf, nullptr);
+    EXPECT_TRUE(k.stage == mjSTAGE_NONE || k.stage == mjSTAGE_POS || k.stage == mjSTAGE_VEL);
+    EXPECT_EQ(k.object == mjOBJ_UNKNOWN, k.kind == ParameterKind::kField);
+    EXPECT_EQ(k.num_indices == 0, k.kind == ParameterKind::kField);
+    EXPECT_GT(std::string(k.object_name()).size(), 0u);
+    for (const char* text : {k.indices, k.units, k.model_fields, k.mjcf}) {
+      EXPECT_GT(std::string(text).size(), 0u);
+    }
+  }
+  EXPECT_EQ(FindParameterKind("joint_dampin"), nullptr);
+  EXPECT_STREQ(ParameterKindInfoOf(ParameterKind::kGeomFriction).object_name(), "geom");
+  EXPECT_STREQ(ParameterKindInfoOf(ParameterKind::kField).object_name(), "mjModel array");
+}
+
+TEST(KindTableTest, IndexCountsOfASpecInAModel) {
+  ModelPtr m = LoadModelFromString(Xml({}));
+  EXPECT_EQ(ParameterIndexCount(*m, Spec("geom_friction", "box")), 3);
+  EXPECT_EQ(ParameterIndexCount(*m, Spec("actuator_gain", "act")), mjNGAIN);
+  EXPECT_EQ(ParameterIndexCount(*m, Spec("actuator_bias", "act")), mjNBIAS);
+  EXPECT_EQ(ParameterIndexCount(*m, Spec("actuator_gear", "act")), 6);
+  EXPECT_EQ(ParameterIndexCount(*m, Spec("body_inertia", "tip")), 3);
+  EXPECT_EQ(ParameterIndexCount(*m, Spec("body_com", "tip")), 3);
+  EXPECT_EQ(ParameterIndexCount(*m, Spec("body_mass", "tip")), 1);
+  for (const char* joint : {"hinge", "ball", "free"}) {
+    EXPECT_EQ(ParameterIndexCount(*m, Spec("joint_damping", joint)), 1) << joint;
+  }
+  ParameterSpec field;
+  field.kind = "field";
+  field.field = "dof_damping";
+  EXPECT_EQ(ParameterIndexCount(*m, field), m->nv);
+  EXPECT_THROW(ParameterIndexCount(*m, Spec("joint_dampin", "hinge")), ParameterError);
+}
+
+// MJCF has one damping, frictionloss, armature and stiffness per joint: every joint kind takes
+// index 0 only, for every joint type, and index 1 gets one message, with or without a model
+TEST(KindTableTest, JointKindsTakeIndexZeroForEveryJointType) {
+  ModelPtr m = LoadModelFromString(Xml({}));
+  for (const char* kind :
+       {"joint_damping", "joint_frictionloss", "joint_armature", "joint_stiffness"}) {
+    for (const char* joint : {"hinge", "ball", "free"}) {
+      SCOPED_TRACE(std::string(kind) + " " + joint);
+      EXPECT_NO_THROW(Parameter::Resolve(*m, Spec(kind, joint, 0)));
+      const std::string expected = "index 1 is out of range for " + std::string(kind) +
+                                   " of joint '" + joint +
+                                   "' (0 only: " + FindParameterKind(kind)->indices + ")";
+      for (int with_model = 0; with_model < 2; ++with_model) {
+        try {
+          if (with_model) {
+            Parameter::Resolve(*m, Spec(kind, joint, 1));
+          } else {
+            CheckParameterSpec(Spec(kind, joint, 1));
+          }
+          ADD_FAILURE() << "index 1 accepted";
+        } catch (const ParameterError& e) {
+          EXPECT_EQ(e.message(), expected);
+          EXPECT_EQ(e.part(), ParameterSpecPart::kIndex);
+        }
+      }
+    }
+  }
+  // the decided wording for the damping of a ball joint
+  try {
+    Parameter::Resolve(*m, Spec("joint_damping", "ball", 1));
+    ADD_FAILURE() << "index 1 accepted";
+  } catch (const ParameterError& e) {
+    EXPECT_STREQ(e.what(),
+                 "index 1 is out of range for joint_damping of joint 'ball' (0 only: one MJCF "
+                 "attribute per joint, applied to every dof)");
+  }
+}
+
+// errors say which part of the spec is wrong, with core's hint
+TEST(KindTableTest, ErrorsNameTheirPartAndHint) {
+  ModelPtr m = LoadModelFromString(Xml({}));
+  auto error = [&](const ParameterSpec& spec) -> ParameterError {
+    try {
+      Parameter::Resolve(*m, spec);
+    } catch (const ParameterError& e) {
+      return e;
+    }
+    return ParameterError("resolved");
+  };
+  const ParameterError kind = error(Spec("joint_dampng", "hinge"));
+  EXPECT_EQ(kind.part(), ParameterSpecPart::kKind);
+  EXPECT_EQ(kind.hint().rfind("did you mean 'joint_damping'? valid kinds: body_mass, ", 0), 0u)
+      << kind.hint();
+  const ParameterError object = error(Spec("joint_damping", "hnge"));
+  EXPECT_EQ(object.part(), ParameterSpecPart::kObject);
+  EXPECT_EQ(object.message(), "joint_damping: no joint named 'hnge'");
+  EXPECT_EQ(object.hint(), "did you mean 'hinge'? valid joint names: hinge, ball, slide, free");
+  EXPECT_EQ(std::string(object.what()), object.message() + " (hint: " + object.hint() + ")");
+  EXPECT_EQ(error(Spec("geom_friction", "box", 3)).part(), ParameterSpecPart::kIndex);
+  ParameterSpec field;
+  field.kind = "field";
+  field.field = "dof_dampin";
+  EXPECT_EQ(error(field).part(), ParameterSpecPart::kField);
+  EXPECT_EQ(error(field).hint().rfind("did you mean 'dof_damping'?", 0), 0u);
+  EXPECT_EQ(error(Spec("body_mass", "world")).part(), ParameterSpecPart::kObject);
+}
+
+// the kinds table of docs/experiment-schema.md is the one core's table renders
+std::string KindsMarkdown() {
+  auto stage = [](int s) {
+    return s == mjSTAGE_NONE ? "position" : s == mjSTAGE_POS ? "velocity" : "actuation";
+  };
+  std::string out =
+      "| kind | object | index | units | mjModel | enters at | mj_setConst | written to MJCF as "
+      "|\n| --- | --- | --- | --- | --- | --- | --- | --- |\n";
+  for (const ParameterKindInfo& k : ParameterKindTable()) {
+    const std::string range = k.num_indices == 0   ? "0..size-1"
+                              : k.num_indices == 1 ? "0"
+                                                   : "0.." + std::to_string(k.num_indices - 1);
+    out += std::string("| `") + k.name + "` | " + k.object_name() + " | " + range + ": " +
+           k.indices + " | " + k.units + " | " + k.model_fields + " | " + stage(k.stage) + " | " +
+           (k.set_const ? "yes" : "no") + " | " + k.mjcf + " |\n";
+  }
+  return out;
+}
+
+TEST(KindTableTest, SchemaDocListsTheTable) {
+  std::ifstream in(std::string(MJSYSID_SOURCE_DIR) + "/docs/experiment-schema.md");
+  ASSERT_TRUE(in.good());
+  std::stringstream text;
+  text << in.rdbuf();
+  const std::string doc = text.str();
+
+  // every kind name is in the doc's table, and every kind of the doc's table is a kind
+  const std::string begin = "<!-- kinds: begin -->\n", end = "<!-- kinds: end -->";
+  const size_t from = doc.find(begin), to = doc.find(end);
+  ASSERT_NE(from, std::string::npos);
+  ASSERT_NE(to, std::string::npos);
+  const std::string table = doc.substr(from + begin.size(), to - from - begin.size());
+  for (const std::string& name : ParameterKindNames()) {
+    EXPECT_NE(table.find("| `" + name + "` |"), std::string::npos) << name;
+  }
+  std::istringstream lines(table);
+  for (std::string line; std::getline(lines, line);) {
+    if (line.rfind("| `", 0) != 0) continue;
+    const std::string name = line.substr(3, line.find('`', 3) - 3);
+    EXPECT_NE(FindParameterKind(name), nullptr) << name << " is in the doc, not in core's table";
+  }
+  // and the rows say what the table says
+  EXPECT_EQ(table, KindsMarkdown()) << "paste this between the markers:\n" << KindsMarkdown();
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "core/mujoco_env.h"
+#include "core/parameters.h"
 
 namespace mjsysid::io {
 namespace {
@@ -656,8 +657,8 @@ parameters:
 parameters:
   - {name: i, target: body_inertia, object: bob, index: 3, initial: 1}
 )",
-              3, 57, "parameters[0].index: 3 is out of range for body_inertia (0..2)",
-              "principal moments");
+              3, 57,
+              "index 3 is out of range for body_inertia of body 'bob' (0..2: principal moments");
   ExpectError(R"(model: pendulum.xml
 parameters:
   - {name: g, target: actuator_gain, object: torque, index: -1, initial: 1}
@@ -875,26 +876,71 @@ simulate:
 }
 
 TEST_F(ModelValidationTest, IndicesOutsideTheObject) {
-  // a hinge has one dof
-  ExpectModelError(R"(parameters:
+  // a joint kind takes index 0 only (one MJCF attribute per joint): rejected without a model
+  ExpectError(R"(model: pendulum.xml
+parameters:
   - {name: d, target: joint_damping, object: hinge, index: 1, initial: 1}
 )",
-                   2, 60, "index 1 is out of range for joint_damping of joint 'hinge' (0..0)");
+              3, 60,
+              "index 1 is out of range for joint_damping of joint 'hinge' (0 only: one MJCF "
+              "attribute per joint, applied to every dof)");
   // dof_damping has nv = 1 elements
   ExpectModelError(R"(parameters:
   - {name: d, target: field, field: dof_damping, index: 1, initial: 1}
 )",
-                   2, 57, "index 1 is out of range for 'dof_damping' (0..0)");
+                   2, 57, "index 1 is out of range for field 'dof_damping' (0 only: flat index");
   ExpectModelError(R"(parameters:
   - {name: d, target: field, field: dof_dampin, initial: 1}
 )",
-                   2, 37, "'dof_dampin' is not an mjtNum array of mjModel",
+                   2, 37, "field: mjModel has no array named 'dof_dampin'",
                    "did you mean 'dof_damping'?");
   // int arrays are not parameters
   ExpectModelError(R"(parameters:
   - {name: d, target: field, field: jnt_type, initial: 1}
 )",
-                   2, 37, "'jnt_type' is not an mjtNum array");
+                   2, 37, "field: mjModel array 'jnt_type' holds int, not a floating-point");
+}
+
+// a joint kind takes index 0 for every joint type: a ball joint's damping index 1 is rejected with
+// core's message (the text Parameter::Resolve gives), at the index's YAML position
+TEST_F(ExperimentTest, BallJointDampingIndexIsCoresError) {
+  const std::string path = Write("exp.yaml", "model: " + kModels + R"(/ball_pendulum.xml
+parameters:
+  - name: d
+    target: joint_damping
+    object: ball
+    index: 1
+    initial: 0.05
+)");
+  ::mjsysid::ParameterSpec spec;
+  spec.kind = "joint_damping";
+  spec.object = "ball";
+  spec.index = 1;
+  const ModelPtr m = LoadModel(kModels + "/ball_pendulum.xml");
+  ASSERT_EQ(m->jnt_type[mj_name2id(m.get(), mjOBJ_JOINT, "ball")], mjJNT_BALL);
+  std::string core_message;
+  try {
+    Parameter::Resolve(*m, spec);
+  } catch (const ParameterError& e) {
+    core_message = e.message();
+  }
+  EXPECT_EQ(core_message,
+            "index 1 is out of range for joint_damping of joint 'ball' (0 only: one MJCF "
+            "attribute per joint, applied to every dof)");
+  try {
+    LoadExperiment(path);
+    ADD_FAILURE() << "expected a ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.line(), 6) << e.what();
+    EXPECT_EQ(e.column(), 12) << e.what();
+    EXPECT_EQ(e.message(), core_message);
+  }
+  // index 0 is the joint's one damping: accepted, with and without the model
+  std::ofstream(path, std::ios::trunc) << "model: " + kModels + R"(/ball_pendulum.xml
+parameters:
+  - {name: d, target: joint_damping, object: ball, index: 0, initial: 0.05}
+)";
+  EXPECT_NO_THROW(ValidateExperimentAgainstModel(LoadExperiment(path), *m, ""));
 }
 
 TEST_F(ModelValidationTest, InitialStateSizes) {
