@@ -312,16 +312,15 @@ int RunCheck(const CheckArgs& args) {
   for (const io::ModelSpec& spec : config.models) {
     mjsysid::ModelPtr m = mjsysid::LoadModel(spec.path);
     io::ValidateExperimentAgainstModel(config, *m, spec.name);
-    const std::vector<mjsysid::ParameterSpec> params =
-        mjsysid::sim::CoreParameterSpecs(config, *m, spec.name);
+    const size_t nparams = config.ParametersOf(spec.name).size();
     Appendf(&summary, "  model      %s: %s (%s), %zu parameters\n", spec.name.c_str(),
-            spec.path.c_str(), ModelSizes(*m).c_str(), params.size());
+            spec.path.c_str(), ModelSizes(*m).c_str(), nparams);
   }
   std::vector<std::string> params;
   for (const io::ParameterSpec& p : config.parameters) {
-    params.push_back(p.name + " (" + io::ParameterTargetName(p.target) + " " +
-                     (p.target == io::ParameterTarget::kField ? p.field : p.object) +
-                     (p.index ? "[" + std::to_string(p.index) + "]" : "") + ")");
+    const mjsysid::ParameterSpec& t = p.target;
+    params.push_back(p.name + " (" + t.kind + " " + (t.object.empty() ? t.field : t.object) +
+                     (t.index ? "[" + std::to_string(t.index) + "]" : "") + ")");
   }
   Appendf(&summary, "  parameters %s\n", params.empty() ? "none" : Join(params).c_str());
   std::vector<std::string> sensors;

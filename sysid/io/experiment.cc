@@ -441,17 +441,6 @@ const std::vector<std::string> kDifferences = {"forward", "central"};
 const std::vector<std::string> kLossTypes = {"none", "huber", "cauchy"};
 const std::vector<std::string> kExcitationTypes = {"sines", "chirp", "prbs", "zero"};
 
-// core's spelling of a parameter: kind, object, field, index, label = name
-::mjsysid::ParameterSpec CoreSpec(const ParameterSpec& p) {
-  ::mjsysid::ParameterSpec s;
-  s.kind = ParameterKindName(p.target);
-  s.object = p.object;
-  s.field = p.field;
-  s.index = p.index;
-  s.label = p.name;
-  return s;
-}
-
 // core's ParameterError as a ConfigError at the parameter's key it is about, with core's message
 // (followed by context) and hint
 ConfigError AtSpecPart(const ParameterSpec& p, const ParameterError& e,
@@ -686,19 +675,20 @@ ParameterSpec Parser::ParseParameter(const Field& f, const ExperimentConfig& c) 
   p.marks = r.marks();
   r.Require("name");
   p.name = Name(r.Get("name"));
+  p.target.label = p.name;
   r.Require("target", "one of: " + JoinNames(ParameterKindNames()));
   const ParameterKindInfo& info = ParameterKindTable()[Enum(r.Get("target"), ParameterKindNames())];
-  p.target = info.kind;
   const std::string kind = info.name;
+  p.target.kind = kind;
 
   // object for the named kinds, field for `field`
-  if (p.target == ParameterTarget::kField) {
+  if (info.kind == ParameterKind::kField) {
     if (r.Has("object")) {
       Fail(r.KeyMark("object"), r.Path("object") + ": not used by target 'field'",
            "name the mjModel array in 'field' and the element in 'index'");
     }
     r.Require("field", "the name of an mjModel array, e.g. 'field: dof_damping'");
-    p.field = Name(r.Get("field"));
+    p.target.field = Name(r.Get("field"));
   } else {
     if (r.Has("field")) {
       Fail(r.KeyMark("field"), r.Path("field") + ": only used by target 'field', not " + kind,
@@ -706,15 +696,15 @@ ParameterSpec Parser::ParseParameter(const Field& f, const ExperimentConfig& c) 
     }
     r.Require("object", std::string("the MuJoCo name of the ") + info.object_name() + " that '" +
                             kind + "' applies to");
-    p.object = Name(r.Get("object"));
+    p.target.object = Name(r.Get("object"));
   }
 
   // component: core's model-free check (the kind's index range)
   if (r.Has("index")) {
-    p.index = static_cast<int>(Integer(r.Get("index"), 0, std::numeric_limits<int>::max()));
+    p.target.index = static_cast<int>(Integer(r.Get("index"), 0, std::numeric_limits<int>::max()));
   }
   try {
-    CheckParameterSpec(CoreSpec(p));
+    CheckParameterSpec(p.target);
   } catch (const ParameterError& e) {
     throw AtSpecPart(p, e);
   }
@@ -752,11 +742,8 @@ ParameterSpec Parser::ParseParameter(const Field& f, const ExperimentConfig& c) 
     const MapReader pr(*this, r.Get("prior"), {"mean", "sigma"});
     pr.Require("mean");
     pr.Require("sigma", "the prior's standard deviation, > 0");
-    Prior prior;
-    prior.mean = Finite(pr.Get("mean"));
-    prior.sigma = Positive(pr.Get("sigma"));
-    prior.marks = pr.marks();
-    p.prior = prior;
+    p.Prior(Finite(pr.Get("mean")), Positive(pr.Get("sigma")));
+    p.prior_marks = pr.marks();
   }
 
   // models it applies to
@@ -975,7 +962,7 @@ int RequireObject(const mjModel& m, mjtObj type, long long count, const std::str
 // a parameter resolved against m by core; its ParameterError as a ConfigError
 void ValidateParameter(const ParameterSpec& p, const mjModel& m, const std::string& label) {
   try {
-    Parameter::Resolve(m, CoreSpec(p));
+    Parameter::Resolve(m, p.target);
   } catch (const ParameterError& e) {
     throw AtSpecPart(p, e, " in " + label);
   }
@@ -1018,9 +1005,13 @@ ConfigError::ConfigError(Mark mark, std::string message, std::string hint)
       message_(std::move(message)),
       hint_(std::move(hint)) {}
 
-bool ParameterSpec::AppliesTo(const std::string& model_name) const {
-  return model_name.empty() || models.empty() ||
-         std::find(models.begin(), models.end(), model_name) != models.end();
+std::vector<const ParameterSpec*> ExperimentConfig::ParametersOf(
+    const std::string& model_name) const {
+  std::vector<const ParameterSpec*> out;
+  for (const ParameterSpec& p : parameters) {
+    if (p.AppliesTo(model_name)) out.push_back(&p);
+  }
+  return out;
 }
 
 const ParameterSpec* ExperimentConfig::FindParameter(const std::string& param_name) const {

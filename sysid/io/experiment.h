@@ -103,42 +103,12 @@ struct SensorSpec {
   double ResidualWeight() const { return sigma ? 1.0 / *sigma : weight; }
 };
 
-// what a physical parameter writes into the model: core's ParameterKind (core/parameters.h holds
-// the only definition of a kind: name, object, indices, stage, how written back)
-using ParameterTarget = ParameterKind;
-
-// the YAML spellings of the kinds, in enum order ("body_mass", ..., "field"): core's
-// ParameterKindNames() and ParameterKindName() under io's names
-inline const std::vector<std::string>& ParameterTargetKinds() { return ParameterKindNames(); }
-inline const std::string& ParameterTargetName(ParameterTarget target) {
-  return ParameterKindName(target);
-}
-
-// a Gaussian prior on a parameter (added as a residual (x - mean) / sigma)
-struct Prior {
-  double mean = 0.0;
-  double sigma = 1.0;  // > 0
+// one physical parameter to identify (sysid/types.h: name, target = core's ParameterSpec with
+// label = name, initial, bounds, transform, scale, prior, models), with the YAML marks of the
+// entry and of its prior's map
+struct ParameterSpec : FitParameter {
   Marks marks;
-};
-
-// one physical parameter to identify (kind, object, field and index as in core's ParameterSpec)
-struct ParameterSpec {
-  std::string name;  // unique label
-  ParameterTarget target = ParameterTarget::kBodyMass;
-  std::string object;  // MuJoCo object name; empty for target kField
-  std::string field;   // mjModel array name; only for target kField
-  int index = 0;       // component (kField: flat index into the array)
-  double initial = 0.0;
-  double lower = -std::numeric_limits<double>::infinity();
-  double upper = std::numeric_limits<double>::infinity();
-  Transform transform = Transform::kNone;
-  double scale = 1.0;  // > 0, used by Transform::kScale
-  std::optional<Prior> prior;
-  std::vector<std::string> models;  // empty = every model
-  Marks marks;
-
-  // whether the parameter applies to the named model ("" matches every parameter)
-  bool AppliesTo(const std::string& model_name) const;
+  Marks prior_marks;
 };
 
 // measured = gain * simulated(t - delay) + bias, per sensor (sysid/types.h), with the YAML marks
@@ -214,6 +184,8 @@ struct ExperimentConfig {
   // nullptr when absent
   const ParameterSpec* FindParameter(const std::string& name) const;
   const ModelSpec* FindModel(const std::string& name) const;
+  // the parameters that apply to the named model ("" = every parameter), in file order
+  std::vector<const ParameterSpec*> ParametersOf(const std::string& model_name) const;
 };
 
 // Reads and parses an experiment file. Throws ConfigError (naming the file when it cannot be

@@ -46,27 +46,16 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
   // models, checked against the config
   for (const io::ModelSpec& ms : cfg.models) {
     ModelPtr m = LoadModel(ms.path);
-    io::ValidateExperimentAgainstModel(cfg, *m, ms.name);
-    sim::CoreParameterSpecs(cfg, *m, ms.name);  // resolves every parameter (ConfigError at YAML)
+    io::ValidateExperimentAgainstModel(cfg, *m, ms.name);  // resolves every parameter
     out.problem->AddModel(ms.name, *m);
     out.model_names.push_back(ms.name);
     out.models.push_back(std::move(m));
   }
 
   // parameters and measurement terms
-  for (const io::ParameterSpec& p : cfg.parameters) {
-    FitParameter fp;
-    fp.name = p.name;
-    fp.target = sim::ToCoreSpec(p);
-    fp.initial = p.initial;
-    fp.lower = p.lower;
-    fp.upper = p.upper;
-    fp.transform = p.transform;
-    fp.scale = p.scale;
-    if (p.prior) fp.Prior(p.prior->mean, p.prior->sigma);
-    fp.models = p.models;
-    out.problem->AddParameter(fp);
-    out.parameters.push_back(fp);
+  for (const FitParameter& p : cfg.parameters) {
+    out.problem->AddParameter(p);
+    out.parameters.push_back(p);
   }
   for (const FitMeasurement& me : cfg.measurement) {
     out.problem->AddMeasurement(me);
@@ -179,11 +168,10 @@ std::vector<std::string> WriteIdentifiedModel(const io::ExperimentConfig& cfg,
   // the estimates of the parameters that apply to this model
   std::vector<ParameterSpec> specs;
   std::vector<double> values;
-  for (const io::ParameterSpec& p : cfg.parameters) {
-    if (!p.AppliesTo(model_name)) continue;
+  for (const io::ParameterSpec* p : cfg.ParametersOf(model_name)) {
     for (const ParameterEstimate& e : estimates) {
-      if (e.name != p.name) continue;
-      specs.push_back(sim::ToCoreSpec(p));
+      if (e.name != p->name) continue;
+      specs.push_back(p->target);
       values.push_back(e.value);
     }
   }

@@ -57,25 +57,6 @@ void CheckTruth(const io::ExperimentConfig& config) {
   }
 }
 
-// the parameters of config that apply to a model, as core specs, and which entries they are
-std::vector<ParameterSpec> CoreParameters(const io::ExperimentConfig& config, const mjModel& m,
-                                          const std::string& model_name,
-                                          std::vector<const io::ParameterSpec*>* used) {
-  std::vector<ParameterSpec> specs;
-  for (const io::ParameterSpec& p : config.parameters) {
-    if (!p.AppliesTo(model_name)) continue;
-    const ParameterSpec s = ToCoreSpec(p);
-    try {
-      Parameter::Resolve(m, s);
-    } catch (const ParameterError& e) {
-      throw io::ConfigError(p.marks.self, "parameter '" + p.name + "': " + e.what());
-    }
-    specs.push_back(s);
-    used->push_back(&p);
-  }
-  return specs;
-}
-
 // the initial state of every sequence: simulate.initial_state, else qpos0 and zero velocity
 InitialState InitialStateOf(const io::ExperimentConfig& config, const Simulator& sim) {
   InitialState x0 = sim.ReferenceState();
@@ -110,22 +91,6 @@ struct TruthRecord {
 
 }  // namespace
 
-ParameterSpec ToCoreSpec(const io::ParameterSpec& p) {
-  ParameterSpec s;
-  s.kind = io::ParameterTargetName(p.target);
-  s.object = p.object;
-  s.field = p.field;
-  s.index = p.index;
-  s.label = p.name;
-  return s;
-}
-
-std::vector<ParameterSpec> CoreParameterSpecs(const io::ExperimentConfig& config, const mjModel& m,
-                                              const std::string& model_name) {
-  std::vector<const io::ParameterSpec*> used;
-  return CoreParameters(config, m, model_name, &used);
-}
-
 std::string SimulatedSequenceName(const io::ExperimentConfig& config, const std::string& model,
                                   int s) {
   const std::string base = "seq" + std::to_string(s);
@@ -155,8 +120,9 @@ io::Log SimulateExperiment(const io::ExperimentConfig& config, const SimulateSet
     // the model, checked against the config
     ModelPtr model = LoadModel(spec.path);
     io::ValidateExperimentAgainstModel(config, *model, spec.name);
-    std::vector<const io::ParameterSpec*> used;
-    const std::vector<ParameterSpec> params = CoreParameters(config, *model, spec.name, &used);
+    const std::vector<const io::ParameterSpec*> used = config.ParametersOf(spec.name);
+    std::vector<ParameterSpec> params;
+    for (const io::ParameterSpec* p : used) params.push_back(p->target);
     std::vector<std::string> sensor_names;
     std::vector<int> sensor_dims;
     SensorColumns(config, spec, *model, &sensor_names, &sensor_dims);

@@ -55,15 +55,6 @@ struct SimulateSettings {
 io::Log SimulateExperiment(const io::ExperimentConfig& config,
                            const SimulateSettings& settings = SimulateSettings());
 
-// the core's spelling of one experiment parameter: kind, object, field, index, label = name
-ParameterSpec ToCoreSpec(const io::ParameterSpec& p);
-
-// the parameters of config that apply to model m (known in config as model_name; "" = all), as
-// core specs in config order: kind = io::ParameterTargetName(target), object, field, index,
-// label = name. Each is resolved against m; a failure throws io::ConfigError at its YAML entry.
-std::vector<ParameterSpec> CoreParameterSpecs(const io::ExperimentConfig& config, const mjModel& m,
-                                              const std::string& model_name);
-
 // the log's sequence name of sequence s of a model ("seq<s>", or "<model>_seq<s>" when the
 // experiment has several models)
 std::string SimulatedSequenceName(const io::ExperimentConfig& config, const std::string& model,

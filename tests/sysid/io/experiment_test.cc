@@ -168,30 +168,31 @@ output: results/pendulum
   ASSERT_EQ(c.parameters.size(), 2u);
   const ParameterSpec& m = c.parameters[0];
   EXPECT_EQ(m.name, "bob_mass");
-  EXPECT_EQ(m.target, ParameterTarget::kBodyMass);
-  EXPECT_EQ(m.object, "bob");
-  EXPECT_EQ(m.index, 0);
+  EXPECT_EQ(m.target.kind, "body_mass");
+  EXPECT_EQ(m.target.label, "bob_mass");
+  EXPECT_EQ(m.target.object, "bob");
+  EXPECT_EQ(m.target.index, 0);
   EXPECT_DOUBLE_EQ(m.initial, 2.0);
   EXPECT_DOUBLE_EQ(m.lower, 0.1);
   EXPECT_DOUBLE_EQ(m.upper, 10.0);
   EXPECT_EQ(m.transform, Transform::kLog);
-  ASSERT_TRUE(m.prior.has_value());
-  EXPECT_DOUBLE_EQ(m.prior->mean, 1.0);
-  EXPECT_DOUBLE_EQ(m.prior->sigma, 0.5);
+  ASSERT_TRUE(m.has_prior);
+  EXPECT_DOUBLE_EQ(m.prior_mean, 1.0);
+  EXPECT_DOUBLE_EQ(m.prior_sigma, 0.5);
   EXPECT_TRUE(m.models.empty());
   EXPECT_EQ(m.marks.self.line, 14);
   EXPECT_EQ(m.marks.self.column, 5);
   EXPECT_EQ(m.marks.Of("object").line, 16);
   EXPECT_EQ(m.marks.Of("object").column, 13);
   const ParameterSpec& d = c.parameters[1];
-  EXPECT_EQ(d.target, ParameterTarget::kField);
-  EXPECT_EQ(d.field, "dof_damping");
-  EXPECT_EQ(d.object, "");
+  EXPECT_EQ(d.target.kind, "field");
+  EXPECT_EQ(d.target.field, "dof_damping");
+  EXPECT_EQ(d.target.object, "");
   EXPECT_EQ(d.lower, -kInf);
   EXPECT_EQ(d.upper, kInf);
   EXPECT_EQ(d.transform, Transform::kScale);
   EXPECT_DOUBLE_EQ(d.scale, 0.1);
-  EXPECT_FALSE(d.prior.has_value());
+  EXPECT_FALSE(d.has_prior);
   EXPECT_EQ(c.FindParameter("damping"), &c.parameters[1]);
   EXPECT_EQ(c.FindParameter("nope"), nullptr);
 
@@ -253,7 +254,7 @@ TEST_F(ExperimentTest, MinimalFileGetsTheDefaults) {
   EXPECT_EQ(c.sensor_time, SensorTime::kPre);
   EXPECT_TRUE(c.sensors.empty());
   const ParameterSpec& p = c.parameters.at(0);
-  EXPECT_EQ(p.index, 0);
+  EXPECT_EQ(p.target.index, 0);
   EXPECT_EQ(p.lower, -kInf);
   EXPECT_EQ(p.upper, kInf);
   EXPECT_EQ(p.transform, Transform::kNone);
@@ -382,15 +383,15 @@ measurement:
   EXPECT_DOUBLE_EQ(c.measurement.at(0).delay.lower, 0.0);
 }
 
-TEST(ParameterTargetKindsTest, ListsEveryKindInEnumOrder) {
+TEST(ParameterKindNamesTest, ListsEveryKindInEnumOrder) {
   const std::vector<std::string> expected = {
       "body_mass",     "body_mass_inertia",  "body_inertia",   "body_com",
       "joint_damping", "joint_frictionloss", "joint_armature", "joint_stiffness",
       "geom_friction", "actuator_gain",      "actuator_bias",  "actuator_gear",
       "field"};
-  EXPECT_EQ(ParameterTargetKinds(), expected);
-  EXPECT_EQ(ParameterTargetName(ParameterTarget::kJointArmature), "joint_armature");
-  EXPECT_EQ(ParameterTargetName(ParameterTarget::kField), "field");
+  EXPECT_EQ(ParameterKindNames(), expected);
+  EXPECT_EQ(ParameterKindName(ParameterKind::kJointArmature), "joint_armature");
+  EXPECT_EQ(ParameterKindName(ParameterKind::kField), "field");
 }
 
 TEST(ConfigErrorTest, FormatsPositionMessageAndHint) {

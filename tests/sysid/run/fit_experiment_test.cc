@@ -133,7 +133,7 @@ TEST(FitExperimentTest, IdentifiedModelReproducesTheEstimates) {
   ModelPtr m = LoadModel(dir + "/pendulum_identified.xml");
   std::vector<ParameterSpec> specs;
   for (const io::ParameterSpec& p : cfg.parameters) {
-    specs.push_back({io::ParameterTargetName(p.target), p.object, p.field, p.index, p.name});
+    specs.push_back(p.target);
   }
   ParameterSet params(*m, specs);
   std::vector<double> values(specs.size());

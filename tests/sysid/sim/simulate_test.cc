@@ -107,7 +107,9 @@ TEST_F(SimulateTest, LogRoundTripsValidatesAndReproducesExactly) {
   EXPECT_NE(back.attributes.at("excitation").find("sines amplitude=3"), std::string::npos);
 
   // re-simulating the stored controls from the stored x_0 at the truth reproduces sensordata
-  const std::vector<ParameterSpec> params = CoreParameterSpecs(cfg, *m, "test_experiment");
+  std::vector<ParameterSpec> params;
+  for (const io::ParameterSpec* p : cfg.ParametersOf("test_experiment"))
+    params.push_back(p->target);
   ASSERT_EQ(params.size(), 3u);
   EXPECT_EQ(params[0].kind, "joint_damping");
   EXPECT_EQ(params[0].label, "damping");
@@ -361,7 +363,7 @@ TEST_F(SimulateTest, EveryShippedExperimentParsesValidatesAndSimulates) {
     for (const io::ModelSpec& spec : cfg.models) {
       ModelPtr m = LoadModel(spec.path);
       io::ValidateExperimentAgainstModel(cfg, *m, spec.name);
-      EXPECT_FALSE(CoreParameterSpecs(cfg, *m, spec.name).empty());
+      EXPECT_FALSE(cfg.ParametersOf(spec.name).empty());
     }
 
     // conventions of the shipped files: a log under experiments/logs, truth for every
