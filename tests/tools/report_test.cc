@@ -331,6 +331,13 @@ TEST(CanvasTest, PngHoldsThePixelsExactly) {
   EXPECT_EQ(png.rgb, want);
 }
 
+TEST(CanvasTest, ASizeBeyondCairosLimitIsAReportError) {
+  const Drawing nothing = [](Canvas&) {};
+  EXPECT_THROW(RenderPng(10, 40000, nothing), ReportError);
+  EXPECT_NO_THROW(RenderSvg(10, 40000, "x", nothing));  // vector: no such limit
+  EXPECT_NO_THROW(RenderPng(10, 30000, nothing));
+}
+
 // the dark pixels of `text` drawn in black at (4, 4) on a white 40 x 28 PNG
 int Ink(const std::string& text) {
   Png png;

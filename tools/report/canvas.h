@@ -7,7 +7,7 @@
 // - Text is UTF-8 in fontconfig's match for "DejaVu Sans" at kFontSize px. Glyph metrics are
 //   unhinted so a PNG and an SVG of one drawing lay out identically; the SVG holds the glyphs as
 //   paths (the page needs no font).
-// - Failure: a cairo error (out of memory, a size above cairo's 32767 px) throws ReportError.
+// - Failure: a cairo error (out of memory, a PNG above cairo's 32767 px) throws ReportError.
 #pragma once
 
 #include <cairo.h>
