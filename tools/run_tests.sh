@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Installs what is missing, builds with warnings as errors, checks formatting, runs every ctest
-# label that fits CI (unit, recovery, stress), then the address+undefined sanitizer build of the
+# label that fits CI (unit, recovery, stress, browser), then the address+undefined sanitizer build of the
 # unit tests. Idempotent; incremental when the builds exist.
 #
 # Then fuzzes the YAML and HDF5 loaders for a bounded time (libFuzzer, clang-14; docs/bad-input.md).
@@ -28,7 +28,7 @@ step "build (RelWithDebInfo, warnings as errors)"
 cmake --preset default -G Ninja >/dev/null
 cmake --build --preset default -j "$jobs"
 
-step "tests (labels unit, recovery, stress; 'long' is excluded: see README)"
+step "tests (labels unit, recovery, stress, browser; 'long' is excluded: see README)"
 ctest --preset default -j "$jobs" -LE long
 
 if ((quick == 0)); then

@@ -5,7 +5,6 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include <cerrno>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
@@ -472,47 +471,6 @@ Array ReadArray(hid_t group, const char* name, int rank, const std::string& file
     FailH5(file, object, "cannot read data (truncated or corrupt file?)");
   }
   return out;
-}
-
-// ---------------------------------------------------------------------------------------------
-// atomic files
-
-void SyncFile(const std::string& path, const std::string& file) {
-  const int fd = ::open(path.c_str(), O_RDONLY);
-  if (fd < 0) Fail(file, "", "cannot open " + path + " to flush it: " + std::strerror(errno));
-  const int status = ::fsync(fd);
-  const int err = errno;
-  ::close(fd);
-  if (status != 0) Fail(file, "", "cannot flush " + path + ": " + std::strerror(err));
-}
-
-void SyncDirectory(const std::string& path) {
-  std::filesystem::path dir = std::filesystem::path(path).parent_path();
-  if (dir.empty()) dir = ".";
-  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY);
-  if (fd < 0) return;
-  ::fsync(fd);
-  ::close(fd);
-}
-
-TempFile::~TempFile() {
-  if (!committed_) {
-    std::error_code ec;
-    std::filesystem::remove(path_, ec);
-  }
-}
-
-void ReplaceAtomically(const std::string& path,
-                       const std::function<void(const std::string& tmp)>& write) {
-  TempFile tmp(path + ".tmp-" + std::to_string(::getpid()));
-  write(tmp.path());
-  // durable, then atomically in place
-  SyncFile(tmp.path(), path);
-  if (std::rename(tmp.path().c_str(), path.c_str()) != 0) {
-    Fail(path, "", "cannot rename " + tmp.path() + " to it: " + std::strerror(errno));
-  }
-  tmp.Commit();
-  SyncDirectory(path);
 }
 
 }  // namespace mjsysid::io::h5

@@ -6,17 +6,14 @@
 //   their own error type (LogError, ResultError) at their API boundary.
 // - HDF5 is not thread-safe in its default build: every caller holds Mutex() around its HDF5
 //   calls and calls Silence() first (no printing of HDF5's error stack).
-// - ReplaceAtomically is the atomic-write pattern of every writer: write PATH.tmp-<pid>, flush it
-//   to disk, rename it over PATH; on failure PATH is left as it was and the temporary is removed.
+// - Files are written through sysid/io/atomic_file.h (ReplaceAtomically), which throws FileError.
 #pragma once
 
 #include <hdf5.h>
 
-#include <functional>
 #include <mutex>
 #include <stdexcept>
 #include <string>
-#include <utility>
 #include <vector>
 
 namespace mjsysid::io::h5 {
@@ -153,35 +150,5 @@ struct Array {
 // rank in the message otherwise (e.g. " (T samples)")
 Array ReadArray(hid_t group, const char* name, int rank, const std::string& file,
                 const std::string& object, const std::string& rank_hint = "");
-
-// ---------------------------------------------------------------------------------------------
-// atomic files
-
-// flushes a written file to disk
-void SyncFile(const std::string& path, const std::string& file);
-
-// best effort: makes a rename in the directory of `path` durable
-void SyncDirectory(const std::string& path);
-
-// removes the temporary file unless the write committed
-class TempFile {
- public:
-  explicit TempFile(std::string path) : path_(std::move(path)) {}
-  TempFile(const TempFile&) = delete;
-  TempFile& operator=(const TempFile&) = delete;
-  ~TempFile();
-  const std::string& path() const { return path_; }
-  void Commit() { committed_ = true; }
-
- private:
-  std::string path_;
-  bool committed_ = false;
-};
-
-// `write(tmp)` creates and completely writes the file `tmp` = path + ".tmp-<pid>" (closing it);
-// the file is then flushed and renamed over `path`. Whatever `write` throws propagates, the
-// temporary file removed and `path` untouched; flush and rename failures throw Error.
-void ReplaceAtomically(const std::string& path,
-                       const std::function<void(const std::string& tmp)>& write);
 
 }  // namespace mjsysid::io::h5

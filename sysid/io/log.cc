@@ -25,6 +25,7 @@
 #include <utility>
 #include <vector>
 
+#include "sysid/io/atomic_file.h"
 #include "sysid/io/hdf5_util.h"
 
 #if defined(__SANITIZE_ADDRESS__)
@@ -473,7 +474,7 @@ void WriteLog(const std::string& path, const Log& log) {
   const std::string& file = path;
   try {
     // everything into the temporary file; all handles closed before the rename
-    h5::ReplaceAtomically(path, [&](const std::string& tmp) {
+    ReplaceAtomically(path, [&](const std::string& tmp) {
       H5Id f = h5::CreateFile(tmp, file);
       H5Id root = Own(H5Gopen2(f.get(), "/", H5P_DEFAULT), H5Gclose, file, "/", "cannot open root");
       WriteStringAttr(root.get(), "format", kFormat, file, "/");
@@ -487,6 +488,8 @@ void WriteLog(const std::string& path, const Log& log) {
       if (!f.Close()) FailH5(file, "", "cannot finish writing temporary file " + tmp);
     });
   } catch (const h5::Error& e) {
+    throw LogError(e.what());
+  } catch (const FileError& e) {
     throw LogError(e.what());
   }
 }

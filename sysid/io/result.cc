@@ -18,6 +18,7 @@
 #include <utility>
 #include <vector>
 
+#include "sysid/io/atomic_file.h"
 #include "sysid/io/hdf5_util.h"
 
 namespace mjsysid::io {
@@ -736,18 +737,8 @@ void WriteResultYaml(const std::string& path, const FitResultFile& result) {
   CheckParameters(result, path);
   const std::string text = EmitYaml(result);
   try {
-    h5::ReplaceAtomically(path, [&](const std::string& tmp) {
-      std::FILE* f = std::fopen(tmp.c_str(), "wb");
-      if (f == nullptr) {
-        Fail(path, "", "cannot create temporary file " + tmp + ": " + std::strerror(errno));
-      }
-      const bool written = std::fwrite(text.data(), 1, text.size(), f) == text.size();
-      const int err = errno;
-      if (std::fclose(f) != 0 || !written) {
-        Fail(path, "", "cannot write temporary file " + tmp + ": " + std::strerror(err));
-      }
-    });
-  } catch (const h5::Error& e) {
+    WriteFileAtomically(path, text);
+  } catch (const FileError& e) {
     throw ResultError(e.what());
   }
 }
@@ -758,8 +749,10 @@ void WriteResultH5(const std::string& path, const FitResultFile& result) {
   std::lock_guard<std::mutex> lock(h5::Mutex());
   h5::Silence();
   try {
-    h5::ReplaceAtomically(path, [&](const std::string& tmp) { WriteH5(tmp, result, path); });
+    ReplaceAtomically(path, [&](const std::string& tmp) { WriteH5(tmp, result, path); });
   } catch (const h5::Error& e) {
+    throw ResultError(e.what());
+  } catch (const FileError& e) {
     throw ResultError(e.what());
   }
 }

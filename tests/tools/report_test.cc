@@ -1,9 +1,10 @@
 #include "tools/report/report.h"
 
+#include <cairo.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
-#include <zlib.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -12,9 +13,11 @@
 #include <iterator>
 #include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
-#include "tools/report/png.h"
+#include "tools/report/axes.h"
+#include "tools/report/canvas.h"
 
 namespace mjsysid::report {
 namespace {
@@ -133,64 +136,59 @@ io::FitResultFile Result(Eigen::Index samples = 600) {
   return r;
 }
 
-// a decoded png: header facts and the rgb pixels
+// a decoded png: its size and the rgb pixels, row-major
 struct Png {
   uint32_t width = 0, height = 0;
   std::vector<uint8_t> rgb;
+  Rgb Pixel(uint32_t x, uint32_t y) const {
+    const size_t i = (static_cast<size_t>(y) * width + x) * 3;
+    return Rgb{rgb[i], rgb[i + 1], rgb[i + 2]};
+  }
 };
 
-uint32_t Be32(const std::string& b, size_t at) {
-  return (static_cast<uint32_t>(static_cast<uint8_t>(b[at])) << 24) |
-         (static_cast<uint32_t>(static_cast<uint8_t>(b[at + 1])) << 16) |
-         (static_cast<uint32_t>(static_cast<uint8_t>(b[at + 2])) << 8) |
-         static_cast<uint32_t>(static_cast<uint8_t>(b[at + 3]));
+// cairo's read callback: the next bytes of a std::string
+struct Reader {
+  const std::string* bytes;
+  size_t at = 0;
+};
+cairo_status_t Read(void* closure, unsigned char* data, unsigned int length) {
+  auto* r = static_cast<Reader*>(closure);
+  if (r->bytes->size() - r->at < length) return CAIRO_STATUS_READ_ERROR;
+  std::copy_n(r->bytes->data() + r->at, length, data);
+  r->at += length;
+  return CAIRO_STATUS_SUCCESS;
 }
 
-// checks signature, chunk crcs, IHDR (8-bit rgb), the IDAT size and filter bytes; fills `out`
+// decodes with cairo (libpng: signature, chunk CRCs, zlib stream); the header must say 8-bit RGB
 ::testing::AssertionResult Decode(const std::string& bytes, Png* out) {
-  if (bytes.compare(0, 8, std::string("\x89PNG\r\n\x1a\n", 8)) != 0) {
-    return ::testing::AssertionFailure() << "no png signature";
+  if (bytes.size() < 26 || bytes.compare(12, 4, "IHDR") != 0) {
+    return ::testing::AssertionFailure() << "no png header";
   }
-  std::string idat;
-  bool header = false, end = false;
-  for (size_t at = 8; at + 12 <= bytes.size() && !end;) {
-    const uint32_t len = Be32(bytes, at);
-    if (at + 12 + len > bytes.size()) return ::testing::AssertionFailure() << "chunk overruns";
-    const std::string type = bytes.substr(at + 4, 4), data = bytes.substr(at + 8, len);
-    const uLong crc = crc32(0, reinterpret_cast<const Bytef*>(bytes.data() + at + 4), len + 4);
-    if (crc != Be32(bytes, at + 8 + len)) return ::testing::AssertionFailure() << type << " crc";
-    if (type == "IHDR") {
-      if (len != 13) return ::testing::AssertionFailure() << "IHDR length " << len;
-      out->width = Be32(data, 0);
-      out->height = Be32(data, 4);
-      if (data[8] != 8 || data[9] != 2) return ::testing::AssertionFailure() << "not 8-bit rgb";
-      header = true;
-    } else if (type == "IDAT") {
-      idat += data;
-    } else if (type == "IEND") {
-      end = true;
-    }
-    at += 12 + len;
+  if (bytes[24] != 8 || bytes[25] != 2) return ::testing::AssertionFailure() << "not 8-bit rgb";
+  Reader reader{&bytes};
+  cairo_surface_t* s = cairo_image_surface_create_from_png_stream(Read, &reader);
+  const cairo_status_t status = cairo_surface_status(s);
+  if (status != CAIRO_STATUS_SUCCESS) {
+    cairo_surface_destroy(s);
+    return ::testing::AssertionFailure() << "cairo: " << cairo_status_to_string(status);
   }
-  if (!header || !end || idat.empty()) return ::testing::AssertionFailure() << "missing chunks";
-
-  // inflate: one filter byte and 3 bytes per pixel per row
-  const size_t stride = 1 + 3 * static_cast<size_t>(out->width);
-  std::string raw(stride * out->height + 1, '\0');
-  uLongf size = raw.size();
-  if (uncompress(reinterpret_cast<Bytef*>(raw.data()), &size,
-                 reinterpret_cast<const Bytef*>(idat.data()), idat.size()) != Z_OK) {
-    return ::testing::AssertionFailure() << "IDAT does not inflate";
-  }
-  if (size != stride * out->height) {
-    return ::testing::AssertionFailure()
-           << "IDAT inflates to " << size << " bytes, expected " << stride * out->height;
-  }
+  // pixels as native-endian 32-bit words 0xXXRRGGBB
+  out->width = static_cast<uint32_t>(cairo_image_surface_get_width(s));
+  out->height = static_cast<uint32_t>(cairo_image_surface_get_height(s));
+  const int stride = cairo_image_surface_get_stride(s);
+  const unsigned char* data = cairo_image_surface_get_data(s);
   out->rgb.clear();
   for (uint32_t y = 0; y < out->height; ++y) {
-    if (raw[y * stride] != 0) return ::testing::AssertionFailure() << "filter type in row " << y;
-    out->rgb.insert(out->rgb.end(), raw.begin() + y * stride + 1, raw.begin() + (y + 1) * stride);
+    const auto* row = reinterpret_cast<const uint32_t*>(data + static_cast<size_t>(y) * stride);
+    for (uint32_t x = 0; x < out->width; ++x) {
+      out->rgb.push_back(static_cast<uint8_t>(row[x] >> 16));
+      out->rgb.push_back(static_cast<uint8_t>(row[x] >> 8));
+      out->rgb.push_back(static_cast<uint8_t>(row[x]));
+    }
   }
+  const bool rgb24 = cairo_image_surface_get_format(s) == CAIRO_FORMAT_RGB24;
+  cairo_surface_destroy(s);
+  if (!rgb24) return ::testing::AssertionFailure() << "decoded with an alpha channel";
   return ::testing::AssertionSuccess();
 }
 
@@ -209,7 +207,10 @@ Colors CountColors(const Png& png) {
   return c;
 }
 
-void ExpectPlot(const std::string& path, uint32_t width, uint32_t height) {
+// a plot of this size, mostly white or grey, with coloured lines; at least 50 pixels of exactly
+// each of `curves` (the solid middle of a line or marker drawn in that colour)
+void ExpectPlot(const std::string& path, uint32_t width, uint32_t height,
+                const std::vector<Rgb>& curves = {}) {
   SCOPED_TRACE(path);
   Png png;
   ASSERT_TRUE(Decode(ReadBytes(path), &png));
@@ -218,6 +219,13 @@ void ExpectPlot(const std::string& path, uint32_t width, uint32_t height) {
   const Colors c = CountColors(png);
   EXPECT_GT(c.grey, png.rgb.size() / 6) << "background";
   EXPECT_GT(c.colored, 500u) << "lines";
+  for (const Rgb& want : curves) {
+    size_t n = 0;
+    for (size_t i = 0; i + 2 < png.rgb.size(); i += 3) {
+      n += png.rgb[i] == want.r && png.rgb[i + 1] == want.g && png.rgb[i + 2] == want.b;
+    }
+    EXPECT_GE(n, 50u) << "colour " << int(want.r) << "," << int(want.g) << "," << int(want.b);
+  }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -245,9 +253,9 @@ TEST_F(ReportTest, WritesAPageAndPlotsFromTheResultFiles) {
 
   // the plots: sizes follow the layout (cost 900 x 440; parameter panels 400 x 260 under a
   // 44 px legend, 3 per row; sequence panels 1200 x 230 under a 76 px header)
-  ExpectPlot(Path("cost.png"), 900, 440);
-  ExpectPlot(Path("parameters.png"), 800, 44 + 260);
-  ExpectPlot(Path("seq_seq0.png"), 1200, 76 + 2 * 230);
+  ExpectPlot(Path("cost.png"), 900, 440, {kBefore, kAlert});
+  ExpectPlot(Path("parameters.png"), 800, 44 + 260, {kBefore, kAfter, kTruth, kUnidentifiable});
+  ExpectPlot(Path("seq_seq0.png"), 1200, 76 + 2 * 230, {kMeasured, kBefore, kAfter});
 
   // the summary names the files; nothing else is left behind
   EXPECT_NE(summary.find("report pendulum"), std::string::npos) << summary;
@@ -307,14 +315,16 @@ TEST(SequenceFileNameTest, KeepsSafeCharactersOnly) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// png and drawing
+// the canvas: cairo drawing, PNG and SVG rendering
 
-TEST(PngTest, EncodesPixelsExactly) {
-  Image img(3, 2, Rgb{10, 20, 30});
-  img.FillRect(1, 0, 2, 1, Rgb{255, 0, 0});
-  img.FillRect(2, 1, 3, 2, Rgb{0, 0, 255});
+TEST(CanvasTest, PngHoldsThePixelsExactly) {
+  const std::string bytes = RenderPng(3, 2, [](Canvas& c) {
+    c.Rect({0, 0, 3, 2}, Rgb{10, 20, 30});
+    c.Rect({1, 0, 1, 1}, Rgb{255, 0, 0});
+    c.Rect({2, 1, 1, 1}, Rgb{0, 0, 255});
+  });
   Png png;
-  ASSERT_TRUE(Decode(EncodePng(img), &png));
+  ASSERT_TRUE(Decode(bytes, &png));
   EXPECT_EQ(png.width, 3u);
   EXPECT_EQ(png.height, 2u);
   const std::vector<uint8_t> want = {10, 20, 30, 255, 0,  0,  10, 20, 30,
@@ -322,31 +332,108 @@ TEST(PngTest, EncodesPixelsExactly) {
   EXPECT_EQ(png.rgb, want);
 }
 
-TEST(PngTest, EveryPrintableCharacterHasAGlyph) {
-  for (int ch = 33; ch < 127; ++ch) {
-    Image img(8, 11, Rgb{255, 255, 255});
-    img.Text(1, 1, std::string(1, static_cast<char>(ch)), Rgb{0, 0, 0});
-    int ink = 0;
-    for (const uint8_t v : img.rgb()) ink += v == 0;
-    EXPECT_GT(ink, 0) << "character " << static_cast<char>(ch);
-  }
-  EXPECT_EQ(Image::TextWidth("abc", 2), (3 * 6 - 1) * 2);
-  EXPECT_EQ(Image::TextWidth("\xC3\xA9t\xC3\xA9"), 3 * 6 - 1);  // one cell per utf-8 character
+TEST(CanvasTest, ASizeBeyondCairosLimitIsAReportError) {
+  const Drawing nothing = [](Canvas&) {};
+  EXPECT_THROW(RenderPng(10, 40000, nothing), ReportError);
+  EXPECT_NO_THROW(RenderSvg(10, 40000, "x", nothing));  // vector: no such limit
+  EXPECT_NO_THROW(RenderPng(10, 30000, nothing));
 }
 
-TEST(PngTest, LinesAreClippedAndAntiAliased) {
-  Image img(40, 40, Rgb{255, 255, 255});
-  img.SetClip(10, 10, 30, 30);
-  img.Line(-1e9, 20, 1e9, 20, Rgb{0, 0, 0}, 2);  // far ends: clipped, cheap
-  img.Line(0, 0, 40, 37, Rgb{0, 0, 0}, 1.5);
-  EXPECT_EQ(img.Pixel(5, 20).r, 255);  // outside the clip
-  EXPECT_EQ(img.Pixel(20, 19).r, 0);   // the horizontal line, 2 px wide
-  EXPECT_EQ(img.Pixel(20, 20).r, 0);
-  EXPECT_EQ(img.Pixel(20, 25).r, 255);  // away from both
+// the dark pixels of `text` drawn in black at (4, 4) on a white 40 x 28 PNG
+int Ink(const std::string& text) {
+  Png png;
+  EXPECT_TRUE(Decode(RenderPng(40, 28,
+                               [&](Canvas& c) {
+                                 c.Text(4, 4, text, Rgb{0, 0, 0}, Align::kLeft);
+                               }),
+                     &png));
+  int ink = 0;
+  for (const uint8_t v : png.rgb) ink += v < 128;
+  return ink;
+}
+
+TEST(CanvasTest, EveryPrintableCharacterHasAGlyph) {
+  // a real font through fontconfig: printable ascii, accented letters, symbols
+  for (int ch = 33; ch < 127; ++ch) {
+    EXPECT_GT(Ink(std::string(1, static_cast<char>(ch))), 0) << "character " << char(ch);
+  }
+  for (const char* utf8 : {"\xC3\xA9", "\xCE\xBC", "\xE2\x88\x9E"}) {  // é, mu, infinity
+    EXPECT_GT(Ink(utf8), 0) << utf8;
+  }
+  // malformed utf-8 draws '?' in place of the bad byte and leaves the canvas working
+  EXPECT_GT(Ink("\xFF"), 0);
+  std::string svg = RenderSvg(40, 20, "t", [](Canvas& c) {
+    c.Text(2, 2, "a\xC3(b", Rgb{0, 0, 0}, Align::kLeft);
+    c.Rect({30, 10, 5, 5}, Rgb{0, 0, 255});
+  });
+  EXPECT_NE(svg.find("fill:rgb(0%,0%,100%)"), std::string::npos) << svg;
+
+  // widths: unhinted advances add up; no width for nothing
+  RenderPng(10, 10, [](Canvas& c) {
+    EXPECT_GT(c.TextWidth("abc"), 10);
+    EXPECT_DOUBLE_EQ(c.TextWidth("abcabc"), 2 * c.TextWidth("abc"));
+    EXPECT_GT(c.TextWidth("abc", true), c.TextWidth("abc"));
+    EXPECT_EQ(c.TextWidth(""), 0);
+    EXPECT_GT(c.CapHeight(), 0.6 * kFontSize);
+    EXPECT_LT(c.CapHeight(), 0.8 * kFontSize);
+  });
+}
+
+TEST(CanvasTest, LinesAreClippedAndAntiAliased) {
+  Png png;
+  ASSERT_TRUE(Decode(RenderPng(40, 40,
+                               [](Canvas& c) {
+                                 c.Clip({10, 10, 20, 20});
+                                 // far ends: pulled in, still drawn
+                                 c.Line({-1e9, 20}, {1e9, 20}, Rgb{0, 0, 0}, 2);
+                                 c.Line({0, 0}, {40, 37}, Rgb{0, 0, 0}, 1.5);
+                               }),
+                     &png));
+  EXPECT_EQ(png.Pixel(5, 20).r, 255);  // outside the clip
+  EXPECT_EQ(png.Pixel(20, 19).r, 0);   // the horizontal line, 2 px wide
+  EXPECT_EQ(png.Pixel(20, 20).r, 0);
+  EXPECT_EQ(png.Pixel(20, 25).r, 255);  // away from both
   int partial = 0;                      // edge pixels of the diagonal are blended
-  for (size_t i = 0; i < img.rgb().size(); i += 3)
-    partial += img.rgb()[i] > 0 && img.rgb()[i] < 255;
+  for (size_t i = 0; i < png.rgb.size(); i += 3) partial += png.rgb[i] > 0 && png.rgb[i] < 255;
   EXPECT_GT(partial, 5);
+}
+
+// the values of every `attr`="#..." / id="..." in svg
+std::vector<std::string> Values(const std::string& svg, const std::string& open) {
+  std::vector<std::string> out;
+  for (size_t at = svg.find(open); at != std::string::npos; at = svg.find(open, at + 1)) {
+    const size_t from = at + open.size();
+    out.push_back(svg.substr(from, svg.find_first_of("\")", from) - from));
+  }
+  return out;
+}
+
+TEST(CanvasTest, SvgElementsCanShareAPage) {
+  const Drawing draw = [](Canvas& c) {
+    c.Clip({0, 0, 50, 20});
+    c.Text(2, 2, "Hello", Rgb{0, 0, 0}, Align::kLeft);
+    c.Line({0, 0}, {100, 40}, Rgb{255, 0, 0}, 2, 4);
+  };
+  const std::string a = RenderSvg(100, 40, "a", draw), b = RenderSvg(100, 40, "b", draw);
+  EXPECT_EQ(a.rfind("<svg", 0), 0u) << "no xml declaration before the element";
+  EXPECT_NE(a.find("width=\"100px\""), std::string::npos) << a;
+  EXPECT_NE(a.find("viewBox=\"0 0 100 40\""), std::string::npos) << a;
+  EXPECT_NE(a.find("stroke-dasharray"), std::string::npos) << a;
+
+  // every id carries the element's prefix; every reference finds its id in the same element
+  for (const auto& [svg, prefix] : {std::pair{a, "a-"}, std::pair{b, "b-"}}) {
+    const std::vector<std::string> ids = Values(svg, "id=\""), refs = Values(svg, "href=\"#"),
+                                   urls = Values(svg, "url(#");
+    EXPECT_GE(ids.size(), 3u);  // glyphs, the clip path, the surface
+    EXPECT_FALSE(refs.empty());
+    EXPECT_FALSE(urls.empty());
+    for (const std::string& id : ids) EXPECT_EQ(id.rfind(prefix, 0), 0u) << id;
+    for (const std::vector<std::string>* list : {&refs, &urls}) {
+      for (const std::string& ref : *list) {
+        EXPECT_NE(std::find(ids.begin(), ids.end(), ref), ids.end()) << ref;
+      }
+    }
+  }
 }
 
 }  // namespace

@@ -34,6 +34,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -44,6 +45,7 @@
 #include "core/simulator.h"
 #include "core/state.h"
 #include "mjsysid/version.h"
+#include "sysid/io/atomic_file.h"
 #include "sysid/io/experiment.h"
 #include "sysid/io/log.h"
 #include "sysid/problem.h"
@@ -331,17 +333,13 @@ Row FitNumDiff(const Case& c, int max_iterations) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// the peer's rows, from the driver's JSON (a tiny reader for the flat fields it writes)
+// the peer's rows, from the driver's JSON
 
-bool JsonNumber(const std::string& text, const std::string& key, double* out, size_t from = 0,
-                size_t to = std::string::npos) {
-  const size_t at = text.find("\"" + key + "\":", from);
-  if (at == std::string::npos || at >= to) return false;
-  const char* p = text.c_str() + at + key.size() + 3;
-  char* end = nullptr;
-  const double v = std::strtod(p, &end);
-  if (end == p) return false;
-  *out = v;
+// j[key] into *out when it is a number
+bool JsonNumber(const nlohmann::json& j, const char* key, double* out) {
+  const auto it = j.find(key);
+  if (it == j.end() || !it->is_number()) return false;
+  *out = it->get<double>();
   return true;
 }
 
@@ -361,25 +359,26 @@ Row PeerRow(const Case& c, const std::string& dir, int threads, const std::strin
       row.note = "no peer result (run tools/bench/run_fit_benchmarks.sh)";
     return row;
   }
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  const std::string t = ss.str();
+  nlohmann::json t;
+  try {
+    std::ifstream in(path);
+    t = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception& e) {
+    row.status = "n/a";
+    row.note = path + " is not valid JSON: " + e.what();
+    return row;
+  }
   double v = 0;
   if (JsonNumber(t, "wall_time_s", &v)) row.wall_s = v;
   if (JsonNumber(t, "iterations", &v)) row.iterations = static_cast<int>(v);
   if (JsonNumber(t, "initial_cost", &v)) row.initial_cost = v;
   if (JsonNumber(t, "final_cost", &v)) row.final_cost = v;
-  double columns = 0;
-  if (JsonNumber(t, "rollout_columns", &columns)) {
-    row.steps = static_cast<long long>(columns) * c.samples;
-  }
-  // estimates: "<name>": {... "estimate": v ...} inside "parameters"
-  const size_t params = t.find("\"parameters\":");
+  if (JsonNumber(t, "rollout_columns", &v)) row.steps = static_cast<long long>(v) * c.samples;
+  // estimates: parameters.<name>.estimate
+  const auto params = t.find("parameters");
   for (const io::ParameterSpec& p : c.config.parameters) {
-    const size_t at = t.find("\"" + p.name + "\": {", params);
-    if (params == std::string::npos || at == std::string::npos) continue;
-    if (JsonNumber(t, "estimate", &v, at, t.find('}', at))) row.estimates.emplace_back(p.name, v);
+    if (params == t.end() || !params->is_object() || !params->contains(p.name)) continue;
+    if (JsonNumber(params->at(p.name), "estimate", &v)) row.estimates.emplace_back(p.name, v);
   }
   row.np = static_cast<int>(c.config.parameters.size());
   row.status = "done";
@@ -397,21 +396,6 @@ std::string Num(double v, const char* fmt = "%.6g") {
   return buf;
 }
 
-std::string JsonString(const std::string& s) {
-  std::string o = "\"";
-  for (char ch : s) {
-    if (ch == '"' || ch == '\\') o += '\\';
-    if (ch == '\n') {
-      o += "\\n";
-      continue;
-    }
-    o += ch;
-  }
-  return o + "\"";
-}
-
-std::string JsonNum(double v) { return std::isfinite(v) ? Num(v, "%.10g") : "null"; }
-
 void PrintRow(const Row& r) {
   std::printf("%-16s %-28s %2d %-10s %9s %5d %12lld %11s %11s %10s %8s  %s\n", r.case_name.c_str(),
               r.method.c_str(), r.threads, r.status.c_str(), Num(r.wall_s, "%.3f").c_str(),
@@ -422,7 +406,7 @@ void PrintRow(const Row& r) {
 }
 
 void WriteCsv(const std::string& path, const std::vector<Row>& rows) {
-  std::ofstream f(path + ".tmp");
+  std::ostringstream f;
   f << "case,method,threads,status,wall_s,iterations,sim_steps,np,sequences,samples,t_step_us,"
        "floor_ratio,initial_cost,final_cost,max_rel_error,rms_rel_error,note\n";
   for (const Row& r : rows) {
@@ -435,13 +419,12 @@ void WriteCsv(const std::string& path, const std::vector<Row>& rows) {
       << Num(r.initial_cost, "%.10g") << ',' << Num(r.final_cost, "%.10g") << ','
       << Num(r.max_rel_error) << ',' << Num(r.rms_rel_error) << ',' << note << '\n';
   }
-  f.close();
-  fs::rename(path + ".tmp", path);
+  io::WriteFileAtomically(path, f.str());
 }
 
 // the table as Markdown (BENCHMARKS.md is made from it)
 void WriteMarkdown(const std::string& path, const std::vector<Row>& rows) {
-  std::ofstream f(path + ".tmp");
+  std::ostringstream f;
   f << "| case | method | threads | status | wall [s] | iterations | sim steps | final cost | "
        "max rel. error | time/iteration / floor | note |\n"
     << "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n";
@@ -451,8 +434,7 @@ void WriteMarkdown(const std::string& path, const std::vector<Row>& rows) {
       << Num(r.final_cost, "%.6g") << " | " << Num(r.max_rel_error, "%.2e") << " | "
       << Num(r.floor_ratio, "%.2f") << " | " << r.note << " |\n";
   }
-  f.close();
-  fs::rename(path + ".tmp", path);
+  io::WriteFileAtomically(path, f.str());
 }
 
 std::string Machine() {
@@ -464,44 +446,45 @@ std::string Machine() {
   return "unknown";
 }
 
+// the rows with the machine, versions and command; non-finite numbers as null
 void WriteJson(const std::string& path, const std::vector<Row>& rows, const std::string& command) {
-  std::ofstream f(path + ".tmp");
   char date[32];
   const std::time_t now = std::time(nullptr);
   std::strftime(date, sizeof(date), "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&now));
-  f << "{\n  \"tool\": \"bench_fit\",\n  \"created\": \"" << date << "\",\n";
-  f << "  \"command\": " << JsonString(command) << ",\n";
-  f << "  \"machine\": {\"cpu\": " << JsonString(Machine())
-    << ", \"hardware_threads\": " << std::thread::hardware_concurrency() << "},\n";
-  f << "  \"versions\": {\"mjsysid\": " << JsonString(MJSYSID_VERSION)
-    << ", \"mujoco\": " << JsonString(mj_versionString())
-    << ", \"ceres\": " << JsonString(CERES_VERSION_STRING)
-    << ", \"compiler\": " << JsonString(MJSYSID_COMPILER)
-    << ", \"build_type\": " << JsonString(MJSYSID_BUILD_TYPE) << "},\n";
-  f << "  \"rows\": [\n";
-  for (size_t i = 0; i < rows.size(); ++i) {
-    const Row& r = rows[i];
-    f << "    {\"case\": " << JsonString(r.case_name) << ", \"method\": " << JsonString(r.method)
-      << ", \"threads\": " << r.threads << ", \"status\": " << JsonString(r.status)
-      << ", \"wall_s\": " << JsonNum(r.wall_s) << ", \"iterations\": " << r.iterations
-      << ", \"sim_steps\": " << r.steps << ", \"np\": " << r.np
-      << ", \"sequences\": " << r.sequences << ", \"samples\": " << r.samples
-      << ", \"t_step_us\": " << JsonNum(r.t_step_us)
-      << ", \"floor_ratio\": " << JsonNum(r.floor_ratio)
-      << ", \"initial_cost\": " << JsonNum(r.initial_cost)
-      << ", \"final_cost\": " << JsonNum(r.final_cost)
-      << ", \"max_rel_error\": " << JsonNum(r.max_rel_error)
-      << ", \"rms_rel_error\": " << JsonNum(r.rms_rel_error) << ", \"note\": " << JsonString(r.note)
-      << ", \"estimates\": {";
-    for (size_t j = 0; j < r.estimates.size(); ++j) {
-      f << (j ? ", " : "") << JsonString(r.estimates[j].first) << ": "
-        << JsonNum(r.estimates[j].second);
-    }
-    f << "}}" << (i + 1 < rows.size() ? "," : "") << "\n";
+  nlohmann::ordered_json j;
+  j["tool"] = "bench_fit";
+  j["created"] = date;
+  j["command"] = command;
+  j["machine"] = {{"cpu", Machine()}, {"hardware_threads", std::thread::hardware_concurrency()}};
+  j["versions"] = {{"mjsysid", MJSYSID_VERSION},
+                   {"mujoco", mj_versionString()},
+                   {"ceres", CERES_VERSION_STRING},
+                   {"compiler", MJSYSID_COMPILER},
+                   {"build_type", MJSYSID_BUILD_TYPE}};
+  j["rows"] = nlohmann::ordered_json::array();
+  for (const Row& r : rows) {
+    nlohmann::ordered_json estimates = nlohmann::ordered_json::object();
+    for (const auto& [name, value] : r.estimates) estimates[name] = value;
+    j["rows"].push_back({{"case", r.case_name},
+                         {"method", r.method},
+                         {"threads", r.threads},
+                         {"status", r.status},
+                         {"wall_s", r.wall_s},
+                         {"iterations", r.iterations},
+                         {"sim_steps", r.steps},
+                         {"np", r.np},
+                         {"sequences", r.sequences},
+                         {"samples", r.samples},
+                         {"t_step_us", r.t_step_us},
+                         {"floor_ratio", r.floor_ratio},
+                         {"initial_cost", r.initial_cost},
+                         {"final_cost", r.final_cost},
+                         {"max_rel_error", r.max_rel_error},
+                         {"rms_rel_error", r.rms_rel_error},
+                         {"note", r.note},
+                         {"estimates", estimates}});
   }
-  f << "  ]\n}\n";
-  f.close();
-  fs::rename(path + ".tmp", path);
+  io::WriteFileAtomically(path, j.dump(2) + "\n");
 }
 
 // error against time, one log-log panel per case; a point per method that finished
@@ -509,7 +492,7 @@ void WriteSvg(const std::string& path, const std::vector<std::string>& cases,
               const std::vector<Row>& rows) {
   const int cols = 2, pw = 520, ph = 300, ml = 70, mb = 40, mt = 30, mr = 190;
   const int nrows = (static_cast<int>(cases.size()) + cols - 1) / cols;
-  std::ofstream f(path + ".tmp");
+  std::ostringstream f;
   f << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << cols * pw << "\" height=\""
     << nrows * ph << "\" font-family=\"sans-serif\" font-size=\"10\">\n"
     << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
@@ -569,8 +552,7 @@ void WriteSvg(const std::string& path, const std::vector<std::string>& cases,
     }
   }
   f << "</svg>\n";
-  f.close();
-  fs::rename(path + ".tmp", path);
+  io::WriteFileAtomically(path, f.str());
 }
 
 std::vector<std::string> Split(const std::string& s) {

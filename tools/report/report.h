@@ -1,20 +1,16 @@
 // `sysid report DIR`: a fit's results (DIR/result.yaml + DIR/result.h5) as one self-contained
 // HTML page and PNG plots, written into DIR.
 //
-// Files written (each atomically: FILE.tmp-<pid>, then renamed):
-//   report.html      one page, no external resources (inline CSS; the cost and parameter plots as
-//                    inline SVG; the sequence plots as base64 PNG data URIs): header (name,
-//                    status, termination, versions, solver settings), costs, iterations, wall
-//                    time, parameter table (initial, value, std, 95% CI, truth, flags;
-//                    unidentifiable rows highlighted, unidentifiable combinations listed),
-//                    warnings, plots
+// Files written (each atomically, by io::WriteFileAtomically):
+//   report.html      one page, no external resources (tools/report/page.h lists the sections)
 //   cost.png         cost vs iteration, log scale (linear when a cost is <= 0)
 //   parameters.png   one panel per parameter: value over the iterations, final value with its 95%
 //                    interval as an error bar, truth as a dashed line when known
 //   seq_<name>.png   per sequence, one panel per fitted sensor column vs time: measured (grey),
 //                    simulated with the initial parameters (blue, dashed), with the fitted ones
 //                    (red). <name> keeps [A-Za-z0-9_.-] of the sequence name, '_' for the rest.
-// Lines of more than 2000 points are decimated (min and max per bucket, peaks kept).
+// Lines of more than 2000 points are decimated (min and max per bucket, peaks kept). The plots are
+// drawn with cairo (tools/report/canvas.h), their text in DejaVu Sans.
 #pragma once
 
 #include <stdexcept>

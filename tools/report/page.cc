@@ -1,0 +1,231 @@
+#include "tools/report/page.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <sstream>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "tools/report/axes.h"
+#include "tools/report/canvas.h"
+#include "tools/report/plots.h"
+
+namespace mjsysid::report {
+namespace {
+
+using io::FitResultFile;
+using mjsysid::ParameterEstimate;
+
+// text for html: & < > " ' escaped
+std::string HtmlEscape(const std::string& s) {
+  std::string out;
+  for (const char c : s) {
+    switch (c) {
+      case '&':
+        out += "&amp;";
+        break;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      case '\'':
+        out += "&#39;";
+        break;
+      default:
+        out += c;
+    }
+  }
+  return out;
+}
+
+// standard base64 with padding (RFC 4648), for data URIs
+std::string Base64(const std::string& bytes) {
+  static constexpr char kAlphabet[] =
+      "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  out.reserve((bytes.size() + 2) / 3 * 4);
+  for (size_t i = 0; i < bytes.size(); i += 3) {
+    uint32_t v = static_cast<uint8_t>(bytes[i]) << 16;
+    if (i + 1 < bytes.size()) v |= static_cast<uint8_t>(bytes[i + 1]) << 8;
+    if (i + 2 < bytes.size()) v |= static_cast<uint8_t>(bytes[i + 2]);
+    out += kAlphabet[(v >> 18) & 63];
+    out += kAlphabet[(v >> 12) & 63];
+    out += i + 1 < bytes.size() ? kAlphabet[(v >> 6) & 63] : '=';
+    out += i + 2 < bytes.size() ? kAlphabet[v & 63] : '=';
+  }
+  return out;
+}
+
+// the css class of a status badge
+std::string StatusClass(const std::string& status) {
+  std::string s = status;
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char ch) { return std::tolower(ch); });
+  if (s.find("fail") != std::string::npos || s.find("error") != std::string::npos ||
+      s.find("diverg") != std::string::npos) {
+    return "bad";
+  }
+  if (s == "converged" || s == "success" || s == "succeeded" || s == "ok" || s == "done") {
+    return "ok";
+  }
+  return "warn";
+}
+
+// a number for the page: 6 digits, infinity as the sign
+std::string HtmlNum(double v, int digits = 6) {
+  if (std::isinf(v)) return v > 0 ? "\xE2\x88\x9E" : "\xE2\x88\x92\xE2\x88\x9E";
+  return HtmlEscape(Num(v, digits));
+}
+
+constexpr char kCss[] = R"css(
+body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,Helvetica,Arial,sans-serif;color:#222;
+  max-width:1240px;margin:24px auto;padding:0 16px;line-height:1.4}
+h1{font-size:26px;margin:0 0 6px}
+h2{font-size:20px;margin:32px 0 10px;padding-bottom:4px;border-bottom:1px solid #ddd}
+h3{font-size:16px;margin:20px 0 6px}
+.badge{display:inline-block;padding:1px 10px;border-radius:10px;color:#fff;font-weight:600}
+.ok{background:#2e7d32}.warn{background:#ef6c00}.bad{background:#c62828}
+.muted{color:#777}
+table{border-collapse:collapse;font-size:14px;margin:4px 0}
+th,td{padding:4px 10px;border-bottom:1px solid #eee;text-align:left;vertical-align:top}
+th{background:#f6f6f6}
+td.n{text-align:right;font-family:ui-monospace,Menlo,Consolas,monospace;white-space:nowrap}
+table.facts td:first-child{color:#666}
+tr.unid td{background:#fde8e8}
+.flag{display:inline-block;padding:0 6px;margin:0 4px 2px 0;border-radius:4px;font-size:12px;
+  background:#e8e8e8}
+.flag.unid{background:#c62828;color:#fff}
+ul.warnings li{color:#8a4b00}
+svg,img{max-width:100%;height:auto;border:1px solid #eee;background:#fff}
+)css";
+
+// the parameter table, with the unidentifiable combinations below it
+void ParameterSection(std::ostringstream& h, const FitResultFile& r) {
+  h << "<h2>Parameters</h2>\n";
+  if (r.parameters.empty()) {
+    h << "<p class=\"muted\">no parameters</p>\n";
+  } else {
+    h << "<table class=\"params\">\n<tr><th>parameter</th><th>initial</th><th>value</th>"
+         "<th>std</th><th>rel. std</th><th>95% CI</th><th>truth</th><th>truth in CI</th>"
+         "<th>flags</th></tr>\n";
+    for (const ParameterEstimate& p : r.parameters) {
+      h << "<tr" << (p.identifiable ? "" : " class=\"unid\"") << "><td>" << HtmlEscape(p.name)
+        << "</td><td class=\"n\">" << HtmlNum(p.initial) << "</td><td class=\"n\"><b>"
+        << HtmlNum(p.value) << "</b></td><td class=\"n\">" << HtmlNum(p.std_error, 3)
+        << "</td><td class=\"n\">"
+        << (std::isinf(p.std_error) ? HtmlNum(p.std_error)
+            : p.value != 0          ? HtmlNum(100 * p.std_error / std::abs(p.value), 3) + " %"
+                                    : "&ndash;")
+        << "</td><td class=\"n\">[" << HtmlNum(p.ci95_low) << ", " << HtmlNum(p.ci95_high)
+        << "]</td><td class=\"n\">" << (p.truth ? HtmlNum(*p.truth) : "&ndash;") << "</td><td>";
+      if (p.truth) h << (*p.truth >= p.ci95_low && *p.truth <= p.ci95_high ? "yes" : "<b>no</b>");
+      h << "</td><td>";
+      if (p.at_lower) h << "<span class=\"flag\">at lower bound</span>";
+      if (p.at_upper) h << "<span class=\"flag\">at upper bound</span>";
+      if (!p.identifiable) h << "<span class=\"flag unid\">unidentifiable</span>";
+      h << "</td></tr>\n";
+    }
+    h << "</table>\n";
+  }
+  h << "<h3>Unidentifiable combinations</h3>\n";
+  if (r.uncertainty.unidentifiable.empty()) {
+    h << "<p class=\"muted\">none: the data determine every parameter</p>\n";
+  } else {
+    h << "<ul>\n";
+    for (const std::string& u : r.uncertainty.unidentifiable)
+      h << "<li>" << HtmlEscape(u) << "</li>\n";
+    h << "</ul>\n";
+  }
+}
+
+}  // namespace
+
+std::string Page(const FitResultFile& r, const std::vector<std::string>& sequence_pngs) {
+  std::ostringstream h;
+  const std::string name = r.name.empty() ? "(unnamed)" : r.name;
+  h << "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
+    << "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n"
+    << "<title>mjsysid report: " << HtmlEscape(name) << "</title>\n<style>" << kCss
+    << "</style>\n</head>\n<body>\n";
+
+  // header
+  h << "<h1>" << HtmlEscape(name) << "</h1>\n<p><span class=\"badge " << StatusClass(r.status)
+    << "\">" << HtmlEscape(r.status.empty() ? "unknown" : r.status) << "</span> "
+    << HtmlEscape(r.termination) << "</p>\n";
+
+  // facts
+  const double ratio =
+      r.initial_cost != 0 ? r.final_cost / r.initial_cost : std::numeric_limits<double>::infinity();
+  const std::pair<std::string, std::string> facts[] = {
+      {"experiment", HtmlEscape(r.experiment)},
+      {"created", HtmlEscape(r.created)},
+      {"iterations", std::to_string(r.iterations)},
+      {"initial cost", HtmlNum(r.initial_cost)},
+      {"final cost", HtmlNum(r.final_cost) + " <span class=\"muted\">(" + HtmlNum(ratio, 3) +
+                         " of the initial)</span>"},
+      {"residual variance", HtmlNum(r.uncertainty.residual_variance)},
+      {"residuals", std::to_string(r.num_residuals)},
+      {"wall time", HtmlNum(r.seconds, 4) + " s"},
+      {"jacobian", HtmlEscape(r.jacobian_mode)},
+      {"versions",
+       "mjsysid " + HtmlEscape(r.mjsysid_version) + ", MuJoCo " + HtmlEscape(r.mujoco_version)}};
+  h << "<table class=\"facts\">\n";
+  for (const auto& [key, value] : facts)
+    h << "<tr><td>" << key << "</td><td>" << value << "</td></tr>\n";
+  for (const auto& [model, file] : r.identified_models) {
+    h << "<tr><td>identified model</td><td>" << HtmlEscape(model) << ": " << HtmlEscape(file)
+      << "</td></tr>\n";
+  }
+  h << "</table>\n";
+
+  // solver settings
+  h << "<h2>Solver settings</h2>\n";
+  if (r.solver.empty()) {
+    h << "<p class=\"muted\">none recorded</p>\n";
+  } else {
+    h << "<table class=\"facts\">\n";
+    for (const auto& [key, value] : r.solver) {
+      h << "<tr><td>" << HtmlEscape(key) << "</td><td>" << HtmlEscape(value) << "</td></tr>\n";
+    }
+    h << "</table>\n";
+  }
+
+  ParameterSection(h, r);
+
+  // warnings
+  h << "<h2>Warnings</h2>\n";
+  if (r.warnings.empty()) {
+    h << "<p class=\"muted\">none</p>\n";
+  } else {
+    h << "<ul class=\"warnings\">\n";
+    for (const std::string& w : r.warnings) h << "<li>" << HtmlEscape(w) << "</li>\n";
+    h << "</ul>\n";
+  }
+
+  // plots: cost and parameters as svg, sequences as png
+  h << "<h2>Cost</h2>\n";
+  const Figure cost = CostFigure(r), params = ParametersFigure(r);
+  h << RenderSvg(cost.width, cost.height, "cost", cost.draw);
+  h << "<h2>Parameters over the iterations</h2>\n";
+  h << RenderSvg(params.width, params.height, "params", params.draw);
+  h << "<h2>Sequences</h2>\n";
+  if (r.sequences.empty()) h << "<p class=\"muted\">no sequences recorded</p>\n";
+  for (size_t i = 0; i < r.sequences.size() && i < sequence_pngs.size(); ++i) {
+    h << "<h3>" << HtmlEscape(r.sequences[i].name) << "</h3>\n<img alt=\"sequence "
+      << HtmlEscape(r.sequences[i].name) << "\" src=\"data:image/png;base64,"
+      << Base64(sequence_pngs[i]) << "\">\n";
+  }
+  h << "<p class=\"muted\">written by mjsysid from result.yaml and result.h5; the plots are also "
+       "in this folder as cost.png, parameters.png and seq_*.png</p>\n</body>\n</html>\n";
+  return h.str();
+}
+
+}  // namespace mjsysid::report

@@ -1,0 +1,20 @@
+// The report's HTML page: one self-contained file (inline CSS; the cost and parameter plots as
+// inline SVG; the sequence plots as base64 PNG data URIs; no scripts, no external resources).
+//
+// Sections, in order: header (name, status badge, termination), facts (experiment, costs,
+// iterations, wall time, versions, identified models), solver settings, parameters (table;
+// unidentifiable rows highlighted; the unidentifiable combinations listed), warnings, cost,
+// parameters over the iterations, sequences. Every text from the result is HTML-escaped.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "sysid/io/result.h"
+
+namespace mjsysid::report {
+
+// the page; sequence_pngs[i] is the PNG of result.sequences[i]
+std::string Page(const io::FitResultFile& result, const std::vector<std::string>& sequence_pngs);
+
+}  // namespace mjsysid::report
