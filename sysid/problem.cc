@@ -1,3 +1,9 @@
+// Problem: the fit orchestration. Prepare validates the inputs and builds the simulators, the
+// variables, the segments and the evaluation cache (Problem::Impl, sysid/problem_impl.h); Fit
+// builds the Ceres problem from the cost functions (sysid/cost_functions.h), solves it and
+// assembles the FitResult (estimates, uncertainty, warnings, final signals); CheckJacobians probes
+// every residual block with ceres::GradientChecker. The residual arithmetic itself is in
+// sysid/residual_model.h, the rollout reuse in sysid/evaluation_cache.h.
 #include "sysid/problem.h"
 
 #include <ceres/ceres.h>
@@ -7,10 +13,14 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <mutex>
-#include <set>
+#include <limits>
+#include <map>
 #include <stdexcept>
 
+#include "sysid/cost_functions.h"
+#include "sysid/evaluation_cache.h"
+#include "sysid/problem_impl.h"
+#include "sysid/residual_model.h"
 #include "sysid/state_manifold.h"
 
 namespace mjsysid {
@@ -21,35 +31,6 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // multiple shooting: a continuity gap (tangent space: m, rad, m/s, rad/s) above this at the
 // estimate is reported as segments that do not join
 constexpr double kContinuityGapWarning = 1e-3;
-
-// robust loss on one weighted residual e: returns rhat with rhat^2 = rho(e^2), and d rhat / d e
-double RobustResidual(LossType loss, double c, double e, double* derivative) {
-  const double s = e * e;
-  double rho = s, rho1 = 1;
-  switch (loss) {
-    case LossType::kNone:
-      *derivative = 1;
-      return e;
-    case LossType::kHuber:
-      if (s > c * c) {
-        const double r = std::sqrt(s);
-        rho = 2 * c * r - c * c;
-        rho1 = c / r;
-      }
-      break;
-    case LossType::kCauchy:
-      rho = c * c * std::log1p(s / (c * c));
-      rho1 = 1 / (1 + s / (c * c));
-      break;
-  }
-  if (s == 0) {
-    *derivative = 1;
-    return 0;
-  }
-  const double rhat = std::copysign(std::sqrt(rho), e);
-  *derivative = rho1 * e / rhat;
-  return rhat;
-}
 
 // Reduces the sequence's matrices (T x nsensordata, the model's layout) to the columns of the
 // fitted sensors, in the order given, and fills their names, dimensions and the sample times.
@@ -75,528 +56,6 @@ void KeepFittedColumns(const mjModel& m, const std::vector<std::string>& fitted,
     sr->time.array() += sq.x0.time;
   }
 }
-
-}  // namespace
-
-// -----------------------------------------------------------------------------------------------
-// problem state
-
-struct Problem::Impl {
-  struct Model {
-    std::string name;
-    ModelPtr model;
-    std::unique_ptr<Simulator> sim;
-    std::vector<int> global;  // global parameter index of each simulator parameter
-    std::unique_ptr<StateManifold> manifold;
-  };
-  // one fitted sensor column of a sequence
-  struct Channel {
-    int column;       // in the model's sensordata
-    double weight;    // 1/sigma or weight
-    int measurement;  // index into measurements, or -1
-  };
-  struct Segment {
-    int seq = 0;        // sequence index
-    int k0 = 0, T = 0;  // first sample and samples
-    int block = -1;     // state block of x_0 (or -1: fixed, given by the sequence)
-    int next = -1;      // state block of the next segment's x_0 (continuity), or -1
-  };
-
-  std::vector<Model> models;
-  std::vector<FitParameter> params;
-  std::vector<FitMeasurement> measurements;
-  std::vector<FitSequence> sequences;
-
-  // fit-time state
-  FitOptions options;
-  std::vector<std::vector<Channel>> channels;    // per sequence
-  std::vector<std::vector<std::string>> fitted;  // per sequence: the fitted sensors, in order
-  std::vector<Segment> segments;
-  std::vector<double> z;                      // transformed physical parameters
-  std::vector<double> m;                      // fitted measurement terms
-  std::vector<std::vector<double>> states;    // state blocks (physics vectors)
-  std::vector<std::vector<double>> fixed_x0;  // per sequence: the given x0 as physics vector
-  struct MeasIndex {
-    int delay = -1, gain = -1, bias = -1;  // index into m, -1 = fixed at initial
-  };
-  std::vector<MeasIndex> meas_index;
-
-  // evaluation cache, one entry per segment: the rollout and, once asked for, the Jacobians at
-  // the point last evaluated. Ceres evaluates the residuals at a trial point and, when it accepts
-  // the step, the Jacobians at the same point: the rollout is reused. Before each evaluation
-  // Prefetch() simulates every segment of a model in one batch, so the simulator runs the
-  // sequences (and their Jacobian columns) in parallel instead of one segment after another.
-  struct Cached {
-    std::vector<double> key;  // z, then x_0 of the segment
-    bool failed = false;      // the rollout at key failed (MuJoCo warning, non-finite)
-    bool has_jacobians = false;
-    bool jacobians_failed = false;
-    std::string error;  // why the rollout or the Jacobians failed
-    Trajectory tr;
-    Sensitivity s;
-  };
-  std::vector<Cached> cache;
-
-  // What the cost functions met during a fit, so that FitResult::warnings can say it (a rejected
-  // trial point or a Jacobian past its validity is otherwise invisible to the user): the number
-  // of evaluations that failed (simulation warning, NaN, exception) with the first message, and
-  // the first core Jacobian warning per segment (e.g. a chaotic sensitivity that outgrew finite
-  // differences). Guarded by a mutex: Ceres may evaluate residual blocks in parallel.
-  std::mutex diagnostics_mutex;
-  int rejected_evaluations = 0;
-  std::string first_rejection;
-  std::map<int, std::string> jacobian_warnings;  // segment -> first warning
-  void NoteRejection(const std::string& what) {
-    std::lock_guard<std::mutex> lock(diagnostics_mutex);
-    if (rejected_evaluations++ == 0) first_rejection = what;
-  }
-  void NoteJacobianWarning(int segment, const std::string& what) {
-    std::lock_guard<std::mutex> lock(diagnostics_mutex);
-    jacobian_warnings.emplace(segment, what);
-  }
-
-  const Model& ModelOf(const std::string& name) const {
-    for (const Model& mo : models) {
-      if (mo.name == name) return mo;
-    }
-    throw std::invalid_argument("no model named '" + name + "' (add it with AddModel)");
-  }
-  Model& ModelOf(const std::string& name) {
-    return const_cast<Model&>(static_cast<const Impl&>(*this).ModelOf(name));
-  }
-
-  double Physical(int g, double zg) const { return params[g].FromVariable(zg); }
-  double ToZ(int g, double p) const { return params[g].ToVariable(p); }
-  // dp/dz at z
-  double DpDz(int g, double zg) const {
-    switch (params[g].transform) {
-      case Transform::kLog:
-        return std::exp(zg);
-      case Transform::kScale:
-        return params[g].scale;
-      default:
-        return 1.0;
-    }
-  }
-
-  // current measurement term values of measurement i, from the fitted vector mv (or initial)
-  void Terms(int i, const double* mv, double* delay, double* gain, double* bias) const {
-    const FitMeasurement& me = measurements[i];
-    const MeasIndex& ix = meas_index[i];
-    *delay = ix.delay >= 0 && mv ? mv[ix.delay] : me.delay.initial;
-    *gain = ix.gain >= 0 && mv ? mv[ix.gain] : me.gain.initial;
-    *bias = ix.bias >= 0 && mv ? mv[ix.bias] : me.bias.initial;
-  }
-
-  // writes the model's parameters from z into its simulator (only when they changed)
-  void Apply(Model& mo, const double* zv) {
-    const int n = mo.sim->parameters().size();
-    if (n == 0) return;
-    Eigen::VectorXd p(n);
-    for (int j = 0; j < n; ++j) p[j] = Physical(mo.global[j], zv[mo.global[j]]);
-    if (p != mo.sim->GetParameters()) mo.sim->SetParameters(p);
-  }
-
-  // x_0 of a segment in the current variables (its state block, or the sequence's given x0)
-  const double* X0(int segment) const {
-    const Segment& seg = segments[segment];
-    return seg.block >= 0 ? states[seg.block].data() : fixed_x0[seg.seq].data();
-  }
-  std::vector<double> KeyOf(int segment, const double* zv, const double* x0) const {
-    const Model& mo = ModelOf(sequences[segments[segment].seq].model);
-    std::vector<double> key(zv, zv + (zv ? z.size() : 0));
-    key.insert(key.end(), x0, x0 + mo.sim->dims().nphys);
-    return key;
-  }
-
-  // fills the cache of segments segs (all of model mo) at parameters zv and initial states x0s:
-  // rollouts of the segments whose key changed in one batch, then, if asked for, the Jacobians
-  // of those that lack them, batched by the columns and rows they need
-  void Simulate(Model& mo, const std::vector<int>& segs, const double* zv,
-                const std::vector<const double*>& x0s, bool jacobians) {
-    const double dt = mo.sim->model().opt.timestep;
-    auto input = [&](int s, const double* x0) {
-      const Segment& seg = segments[s];
-      SequenceInput in;
-      in.x0 = ToInitialState(mo, x0, seg.k0 * dt);
-      in.ctrl = sequences[seg.seq].ctrl.middleRows(seg.k0, seg.T);
-      return in;
-    };
-    if (zv) Apply(mo, zv);
-    std::vector<int> roll;
-    std::vector<SequenceInput> ins;
-    for (size_t i = 0; i < segs.size(); ++i) {
-      Cached& c = cache[segs[i]];
-      std::vector<double> key = KeyOf(segs[i], zv, x0s[i]);
-      if (key == c.key) continue;
-      c = Cached();
-      c.key = std::move(key);
-      roll.push_back(segs[i]);
-      ins.push_back(input(segs[i], x0s[i]));
-    }
-    if (!roll.empty()) {
-      std::vector<Trajectory> trs;
-      try {
-        mo.sim->Rollout(ins, &trs);
-        for (size_t i = 0; i < roll.size(); ++i) cache[roll[i]].tr = std::move(trs[i]);
-      } catch (const std::exception& e) {
-        for (int s : roll) {  // a divergent trial point: rejected
-          cache[s].failed = true;
-          cache[s].error = e.what();
-        }
-      }
-    }
-    if (!jacobians) return;
-    // groups: initial-state columns (x_0 is a variable) x state rows (continuity needs them)
-    for (int group = 0; group < 4; ++group) {
-      const bool with_x0 = group & 1, with_states = group & 2;
-      std::vector<int> jac;
-      std::vector<SequenceInput> jins;
-      std::vector<Trajectory> nominal;
-      for (size_t i = 0; i < segs.size(); ++i) {
-        const Cached& c = cache[segs[i]];
-        const Segment& seg = segments[segs[i]];
-        if (c.failed || c.has_jacobians || c.jacobians_failed) continue;
-        if ((seg.block >= 0) != with_x0 || (seg.next >= 0) != with_states) continue;
-        jac.push_back(segs[i]);
-        jins.push_back(input(segs[i], x0s[i]));
-        nominal.push_back(std::move(cache[segs[i]].tr));  // moved back below
-      }
-      if (jac.empty()) continue;
-      JacobianOptions jo = options.jacobian;
-      jo.initial_state = with_x0;
-      jo.state_jacobians = with_states;
-      jo.zero_column_is_error = false;
-      std::vector<Sensitivity> sens;
-      bool ok = true;
-      std::string error;
-      try {
-        mo.sim->Jacobians(jins, nominal, jo, &sens);
-      } catch (const std::exception& e) {
-        ok = false;
-        error = e.what();
-      }
-      for (size_t i = 0; i < jac.size(); ++i) {
-        Cached& c = cache[jac[i]];
-        c.tr = std::move(nominal[i]);
-        c.has_jacobians = ok;
-        c.jacobians_failed = !ok;
-        c.error = error;
-        if (ok) c.s = std::move(sens[i]);
-      }
-    }
-  }
-
-  // the cache entry of one segment at (zv, x0), simulated alone if it is not there
-  const Cached& Evaluated(int segment, const double* zv, const double* x0, bool jacobians) {
-    const Cached& c = cache[segment];
-    if (c.key != KeyOf(segment, zv, x0) || (jacobians && !c.has_jacobians && !c.failed)) {
-      Simulate(ModelOf(sequences[segments[segment].seq].model), {segment}, zv, {x0}, jacobians);
-    }
-    return c;
-  }
-
-  // every segment at the current variables, batched per model (before each Ceres evaluation)
-  void Prefetch(bool jacobians) {
-    for (Model& mo : models) {
-      std::vector<int> segs;
-      std::vector<const double*> x0s;
-      for (size_t s = 0; s < segments.size(); ++s) {
-        if (sequences[segments[s].seq].model != mo.name) continue;
-        segs.push_back(static_cast<int>(s));
-        x0s.push_back(X0(static_cast<int>(s)));
-      }
-      if (!segs.empty()) Simulate(mo, segs, z.empty() ? nullptr : z.data(), x0s, jacobians);
-    }
-  }
-
-  InitialState ToInitialState(const Model& mo, const double* x, double time) const {
-    const StateDims& d = mo.sim->dims();
-    InitialState s;
-    s.qpos = Eigen::Map<const Eigen::VectorXd>(x, d.nq);
-    s.qvel = Eigen::Map<const Eigen::VectorXd>(x + d.nq, d.nv);
-    s.act = Eigen::Map<const Eigen::VectorXd>(x + d.nq + d.nv, d.na);
-    s.time = time;
-    return s;
-  }
-
-  // simulated value of a channel at local sample k with delay (linear interpolation), and its
-  // derivative with respect to the delay; rows: a function returning the value at sample i
-  template <typename F>
-  static double Delayed(const F& at, int k, int T, double delay, double dt, double* ddelay) {
-    if (delay == 0) {
-      *ddelay = 0;  // one-sided at zero: the derivative below would see the future
-      const int i0 = k, i1 = std::max(k - 1, 0);
-      *ddelay = i1 == i0 ? 0.0 : -(at(i0) - at(i1)) / dt;
-      return at(k);
-    }
-    const double q = k - delay / dt;
-    int i0 = static_cast<int>(std::floor(q));
-    const double a = q - i0;
-    if (i0 < 0) {
-      *ddelay = 0;
-      return at(0);
-    }
-    if (i0 >= T - 1) {
-      *ddelay = 0;
-      return at(T - 1);
-    }
-    *ddelay = -(at(i0 + 1) - at(i0)) / dt;
-    return (1 - a) * at(i0) + a * at(i0 + 1);
-  }
-};
-
-// -----------------------------------------------------------------------------------------------
-// cost functions
-
-namespace {
-
-// residuals of one segment: its sensor samples and (not last) its continuity with the next
-class SegmentCost : public ceres::CostFunction {
- public:
-  SegmentCost(Problem::Impl* impl, int segment) : impl_(impl), segment_(segment) {
-    const auto& seg = impl->segments[segment];
-    const auto& mo = impl->ModelOf(impl->sequences[seg.seq].model);
-    const int nch = static_cast<int>(impl->channels[seg.seq].size());
-    set_num_residuals(seg.T * nch + (seg.next >= 0 ? mo.sim->dims().nx : 0));
-    if (!impl->z.empty()) mutable_parameter_block_sizes()->push_back(impl->z.size());
-    if (!impl->m.empty()) mutable_parameter_block_sizes()->push_back(impl->m.size());
-    if (seg.block >= 0) mutable_parameter_block_sizes()->push_back(mo.sim->dims().nphys);
-    if (seg.next >= 0) mutable_parameter_block_sizes()->push_back(mo.sim->dims().nphys);
-  }
-
-  bool Evaluate(double const* const* parameters, double* residuals,
-                double** jacobians) const override {
-    try {
-      if (EvaluateOrThrow(parameters, residuals, jacobians)) return true;
-      impl_->NoteRejection("non-finite residual");
-      return false;
-    } catch (const std::exception& e) {
-      // a divergent or warning trial point: reject it, the trust region shrinks
-      impl_->NoteRejection(e.what());
-      return false;
-    }
-  }
-
- private:
-  bool EvaluateOrThrow(double const* const* parameters, double* residuals,
-                       double** jacobians) const {
-    Problem::Impl& I = *impl_;
-    const auto& seg = I.segments[segment_];
-    const FitSequence& sq = I.sequences[seg.seq];
-    Problem::Impl::Model& mo = I.ModelOf(sq.model);
-    Simulator& sim = *mo.sim;
-    const StateDims& dims = sim.dims();
-    const int nx = dims.nx, npm = sim.parameters().size();
-    const auto& chans = I.channels[seg.seq];
-    const int nch = static_cast<int>(chans.size());
-    const double dt = sim.model().opt.timestep;
-
-    // unpack blocks
-    int b = 0;
-    const double* zv = I.z.empty() ? nullptr : parameters[b++];
-    const int zb = I.z.empty() ? -1 : b - 1;
-    const double* mv = I.m.empty() ? nullptr : parameters[b++];
-    const int mb = I.m.empty() ? -1 : b - 1;
-    const double* x0 = seg.block >= 0 ? parameters[b++] : I.fixed_x0[seg.seq].data();
-    const int xb = seg.block >= 0 ? b - 1 : -1;
-    const double* xn = seg.next >= 0 ? parameters[b++] : nullptr;
-    const int nb = seg.next >= 0 ? b - 1 : -1;
-
-    // rollout (and Jacobians only when asked for), from the cache when Prefetch() or an earlier
-    // evaluation at this point computed them
-    const bool want = jacobians != nullptr;
-    const Problem::Impl::Cached& cached = I.Evaluated(segment_, zv, x0, want);
-    // a divergent or warning trial point: rejected in Evaluate, the trust region shrinks
-    if (cached.failed || (want && !cached.has_jacobians)) throw std::runtime_error(cached.error);
-    const Trajectory& tr = cached.tr;
-    const Sensitivity& s = cached.s;
-    if (want && !s.warnings.empty()) I.NoteJacobianWarning(segment_, s.warnings[0]);
-    const int ns = dims.ns;
-    const int ncol = want ? s.ncol : 0;
-    std::vector<double> row_t(want ? ncol : 0);  // d(simulated)/d(column) of one residual
-
-    // zero the Jacobian blocks
-    if (want) {
-      for (int i = 0; i < static_cast<int>(parameter_block_sizes().size()); ++i) {
-        if (jacobians[i]) {
-          std::fill(jacobians[i], jacobians[i] + num_residuals() * parameter_block_sizes()[i], 0.0);
-        }
-      }
-    }
-    std::vector<double> pinv;
-    if (want && xb >= 0 && jacobians[xb]) {
-      pinv.resize(static_cast<size_t>(nx) * dims.nphys);
-      mo.manifold->PlusJacobianPseudoInverse(x0, pinv.data());
-    }
-
-    // sensor residuals
-    for (int k = 0; k < seg.T; ++k) {
-      for (int c = 0; c < nch; ++c) {
-        const auto& ch = chans[c];
-        double delay = 0, gain = 1, bias = 0;
-        if (ch.measurement >= 0) I.Terms(ch.measurement, mv, &delay, &gain, &bias);
-        double dydelay = 0;
-        const double y = Problem::Impl::Delayed([&](int i) { return tr.sensors(i, ch.column); }, k,
-                                                seg.T, delay, dt, &dydelay);
-        const double e = ch.weight * (gain * y + bias - sq.measured(seg.k0 + k, ch.column));
-        double de = 1;
-        const int row = k * nch + c;
-        residuals[row] = RobustResidual(I.options.loss, I.options.loss_scale, e, &de);
-        if (!want) continue;
-        const double f = de * ch.weight;
-        // d(simulated y)/d(column), interpolated like the value
-        for (int j = 0; j < ncol; ++j) {
-          double unused = 0;
-          row_t[j] = Problem::Impl::Delayed(
-              [&](int i) { return s.DyDp(static_cast<Eigen::Index>(i) * ns + ch.column, j); }, k,
-              seg.T, delay, dt, &unused);
-        }
-        if (zb >= 0 && jacobians[zb]) {
-          const int nz = static_cast<int>(I.z.size());
-          for (int j = 0; j < npm; ++j) {
-            const int g = mo.global[j];
-            jacobians[zb][row * nz + g] = f * gain * row_t[j] * I.DpDz(g, zv[g]);
-          }
-        }
-        if (mb >= 0 && jacobians[mb] && ch.measurement >= 0) {
-          const int nm = static_cast<int>(I.m.size());
-          const auto& ix = I.meas_index[ch.measurement];
-          if (ix.delay >= 0) jacobians[mb][row * nm + ix.delay] = f * gain * dydelay;
-          if (ix.gain >= 0) jacobians[mb][row * nm + ix.gain] = f * y;
-          if (ix.bias >= 0) jacobians[mb][row * nm + ix.bias] = f;
-        }
-        if (xb >= 0 && jacobians[xb]) {
-          for (int a = 0; a < dims.nphys; ++a) {
-            double v = 0;
-            for (int i = 0; i < nx; ++i) v += row_t[npm + i] * pinv[i * dims.nphys + a];
-            jacobians[xb][row * dims.nphys + a] = f * gain * v;
-          }
-        }
-      }
-    }
-
-    // continuity: w * (x_end (-) x_next) in tangent space
-    if (seg.next >= 0) {
-      const double w = I.options.continuity_weight;
-      const int r0 = seg.T * nch;
-      std::vector<double> d(nx);
-      TangentDifference(sim.model(), xn, tr.states.row(seg.T).data(), 1.0, d.data());
-      for (int i = 0; i < nx; ++i) residuals[r0 + i] = w * d[i];
-      if (want) {
-        const auto S = s.DxDp.middleRows(static_cast<Eigen::Index>(seg.T) * nx, nx);
-        if (zb >= 0 && jacobians[zb]) {
-          const int nz = static_cast<int>(I.z.size());
-          for (int i = 0; i < nx; ++i) {
-            for (int j = 0; j < npm; ++j) {
-              const int g = mo.global[j];
-              jacobians[zb][(r0 + i) * nz + g] = w * S(i, j) * I.DpDz(g, zv[g]);
-            }
-          }
-        }
-        if (xb >= 0 && jacobians[xb]) {
-          for (int i = 0; i < nx; ++i) {
-            for (int a = 0; a < dims.nphys; ++a) {
-              double v = 0;
-              for (int t = 0; t < nx; ++t) v += S(i, npm + t) * pinv[t * dims.nphys + a];
-              jacobians[xb][(r0 + i) * dims.nphys + a] = w * v;
-            }
-          }
-        }
-        if (nb >= 0 && jacobians[nb]) {
-          // d(x_end (-) y)/dy = -I in tangent space (exact off quaternions, first order on them)
-          std::vector<double> pn(static_cast<size_t>(nx) * dims.nphys);
-          mo.manifold->PlusJacobianPseudoInverse(xn, pn.data());
-          for (int i = 0; i < nx; ++i) {
-            for (int a = 0; a < dims.nphys; ++a) {
-              jacobians[nb][(r0 + i) * dims.nphys + a] = -w * pn[i * dims.nphys + a];
-            }
-          }
-        }
-      }
-    }
-    for (int i = 0; i < num_residuals(); ++i) {
-      if (!std::isfinite(residuals[i])) return false;
-    }
-    return true;
-  }
-
-  Problem::Impl* impl_;
-  int segment_;
-};
-
-// Gaussian prior on one physical parameter: (p - mean) / sigma
-class PriorCost : public ceres::CostFunction {
- public:
-  PriorCost(const Problem::Impl* impl, int g) : impl_(impl), g_(g) {
-    set_num_residuals(1);
-    mutable_parameter_block_sizes()->push_back(impl->z.size());
-  }
-  bool Evaluate(double const* const* parameters, double* residuals,
-                double** jacobians) const override {
-    const FitParameter& p = impl_->params[g_];
-    const double zg = parameters[0][g_];
-    residuals[0] = (impl_->Physical(g_, zg) - p.prior_mean) / p.prior_sigma;
-    if (jacobians && jacobians[0]) {
-      std::fill(jacobians[0], jacobians[0] + impl_->z.size(), 0.0);
-      jacobians[0][g_] = impl_->DpDz(g_, zg) / p.prior_sigma;
-    }
-    return std::isfinite(residuals[0]);
-  }
-
- private:
-  const Problem::Impl* impl_;
-  int g_;
-};
-
-// progress lines, trace, checkpoint callback and interruption
-// before each Ceres evaluation: simulate every segment at the new point in parallel batches
-class Prefetch : public ceres::EvaluationCallback {
- public:
-  explicit Prefetch(Problem::Impl* impl) : impl_(impl) {}
-  void PrepareForEvaluation(bool evaluate_jacobians, bool /*new_evaluation_point*/) override {
-    impl_->Prefetch(evaluate_jacobians);  // compares keys itself: unchanged segments are kept
-  }
-
- private:
-  Problem::Impl* impl_;
-};
-
-class Progress : public ceres::IterationCallback {
- public:
-  Progress(Problem::Impl* impl, FitResult* result, std::chrono::steady_clock::time_point start)
-      : impl_(impl), result_(result), start_(start) {}
-  ceres::CallbackReturnType operator()(const ceres::IterationSummary& s) override {
-    IterationInfo info;
-    info.iteration = s.iteration;
-    info.cost = s.cost;
-    info.step_norm = s.step_norm;
-    info.gradient_norm = s.gradient_max_norm;
-    info.successful = s.step_is_successful || s.iteration == 0;
-    info.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-    const int np = static_cast<int>(impl_->params.size());
-    info.parameters.resize(np + static_cast<int>(impl_->m.size()));
-    for (int g = 0; g < np; ++g) info.parameters[g] = impl_->Physical(g, impl_->z[g]);
-    for (size_t i = 0; i < impl_->m.size(); ++i) info.parameters[np + i] = impl_->m[i];
-    if (impl_->options.verbose) {
-      std::fprintf(stderr, "iter %3d  cost %.6e  |step| %.2e  |grad| %.2e  %s  %7.2f s\n",
-                   info.iteration, info.cost, info.step_norm, info.gradient_norm,
-                   info.successful ? "ok      " : "rejected", info.seconds);
-    }
-    result_->trace.push_back(info);
-    if (impl_->options.on_iteration && info.successful) impl_->options.on_iteration(info);
-    if (impl_->options.interrupt && impl_->options.interrupt->load()) {
-      result_->interrupted = true;
-      return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
-    }
-    return ceres::SOLVER_CONTINUE;
-  }
-
- private:
-  Problem::Impl* impl_;
-  FitResult* result_;
-  std::chrono::steady_clock::time_point start_;
-};
 
 }  // namespace
 
@@ -629,6 +88,7 @@ void Problem::AddSequence(const FitSequence& s) { impl_->sequences.push_back(s);
 
 void Problem::Prepare(const FitOptions& options, Prepared* out) {
   Impl& I = *impl_;
+  I.cache.reset();  // it borrows the simulators rebuilt below
   I.options = options;
   if (I.models.empty()) throw std::invalid_argument("no model: call AddModel first");
   if (I.sequences.empty()) throw std::invalid_argument("no sequence: call AddSequence first");
@@ -659,7 +119,7 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
     if (p.has_prior && !(p.prior_sigma > 0)) {
       throw std::invalid_argument(where + "prior sigma must be positive");
     }
-    for (const std::string& mname : p.models) I.ModelOf(mname);
+    for (const std::string& mname : p.models) I.ModelIndex(mname);
   }
 
   // simulators: each model with the parameters that apply to it
@@ -691,7 +151,7 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
 
   // measurement terms
   I.m.clear();
-  I.meas_index.assign(I.measurements.size(), Impl::MeasIndex());
+  I.term_index.assign(I.measurements.size(), TermIndex());
   names.clear();
   for (int g = 0; g < np; ++g) names.push_back(I.params[g].name);
   mbounds.clear();
@@ -710,9 +170,9 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
       out->minitial.push_back(t.initial);
       names.push_back(me.sensor + "." + what);
     };
-    add(me.delay, &I.meas_index[i].delay, "delay");
-    add(me.gain, &I.meas_index[i].gain, "gain");
-    add(me.bias, &I.meas_index[i].bias, "bias");
+    add(me.delay, &I.term_index[i].delay, "delay");
+    add(me.gain, &I.term_index[i].gain, "gain");
+    add(me.bias, &I.term_index[i].bias, "bias");
   }
 
   // sequences: shapes, finite data, channels
@@ -721,7 +181,7 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
   I.fixed_x0.assign(I.sequences.size(), {});
   for (size_t q = 0; q < I.sequences.size(); ++q) {
     FitSequence& sq = I.sequences[q];
-    Impl::Model& mo = I.ModelOf(sq.model);
+    const Impl::Model& mo = I.models[I.ModelIndex(sq.model)];
     const StateDims& d = mo.sim->dims();
     const std::string where = "sequence '" + sq.name + "': ";
     const int T = static_cast<int>(sq.ctrl.rows());
@@ -809,7 +269,7 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
   std::vector<Sensitivity> initial_sensitivity(I.sequences.size());  // parameter columns
   std::vector<bool> moves(np, false);
   for (auto& mo : I.models) {
-    I.Apply(mo, I.z.data());
+    ApplyVariables(I.params, mo.global, I.z.data(), mo.sim.get());
     std::vector<SequenceInput> ins;
     std::vector<int> which;
     for (size_t q = 0; q < I.sequences.size(); ++q) {
@@ -854,8 +314,9 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
     const int len = options.segment_steps > 0 ? options.segment_steps : T;
     const size_t first = I.segments.size();
     for (int k0 = 0; k0 < T; k0 += len) {
-      Impl::Segment seg;
+      Segment seg;
       seg.seq = static_cast<int>(q);
+      seg.model = I.ModelIndex(I.sequences[q].model);
       seg.k0 = k0;
       seg.T = std::min(len, T - k0);
       const bool free = k0 > 0 || options.estimate_initial_state;
@@ -873,18 +334,16 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
   }
 
   // evaluation cache, seeded with the initial rollouts (and Jacobians) of whole sequences
-  I.cache.assign(I.segments.size(), Impl::Cached());
+  std::vector<EvaluationCache::Model> simulated;
+  for (const Impl::Model& mo : I.models) simulated.push_back({mo.sim.get(), mo.global});
+  I.cache = std::make_unique<EvaluationCache>(std::move(simulated), &I.params, &I.sequences,
+                                              &I.segments, options.jacobian);
   for (size_t s = 0; s < I.segments.size(); ++s) {
-    const Impl::Segment& seg = I.segments[s];
+    const Segment& seg = I.segments[s];
     if (seg.block >= 0 || seg.next >= 0 || seg.T != initial[seg.seq].T) continue;
-    Impl::Cached& c = I.cache[s];
-    c.key = I.KeyOf(static_cast<int>(s), I.z.empty() ? nullptr : I.z.data(), I.X0(s));
-    c.tr = initial[seg.seq];
-    c.s = std::move(initial_sensitivity[seg.seq]);
-    c.has_jacobians =
-        c.s.ncol ==
-            static_cast<int>(I.ModelOf(I.sequences[seg.seq].model).sim->parameters().size()) &&
-        c.s.ncol > 0;
+    I.cache->Seed(static_cast<int>(s), I.z.empty() ? nullptr : I.z.data(),
+                  I.X0(static_cast<int>(s)), initial[seg.seq],
+                  std::move(initial_sensitivity[seg.seq]));
   }
 }
 
@@ -903,7 +362,7 @@ FitResult Problem::Fit(const FitOptions& options) {
   // ceres problem
   ceres::Problem::Options po;
   po.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  Prefetch prefetch(&I);
+  PrefetchCallback prefetch(&I);
   po.evaluation_callback = &prefetch;
   ceres::Problem problem(po);
   if (np) {
@@ -929,8 +388,8 @@ FitResult Problem::Fit(const FitOptions& options) {
     }
   }
   for (size_t s = 0; s < I.segments.size(); ++s) {
-    const Impl::Segment& seg = I.segments[s];
-    Impl::Model& mo = I.ModelOf(I.sequences[seg.seq].model);
+    const Segment& seg = I.segments[s];
+    const Impl::Model& mo = I.models[seg.model];
     std::vector<double*> blocks;
     if (np) blocks.push_back(I.z.data());
     if (!I.m.empty()) blocks.push_back(I.m.data());
@@ -954,7 +413,9 @@ FitResult Problem::Fit(const FitOptions& options) {
   so_ceres.function_tolerance = options.function_tolerance;
   so_ceres.gradient_tolerance = options.gradient_tolerance;
   so_ceres.parameter_tolerance = options.parameter_tolerance;
-  so_ceres.num_threads = 1;  // the simulator is parallel inside
+  // one thread: the evaluation cache is single-threaded by contract (sysid/evaluation_cache.h);
+  // the simulators are parallel inside
+  so_ceres.num_threads = 1;
   // with bounds, Ceres' trust region minimizer runs a projected Armijo line search along every
   // step. With its default cubic interpolation each trial length evaluates the gradient, i.e.
   // the full Jacobian (4-6 per iteration on the pendulum); quadratic interpolation needs cost
@@ -965,7 +426,7 @@ FitResult Problem::Fit(const FitOptions& options) {
   so_ceres.line_search_interpolation_type = ceres::QUADRATIC;
   so_ceres.update_state_every_iteration = true;
   so_ceres.logging_type = ceres::SILENT;
-  Progress progress(&I, &result, start);
+  ProgressCallback progress(&I, &result, start);
   so_ceres.callbacks.push_back(&progress);
   ceres::Solver::Summary summary;
   I.rejected_evaluations = 0;
@@ -989,7 +450,7 @@ FitResult Problem::Fit(const FitOptions& options) {
   }
   if (!I.jacobian_warnings.empty()) {
     const auto& [segment, what] = *I.jacobian_warnings.begin();
-    const Impl::Segment& seg = I.segments[segment];
+    const Segment& seg = I.segments[segment];
     result.warnings.push_back(
         "Jacobian not reliable in " + std::to_string(I.jacobian_warnings.size()) + " of " +
         std::to_string(I.segments.size()) + " segment(s); first: sequence '" +
@@ -998,6 +459,7 @@ FitResult Problem::Fit(const FitOptions& options) {
 
   // Jacobian at the estimate, in physical units (tangent space for states)
   ceres::Problem::EvaluateOptions eo;
+  eo.num_threads = 1;  // as the solve
   double cost = 0;
   ceres::CRSMatrix crs;
   std::vector<double> residuals;
@@ -1084,25 +546,25 @@ FitResult Problem::Fit(const FitOptions& options) {
   std::string worst_gap_where;
   for (size_t q = 0; q < I.sequences.size(); ++q) {
     const FitSequence& sq = I.sequences[q];
-    Impl::Model& mo = I.ModelOf(sq.model);
+    const Impl::Model& mo = I.models[I.ModelIndex(sq.model)];
     SequenceResult sr;
     sr.name = sq.name;
     sr.model = sq.model;
     sr.measured = sq.measured;
     sr.simulated_initial = initial[q].sensors;
     sr.simulated_final.resize(sq.measured.rows(), sq.measured.cols());
-    if (np) I.Apply(mo, I.z.data());
+    if (np) ApplyVariables(I.params, mo.global, I.z.data(), mo.sim.get());
     const double dt = mo.sim->model().opt.timestep;
     for (size_t s = 0; s < I.segments.size(); ++s) {
-      const Impl::Segment& seg = I.segments[s];
+      const Segment& seg = I.segments[s];
       if (seg.seq != static_cast<int>(q)) continue;
       const double* x0 = I.X0(static_cast<int>(s));
       if (seg.k0 == 0) sr.x0_final = Eigen::Map<const Eigen::VectorXd>(x0, mo.sim->dims().nphys);
       try {
         // the rollout at the estimate, from the evaluation cache (the final evaluation above ran
         // it; simulated here only if that evaluation failed)
-        const Impl::Cached& cached =
-            I.Evaluated(static_cast<int>(s), np ? I.z.data() : nullptr, x0, false);
+        const EvaluationCache::Entry& cached =
+            I.cache->Evaluate(static_cast<int>(s), np ? I.z.data() : nullptr, x0, false);
         if (cached.failed) throw std::runtime_error(cached.error);
         const Trajectory& tr = cached.tr;
         sr.simulated_final.middleRows(seg.k0, seg.T) = tr.sensors;
@@ -1118,16 +580,14 @@ FitResult Problem::Fit(const FitOptions& options) {
           }
         }
         // apply the measurement terms to the fitted columns
-        for (const auto& ch : I.channels[q]) {
+        for (const Channel& ch : I.channels[q]) {
           if (ch.measurement < 0) continue;
-          double delay, gain, bias;
-          I.Terms(ch.measurement, I.m.empty() ? nullptr : I.m.data(), &delay, &gain, &bias);
+          const MeasurementTerms terms =
+              I.Terms(ch.measurement, I.m.empty() ? nullptr : I.m.data());
+          const Signal simulated{tr.sensors.data() + ch.column, tr.sensors.cols()};
           for (int k = 0; k < seg.T; ++k) {
-            double unused;
             sr.simulated_final(seg.k0 + k, ch.column) =
-                gain * Impl::Delayed([&](int i) { return tr.sensors(i, ch.column); }, k, seg.T,
-                                     delay, dt, &unused) +
-                bias;
+                terms.Apply(DelayedSample(k, seg.T, terms.delay, dt).Value(simulated));
           }
         }
       } catch (const std::exception& e) {
@@ -1170,8 +630,8 @@ JacobianCheck Problem::CheckJacobians(const FitOptions& options) {
   nd.relative_step_size = 1e-6;
   nd.ridders_relative_initial_step_size = 1e-5;
   for (size_t s = 0; s < I.segments.size(); ++s) {
-    const Impl::Segment& seg = I.segments[s];
-    Impl::Model& mo = I.ModelOf(I.sequences[seg.seq].model);
+    const Segment& seg = I.segments[s];
+    const Impl::Model& mo = I.models[seg.model];
     SegmentCost cost(&I, static_cast<int>(s));
     std::vector<const double*> blocks;
     std::vector<const ceres::Manifold*> manifolds;

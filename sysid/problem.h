@@ -79,7 +79,7 @@ class Problem {
   // rollouts). Returns the worst relative error per variable. Throws like Fit on bad input.
   JacobianCheck CheckJacobians(const FitOptions& options);
 
-  struct Impl;  // the state behind the API (named here for the cost functions in problem.cc)
+  struct Impl;  // the state behind the API (sysid/problem_impl.h, for the cost functions)
 
  private:
   struct Prepared {

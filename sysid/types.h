@@ -24,15 +24,13 @@
 #include "core/parameters.h"
 #include "core/simulator.h"
 #include "core/state.h"
+#include "sysid/residual_model.h"  // LossType, the robust loss of each residual
 #include "sysid/uncertainty.h"
 
 namespace mjsysid {
 
 // the optimiser's variable of a physical value p: z = p, log p, or p / scale
 enum class Transform { kNone, kLog, kScale };
-
-// the robust loss applied to each scalar weighted residual
-enum class LossType { kNone, kHuber, kCauchy };
 
 // "none", "huber", "cauchy" (the YAML spelling)
 const char* LossTypeName(LossType loss);

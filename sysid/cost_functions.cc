@@ -1,0 +1,239 @@
+#include "sysid/cost_functions.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+#include <vector>
+
+namespace mjsysid {
+
+// -----------------------------------------------------------------------------------------------
+// segment residuals
+
+// residual count: T * nch sensor rows, nx continuity rows; blocks z, m, x_0, x_next when present
+SegmentCost::SegmentCost(Problem::Impl* impl, int segment) : impl_(impl), segment_(segment) {
+  const Segment& seg = impl->segments[segment];
+  const StateDims& dims = impl->models[seg.model].sim->dims();
+  const int nch = static_cast<int>(impl->channels[seg.seq].size());
+  set_num_residuals(seg.T * nch + (seg.next >= 0 ? dims.nx : 0));
+  if (!impl->z.empty()) mutable_parameter_block_sizes()->push_back(impl->z.size());
+  if (!impl->m.empty()) mutable_parameter_block_sizes()->push_back(impl->m.size());
+  if (seg.block >= 0) mutable_parameter_block_sizes()->push_back(dims.nphys);
+  if (seg.next >= 0) mutable_parameter_block_sizes()->push_back(dims.nphys);
+}
+
+// a divergent or warning trial point is rejected, not an error: the trust region shrinks
+bool SegmentCost::Evaluate(double const* const* parameters, double* residuals,
+                           double** jacobians) const {
+  try {
+    if (EvaluateOrThrow(parameters, residuals, jacobians)) return true;
+    impl_->NoteRejection("non-finite residual");
+    return false;
+  } catch (const std::exception& e) {
+    impl_->NoteRejection(e.what());
+    return false;
+  }
+}
+
+bool SegmentCost::EvaluateOrThrow(double const* const* parameters, double* residuals,
+                                  double** jacobians) const {
+  Problem::Impl& I = *impl_;
+  const Segment& seg = I.segments[segment_];
+  const FitSequence& sq = I.sequences[seg.seq];
+  const Problem::Impl::Model& mo = I.models[seg.model];
+  const Simulator& sim = *mo.sim;
+  const StateDims& dims = sim.dims();
+  const int nx = dims.nx, npm = sim.parameters().size();
+  const auto& chans = I.channels[seg.seq];
+  const int nch = static_cast<int>(chans.size());
+  const double dt = sim.model().opt.timestep;
+
+  // unpack blocks
+  int b = 0;
+  const double* zv = I.z.empty() ? nullptr : parameters[b++];
+  const int zb = I.z.empty() ? -1 : b - 1;
+  const double* mv = I.m.empty() ? nullptr : parameters[b++];
+  const int mb = I.m.empty() ? -1 : b - 1;
+  const double* x0 = seg.block >= 0 ? parameters[b++] : I.fixed_x0[seg.seq].data();
+  const int xb = seg.block >= 0 ? b - 1 : -1;
+  const double* xn = seg.next >= 0 ? parameters[b++] : nullptr;
+  const int nb = seg.next >= 0 ? b - 1 : -1;
+
+  // rollout (and Jacobians only when asked for), from the cache when Prefetch or an earlier
+  // evaluation at this point computed them; a failed one is rejected in Evaluate
+  const bool want = jacobians != nullptr;
+  const EvaluationCache::Entry& cached = I.cache->Evaluate(segment_, zv, x0, want);
+  if (cached.failed || (want && !cached.has_jacobians)) throw std::runtime_error(cached.error);
+  const Trajectory& tr = cached.tr;
+  const Sensitivity& s = cached.s;
+  if (want && !s.warnings.empty()) I.NoteJacobianWarning(segment_, s.warnings[0]);
+  const int ns = dims.ns;
+  const int ncol = want ? s.ncol : 0;
+  std::vector<double> row_t(want ? ncol : 0);  // d(simulated)/d(column) of one residual
+
+  // zero the Jacobian blocks
+  if (want) {
+    for (int i = 0; i < static_cast<int>(parameter_block_sizes().size()); ++i) {
+      if (jacobians[i]) {
+        std::fill(jacobians[i], jacobians[i] + num_residuals() * parameter_block_sizes()[i], 0.0);
+      }
+    }
+  }
+  std::vector<double> pinv;  // P^+ at x_0: tangent columns to the ambient block
+  if (want && xb >= 0 && jacobians[xb]) {
+    pinv.resize(static_cast<size_t>(nx) * dims.nphys);
+    mo.manifold->PlusJacobianPseudoInverse(x0, pinv.data());
+  }
+
+  // sensor residuals (sysid/residual_model.h), chained to the blocks: z through dp/dz, the
+  // measurement terms directly, x_0 through P^+
+  for (int k = 0; k < seg.T; ++k) {
+    for (int c = 0; c < nch; ++c) {
+      const Channel& ch = chans[c];
+      const MeasurementTerms terms =
+          ch.measurement >= 0 ? I.Terms(ch.measurement, mv) : MeasurementTerms();
+      const DelayedSample at(k, seg.T, terms.delay, dt);
+      const SensorResidual r =
+          EvaluateSensorResidual(at, {tr.sensors.data() + ch.column, tr.sensors.cols()},
+                                 sq.measured(seg.k0 + k, ch.column), ch.weight, terms,
+                                 I.options.loss, I.options.loss_scale);
+      const int row = k * nch + c;
+      residuals[row] = r.value;
+      if (!want) continue;
+      InterpolatedRow(at, s.DyDp.data(), ns, ch.column, ncol, row_t.data());
+      if (zb >= 0 && jacobians[zb]) {
+        const int nz = static_cast<int>(I.z.size());
+        for (int j = 0; j < npm; ++j) {
+          const int g = mo.global[j];
+          jacobians[zb][row * nz + g] = r.d_simulated * row_t[j] * I.DpDz(g, zv[g]);
+        }
+      }
+      if (mb >= 0 && jacobians[mb] && ch.measurement >= 0) {
+        const int nm = static_cast<int>(I.m.size());
+        const TermIndex& ix = I.term_index[ch.measurement];
+        if (ix.delay >= 0) jacobians[mb][row * nm + ix.delay] = r.d_delay;
+        if (ix.gain >= 0) jacobians[mb][row * nm + ix.gain] = r.d_gain;
+        if (ix.bias >= 0) jacobians[mb][row * nm + ix.bias] = r.d_bias;
+      }
+      if (xb >= 0 && jacobians[xb]) {
+        for (int a = 0; a < dims.nphys; ++a) {
+          double v = 0;
+          for (int i = 0; i < nx; ++i) v += row_t[npm + i] * pinv[i * dims.nphys + a];
+          jacobians[xb][row * dims.nphys + a] = r.d_simulated * v;
+        }
+      }
+    }
+  }
+
+  // continuity: w * (x_end (-) x_next) in tangent space (the difference is MuJoCo's
+  // mj_differentiatePos); its Jacobian is w times the end-state rows of DxDp for the core's
+  // columns and -w I (exact off quaternions, first order on them) for the next x_0's tangent
+  if (seg.next >= 0) {
+    const double w = I.options.continuity_weight;
+    const int r0 = seg.T * nch;
+    std::vector<double> d(nx);
+    TangentDifference(sim.model(), xn, tr.states.row(seg.T).data(), 1.0, d.data());
+    for (int i = 0; i < nx; ++i) residuals[r0 + i] = w * d[i];
+    if (want) {
+      const auto S = s.DxDp.middleRows(static_cast<Eigen::Index>(seg.T) * nx, nx);
+      if (zb >= 0 && jacobians[zb]) {
+        const int nz = static_cast<int>(I.z.size());
+        for (int i = 0; i < nx; ++i) {
+          for (int j = 0; j < npm; ++j) {
+            const int g = mo.global[j];
+            jacobians[zb][(r0 + i) * nz + g] = w * S(i, j) * I.DpDz(g, zv[g]);
+          }
+        }
+      }
+      if (xb >= 0 && jacobians[xb]) {
+        for (int i = 0; i < nx; ++i) {
+          for (int a = 0; a < dims.nphys; ++a) {
+            double v = 0;
+            for (int t = 0; t < nx; ++t) v += S(i, npm + t) * pinv[t * dims.nphys + a];
+            jacobians[xb][(r0 + i) * dims.nphys + a] = w * v;
+          }
+        }
+      }
+      if (nb >= 0 && jacobians[nb]) {
+        std::vector<double> pn(static_cast<size_t>(nx) * dims.nphys);
+        mo.manifold->PlusJacobianPseudoInverse(xn, pn.data());
+        for (int i = 0; i < nx; ++i) {
+          for (int a = 0; a < dims.nphys; ++a) {
+            jacobians[nb][(r0 + i) * dims.nphys + a] = -w * pn[i * dims.nphys + a];
+          }
+        }
+      }
+    }
+  }
+  for (int i = 0; i < num_residuals(); ++i) {
+    if (!std::isfinite(residuals[i])) return false;
+  }
+  return true;
+}
+
+// -----------------------------------------------------------------------------------------------
+// priors
+
+PriorCost::PriorCost(const Problem::Impl* impl, int g) : impl_(impl), g_(g) {
+  set_num_residuals(1);
+  mutable_parameter_block_sizes()->push_back(impl->z.size());
+}
+
+// (p - mean) / sigma on the z block, one nonzero derivative
+bool PriorCost::Evaluate(double const* const* parameters, double* residuals,
+                         double** jacobians) const {
+  const FitParameter& p = impl_->params[g_];
+  const double zg = parameters[0][g_];
+  double derivative = 0;
+  residuals[0] = PriorResidual(impl_->Physical(g_, zg), p.prior_mean, p.prior_sigma,
+                               impl_->DpDz(g_, zg), &derivative);
+  if (jacobians && jacobians[0]) {
+    std::fill(jacobians[0], jacobians[0] + impl_->z.size(), 0.0);
+    jacobians[0][g_] = derivative;
+  }
+  return std::isfinite(residuals[0]);
+}
+
+// -----------------------------------------------------------------------------------------------
+// callbacks
+
+// every segment at the point Ceres is about to evaluate (Ceres has written it into z, m and the
+// state blocks); the cache compares keys itself, so unchanged segments are kept
+void PrefetchCallback::PrepareForEvaluation(bool evaluate_jacobians,
+                                            bool /*new_evaluation_point*/) {
+  Problem::Impl& I = *impl_;
+  std::vector<const double*> x0(I.segments.size());
+  for (size_t s = 0; s < I.segments.size(); ++s) x0[s] = I.X0(static_cast<int>(s));
+  I.cache->Prefetch(I.z.empty() ? nullptr : I.z.data(), x0, evaluate_jacobians);
+}
+
+// the iterate in physical units; progress line, trace, checkpoint callback, interruption
+ceres::CallbackReturnType ProgressCallback::operator()(const ceres::IterationSummary& summary) {
+  const Problem::Impl& I = *impl_;
+  IterationInfo info;
+  info.iteration = summary.iteration;
+  info.cost = summary.cost;
+  info.step_norm = summary.step_norm;
+  info.gradient_norm = summary.gradient_max_norm;
+  info.successful = summary.step_is_successful || summary.iteration == 0;
+  info.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  const int np = static_cast<int>(I.params.size());
+  info.parameters.resize(np + static_cast<int>(I.m.size()));
+  for (int g = 0; g < np; ++g) info.parameters[g] = I.Physical(g, I.z[g]);
+  for (size_t i = 0; i < I.m.size(); ++i) info.parameters[np + i] = I.m[i];
+  if (I.options.verbose) {
+    std::fprintf(stderr, "iter %3d  cost %.6e  |step| %.2e  |grad| %.2e  %s  %7.2f s\n",
+                 info.iteration, info.cost, info.step_norm, info.gradient_norm,
+                 info.successful ? "ok      " : "rejected", info.seconds);
+  }
+  result_->trace.push_back(info);
+  if (I.options.on_iteration && info.successful) I.options.on_iteration(info);
+  if (I.options.interrupt && I.options.interrupt->load()) {
+    result_->interrupted = true;
+    return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
+  }
+  return ceres::SOLVER_CONTINUE;
+}
+
+}  // namespace mjsysid

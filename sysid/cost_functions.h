@@ -1,0 +1,82 @@
+// The Ceres side of a fit: the cost functions of the residual blocks and the callbacks around the
+// solve, all reading and writing the fit state Problem::Impl (sysid/problem_impl.h).
+//
+// - SegmentCost: the residuals of one segment, its sensor samples (sysid/residual_model.h) and,
+//   when a segment follows, its continuity w * (x_end (-) x_next) in tangent space (nx rows, after
+//   the T * nch sensor rows, row k * nch + c for sample k and channel c). Parameter blocks, each
+//   present only when the fit has it: z (np), m (fitted measurement terms), the segment's x_0
+//   (nphys, on its StateManifold), the next segment's x_0 (nphys). Jacobians are row-major in the
+//   ambient sizes Ceres asks for: the core's columns chained through dp/dz and, for states,
+//   J_ambient = J_tangent P^+ (sysid/state_manifold.h).
+// - PriorCost: the Gaussian prior of one parameter, one residual on the z block.
+// - PrefetchCallback: before each Ceres evaluation, every segment at the new point in batches
+//   (EvaluationCache::Prefetch).
+// - ProgressCallback: one IterationInfo per iteration into FitResult::trace, the progress line,
+//   FitOptions::on_iteration and FitOptions::interrupt.
+//
+// Failure: a segment whose simulation throws, warns or is not finite at the point evaluated
+// returns false (Ceres rejects the trial point and shrinks the trust region) and is counted in
+// Problem::Impl's diagnostics. Threads: as Problem::Impl, one thread (Ceres num_threads = 1).
+#pragma once
+
+#include <ceres/ceres.h>
+
+#include <chrono>
+
+#include "sysid/problem_impl.h"
+
+namespace mjsysid {
+
+class SegmentCost : public ceres::CostFunction {
+ public:
+  // impl is borrowed and must hold the prepared fit (Problem::Prepare)
+  SegmentCost(Problem::Impl* impl, int segment);
+
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override;
+
+ private:
+  bool EvaluateOrThrow(double const* const* parameters, double* residuals,
+                       double** jacobians) const;
+
+  Problem::Impl* impl_;
+  int segment_;
+};
+
+class PriorCost : public ceres::CostFunction {
+ public:
+  // the prior of parameter g (FitParameter::has_prior); impl is borrowed
+  PriorCost(const Problem::Impl* impl, int g);
+
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override;
+
+ private:
+  const Problem::Impl* impl_;
+  int g_;
+};
+
+class PrefetchCallback : public ceres::EvaluationCallback {
+ public:
+  explicit PrefetchCallback(Problem::Impl* impl) : impl_(impl) {}
+  void PrepareForEvaluation(bool evaluate_jacobians, bool new_evaluation_point) override;
+
+ private:
+  Problem::Impl* impl_;
+};
+
+class ProgressCallback : public ceres::IterationCallback {
+ public:
+  // result: where the trace and the interruption flag go; start: the fit's start (for seconds)
+  ProgressCallback(const Problem::Impl* impl, FitResult* result,
+                   std::chrono::steady_clock::time_point start)
+      : impl_(impl), result_(result), start_(start) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& summary) override;
+
+ private:
+  const Problem::Impl* impl_;
+  FitResult* result_;
+  std::chrono::steady_clock::time_point start_;
+};
+
+}  // namespace mjsysid

@@ -1,0 +1,174 @@
+#include "sysid/evaluation_cache.h"
+
+#include <cstdio>
+#include <cstdlib>
+#include <exception>
+#include <utility>
+
+namespace mjsysid {
+
+void ApplyVariables(const std::vector<FitParameter>& parameters, const std::vector<int>& variables,
+                    const double* z, Simulator* sim) {
+  const int n = sim->parameters().size();
+  if (n == 0) return;
+  Eigen::VectorXd p(n);
+  for (int j = 0; j < n; ++j) p[j] = parameters[variables[j]].FromVariable(z[variables[j]]);
+  if (p != sim->GetParameters()) sim->SetParameters(p);
+}
+
+EvaluationCache::EvaluationCache(std::vector<Model> models,
+                                 const std::vector<FitParameter>* parameters,
+                                 const std::vector<FitSequence>* sequences,
+                                 const std::vector<Segment>* segments,
+                                 const JacobianOptions& jacobian)
+    : models_(std::move(models)),
+      parameters_(parameters),
+      sequences_(sequences),
+      segments_(segments),
+      jacobian_(jacobian),
+      entries_(segments->size()),
+      owner_(std::this_thread::get_id()) {}
+
+// a second thread would race on the entries and the simulators: a broken invariant, not an error
+void EvaluationCache::CheckThread(const char* where) const {
+  if (std::this_thread::get_id() == owner_) return;
+  std::fprintf(stderr,
+               "mjsysid: broken invariant: EvaluationCache::%s called from a thread other than "
+               "the one that built the cache (the cache is single-threaded: Ceres must run with "
+               "num_threads = 1)\n",
+               where);
+  std::abort();
+}
+
+// [z, x_0]; z only when the fit has parameters
+std::vector<double> EvaluationCache::KeyOf(int segment, const double* z, const double* x0) const {
+  const Model& mo = models_[(*segments_)[segment].model];
+  std::vector<double> key(z, z + (z ? parameters_->size() : 0));
+  key.insert(key.end(), x0, x0 + mo.sim->dims().nphys);
+  return key;
+}
+
+// the segment's controls from x0 at its start time
+SequenceInput EvaluationCache::InputOf(int segment, const double* x0) const {
+  const Segment& seg = (*segments_)[segment];
+  const Simulator& sim = *models_[seg.model].sim;
+  const StateDims& d = sim.dims();
+  SequenceInput in;
+  in.x0.qpos = Eigen::Map<const Eigen::VectorXd>(x0, d.nq);
+  in.x0.qvel = Eigen::Map<const Eigen::VectorXd>(x0 + d.nq, d.nv);
+  in.x0.act = Eigen::Map<const Eigen::VectorXd>(x0 + d.nq + d.nv, d.na);
+  in.x0.time = seg.k0 * sim.model().opt.timestep;
+  in.ctrl = (*sequences_)[seg.seq].ctrl.middleRows(seg.k0, seg.T);
+  return in;
+}
+
+void EvaluationCache::Simulate(int mo, const std::vector<int>& segs, const double* z,
+                               const std::vector<const double*>& x0s, bool jacobians) {
+  Simulator& sim = *models_[mo].sim;
+  if (z) ApplyVariables(*parameters_, models_[mo].variables, z, &sim);
+
+  // rollouts of the segments whose key changed, in one batch; a throw marks them all failed
+  std::vector<int> roll;
+  std::vector<SequenceInput> ins;
+  for (size_t i = 0; i < segs.size(); ++i) {
+    Entry& c = entries_[segs[i]];
+    std::vector<double> key = KeyOf(segs[i], z, x0s[i]);
+    if (key == c.key) continue;
+    c = Entry();
+    c.key = std::move(key);
+    roll.push_back(segs[i]);
+    ins.push_back(InputOf(segs[i], x0s[i]));
+  }
+  if (!roll.empty()) {
+    std::vector<Trajectory> trs;
+    try {
+      sim.Rollout(ins, &trs);
+      for (size_t i = 0; i < roll.size(); ++i) entries_[roll[i]].tr = std::move(trs[i]);
+    } catch (const std::exception& e) {
+      for (int s : roll) {  // a divergent trial point: rejected
+        entries_[s].failed = true;
+        entries_[s].error = e.what();
+      }
+    }
+  }
+  if (!jacobians) return;
+
+  // the missing Jacobians, one batch per group: initial-state columns (x_0 is a variable) x
+  // state rows (continuity needs them); the nominal rollouts are lent to the core and moved back
+  for (int group = 0; group < 4; ++group) {
+    const bool with_x0 = group & 1, with_states = group & 2;
+    std::vector<int> jac;
+    std::vector<SequenceInput> jins;
+    std::vector<Trajectory> nominal;
+    for (size_t i = 0; i < segs.size(); ++i) {
+      Entry& c = entries_[segs[i]];
+      const Segment& seg = (*segments_)[segs[i]];
+      if (c.failed || c.has_jacobians || c.jacobians_failed) continue;
+      if ((seg.block >= 0) != with_x0 || (seg.next >= 0) != with_states) continue;
+      jac.push_back(segs[i]);
+      jins.push_back(InputOf(segs[i], x0s[i]));
+      nominal.push_back(std::move(c.tr));
+    }
+    if (jac.empty()) continue;
+    JacobianOptions jo = jacobian_;
+    jo.initial_state = with_x0;
+    jo.state_jacobians = with_states;
+    jo.zero_column_is_error = false;
+    std::vector<Sensitivity> sens;
+    bool ok = true;
+    std::string error;
+    try {
+      sim.Jacobians(jins, nominal, jo, &sens);
+    } catch (const std::exception& e) {
+      ok = false;
+      error = e.what();
+    }
+    for (size_t i = 0; i < jac.size(); ++i) {
+      Entry& c = entries_[jac[i]];
+      c.tr = std::move(nominal[i]);
+      c.has_jacobians = ok;
+      c.jacobians_failed = !ok;
+      c.error = error;
+      if (ok) c.s = std::move(sens[i]);
+    }
+  }
+}
+
+const EvaluationCache::Entry& EvaluationCache::Evaluate(int segment, const double* z,
+                                                        const double* x0, bool jacobians) {
+  CheckThread("Evaluate");
+  const Entry& c = entries_[segment];
+  if (c.key != KeyOf(segment, z, x0) || (jacobians && !c.has_jacobians && !c.failed)) {
+    Simulate((*segments_)[segment].model, {segment}, z, {x0}, jacobians);
+  }
+  return c;
+}
+
+void EvaluationCache::Prefetch(const double* z, const std::vector<const double*>& x0,
+                               bool jacobians) {
+  CheckThread("Prefetch");
+  for (int mo = 0; mo < static_cast<int>(models_.size()); ++mo) {
+    std::vector<int> segs;
+    std::vector<const double*> x0s;
+    for (int s = 0; s < static_cast<int>(segments_->size()); ++s) {
+      if ((*segments_)[s].model != mo) continue;
+      segs.push_back(s);
+      x0s.push_back(x0[s]);
+    }
+    if (!segs.empty()) Simulate(mo, segs, z, x0s, jacobians);
+  }
+}
+
+void EvaluationCache::Seed(int segment, const double* z, const double* x0, Trajectory tr,
+                           Sensitivity s) {
+  CheckThread("Seed");
+  Entry& c = entries_[segment];
+  c = Entry();
+  c.key = KeyOf(segment, z, x0);
+  c.tr = std::move(tr);
+  c.s = std::move(s);
+  const int np = models_[(*segments_)[segment].model].sim->parameters().size();
+  c.has_jacobians = c.s.ncol == np && c.s.ncol > 0;
+}
+
+}  // namespace mjsysid

@@ -1,0 +1,119 @@
+// The evaluation cache of a fit: per segment, the core's rollout and, once asked for, its
+// Jacobians at the variable values last evaluated, so that no rollout is computed twice.
+//
+// What is cached. One Entry per Segment (a sequence, or in multiple shooting a piece of one),
+// keyed by the values it was simulated at: key = [z (np: the optimiser's parameter variables, the
+// whole vector, absent when the fit has none), x_0 (nphys: the segment's initial physics vector
+// [qpos, qvel, act])]. An Entry holds the Trajectory (core/simulator.h: T + 1 states, T sensor
+// rows, row-major) and, once asked for, its Sensitivity: ncol = the model's simulator parameters
+// (ParameterSet order, physical units) followed, when the segment's x_0 is a variable
+// (Segment::block >= 0), by its nx tangent directions; DyDp is T*ns x ncol, DxDp ((T+1)*nx x ncol,
+// tangent space) is filled only for segments with a continuity residual (Segment::next >= 0).
+//
+// Reuse. Ceres evaluates the residuals at a trial point and, when it accepts the step, the
+// Jacobians at the same point: the rollout is reused and only the Jacobians are added. Before
+// each evaluation Prefetch() (Ceres' EvaluationCallback, sysid/cost_functions.h) simulates every
+// segment of a model whose key changed in one batch, so the simulator runs the segments (and
+// their Jacobian columns) in parallel instead of one after another; Evaluate() then finds them.
+//
+// Failure. A rollout or Jacobian that throws (SimulationError: a MuJoCo warning or a non-finite
+// value; MujocoError) is caught: the Entry records failed (or jacobians_failed) with the message,
+// so that the cost function rejects the trial point (the trust region shrinks) instead of the fit
+// ending. Arguments are not checked: they come from Problem::Prepare.
+//
+// Threads: single-threaded, enforced. Every call must come from the thread that constructed the
+// cache; a call from any other thread is a broken invariant and aborts with a message. Problem
+// runs Ceres with num_threads = 1 (the simulators are parallel inside), so Ceres calls the cost
+// functions and the EvaluationCallback on the thread that called Fit or CheckJacobians, which is
+// the one whose Prepare built the cache. Not a mutex: Evaluate returns a reference into the cache,
+// which the caller reads after the call, and the simulators (one per model, shared by its
+// segments) are not reentrant either, so parallel evaluation would only wait.
+//
+// Ownership: borrows the simulators, the fit parameters, the sequences and the segments; they
+// must outlive the cache and stay unchanged while it is used, except the simulators' parameter
+// values, which the cache writes (ApplyVariables).
+#pragma once
+
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "core/simulator.h"
+#include "sysid/types.h"
+
+namespace mjsysid {
+
+// a piece of one sequence simulated from its own initial state (the whole sequence in single
+// shooting)
+struct Segment {
+  int seq = 0;        // index of its sequence
+  int model = 0;      // index of the sequence's model
+  int k0 = 0, T = 0;  // first sample and number of samples
+  int block = -1;     // state block of x_0 (a variable), or -1: x_0 is the sequence's given x0
+  int next = -1;      // state block of the next segment's x_0 (continuity), or -1
+};
+
+// Writes the physical values of the variables z (one per FitParameter) into the simulator's
+// parameters; variables[j] is the index in z of the simulator's parameter j. Only when they
+// changed (SetParameters may run mj_setConst).
+void ApplyVariables(const std::vector<FitParameter>& parameters, const std::vector<int>& variables,
+                    const double* z, Simulator* sim);
+
+class EvaluationCache {
+ public:
+  // the simulator of one model and where its parameters sit among the variables z
+  struct Model {
+    Simulator* sim = nullptr;    // borrowed
+    std::vector<int> variables;  // index in z of each simulator parameter (ParameterSet order)
+  };
+
+  struct Entry {
+    std::vector<double> key;  // z (when given), then x_0 of the segment
+    bool failed = false;      // the rollout at key failed: tr is not valid
+    bool has_jacobians = false;
+    bool jacobians_failed = false;
+    std::string error;  // why the rollout or the Jacobians failed
+    Trajectory tr;
+    Sensitivity s;  // valid when has_jacobians
+  };
+
+  // parameters: the fit's (z has one variable per entry); sequences: their ctrl rows are the
+  // segments' inputs; segments: Segment::model indexes models; jacobian: the core options,
+  // initial_state and state_jacobians set per segment as above
+  EvaluationCache(std::vector<Model> models, const std::vector<FitParameter>* parameters,
+                  const std::vector<FitSequence>* sequences, const std::vector<Segment>* segments,
+                  const JacobianOptions& jacobian);
+
+  // The entry of a segment at variables z (nullptr when the fit has no parameters) and initial
+  // physics vector x0 (nphys), with its Jacobians if asked for: from the cache, else simulated
+  // alone. Valid until the next call of Evaluate, Prefetch or Seed.
+  const Entry& Evaluate(int segment, const double* z, const double* x0, bool jacobians);
+
+  // Brings every segment to z and x0[segment] (with Jacobians if asked for), batched per model:
+  // one Rollout call for the segments whose key changed, one Jacobians call per kind of segment.
+  void Prefetch(const double* z, const std::vector<const double*>& x0, bool jacobians);
+
+  // Stores a rollout computed elsewhere at z and x0 (Problem::Prepare's rollouts at the initial
+  // values) with its Jacobians when s holds every parameter column (segments without x_0 columns).
+  void Seed(int segment, const double* z, const double* x0, Trajectory tr, Sensitivity s);
+
+ private:
+  // aborts unless called on the constructing thread (see Threads above)
+  void CheckThread(const char* where) const;
+  std::vector<double> KeyOf(int segment, const double* z, const double* x0) const;
+  SequenceInput InputOf(int segment, const double* x0) const;
+  // the entries of segs (all of model mo) at z and x0s: rollouts of those whose key changed in one
+  // batch, then the missing Jacobians batched by the columns and rows they need
+  void Simulate(int mo, const std::vector<int>& segs, const double* z,
+                const std::vector<const double*>& x0s, bool jacobians);
+
+  std::vector<Model> models_;
+  const std::vector<FitParameter>* parameters_;  // borrowed, as the three below
+  const std::vector<FitSequence>* sequences_;
+  const std::vector<Segment>* segments_;
+  JacobianOptions jacobian_;
+  std::vector<Entry> entries_;  // one per segment
+  std::thread::id owner_;       // the constructing thread
+};
+
+}  // namespace mjsysid

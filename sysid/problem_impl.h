@@ -1,0 +1,110 @@
+// The state behind Problem (sysid/problem.h): its inputs, the fit Problem::Prepare derives from
+// them (simulators, channels, segments, variables, the evaluation cache) and what the cost
+// functions met during a fit. Shared by the orchestration (sysid/problem.cc) and the Ceres cost
+// functions (sysid/cost_functions.h); not part of the public API.
+//
+// Variables, as Ceres sees them (parameter blocks, in this order): z (np: one per FitParameter,
+// FitParameter::ToVariable of its physical value), m (the fitted measurement terms, in
+// FitMeasurement order: delay, gain, bias of each), then the state blocks (physics vectors
+// [qpos, qvel, act] of the free initial states, one per sequence with estimate_initial_state and
+// one per multiple-shooting segment after the first).
+//
+// Threads: single-threaded like its EvaluationCache (sysid/evaluation_cache.h), which aborts on a
+// call from another thread; the diagnostics below are written only by SegmentCost after it has
+// called the cache.
+#pragma once
+
+#include <cmath>
+#include <map>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "core/simulator.h"
+#include "sysid/evaluation_cache.h"
+#include "sysid/problem.h"
+#include "sysid/residual_model.h"
+#include "sysid/state_manifold.h"
+#include "sysid/types.h"
+
+namespace mjsysid {
+
+struct Problem::Impl {
+  struct Model {
+    std::string name;
+    ModelPtr model;                           // the copy given to AddModel
+    std::unique_ptr<Simulator> sim;           // Prepare: with the parameters that apply to it
+    std::vector<int> global;                  // index in z of each simulator parameter
+    std::unique_ptr<StateManifold> manifold;  // its physics state as a Ceres manifold
+  };
+
+  // inputs (Add*)
+  std::vector<Model> models;
+  std::vector<FitParameter> params;
+  std::vector<FitMeasurement> measurements;
+  std::vector<FitSequence> sequences;
+
+  // the prepared fit (Prepare)
+  FitOptions options;
+  std::vector<std::vector<Channel>> channels;    // per sequence: its fitted sensor columns
+  std::vector<std::vector<std::string>> fitted;  // per sequence: the fitted sensors, in order
+  std::vector<TermIndex> term_index;             // per measurement: its terms in m
+  std::vector<Segment> segments;
+  std::vector<double> z;                      // transformed physical parameters
+  std::vector<double> m;                      // fitted measurement terms
+  std::vector<std::vector<double>> states;    // state blocks (physics vectors)
+  std::vector<std::vector<double>> fixed_x0;  // per sequence: the given x0 as physics vector
+  std::unique_ptr<EvaluationCache> cache;     // borrows params, sequences, segments, simulators
+
+  // What the cost functions met during a fit, so that FitResult::warnings can say it (a rejected
+  // trial point or a Jacobian past its validity is otherwise invisible to the user): the number
+  // of evaluations that failed (simulation warning, NaN, exception) with the first message, and
+  // the first core Jacobian warning per segment (e.g. a chaotic sensitivity that outgrew finite
+  // differences).
+  int rejected_evaluations = 0;
+  std::string first_rejection;
+  std::map<int, std::string> jacobian_warnings;  // segment -> first warning
+  void NoteRejection(const std::string& what) {
+    if (rejected_evaluations++ == 0) first_rejection = what;
+  }
+  void NoteJacobianWarning(int segment, const std::string& what) {
+    jacobian_warnings.emplace(segment, what);
+  }
+
+  // index of the model added under name; throws std::invalid_argument when there is none
+  int ModelIndex(const std::string& name) const {
+    for (size_t i = 0; i < models.size(); ++i) {
+      if (models[i].name == name) return static_cast<int>(i);
+    }
+    throw std::invalid_argument("no model named '" + name + "' (add it with AddModel)");
+  }
+
+  double Physical(int g, double zg) const { return params[g].FromVariable(zg); }
+  double ToZ(int g, double p) const { return params[g].ToVariable(p); }
+  // dp/dz at z
+  double DpDz(int g, double zg) const {
+    switch (params[g].transform) {
+      case Transform::kLog:
+        return std::exp(zg);
+      case Transform::kScale:
+        return params[g].scale;
+      default:
+        return 1.0;
+    }
+  }
+
+  // the terms of measurement i at the fitted values mv (nullptr: initial values)
+  MeasurementTerms Terms(int i, const double* mv) const {
+    const FitMeasurement& me = measurements[i];
+    return CurrentTerms({me.delay.initial, me.gain.initial, me.bias.initial}, term_index[i], mv);
+  }
+
+  // x_0 of a segment in the current variables (its state block, or the sequence's given x0)
+  const double* X0(int segment) const {
+    const Segment& seg = segments[segment];
+    return seg.block >= 0 ? states[seg.block].data() : fixed_x0[seg.seq].data();
+  }
+};
+
+}  // namespace mjsysid
