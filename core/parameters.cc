@@ -10,6 +10,7 @@
 #include <type_traits>
 
 #include "core/mujoco_env.h"
+#include "core/names.h"
 
 namespace mjsysid {
 namespace {
@@ -124,50 +125,6 @@ const std::vector<ParameterKindInfo> kKinds = {
 
 // ---------------------------------------------------------------------------------------------
 // names and hints
-
-// at most this many names are listed in a hint
-constexpr size_t kMaxListed = 20;
-
-// Levenshtein distance, case-insensitive
-size_t EditDistance(const std::string& a, const std::string& b) {
-  auto lower = [](char c) { return std::tolower(static_cast<unsigned char>(c)); };
-  std::vector<size_t> row(b.size() + 1);
-  for (size_t j = 0; j <= b.size(); ++j) row[j] = j;
-  for (size_t i = 1; i <= a.size(); ++i) {
-    size_t diagonal = row[0];
-    row[0] = i;
-    for (size_t j = 1; j <= b.size(); ++j) {
-      const size_t up = row[j];
-      const size_t change = lower(a[i - 1]) == lower(b[j - 1]) ? 0 : 1;
-      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + change});
-      diagonal = up;
-    }
-  }
-  return row[b.size()];
-}
-
-// "did you mean 'x'? valid <what>: a, b, c" (the first kMaxListed names, then "... (N more)");
-// without the first part when no name is close enough to be a likely typo
-std::string NamesHint(const std::string& word, const std::vector<std::string>& names,
-                      const std::string& what) {
-  std::string hint;
-  const size_t limit = std::max<size_t>(2, word.size() / 3);
-  size_t best = limit + 1;
-  for (const std::string& name : names) {
-    const size_t d = EditDistance(word, name);
-    if (d < best) {
-      best = d;
-      hint = "did you mean '" + name + "'? ";
-    }
-  }
-  hint += "valid " + what + ": ";
-  if (names.empty()) return hint + "(none)";
-  for (size_t i = 0; i < names.size() && i < kMaxListed; ++i) hint += (i ? ", " : "") + names[i];
-  if (names.size() > kMaxListed) {
-    hint += ", ... (" + std::to_string(names.size() - kMaxListed) + " more)";
-  }
-  return hint;
-}
 
 // the number of objects of a type in m
 int ObjectCount(const mjModel& m, mjtObj type) {

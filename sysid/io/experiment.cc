@@ -13,6 +13,8 @@
 #include <sstream>
 #include <utility>
 
+#include "core/names.h"
+
 namespace mjsysid::io {
 namespace {
 
@@ -20,71 +22,8 @@ namespace fs = std::filesystem;
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-// at most this many names are listed in a hint
-constexpr size_t kMaxListed = 20;
-
 // ---------------------------------------------------------------------------------------------
 // text helpers
-
-std::string Lower(std::string s) {
-  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return s;
-}
-
-// levenshtein distance, case-insensitive
-size_t EditDistance(const std::string& a_in, const std::string& b_in) {
-  const std::string a = Lower(a_in), b = Lower(b_in);
-  std::vector<size_t> row(b.size() + 1);
-  for (size_t j = 0; j <= b.size(); ++j) row[j] = j;
-  for (size_t i = 1; i <= a.size(); ++i) {
-    size_t diagonal = row[0];
-    row[0] = i;
-    for (size_t j = 1; j <= b.size(); ++j) {
-      const size_t up = row[j];
-      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
-      diagonal = up;
-    }
-  }
-  return row[b.size()];
-}
-
-// the option closest to word, or "" when none is close enough to be a likely typo
-std::string Closest(const std::string& word, const std::vector<std::string>& options) {
-  const size_t limit = std::max<size_t>(2, word.size() / 3);
-  std::string best;
-  size_t best_distance = limit + 1;
-  for (const std::string& option : options) {
-    const size_t d = EditDistance(word, option);
-    if (d < best_distance) {
-      best = option;
-      best_distance = d;
-    }
-  }
-  return best;
-}
-
-// "a, b, c" (the first kMaxListed, then "... (N more)"), or "(none)"
-std::string JoinNames(const std::vector<std::string>& names) {
-  if (names.empty()) return "(none)";
-  std::string out;
-  for (size_t i = 0; i < names.size() && i < kMaxListed; ++i) {
-    if (i > 0) out += ", ";
-    out += names[i];
-  }
-  if (names.size() > kMaxListed) {
-    out += ", ... (" + std::to_string(names.size() - kMaxListed) + " more)";
-  }
-  return out;
-}
-
-// "did you mean 'x'? valid <what>: a, b, c" (without the first part when nothing is close)
-std::string NamesHint(const std::string& word, const std::vector<std::string>& options,
-                      const std::string& what) {
-  std::string hint;
-  const std::string closest = Closest(word, options);
-  if (!closest.empty()) hint = "did you mean '" + closest + "'? ";
-  return hint + "valid " + what + ": " + JoinNames(options);
-}
 
 std::string FormatNumber(double x) {
   if (std::isinf(x)) return x > 0 ? ".inf" : "-.inf";
@@ -100,7 +39,8 @@ std::string Quote(const std::string& s) { return "'" + s + "'"; }
 // scalar conversion (YAML 1.2 core schema numbers; quoted scalars are strings)
 
 std::optional<double> ToDouble(const std::string& s) {
-  const std::string lower = Lower(s);
+  std::string lower = s;
+  for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   if (lower == ".inf" || lower == "+.inf") return kInf;
   if (lower == "-.inf") return -kInf;
   if (lower == ".nan") return std::numeric_limits<double>::quiet_NaN();
@@ -355,7 +295,7 @@ size_t Parser::Enum(const Field& f, const std::vector<std::string>& allowed) con
   const auto it = std::find(allowed.begin(), allowed.end(), s);
   if (it == allowed.end()) {
     std::string hint;
-    const std::string closest = Closest(s, allowed);
+    const std::string closest = ClosestName(s, allowed);
     if (!closest.empty()) hint = "did you mean '" + closest + "'? ";
     Fail(f.mark, f.path + ": " + Quote(s) + " is not one of " + JoinNames(allowed),
          hint + "allowed values: " + JoinNames(allowed));

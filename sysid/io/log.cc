@@ -25,6 +25,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/names.h"
 #include "sysid/io/atomic_file.h"
 #include "sysid/io/hdf5_util.h"
 
@@ -84,21 +85,6 @@ std::string Join(const std::vector<std::string>& items, size_t max_items = 20) {
   if (!object.empty()) msg += ": " + object;
   msg += ": " + what;
   throw LogError(msg);
-}
-
-// edit distance, for "did you mean"
-size_t EditDistance(const std::string& a, const std::string& b) {
-  std::vector<size_t> prev(b.size() + 1), cur(b.size() + 1);
-  for (size_t j = 0; j <= b.size(); ++j) prev[j] = j;
-  for (size_t i = 1; i <= a.size(); ++i) {
-    cur[0] = i;
-    for (size_t j = 1; j <= b.size(); ++j) {
-      const size_t subst = prev[j - 1] + (a[i - 1] == b[j - 1] ? 0 : 1);
-      cur[j] = std::min({prev[j] + 1, cur[j - 1] + 1, subst});
-    }
-    std::swap(prev, cur);
-  }
-  return prev[b.size()];
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -451,16 +437,8 @@ std::string NameHint(const std::string& wrong, const std::vector<std::string>& v
                      const std::string& what) {
   std::string out = Quote(wrong);
   // closest valid name, when close enough to be a typo
-  const std::string* best = nullptr;
-  size_t best_distance = std::max<size_t>(2, wrong.size() / 3) + 1;
-  for (const std::string& v : valid) {
-    const size_t d = EditDistance(wrong, v);
-    if (d < best_distance) {
-      best_distance = d;
-      best = &v;
-    }
-  }
-  if (best) out += " (did you mean " + Quote(*best) + "?)";
+  const std::string best = ClosestName(wrong, valid);
+  if (!best.empty()) out += " (did you mean " + Quote(best) + "?)";
   out += "; " + what + ": " + (valid.empty() ? std::string("none") : Join(valid));
   return out;
 }

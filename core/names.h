@@ -1,0 +1,28 @@
+// Names in user-facing messages: the closest valid name to a typo ("did you mean") and lists of
+// valid names, written once for every layer (core's parameter errors, io's YAML and log errors).
+#pragma once
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+namespace mjsysid {
+
+// at most this many names are listed by JoinNames and NamesHint
+inline constexpr size_t kMaxListedNames = 20;
+
+// Levenshtein distance between a and b, ignoring ASCII case
+size_t EditDistance(const std::string& a, const std::string& b);
+
+// the name of `names` closest to `word`, or "" when none is within max(2, |word| / 3) edits
+// (close enough to be a likely typo); the first of equally close names
+std::string ClosestName(const std::string& word, const std::vector<std::string>& names);
+
+// "a, b, c": the first kMaxListedNames names, then ", ... (N more)"; "(none)" when empty
+std::string JoinNames(const std::vector<std::string>& names);
+
+// "did you mean 'x'? valid <what>: a, b, c" (without the first part when no name is close)
+std::string NamesHint(const std::string& word, const std::vector<std::string>& names,
+                      const std::string& what);
+
+}  // namespace mjsysid
