@@ -56,8 +56,9 @@ void TangentPerturb(const mjModel& m, mjData* d, const double* dx, double scale)
 // sensors if skipsensor. With mjSTAGE_NONE and skipsensor = false it computes exactly what mj_step
 // computes (same calls in the same order; tested bit for bit). Skipping is valid only when the
 // quantities of the skipped stages in d were computed at the same qpos/qvel by a model that agrees
-// with m in everything those stages read. It does not skip the factorisation of the mass matrix,
-// which the integrator redoes (docs/numerics.md, "Stage-skipping steps").
+// with m in everything those stages read. The integrator's own factorisation (Euler with damping,
+// implicit) is always redone: reusing it would be wrong for damping and actuator parameters
+// (docs/numerics.md, "Stage-skipping steps").
 // Failure: a MuJoCo error (e.g. mjData stack or arena overflow) throws MujocoError and leaves d
 // to be reset with mj_resetData (mujoco_env.h).
 void StepSkip(const mjModel* m, mjData* d, int skipstage, bool skipsensor);

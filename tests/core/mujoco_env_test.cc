@@ -47,7 +47,8 @@ TEST(MujocoEnvTest, BrokenModelIsAnErrorNotAnExit) {
 TEST(MujocoEnvTest, LibraryErrorThrowsInsteadOfExiting) {
   InstallMujocoHandlers();
   ModelPtr m = LoadModel(kModels + "/pendulum.xml");
-  // an invalid state signature makes MuJoCo call mju_error
+  // an invalid state signature makes MuJoCo call mju_error; called directly, outside CallMujoco:
+  // the handler's last resort throws through MuJoCo's frames
   try {
     mj_stateSize(m.get(), 1 << 30);
     FAIL() << "expected MujocoError";
@@ -142,7 +143,7 @@ TEST(MujocoEnvTest, ArenaOverflowInsideStepThrowsAndDataRecovers) {
   std::string message;
   for (int k = 0; k < 2000 && message.empty(); ++k) {
     try {
-      mj_step(m.get(), d.get());
+      mj_step(m.get(), d.get());  // unwrapped: the last resort, as in the test above
     } catch (const MujocoError& e) {
       message = e.what();
     }
