@@ -25,36 +25,9 @@ double StageCost(int skipstage) {
   return 1.0;
 }
 
-// counts the constraint solve of the step just taken in d: whether it ran (nefc > 0) and whether
-// it stopped at the iteration cap. MuJoCo keeps the count per island (the first mjNISLAND), or in
-// slot 0 for a monolithic solve; it adds noslip iterations to it (with noslip on, an upper bound).
-void CountSolve(const mjModel& m, const mjData& d, SolverStats* stats) {
-  if (d.nefc == 0) return;
-  ++stats->solved;
-  const int slots = std::max(1, std::min(d.nisland, static_cast<int>(mjNISLAND)));
-  for (int i = 0; i < slots; ++i) {
-    if (d.solver_niter[i] >= m.opt.iterations) {
-      ++stats->capped;
-      return;
-    }
-  }
-}
-
 // dst = src for two models of the same sizes (mj_copyModel into existing storage)
 void CopyModelInto(mjModel* dst, const mjModel* src) {
   CallMujoco([=] { mj_copyModel(dst, src); });
-}
-
-const char* SolverName(int solver) {
-  switch (solver) {
-    case mjSOL_PGS:
-      return "PGS";
-    case mjSOL_CG:
-      return "CG";
-    case mjSOL_NEWTON:
-      return "Newton";
-  }
-  return "unknown";
 }
 
 std::string TimeString(double t) {
@@ -628,8 +601,7 @@ void Simulator::MatrixJacobian(int seq_index, const Trajectory& nom, const Jacob
     });
     for (int kk = 0; kk < kn; ++kk) {
       out->kinks += chunk_kinks[kk];
-      solver->solved += chunk_solver[kk].solved;
-      solver->capped += chunk_solver[kk].capped;
+      *solver += chunk_solver[kk];
     }
 
     // chain through the chunk: dy_k = C_k S_k + G_k, S_{k+1} = A_k S_k + F_k
@@ -745,34 +717,11 @@ void Simulator::Jacobians(const std::vector<SequenceInput>& sequences,
     ColumnJacobians(sequences, nominal, opt, mode, steps, out, &perturbed);
   }
   for (size_t i = 0; i < sequences.size(); ++i) {
-    AddSolverWarnings(nominal[i].solver, perturbed[i], &(*out)[i]);
+    for (std::string& w : SolverWarnings(*model_, nominal[i].solver, perturbed[i])) {
+      (*out)[i].warnings.push_back(std::move(w));
+    }
   }
   if (opt.zero_column_is_error) CheckZeroColumns(*out);
-}
-
-void Simulator::AddSolverWarnings(const SolverStats& nominal, const SolverStats& perturbed,
-                                  Sensitivity* out) const {
-  // no step ran the constraint solver: its kind and convergence do not matter
-  if (nominal.solved + perturbed.solved == 0) return;
-  const int iterations = model_->opt.iterations;
-  if (model_->opt.solver != mjSOL_NEWTON) {
-    out->warnings.push_back(
-        std::string("constraint solver is ") + SolverName(model_->opt.solver) +
-        ", not Newton: it converges less tightly within opt.iterations = " +
-        std::to_string(iterations) +
-        ", and finite differences carry its residual error; prefer <option solver=\"Newton\"/> "
-        "for fitting");
-  }
-  // with tolerance 0 (fixed_solver_iterations) every solve runs to the cap by design
-  if (model_->opt.tolerance > 0 && nominal.capped + perturbed.capped > 0) {
-    out->warnings.push_back(
-        "constraint solver stopped at its iteration cap (opt.iterations = " +
-        std::to_string(iterations) + ") in " + std::to_string(nominal.capped) + " of " +
-        std::to_string(nominal.solved) + " nominal and " + std::to_string(perturbed.capped) +
-        " of " + std::to_string(perturbed.solved) +
-        " perturbed steps with constraints: unconverged solves put solver error into the "
-        "finite differences; raise <option iterations> or use the Newton solver");
-  }
 }
 
 void Simulator::CheckZeroColumns(const std::vector<Sensitivity>& out) const {
@@ -833,8 +782,7 @@ void Simulator::ColumnJacobians(const std::vector<SequenceInput>& sequences,
     const TaskReport& r = reports[task];
     if (!r.warning.empty()) s.warnings.push_back(r.warning);
     s.kinks += r.kinks;
-    (*solver)[task / ncol].solved += r.solver.solved;
-    (*solver)[task / ncol].capped += r.solver.capped;
+    (*solver)[task / ncol] += r.solver;
   }
 }
 

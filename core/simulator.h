@@ -55,6 +55,7 @@
 
 #include "core/mujoco_env.h"
 #include "core/parameters.h"
+#include "core/solver_stats.h"
 #include "core/state.h"
 #include "core/thread_pool.h"
 
@@ -95,12 +96,6 @@ struct InitialState {
 struct SequenceInput {
   InitialState x0;
   RowMatrix ctrl;
-};
-
-// Constraint-solver convergence over a set of steps.
-struct SolverStats {
-  int solved = 0;  // steps that ran the constraint solver (nefc > 0)
-  int capped = 0;  // of those, steps where it stopped at opt.iterations (in any island)
 };
 
 struct Trajectory {
@@ -228,8 +223,6 @@ class Simulator {
                        const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
                        JacobianMode mode, const Eigen::VectorXd& steps,
                        std::vector<Sensitivity>* out, std::vector<SolverStats>* solver);
-  void AddSolverWarnings(const SolverStats& nominal, const SolverStats& perturbed,
-                         Sensitivity* out) const;
   void CheckZeroColumns(const std::vector<Sensitivity>& out) const;
   void CheckStep(const mjData& d, int seq_index, int step, const char* what) const;
 
