@@ -1,6 +1,8 @@
 #include "core/mujoco_env.h"
 
 #include <array>
+#include <csetjmp>
+#include <cstdio>
 #include <mutex>
 #include <string>
 
@@ -9,8 +11,23 @@ namespace {
 
 thread_local std::string tls_warning_text;
 
-// mju_error lands here: throw so the caller can recover (never exit the process)
-void ErrorHandler(const char* msg) { throw MujocoError(std::string("MuJoCo error: ") + msg); }
+// this thread's error slot: the innermost CallMujoco target and the last error message (MuJoCo's
+// legacy handler text is at most 2048 bytes)
+thread_local internal::JumpTarget* tls_armed = nullptr;
+thread_local char tls_error_message[2048];
+
+// mju_error lands here. Never returns (MuJoCo would go on after mju_error): save the message, then
+// jump back to the innermost CallMujoco of this thread, popping it; with none armed, throw from
+// here through MuJoCo's frames (the last resort, see mujoco_env.h)
+void ErrorHandler(const char* msg) {
+  std::snprintf(tls_error_message, sizeof(tls_error_message), "%s", msg);
+  internal::JumpTarget* target = tls_armed;
+  if (target) {
+    tls_armed = target->outer;
+    std::longjmp(target->env, 1);
+  }
+  internal::ThrowSavedError();
+}
 
 // mju_warning lands here: keep the text for the caller, do not print
 void WarningHandler(const char* msg) {
@@ -30,6 +47,14 @@ constexpr std::array<const char*, mjNWARNING> kWarningNames = {
 
 }  // namespace
 
+namespace internal {
+
+JumpTarget*& ArmedTarget() { return tls_armed; }
+
+void ThrowSavedError() { throw MujocoError(std::string("MuJoCo error: ") + tls_error_message); }
+
+}  // namespace internal
+
 void InstallMujocoHandlers() {
   static std::once_flag once;
   std::call_once(once, [] {
@@ -44,6 +69,8 @@ std::string TakeWarningText() {
   return out;
 }
 
+// The loaders call MuJoCo unarmed on purpose (mujoco_env.h): its parser and compiler are C++ and
+// catch their own errors; a MuJoCo error that still reaches our handler is thrown through C++.
 ModelPtr LoadModel(const std::string& path) {
   InstallMujocoHandlers();
   char error[1024] = "";
@@ -85,14 +112,16 @@ ModelPtr LoadModelFromString(const std::string& xml) {
 
 ModelPtr CopyModel(const mjModel& m) {
   InstallMujocoHandlers();
-  mjModel* copy = mj_copyModel(nullptr, &m);
+  mjModel* copy = nullptr;
+  CallMujoco([&] { copy = mj_copyModel(nullptr, &m); });
   if (!copy) throw MujocoError("mj_copyModel failed (out of memory?)");
   return ModelPtr(copy);
 }
 
 DataPtr MakeData(const mjModel& m) {
   InstallMujocoHandlers();
-  mjData* d = mj_makeData(&m);
+  mjData* d = nullptr;
+  CallMujoco([&] { d = mj_makeData(&m); });
   if (!d) throw MujocoError("mj_makeData failed (out of memory?)");
   return DataPtr(d);
 }

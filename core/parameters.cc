@@ -516,12 +516,12 @@ void ParameterSet::Write(mjModel* m, mjData* scratch, const double* values) cons
     params_[i].WriteRaw(m, values[i]);
     set_const = set_const || params_[i].needs_set_const();
   }
-  if (set_const) mj_setConst(m, scratch);
+  if (set_const) CallMujoco([=] { mj_setConst(m, scratch); });
 }
 
 void ParameterSet::WriteOne(mjModel* m, mjData* scratch, int i, double value) const {
   params_[i].WriteRaw(m, value);
-  if (params_[i].needs_set_const()) mj_setConst(m, scratch);
+  if (params_[i].needs_set_const()) CallMujoco([=] { mj_setConst(m, scratch); });
 }
 
 }  // namespace mjsysid

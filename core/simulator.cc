@@ -25,6 +25,11 @@ double StageCost(int skipstage) {
   return 1.0;
 }
 
+// dst = src for two models of the same sizes (mj_copyModel into existing storage)
+void CopyModelInto(mjModel* dst, const mjModel* src) {
+  CallMujoco([=] { mj_copyModel(dst, src); });
+}
+
 std::string TimeString(double t) {
   char buf[32];
   std::snprintf(buf, sizeof(buf), "%.6g", t);
@@ -96,6 +101,23 @@ struct Simulator::Worker {
   long long steps = 0;  // step calls made by this worker (see Simulator::StepCount)
 };
 
+// what one Jacobian task reports besides its column
+struct Simulator::TaskReport {
+  std::string warning;  // empty: none
+  int kinks = 0;
+  SolverStats solver;  // constraint solves of its perturbed steps
+};
+
+template <class Task>
+void Simulator::OnWorker(Worker& w, Task&& task) const {
+  try {
+    task();
+  } catch (...) {
+    ResetWorker(w);
+    throw;
+  }
+}
+
 Simulator::Simulator(const mjModel& m, const std::vector<ParameterSpec>& params,
                      const SimulatorOptions& options)
     : model_(CopyModel(m)),
@@ -145,7 +167,16 @@ void Simulator::SetParameters(const Eigen::VectorXd& values) {
     throw std::invalid_argument("SetParameters: expected " + std::to_string(params_.size()) +
                                 " values, got " + std::to_string(values.size()));
   }
-  params_.Write(model_.get(), scratch_.get(), values.data());
+  // a MuJoCo error in mj_setConst leaves model_ with raw values and stale derived constants:
+  // write back the values that last gave a consistent model, then report the error
+  const Eigen::VectorXd previous = GetParameters();
+  try {
+    params_.Write(model_.get(), scratch_.get(), values.data());
+  } catch (const MujocoError&) {
+    ResetData(scratch_.get());
+    params_.Write(model_.get(), scratch_.get(), previous.data());
+    throw;
+  }
 }
 
 InitialState Simulator::ReferenceState() const {
@@ -184,13 +215,22 @@ void Simulator::CheckInputs(const std::vector<SequenceInput>& sequences) const {
   }
 }
 
+void Simulator::ResetData(mjData* d) const {
+  CallMujoco([&] { mj_resetData(model_.get(), d); });
+  ClearSimulationWarnings(d);
+}
+
+void Simulator::ResetWorker(Worker& w) const {
+  // the perturbed model copies need nothing: every use rebuilds them from model_ first
+  ResetData(w.data.get());
+}
+
 void Simulator::SetInitialState(mjData* d, const InitialState& x0) const {
-  mj_resetData(model_.get(), d);
+  ResetData(d);
   if (x0.qpos.size()) mju_copy(d->qpos, x0.qpos.data(), dims_.nq);
   if (x0.qvel.size()) mju_copy(d->qvel, x0.qvel.data(), dims_.nv);
   if (x0.act.size()) mju_copy(d->act, x0.act.data(), dims_.na);
   d->time = x0.time;
-  ClearSimulationWarnings(d);
 }
 
 void Simulator::CheckStep(const mjData& d, int seq_index, int step, const char* what) const {
@@ -206,23 +246,24 @@ void Simulator::CheckStep(const mjData& d, int seq_index, int step, const char* 
 
 void Simulator::RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq, int seq_index,
                            RowMatrix* states, RowMatrix* sensors, RowMatrix* full,
-                           std::vector<int>* ncon) const {
+                           std::vector<int>* ncon, SolverStats* solver) const {
   mjData* d = w.data.get();
   const int T = static_cast<int>(seq.ctrl.rows());
   const bool want_sensors = options_.sensors && sensors && dims_.ns > 0;
   // step the model, recording x_k (and the full state) before and y_k after each step
   for (int k = 0; k < T; ++k) {
     mju_copy(d->ctrl, seq.ctrl.row(k).data(), dims_.nu);
-    if (full) mj_getState(m, d, full->row(k).data(), kFullStateSig);
+    if (full) GetFullState(m, d, full->row(k).data());
     GetPhysics(*m, *d, states->row(k).data());
     StepSkip(m, d, mjSTAGE_NONE, !options_.sensors);
     ++w.steps;
     CheckStep(*d, seq_index, k, "simulation");
+    CountSolve(*m, *d, solver);
     if (want_sensors) mju_copy(sensors->row(k).data(), d->sensordata, dims_.ns);
     if (ncon) (*ncon)[k] = d->ncon;
   }
   GetPhysics(*m, *d, states->row(T).data());
-  if (full) mj_getState(m, d, full->row(T).data(), kFullStateSig);
+  if (full) GetFullState(m, d, full->row(T).data());
   if (!states->row(T).allFinite()) {
     throw SimulationError(
         "simulation: sequence " + std::to_string(seq_index) + ": non-finite final state", seq_index,
@@ -241,12 +282,16 @@ void Simulator::Rollout(const std::vector<SequenceInput>& sequences, std::vector
     tr.sensors.resize(tr.T, options_.sensors ? dims_.ns : 0);
     tr.full.resize(tr.T + 1, dims_.nfull);
     tr.ncon.assign(tr.T, 0);
+    tr.solver = SolverStats();
   }
   pool_.ParallelFor(static_cast<int>(sequences.size()), [&](int worker, int i) {
     Worker& w = *workers_[worker];
     Trajectory& tr = (*out)[i];
-    SetInitialState(w.data.get(), sequences[i].x0);
-    RolloutOne(w, model_.get(), sequences[i], i, &tr.states, &tr.sensors, &tr.full, &tr.ncon);
+    OnWorker(w, [&] {
+      SetInitialState(w.data.get(), sequences[i].x0);
+      RolloutOne(w, model_.get(), sequences[i], i, &tr.states, &tr.sensors, &tr.full, &tr.ncon,
+                 &tr.solver);
+    });
   });
 }
 
@@ -323,7 +368,7 @@ JacobianMode Simulator::ChooseJacobianMode(const JacobianOptions& opt,
 
 void Simulator::DirectionalColumn(Worker& w, int seq_index, const Trajectory& nom,
                                   const JacobianOptions& opt, int col, const Eigen::VectorXd& steps,
-                                  Sensitivity* out, std::string* warning, int* kinks) const {
+                                  Sensitivity* out, TaskReport* report) const {
   const int np = params_.size(), nx = dims_.nx, ns = options_.sensors ? dims_.ns : 0;
   const int T = nom.T;
   mjData* d = w.data.get();
@@ -331,8 +376,8 @@ void Simulator::DirectionalColumn(Worker& w, int seq_index, const Trajectory& no
   const double h = is_param ? steps[col] : opt.state_step;
 
   // perturbed models: parameter col at p + h and p - h (state columns use the nominal values)
-  mj_copyModel(w.plus.get(), model_.get());
-  mj_copyModel(w.minus.get(), model_.get());
+  CopyModelInto(w.plus.get(), model_.get());
+  CopyModelInto(w.minus.get(), model_.get());
   if (is_param) {
     const double p = params_[col].Read(*model_);
     params_.WriteOne(w.plus.get(), d, col, p + h);
@@ -350,11 +395,12 @@ void Simulator::DirectionalColumn(Worker& w, int seq_index, const Trajectory& no
   // one perturbed step from the nominal x_k moved along sign*h*S_k, parameter at p + sign*h:
   // leaves the one-sided difference quotients of x_{k+1} and y_k in dx, dy
   auto side = [&](mjModel* m, double sign, int k, Eigen::VectorXd& dx, Eigen::VectorXd& dy) {
-    mj_setState(m, d, nom.full.row(k).data(), kFullStateSig);
+    SetFullState(m, d, nom.full.row(k).data());
     TangentPerturb(*m, d, w.s.data(), sign * h);
     StepSkip(m, d, mjSTAGE_NONE, !options_.sensors);
     ++w.steps;
     CheckStep(*d, seq_index, k, "perturbed step");
+    CountSolve(*m, *d, &report->solver);
     GetPhysics(*m, *d, w.xp.data());
     TangentDifference(*model_, nom.states.row(k + 1).data(), w.xp.data(), sign / h, dx.data());
     for (int i = 0; i < ns; ++i) dy[i] = (d->sensordata[i] - nom.sensors(k, i)) * (sign / h);
@@ -366,7 +412,9 @@ void Simulator::DirectionalColumn(Worker& w, int seq_index, const Trajectory& no
     const int ncon = side(w.plus.get(), 1.0, k, w.s_next, w.yp);
     if (opt.central || ncon != nom.ncon[k]) {
       side(w.minus.get(), -1.0, k, w.e, w.ym);
-      if (CombineSides(w.s_next, w.e, w.yp, w.ym, opt.central, w.xm.head(nx), w.yp)) ++*kinks;
+      if (CombineSides(w.s_next, w.e, w.yp, w.ym, opt.central, w.xm.head(nx), w.yp)) {
+        ++report->kinks;
+      }
       w.s_next = w.xm.head(nx);
     }
     for (int i = 0; i < ns; ++i) out->DyDp(k * ns + i, col) = w.yp[i];
@@ -386,17 +434,18 @@ void Simulator::DirectionalColumn(Worker& w, int seq_index, const Trajectory& no
                           seq_index, T);
   }
   if (growth_step >= 0) {
-    *warning = "column " + std::to_string(col) +
-               ": sensitivity grew so that h*|S| = " + TimeString(max_growth) + " (> " +
-               TimeString(kGrowthLimit) + ") from step " + std::to_string(growth_step) +
-               ": finite differences are no longer local; shorten the horizon (multiple "
-               "shooting)";
+    report->warning = "column " + std::to_string(col) +
+                      ": sensitivity grew so that h*|S| = " + TimeString(max_growth) + " (> " +
+                      TimeString(kGrowthLimit) + ") from step " + std::to_string(growth_step) +
+                      ": finite differences are no longer local; shorten the horizon (multiple "
+                      "shooting)";
   }
 }
 
 void Simulator::WholeRolloutColumn(Worker& w, const SequenceInput& seq, int seq_index,
                                    const Trajectory& nom, const JacobianOptions& opt, int col,
-                                   const Eigen::VectorXd& steps, Sensitivity* out) const {
+                                   const Eigen::VectorXd& steps, Sensitivity* out,
+                                   TaskReport* report) const {
   const int np = params_.size(), nx = dims_.nx, ns = options_.sensors ? dims_.ns : 0;
   const int T = nom.T;
   mjData* d = w.data.get();
@@ -407,11 +456,11 @@ void Simulator::WholeRolloutColumn(Worker& w, const SequenceInput& seq, int seq_
 
   // one whole rollout per side, from x_0 (+-) h e with the parameter at p +- h
   auto side = [&](mjModel* m, double sign, RowMatrix* states, RowMatrix* sensors) {
-    mj_copyModel(m, model_.get());
+    CopyModelInto(m, model_.get());
     if (is_param) params_.WriteOne(m, d, col, params_[col].Read(*model_) + sign * h);
     SetInitialState(d, seq.x0);
     TangentPerturb(*m, d, w.e.data(), sign * h);
-    RolloutOne(w, m, seq, seq_index, states, sensors, nullptr, nullptr);
+    RolloutOne(w, m, seq, seq_index, states, sensors, nullptr, nullptr, &report->solver);
   };
   side(w.plus.get(), 1.0, &w.states_p, &w.sensors_p);
   if (opt.central) side(w.minus.get(), -1.0, &w.states_m, &w.sensors_m);
@@ -433,7 +482,8 @@ void Simulator::WholeRolloutColumn(Worker& w, const SequenceInput& seq, int seq_
 }
 
 void Simulator::MatrixJacobian(int seq_index, const Trajectory& nom, const JacobianOptions& opt,
-                               const Eigen::VectorXd& steps, Sensitivity* out) {
+                               const Eigen::VectorXd& steps, Sensitivity* out,
+                               SolverStats* solver) {
   const int np = params_.size(), nx = dims_.nx, ns = options_.sensors ? dims_.ns : 0;
   const int ncol = out->ncol, T = nom.T;
   const int chunk = std::min(T, 64 * pool_.size());
@@ -452,6 +502,7 @@ void Simulator::MatrixJacobian(int seq_index, const Trajectory& nom, const Jacob
   std::vector<double> Ab(A.size()), Cb(C.size());
   RowMatrix F(static_cast<size_t>(chunk) * nx, np), G(static_cast<size_t>(chunk) * ns, np);
   std::vector<int> chunk_kinks(chunk, 0);
+  std::vector<SolverStats> chunk_solver(chunk);
 
   // S_0 = [0 | I]
   RowMatrix S = RowMatrix::Zero(nx, ncol), S_next(nx, ncol);
@@ -470,73 +521,88 @@ void Simulator::MatrixJacobian(int seq_index, const Trajectory& nom, const Jacob
     // step Jacobians of this chunk, in parallel over time steps
     pool_.ParallelFor(kn, [&](int worker, int kk) {
       Worker& w = *workers_[worker];
-      mjData* d = w.data.get();
-      const int k = k0 + kk;
-      const double* full = nom.full.row(k).data();
-      ClearSimulationWarnings(d);
-      chunk_kinks[kk] = 0;
+      OnWorker(w, [&] {
+        mjData* d = w.data.get();
+        const int k = k0 + kk;
+        const double* full = nom.full.row(k).data();
+        ClearSimulationWarnings(d);
+        chunk_kinks[kk] = 0;
+        chunk_solver[kk] = SolverStats();
 
-      // state columns: forward differences (eps), and backward ones (-eps) for central, so that
-      // each column can be checked for a kink (centered mjd_transitionFD cannot)
-      double* Ak = A.data() + static_cast<size_t>(kk) * nx * nx;
-      double* Ck = ns ? C.data() + static_cast<size_t>(kk) * ns * nx : nullptr;
-      mj_setState(model_.get(), d, full, kFullStateSig);
-      mjd_transitionFD(model_.get(), d, opt.state_step, 0, Ak, nullptr, Ck, nullptr);
-      w.steps += 1 + nx;
-      CheckStep(*d, seq_index, k, "mjd_transitionFD");
-      // forward differences are checked too where the contact set may change near x_k
-      const bool contact_near = nom.ncon[k] > 0 || (k + 1 < T && nom.ncon[k + 1] != nom.ncon[k]) ||
-                                (k > 0 && nom.ncon[k - 1] != nom.ncon[k]);
-      if (both_sides || contact_near) {
-        double* Abk = Ab.data() + static_cast<size_t>(kk) * nx * nx;
-        double* Cbk = ns ? Cb.data() + static_cast<size_t>(kk) * ns * nx : nullptr;
-        mj_setState(model_.get(), d, full, kFullStateSig);
-        mjd_transitionFD(model_.get(), d, -opt.state_step, 0, Abk, nullptr, Cbk, nullptr);
+        // state columns: forward differences (eps), and backward ones (-eps) for central, so that
+        // each column can be checked for a kink (centered mjd_transitionFD cannot)
+        double* Ak = A.data() + static_cast<size_t>(kk) * nx * nx;
+        double* Ck = ns ? C.data() + static_cast<size_t>(kk) * ns * nx : nullptr;
+        CallMujoco([&] {
+          mj_setState(model_.get(), d, full, kFullStateSig);
+          mjd_transitionFD(model_.get(), d, opt.state_step, 0, Ak, nullptr, Ck, nullptr);
+        });
         w.steps += 1 + nx;
         CheckStep(*d, seq_index, k, "mjd_transitionFD");
-        Eigen::Map<RowMatrix> Af(Ak, nx, nx), Abm(Abk, nx, nx);
-        Eigen::Map<RowMatrix> Cf(Ck, ns, nx), Cbm(Cbk, ns, nx);
-        for (int c = 0; c < nx; ++c) {
-          if (CombineSides(Af.col(c), Abm.col(c), Cf.col(c), Cbm.col(c), opt.central, Af.col(c),
-                           Cf.col(c))) {
-            ++chunk_kinks[kk];
+        // forward differences are checked too where the contact set may change near x_k
+        const bool contact_near = nom.ncon[k] > 0 ||
+                                  (k + 1 < T && nom.ncon[k + 1] != nom.ncon[k]) ||
+                                  (k > 0 && nom.ncon[k - 1] != nom.ncon[k]);
+        if (both_sides || contact_near) {
+          double* Abk = Ab.data() + static_cast<size_t>(kk) * nx * nx;
+          double* Cbk = ns ? Cb.data() + static_cast<size_t>(kk) * ns * nx : nullptr;
+          CallMujoco([&] {
+            mj_setState(model_.get(), d, full, kFullStateSig);
+            mjd_transitionFD(model_.get(), d, -opt.state_step, 0, Abk, nullptr, Cbk, nullptr);
+          });
+          w.steps += 1 + nx;
+          CheckStep(*d, seq_index, k, "mjd_transitionFD");
+          Eigen::Map<RowMatrix> Af(Ak, nx, nx), Abm(Abk, nx, nx);
+          Eigen::Map<RowMatrix> Cf(Ck, ns, nx), Cbm(Cbk, ns, nx);
+          for (int c = 0; c < nx; ++c) {
+            if (CombineSides(Af.col(c), Abm.col(c), Cf.col(c), Cbm.col(c), opt.central, Af.col(c),
+                             Cf.col(c))) {
+              ++chunk_kinks[kk];
+            }
           }
         }
-      }
-      if (np == 0) return;
+        if (np == 0) return;
 
-      // parameter columns: base pass at x_k with the nominal model, then one step per parameter
-      // that skips the stages before the one the parameter enters
-      mj_setState(model_.get(), d, full, kFullStateSig);
-      mj_forward(model_.get(), d);
-      ++w.steps;
-      auto side = [&](mjModel* m, int skip, double sign, double h, Eigen::VectorXd& dx,
-                      Eigen::VectorXd& dy) {
-        mj_setState(m, d, full, kFullStateSig);
-        StepSkip(m, d, skip, !options_.sensors);
+        // parameter columns: base pass at x_k with the nominal model, then one step per parameter
+        // that skips the stages before the one the parameter enters
+        CallMujoco([&] {
+          mj_setState(model_.get(), d, full, kFullStateSig);
+          mj_forward(model_.get(), d);
+        });
         ++w.steps;
-        CheckStep(*d, seq_index, k, "perturbed step");
-        GetPhysics(*model_, *d, w.xp.data());
-        TangentDifference(*model_, nom.states.row(k + 1).data(), w.xp.data(), sign / h, dx.data());
-        for (int i = 0; i < ns; ++i) dy[i] = (d->sensordata[i] - nom.sensors(k, i)) * (sign / h);
-        return d->ncon;
-      };
-      for (int j : order) {
-        const double h = steps[j];
-        const int skip = params_[j].stage();
-        const int ncon = side(w.param_plus[j].get(), skip, 1.0, h, w.s_next, w.yp);
-        if (opt.central || ncon != nom.ncon[k]) {
-          side(w.param_minus[j].get(), skip, -1.0, h, w.e, w.ym);
-          if (CombineSides(w.s_next, w.e, w.yp, w.ym, opt.central, w.xm.head(nx), w.yp)) {
-            ++chunk_kinks[kk];
+        auto side = [&](mjModel* m, int skip, double sign, double h, Eigen::VectorXd& dx,
+                        Eigen::VectorXd& dy) {
+          SetFullState(m, d, full);
+          StepSkip(m, d, skip, !options_.sensors);
+          ++w.steps;
+          CheckStep(*d, seq_index, k, "perturbed step");
+          CountSolve(*m, *d, &chunk_solver[kk]);
+          GetPhysics(*model_, *d, w.xp.data());
+          TangentDifference(*model_, nom.states.row(k + 1).data(), w.xp.data(), sign / h,
+                            dx.data());
+          for (int i = 0; i < ns; ++i) dy[i] = (d->sensordata[i] - nom.sensors(k, i)) * (sign / h);
+          return d->ncon;
+        };
+        for (int j : order) {
+          const double h = steps[j];
+          const int skip = params_[j].stage();
+          const int ncon = side(w.param_plus[j].get(), skip, 1.0, h, w.s_next, w.yp);
+          if (opt.central || ncon != nom.ncon[k]) {
+            side(w.param_minus[j].get(), skip, -1.0, h, w.e, w.ym);
+            if (CombineSides(w.s_next, w.e, w.yp, w.ym, opt.central, w.xm.head(nx), w.yp)) {
+              ++chunk_kinks[kk];
+            }
+            w.s_next = w.xm.head(nx);
           }
-          w.s_next = w.xm.head(nx);
+          F.block(static_cast<Eigen::Index>(kk) * nx, j, nx, 1) = w.s_next;
+          if (ns) G.block(static_cast<Eigen::Index>(kk) * ns, j, ns, 1) = w.yp;
         }
-        F.block(static_cast<Eigen::Index>(kk) * nx, j, nx, 1) = w.s_next;
-        if (ns) G.block(static_cast<Eigen::Index>(kk) * ns, j, ns, 1) = w.yp;
-      }
+      });
     });
-    for (int kk = 0; kk < kn; ++kk) out->kinks += chunk_kinks[kk];
+    for (int kk = 0; kk < kn; ++kk) {
+      out->kinks += chunk_kinks[kk];
+      *solver += chunk_solver[kk];
+    }
 
     // chain through the chunk: dy_k = C_k S_k + G_k, S_{k+1} = A_k S_k + F_k
     for (int kk = 0; kk < kn; ++kk) {
@@ -625,26 +691,35 @@ void Simulator::Jacobians(const std::vector<SequenceInput>& sequences,
     w->ym.resize(ns);
   }
 
+  // constraint solves of the perturbed steps, per sequence
+  std::vector<SolverStats> perturbed(sequences.size());
   if (mode == JacobianMode::kMatrix) {
-    // one perturbed model per parameter and side, per worker
+    // one perturbed model per parameter and side, per worker (mj_setConst uses its mjData)
     for (auto& w : workers_) {
-      w->param_plus.resize(np);
-      w->param_minus.resize(np);
-      for (int j = 0; j < np; ++j) {
-        const double p = params_[j].Read(*model_);
-        if (!w->param_plus[j]) w->param_plus[j] = CopyModel(*model_);
-        mj_copyModel(w->param_plus[j].get(), model_.get());
-        params_.WriteOne(w->param_plus[j].get(), w->data.get(), j, p + steps[j]);
-        if (!w->param_minus[j]) w->param_minus[j] = CopyModel(*model_);
-        mj_copyModel(w->param_minus[j].get(), model_.get());
-        params_.WriteOne(w->param_minus[j].get(), w->data.get(), j, p - steps[j]);
-      }
+      OnWorker(*w, [&] {
+        w->param_plus.resize(np);
+        w->param_minus.resize(np);
+        for (int j = 0; j < np; ++j) {
+          const double p = params_[j].Read(*model_);
+          if (!w->param_plus[j]) w->param_plus[j] = CopyModel(*model_);
+          CopyModelInto(w->param_plus[j].get(), model_.get());
+          params_.WriteOne(w->param_plus[j].get(), w->data.get(), j, p + steps[j]);
+          if (!w->param_minus[j]) w->param_minus[j] = CopyModel(*model_);
+          CopyModelInto(w->param_minus[j].get(), model_.get());
+          params_.WriteOne(w->param_minus[j].get(), w->data.get(), j, p - steps[j]);
+        }
+      });
     }
     for (size_t i = 0; i < sequences.size(); ++i) {
-      MatrixJacobian(static_cast<int>(i), nominal[i], opt, steps, &(*out)[i]);
+      MatrixJacobian(static_cast<int>(i), nominal[i], opt, steps, &(*out)[i], &perturbed[i]);
     }
   } else {
-    ColumnJacobians(sequences, nominal, opt, mode, steps, out);
+    ColumnJacobians(sequences, nominal, opt, mode, steps, out, &perturbed);
+  }
+  for (size_t i = 0; i < sequences.size(); ++i) {
+    for (std::string& w : SolverWarnings(*model_, nominal[i].solver, perturbed[i])) {
+      (*out)[i].warnings.push_back(std::move(w));
+    }
   }
   if (opt.zero_column_is_error) CheckZeroColumns(*out);
 }
@@ -670,7 +745,7 @@ void Simulator::CheckZeroColumns(const std::vector<Sensitivity>& out) const {
 void Simulator::ColumnJacobians(const std::vector<SequenceInput>& sequences,
                                 const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
                                 JacobianMode mode, const Eigen::VectorXd& steps,
-                                std::vector<Sensitivity>* out) {
+                                std::vector<Sensitivity>* out, std::vector<SolverStats>* solver) {
   const int ncol = (*out)[0].ncol, ns = options_.sensors ? dims_.ns : 0;
 
   // directional and whole-rollout: one task per (sequence, column)
@@ -687,23 +762,27 @@ void Simulator::ColumnJacobians(const std::vector<SequenceInput>& sequences,
       }
     }
   }
-  // each task writes its own column and its own warning slot, so no two tasks share an output
+  // each task writes its own column and its own report slot, so no two tasks share an output
   const int nseq = static_cast<int>(sequences.size());
-  std::vector<std::string> warnings(static_cast<size_t>(nseq) * ncol);
-  std::vector<int> kinks(static_cast<size_t>(nseq) * ncol, 0);
+  std::vector<TaskReport> reports(static_cast<size_t>(nseq) * ncol);
   pool_.ParallelFor(nseq * ncol, [&](int worker, int task) {
     const int i = task / ncol, col = task % ncol;
     Worker& w = *workers_[worker];
-    if (mode == JacobianMode::kDirectional) {
-      DirectionalColumn(w, i, nominal[i], opt, col, steps, &(*out)[i], &warnings[task],
-                        &kinks[task]);
-    } else {
-      WholeRolloutColumn(w, sequences[i], i, nominal[i], opt, col, steps, &(*out)[i]);
-    }
+    OnWorker(w, [&] {
+      if (mode == JacobianMode::kDirectional) {
+        DirectionalColumn(w, i, nominal[i], opt, col, steps, &(*out)[i], &reports[task]);
+      } else {
+        WholeRolloutColumn(w, sequences[i], i, nominal[i], opt, col, steps, &(*out)[i],
+                           &reports[task]);
+      }
+    });
   });
   for (int task = 0; task < nseq * ncol; ++task) {
-    if (!warnings[task].empty()) (*out)[task / ncol].warnings.push_back(warnings[task]);
-    (*out)[task / ncol].kinks += kinks[task];
+    Sensitivity& s = (*out)[task / ncol];
+    const TaskReport& r = reports[task];
+    if (!r.warning.empty()) s.warnings.push_back(r.warning);
+    s.kinks += r.kinks;
+    (*solver)[task / ncol] += r.solver;
   }
 }
 

@@ -1,12 +1,14 @@
 // Rollouts of a MuJoCo model and their Jacobians with respect to selected model parameters and the
 // initial state, chained through the multi-step simulation.
 //
-// Time convention (../shared/DESIGN.md §3): sample k of a sequence is (t_k, u_k, y_k) with
+// Time convention (docs/numerics.md, "Time convention"): sample k of a sequence is (t_k, u_k, y_k)
+// with
 //   y_k     = h(x_k, u_k; p)   the sensors MuJoCo computes at state x_k with control u_k,
 //   x_{k+1} = f(x_k, u_k; p)   one mj_step.
 // A rollout of T samples records x_0 .. x_T (T+1 states) and y_0 .. y_{T-1} (T sensor rows).
 //
-// Jacobians (forward mode): S_k = dx_k/dcol in tangent space (nx = 2nv+na rows, layout of
+// Jacobians (forward mode; docs/numerics.md, "Tangent-space sensitivities"): S_k = dx_k/dcol in
+// tangent space (nx = 2nv+na rows, layout of
 // mjd_transitionFD), S_{k+1} = A_k S_k + F_k and dy_k/dcol = C_k S_k + G_k. Columns are the
 // selected parameters (in ParameterSet order) followed, if requested, by the nx tangent directions
 // of x_0. Three ways to compute them, equal up to finite-difference error (tested):
@@ -18,20 +20,29 @@
 // - kWholeRollout: whole perturbed rollouts (what mujoco.sysid does); kept as oracle and baseline.
 // kAuto picks the cheaper of the first two from the counts (ChooseJacobianMode).
 //
-// Non-smooth steps (../shared/DESIGN.md §5): a difference that straddles a contact-set change
-// spikes. Central differences are computed as the mean of a forward and a backward difference;
-// where the two disagree by more than 10% the step is non-smooth, and the smaller one-sided value
-// is used and counted in Sensitivity::kinks. Forward differences whose perturbed step finds another
-// number of contacts than the nominal step are checked the same way against the backward side.
+// Non-smooth steps (docs/numerics.md, "Contact-set changes"): a difference that straddles a
+// contact-set change spikes. Central differences are computed as the mean of a forward and a
+// backward difference; where the two disagree by more than 10% the step is non-smooth, and the
+// smaller one-sided value is used and counted in Sensitivity::kinks. Forward differences whose
+// perturbed step finds another number of contacts than the nominal step are checked the same way
+// against the backward side.
 //
 // Ownership and threads: a Simulator owns a private copy of the model (the caller's model is never
 // modified), a persistent thread pool, and one mjData and model copy per worker. Every output is
 // computed by exactly one task whose inputs do not depend on the worker, so results are
 // bit-identical for any thread count.
 //
+// Constraint solver: the private model's tolerance is min(model, 1e-10) (SimulatorOptions). Steps
+// whose solver stopped at opt.iterations, and a solver other than Newton, are reported in
+// Sensitivity::warnings with counts (docs/numerics.md, "Solver tolerance and iteration cap").
+//
 // Failure: a MuJoCo warning (bad qpos/qvel/qacc, buffer overflow) or a non-finite value in any
 // nominal or perturbed step throws SimulationError naming the sequence, step and time; MuJoCo
-// errors throw MujocoError. Bad arguments (shapes) throw std::invalid_argument.
+// errors (e.g. mjData stack or arena overflow) throw MujocoError with MuJoCo's message, caught
+// without unwinding MuJoCo's frames (core/mujoco_env.h). After either, the worker that failed has
+// its mjData reset before it is used again, so the Simulator stays usable and gives the results of
+// a fresh one (tested bit for bit); a failed SetParameters restores the previous values. Bad
+// arguments (shapes) throw std::invalid_argument.
 #pragma once
 
 #include <mujoco/mujoco.h>
@@ -44,6 +55,7 @@
 
 #include "core/mujoco_env.h"
 #include "core/parameters.h"
+#include "core/solver_stats.h"
 #include "core/state.h"
 #include "core/thread_pool.h"
 
@@ -92,6 +104,7 @@ struct Trajectory {
   RowMatrix sensors;      // T x nsensordata: y_0 .. y_{T-1} (0 columns when sensors are off)
   RowMatrix full;         // (T+1) x nfull: full state (kFullStateSig) before step k, with u_k set
   std::vector<int> ncon;  // T: contacts found in step k (at x_k), to detect contact-set changes
+  SolverStats solver;     // constraint solves of the T steps
 };
 
 // the share of time steps of these trajectories with contacts, or a change of the contact count
@@ -121,7 +134,11 @@ struct Sensitivity {
   RowMatrix DyDp;                           // (T*ns) x ncol: row k*ns + i is d y_k[i] / d column
   RowMatrix DxDp;  // ((T+1)*nx) x ncol: row k*nx + i is d x_k[i] / d column (tangent space)
   int kinks = 0;   // one-sided differences used where the two sides disagreed (contact onset)
-  std::vector<std::string> warnings;  // e.g. a sensitivity that grew past what FD can follow
+  // e.g. a sensitivity that grew past what FD can follow, a constraint solver that is not Newton
+  // or stopped at its iteration cap in nominal or perturbed steps (with counts). Perturbed steps
+  // counted: all of directional and whole-rollout mode; in matrix mode the parameter columns
+  // (the state columns run inside mjd_transitionFD, which does not expose its solves).
+  std::vector<std::string> warnings;
 };
 
 class Simulator {
@@ -182,23 +199,30 @@ class Simulator {
 
  private:
   struct Worker;
+  struct TaskReport;
   void CheckInputs(const std::vector<SequenceInput>& sequences) const;
+  // mj_resetData and cleared warning counters: after a MuJoCo error d is usable again
+  void ResetData(mjData* d) const;
+  void ResetWorker(Worker& w) const;
+  // runs task() for worker w; if it throws, resets w before rethrowing
+  template <class Task>
+  void OnWorker(Worker& w, Task&& task) const;
   void SetInitialState(mjData* d, const InitialState& x0) const;
   void RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq, int seq_index,
-                  RowMatrix* states, RowMatrix* sensors, RowMatrix* full,
-                  std::vector<int>* ncon) const;
+                  RowMatrix* states, RowMatrix* sensors, RowMatrix* full, std::vector<int>* ncon,
+                  SolverStats* solver) const;
   void DirectionalColumn(Worker& w, int seq_index, const Trajectory& nom,
                          const JacobianOptions& opt, int col, const Eigen::VectorXd& steps,
-                         Sensitivity* out, std::string* warning, int* kinks) const;
+                         Sensitivity* out, TaskReport* report) const;
   void WholeRolloutColumn(Worker& w, const SequenceInput& seq, int seq_index, const Trajectory& nom,
                           const JacobianOptions& opt, int col, const Eigen::VectorXd& steps,
-                          Sensitivity* out) const;
+                          Sensitivity* out, TaskReport* report) const;
   void MatrixJacobian(int seq_index, const Trajectory& nom, const JacobianOptions& opt,
-                      const Eigen::VectorXd& steps, Sensitivity* out);
+                      const Eigen::VectorXd& steps, Sensitivity* out, SolverStats* solver);
   void ColumnJacobians(const std::vector<SequenceInput>& sequences,
                        const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
                        JacobianMode mode, const Eigen::VectorXd& steps,
-                       std::vector<Sensitivity>* out);
+                       std::vector<Sensitivity>* out, std::vector<SolverStats>* solver);
   void CheckZeroColumns(const std::vector<Sensitivity>& out) const;
   void CheckStep(const mjData& d, int seq_index, int step, const char* what) const;
 

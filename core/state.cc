@@ -1,6 +1,18 @@
 #include "core/state.h"
 
+#include "core/mujoco_env.h"
+
 namespace mjsysid {
+
+namespace {
+
+int FullStateSize(const mjModel& m) {
+  int size = 0;
+  CallMujoco([&] { size = mj_stateSize(&m, kFullStateSig); });
+  return size;
+}
+
+}  // namespace
 
 StateDims::StateDims(const mjModel& m)
     : nq(static_cast<int>(m.nq)),
@@ -10,7 +22,7 @@ StateDims::StateDims(const mjModel& m)
       ns(static_cast<int>(m.nsensordata)),
       nphys(nq + nv + na),
       nx(2 * nv + na),
-      nfull(mj_stateSize(&m, kFullStateSig)) {}
+      nfull(FullStateSize(m)) {}
 
 void GetPhysics(const mjModel& m, const mjData& d, double* x) {
   mju_copy(x, d.qpos, static_cast<int>(m.nq));
@@ -22,6 +34,14 @@ void SetPhysics(const mjModel& m, mjData* d, const double* x) {
   mju_copy(d->qpos, x, static_cast<int>(m.nq));
   mju_copy(d->qvel, x + m.nq, static_cast<int>(m.nv));
   mju_copy(d->act, x + m.nq + m.nv, static_cast<int>(m.na));
+}
+
+void GetFullState(const mjModel* m, const mjData* d, double* state) {
+  CallMujoco([=] { mj_getState(m, d, state, kFullStateSig); });
+}
+
+void SetFullState(const mjModel* m, mjData* d, const double* state) {
+  CallMujoco([=] { mj_setState(m, d, state, kFullStateSig); });
 }
 
 void TangentDifference(const mjModel& m, const double* x1, const double* x2, double inv_scale,
@@ -43,25 +63,28 @@ void TangentPerturb(const mjModel& m, mjData* d, const double* dx, double scale)
 }
 
 void StepSkip(const mjModel* m, mjData* d, int skipstage, bool skipsensor) {
-  // the calls of mj_step, with the forward pass skipping what is already computed
-  mj_checkPos(m, d);
-  mj_checkVel(m, d);
-  mj_forwardSkip(m, d, skipstage, skipsensor ? 1 : 0);
-  mj_checkAcc(m, d);
-  switch (m->opt.integrator) {
-    case mjINT_EULER:
-      mj_Euler(m, d);
-      break;
-    case mjINT_RK4:
-      mj_RungeKutta(m, d, 4);
-      break;
-    case mjINT_IMPLICIT:
-    case mjINT_IMPLICITFAST:
-      mj_implicit(m, d);
-      break;
-    default:
-      mju_error("StepSkip: invalid integrator %d", m->opt.integrator);
-  }
+  // the calls of mj_step, with the forward pass skipping what is already computed; MuJoCo errors
+  // come back through CallMujoco (no C++ object lives in between)
+  CallMujoco([=] {
+    mj_checkPos(m, d);
+    mj_checkVel(m, d);
+    mj_forwardSkip(m, d, skipstage, skipsensor ? 1 : 0);
+    mj_checkAcc(m, d);
+    switch (m->opt.integrator) {
+      case mjINT_EULER:
+        mj_Euler(m, d);
+        break;
+      case mjINT_RK4:
+        mj_RungeKutta(m, d, 4);
+        break;
+      case mjINT_IMPLICIT:
+      case mjINT_IMPLICITFAST:
+        mj_implicit(m, d);
+        break;
+      default:
+        mju_error("StepSkip: invalid integrator %d", m->opt.integrator);
+    }
+  });
 }
 
 }  // namespace mjsysid

@@ -1,12 +1,14 @@
 // States, tangent-space arithmetic and the stepping primitive of the core.
 //
-// Vocabulary (see ../shared/DESIGN.md §3-4):
+// Vocabulary (docs/numerics.md, "Time convention" and "Tangent-space sensitivities"):
 // - physics vector x = [qpos (nq), qvel (nv), act (na)]: what a log records per sample.
 // - tangent vector dx = [dq (nv), dv (nv), da (na)], nx = 2nv + na: the layout of mjd_transitionFD.
 //   Positions are perturbed with mj_integratePos and compared with mj_differentiatePos, so ball
 //   and free joints (quaternions) are handled in their body frame. Never subtract qpos directly.
 // - full state: everything a step reads (mjSTATE_INTEGRATION: time, qpos, qvel, act, history,
 //   warmstart, ctrl, applied forces, mocap, ...). Saved and restored by mjtState names.
+// Every MuJoCo call here that can raise a MuJoCo error runs inside CallMujoco (mujoco_env.h): it
+// throws MujocoError.
 #pragma once
 
 #include <mujoco/mujoco.h>
@@ -37,6 +39,12 @@ void GetPhysics(const mjModel& m, const mjData& d, double* x);
 // writes the physics vector x into d (qpos, qvel, act)
 void SetPhysics(const mjModel& m, mjData* d, const double* x);
 
+// reads the full state (kFullStateSig, length StateDims::nfull) of d into state
+void GetFullState(const mjModel* m, const mjData* d, double* state);
+
+// writes the full state (kFullStateSig, length StateDims::nfull) into d
+void SetFullState(const mjModel* m, mjData* d, const double* state);
+
 // dx = (x2 (-) x1) * inv_scale in tangent space; x1, x2 physics vectors, dx of length nx
 void TangentDifference(const mjModel& m, const double* x1, const double* x2, double inv_scale,
                        double* dx);
@@ -48,7 +56,11 @@ void TangentPerturb(const mjModel& m, mjData* d, const double* dx, double scale)
 // sensors if skipsensor. With mjSTAGE_NONE and skipsensor = false it computes exactly what mj_step
 // computes (same calls in the same order; tested bit for bit). Skipping is valid only when the
 // quantities of the skipped stages in d were computed at the same qpos/qvel by a model that agrees
-// with m in everything those stages read.
+// with m in everything those stages read. The integrator's own factorisation (Euler with damping,
+// implicit) is always redone: reusing it would be wrong for damping and actuator parameters
+// (docs/numerics.md, "Stage-skipping steps").
+// Failure: a MuJoCo error (e.g. mjData stack or arena overflow) throws MujocoError and leaves d
+// to be reset with mj_resetData (mujoco_env.h).
 void StepSkip(const mjModel* m, mjData* d, int skipstage, bool skipsensor);
 
 }  // namespace mjsysid

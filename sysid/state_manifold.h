@@ -2,9 +2,10 @@
 //
 // Ambient size nq + nv + na, tangent size 2 nv + na (the core's tangent layout). Plus moves qpos
 // with mj_integratePos, so ball and free joint quaternions stay unit and are perturbed in their
-// body frame; Minus is mj_differentiatePos. The core's Jacobians are in tangent space:
-// ToAmbientJacobian turns a tangent-space Jacobian J_t (rows x nx) into the ambient one Ceres asks
-// cost functions for, J_a = J_t P^+ with P = PlusJacobian, so that J_a P = J_t exactly.
+// body frame; Minus is mj_differentiatePos (docs/numerics.md, "Tangent-space sensitivities"). The
+// core's Jacobians are in tangent space: a cost function turns a tangent-space Jacobian J_t
+// (rows x nx) into the ambient one Ceres asks for as J_a = J_t P^+, with P = PlusJacobian and P^+
+// from PlusJacobianPseudoInverse, so that J_a P = J_t exactly.
 #pragma once
 
 #include <ceres/manifold.h>

@@ -3,11 +3,12 @@
 // Contract:
 // - A Log holds one or more Sequences. Sample k of a sequence is (time(k), ctrl.row(k),
 //   sensordata.row(k)) and, when recorded, (qpos.row(k), qvel.row(k), act.row(k)).
-// - Time convention (docs: DESIGN.md section 3): with sensor_time == "pre" (what mjsysid
+// - Time convention (docs/numerics.md, "Time convention"): with sensor_time == "pre" (what mjsysid
 //   writes), sensordata.row(k) = y_k = h(x_k, u_k) is what mj_forward computes at state x_k with
 //   control u_k = ctrl.row(k), *before* the step that produces x_{k+1}; qpos/qvel/act row k are
-//   x_k. With "post", sensordata.row(k) was read after that step (at x_{k+1}), the way
-//   rollout code that copies d->sensordata after mj_step records it.
+//   x_k. With "post", each row was written after its step and the sensors lag by one row:
+//   sensordata.row(k + 1) = y_k, what d->sensordata holds after mj_step (MuJoCo computes the
+//   sensors at x_k, before integrating).
 // - Units: time in seconds; every other quantity in MuJoCo's units for that quantity (the units
 //   of the model: SI unless the model says otherwise).
 // - Storage order: all matrices are row-major, one row per sample (T rows). In the HDF5 file the

@@ -3,7 +3,7 @@
 //
 // Contract:
 // - Signals are sampled at t_k = k * dt, k = 0 .. steps-1 (row k of a log's ctrl is the control
-//   applied at sample k, ../../shared/DESIGN.md §3).
+//   applied at sample k, docs/numerics.md "Time convention").
 // - Shapes (io::ExcitationType):
 //   - sines: sum of sines at the given frequencies, each with a random phase, scaled so that the
 //     largest |value| over the horizon equals the amplitude exactly;

@@ -7,9 +7,9 @@
 //   parameters without a truth entry keep the model's value), generate simulate.sequences control
 //   sequences of simulate.steps samples (sysid/sim/excitation.h), roll them out from
 //   simulate.initial_state (default: qpos0, zero velocity, time 0) and add the sensor noise.
-// - The returned log (sensor_time "pre", ../../shared/DESIGN.md §3) has one sequence per rollout:
-//   "seq0", "seq1", ... with one model; with several models, "MODEL_seq0", "MODEL_seq1", ... (a
-//   '/' is not allowed in a group name), model by model. Each sequence holds time (k * timestep),
+// - The returned log (sensor_time "pre", docs/numerics.md "Time convention") has one sequence per
+//   rollout: "seq0", "seq1", ... with one model; with several models, "MODEL_seq0", ... (a '/' is
+//   not allowed in a group name), model by model. Each sequence holds time (k * timestep),
 //   ctrl (clipped to the ctrlranges), sensordata (every sensor of the model, model order, with
 //   noise), and the true qpos, qvel (and act when na > 0) x_0 .. x_{T-1}, so that a user can
 //   check state estimation. Re-simulating ctrl from x_0 with the true parameters through a

@@ -5,6 +5,8 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#include <thread>
+#include <vector>
 
 namespace mjsysid {
 namespace {
@@ -45,12 +47,85 @@ TEST(MujocoEnvTest, BrokenModelIsAnErrorNotAnExit) {
 TEST(MujocoEnvTest, LibraryErrorThrowsInsteadOfExiting) {
   InstallMujocoHandlers();
   ModelPtr m = LoadModel(kModels + "/pendulum.xml");
-  // an invalid state signature makes MuJoCo call mju_error
+  // an invalid state signature makes MuJoCo call mju_error; called directly, outside CallMujoco:
+  // the handler's last resort throws through MuJoCo's frames
   try {
     mj_stateSize(m.get(), 1 << 30);
     FAIL() << "expected MujocoError";
   } catch (const MujocoError& e) {
     EXPECT_NE(std::string(e.what()).find("MuJoCo error"), std::string::npos) << e.what();
+  }
+}
+
+TEST(MujocoEnvTest, CallMujocoTurnsAnErrorIntoAnExceptionFromItsOwnFrame) {
+  InstallMujocoHandlers();
+  ModelPtr m = LoadModel(kModels + "/pendulum.xml");
+  int size = -1;
+  // MuJoCo's message, whole; the code after the failing call inside the lambda never runs
+  try {
+    CallMujoco([&] {
+      size = mj_stateSize(m.get(), 1 << 30);
+      size = -2;
+    });
+    FAIL() << "expected MujocoError";
+  } catch (const MujocoError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "MuJoCo error: mj_stateSize: invalid state signature 1073741824 >= 2^mjNSTATE");
+  }
+  EXPECT_EQ(size, -1);
+  // a successful call returns normally
+  CallMujoco([&] { size = mj_stateSize(m.get(), mjSTATE_QPOS); });
+  EXPECT_EQ(size, m->nq);
+}
+
+TEST(MujocoEnvTest, NestedCallsAndErrorsAfterAJumpLandInTheRightFrame) {
+  InstallMujocoHandlers();
+  ModelPtr m = LoadModel(kModels + "/pendulum.xml");
+  // an inner error is caught by the inner call; the outer call goes on and sees its own error
+  std::string inner;
+  try {
+    CallMujoco([&] {
+      try {
+        CallMujoco([&] { mj_stateSize(m.get(), -1); });
+      } catch (const MujocoError& e) {
+        inner = e.what();
+      }
+      mj_stateSize(m.get(), 1 << 29);
+    });
+    FAIL() << "expected MujocoError";
+  } catch (const MujocoError& e) {
+    EXPECT_NE(std::string(e.what()).find("536870912"), std::string::npos) << e.what();
+  }
+  EXPECT_NE(inner.find("invalid state signature -1 < 0"), std::string::npos) << inner;
+  // every call disarmed its target: an error outside any call is the last resort (thrown from the
+  // handler), not a jump into a frame that has returned
+  EXPECT_THROW(mj_stateSize(m.get(), -3), MujocoError);
+}
+
+TEST(MujocoEnvTest, EachThreadGetsItsOwnErrorMessage) {
+  InstallMujocoHandlers();
+  ModelPtr m = LoadModel(kModels + "/pendulum.xml");
+  // four threads raise errors with different messages at the same time, many times each
+  std::vector<int> wrong(4, 0), caught(4, 0);
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 4; ++t) {
+    threads.emplace_back([&, t] {
+      const int sig = -(t + 1);
+      const std::string expected = "invalid state signature " + std::to_string(sig) + " < 0";
+      for (int i = 0; i < 2000; ++i) {
+        try {
+          CallMujoco([&] { mj_stateSize(m.get(), sig); });
+        } catch (const MujocoError& e) {
+          ++caught[t];
+          wrong[t] += std::string(e.what()).find(expected) == std::string::npos;
+        }
+      }
+    });
+  }
+  for (std::thread& th : threads) th.join();
+  for (int t = 0; t < 4; ++t) {
+    EXPECT_EQ(caught[t], 2000) << t;
+    EXPECT_EQ(wrong[t], 0) << t;
   }
 }
 
@@ -68,7 +143,7 @@ TEST(MujocoEnvTest, ArenaOverflowInsideStepThrowsAndDataRecovers) {
   std::string message;
   for (int k = 0; k < 2000 && message.empty(); ++k) {
     try {
-      mj_step(m.get(), d.get());
+      mj_step(m.get(), d.get());  // unwrapped: the last resort, as in the test above
     } catch (const MujocoError& e) {
       message = e.what();
     }

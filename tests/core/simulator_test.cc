@@ -1,5 +1,6 @@
 // rollouts and chained Jacobians of the simulator: time convention, agreement of the three modes
-// with central whole-rollout differences, a closed-form oracle, thread-count invariance, failures
+// with central whole-rollout differences, a closed-form oracle, thread-count invariance, failures,
+// recovery after MuJoCo errors, constraint-solver warnings
 #include "core/simulator.h"
 
 #include <gtest/gtest.h>
@@ -464,6 +465,185 @@ TEST(SimulatorTest, ParameterWithoutEffectIsAnErrorNotAZeroColumn) {
     const Sensitivity s = sim.Jacobians(seq, tr, opt);
     EXPECT_TRUE(s.DxDp.col(1).isZero(0));
     EXPECT_FALSE(s.DxDp.col(0).isZero(0));
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// MuJoCo errors in workers: an error, then the same results as a fresh simulator
+
+// ten free boxes falling above a floor in an 8 KB arena: free fall fits (1.5 KB of stack), but
+// a 3 m margin on one box makes it touch all the others and overflows the stack in the
+// collision, and mjd_transitionFD (nx^2 doubles of stack) overflows it at once: both are MuJoCo
+// errors (mju_error) inside worker tasks. Each leaves stack marked in the worker's mjData (4.3 KB
+// for the collision, measured) until mj_resetData.
+std::string FallingBoxesXml() {
+  std::string xml =
+      "<mujoco><size memory=\"8K\"/><worldbody><geom type=\"plane\" size=\"5 5 .1\"/>";
+  for (int i = 0; i < 10; ++i) {
+    xml += "<body pos=\"" + std::to_string(0.5 * (i % 5)) + " " + std::to_string(0.5 * (i / 5)) +
+           " 1\"><freejoint/><geom type=\"box\" size=\".1 .1 .1\"/></body>";
+  }
+  return xml + "</worldbody><sensor><framepos objtype=\"xbody\" objname=\"world\"/>" +
+         "<framelinvel objtype=\"body\" objname=\"world\"/></sensor></mujoco>";
+}
+
+TEST(SimulatorTest, MujocoErrorInAWorkerIsAnExceptionAndTheWorkerIsReset) {
+  ModelPtr model = LoadModelFromString(FallingBoxesXml());
+  // the margin of the second box (geom 2) and the initial state as columns
+  ParameterSpec margin;
+  margin.kind = "field";
+  margin.field = "geom_margin";
+  margin.index = 2;
+  const std::vector<ParameterSpec> params = {margin};
+  Simulator sim(*model, params), fresh(*model, params);
+  SequenceInput seq{sim.ReferenceState(), RowMatrix::Zero(20, 0)};
+  const Trajectory nominal = sim.Rollout(seq), fresh_nominal = fresh.Rollout(seq);
+  ASSERT_EQ(nominal.ncon[19], 0) << "the boxes must still be in the air";
+
+  // failing calls, five times each (a leftover stack mark would add up): a 3 m margin step in a
+  // directional column task, and mjd_transitionFD in the time-step tasks of matrix mode
+  JacobianOptions failing;
+  failing.parameter_steps = {3.0};
+  failing.zero_column_is_error = false;
+  for (JacobianMode mode : {JacobianMode::kDirectional, JacobianMode::kMatrix}) {
+    failing.mode = mode;
+    const std::string where =
+        mode == JacobianMode::kMatrix ? "at mjd_transitionFD" : "at mj_instantiateContact";
+    for (int attempt = 0; attempt < 5; ++attempt) {
+      try {
+        sim.Jacobians(seq, nominal, failing);
+        ADD_FAILURE() << "expected MujocoError, " << JacobianModeName(mode);
+      } catch (const MujocoError& e) {
+        // MuJoCo's message, whole
+        const std::string what = e.what();
+        EXPECT_EQ(
+            what.rfind("MuJoCo error: mj_stackAlloc: out of memory, stack overflow " + where, 0), 0)
+            << what;
+        EXPECT_NE(what.find("increase <size memory"), std::string::npos) << what;
+      }
+    }
+  }
+
+  // the same simulator gives bit for bit what a fresh one gives: Jacobians first (a rollout
+  // resets the data of its worker anyway), then a rollout
+  for (JacobianMode mode : {JacobianMode::kDirectional, JacobianMode::kWholeRollout}) {
+    JacobianOptions opt;
+    opt.mode = mode;
+    opt.initial_state = true;
+    opt.zero_column_is_error = false;
+    const Sensitivity a = sim.Jacobians(seq, nominal, opt);
+    const Sensitivity b = fresh.Jacobians(seq, fresh_nominal, opt);
+    EXPECT_TRUE((a.DxDp.array() == b.DxDp.array()).all()) << JacobianModeName(mode);
+    EXPECT_TRUE((a.DyDp.array() == b.DyDp.array()).all()) << JacobianModeName(mode);
+    EXPECT_GT(a.DxDp.cwiseAbs().maxCoeff(), 0.5) << "the initial-state columns are not zero";
+  }
+  const Trajectory a = sim.Rollout(seq);
+  EXPECT_TRUE((a.states.array() == fresh_nominal.states.array()).all());
+  EXPECT_TRUE((a.sensors.array() == fresh_nominal.sensors.array()).all());
+}
+
+TEST(SimulatorTest, MujocoErrorInSetParametersKeepsThePreviousValues) {
+  // a zero mass on a body that only slides: mj_setConst stops with a MuJoCo error
+  ModelPtr model = LoadModel(kModels + "/spring_mass.xml");
+  const std::vector<ParameterSpec> params = {Spec("body_mass", "mass")};
+  Simulator sim(*model, params), fresh(*model, params);
+  Eigen::VectorXd value(1);
+  value << 1.7;
+  sim.SetParameters(value);
+  fresh.SetParameters(value);
+  value << 0.0;
+  try {
+    sim.SetParameters(value);
+    FAIL() << "expected MujocoError";
+  } catch (const MujocoError& e) {
+    EXPECT_NE(std::string(e.what()).find("has 0 mass"), std::string::npos) << e.what();
+  }
+  // the model is the one of the last successful call, derived constants included
+  EXPECT_EQ(sim.GetParameters()[0], 1.7);
+  SequenceInput seq{sim.ReferenceState(), SineControls(*model, 200, 2.0)};
+  const Trajectory a = sim.Rollout(seq), b = fresh.Rollout(seq);
+  EXPECT_TRUE((a.states.array() == b.states.array()).all());
+  EXPECT_TRUE((a.sensors.array() == b.sensors.array()).all());
+}
+
+// ---------------------------------------------------------------------------------------------
+// constraint solvers that are not Newton, and solves that stop at the iteration cap
+
+struct SolverRun {
+  SolverStats nominal;
+  std::vector<std::string> warnings;
+};
+
+// a Jacobian of the box pushed along the floor with the given solver and iteration cap
+SolverRun SlidingBox(int solver, int iterations, JacobianMode mode) {
+  ModelPtr model = LoadModel(kModels + "/box_floor.xml");
+  model->opt.solver = solver;
+  model->opt.iterations = iterations;
+  Simulator sim(*model, {Spec("geom_friction", "box", 0), Spec("body_mass", "box")});
+  SequenceInput seq{sim.ReferenceState(), SineControls(*model, 100, 5.0, 15.0)};
+  const Trajectory nominal = sim.Rollout(seq);
+  JacobianOptions opt;
+  opt.mode = mode;
+  return {nominal.solver, sim.Jacobians(seq, nominal, opt).warnings};
+}
+
+// the warning that starts with prefix, or "" when there is none
+std::string Find(const std::vector<std::string>& warnings, const std::string& prefix) {
+  for (const std::string& w : warnings) {
+    if (w.rfind(prefix, 0) == 0) return w;
+  }
+  return "";
+}
+
+// the counts of an iteration-cap warning
+struct CapCounts {
+  int iterations = -1, nominal_capped = -1, nominal = -1, perturbed_capped = -1, perturbed = -1;
+};
+CapCounts ParseCap(const std::string& w) {
+  CapCounts c;
+  std::sscanf(w.c_str(),
+              "constraint solver stopped at its iteration cap (opt.iterations = %d) in %d of %d "
+              "nominal and %d of %d perturbed",
+              &c.iterations, &c.nominal_capped, &c.nominal, &c.perturbed_capped, &c.perturbed);
+  return c;
+}
+
+TEST(SimulatorTest, PgsSolverAndIterationCapAreWarnedWithCounts) {
+  const std::string cap = "constraint solver stopped at its iteration cap";
+  for (JacobianMode mode : {JacobianMode::kDirectional, JacobianMode::kMatrix}) {
+    const char* name = JacobianModeName(mode);
+    // PGS capped at 3 iterations: at the core's tolerance (1e-10) most solves stop at the cap
+    // (measured: 53 of 73 nominal steps with contacts)
+    const SolverRun pgs = SlidingBox(mjSOL_PGS, 3, mode);
+    EXPECT_GT(pgs.nominal.solved, 50) << "the box slides in contact with the floor";
+    EXPECT_GT(pgs.nominal.capped, pgs.nominal.solved / 2);
+    EXPECT_NE(Find(pgs.warnings, "constraint solver is PGS, not Newton"), "") << name;
+    const CapCounts c = ParseCap(Find(pgs.warnings, cap));
+    EXPECT_EQ(c.iterations, 3) << name;
+    EXPECT_EQ(c.nominal_capped, pgs.nominal.capped) << name;
+    EXPECT_EQ(c.nominal, pgs.nominal.solved) << name;
+    // one perturbed step per parameter (2) and time step, more where both sides were taken
+    EXPECT_GE(c.perturbed, 2 * pgs.nominal.solved) << name;
+    EXPECT_GT(c.perturbed_capped, c.perturbed / 2) << name;
+    EXPECT_LE(c.perturbed_capped, c.perturbed) << name;
+
+    // CG is not Newton either
+    EXPECT_NE(Find(SlidingBox(mjSOL_CG, 100, mode).warnings, "constraint solver is CG, not Newton"),
+              "")
+        << name;
+    // Newton with MuJoCo's default cap (100) converges: no solver warning at all
+    const SolverRun newton = SlidingBox(mjSOL_NEWTON, 100, mode);
+    EXPECT_GT(newton.nominal.solved, 50);
+    EXPECT_EQ(newton.nominal.capped, 0);
+    EXPECT_EQ(Find(newton.warnings, "constraint solver"), "") << name;
+    // Newton capped at one iteration does not converge on the sliding contact: counted
+    const SolverRun newton1 = SlidingBox(mjSOL_NEWTON, 1, mode);
+    const CapCounts c1 = ParseCap(Find(newton1.warnings, cap));
+    EXPECT_EQ(Find(newton1.warnings, "constraint solver is"), "") << name;
+    EXPECT_EQ(c1.iterations, 1) << name;
+    EXPECT_GT(c1.nominal_capped, 0) << name;
+    EXPECT_EQ(c1.nominal_capped, newton1.nominal.capped) << name;
+    EXPECT_GT(c1.perturbed_capped, 0) << name;
   }
 }
 

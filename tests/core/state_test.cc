@@ -44,6 +44,27 @@ INSTANTIATE_TEST_SUITE_P(Models, StepSkipTest,
                                            std::make_pair("box_floor.xml", mjINT_IMPLICIT),
                                            std::make_pair("ball_pendulum.xml", mjINT_RK4)));
 
+// a MuJoCo error inside StepSkip (here its own check of the integrator) is a MujocoError, and the
+// data steps again after mj_resetData
+TEST(StepSkipTest, MujocoErrorIsAnExceptionAndDataStepsAfterReset) {
+  ModelPtr m = LoadModel(kModels + "/pendulum.xml");
+  DataPtr d = MakeData(*m);
+  m->opt.integrator = 42;
+  try {
+    StepSkip(m.get(), d.get(), mjSTAGE_NONE, false);
+    FAIL() << "expected MujocoError";
+  } catch (const MujocoError& e) {
+    EXPECT_EQ(std::string(e.what()), "MuJoCo error: StepSkip: invalid integrator 42");
+  }
+  m->opt.integrator = mjINT_EULER;
+  mj_resetData(m.get(), d.get());
+  DataPtr fresh = MakeData(*m);
+  StepSkip(m.get(), d.get(), mjSTAGE_NONE, false);
+  mj_step(m.get(), fresh.get());
+  EXPECT_EQ(d->qpos[0], fresh->qpos[0]);
+  EXPECT_EQ(d->qvel[0], fresh->qvel[0]);
+}
+
 // skipping the position stage after an unchanged forward pass changes nothing
 TEST(StepSkipTest, SkipAfterForwardEqualsFullStep) {
   ModelPtr m = LoadModel(kModels + "/box_floor.xml");
