@@ -216,7 +216,7 @@ def make_modifier(p: dict):
 
 
 def check_writer(spec: mujoco.MjSpec, p: dict, param) -> None:
-  """Every writer must change the compiled model (DESIGN.md §5): compare with the model field."""
+  """Every writer must change the compiled model (docs/numerics.md, "MuJoCo traps"): compare with the model field."""
   field = {"body_mass": ("body", "mass"), "body_mass_inertia": ("body", "mass"),
            "geom_friction": ("geom", "friction"), "joint_damping": ("dof", "damping"),
            "joint_stiffness": ("jnt", "stiffness"), "joint_frictionloss": ("dof", "frictionloss"),
