@@ -3,17 +3,15 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
-#include <cctype>
-#include <cerrno>
 #include <cmath>
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <set>
+#include <limits>
 #include <sstream>
 #include <utility>
 
 #include "core/names.h"
+#include "sysid/io/yaml_reader.h"
 
 namespace mjsysid::io {
 namespace {
@@ -22,151 +20,18 @@ namespace fs = std::filesystem;
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-// ---------------------------------------------------------------------------------------------
-// text helpers
-
-std::string FormatNumber(double x) {
-  if (std::isinf(x)) return x > 0 ? ".inf" : "-.inf";
-  std::ostringstream out;
-  out.precision(10);
-  out << x;
-  return out.str();
-}
-
-std::string Quote(const std::string& s) { return "'" + s + "'"; }
-
-// ---------------------------------------------------------------------------------------------
-// scalar conversion (YAML 1.2 core schema numbers; quoted scalars are strings)
-
-std::optional<double> ToDouble(const std::string& s) {
-  std::string lower = s;
-  for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  if (lower == ".inf" || lower == "+.inf") return kInf;
-  if (lower == "-.inf") return -kInf;
-  if (lower == ".nan") return std::numeric_limits<double>::quiet_NaN();
-  if (s.empty() || s.find_first_not_of("0123456789+-.eE") != std::string::npos) return std::nullopt;
-  if (s.find_first_of("0123456789") == std::string::npos) return std::nullopt;
-  char* end = nullptr;
-  errno = 0;
-  const double value = std::strtod(s.c_str(), &end);
-  if (end != s.c_str() + s.size() || errno == ERANGE) return std::nullopt;
-  return value;
-}
-
-std::optional<long long> ToInteger(const std::string& s) {
-  if (s.empty() || s.find_first_not_of("0123456789+-") != std::string::npos) return std::nullopt;
-  char* end = nullptr;
-  errno = 0;
-  const long long value = std::strtoll(s.c_str(), &end, 10);
-  if (end != s.c_str() + s.size() || errno == ERANGE) return std::nullopt;
-  return value;
-}
-
-// quoted ('x', "x") or explicitly tagged !!str scalars are strings, never numbers or booleans
-bool IsQuoted(const YAML::Node& n) { return n.Tag() == "!" || n.Tag() == "tag:yaml.org,2002:str"; }
-
-// how a node looks, for type errors: "a map", "a list", "the string 'abc'", ...
-std::string Describe(const YAML::Node& n) {
-  switch (n.Type()) {
-    case YAML::NodeType::Map:
-      return "a map";
-    case YAML::NodeType::Sequence:
-      return "a list";
-    case YAML::NodeType::Scalar:
-      if (IsQuoted(n)) return "the quoted string \"" + n.Scalar() + "\"";
-      if (ToDouble(n.Scalar())) return "the number " + n.Scalar();
-      return "the string " + Quote(n.Scalar());
-    case YAML::NodeType::Null:
-    case YAML::NodeType::Undefined:
-      break;
-  }
-  return "an empty value";
-}
-
-// ---------------------------------------------------------------------------------------------
-// parsing
-
-// a value being read: the node, where it is, and its dotted path for messages
-struct Field {
-  YAML::Node node;
-  Mark mark;
-  std::string path;
-};
-
-class Parser;
-
-// the keys of one YAML map: checks type, unknown and duplicate keys on construction
-class MapReader {
- public:
-  MapReader(const Parser& parser, const Field& field, std::vector<std::string> keys);
-
-  bool Has(const std::string& key) const { return entries_.count(key) > 0; }
-  // the value of a key that Has(); its mark is the key's when the value is empty
-  Field Get(const std::string& key) const;
-  // the position of a key itself
-  const Mark& KeyMark(const std::string& key) const { return entries_.at(key).key_mark; }
-  // throws "missing required key" unless Has(key)
-  void Require(const std::string& key, const std::string& hint = {}) const;
-  std::string Path(const std::string& key) const {
-    return field_.path.empty() ? key : field_.path + "." + key;
-  }
-  const Field& field() const { return field_; }
-  Marks marks() const;
-
- private:
-  struct Entry {
-    YAML::Node value;
-    Mark key_mark;
-    Mark value_mark;
-  };
-  const Parser& parser_;
-  Field field_;
-  std::vector<std::string> keys_;
-  std::map<std::string, Entry> entries_;
-};
-
-class Parser {
+// The experiment schema (docs/experiment-schema.md) on top of the YAML reader.
+class Parser : public YamlReader {
  public:
   // file: as named in marks; base_dir: for relative paths; default_name: when `name` is absent
   Parser(std::string file, fs::path base_dir, std::string default_name)
-      : file_(std::move(file)),
-        base_dir_(std::move(base_dir)),
-        default_name_(std::move(default_name)) {}
+      : YamlReader(std::move(file), std::move(base_dir)), default_name_(std::move(default_name)) {}
 
   ExperimentConfig Parse(const YAML::Node& root);
 
-  Mark At(const YAML::Node& n, const Mark& fallback) const {
-    if (!n.IsDefined() || n.IsNull() || n.Mark().is_null()) return fallback;
-    return Mark{file_, n.Mark().line + 1, n.Mark().column + 1};
-  }
-  Mark At(const YAML::Node& n) const { return At(n, Mark{file_, 1, 1}); }
-
-  [[noreturn]] void Fail(const Mark& mark, const std::string& message,
-                         const std::string& hint = {}) const {
-    throw ConfigError(mark, message, hint);
-  }
-
-  // typed scalar readers; all fail with the value's path, what was expected and what was found
-  double Number(const Field& f) const;
-  double Finite(const Field& f) const;
-  double Positive(const Field& f) const;
-  double NonNegative(const Field& f) const;
-  long long Integer(const Field& f, long long min, long long max) const;
-  bool Bool(const Field& f) const;
-  std::string String(const Field& f) const;
-  std::string Name(const Field& f) const;  // a non-empty string
-  size_t Enum(const Field& f, const std::vector<std::string>& allowed) const;
-  std::vector<Field> List(const Field& f) const;
-  std::vector<double> Numbers(const Field& f) const;
-  std::string ResolvePath(const Field& f) const;
-
-  // [lower, upper] with lower < upper
-  void Bounds(const Field& f, double* lower, double* upper) const;
-
+ private:
   // a map of arbitrary names to finite numbers, in file order
   std::vector<NamedValue> NamedValues(const Field& f) const;
-
- private:
   void ParseModels(const MapReader& root, ExperimentConfig* c) const;
   void ParseData(const Field& f, ExperimentConfig* c) const;
   void ParseSequences(const Field& f, ExperimentConfig* c) const;
@@ -178,170 +43,8 @@ class Parser {
   void ParseSimulate(const Field& f, const ExperimentConfig& c, SimulateOptions* s) const;
   Excitation ParseExcitation(const Field& f, bool needs_actuator) const;
 
-  std::string file_;
-  fs::path base_dir_;
   std::string default_name_;
 };
-
-MapReader::MapReader(const Parser& parser, const Field& field, std::vector<std::string> keys)
-    : parser_(parser), field_(field), keys_(std::move(keys)) {
-  const std::string where = field_.path.empty() ? "the experiment" : field_.path;
-  if (!field_.node.IsMap()) {
-    parser_.Fail(field_.mark, where + ": expected a map, got " + Describe(field_.node),
-                 "valid keys: " + JoinNames(keys_));
-  }
-  for (auto it = field_.node.begin(); it != field_.node.end(); ++it) {
-    const Mark key_mark = parser_.At(it->first, field_.mark);
-    if (!it->first.IsScalar()) {
-      parser_.Fail(key_mark, where + ": keys must be plain names, got " + Describe(it->first),
-                   "valid keys: " + JoinNames(keys_));
-    }
-    const std::string key = it->first.Scalar();
-    if (std::find(keys_.begin(), keys_.end(), key) == keys_.end()) {
-      parser_.Fail(key_mark, "unknown key " + Quote(key) + " in " + where,
-                   NamesHint(key, keys_, "keys of " + where));
-    }
-    if (const auto seen = entries_.find(key); seen != entries_.end()) {
-      parser_.Fail(key_mark, "duplicate key " + Quote(key) + " in " + where,
-                   "first given at line " + std::to_string(seen->second.key_mark.line));
-    }
-    entries_[key] = Entry{it->second, key_mark, parser_.At(it->second, key_mark)};
-  }
-}
-
-Field MapReader::Get(const std::string& key) const {
-  const Entry& e = entries_.at(key);
-  return Field{e.value, e.value_mark, Path(key)};
-}
-
-void MapReader::Require(const std::string& key, const std::string& hint) const {
-  if (Has(key)) return;
-  const std::string where = field_.path.empty() ? "the experiment (top level)" : field_.path;
-  parser_.Fail(field_.mark, "missing required key " + Quote(key) + " in " + where,
-               hint.empty() ? "add '" + key + ": ...'" : hint);
-}
-
-Marks MapReader::marks() const {
-  Marks m;
-  m.self = field_.mark;
-  for (const auto& [key, entry] : entries_) m.keys[key] = entry.value_mark;
-  return m;
-}
-
-double Parser::Number(const Field& f) const {
-  if (f.node.IsScalar() && !IsQuoted(f.node)) {
-    if (const auto value = ToDouble(f.node.Scalar())) return *value;
-  }
-  Fail(f.mark, f.path + ": expected a number, got " + Describe(f.node),
-       IsQuoted(f.node) ? "remove the quotes" : "e.g. 1.5, 2e-3, .inf or -.inf");
-}
-
-double Parser::Finite(const Field& f) const {
-  const double x = Number(f);
-  if (!std::isfinite(x)) Fail(f.mark, f.path + ": must be a finite number, got " + f.node.Scalar());
-  return x;
-}
-
-double Parser::Positive(const Field& f) const {
-  const double x = Finite(f);
-  if (!(x > 0)) Fail(f.mark, f.path + ": must be > 0, got " + f.node.Scalar());
-  return x;
-}
-
-double Parser::NonNegative(const Field& f) const {
-  const double x = Finite(f);
-  if (!(x >= 0)) Fail(f.mark, f.path + ": must be >= 0, got " + f.node.Scalar());
-  return x;
-}
-
-long long Parser::Integer(const Field& f, long long min, long long max) const {
-  std::optional<long long> value;
-  if (f.node.IsScalar() && !IsQuoted(f.node)) value = ToInteger(f.node.Scalar());
-  if (!value) {
-    Fail(f.mark, f.path + ": expected an integer, got " + Describe(f.node),
-         IsQuoted(f.node) ? "remove the quotes" : "a whole number without a decimal point");
-  }
-  if (*value < min || *value > max) {
-    const std::string range = max >= std::numeric_limits<int>::max()
-                                  ? ">= " + std::to_string(min)
-                                  : "in " + std::to_string(min) + ".." + std::to_string(max);
-    Fail(f.mark, f.path + ": must be " + range + ", got " + f.node.Scalar());
-  }
-  return *value;
-}
-
-bool Parser::Bool(const Field& f) const {
-  if (f.node.IsScalar() && !IsQuoted(f.node)) {
-    const std::string s = f.node.Scalar();
-    if (s == "true" || s == "True" || s == "TRUE") return true;
-    if (s == "false" || s == "False" || s == "FALSE") return false;
-  }
-  Fail(f.mark, f.path + ": expected true or false, got " + Describe(f.node));
-}
-
-std::string Parser::String(const Field& f) const {
-  if (!f.node.IsScalar()) Fail(f.mark, f.path + ": expected a string, got " + Describe(f.node));
-  return f.node.Scalar();
-}
-
-std::string Parser::Name(const Field& f) const {
-  std::string s = String(f);
-  if (s.empty()) Fail(f.mark, f.path + ": must not be empty");
-  return s;
-}
-
-size_t Parser::Enum(const Field& f, const std::vector<std::string>& allowed) const {
-  const std::string s = String(f);
-  const auto it = std::find(allowed.begin(), allowed.end(), s);
-  if (it == allowed.end()) {
-    std::string hint;
-    const std::string closest = ClosestName(s, allowed);
-    if (!closest.empty()) hint = "did you mean '" + closest + "'? ";
-    Fail(f.mark, f.path + ": " + Quote(s) + " is not one of " + JoinNames(allowed),
-         hint + "allowed values: " + JoinNames(allowed));
-  }
-  return static_cast<size_t>(it - allowed.begin());
-}
-
-std::vector<Field> Parser::List(const Field& f) const {
-  if (!f.node.IsSequence()) Fail(f.mark, f.path + ": expected a list, got " + Describe(f.node));
-  std::vector<Field> items;
-  for (size_t i = 0; i < f.node.size(); ++i) {
-    const YAML::Node item = f.node[i];
-    items.push_back(Field{item, At(item, f.mark), f.path + "[" + std::to_string(i) + "]"});
-  }
-  return items;
-}
-
-std::vector<double> Parser::Numbers(const Field& f) const {
-  std::vector<double> out;
-  for (const Field& item : List(f)) out.push_back(Finite(item));
-  return out;
-}
-
-std::string Parser::ResolvePath(const Field& f) const {
-  fs::path p(Name(f));
-  if (p.is_relative()) p = base_dir_ / p;
-  return p.lexically_normal().string();
-}
-
-void Parser::Bounds(const Field& f, double* lower, double* upper) const {
-  const std::vector<Field> items = List(f);
-  if (items.size() != 2) {
-    Fail(f.mark,
-         f.path + ": expected [lower, upper], got a list of " + std::to_string(items.size()) +
-             " values",
-         "use .inf / -.inf for a missing bound");
-  }
-  const double lo = Number(items[0]), hi = Number(items[1]);
-  if (std::isnan(lo) || std::isnan(hi) || !(lo < hi)) {
-    Fail(f.mark, f.path + ": lower bound " + FormatNumber(lo) + " must be < upper bound " +
-                     FormatNumber(hi));
-  }
-  if (lo == kInf || hi == -kInf) Fail(f.mark, f.path + ": bounds leave no feasible value");
-  *lower = lo;
-  *upper = hi;
-}
 
 std::vector<NamedValue> Parser::NamedValues(const Field& f) const {
   if (!f.node.IsMap()) {
@@ -380,30 +83,6 @@ const std::vector<std::string> kJacobianModes = {"auto", "directional", "matrix"
 const std::vector<std::string> kDifferences = {"forward", "central"};
 const std::vector<std::string> kLossTypes = {"none", "huber", "cauchy"};
 const std::vector<std::string> kExcitationTypes = {"sines", "chirp", "prbs", "zero"};
-
-// core's ParameterError as a ConfigError at the parameter's key it is about, with core's message
-// (followed by context) and hint
-ConfigError AtSpecPart(const ParameterSpec& p, const ParameterError& e,
-                       const std::string& context = {}) {
-  const char* key = "";
-  switch (e.part()) {
-    case ParameterSpecPart::kKind:
-      key = "target";
-      break;
-    case ParameterSpecPart::kObject:
-      key = "object";
-      break;
-    case ParameterSpecPart::kField:
-      key = "field";
-      break;
-    case ParameterSpecPart::kIndex:
-      key = "index";
-      break;
-    case ParameterSpecPart::kNone:
-      break;
-  }
-  return ConfigError(p.marks.Of(key), e.message() + context, e.hint());
-}
 
 ExperimentConfig Parser::Parse(const YAML::Node& root) {
   ExperimentConfig c;
@@ -646,7 +325,7 @@ ParameterSpec Parser::ParseParameter(const Field& f, const ExperimentConfig& c) 
   try {
     CheckParameterSpec(p.target);
   } catch (const ParameterError& e) {
-    throw AtSpecPart(p, e);
+    throw ParameterErrorAt(p, e);
   }
 
   // value, bounds, transform
@@ -875,75 +554,34 @@ void Parser::ParseSimulate(const Field& f, const ExperimentConfig& c, SimulateOp
   }
 }
 
-// ---------------------------------------------------------------------------------------------
-// model checks
-
-// the names of a model's objects of one type, in id order (unnamed ones left out)
-std::vector<std::string> ObjectNames(const mjModel& m, mjtObj type, long long count) {
-  std::vector<std::string> names;
-  for (long long i = 0; i < count; ++i) {
-    const char* name = mj_id2name(&m, type, static_cast<int>(i));
-    if (name && *name) names.push_back(name);
-  }
-  return names;
-}
-
-// the id of a named object, or a ConfigError at mark
-int RequireObject(const mjModel& m, mjtObj type, long long count, const std::string& what,
-                  const std::string& name, const Mark& mark, const std::string& model_label) {
-  const int id = mj_name2id(&m, type, name.c_str());
-  if (id < 0) {
-    throw ConfigError(mark, "no " + what + " named " + Quote(name) + " in " + model_label,
-                      NamesHint(name, ObjectNames(m, type, count), what + " names"));
-  }
-  return id;
-}
-
-// a parameter resolved against m by core; its ParameterError as a ConfigError
-void ValidateParameter(const ParameterSpec& p, const mjModel& m, const std::string& label) {
-  try {
-    Parameter::Resolve(m, p.target);
-  } catch (const ParameterError& e) {
-    throw AtSpecPart(p, e, " in " + label);
-  }
-}
-
-void CheckSensor(const mjModel& m, const std::string& name, const Mark& mark,
-                 const std::string& label) {
-  RequireObject(m, mjOBJ_SENSOR, m.nsensor, "sensor", name, mark, label);
-}
-
-void CheckSize(const std::vector<double>& values, long long expected, const Mark& mark,
-               const std::string& what, const std::string& label) {
-  if (!values.empty() && static_cast<long long>(values.size()) != expected) {
-    throw ConfigError(mark,
-                      what + " has " + std::to_string(values.size()) + " values, " + label +
-                          " needs " + std::to_string(expected),
-                      "leave it out to start from the model's default");
-  }
-}
-
 }  // namespace
+
+// core's ParameterError as a ConfigError at the parameter's key it is about, with core's message
+// (followed by context) and hint
+ConfigError ParameterErrorAt(const ParameterSpec& p, const ParameterError& e,
+                             const std::string& context) {
+  const char* key = "";
+  switch (e.part()) {
+    case ParameterSpecPart::kKind:
+      key = "target";
+      break;
+    case ParameterSpecPart::kObject:
+      key = "object";
+      break;
+    case ParameterSpecPart::kField:
+      key = "field";
+      break;
+    case ParameterSpecPart::kIndex:
+      key = "index";
+      break;
+    case ParameterSpecPart::kNone:
+      break;
+  }
+  return ConfigError(p.marks.Of(key), e.message() + context, e.hint());
+}
 
 // ---------------------------------------------------------------------------------------------
 // public api
-
-std::string Mark::ToString() const {
-  if (line <= 0) return file;
-  return file + ":" + std::to_string(line) + ":" + std::to_string(column);
-}
-
-const Mark& Marks::Of(const std::string& key) const {
-  const auto it = keys.find(key);
-  return it == keys.end() ? self : it->second;
-}
-
-ConfigError::ConfigError(Mark mark, std::string message, std::string hint)
-    : std::runtime_error(mark.ToString() + ": " + message +
-                         (hint.empty() ? "" : " (hint: " + hint + ")")),
-      mark_(std::move(mark)),
-      message_(std::move(message)),
-      hint_(std::move(hint)) {}
 
 std::vector<const ParameterSpec*> ExperimentConfig::ParametersOf(
     const std::string& model_name) const {
@@ -1009,58 +647,6 @@ ExperimentConfig LoadExperiment(const std::string& path) {
     throw ConfigError(mark, "cannot read experiment file: " + path, "check its permissions");
   }
   return ParseExperiment(text.str(), path);
-}
-
-void ValidateExperimentAgainstModel(const ExperimentConfig& config, const mjModel& m,
-                                    const std::string& model_name) {
-  // which model of the experiment this is
-  const ModelSpec* spec = model_name.empty() ? nullptr : config.FindModel(model_name);
-  if (!model_name.empty() && !spec) {
-    std::vector<std::string> names;
-    for (const ModelSpec& s : config.models) names.push_back(s.name);
-    throw ConfigError(config.marks.Of(config.model_list ? "models" : "model"),
-                      "model " + Quote(model_name) + " is not part of the experiment",
-                      NamesHint(model_name, names, "models"));
-  }
-  const std::string label =
-      spec ? "model " + Quote(spec->name) + " (" + spec->path + ")" : std::string("the model");
-
-  // sensors, parameters, measurement
-  for (const SensorSpec& s : config.sensors) CheckSensor(m, s.name, s.marks.Of("name"), label);
-  for (const ParameterSpec& p : config.parameters) {
-    if (p.AppliesTo(model_name)) ValidateParameter(p, m, label);
-  }
-  for (const MeasurementSpec& ms : config.measurement) {
-    CheckSensor(m, ms.sensor, ms.marks.Of("sensor"), label);
-  }
-
-  // simulate: noise sensors, excitation actuators, initial state sizes
-  const SimulateOptions& sim = config.simulate;
-  for (const NamedValue& n : sim.noise) CheckSensor(m, n.name, n.mark, label);
-  for (const Excitation& e : sim.excitation) {
-    if (!e.actuator.empty()) {
-      RequireObject(m, mjOBJ_ACTUATOR, m.nu, "actuator", e.actuator, e.marks.Of("actuator"), label);
-    }
-  }
-  CheckSize(sim.initial_state.qpos, static_cast<long long>(m.nq),
-            sim.initial_state.marks.Of("qpos"), "simulate.initial_state.qpos", label + " (nq)");
-  CheckSize(sim.initial_state.qvel, static_cast<long long>(m.nv),
-            sim.initial_state.marks.Of("qvel"), "simulate.initial_state.qvel", label + " (nv)");
-}
-
-void CheckModelFilesExist(const ExperimentConfig& config) {
-  for (const ModelSpec& spec : config.models) {
-    std::error_code ec;
-    const Mark& at = config.model_list ? spec.marks.Of("path") : spec.marks.self;
-    if (!fs::exists(spec.path, ec)) {
-      throw ConfigError(
-          at, "model file not found: " + spec.path,
-          "relative paths are relative to the experiment file's directory " + config.base_dir);
-    }
-    if (!fs::is_regular_file(spec.path, ec)) {
-      throw ConfigError(at, "model path is not a regular file: " + spec.path);
-    }
-  }
 }
 
 }  // namespace mjsysid::io

@@ -24,50 +24,13 @@
 #include <vector>
 
 #include "core/parameters.h"
+#include "sysid/io/marks.h"
 #include "sysid/types.h"
 
 namespace mjsysid::io {
 
 // the schema version this loader reads (the optional top-level key `version`)
 inline constexpr int kExperimentSchemaVersion = 1;
-
-// a position in a YAML file: 1-based line and column; 0 when unknown (e.g. a key left out)
-struct Mark {
-  std::string file;
-  int line = 0;
-  int column = 0;
-
-  // "file:line:column", or "file" when the line is unknown
-  std::string ToString() const;
-};
-
-// the mark of an element (self) and of each of its keys' values (keys), as given in the file
-struct Marks {
-  Mark self;
-  std::map<std::string, Mark> keys;
-
-  // the mark of key's value, or self when the key was not given
-  const Mark& Of(const std::string& key) const;
-};
-
-// a bad experiment file; what() is "FILE:LINE:COLUMN: message (hint: ...)"
-// (without ":LINE:COLUMN" when the position is unknown, without the hint when there is none)
-class ConfigError : public std::runtime_error {
- public:
-  ConfigError(Mark mark, std::string message, std::string hint = {});
-
-  const std::string& file() const { return mark_.file; }
-  int line() const { return mark_.line; }
-  int column() const { return mark_.column; }
-  const Mark& mark() const { return mark_; }
-  const std::string& message() const { return message_; }
-  const std::string& hint() const { return hint_; }
-
- private:
-  Mark mark_;
-  std::string message_;
-  std::string hint_;
-};
 
 // one model: `model: PATH` gives a single entry named after the file stem
 struct ModelSpec {
@@ -205,6 +168,11 @@ ExperimentConfig ParseExperiment(const std::string& yaml_text,
 // element, with a hint listing up to 20 valid names.
 void ValidateExperimentAgainstModel(const ExperimentConfig& config, const mjModel& m,
                                     const std::string& model_name);
+
+// core's ParameterError about parameter p as a ConfigError at the YAML key it is about (target,
+// object, field or index), with core's message followed by context, and core's hint
+ConfigError ParameterErrorAt(const ParameterSpec& p, const ParameterError& e,
+                             const std::string& context = {});
 
 // Throws ConfigError at the model entry whose file does not exist or is not a regular file.
 void CheckModelFilesExist(const ExperimentConfig& config);

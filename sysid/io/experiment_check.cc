@@ -1,0 +1,114 @@
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "core/names.h"
+#include "core/parameters.h"
+#include "sysid/io/experiment.h"
+#include "sysid/io/yaml_reader.h"
+
+namespace mjsysid::io {
+namespace {
+
+namespace fs = std::filesystem;
+
+// the names of a model's objects of one type, in id order (unnamed ones left out)
+std::vector<std::string> ObjectNames(const mjModel& m, mjtObj type, long long count) {
+  std::vector<std::string> names;
+  for (long long i = 0; i < count; ++i) {
+    const char* name = mj_id2name(&m, type, static_cast<int>(i));
+    if (name && *name) names.push_back(name);
+  }
+  return names;
+}
+
+// the id of a named object, or a ConfigError at mark
+int RequireObject(const mjModel& m, mjtObj type, long long count, const std::string& what,
+                  const std::string& name, const Mark& mark, const std::string& model_label) {
+  const int id = mj_name2id(&m, type, name.c_str());
+  if (id < 0) {
+    throw ConfigError(mark, "no " + what + " named " + Quote(name) + " in " + model_label,
+                      NamesHint(name, ObjectNames(m, type, count), what + " names"));
+  }
+  return id;
+}
+
+// a parameter resolved against m by core; its ParameterError as a ConfigError
+void ValidateParameter(const ParameterSpec& p, const mjModel& m, const std::string& label) {
+  try {
+    Parameter::Resolve(m, p.target);
+  } catch (const ParameterError& e) {
+    throw ParameterErrorAt(p, e, " in " + label);
+  }
+}
+
+void CheckSensor(const mjModel& m, const std::string& name, const Mark& mark,
+                 const std::string& label) {
+  RequireObject(m, mjOBJ_SENSOR, m.nsensor, "sensor", name, mark, label);
+}
+
+void CheckSize(const std::vector<double>& values, long long expected, const Mark& mark,
+               const std::string& what, const std::string& label) {
+  if (!values.empty() && static_cast<long long>(values.size()) != expected) {
+    throw ConfigError(mark,
+                      what + " has " + std::to_string(values.size()) + " values, " + label +
+                          " needs " + std::to_string(expected),
+                      "leave it out to start from the model's default");
+  }
+}
+
+}  // namespace
+
+void ValidateExperimentAgainstModel(const ExperimentConfig& config, const mjModel& m,
+                                    const std::string& model_name) {
+  // which model of the experiment this is
+  const ModelSpec* spec = model_name.empty() ? nullptr : config.FindModel(model_name);
+  if (!model_name.empty() && !spec) {
+    std::vector<std::string> names;
+    for (const ModelSpec& s : config.models) names.push_back(s.name);
+    throw ConfigError(config.marks.Of(config.model_list ? "models" : "model"),
+                      "model " + Quote(model_name) + " is not part of the experiment",
+                      NamesHint(model_name, names, "models"));
+  }
+  const std::string label =
+      spec ? "model " + Quote(spec->name) + " (" + spec->path + ")" : std::string("the model");
+
+  // sensors, parameters, measurement
+  for (const SensorSpec& s : config.sensors) CheckSensor(m, s.name, s.marks.Of("name"), label);
+  for (const ParameterSpec& p : config.parameters) {
+    if (p.AppliesTo(model_name)) ValidateParameter(p, m, label);
+  }
+  for (const MeasurementSpec& ms : config.measurement) {
+    CheckSensor(m, ms.sensor, ms.marks.Of("sensor"), label);
+  }
+
+  // simulate: noise sensors, excitation actuators, initial state sizes
+  const SimulateOptions& sim = config.simulate;
+  for (const NamedValue& n : sim.noise) CheckSensor(m, n.name, n.mark, label);
+  for (const Excitation& e : sim.excitation) {
+    if (!e.actuator.empty()) {
+      RequireObject(m, mjOBJ_ACTUATOR, m.nu, "actuator", e.actuator, e.marks.Of("actuator"), label);
+    }
+  }
+  CheckSize(sim.initial_state.qpos, static_cast<long long>(m.nq),
+            sim.initial_state.marks.Of("qpos"), "simulate.initial_state.qpos", label + " (nq)");
+  CheckSize(sim.initial_state.qvel, static_cast<long long>(m.nv),
+            sim.initial_state.marks.Of("qvel"), "simulate.initial_state.qvel", label + " (nv)");
+}
+
+void CheckModelFilesExist(const ExperimentConfig& config) {
+  for (const ModelSpec& spec : config.models) {
+    std::error_code ec;
+    const Mark& at = config.model_list ? spec.marks.Of("path") : spec.marks.self;
+    if (!fs::exists(spec.path, ec)) {
+      throw ConfigError(
+          at, "model file not found: " + spec.path,
+          "relative paths are relative to the experiment file's directory " + config.base_dir);
+    }
+    if (!fs::is_regular_file(spec.path, ec)) {
+      throw ConfigError(at, "model path is not a regular file: " + spec.path);
+    }
+  }
+}
+
+}  // namespace mjsysid::io
