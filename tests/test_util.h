@@ -2,13 +2,19 @@
 // specs, multi-sine controls, and noisy sensor measurements from the true parameter values.
 #pragma once
 
+#include <gtest/gtest.h>
+
+#include <algorithm>
 #include <cmath>
+#include <map>
 #include <random>
 #include <string>
 #include <vector>
 
+#include "core/mujoco_env.h"
 #include "core/parameters.h"
 #include "core/simulator.h"
+#include "core/state.h"
 
 namespace mjsysid::test {
 
@@ -66,6 +72,42 @@ inline RowMatrix Measure(const mjModel& m, const std::vector<Truth>& truth, cons
     for (Eigen::Index i = 0; i < y.size(); ++i) y.data()[i] += noise(rng);
   }
   return y;
+}
+
+// the MJCF template with every "{key}" replaced by values.at(key) (keys in values only)
+inline std::string FillTemplate(std::string xml, const std::map<std::string, std::string>& values) {
+  for (const auto& [key, value] : values) {
+    const std::string token = "{" + key + "}";
+    for (size_t pos = xml.find(token); pos != std::string::npos; pos = xml.find(token)) {
+      xml.replace(pos, token.size(), value);
+    }
+  }
+  return xml;
+}
+
+// `steps` steps of a model with four actuators (the writer tests' scene) from its reference state
+// under sines of angular rate w per step (slower or faster per actuator): the physics vectors
+// x_1..x_steps; expects no simulation warning
+inline std::vector<double> SineRollout(const mjModel& m, int steps, double w) {
+  DataPtr d = MakeData(m);
+  const StateDims dims(m);
+  std::vector<double> out(static_cast<size_t>(steps) * dims.nphys);
+  for (int k = 0; k < steps; ++k) {
+    d->ctrl[0] = 2.0 * std::sin(w * k);
+    d->ctrl[1] = 1.5 * std::sin(0.75 * w * k + 1);
+    d->ctrl[2] = 8.0 + 4.0 * std::sin(0.5 * w * k);
+    d->ctrl[3] = 0.2 * std::sin(1.5 * w * k);
+    mj_step(&m, d.get());
+    GetPhysics(m, *d, out.data() + static_cast<size_t>(k) * dims.nphys);
+  }
+  EXPECT_EQ(SimulationWarnings(*d), "");
+  return out;
+}
+
+inline double MaxAbsDiff(const std::vector<double>& a, const std::vector<double>& b) {
+  double worst = 0;
+  for (size_t i = 0; i < a.size(); ++i) worst = std::max(worst, std::abs(a[i] - b[i]));
+  return worst;
 }
 
 }  // namespace mjsysid::test

@@ -18,15 +18,8 @@
 #include <new>
 #include <string>
 
+#include "core/asan.h"
 #include "sysid/io/hdf5_util.h"
-
-#if defined(__SANITIZE_ADDRESS__)
-#define MJSYSID_ASAN 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define MJSYSID_ASAN 1
-#endif
-#endif
 
 namespace mjsysid::io::internal {
 namespace {

@@ -18,6 +18,7 @@
 #include "core/mujoco_env.h"
 #include "core/parameters.h"
 #include "core/state.h"
+#include "tests/test_util.h"
 
 namespace mjsysid {
 namespace {
@@ -94,40 +95,13 @@ std::string Num(double v) {
 
 // the template with the defaults, some replaced
 std::string Xml(const std::map<std::string, std::string>& overrides) {
-  std::string xml = kTemplate;
-  for (const auto& [key, def] : kDefaults) {
-    const auto it = overrides.find(key);
-    const std::string& value = it == overrides.end() ? def : it->second;
-    const std::string token = "{" + key + "}";
-    for (size_t pos = xml.find(token); pos != std::string::npos; pos = xml.find(token)) {
-      xml.replace(pos, token.size(), value);
-    }
-  }
-  return xml;
+  std::map<std::string, std::string> values = overrides;
+  values.insert(kDefaults.begin(), kDefaults.end());  // keeps the overrides
+  return test::FillTemplate(kTemplate, values);
 }
 
 // 50 steps under sine controls: the physics vectors x_1..x_50
-std::vector<double> Rollout(const mjModel& m) {
-  DataPtr d = MakeData(m);
-  const StateDims dims(m);
-  std::vector<double> out(50 * dims.nphys);
-  for (int k = 0; k < 50; ++k) {
-    d->ctrl[0] = 2.0 * std::sin(0.2 * k);
-    d->ctrl[1] = 1.5 * std::sin(0.15 * k + 1);
-    d->ctrl[2] = 8.0 + 4.0 * std::sin(0.1 * k);
-    d->ctrl[3] = 0.2 * std::sin(0.3 * k);
-    mj_step(&m, d.get());
-    GetPhysics(m, *d, out.data() + k * dims.nphys);
-  }
-  EXPECT_EQ(SimulationWarnings(*d), "");
-  return out;
-}
-
-double MaxAbsDiff(const std::vector<double>& a, const std::vector<double>& b) {
-  double worst = 0;
-  for (size_t i = 0; i < a.size(); ++i) worst = std::max(worst, std::abs(a[i] - b[i]));
-  return worst;
-}
+std::vector<double> Rollout(const mjModel& m) { return test::SineRollout(m, 50, 0.2); }
 
 // appends "name (worst difference) " to out when two mjtNum arrays differ by more than 1e-12
 // (relative to max(1, |value|)); other arrays are left out
@@ -231,8 +205,9 @@ TEST_P(IdentifiedKindTest, MatchesXmlEditedByHand) {
   EXPECT_EQ(DifferingArrays(*identified, *by_hand), "");
   const std::vector<double> traj_base = Rollout(*base);
   const std::vector<double> traj_hand = Rollout(*by_hand);
-  EXPECT_GT(MaxAbsDiff(traj_base, traj_hand), 1e-9) << "the edit has no effect on the rollout";
-  EXPECT_LE(MaxAbsDiff(Rollout(*identified), traj_hand), 1e-12) << p.label();
+  EXPECT_GT(test::MaxAbsDiff(traj_base, traj_hand), 1e-9)
+      << "the edit has no effect on the rollout";
+  EXPECT_LE(test::MaxAbsDiff(Rollout(*identified), traj_hand), 1e-12) << p.label();
 }
 
 const double kScale = 0.8 / 0.5;  // body_mass_inertia: tip mass 0.5 -> 0.8

@@ -65,43 +65,20 @@ const std::map<std::string, double> kDefaults = {
     {"ball_armature", 0.01}, {"slide_armature", 0.0}, {"slider_mass", 2.0}, {"box_mu", 0.6},
     {"gain", 3.0},           {"bias1", -1.0},         {"gear", 1.0}};
 
+// the template with the defaults, some replaced
 std::string Xml(const std::map<std::string, double>& overrides) {
-  std::string xml = kTemplate;
+  std::map<std::string, std::string> values;
   for (const auto& [key, def] : kDefaults) {
     const auto it = overrides.find(key);
-    const double value = it == overrides.end() ? def : it->second;
-    const std::string token = "{" + key + "}";
     char buf[64];
-    std::snprintf(buf, sizeof(buf), "%.17g", value);
-    for (size_t pos = xml.find(token); pos != std::string::npos; pos = xml.find(token)) {
-      xml.replace(pos, token.size(), buf);
-    }
+    std::snprintf(buf, sizeof(buf), "%.17g", it == overrides.end() ? def : it->second);
+    values[key] = buf;
   }
-  return xml;
+  return test::FillTemplate(kTemplate, values);
 }
 
 // 500 steps under sine controls from the reference state: the physics vectors x_1..x_500
-std::vector<double> Simulate(const mjModel& m) {
-  DataPtr d = MakeData(m);
-  const StateDims dims(m);
-  std::vector<double> out(500 * dims.nphys);
-  for (int k = 0; k < 500; ++k) {
-    d->ctrl[0] = 2.0 * std::sin(0.02 * k);
-    d->ctrl[1] = 1.5 * std::sin(0.015 * k + 1);
-    d->ctrl[2] = 8.0 + 4.0 * std::sin(0.01 * k);
-    d->ctrl[3] = 0.2 * std::sin(0.03 * k);
-    mj_step(&m, d.get());
-    GetPhysics(m, *d, out.data() + k * dims.nphys);
-  }
-  EXPECT_EQ(SimulationWarnings(*d), "");
-  return out;
-}
-
-double MaxAbsDiff(const std::vector<double>& a, const std::vector<double>& b) {
-  double worst = 0;
-  for (size_t i = 0; i < a.size(); ++i) worst = std::max(worst, std::abs(a[i] - b[i]));
-  return worst;
-}
+std::vector<double> Simulate(const mjModel& m) { return test::SineRollout(m, 500, 0.02); }
 
 struct WriterCase {
   ParameterSpec spec;
@@ -130,9 +107,9 @@ TEST_P(WriterTest, InPlaceWriteMatchesCompiledXml) {
   const std::vector<double> traj_xml = Simulate(*edited_xml);
   const std::vector<double> traj_written = Simulate(*written);
   // the edit matters (so the comparison can fail) ...
-  EXPECT_GT(MaxAbsDiff(traj_base, traj_xml), 1e-6) << "edit of " << c.key << " has no effect";
+  EXPECT_GT(test::MaxAbsDiff(traj_base, traj_xml), 1e-6) << "edit of " << c.key << " has no effect";
   // ... and the in-place write reproduces the compiled model
-  EXPECT_LE(MaxAbsDiff(traj_written, traj_xml), 1e-12) << params[0].label();
+  EXPECT_LE(test::MaxAbsDiff(traj_written, traj_xml), 1e-12) << params[0].label();
 }
 
 using test::Spec;
@@ -174,7 +151,7 @@ TEST(WriterTest, MassWithInertiaMatchesCompiledXml) {
   DataPtr scratch = MakeData(*written);
   const double value = 0.8;
   params.Write(written.get(), scratch.get(), &value);
-  EXPECT_LE(MaxAbsDiff(Simulate(*written), Simulate(*edited_xml)), 1e-12);
+  EXPECT_LE(test::MaxAbsDiff(Simulate(*written), Simulate(*edited_xml)), 1e-12);
 }
 
 // the generic escape hatch: any mjtNum array of mjModel by name and flat index
@@ -191,7 +168,7 @@ TEST(WriterTest, FieldByNameMatchesCompiledXml) {
   const double value = 0.8;
   params.Write(written.get(), scratch.get(), &value);
   EXPECT_EQ(params[0].label(), "field:dof_damping[" + std::to_string(spec.index) + "]");
-  EXPECT_LE(MaxAbsDiff(Simulate(*written), Simulate(*edited_xml)), 1e-12);
+  EXPECT_LE(test::MaxAbsDiff(Simulate(*written), Simulate(*edited_xml)), 1e-12);
 }
 
 // the traps the contract of core/parameters.h works around are real: without mj_setConst a simple
@@ -205,7 +182,7 @@ TEST(WriterTest, TrapsAreRealWithoutSetConstAndPrepare) {
 
   ModelPtr raw = CopyModel(*base);
   Parameter::Resolve(*raw, Spec("body_mass", "slider")).WriteRaw(raw.get(), 3.1);
-  EXPECT_EQ(MaxAbsDiff(Simulate(*raw), Simulate(*base)), 0.0)
+  EXPECT_EQ(test::MaxAbsDiff(Simulate(*raw), Simulate(*base)), 0.0)
       << "MuJoCo no longer ignores a raw mass write on a simple body: update core/parameters.h";
 
   // a raw centre-of-mass write on a "same frame" body is ignored or rejected by MuJoCo
@@ -219,7 +196,7 @@ TEST(WriterTest, TrapsAreRealWithoutSetConstAndPrepare) {
   } catch (const MujocoError&) {
     rejected = true;
   }
-  EXPECT_TRUE(rejected || MaxAbsDiff(traj, xml) > 1e-6)
+  EXPECT_TRUE(rejected || test::MaxAbsDiff(traj, xml) > 1e-6)
       << "MuJoCo honours a raw body_ipos write on a same-frame body: update core/parameters.h";
 }
 

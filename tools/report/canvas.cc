@@ -11,15 +11,8 @@
 #include <string>
 #include <vector>
 
+#include "core/asan.h"
 #include "tools/report/report.h"
-
-#if defined(__SANITIZE_ADDRESS__)
-#define MJSYSID_ASAN 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define MJSYSID_ASAN 1
-#endif
-#endif
 
 namespace mjsysid::report {
 namespace {
