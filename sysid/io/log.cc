@@ -319,6 +319,26 @@ RowMatrix ToMatrix(const Array& a) {
   return m;
 }
 
+// dataset `dataset` (rows x columns) of a sequence group and its `names` attribute, required
+// when there are columns (`meaning` says what the names are); returns the open dataset for its
+// other attributes
+H5Id ReadNamedColumns(hid_t group, const char* dataset, Eigen::Index rows, const std::string& file,
+                      const std::string& gpath, const std::string& meaning, RowMatrix* values,
+                      std::vector<std::string>* names) {
+  const std::string where = gpath + "/" + dataset;
+  *values = ToMatrix(ReadArray(group, dataset, 2, file, where));
+  CheckRows(*values, rows, false, file, where);
+  H5Id dset =
+      Own(H5Dopen2(group, dataset, H5P_DEFAULT), H5Dclose, file, where, "cannot open dataset");
+  H5Id attr = OpenAttrIfAny(dset.get(), "names", file, where);
+  if (attr.get() >= 0) {
+    *names = ReadStrings(attr.get(), file, where + " attribute 'names'");
+  } else if (values->cols() > 0) {
+    Fail(file, where + " attribute 'names'", "is missing (" + meaning + ")");
+  }
+  return dset;
+}
+
 Sequence ReadSequence(hid_t file_id, const std::string& name, const std::string& file) {
   const std::string gpath = "/" + name;
   H5Id group =
@@ -360,34 +380,15 @@ Sequence ReadSequence(hid_t file_id, const std::string& name, const std::string&
   }
 
   // ctrl and actuator names
-  {
-    const std::string where = gpath + "/ctrl";
-    seq.ctrl = ToMatrix(ReadArray(group.get(), "ctrl", 2, file, where));
-    CheckRows(seq.ctrl, seq.time.size(), false, file, where);
-    H5Id dset = Own(H5Dopen2(group.get(), "ctrl", H5P_DEFAULT), H5Dclose, file, where,
-                    "cannot open dataset");
-    H5Id names = OpenAttrIfAny(dset.get(), "names", file, where);
-    if (names.get() >= 0) {
-      seq.actuator_names = ReadStrings(names.get(), file, where + " attribute 'names'");
-    } else if (seq.ctrl.cols() > 0) {
-      Fail(file, where + " attribute 'names'", "is missing (one actuator name per column)");
-    }
-  }
+  ReadNamedColumns(group.get(), "ctrl", seq.time.size(), file, gpath,
+                   "one actuator name per column", &seq.ctrl, &seq.actuator_names);
 
   // sensordata, sensor names and dimensions
   {
     const std::string where = gpath + "/sensordata";
-    seq.sensordata = ToMatrix(ReadArray(group.get(), "sensordata", 2, file, where));
-    CheckRows(seq.sensordata, seq.time.size(), false, file, where);
-    H5Id dset = Own(H5Dopen2(group.get(), "sensordata", H5P_DEFAULT), H5Dclose, file, where,
-                    "cannot open dataset");
-    H5Id names = OpenAttrIfAny(dset.get(), "names", file, where);
+    H5Id dset = ReadNamedColumns(group.get(), "sensordata", seq.time.size(), file, gpath,
+                                 "one name per sensor", &seq.sensordata, &seq.sensor_names);
     H5Id dims = OpenAttrIfAny(dset.get(), "dims", file, where);
-    if (names.get() >= 0) {
-      seq.sensor_names = ReadStrings(names.get(), file, where + " attribute 'names'");
-    } else if (seq.sensordata.cols() > 0) {
-      Fail(file, where + " attribute 'names'", "is missing (one name per sensor)");
-    }
     if (dims.get() >= 0) {
       const std::string dwhere = where + " attribute 'dims'";
       for (long long d : ReadInts(dims.get(), file, dwhere)) {
