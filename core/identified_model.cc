@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "core/mujoco_env.h"
+#include "core/text.h"
 
 // MuJoCo's XML writer prints 6 significant digits unless told otherwise; its (exported, private)
 // precision setter is declared weak so that a MuJoCo without it still links (then the read-back
@@ -23,12 +24,6 @@ struct SpecDeleter {
   void operator()(mjSpec* s) const { mj_deleteSpec(s); }
 };
 using SpecPtr = std::unique_ptr<mjSpec, SpecDeleter>;
-
-std::string Num(double v) {
-  char buf[40];
-  std::snprintf(buf, sizeof(buf), "%.17g", v);
-  return buf;
-}
 
 // the spec's MJCF text at full precision
 std::string SaveXml(const mjSpec* spec, const std::string& model_path) {
@@ -125,8 +120,8 @@ std::string IdentifiedModelXml(const std::string& model_path,
   for (int i = 0; i < check.size(); ++i) {
     if (check[i].kind() == ParameterKind::kField) continue;  // not written: warned above
     if (std::abs(read[i] - values[i]) > 1e-9 * std::max(1.0, std::abs(values[i]))) {
-      warnings->push_back("identified model: '" + check[i].label() + "' reads " + Num(read[i]) +
-                          " instead of " + Num(values[i]));
+      warnings->push_back("identified model: '" + check[i].label() + "' reads " +
+                          FormatG17(read[i]) + " instead of " + FormatG17(values[i]));
     }
   }
   return xml;

@@ -10,7 +10,7 @@
 #include <type_traits>
 
 #include "core/mujoco_env.h"
-#include "core/names.h"
+#include "core/text.h"
 
 namespace mjsysid {
 namespace {

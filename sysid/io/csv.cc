@@ -12,6 +12,8 @@
 #include <utility>
 #include <vector>
 
+#include "core/text.h"
+
 namespace mjsysid::io {
 namespace {
 
@@ -23,14 +25,6 @@ struct Target {
   int index;      // actuator, sensor or state index
   int component;  // sensor component
 };
-
-std::string Quote(const std::string& s) { return "'" + s + "'"; }
-
-std::string Exact(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.17g", x);
-  return buf;
-}
 
 [[noreturn]] void Fail(const std::string& file, const std::string& what) {
   throw LogError(file + ": " + what);
@@ -298,8 +292,8 @@ Sequence ImportCsv(const std::string& path, const mjModel& m, const std::string&
     seq.time[k] = at(k, time_col);
     if (k > 0 && !(seq.time[k] > seq.time[k - 1])) {
       Fail(file + ":" + std::to_string(row_lines[k]),
-           "column " + std::to_string(time_col + 1) + " ('time'): time " + Exact(seq.time[k]) +
-               " is not greater than " + Exact(seq.time[k - 1]) + " on line " +
+           "column " + std::to_string(time_col + 1) + " ('time'): time " + FormatG17(seq.time[k]) +
+               " is not greater than " + FormatG17(seq.time[k - 1]) + " on line " +
                std::to_string(row_lines[k - 1]) + " (time must be strictly increasing)");
     }
   }

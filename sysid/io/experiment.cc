@@ -10,7 +10,7 @@
 #include <sstream>
 #include <utility>
 
-#include "core/names.h"
+#include "core/text.h"
 #include "sysid/io/yaml_reader.h"
 
 namespace mjsysid::io {

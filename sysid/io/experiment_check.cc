@@ -2,8 +2,8 @@
 #include <string>
 #include <vector>
 
-#include "core/names.h"
 #include "core/parameters.h"
+#include "core/text.h"
 #include "sysid/io/experiment.h"
 #include "sysid/io/yaml_reader.h"
 

@@ -14,10 +14,10 @@
 #include <utility>
 #include <vector>
 
+#include "core/text.h"
+
 namespace mjsysid::io::h5 {
 namespace {
-
-std::string Quote(const std::string& s) { return "'" + s + "'"; }
 
 herr_t InnermostError(unsigned n, const H5E_error2_t* err, void* data) {
   // the upward walk starts at the most specific error
@@ -414,6 +414,12 @@ std::string ShapeText(const std::vector<hsize_t>& dims) {
   std::string s = "(";
   for (size_t i = 0; i < dims.size(); ++i) s += (i ? ", " : "") + std::to_string(dims[i]);
   return s + ")";
+}
+
+RowMatrix ToMatrix(const Array& a) {
+  RowMatrix m(static_cast<Eigen::Index>(a.dims[0]), static_cast<Eigen::Index>(a.dims[1]));
+  if (!a.data.empty()) std::copy(a.data.begin(), a.data.end(), m.data());
+  return m;
 }
 
 Array ReadArray(hid_t group, const char* name, int rank, const std::string& file,

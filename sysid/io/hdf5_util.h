@@ -16,6 +16,8 @@
 #include <string>
 #include <vector>
 
+#include "core/state.h"
+
 namespace mjsysid::io::h5 {
 
 class Error : public std::runtime_error {
@@ -145,6 +147,9 @@ struct Array {
   std::vector<hsize_t> dims;
   std::vector<double> data;
 };
+
+// a rank-2 Array as a row-major matrix (dims[0] x dims[1])
+RowMatrix ToMatrix(const Array& a);
 
 // reads dataset `name` of `group`, which must have rank `rank`; `rank_hint` follows the expected
 // rank in the message otherwise (e.g. " (T samples)")

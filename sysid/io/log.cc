@@ -17,7 +17,7 @@
 #include <utility>
 #include <vector>
 
-#include "core/names.h"
+#include "core/text.h"
 #include "sysid/io/atomic_file.h"
 #include "sysid/io/hdf5_util.h"
 #include "sysid/io/log_child_process.h"
@@ -33,23 +33,12 @@ constexpr const char* kDatasets[] = {"time", "ctrl", "sensordata", "qpos", "qvel
 // messages
 
 // the shortest of %.15g..%.17g that reads back as x: tells two doubles apart, stays readable
-std::string Exact(double x) {
-  char buf[32];
-  for (int digits = 15; digits <= 17; ++digits) {
-    std::snprintf(buf, sizeof(buf), "%.*g", digits, x);
-    if (std::strtod(buf, nullptr) == x || !std::isfinite(x)) break;
-  }
-  return buf;
-}
-
 // "%.12g": short, for ratios and periods
 std::string Short(double x) {
   char buf[32];
   std::snprintf(buf, sizeof(buf), "%.12g", x);
   return buf;
 }
-
-std::string Quote(const std::string& s) { return "'" + s + "'"; }
 
 std::string Join(const std::vector<std::string>& items, size_t max_items = 20) {
   std::string out;
@@ -89,6 +78,7 @@ using h5::OpenAttrIfAny;
 using h5::ReadInts;
 using h5::ReadScalarString;
 using h5::ReadStrings;
+using h5::ToMatrix;
 using h5::WriteDataset;
 using h5::WriteIntAttr;
 using h5::WriteStringArrayAttr;
@@ -147,8 +137,8 @@ void CheckFinite(const double* data, Eigen::Index rows, Eigen::Index cols, const
       const double v = data[r * cols + c];
       if (!std::isfinite(v)) {
         Fail(file, object,
-             "row " + std::to_string(r) + ", column " + std::to_string(c) + ": value " + Exact(v) +
-                 " is not finite (NaN/Inf are not allowed)");
+             "row " + std::to_string(r) + ", column " + std::to_string(c) + ": value " +
+                 FormatShortest(v) + " is not finite (NaN/Inf are not allowed)");
       }
     }
   }
@@ -185,9 +175,9 @@ void CheckSequence(const Sequence& seq, const std::string& file) {
   for (Eigen::Index k = 1; k < samples; ++k) {
     if (!(seq.time[k] > seq.time[k - 1])) {
       Fail(file, gpath + "/time",
-           "row " + std::to_string(k) + ": time " + Exact(seq.time[k]) +
+           "row " + std::to_string(k) + ": time " + FormatShortest(seq.time[k]) +
                " is not greater than row " + std::to_string(k - 1) + "'s " +
-               Exact(seq.time[k - 1]) + " (time must be strictly increasing)");
+               FormatShortest(seq.time[k - 1]) + " (time must be strictly increasing)");
     }
   }
 
@@ -301,7 +291,7 @@ std::string ReadAttributeAsText(hid_t obj, const std::string& name, const std::s
   if (cls == H5T_INTEGER) return std::to_string(ReadInts(attr.get(), file, where)[0]);
   double value = 0;
   Check(H5Aread(attr.get(), H5T_NATIVE_DOUBLE, &value), file, where, "cannot read attribute");
-  return Exact(value);
+  return FormatShortest(value);
 }
 
 // a numeric dataset of the expected rank, as doubles in row-major order
@@ -309,14 +299,6 @@ Array ReadArray(hid_t group, const char* name, int rank, const std::string& file
                 const std::string& object) {
   return h5::ReadArray(group, name, rank, file, object,
                        rank == 1 ? " (T samples)" : " (T samples x columns)");
-}
-
-RowMatrix ToMatrix(const Array& a) {
-  const auto rows = static_cast<Eigen::Index>(a.dims[0]);
-  const auto cols = static_cast<Eigen::Index>(a.dims[1]);
-  RowMatrix m(rows, cols);
-  if (!a.data.empty()) std::copy(a.data.begin(), a.data.end(), m.data());
-  return m;
 }
 
 // dataset `dataset` (rows x columns) of a sequence group and its `names` attribute, required

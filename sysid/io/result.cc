@@ -18,6 +18,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/text.h"
 #include "sysid/io/atomic_file.h"
 #include "sysid/io/hdf5_util.h"
 
@@ -32,8 +33,6 @@ constexpr const char* kTraceColumns[] = {"iteration",     "cost",    "step_norm"
 
 // ---------------------------------------------------------------------------------------------
 // messages and numbers
-
-std::string Quote(const std::string& s) { return "'" + s + "'"; }
 
 // "<file>: <where>: <what>"
 [[noreturn]] void Fail(const std::string& file, const std::string& where, const std::string& what) {
@@ -579,12 +578,6 @@ h5::Id OpenGroup(hid_t parent, const char* name, const std::string& file,
                  "cannot open group (not a group, or corrupt file?)");
 }
 
-RowMatrix ToMatrix(const h5::Array& a) {
-  RowMatrix m(static_cast<Eigen::Index>(a.dims[0]), static_cast<Eigen::Index>(a.dims[1]));
-  if (!a.data.empty()) std::copy(a.data.begin(), a.data.end(), m.data());
-  return m;
-}
-
 // a 1-D dataset of n values
 std::vector<double> ReadColumn(hid_t group, const char* name, size_t n, const std::string& file,
                                const std::string& object) {
@@ -632,7 +625,7 @@ void ReadH5Trace(hid_t root, const std::string& file, FitResultFile* r) {
                          std::string("/trace/") + kTraceColumns[c]);
   }
   const RowMatrix params =
-      ToMatrix(ReadRequired(group.get(), "parameters", 2, file, "/trace/parameters"));
+      h5::ToMatrix(ReadRequired(group.get(), "parameters", 2, file, "/trace/parameters"));
   if (static_cast<size_t>(params.rows()) != n) {
     Fail(file, "/trace/parameters",
          "has " + std::to_string(params.rows()) + " rows, expected " + std::to_string(n) +
@@ -683,7 +676,7 @@ SequenceResult ReadH5Sequence(hid_t sequences, const std::string& name, const st
                                                      {"simulated_initial", &s.simulated_initial},
                                                      {"simulated_final", &s.simulated_final}};
   for (const auto& [dname, m] : mats) {
-    *m = ToMatrix(ReadRequired(group.get(), dname, 2, file, g + "/" + dname));
+    *m = h5::ToMatrix(ReadRequired(group.get(), dname, 2, file, g + "/" + dname));
   }
   return s;
 }
@@ -719,8 +712,8 @@ void ReadH5(const std::string& path, FitResultFile* r) {
   // arrays
   ReadH5Parameters(root.get(), file, *r);
   r->uncertainty.covariance =
-      ToMatrix(ReadRequired(root.get(), "covariance", 2, file, "/covariance"));
-  r->jacobian = ToMatrix(ReadRequired(root.get(), "jacobian", 2, file, "/jacobian"));
+      h5::ToMatrix(ReadRequired(root.get(), "covariance", 2, file, "/covariance"));
+  r->jacobian = h5::ToMatrix(ReadRequired(root.get(), "jacobian", 2, file, "/jacobian"));
   ReadH5Trace(root.get(), file, r);
   h5::Id seqs = OpenGroup(root.get(), "sequences", file, "/sequences");
   for (const std::string& name : h5::LinkNames(seqs.get(), file, "/sequences")) {

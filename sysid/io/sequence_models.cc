@@ -3,16 +3,12 @@
 #include <map>
 #include <sstream>
 
+#include "core/text.h"
+
 namespace mjsysid::io {
 namespace {
 
 constexpr char kRecordPrefix[] = "sequences.";
-
-std::string Join(const std::vector<std::string>& names) {
-  std::string out;
-  for (const std::string& n : names) out += (out.empty() ? "" : ", ") + n;
-  return out;
-}
 
 // group name -> model name, from the log's "sequences.<model>" attributes
 std::map<std::string, std::string> RecordedModels(const Log& log, const std::string& path) {
@@ -88,7 +84,7 @@ std::vector<SequenceOwner> AssignSequences(const ExperimentConfig& config, const
       std::vector<std::string> names;
       for (const ModelSpec& m : config.models) names.push_back(m.name);
       throw LogError(path + ": sequence '" + group +
-                     "' belongs to none of the experiment's models (" + Join(names) +
+                     "' belongs to none of the experiment's models (" + JoinNames(names) +
                      "): the log records no model for it (attribute " + kRecordPrefix +
                      "<model>) and the experiment's `sequences:` does not name one; list it as " +
                      "`<model>/" + group + "`");
@@ -106,7 +102,7 @@ void CheckSequenceEntriesUsed(const ExperimentConfig& config, const std::vector<
     throw ConfigError(ref.mark,
                       "sequence '" + (ref.model.empty() ? "" : ref.model + "/") + ref.name +
                           "' is in none of the data files",
-                      "sequences in the data: " + Join(all_groups));
+                      "sequences in the data: " + JoinNames(all_groups));
   }
 }
 

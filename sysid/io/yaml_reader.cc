@@ -9,7 +9,7 @@
 #include <sstream>
 #include <utility>
 
-#include "core/names.h"
+#include "core/text.h"
 
 namespace mjsysid::io {
 
@@ -22,8 +22,6 @@ std::string FormatNumber(double x) {
   out << x;
   return out.str();
 }
-
-std::string Quote(const std::string& s) { return "'" + s + "'"; }
 
 namespace {
 

@@ -12,14 +12,13 @@
 #include <string>
 #include <vector>
 
+#include "core/text.h"
 #include "sysid/io/marks.h"
 
 namespace mjsysid::io {
 
 // a number as the schema prints it in messages (.inf / -.inf, 10 significant digits)
 std::string FormatNumber(double x);
-// 'text'
-std::string Quote(const std::string& s);
 // how a node looks, for type errors: "a map", "a list", "the string 'abc'", ...
 std::string Describe(const YAML::Node& n);
 

@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "core/identified_model.h"
+#include "core/text.h"
 #include "mjsysid/version.h"
 #include "sysid/io/log.h"
 #include "sysid/io/sequence_models.h"
@@ -22,12 +23,6 @@ namespace mjsysid::run {
 namespace {
 
 namespace fs = std::filesystem;
-
-std::string Num(double v) {
-  char buf[40];
-  std::snprintf(buf, sizeof(buf), "%.17g", v);
-  return buf;
-}
 
 std::string NowIso() {
   const std::time_t t = std::time(nullptr);
@@ -92,8 +87,8 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
         const int rows = static_cast<int>(s.time.size());
         const double period = (s.time[rows - 1] - s.time[0]) / (rows - 1);
         if (std::abs(period - m.opt.timestep) > 1e-9 * m.opt.timestep * rows) {
-          throw io::LogError(where + ": sample period " + Num(period) +
-                             " s differs from the model timestep " + Num(m.opt.timestep) +
+          throw io::LogError(where + ": sample period " + FormatG17(period) +
+                             " s differs from the model timestep " + FormatG17(m.opt.timestep) +
                              " s; resample the log or set the model's <option timestep>");
         }
         // sensor_time post: the sensors of row k+1 are y_k
@@ -220,19 +215,19 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   const SimulatorOptions sim_defaults;
   file.solver = {
       {"max_iterations", std::to_string(options.max_iterations)},
-      {"function_tolerance", Num(options.function_tolerance)},
-      {"gradient_tolerance", Num(options.gradient_tolerance)},
-      {"parameter_tolerance", Num(options.parameter_tolerance)},
+      {"function_tolerance", FormatG17(options.function_tolerance)},
+      {"gradient_tolerance", FormatG17(options.gradient_tolerance)},
+      {"parameter_tolerance", FormatG17(options.parameter_tolerance)},
       {"jacobian", JacobianModeName(options.jacobian.mode)},
       {"differences", options.jacobian.central ? "central" : "forward"},
-      {"relative_step", Num(options.jacobian.relative_step)},
+      {"relative_step", FormatG17(options.jacobian.relative_step)},
       {"threads", std::to_string(options.threads)},
       {"loss", LossTypeName(options.loss)},
-      {"loss_scale", Num(options.loss_scale)},
+      {"loss_scale", FormatG17(options.loss_scale)},
       {"estimate_initial_state", options.estimate_initial_state ? "true" : "false"},
       {"segment_steps", std::to_string(options.segment_steps)},
-      {"continuity_weight", Num(options.continuity_weight)},
-      {"mujoco_solver_tolerance", "min(model, " + Num(sim_defaults.solver_tolerance) + ")"},
+      {"continuity_weight", FormatG17(options.continuity_weight)},
+      {"mujoco_solver_tolerance", "min(model, " + FormatG17(sim_defaults.solver_tolerance) + ")"},
       {"minimizer", "ceres levenberg-marquardt"},
   };
   std::map<std::string, double> truth;

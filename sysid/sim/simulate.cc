@@ -11,6 +11,7 @@
 #include "core/mujoco_env.h"
 #include "core/parameters.h"
 #include "core/simulator.h"
+#include "core/text.h"
 #include "mjsysid/version.h"
 #include "sysid/sim/excitation.h"
 
@@ -18,15 +19,9 @@ namespace mjsysid::sim {
 namespace {
 
 // a number as text that reads back to the same double
-std::string Exact(double v) {
-  char buf[40];
-  std::snprintf(buf, sizeof(buf), "%.17g", v);
-  return buf;
-}
-
 std::string JoinNumbers(const std::vector<double>& values) {
   std::string out;
-  for (double v : values) out += (out.empty() ? "" : ",") + Exact(v);
+  for (double v : values) out += (out.empty() ? "" : ",") + FormatG17(v);
   return out;
 }
 
@@ -187,11 +182,11 @@ io::Log SimulateExperiment(const io::ExperimentConfig& config, const SimulateSet
     // per-model attributes
     if (several) {
       attr["model." + spec.name] = spec.path;
-      attr["timestep." + spec.name] = Exact(dt);
+      attr["timestep." + spec.name] = FormatG17(dt);
       attr["sequences." + spec.name] = Join(names);
     } else {
       attr["model"] = spec.path;
-      attr["timestep"] = Exact(dt);
+      attr["timestep"] = FormatG17(dt);
     }
   }
 
@@ -204,7 +199,7 @@ io::Log SimulateExperiment(const io::ExperimentConfig& config, const SimulateSet
   attr["sequences"] = std::to_string(so.sequences);
   attr["steps"] = std::to_string(so.steps);
   attr["excitation"] = DescribeExcitation(so.excitation);
-  for (const io::NamedValue& n : so.noise) attr["noise." + n.name] = Exact(n.value);
+  for (const io::NamedValue& n : so.noise) attr["noise." + n.name] = FormatG17(n.value);
   std::vector<std::string> from_model;
   for (const io::ParameterSpec& p : config.parameters) {
     auto it = truth_records.find(p.name);
@@ -214,10 +209,10 @@ io::Log SimulateExperiment(const io::ExperimentConfig& config, const SimulateSet
     bool same = true;
     for (const auto& entry : rec.by_model) same = same && entry.second == rec.by_model[0].second;
     if (same) {
-      attr["truth." + p.name] = Exact(rec.by_model[0].second);
+      attr["truth." + p.name] = FormatG17(rec.by_model[0].second);
     } else {
       for (const auto& [model_name, value] : rec.by_model) {
-        attr["truth." + model_name + "." + p.name] = Exact(value);
+        attr["truth." + model_name + "." + p.name] = FormatG17(value);
       }
     }
   }

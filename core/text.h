@@ -1,5 +1,6 @@
-// Names in user-facing messages: the closest valid name to a typo ("did you mean") and lists of
-// valid names, written once for every layer (core's parameter errors, io's YAML and log errors).
+// Text in user-facing messages and files, written once for every layer: numbers at full
+// precision, quoted names, the closest valid name to a typo ("did you mean") and lists of valid
+// names (core's parameter errors, io's YAML, log and CSV errors, log attributes).
 #pragma once
 
 #include <cstddef>
@@ -7,6 +8,15 @@
 #include <vector>
 
 namespace mjsysid {
+
+// "%.17g": every double printed with 17 significant digits (reads back exactly)
+std::string FormatG17(double x);
+
+// the shortest of "%.15g", "%.16g", "%.17g" that reads back as x (17 digits for non-finite x)
+std::string FormatShortest(double x);
+
+// 'text'
+std::string Quote(const std::string& s);
 
 // at most this many names are listed by JoinNames and NamesHint
 inline constexpr size_t kMaxListedNames = 20;

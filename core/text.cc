@@ -1,9 +1,29 @@
-#include "core/names.h"
+#include "core/text.h"
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
 
 namespace mjsysid {
+
+std::string FormatG17(double x) {
+  char buf[40];
+  std::snprintf(buf, sizeof(buf), "%.17g", x);
+  return buf;
+}
+
+std::string FormatShortest(double x) {
+  char buf[40];
+  for (int digits = 15; digits <= 17; ++digits) {
+    std::snprintf(buf, sizeof(buf), "%.*g", digits, x);
+    if (!std::isfinite(x) || std::strtod(buf, nullptr) == x) break;
+  }
+  return buf;
+}
+
+std::string Quote(const std::string& s) { return "'" + s + "'"; }
 
 size_t EditDistance(const std::string& a, const std::string& b) {
   auto lower = [](char c) { return std::tolower(static_cast<unsigned char>(c)); };
