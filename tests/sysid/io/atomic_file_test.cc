@@ -14,38 +14,15 @@
 #include <string>
 #include <vector>
 
+#include "tests/temp_dir_test.h"
+
 namespace mjsysid::io {
 namespace {
 
 namespace fs = std::filesystem;
 
 // a fresh folder per test, removed afterwards
-class AtomicFileTest : public ::testing::Test {
- protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() /
-           ("mjsysid_atomic_file_test_" + std::to_string(::getpid()) + "_" + info->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override {
-    fs::permissions(dir_, fs::perms::owner_all);
-    fs::remove_all(dir_);
-  }
-  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
-
-  // the names in the folder other than `keep`
-  std::vector<std::string> OtherFiles(const std::string& keep) const {
-    std::vector<std::string> out;
-    for (const auto& e : fs::directory_iterator(dir_)) {
-      if (e.path().filename() != keep) out.push_back(e.path().filename().string());
-    }
-    return out;
-  }
-
-  fs::path dir_;
-};
+class AtomicFileTest : public test::TempDirTest {};
 
 std::string ReadBytes(const std::string& path) {
   std::ifstream in(path, std::ios::binary);

@@ -11,6 +11,7 @@
 
 #include "core/mujoco_env.h"
 #include "core/parameters.h"
+#include "tests/temp_dir_test.h"
 
 namespace mjsysid::io {
 namespace {
@@ -21,17 +22,8 @@ const std::string kModels = MJSYSID_MODELS_DIR;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // a fresh directory per test, removed afterwards
-class ExperimentTest : public ::testing::Test {
+class ExperimentTest : public test::TempDirTest {
  protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() /
-           ("mjsysid_experiment_test_" + std::to_string(getpid()) + "_" + info->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-
   // writes text to dir_/relative and returns the full path
   std::string Write(const std::string& relative, const std::string& text) {
     const fs::path path = dir_ / relative;
@@ -59,8 +51,6 @@ class ExperimentTest : public ::testing::Test {
       EXPECT_EQ(std::string(e.what()).rfind(prefix, 0), 0u) << e.what();
     }
   }
-
-  fs::path dir_;
 };
 
 // a small valid experiment for the pendulum model

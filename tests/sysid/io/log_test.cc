@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "core/mujoco_env.h"
+#include "tests/temp_dir_test.h"
 
 namespace mjsysid::io {
 namespace {
@@ -29,29 +30,7 @@ const std::string kModels = MJSYSID_MODELS_DIR;
 // helpers
 
 // a fresh directory per test, removed afterwards
-class LogTest : public ::testing::Test {
- protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() /
-           ("mjsysid_log_test_" + std::to_string(::getpid()) + "_" + info->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
-
-  // files in the test directory other than `keep`
-  std::vector<std::string> OtherFiles(const std::string& keep) const {
-    std::vector<std::string> out;
-    for (const auto& e : fs::directory_iterator(dir_)) {
-      if (e.path().filename() != keep) out.push_back(e.path().filename().string());
-    }
-    return out;
-  }
-
-  fs::path dir_;
-};
+class LogTest : public test::TempDirTest {};
 
 // deterministic, varied values (no two equal, signs mixed)
 double Value(int seed, Eigen::Index r, Eigen::Index c) {

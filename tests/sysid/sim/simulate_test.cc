@@ -19,6 +19,7 @@
 #include "mjsysid/version.h"
 #include "sysid/io/experiment.h"
 #include "sysid/io/log.h"
+#include "tests/temp_dir_test.h"
 
 namespace mjsysid::sim {
 namespace {
@@ -29,23 +30,12 @@ const std::string kModels = MJSYSID_MODELS_DIR;
 const std::string kExperiments = MJSYSID_EXPERIMENTS_DIR;
 
 // a fresh directory per test, removed afterwards
-class SimulateTest : public ::testing::Test {
+class SimulateTest : public test::TempDirTest {
  protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() /
-           ("mjsysid_simulate_test_" + std::to_string(getpid()) + "_" + info->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-
   // an experiment parsed as if it were a file in the models folder (so `model: X.xml` works)
   static io::ExperimentConfig Parse(const std::string& yaml) {
     return io::ParseExperiment(yaml, kModels + "/test_experiment.yaml");
   }
-
-  fs::path dir_;
 };
 
 const char* const kPendulum = R"(
