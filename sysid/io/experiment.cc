@@ -18,8 +18,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
-
 // The experiment schema (docs/experiment-schema.md) on top of the YAML reader.
 class Parser : public YamlReader {
  public:
