@@ -7,7 +7,6 @@
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
-#include <fstream>
 #include <map>
 #include <system_error>
 #include <thread>
@@ -15,9 +14,9 @@
 #include "core/identified_model.h"
 #include "core/text.h"
 #include "mjsysid/version.h"
+#include "sysid/io/atomic_file.h"
 #include "sysid/io/log.h"
 #include "sysid/io/sequence_models.h"
-#include "sysid/sim/simulate.h"
 
 namespace mjsysid::run {
 namespace {
@@ -171,18 +170,9 @@ std::vector<std::string> WriteIdentifiedModel(const io::ExperimentConfig& cfg,
     }
   }
 
-  // core writes them into the model's MJCF (and checks it); saved atomically: a temporary file
-  // next to out_path, renamed over it
+  // core writes them into the model's MJCF (and checks it); saved atomically
   std::vector<std::string> warnings;
-  const std::string xml = IdentifiedModelXml(model_path, specs, values, &warnings);
-  const std::string tmp = out_path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    out << xml;
-    out.close();
-    if (!out) throw std::runtime_error("cannot write " + tmp);
-  }
-  fs::rename(tmp, out_path);
+  io::WriteFileAtomically(out_path, IdentifiedModelXml(model_path, specs, values, &warnings));
   for (std::string& w : warnings) w = out_path + ": " + w;
   return warnings;
 }
