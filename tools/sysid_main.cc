@@ -29,10 +29,12 @@
 #include "core/parameters.h"
 #include "core/simulator.h"
 #include "mjsysid/version.h"
+#include "sysid/io/atomic_file.h"
 #include "sysid/io/csv.h"
 #include "sysid/io/experiment.h"
 #include "sysid/io/log.h"
 #include "sysid/run/fit_experiment.h"
+#include "sysid/run/output_folder.h"
 #include "sysid/sim/simulate.h"
 #include "tools/report/report.h"
 
@@ -103,6 +105,32 @@ std::string ModelSizes(const mjModel& m) {
   return buf;
 }
 
+// An HDF5 log output `out` (of --out): not one of `inputs`, and unless `force` either absent or
+// an mjsysid log (a file ReadLog accepts); its folder created. Throws OutputError (exit 2).
+void PrepareLogOutput(const std::string& out, const std::vector<std::string>& inputs, bool force) {
+  mjsysid::run::CheckOutputFile(out, inputs, "--out");
+  std::error_code ec;
+  if (fs::exists(out, ec) && !force) {
+    if (!fs::is_regular_file(out, ec)) {
+      throw mjsysid::run::OutputError("--out " + out + ": exists and is not a file");
+    }
+    try {
+      mjsysid::io::ReadLog(out);
+    } catch (const mjsysid::io::LogError& e) {
+      throw mjsysid::run::OutputError(
+          "--out " + out +
+          ": exists and is not an mjsysid log; not overwritten (hint: --force replaces it)");
+    }
+  }
+  const fs::path parent = fs::path(out).parent_path();
+  if (!parent.empty()) {
+    fs::create_directories(parent, ec);
+    if (ec) {
+      throw InputError(out + ": cannot create the folder " + parent.string() + ": " + ec.message());
+    }
+  }
+}
+
 // ---------------------------------------------------------------------------------------------
 // sysid rollout MODEL.xml
 
@@ -169,6 +197,7 @@ struct SimulateArgs {
   bool has_seed = false;     // --seed given
   int threads = 0;           // used when has_threads
   bool has_threads = false;  // --threads given
+  bool force = false;        // overwrite an --out that is not an mjsysid log
 };
 
 // warns (stderr) about truth values outside their parameter's bounds: a fit could not reach them
@@ -205,15 +234,11 @@ int RunSimulate(const SimulateArgs& args) {
   // simulate, then write atomically (creating the folder)
   mjsysid::sim::SimulateSettings settings;
   settings.threads = args.has_threads ? args.threads : config.options.threads;
+  std::vector<std::string> inputs = {args.experiment};
+  for (const mjsysid::io::ModelSpec& spec : config.models) inputs.push_back(spec.path);
+  mjsysid::run::CheckOutputFile(out, inputs, "--out");
   const mjsysid::io::Log log = mjsysid::sim::SimulateExperiment(config, settings);
-  const fs::path parent = fs::path(out).parent_path();
-  if (!parent.empty()) {
-    std::error_code ec;
-    fs::create_directories(parent, ec);
-    if (ec) {
-      throw InputError(out + ": cannot create the folder " + parent.string() + ": " + ec.message());
-    }
-  }
+  PrepareLogOutput(out, inputs, args.force);
   mjsysid::io::WriteLog(out, log);
 
   // summary
@@ -280,6 +305,8 @@ Command AddSimulate(CLI::App* app) {
       "--threads", args->threads,
       "simulation threads, 0 = all cores (default: solver.threads of the experiment)");
   threads->check(CLI::Range(0, 4096));
+  sub->add_flag("--force", args->force,
+                "overwrite an existing --out file that is not an mjsysid log");
   sub->footer(std::string("Sequences are named seq0, seq1, ... (MODEL_seq0, ... with several "
                           "models); sensor rows are read before each step (sensor_time pre).\n") +
               kExitCodesFooter);
@@ -414,11 +441,18 @@ Command AddCheck(CLI::App* app) {
 // sysid fit EXP.yaml --out DIR
 
 std::atomic<bool> g_interrupted{false};
+constexpr int kStopSignals[] = {SIGINT, SIGTERM, SIGHUP};
 
-// first Ctrl-C: stop after the current iteration and write results; second: default (exit)
+// first SIGINT, SIGTERM or SIGHUP: stop after the current iteration and write the results; the
+// next one has the default action (the process ends at once; the previous result stays)
 extern "C" void OnInterrupt(int) {
   g_interrupted.store(true);
-  std::signal(SIGINT, SIG_DFL);
+  for (int s : kStopSignals) std::signal(s, SIG_DFL);
+}
+
+// installs (true) or removes (false) OnInterrupt for the stop signals
+void CatchStopSignals(bool on) {
+  for (int s : kStopSignals) std::signal(s, on ? OnInterrupt : SIG_DFL);
 }
 
 struct FitArgs {
@@ -426,6 +460,7 @@ struct FitArgs {
   std::string out;
   int threads = -1;
   bool quiet = false;
+  bool force = false;
 };
 
 std::string Flags(const mjsysid::ParameterEstimate& p) {
@@ -436,20 +471,8 @@ std::string Flags(const mjsysid::ParameterEstimate& p) {
   return Join(f);
 }
 
-int RunFit(const FitArgs& args) {
-  namespace io = mjsysid::io;
-  const io::ExperimentConfig config = io::LoadExperiment(args.experiment);
-  mjsysid::run::FitRunOptions options;
-  options.out_dir = args.out;
-  options.threads = args.threads;
-  options.verbose = !args.quiet;
-  options.interrupt = &g_interrupted;
-  std::signal(SIGINT, OnInterrupt);
-  const mjsysid::run::FitRunOutcome out = mjsysid::run::RunFit(config, options);
-  std::signal(SIGINT, SIG_DFL);
-  const io::FitResultFile& f = out.file;
-
-  // the estimates against the start (and the truth, for simulated data)
+// prints the estimates against the start (and the truth, for simulated data)
+void PrintEstimates(const mjsysid::io::FitResultFile& f) {
   std::printf("%s: %s after %d iterations (%s), cost %.6g -> %.6g, %.2f s\n", f.name.c_str(),
               f.status.c_str(), f.iterations, f.termination.c_str(), f.initial_cost, f.final_cost,
               f.seconds);
@@ -464,11 +487,28 @@ int RunFit(const FitArgs& args) {
   }
   for (const std::string& u : f.uncertainty.unidentifiable)
     std::printf("  unidentifiable: %s\n", u.c_str());
+  std::fflush(stdout);
+}
+
+int RunFit(const FitArgs& args) {
+  namespace io = mjsysid::io;
+  const io::ExperimentConfig config = io::LoadExperiment(args.experiment);
+  mjsysid::run::FitRunOptions options;
+  options.out_dir = args.out;
+  options.threads = args.threads;
+  options.verbose = !args.quiet;
+  options.interrupt = &g_interrupted;
+  options.force = args.force;
+  options.on_estimates = PrintEstimates;
+  CatchStopSignals(true);
+  const mjsysid::run::FitRunOutcome out = mjsysid::run::RunFit(config, options);
+  CatchStopSignals(false);
+  const io::FitResultFile& f = out.file;
   for (const std::string& w : f.warnings)
     std::fprintf(stderr, "sysid fit: warning: %s\n", w.c_str());
   std::printf("  wrote %s/{result.yaml, result.h5", out.out_dir.c_str());
   for (const auto& [model, file] : f.identified_models) std::printf(", %s", file.c_str());
-  std::printf("}\n");
+  std::printf("} (run %s)\n", f.run_id.c_str());
   if (out.file.interrupted)
     std::fprintf(stderr, "sysid fit: interrupted: results of the last good iterate written\n");
   return out.exit_code;
@@ -484,12 +524,17 @@ Command AddFit(CLI::App* app) {
   sub->add_option("--threads", args->threads, "simulation threads (default: solver.threads)")
       ->check(CLI::NonNegativeNumber);
   sub->add_flag("--quiet", args->quiet, "no progress line per iteration");
+  sub->add_flag("--force", args->force,
+                "replace an existing --out folder that is not an mjsysid result folder (its files "
+                "are deleted)");
   sub->footer(
       std::string("Writes DIR/result.yaml (values, std, 95% intervals, flags, costs, versions), "
                   "DIR/result.h5 (trace, Jacobian, covariance, signals) and "
-                  "DIR/<model>_identified.xml. result.yaml is rewritten after every successful "
-                  "iteration; Ctrl-C stops after the current one and writes the results of the "
-                  "last good iterate. Exit code 1 when the fit did not converge.\n") +
+                  "DIR/<model>_identified.xml, all with one run id, into DIR.partial (with "
+                  "checkpoint.yaml after every successful iteration), which replaces DIR once "
+                  "complete. Ctrl-C, SIGTERM or SIGHUP stops after the current iteration and "
+                  "writes the results of the last good iterate; a second one exits at once and "
+                  "leaves DIR as it was. Exit code 1 when the fit did not converge.\n") +
       kExitCodesFooter);
   return {sub, [args] { return RunFit(*args); }};
 }
@@ -502,6 +547,14 @@ struct ReportArgs {
 };
 
 int RunReport(const ReportArgs& args) {
+  // no fit may replace the folder while the report writes into it; the pages are no inputs
+  const mjsysid::run::FolderLock lock(args.dir, "sysid report");
+  const fs::path dir(args.dir);
+  for (const char* page : {"report.html", "cost.png", "parameters.png"}) {
+    mjsysid::run::CheckOutputFile((dir / page).string(),
+                                  {(dir / "result.yaml").string(), (dir / "result.h5").string()},
+                                  "report");
+  }
   std::string summary;
   try {
     mjsysid::report::WriteReport(args.dir, &summary);
@@ -532,6 +585,7 @@ struct ImportArgs {
   std::vector<std::string> csv;
   std::string out;
   std::string sensor_time = "pre";
+  bool force = false;  // overwrite an --out that is not an mjsysid log
 };
 
 // CSV files (one sequence each, named after the file) into one validated HDF5 log
@@ -546,6 +600,9 @@ int RunImport(const ImportArgs& args) {
     log.sequences.push_back(io::ImportCsv(path, *m, fs::path(path).stem().string()));
   }
   io::ValidateLogAgainstModel(log, *m, args.out);
+  std::vector<std::string> inputs = {args.model};
+  inputs.insert(inputs.end(), args.csv.begin(), args.csv.end());
+  PrepareLogOutput(args.out, inputs, args.force);
   io::WriteLog(args.out, log);
   std::printf("imported %zu sequence(s) into %s\n", log.sequences.size(), args.out.c_str());
   for (const io::Sequence& s : log.sequences) {
@@ -567,6 +624,7 @@ Command AddImport(CLI::App* app) {
                   "pre: sensors read before the step (y_k at x_k); post: after it")
       ->check(CLI::IsMember({"pre", "post"}))
       ->capture_default_str();
+  sub->add_flag("--force", args->force, "overwrite an existing --out that is not an mjsysid log");
   sub->footer(std::string("CSV columns: time, one per actuator (its name), one per sensor "
                           "component (NAME or NAME[i]), optional qpos[i], qvel[i], act[i]; "
                           "any order. Checked against the model before writing.\n") +
@@ -594,6 +652,8 @@ int RunGuarded(const std::string& name, const std::function<int()>& run) {
   } catch (const mjsysid::ParameterError& e) {
     return fail(e.what(), kExitBadInput);
   } catch (const InputError& e) {
+    return fail(e.what(), kExitBadInput);
+  } catch (const mjsysid::run::OutputError& e) {
     return fail(e.what(), kExitBadInput);
   } catch (const mjsysid::SimulationError& e) {
     return fail(e.what(), kExitFailed);

@@ -171,6 +171,7 @@ std::string EmitYaml(const FitResultFile& r) {
       {"mujoco_version", &r.mujoco_version},
       {"jacobian_mode", &r.jacobian_mode}};
   for (const auto& [key, value] : texts) out << YAML::Key << key << YAML::Value << *value;
+  if (!r.run_id.empty()) out << YAML::Key << "run_id" << YAML::Value << r.run_id;
   out << YAML::Key << "iterations" << YAML::Value << r.iterations;
   out << YAML::Key << "initial_cost" << YAML::Value << Number(r.initial_cost);
   out << YAML::Key << "final_cost" << YAML::Value << Number(r.final_cost);
@@ -409,6 +410,7 @@ void ReadYaml(const std::string& path, FitResultFile* r) {
                                                         {"mujoco_version", &r->mujoco_version},
                                                         {"jacobian_mode", &r->jacobian_mode}};
   for (const auto& [key, value] : texts) *value = y.Text(y.Get(root, key, key), key);
+  if (root["run_id"]) r->run_id = y.Text(root["run_id"], "run_id");
   r->converged = r->status == "converged";
   r->interrupted = r->status == "interrupted";
   const std::pair<const char*, int*> ints[] = {{"iterations", &r->iterations},
@@ -542,6 +544,7 @@ void WriteH5(const std::string& tmp, const FitResultFile& r, const std::string& 
     h5::WriteStringAttr(root.get(), "format", kFormat, file, "/");
     h5::WriteIntAttr(root.get(), "format_version", {kFormatVersion}, true, file, "/");
     h5::WriteStringAttr(root.get(), "status", r.status, file, "/");
+    if (!r.run_id.empty()) h5::WriteStringAttr(root.get(), "run_id", r.run_id, file, "/");
     WriteH5Parameters(root.get(), r, file);
 
     // covariance (np x np) and jacobian (nres x np); ColMajor covariance stored row-major
@@ -688,7 +691,8 @@ SequenceResult ReadH5Sequence(hid_t sequences, const std::string& name, const st
   return s;
 }
 
-void ReadH5(const std::string& path, FitResultFile* r) {
+// `run_id` is the run id of result.h5 ("" when it has none)
+void ReadH5(const std::string& path, FitResultFile* r, std::string* run_id) {
   const std::string& file = path;
   std::lock_guard<std::mutex> lock(h5::Mutex());
   h5::Silence();
@@ -715,6 +719,9 @@ void ReadH5(const std::string& path, FitResultFile* r) {
     }
   }
   h5::ReadScalarString(root.get(), "status", file, "/", "");
+  if (h5::OpenAttrIfAny(root.get(), "run_id", file, "/").get() >= 0) {
+    *run_id = h5::ReadScalarString(root.get(), "run_id", file, "/", "");
+  }
 
   // arrays
   ReadH5Parameters(root.get(), file, *r);
@@ -757,14 +764,42 @@ void WriteResultH5(const std::string& path, const FitResultFile& result) {
   }
 }
 
+std::string RunIdComment(const std::string& run_id) {
+  return "<!-- mjsysid run " + run_id + " -->";
+}
+
 FitResultFile ReadResult(const std::string& dir) {
   const std::filesystem::path d(dir);
   FitResultFile r;
-  ReadYaml((d / "result.yaml").string(), &r);
+  const std::string yaml_path = (d / "result.yaml").string();
+  const std::string h5_path = (d / "result.h5").string();
+  ReadYaml(yaml_path, &r);
+  std::string h5_run;
   try {
-    ReadH5((d / "result.h5").string(), &r);
+    ReadH5(h5_path, &r, &h5_run);
   } catch (const h5::Error& e) {
     throw ResultError(e.what());
+  }
+
+  // one run: result.h5 and every identified model carry result.yaml's run id
+  const auto show = [](const std::string& id) { return id.empty() ? "none" : id; };
+  if (h5_run != r.run_id) {
+    throw ResultError(dir + ": the files come from different fits: result.yaml is run " +
+                      show(r.run_id) + ", result.h5 is run " + show(h5_run) +
+                      " (run `sysid fit` again into this folder)");
+  }
+  for (const auto& [model, file] : r.identified_models) {
+    const std::string path = (d / file).string();
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw ResultError(path + ": missing (result.yaml lists it as model " + model + ")");
+    std::string head(4096, '\0');
+    in.read(head.data(), static_cast<std::streamsize>(head.size()));
+    head.resize(static_cast<size_t>(in.gcount()));
+    if (!r.run_id.empty() && head.find(RunIdComment(r.run_id)) == std::string::npos) {
+      throw ResultError(dir + ": the files come from different fits: " + file +
+                        " is not from run " + r.run_id + " of result.yaml (run `sysid fit` " +
+                        "again into this folder)");
+    }
   }
   return r;
 }

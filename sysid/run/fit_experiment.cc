@@ -7,15 +7,16 @@
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
-#include <fstream>
 #include <map>
 #include <system_error>
 #include <thread>
 
 #include "core/identified_model.h"
 #include "mjsysid/version.h"
+#include "sysid/io/atomic_file.h"
 #include "sysid/io/log.h"
 #include "sysid/io/sequence_models.h"
+#include "sysid/run/output_folder.h"
 #include "sysid/sim/simulate.h"
 
 namespace mjsysid::run {
@@ -164,7 +165,8 @@ std::vector<std::string> WriteIdentifiedModel(const io::ExperimentConfig& cfg,
                                               const std::string& model_name,
                                               const std::string& model_path,
                                               const std::vector<ParameterEstimate>& estimates,
-                                              const std::string& out_path) {
+                                              const std::string& out_path,
+                                              const std::string& run_id) {
   // the estimates of the parameters that apply to this model
   std::vector<ParameterSpec> specs;
   std::vector<double> values;
@@ -176,29 +178,34 @@ std::vector<std::string> WriteIdentifiedModel(const io::ExperimentConfig& cfg,
     }
   }
 
-  // core writes them into the model's MJCF (and checks it); saved atomically: a temporary file
-  // next to out_path, renamed over it
+  // core writes them into the model's MJCF (and checks it); the run id as a comment before the
+  // root element; saved atomically (a temporary file next to out_path, flushed, renamed over it)
   std::vector<std::string> warnings;
   const std::string xml = IdentifiedModelXml(model_path, specs, values, &warnings);
-  const std::string tmp = out_path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    out << xml;
-    out.close();
-    if (!out) throw std::runtime_error("cannot write " + tmp);
-  }
-  fs::rename(tmp, out_path);
+  io::WriteFileAtomically(out_path, run_id.empty() ? xml : io::RunIdComment(run_id) + "\n" + xml);
   for (std::string& w : warnings) w = out_path + ": " + w;
   return warnings;
+}
+
+// the files a fit reads: the experiment, its models and its logs
+std::vector<std::string> InputsOf(const io::ExperimentConfig& cfg) {
+  std::vector<std::string> inputs = {cfg.source_file};
+  for (const io::ModelSpec& ms : cfg.models) inputs.push_back(ms.path);
+  for (const io::DataFile& df : cfg.data) inputs.push_back(df.path);
+  return inputs;
 }
 
 FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   FitRunOutcome out;
   out.out_dir = ro.out_dir.empty() ? cfg.output : ro.out_dir;
   BuiltProblem bp = BuildProblem(cfg, ro.threads);
-  // the folder only once the input is known good: bad input leaves nothing behind
+
+  // the output folder only once the input is known good (bad input leaves nothing behind), never
+  // one that holds an input, never a foreign one without force
+  CheckOutputFolder(out.out_dir, InputsOf(cfg), ro.force);
+  const fs::path parent = fs::absolute(out.out_dir).lexically_normal().parent_path();
   std::error_code ec;
-  fs::create_directories(out.out_dir, ec);
+  fs::create_directories(parent, ec);
   if (ec) {
     // the folder comes from --out, or from `output:` (or its default) in the experiment
     const io::Mark where = ro.out_dir.empty() ? cfg.marks.Of("output") : io::Mark{"--out", 0, 0};
@@ -206,6 +213,11 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
                           "cannot create the output folder " + out.out_dir + ": " + ec.message(),
                           "a file of that name exists, or the parent folder is not writable");
   }
+
+  // one fit at a time into a folder; everything written into the staging folder DIR.partial,
+  // which replaces DIR only once complete
+  const FolderLock lock(out.out_dir, "sysid fit of " + cfg.source_file);
+  const std::string staging = CreateStagingFolder(out.out_dir);
   FitOptions options = bp.options;
   options.verbose = ro.verbose && options.verbose;
   options.interrupt = ro.interrupt;
@@ -217,6 +229,7 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   file.mjsysid_version = MJSYSID_VERSION;
   file.mujoco_version = MujocoVersion();
   file.created = NowIso();
+  file.run_id = NewRunId();
   const SimulatorOptions sim_defaults;
   file.solver = {
       {"max_iterations", std::to_string(options.max_iterations)},
@@ -238,9 +251,11 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   std::map<std::string, double> truth;
   for (const io::NamedValue& t : cfg.simulate.truth) truth[t.name] = t.value;
 
-  // checkpoint after every good iteration: status running, current values
-  const std::string yaml_path = (fs::path(out.out_dir) / "result.yaml").string();
-  const std::string h5_path = (fs::path(out.out_dir) / "result.h5").string();
+  // checkpoint after every good iteration (DIR.partial/checkpoint.yaml): status running, current
+  // values
+  const std::string checkpoint_path = (fs::path(staging) / "checkpoint.yaml").string();
+  const std::string yaml_path = (fs::path(staging) / "result.yaml").string();
+  const std::string h5_path = (fs::path(staging) / "result.h5").string();
   std::vector<std::string> names;
   for (const io::ParameterSpec& p : cfg.parameters) names.push_back(p.name);
   for (const io::MeasurementSpec& me : cfg.measurement) {
@@ -263,7 +278,7 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
       if (truth.count(e.name)) e.truth = truth[e.name];
       cp.parameters.push_back(e);
     }
-    io::WriteResultYaml(yaml_path, cp);
+    io::WriteResultYaml(checkpoint_path, cp);
   };
 
   // fit
@@ -274,26 +289,39 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
 
   // results: the fit as it came, the truth where known, the run's warnings first
   file.status = r.interrupted ? "interrupted" : r.converged ? "converged" : "not_converged";
+  if (r.interrupted) {
+    file.termination =
+        "interrupted (a stop signal) after iteration " + std::to_string(r.iterations);
+  }
   for (ParameterEstimate& e : file.parameters) {
     if (truth.count(e.name)) e.truth = truth[e.name];
   }
   file.warnings.insert(file.warnings.begin(), bp.warnings.begin(), bp.warnings.end());
-  // identified models
+  out.exit_code = r.converged ? 0 : 1;
+
+  // the estimates are shown before any file is written (a full disk loses no result)
+  if (ro.on_estimates) ro.on_estimates(file);
+
+  // identified models, result.h5, then result.yaml (which says the run is complete), into the
+  // staging folder; then the staging folder replaces DIR
   for (size_t i = 0; i < cfg.models.size(); ++i) {
     const std::string fname = cfg.models[i].name + "_identified.xml";
     try {
       const std::vector<std::string> w =
           WriteIdentifiedModel(cfg, cfg.models[i].name, cfg.models[i].path, r.parameters,
-                               (fs::path(out.out_dir) / fname).string());
+                               (fs::path(staging) / fname).string(), file.run_id);
       file.warnings.insert(file.warnings.end(), w.begin(), w.end());
       file.identified_models[cfg.models[i].name] = fname;
+    } catch (const io::FileError&) {
+      throw;  // the disk refused: not a property of the model
     } catch (const std::exception& e) {
       file.warnings.push_back(std::string("identified model not written: ") + e.what());
     }
   }
   io::WriteResultH5(h5_path, file);
+  fs::remove(checkpoint_path, ec);
   io::WriteResultYaml(yaml_path, file);
-  out.exit_code = r.converged ? 0 : 1;
+  PublishFolder(staging, out.out_dir);
   return out;
 }
 
