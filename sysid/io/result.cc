@@ -750,6 +750,19 @@ void WriteResultYaml(const std::string& path, const FitResultFile& result) {
   }
 }
 
+namespace {
+
+// HDF5's text of a failed system call ("... errno = 28, error message = '...' ...") as
+// "<path>: cannot write: <the system's reason>"; other messages as they are
+std::string WriteFailure(const std::string& path, const std::string& what) {
+  const size_t at = what.find("errno = ");
+  if (at == std::string::npos) return what;
+  const int err = std::atoi(what.c_str() + at + 8);
+  return path + ": cannot write: " + std::strerror(err);
+}
+
+}  // namespace
+
 void WriteResultH5(const std::string& path, const FitResultFile& result) {
   CheckParameters(result, path);
   CheckMatrices(result, path);  // the sequences are checked as they are written
@@ -758,7 +771,7 @@ void WriteResultH5(const std::string& path, const FitResultFile& result) {
   try {
     ReplaceAtomically(path, [&](const std::string& tmp) { WriteH5(tmp, result, path); });
   } catch (const h5::Error& e) {
-    throw ResultError(e.what());
+    throw ResultError(WriteFailure(path, e.what()));
   } catch (const FileError& e) {
     throw ResultError(e.what());
   }
@@ -789,13 +802,14 @@ FitResultFile ReadResult(const std::string& dir) {
                       " (run `sysid fit` again into this folder)");
   }
   for (const auto& [model, file] : r.identified_models) {
+    if (r.run_id.empty()) break;  // a result of an older version, or built by hand
     const std::string path = (d / file).string();
     std::ifstream in(path, std::ios::binary);
     if (!in) throw ResultError(path + ": missing (result.yaml lists it as model " + model + ")");
     std::string head(4096, '\0');
     in.read(head.data(), static_cast<std::streamsize>(head.size()));
     head.resize(static_cast<size_t>(in.gcount()));
-    if (!r.run_id.empty() && head.find(RunIdComment(r.run_id)) == std::string::npos) {
+    if (head.find(RunIdComment(r.run_id)) == std::string::npos) {
       throw ResultError(dir + ": the files come from different fits: " + file +
                         " is not from run " + r.run_id + " of result.yaml (run `sysid fit` " +
                         "again into this folder)");
