@@ -20,6 +20,7 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <optional>
 #include <set>
 #include <stdexcept>
 #include <string>
@@ -36,6 +37,7 @@
 #include "sysid/io/log.h"
 #include "sysid/run/fit_experiment.h"
 #include "sysid/run/output_folder.h"
+#include "sysid/run/resume.h"
 #include "sysid/sim/simulate.h"
 #include "tools/report/report.h"
 
@@ -462,6 +464,7 @@ struct FitArgs {
   int threads = -1;
   bool quiet = false;
   bool force = false;
+  std::string resume;  // --resume DIR
 };
 
 std::string Flags(const mjsysid::ParameterEstimate& p) {
@@ -493,9 +496,29 @@ void PrintEstimates(const mjsysid::io::FitResultFile& f) {
 
 int RunFit(const FitArgs& args) {
   namespace io = mjsysid::io;
-  const io::ExperimentConfig config = io::LoadExperiment(args.experiment);
+  // --resume DIR: the folder is DIR; the experiment is the checkpoint's unless given
+  std::string experiment = args.experiment;
+  if (!args.resume.empty()) {
+    if (!args.out.empty() && !mjsysid::run::SamePath(args.out, args.resume)) {
+      throw InputError("--out " + args.out + " and --resume " + args.resume +
+                       " differ: a resumed fit writes into the folder it resumes");
+    }
+    if (experiment.empty()) {
+      const std::optional<io::FitResultFile> cp = mjsysid::run::FindCheckpoint(args.resume);
+      if (!cp) {
+        throw InputError("--resume " + args.resume + ": nothing to resume: no checkpoint " +
+                         mjsysid::run::StagingFolder(args.resume) +
+                         "/checkpoint.yaml and no interrupted result in the folder");
+      }
+      experiment = cp->experiment;
+    }
+  } else if (experiment.empty()) {
+    throw InputError("the experiment file is required (sysid fit EXP.yaml), except with --resume");
+  }
+  const io::ExperimentConfig config = io::LoadExperiment(experiment);
   mjsysid::run::FitRunOptions options;
-  options.out_dir = args.out;
+  options.out_dir = args.resume.empty() ? args.out : args.resume;
+  options.resume = !args.resume.empty();
   options.threads = args.threads;
   options.verbose = !args.quiet;
   options.interrupt = &g_interrupted;
@@ -519,7 +542,8 @@ Command AddFit(CLI::App* app) {
   auto args = std::make_shared<FitArgs>();
   CLI::App* sub = app->add_subcommand(
       "fit", "Fit the experiment's parameters to its data files (Ceres, analytic Jacobians)");
-  sub->add_option("experiment", args->experiment, "YAML experiment file")->required();
+  sub->add_option("experiment", args->experiment,
+                  "YAML experiment file (with --resume: default the checkpoint's)");
   sub->add_option("--out", args->out,
                   "output folder (default: the experiment's `output`, results/<name>)");
   sub->add_option("--threads", args->threads, "simulation threads (default: solver.threads)")
@@ -528,6 +552,9 @@ Command AddFit(CLI::App* app) {
   sub->add_flag("--force", args->force,
                 "replace an existing --out folder that is not an mjsysid result folder (its files "
                 "are deleted)");
+  sub->add_option("--resume", args->resume,
+                  "continue the fit of DIR from its checkpoint (DIR.partial/checkpoint.yaml of a "
+                  "killed run, or DIR's interrupted result); writes into DIR");
   sub->footer(
       std::string("Writes DIR/result.yaml (values, std, 95% intervals, flags, costs, versions), "
                   "DIR/result.h5 (trace, Jacobian, covariance, signals) and "

@@ -781,11 +781,8 @@ std::string RunIdComment(const std::string& run_id) {
   return "<!-- mjsysid run " + run_id + " -->";
 }
 
-FitResultFile ReadResult(const std::string& dir) {
-  const std::filesystem::path d(dir);
+FitResultFile ReadResultFiles(const std::string& yaml_path, const std::string& h5_path) {
   FitResultFile r;
-  const std::string yaml_path = (d / "result.yaml").string();
-  const std::string h5_path = (d / "result.h5").string();
   ReadYaml(yaml_path, &r);
   std::string h5_run;
   try {
@@ -793,14 +790,22 @@ FitResultFile ReadResult(const std::string& dir) {
   } catch (const h5::Error& e) {
     throw ResultError(e.what());
   }
-
-  // one run: result.h5 and every identified model carry result.yaml's run id
   const auto show = [](const std::string& id) { return id.empty() ? "none" : id; };
   if (h5_run != r.run_id) {
-    throw ResultError(dir + ": the files come from different fits: result.yaml is run " +
-                      show(r.run_id) + ", result.h5 is run " + show(h5_run) +
-                      " (run `sysid fit` again into this folder)");
+    throw ResultError(std::filesystem::path(yaml_path).parent_path().string() +
+                      ": the files come from different fits: " +
+                      std::filesystem::path(yaml_path).filename().string() + " is run " +
+                      show(r.run_id) + ", " + std::filesystem::path(h5_path).filename().string() +
+                      " is run " + show(h5_run) + " (run `sysid fit` again into this folder)");
   }
+  return r;
+}
+
+FitResultFile ReadResult(const std::string& dir) {
+  const std::filesystem::path d(dir);
+  FitResultFile r = ReadResultFiles((d / "result.yaml").string(), (d / "result.h5").string());
+
+  // one run: every identified model carries result.yaml's run id
   for (const auto& [model, file] : r.identified_models) {
     if (r.run_id.empty()) break;  // a result of an older version, or built by hand
     const std::string path = (d / file).string();

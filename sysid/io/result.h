@@ -66,4 +66,8 @@ std::string RunIdComment(const std::string& run_id);
 // identified models they list come from one run
 FitResultFile ReadResult(const std::string& dir);
 
+// reads a result.yaml-like file and a result.h5-like file (e.g. a fit's checkpoint.yaml and
+// checkpoint.h5) into one FitResultFile; checks that both carry the same run id
+FitResultFile ReadResultFiles(const std::string& yaml_path, const std::string& h5_path);
+
 }  // namespace mjsysid::io

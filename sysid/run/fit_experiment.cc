@@ -8,6 +8,7 @@
 #include <ctime>
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <system_error>
 #include <thread>
 
@@ -17,6 +18,7 @@
 #include "sysid/io/log.h"
 #include "sysid/io/sequence_models.h"
 #include "sysid/run/output_folder.h"
+#include "sysid/run/resume.h"
 #include "sysid/sim/simulate.h"
 
 namespace mjsysid::run {
@@ -187,7 +189,6 @@ std::vector<std::string> WriteIdentifiedModel(const io::ExperimentConfig& cfg,
   return warnings;
 }
 
-// the files a fit reads: the experiment, its models and its logs
 std::vector<std::string> InputsOf(const io::ExperimentConfig& cfg) {
   std::vector<std::string> inputs = {cfg.source_file};
   for (const io::ModelSpec& ms : cfg.models) inputs.push_back(ms.path);
@@ -195,10 +196,33 @@ std::vector<std::string> InputsOf(const io::ExperimentConfig& cfg) {
   return inputs;
 }
 
+std::vector<std::string> FittedNames(const io::ExperimentConfig& cfg) {
+  std::vector<std::string> names;
+  for (const io::ParameterSpec& p : cfg.parameters) names.push_back(p.name);
+  for (const io::MeasurementSpec& me : cfg.measurement) {
+    if (me.delay.fit) names.push_back(me.sensor + ".delay");
+    if (me.gain.fit) names.push_back(me.sensor + ".gain");
+    if (me.bias.fit) names.push_back(me.sensor + ".bias");
+  }
+  return names;
+}
+
 FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   FitRunOutcome out;
   out.out_dir = ro.out_dir.empty() ? cfg.output : ro.out_dir;
-  BuiltProblem bp = BuildProblem(cfg, ro.threads);
+
+  // --resume: the fit starts from the checkpoint's values (sysid/run/resume.h)
+  std::optional<io::FitResultFile> base;
+  if (ro.resume) {
+    base = FindCheckpoint(out.out_dir);
+    if (!base) {
+      throw OutputError("--resume " + out.out_dir + ": nothing to resume: no checkpoint " +
+                        StagingFolder(out.out_dir) +
+                        "/checkpoint.yaml and no interrupted result in the folder");
+    }
+  }
+  const io::ExperimentConfig run_cfg = base ? ResumedConfig(cfg, *base) : cfg;
+  BuiltProblem bp = BuildProblem(run_cfg, ro.threads);
 
   // the output folder only once the input is known good (bad input leaves nothing behind), never
   // one that holds an input, never a foreign one without force
@@ -217,7 +241,14 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   // one fit at a time into a folder; everything written into the staging folder DIR.partial,
   // which replaces DIR only once complete
   const FolderLock lock(out.out_dir, "sysid fit of " + cfg.source_file);
-  const std::string staging = CreateStagingFolder(out.out_dir);
+  if (base) {
+    const std::optional<io::FitResultFile> now = FindCheckpoint(out.out_dir);
+    if (!now || now->run_id != base->run_id || now->iterations != base->iterations) {
+      throw OutputError("--resume " + out.out_dir + ": the checkpoint changed while starting");
+    }
+  }
+  const std::string staging =
+      CreateStagingFolder(out.out_dir, /*keep_checkpoint=*/base.has_value());
   FitOptions options = bp.options;
   options.verbose = ro.verbose && options.verbose;
   options.interrupt = ro.interrupt;
@@ -251,40 +282,75 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   std::map<std::string, double> truth;
   for (const io::NamedValue& t : cfg.simulate.truth) truth[t.name] = t.value;
 
-  // checkpoint after every good iteration (DIR.partial/checkpoint.yaml): status running, current
-  // values
+  // checkpoint after every good iteration (DIR.partial/checkpoint.{yaml,h5}): status running,
+  // the current values, the successful iterations so far; a resumed run continues the
+  // checkpoint's count, trace and clock
   const std::string checkpoint_path = (fs::path(staging) / "checkpoint.yaml").string();
+  const std::string checkpoint_h5 = (fs::path(staging) / "checkpoint.h5").string();
   const std::string yaml_path = (fs::path(staging) / "result.yaml").string();
   const std::string h5_path = (fs::path(staging) / "result.h5").string();
-  std::vector<std::string> names;
-  for (const io::ParameterSpec& p : cfg.parameters) names.push_back(p.name);
-  for (const io::MeasurementSpec& me : cfg.measurement) {
-    if (me.delay.fit) names.push_back(me.sensor + ".delay");
-    if (me.gain.fit) names.push_back(me.sensor + ".gain");
-    if (me.bias.fit) names.push_back(me.sensor + ".bias");
+  const std::vector<std::string> names = FittedNames(cfg);
+  std::vector<double> first_initial;  // the first run's start values
+  for (const FitParameter& p : bp.parameters) first_initial.push_back(p.initial);
+  for (const FitMeasurement& me : run_cfg.measurement) {
+    for (const FitMeasurement::Term* t : {&me.delay, &me.gain, &me.bias}) {
+      if (t->fit) first_initial.push_back(t->initial);
+    }
   }
+  if (base) {
+    for (size_t i = 0; i < first_initial.size(); ++i)
+      first_initial[i] = base->parameters[i].initial;
+  }
+  io::FitResultFile progress;     // the checkpoint so far
+  std::string checkpoint_failed;  // the first checkpoint write failure
+  if (base) progress = *base;
   options.on_iteration = [&](const IterationInfo& it) {
+    if (base && it.iteration == 0) return;  // the checkpoint it starts from
+    IterationInfo entry = it;
+    entry.iteration += base ? base->iterations : 0;
+    entry.seconds += base ? base->seconds : 0;
+    if (!base && it.iteration == 0) progress.initial_cost = it.cost;
+    progress.trace.push_back(entry);
     io::FitResultFile cp = file;
     cp.status = "running";
-    cp.termination = "checkpoint after iteration " + std::to_string(it.iteration);
-    cp.iterations = it.iteration;
+    cp.termination = "checkpoint after iteration " + std::to_string(entry.iteration);
+    cp.iterations = entry.iteration;
+    cp.initial_cost = progress.initial_cost;
     cp.final_cost = it.cost;
+    cp.seconds = entry.seconds;
+    cp.trace = progress.trace;
     for (int i = 0; i < it.parameters.size() && i < static_cast<int>(names.size()); ++i) {
       ParameterEstimate e;
       e.name = names[i];
       e.value = it.parameters[i];
+      e.initial = first_initial[i];
       e.std_error = std::numeric_limits<double>::quiet_NaN();
       e.ci95_low = e.ci95_high = std::numeric_limits<double>::quiet_NaN();
       if (truth.count(e.name)) e.truth = truth[e.name];
       cp.parameters.push_back(e);
     }
-    io::WriteResultYaml(checkpoint_path, cp);
+    // a checkpoint that cannot be written (full disk) does not stop the fit: its estimates are
+    // still printed; the warning is given once
+    try {
+      io::WriteResultH5(checkpoint_h5, cp);
+      io::WriteResultYaml(checkpoint_path, cp);
+    } catch (const io::ResultError& e) {
+      if (checkpoint_failed.empty()) {
+        checkpoint_failed = e.what();
+        std::fprintf(stderr, "sysid fit: warning: checkpoint not written: %s\n", e.what());
+      }
+    }
   };
 
   // fit
   for (const std::string& w : bp.warnings)
     std::fprintf(stderr, "sysid fit: warning: %s\n", w.c_str());
   static_cast<FitResult&>(file) = bp.problem->Fit(options);
+  if (base) {
+    AppendToCheckpoint(*base, &file);
+    file.warnings.push_back("resumed from the checkpoint of run " + base->run_id +
+                            " after iteration " + std::to_string(base->iterations));
+  }
   const FitResult& r = file;
 
   // results: the fit as it came, the truth where known, the run's warnings first
@@ -320,6 +386,7 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   }
   io::WriteResultH5(h5_path, file);
   fs::remove(checkpoint_path, ec);
+  fs::remove(checkpoint_h5, ec);
   io::WriteResultYaml(yaml_path, file);
   PublishFolder(staging, out.out_dir);
   return out;

@@ -53,7 +53,8 @@ struct FitRunOptions {
   int threads = -1;                              // < 0: the config's solver.threads
   bool verbose = true;                           // progress lines on stderr
   const std::atomic<bool>* interrupt = nullptr;  // set (e.g. by SIGINT) to stop after an iteration
-  bool force = false;  // replace an existing output folder that is not an mjsysid result
+  bool force = false;   // replace an existing output folder that is not an mjsysid result
+  bool resume = false;  // continue from the folder's checkpoint (sysid/run/resume.h)
   // called with the results before any file is written (the CLI prints the estimates)
   std::function<void(const io::FitResultFile&)> on_estimates;
 };
@@ -68,6 +69,10 @@ FitRunOutcome RunFit(const io::ExperimentConfig& config, const FitRunOptions& op
 
 // the files a fit reads: the experiment, its models and its data logs
 std::vector<std::string> InputsOf(const io::ExperimentConfig& config);
+
+// the names of the fitted values in FitResult order: the parameters, then the measurement terms
+// (SENSOR.delay, SENSOR.gain, SENSOR.bias)
+std::vector<std::string> FittedNames(const io::ExperimentConfig& config);
 
 // Writes the model of model_path with the fitted values of the parameters that apply to it into
 // out_path (atomically) as MJCF, and checks that the written file compiles to those values. A

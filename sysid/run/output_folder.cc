@@ -172,9 +172,16 @@ FolderLock::~FolderLock() {
 
 std::string StagingFolder(const std::string& dir) { return Trimmed(dir) + ".partial"; }
 
-std::string CreateStagingFolder(const std::string& dir) {
+std::string CreateStagingFolder(const std::string& dir, bool keep_checkpoint) {
   const std::string staging = StagingFolder(dir);
   std::error_code ec;
+  if (keep_checkpoint && fs::is_directory(staging, ec)) {
+    for (const fs::directory_entry& e : fs::directory_iterator(staging)) {
+      const std::string name = e.path().filename().string();
+      if (name != "checkpoint.yaml" && name != "checkpoint.h5") fs::remove_all(e.path(), ec);
+    }
+    return staging;
+  }
   fs::remove_all(staging, ec);
   if (ec) {
     throw OutputError(staging + ": cannot delete the unfinished run left there: " + ec.message());

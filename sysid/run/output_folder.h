@@ -62,8 +62,9 @@ class FolderLock {
 // DIR.partial: the staging folder of output folder `dir`
 std::string StagingFolder(const std::string& dir);
 
-// a new empty staging folder for `dir` (a leftover one deleted first); the caller holds the lock
-std::string CreateStagingFolder(const std::string& dir);
+// the staging folder for `dir`, empty (a leftover one deleted first) or, with keep_checkpoint,
+// holding only the checkpoint.yaml and checkpoint.h5 it had; the caller holds the lock
+std::string CreateStagingFolder(const std::string& dir, bool keep_checkpoint = false);
 
 // Makes the complete staging folder `staging` the folder `dir`: flushes every file and the folder
 // to disk, swaps it with `dir` in one rename (or renames it when `dir` does not exist), deletes
