@@ -7,7 +7,9 @@
 //   1 the run failed (a simulation failed, MuJoCo raised an error)
 //   2 bad input (command line, experiment file, model, parameters, data files)
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <atomic>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <csignal>
@@ -108,6 +110,38 @@ std::string ModelSizes(const mjModel& m) {
   return buf;
 }
 
+// an option value that must be a whole number >= min (CLI11's own range checks print the
+// largest double in full: 309 digits)
+CLI::Validator WholeNumberAtLeast(long long min) {
+  return CLI::Validator(
+      [min](std::string& text) -> std::string {
+        char* end = nullptr;
+        errno = 0;
+        const long long v = std::strtoll(text.c_str(), &end, 10);
+        if (text.empty() || *end != '\0' || errno == ERANGE || v < min) {
+          return "expected a whole number >= " + std::to_string(min) + ", got '" +
+                 text.substr(0, 40) + (text.size() > 40 ? "...'" : "'");
+        }
+        return "";
+      },
+      "INT>=" + std::to_string(min));
+}
+
+// an option value that must be a finite number
+CLI::Validator FiniteNumber() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        char* end = nullptr;
+        const double v = std::strtod(text.c_str(), &end);
+        if (text.empty() || *end != '\0' || !std::isfinite(v)) {
+          return "expected a finite number, got '" + text.substr(0, 40) +
+                 (text.size() > 40 ? "...'" : "'");
+        }
+        return "";
+      },
+      "NUMBER");
+}
+
 // An HDF5 log output `out` (of --out): not one of `inputs`, and unless `force` either absent or
 // an mjsysid log (a file ReadLog accepts); its folder created. Throws OutputError (exit 2).
 void PrepareLogOutput(const std::string& out, const std::vector<std::string>& inputs, bool force) {
@@ -182,9 +216,10 @@ Command AddRollout(CLI::App* app) {
       "final sensor readings");
   sub->add_option("model", args->model_path, "MJCF (or MJB) model file")->required();
   sub->add_option("--steps", args->steps, "number of steps")
-      ->check(CLI::PositiveNumber)
+      ->check(WholeNumberAtLeast(1))
       ->capture_default_str();
   sub->add_option("--amplitude", args->amplitude, "control amplitude, in control units")
+      ->check(FiniteNumber())
       ->capture_default_str();
   sub->footer(kExitCodesFooter);
   return {sub, [args] { return RunRollout(*args); }};
@@ -431,6 +466,7 @@ Command AddCheck(CLI::App* app) {
                 "skip the Jacobian check (core vs ceres::GradientChecker at the initial values)");
   sub->add_option("--tolerance", args->tolerance,
                   "largest acceptable column-scaled relative Jacobian error")
+      ->check(FiniteNumber())
       ->capture_default_str();
   sub->add_flag("--strict", args->strict, "exit 1 when the Jacobian error exceeds --tolerance");
   sub->footer(std::string("Prints a summary and OK, or the first error. With data, also checks "
@@ -547,7 +583,7 @@ Command AddFit(CLI::App* app) {
   sub->add_option("--out", args->out,
                   "output folder (default: the experiment's `output`, results/<name>)");
   sub->add_option("--threads", args->threads, "simulation threads (default: solver.threads)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(WholeNumberAtLeast(0));
   sub->add_flag("--quiet", args->quiet, "no progress line per iteration");
   sub->add_flag("--force", args->force,
                 "replace an existing --out folder that is not an mjsysid result folder (its files "
@@ -717,6 +753,18 @@ int main(int argc, char** argv) {
   commands.push_back(AddCheck(&app));
   commands.push_back(AddRollout(&app));
 
+  // an unknown subcommand is named (CLI11 would say "A subcommand is required")
+  if (argc > 1 && argv[1][0] != '-') {
+    std::vector<std::string> names;
+    for (const Command& c : commands) names.push_back(c.app->get_name());
+    if (std::find(names.begin(), names.end(), argv[1]) == names.end()) {
+      std::string shown(argv[1]);
+      if (shown.size() > 40) shown = shown.substr(0, 40) + "...";
+      std::fprintf(stderr, "sysid: unknown subcommand '%s'; the subcommands: %s (sysid --help)\n",
+                   shown.c_str(), Join(names).c_str());
+      return kExitBadInput;
+    }
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -2,6 +2,7 @@
 
 #include <mujoco/mujoco.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -26,9 +27,20 @@ namespace {
 
 namespace fs = std::filesystem;
 
+// the range of solver.relative_step that can give a derivative
+constexpr double kMinRelativeStep = 1e-13;
+constexpr double kMaxRelativeStep = 0.1;
+
 std::string Num(double v) {
   char buf[40];
   std::snprintf(buf, sizeof(buf), "%.17g", v);
+  return buf;
+}
+
+// a number for a message: 6 digits
+std::string ShortNum(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof(buf), "%g", v);
   return buf;
 }
 
@@ -37,6 +49,36 @@ std::string NowIso() {
   char buf[32];
   std::strftime(buf, sizeof(buf), "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&t));
   return buf;
+}
+
+// the settings a fit cannot work with: a finite-difference step that overflows or vanishes in
+// rounding, two parameters of one model writing the same quantity
+void CheckFitSettings(const io::ExperimentConfig& cfg) {
+  const double h = cfg.options.jacobian.relative_step;
+  if (!(h >= kMinRelativeStep && h <= kMaxRelativeStep)) {
+    throw io::ConfigError(
+        cfg.solver_marks.Of("relative_step"),
+        "solver.relative_step: " + ShortNum(h) + " cannot work as a finite-difference step",
+        "between " + ShortNum(kMinRelativeStep) + " (below, p + h rounds to p) and " +
+            ShortNum(kMaxRelativeStep) + " (above, the difference is no derivative); default 1e-6");
+  }
+  for (const io::ModelSpec& ms : cfg.models) {
+    const std::vector<const io::ParameterSpec*> ps = cfg.ParametersOf(ms.name);
+    for (size_t j = 0; j < ps.size(); ++j) {
+      for (size_t i = 0; i < j; ++i) {
+        const ParameterSpec& a = ps[i]->target;
+        const ParameterSpec& b = ps[j]->target;
+        if (a.kind == b.kind && a.object == b.object && a.field == b.field && a.index == b.index) {
+          throw io::ConfigError(ps[j]->marks.self,
+                                "parameters '" + ps[i]->name + "' and '" + ps[j]->name +
+                                    "' both write " + a.kind + " " +
+                                    (a.object.empty() ? a.field : a.object) + "[" +
+                                    std::to_string(a.index) + "] of model '" + ms.name + "'",
+                                "fit each model quantity with one parameter");
+        }
+      }
+    }
+  }
 }
 
 }  // namespace
@@ -54,6 +96,9 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
     out.model_names.push_back(ms.name);
     out.models.push_back(std::move(m));
   }
+
+  // the fit's settings that cannot work, and two parameters writing one model quantity
+  CheckFitSettings(cfg);
 
   // parameters and measurement terms
   for (const FitParameter& p : cfg.parameters) {
@@ -148,6 +193,25 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
     }
   }
   io::CheckSequenceEntriesUsed(cfg, entry_used, all_groups);
+  // residual rows: fitted sensor columns x samples, and priors; none leaves nothing to fit
+  long long rows = 0;
+  for (size_t i = 0; i < out.sequences.size(); ++i) {
+    const FitSequence& fs_ = out.sequences[i];
+    const mjModel& m =
+        *out.models[std::find(out.model_names.begin(), out.model_names.end(), fs_.model) -
+                    out.model_names.begin()];
+    for (const std::string& name : fs_.sensors) {
+      const int id = mj_name2id(&m, mjOBJ_SENSOR, name.c_str());
+      if (id >= 0) rows += static_cast<long long>(fs_.time.size()) * m.sensor_dim[id];
+    }
+  }
+  for (const FitParameter& p : cfg.parameters) rows += p.has_prior ? 1 : 0;
+  if (rows == 0) {
+    throw io::ConfigError(cfg.marks.Of("sensors"),
+                          "the fit has no residuals: no sensor column of the selected log "
+                          "sequences is fitted",
+                          "the logs need sensordata columns of the sensors listed under sensors:");
+  }
   if (out.sequences.empty()) {
     throw io::ConfigError(cfg.marks.Of("sequences"), "no log sequence selected",
                           "check `sequences:` against the group names in the logs");
