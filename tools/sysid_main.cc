@@ -768,8 +768,14 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    const int rc = app.exit(e);
-    return rc == 0 ? kExitOk : kExitBadInput;
+    if (e.get_exit_code() == 0) return app.exit(e);  // --help, --version
+    // one line, "sysid SUBCOMMAND: message", as every other error
+    const bool sub =
+        argc > 1 && std::any_of(commands.begin(), commands.end(),
+                                [&](const Command& c) { return c.app->get_name() == argv[1]; });
+    std::fprintf(stderr, "sysid%s%s: %s (hint: sysid%s%s --help)\n", sub ? " " : "",
+                 sub ? argv[1] : "", e.what(), sub ? " " : "", sub ? argv[1] : "");
+    return kExitBadInput;
   }
   for (const Command& c : commands) {
     if (!*c.app) continue;
