@@ -424,7 +424,14 @@ int RunCheck(const CheckArgs& args) {
       std::printf("%sOK\n", summary.c_str());
       return kExitOk;
     }
-    const mjsysid::JacobianCheck check = built.problem->CheckJacobians(built.options);
+    mjsysid::JacobianCheck check;
+    try {
+      check = built.problem->CheckJacobians(built.options);
+    } catch (const mjsysid::SimulationError& e) {
+      throw mjsysid::SimulationError(
+          std::string(e.what()) + "; " + mjsysid::run::AtInitialValues(config), e.sequence(),
+          e.step());
+    }
     Appendf(&summary,
             "  jacobians  core (%s differences) vs ceres::GradientChecker, "
             "column-scaled relative error:\n",

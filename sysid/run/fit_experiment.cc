@@ -260,6 +260,14 @@ std::vector<std::string> InputsOf(const io::ExperimentConfig& cfg) {
   return inputs;
 }
 
+std::string AtInitialValues(const io::ExperimentConfig& cfg) {
+  std::string out;
+  for (const io::ParameterSpec& p : cfg.parameters) {
+    out += (out.empty() ? "" : ", ") + p.name + " = " + ShortNum(p.initial);
+  }
+  return "at the initial values " + out + " (" + cfg.source_file + ")";
+}
+
 std::vector<std::string> FittedNames(const io::ExperimentConfig& cfg) {
   std::vector<std::string> names;
   for (const io::ParameterSpec& p : cfg.parameters) names.push_back(p.name);
@@ -409,7 +417,13 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   // fit
   for (const std::string& w : bp.warnings)
     std::fprintf(stderr, "sysid fit: warning: %s\n", w.c_str());
-  static_cast<FitResult&>(file) = bp.problem->Fit(options);
+  try {
+    static_cast<FitResult&>(file) = bp.problem->Fit(options);
+  } catch (const SimulationError& e) {
+    // trial points that fail are rejected: this is the start
+    throw SimulationError(std::string(e.what()) + "; " + AtInitialValues(run_cfg), e.sequence(),
+                          e.step());
+  }
   if (base) {
     AppendToCheckpoint(*base, &file);
     file.warnings.push_back("resumed from the checkpoint of run " + base->run_id +

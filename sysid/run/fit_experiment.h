@@ -70,6 +70,9 @@ FitRunOutcome RunFit(const io::ExperimentConfig& config, const FitRunOptions& op
 // the files a fit reads: the experiment, its models and its data logs
 std::vector<std::string> InputsOf(const io::ExperimentConfig& config);
 
+// "at the initial values NAME = VALUE, ... (EXP.yaml)", for a simulation that fails at the start
+std::string AtInitialValues(const io::ExperimentConfig& config);
+
 // the names of the fitted values in FitResult order: the parameters, then the measurement terms
 // (SENSOR.delay, SENSOR.gain, SENSOR.bias)
 std::vector<std::string> FittedNames(const io::ExperimentConfig& config);

@@ -713,4 +713,20 @@ TEST_F(BadInputTest, CommandLineMessages) {
   ExpectBadInput("fit --resume " + dir_ + "/nothing_here", {"nothing to resume"});
 }
 
+// a start where the simulation fails (exit 1: the run failed) names the initial values
+TEST_F(BadInputTest, FailingStartNamesTheInitialValues) {
+  const std::string exp = Yaml("negative_mass.yaml",
+                               "model: @MODELS@/pendulum.xml\ndata: @LOG@\nparameters:\n"
+                               "  - {name: bob_mass, target: body_mass, object: bob, "
+                               "initial: -1.0}\n");
+  for (const std::string& cmd : {"fit " + exp + " --out " + prev_ + " --quiet", "check " + exp}) {
+    SCOPED_TRACE(cmd);
+    const CliRun r = Sysid(cmd);
+    EXPECT_EQ(r.code, 1) << r.err;
+    EXPECT_NE(r.err.find("at the initial values bob_mass = -1 (" + exp + ")"), std::string::npos)
+        << r.err;
+    EXPECT_EQ(Snapshot(prev_), prev_files_);
+  }
+}
+
 }  // namespace
