@@ -618,8 +618,19 @@ struct ReportArgs {
 };
 
 int RunReport(const ReportArgs& args) {
-  // no fit may replace the folder while the report writes into it; the pages are no inputs
-  const mjsysid::run::FolderLock lock(args.dir, "sysid report");
+  // no fit may replace the folder while the report writes into it (a folder whose parent is not
+  // writable has no lock, and no fit can replace it); the pages are no inputs
+  std::optional<mjsysid::run::FolderLock> lock;
+  try {
+    lock.emplace(args.dir, "sysid report");
+  } catch (const mjsysid::io::FileError&) {
+  }
+  std::error_code ec;
+  if (!fs::is_directory(args.dir, ec)) {
+    throw InputError(args.dir +
+                     ": no such folder (a fit writes result.yaml and result.h5 into its "
+                     "output folder)");
+  }
   const fs::path dir(args.dir);
   for (const char* page : {"report.html", "cost.png", "parameters.png"}) {
     mjsysid::run::CheckOutputFile((dir / page).string(),

@@ -19,8 +19,11 @@ std::optional<io::FitResultFile> FindCheckpoint(const std::string& dir) {
   std::error_code ec;
   const fs::path staging(StagingFolder(dir));
   if (fs::exists(staging / "checkpoint.yaml", ec) && fs::exists(staging / "checkpoint.h5", ec)) {
-    return io::ReadResultFiles((staging / "checkpoint.yaml").string(),
-                               (staging / "checkpoint.h5").string());
+    io::FitResultFile r = io::ReadResultFiles((staging / "checkpoint.yaml").string(),
+                                              (staging / "checkpoint.h5").string());
+    // checkpoint.h5 is written first: a kill between the two leaves it one iteration ahead
+    while (!r.trace.empty() && r.trace.back().iteration > r.iterations) r.trace.pop_back();
+    return r;
   }
   if (fs::exists(fs::path(dir) / "result.yaml", ec)) {
     io::FitResultFile r = io::ReadResult(dir);

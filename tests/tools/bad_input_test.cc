@@ -711,6 +711,8 @@ TEST_F(BadInputTest, CommandLineMessages) {
                                   {"--threads: expected a whole number >= 0, got '-3'"});
   EXPECT_LT(r.err.size(), 200u) << r.err;
   ExpectBadInput("fit --resume " + dir_ + "/nothing_here", {"nothing to resume"});
+  ExpectBadInput("report " + dir_ + "/no_such_folder", {"no_such_folder: no such folder"});
+  EXPECT_FALSE(fs::exists(dir_ + "/no_such_folder.lock"));
 }
 
 // a start where the simulation fails (exit 1: the run failed) names the initial values
