@@ -494,7 +494,8 @@ TEST_F(SysidOutputsTest, KillLoopNeverLosesOrMixesResults) {
       "one fit %.2f s\n",
       kills, killed_midway, interrupted, fit_s);
   EXPECT_GE(kills, 50);
-  EXPECT_GE(killed_midway, 10);  // the signals landed during the runs, not after them
+  // the signals landed during the runs, not after them (measured: 22 to 48 of 60)
+  EXPECT_GE(killed_midway + interrupted, 15);
 }
 
 }  // namespace
