@@ -105,7 +105,11 @@ class SysidOutputsTest : public ::testing::Test {
     log_ = dir_ + "/log.h5";
     ASSERT_TRUE(fs::exists(log_));
   }
-  void TearDown() override { fs::remove_all(dir_); }
+  void TearDown() override {
+    umount2((dir_ + "/small").c_str(), MNT_DETACH);  // FullDiskKeepsThePreviousResult's, if any
+    std::error_code ec;
+    fs::remove_all(dir_, ec);
+  }
 
   // the pendulum experiment with `steps` samples per sequence and at most `iterations`
   static std::string Experiment(int steps, int iterations, const std::string& extra_solver = "") {
@@ -431,7 +435,6 @@ TEST_F(SysidOutputsTest, FullDiskKeepsThePreviousResult) {
   WriteFile(mnt + "/filler", std::string(space.available - 12 * 1024, 'x'));
   const Ended e = Run("fit " + exp_ + " --out " + out + " --quiet");
   ExpectWriteFailureKeepsPrevious(e, out, before, "No space left on device");
-  umount(mnt.c_str());
 }
 
 // ---------------------------------------------------------------------------------------------
