@@ -23,7 +23,23 @@ std::string FormatShortest(double x) {
   return buf;
 }
 
-std::string Quote(const std::string& s) { return "'" + s + "'"; }
+std::string Quote(const std::string& s) {
+  constexpr size_t kShown = 60;
+  std::string out = "'";
+  for (size_t i = 0; i < s.size() && i < kShown; ++i) {
+    const unsigned char ch = static_cast<unsigned char>(s[i]);
+    if (ch < 0x20 || ch == 0x7f) {
+      char buf[8];
+      std::snprintf(buf, sizeof(buf), "\\x%02X", ch);
+      out += buf;
+    } else {
+      out += s[i];
+    }
+  }
+  out += "'";
+  if (s.size() > kShown) out += "... (" + std::to_string(s.size()) + " bytes)";
+  return out;
+}
 
 size_t EditDistance(const std::string& a, const std::string& b) {
   auto lower = [](char c) { return std::tolower(static_cast<unsigned char>(c)); };

@@ -15,7 +15,8 @@ std::string FormatG17(double x);
 // the shortest of "%.15g", "%.16g", "%.17g" that reads back as x (17 digits for non-finite x)
 std::string FormatShortest(double x);
 
-// 'text'
+// 'text' for a message: control bytes as \xNN, cut after 60 bytes with the length said
+// ('abc...' (10485760 bytes)), so a huge or binary value is never echoed whole
 std::string Quote(const std::string& s);
 
 // at most this many names are listed by JoinNames and NamesHint

@@ -137,6 +137,30 @@ double ParseNumber(const std::string& text, const std::string& where) {
   return value;
 }
 
+// Refuses what is not a comma-separated UTF-8/ASCII text with LF or CRLF line ends, from the
+// first 64 KiB: UTF-16/32 (byte order mark or NUL bytes), other NUL bytes, CR-only line ends;
+// rewinds `in`
+void CheckEncoding(std::ifstream& in, const std::string& file) {
+  std::string head(64 * 1024, '\0');
+  in.read(head.data(), static_cast<std::streamsize>(head.size()));
+  head.resize(static_cast<size_t>(in.gcount()));
+  in.clear();
+  in.seekg(0);
+  const std::string hint = ": save it as a UTF-8 (or ASCII) CSV with comma separators";
+  if (head.rfind("\xFF\xFE", 0) == 0 || head.rfind("\xFE\xFF", 0) == 0) {
+    Fail(file, "is UTF-16 or UTF-32 encoded (byte order mark " +
+                   std::string(head[0] == '\xFF' ? "FF FE" : "FE FF") + ")" + hint);
+  }
+  const size_t nul = head.find('\0');
+  if (nul != std::string::npos) {
+    Fail(file, "contains a NUL byte at byte " + std::to_string(nul) +
+                   " (UTF-16 without a byte order mark, or not a text file)" + hint);
+  }
+  if (head.find('\n') == std::string::npos && head.find('\r') != std::string::npos) {
+    Fail(file, "has CR-only line ends (classic Mac OS): convert them to LF or CRLF");
+  }
+}
+
 }  // namespace
 
 Sequence ImportCsv(const std::string& path, const mjModel& m, const std::string& sequence_name) {
@@ -148,6 +172,7 @@ Sequence ImportCsv(const std::string& path, const mjModel& m, const std::string&
   }
   std::ifstream in(path, std::ios::binary);
   if (!in) Fail(file, std::string("cannot open: ") + std::strerror(errno));
+  CheckEncoding(in, file);
 
   // header: the first non-blank line
   std::string line;
@@ -164,6 +189,11 @@ Sequence ImportCsv(const std::string& path, const mjModel& m, const std::string&
   if (!next_line()) Fail(file, "empty file (no header line)");
   const std::string header_where = file + ":" + std::to_string(line_no);
   const std::vector<std::string> header = SplitLine(line, header_where);
+  if (header.size() == 1 && line.find(';') != std::string::npos) {
+    Fail(header_where,
+         "the header has ';' separators and no ',': a CSV of a locale with decimal commas? "
+         "(hint: export it with ',' separators and '.' decimals)");
+  }
 
   // each header to its target
   const Columns columns = ModelColumns(m);
@@ -271,7 +301,8 @@ Sequence ImportCsv(const std::string& path, const mjModel& m, const std::string&
     const std::vector<std::string> fields = SplitLine(line, where_line);
     if (fields.size() != ncols) {
       Fail(where_line, std::to_string(fields.size()) + " fields, the header (line " +
-                           header_where.substr(file.size() + 1) + ") has " + std::to_string(ncols));
+                           header_where.substr(file.size() + 1) + ") has " + std::to_string(ncols) +
+                           (fields.size() > ncols ? " (decimal commas? numbers need a '.')" : ""));
     }
     for (size_t c = 0; c < ncols; ++c) {
       values.push_back(ParseNumber(fields[c], where_line + ": column " + std::to_string(c + 1) +

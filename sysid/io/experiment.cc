@@ -638,6 +638,15 @@ ExperimentConfig LoadExperiment(const std::string& path) {
   if (!fs::is_regular_file(path, ec)) {
     throw ConfigError(mark, "not a regular file: " + path, "give the path of a .yaml file");
   }
+  // size cap: yaml-cpp needs ~150 bytes of memory and ~1 us per byte (50 MB: 7.7 GiB, 59 s)
+  const char* cap_env = std::getenv("MJSYSID_MAX_YAML_BYTES");
+  const std::uintmax_t cap = cap_env ? std::strtoull(cap_env, nullptr, 10) : 1u << 20;
+  if (fs::file_size(path, ec) > cap) {
+    throw ConfigError(mark,
+                      "experiment file of " + std::to_string(fs::file_size(path, ec)) +
+                          " bytes is larger than the limit of " + std::to_string(cap) + " bytes",
+                      "experiments are a few KB; set MJSYSID_MAX_YAML_BYTES to raise the limit");
+  }
   std::ifstream in(path, std::ios::binary);
   std::ostringstream text;
   text << in.rdbuf();

@@ -170,6 +170,7 @@ std::string EmitYaml(const FitResultFile& r) {
       {"mujoco_version", &r.mujoco_version},
       {"jacobian_mode", &r.jacobian_mode}};
   for (const auto& [key, value] : texts) out << YAML::Key << key << YAML::Value << *value;
+  if (!r.run_id.empty()) out << YAML::Key << "run_id" << YAML::Value << r.run_id;
   out << YAML::Key << "iterations" << YAML::Value << r.iterations;
   out << YAML::Key << "initial_cost" << YAML::Value << Number(r.initial_cost);
   out << YAML::Key << "final_cost" << YAML::Value << Number(r.final_cost);
@@ -408,6 +409,7 @@ void ReadYaml(const std::string& path, FitResultFile* r) {
                                                         {"mujoco_version", &r->mujoco_version},
                                                         {"jacobian_mode", &r->jacobian_mode}};
   for (const auto& [key, value] : texts) *value = y.Text(y.Get(root, key, key), key);
+  if (root["run_id"]) r->run_id = y.Text(root["run_id"], "run_id");
   r->converged = r->status == "converged";
   r->interrupted = r->status == "interrupted";
   const std::pair<const char*, int*> ints[] = {{"iterations", &r->iterations},
@@ -541,6 +543,7 @@ void WriteH5(const std::string& tmp, const FitResultFile& r, const std::string& 
     h5::WriteStringAttr(root.get(), "format", kFormat, file, "/");
     h5::WriteIntAttr(root.get(), "format_version", {kFormatVersion}, true, file, "/");
     h5::WriteStringAttr(root.get(), "status", r.status, file, "/");
+    if (!r.run_id.empty()) h5::WriteStringAttr(root.get(), "run_id", r.run_id, file, "/");
     WriteH5Parameters(root.get(), r, file);
 
     // covariance (np x np) and jacobian (nres x np); ColMajor covariance stored row-major
@@ -681,7 +684,8 @@ SequenceResult ReadH5Sequence(hid_t sequences, const std::string& name, const st
   return s;
 }
 
-void ReadH5(const std::string& path, FitResultFile* r) {
+// `run_id` is the run id of result.h5 ("" when it has none)
+void ReadH5(const std::string& path, FitResultFile* r, std::string* run_id) {
   const std::string& file = path;
   std::lock_guard<std::mutex> lock(h5::Mutex());
   h5::Silence();
@@ -708,6 +712,9 @@ void ReadH5(const std::string& path, FitResultFile* r) {
     }
   }
   h5::ReadScalarString(root.get(), "status", file, "/", "");
+  if (h5::OpenAttrIfAny(root.get(), "run_id", file, "/").get() >= 0) {
+    *run_id = h5::ReadScalarString(root.get(), "run_id", file, "/", "");
+  }
 
   // arrays
   ReadH5Parameters(root.get(), file, *r);
@@ -736,6 +743,19 @@ void WriteResultYaml(const std::string& path, const FitResultFile& result) {
   }
 }
 
+namespace {
+
+// HDF5's text of a failed system call ("... errno = 28, error message = '...' ...") as
+// "<path>: cannot write: <the system's reason>"; other messages as they are
+std::string WriteFailure(const std::string& path, const std::string& what) {
+  const size_t at = what.find("errno = ");
+  if (at == std::string::npos) return what;
+  const int err = std::atoi(what.c_str() + at + 8);
+  return path + ": cannot write: " + std::strerror(err);
+}
+
+}  // namespace
+
 void WriteResultH5(const std::string& path, const FitResultFile& result) {
   CheckParameters(result, path);
   CheckMatrices(result, path);  // the sequences are checked as they are written
@@ -744,20 +764,54 @@ void WriteResultH5(const std::string& path, const FitResultFile& result) {
   try {
     ReplaceAtomically(path, [&](const std::string& tmp) { WriteH5(tmp, result, path); });
   } catch (const h5::Error& e) {
-    throw ResultError(e.what());
+    throw ResultError(WriteFailure(path, e.what()));
   } catch (const FileError& e) {
     throw ResultError(e.what());
   }
 }
 
-FitResultFile ReadResult(const std::string& dir) {
-  const std::filesystem::path d(dir);
+std::string RunIdComment(const std::string& run_id) {
+  return "<!-- mjsysid run " + run_id + " -->";
+}
+
+FitResultFile ReadResultFiles(const std::string& yaml_path, const std::string& h5_path) {
   FitResultFile r;
-  ReadYaml((d / "result.yaml").string(), &r);
+  ReadYaml(yaml_path, &r);
+  std::string h5_run;
   try {
-    ReadH5((d / "result.h5").string(), &r);
+    ReadH5(h5_path, &r, &h5_run);
   } catch (const h5::Error& e) {
     throw ResultError(e.what());
+  }
+  const auto show = [](const std::string& id) { return id.empty() ? "none" : id; };
+  if (h5_run != r.run_id) {
+    throw ResultError(std::filesystem::path(yaml_path).parent_path().string() +
+                      ": the files come from different fits: " +
+                      std::filesystem::path(yaml_path).filename().string() + " is run " +
+                      show(r.run_id) + ", " + std::filesystem::path(h5_path).filename().string() +
+                      " is run " + show(h5_run) + " (run `sysid fit` again into this folder)");
+  }
+  return r;
+}
+
+FitResultFile ReadResult(const std::string& dir) {
+  const std::filesystem::path d(dir);
+  FitResultFile r = ReadResultFiles((d / "result.yaml").string(), (d / "result.h5").string());
+
+  // one run: every identified model carries result.yaml's run id
+  for (const auto& [model, file] : r.identified_models) {
+    if (r.run_id.empty()) break;  // a result of an older version, or built by hand
+    const std::string path = (d / file).string();
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw ResultError(path + ": missing (result.yaml lists it as model " + model + ")");
+    std::string head(4096, '\0');
+    in.read(head.data(), static_cast<std::streamsize>(head.size()));
+    head.resize(static_cast<size_t>(in.gcount()));
+    if (head.find(RunIdComment(r.run_id)) == std::string::npos) {
+      throw ResultError(dir + ": the files come from different fits: " + file +
+                        " is not from run " + r.run_id + " of result.yaml (run `sysid fit` " +
+                        "again into this folder)");
+    }
   }
   return r;
 }

@@ -8,7 +8,8 @@
 //     mujoco_version, jacobian_mode, iterations, initial_cost, final_cost, residual_variance,
 //     num_residuals, wall_time_s, solver (map of setting -> value as text),
 //     parameters (list of {name, value, initial, std, ci95: [lo, hi], flags: [...], truth?}),
-//     unidentifiable (list of text), warnings (list of text), identified_models (map model -> file)
+//     unidentifiable (list of text), warnings (list of text), identified_models (map model ->
+//     file), run_id (when the result has one)
 //   std and ci95 bounds that are infinite are written as .inf / -.inf; flags are any of
 //   at_lower_bound, at_upper_bound, unidentifiable.
 // - result.h5 layout: root attributes format = "mjsysid-result", format_version = 1, status;
@@ -17,6 +18,10 @@
 //   gradient_norm, seconds, successful} (nit) and /trace/parameters (nit x np);
 //   /sequences/<name>/{time (T), measured, simulated_initial, simulated_final (T x ns)} with
 //   attributes model, sensor_names (strings), sensor_dims (ints).
+// - The run id (FitResultFile::run_id, e.g. "20261122T180501Z-12345-9f3a") names the fit that
+//   wrote a file: result.yaml key run_id, result.h5 root attribute run_id, and in each identified
+//   model the comment RunIdComment(run_id). ReadResult refuses a folder whose files carry
+//   different run ids (files of two runs mixed), or whose listed identified models are missing.
 // - Read* throw ResultError naming the file and the key/dataset on missing or malformed content.
 #pragma once
 
@@ -45,6 +50,7 @@ class ResultError : public std::runtime_error {
 struct FitResultFile : FitResult {
   std::string name, experiment, created;
   std::string status;  // running, converged, not_converged, interrupted
+  std::string run_id;  // the fit that wrote the files; "" in results of older versions
   std::string mjsysid_version, mujoco_version;
   std::map<std::string, std::string> solver;             // setting -> value as text
   std::map<std::string, std::string> identified_models;  // model name -> file name in DIR
@@ -53,7 +59,15 @@ struct FitResultFile : FitResult {
 void WriteResultYaml(const std::string& path, const FitResultFile& result);
 void WriteResultH5(const std::string& path, const FitResultFile& result);
 
-// reads DIR/result.yaml and DIR/result.h5 into one FitResultFile
+// the XML comment that marks an identified model as written by the run `run_id`
+std::string RunIdComment(const std::string& run_id);
+
+// reads DIR/result.yaml and DIR/result.h5 into one FitResultFile; checks that they and the
+// identified models they list come from one run
 FitResultFile ReadResult(const std::string& dir);
+
+// reads a result.yaml-like file and a result.h5-like file (e.g. a fit's checkpoint.yaml and
+// checkpoint.h5) into one FitResultFile; checks that both carry the same run id
+FitResultFile ReadResultFiles(const std::string& yaml_path, const std::string& h5_path);
 
 }  // namespace mjsysid::io

@@ -2,12 +2,14 @@
 
 #include <mujoco/mujoco.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <system_error>
 #include <thread>
 
@@ -17,17 +19,60 @@
 #include "sysid/io/atomic_file.h"
 #include "sysid/io/log.h"
 #include "sysid/io/sequence_models.h"
+#include "sysid/run/output_folder.h"
+#include "sysid/run/resume.h"
 
 namespace mjsysid::run {
 namespace {
 
 namespace fs = std::filesystem;
 
+// the range of solver.relative_step that can give a derivative
+constexpr double kMinRelativeStep = 1e-13;
+constexpr double kMaxRelativeStep = 0.1;
+
+// a number for a message: 6 digits
+std::string ShortNum(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof(buf), "%g", v);
+  return buf;
+}
+
 std::string NowIso() {
   const std::time_t t = std::time(nullptr);
   char buf[32];
   std::strftime(buf, sizeof(buf), "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&t));
   return buf;
+}
+
+// the settings a fit cannot work with: a finite-difference step that overflows or vanishes in
+// rounding, two parameters of one model writing the same quantity
+void CheckFitSettings(const io::ExperimentConfig& cfg) {
+  const double h = cfg.options.jacobian.relative_step;
+  if (!(h >= kMinRelativeStep && h <= kMaxRelativeStep)) {
+    throw io::ConfigError(
+        cfg.solver_marks.Of("relative_step"),
+        "solver.relative_step: " + ShortNum(h) + " cannot work as a finite-difference step",
+        "between " + ShortNum(kMinRelativeStep) + " (below, p + h rounds to p) and " +
+            ShortNum(kMaxRelativeStep) + " (above, the difference is no derivative); default 1e-6");
+  }
+  for (const io::ModelSpec& ms : cfg.models) {
+    const std::vector<const io::ParameterSpec*> ps = cfg.ParametersOf(ms.name);
+    for (size_t j = 0; j < ps.size(); ++j) {
+      for (size_t i = 0; i < j; ++i) {
+        const ParameterSpec& a = ps[i]->target;
+        const ParameterSpec& b = ps[j]->target;
+        if (a.kind == b.kind && a.object == b.object && a.field == b.field && a.index == b.index) {
+          throw io::ConfigError(ps[j]->marks.self,
+                                "parameters '" + ps[i]->name + "' and '" + ps[j]->name +
+                                    "' both write " + a.kind + " " +
+                                    (a.object.empty() ? a.field : a.object) + "[" +
+                                    std::to_string(a.index) + "] of model '" + ms.name + "'",
+                                "fit each model quantity with one parameter");
+        }
+      }
+    }
+  }
 }
 
 }  // namespace
@@ -45,6 +90,9 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
     out.model_names.push_back(ms.name);
     out.models.push_back(std::move(m));
   }
+
+  // the fit's settings that cannot work, and two parameters writing one model quantity
+  CheckFitSettings(cfg);
 
   // parameters and measurement terms
   for (const FitParameter& p : cfg.parameters) {
@@ -139,6 +187,25 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
     }
   }
   io::CheckSequenceEntriesUsed(cfg, entry_used, all_groups);
+  // residual rows: fitted sensor columns x samples, and priors; none leaves nothing to fit
+  long long rows = 0;
+  for (size_t i = 0; i < out.sequences.size(); ++i) {
+    const FitSequence& fs_ = out.sequences[i];
+    const mjModel& m =
+        *out.models[std::find(out.model_names.begin(), out.model_names.end(), fs_.model) -
+                    out.model_names.begin()];
+    for (const std::string& name : fs_.sensors) {
+      const int id = mj_name2id(&m, mjOBJ_SENSOR, name.c_str());
+      if (id >= 0) rows += static_cast<long long>(fs_.time.size()) * m.sensor_dim[id];
+    }
+  }
+  for (const FitParameter& p : cfg.parameters) rows += p.has_prior ? 1 : 0;
+  if (rows == 0) {
+    throw io::ConfigError(cfg.marks.Of("sensors"),
+                          "the fit has no residuals: no sensor column of the selected log "
+                          "sequences is fitted",
+                          "the logs need sensordata columns of the sensors listed under sensors:");
+  }
   if (out.sequences.empty()) {
     throw io::ConfigError(cfg.marks.Of("sequences"), "no log sequence selected",
                           "check `sequences:` against the group names in the logs");
@@ -158,7 +225,8 @@ std::vector<std::string> WriteIdentifiedModel(const io::ExperimentConfig& cfg,
                                               const std::string& model_name,
                                               const std::string& model_path,
                                               const std::vector<ParameterEstimate>& estimates,
-                                              const std::string& out_path) {
+                                              const std::string& out_path,
+                                              const std::string& run_id) {
   // the estimates of the parameters that apply to this model
   std::vector<ParameterSpec> specs;
   std::vector<double> values;
@@ -170,20 +238,64 @@ std::vector<std::string> WriteIdentifiedModel(const io::ExperimentConfig& cfg,
     }
   }
 
-  // core writes them into the model's MJCF (and checks it); saved atomically
+  // core writes them into the model's MJCF (and checks it); the run id as a comment before the
+  // root element; saved atomically (a temporary file next to out_path, flushed, renamed over it)
   std::vector<std::string> warnings;
-  io::WriteFileAtomically(out_path, IdentifiedModelXml(model_path, specs, values, &warnings));
+  const std::string xml = IdentifiedModelXml(model_path, specs, values, &warnings);
+  io::WriteFileAtomically(out_path, run_id.empty() ? xml : io::RunIdComment(run_id) + "\n" + xml);
   for (std::string& w : warnings) w = out_path + ": " + w;
   return warnings;
+}
+
+std::vector<std::string> InputsOf(const io::ExperimentConfig& cfg) {
+  std::vector<std::string> inputs = {cfg.source_file};
+  for (const io::ModelSpec& ms : cfg.models) inputs.push_back(ms.path);
+  for (const io::DataFile& df : cfg.data) inputs.push_back(df.path);
+  return inputs;
+}
+
+std::string AtInitialValues(const io::ExperimentConfig& cfg) {
+  std::string out;
+  for (const io::ParameterSpec& p : cfg.parameters) {
+    out += (out.empty() ? "" : ", ") + p.name + " = " + ShortNum(p.initial);
+  }
+  return "at the initial values " + out + " (" + cfg.source_file + ")";
+}
+
+std::vector<std::string> FittedNames(const io::ExperimentConfig& cfg) {
+  std::vector<std::string> names;
+  for (const io::ParameterSpec& p : cfg.parameters) names.push_back(p.name);
+  for (const io::MeasurementSpec& me : cfg.measurement) {
+    if (me.delay.fit) names.push_back(me.sensor + ".delay");
+    if (me.gain.fit) names.push_back(me.sensor + ".gain");
+    if (me.bias.fit) names.push_back(me.sensor + ".bias");
+  }
+  return names;
 }
 
 FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   FitRunOutcome out;
   out.out_dir = ro.out_dir.empty() ? cfg.output : ro.out_dir;
-  BuiltProblem bp = BuildProblem(cfg, ro.threads);
-  // the folder only once the input is known good: bad input leaves nothing behind
+
+  // --resume: the fit starts from the checkpoint's values (sysid/run/resume.h)
+  std::optional<io::FitResultFile> base;
+  if (ro.resume) {
+    base = FindCheckpoint(out.out_dir);
+    if (!base) {
+      throw OutputError("--resume " + out.out_dir + ": nothing to resume: no checkpoint " +
+                        StagingFolder(out.out_dir) +
+                        "/checkpoint.yaml and no interrupted result in the folder");
+    }
+  }
+  const io::ExperimentConfig run_cfg = base ? ResumedConfig(cfg, *base) : cfg;
+  BuiltProblem bp = BuildProblem(run_cfg, ro.threads);
+
+  // the output folder only once the input is known good (bad input leaves nothing behind), never
+  // one that holds an input, never a foreign one without force
+  CheckOutputFolder(out.out_dir, InputsOf(cfg), ro.force);
+  const fs::path parent = fs::absolute(out.out_dir).lexically_normal().parent_path();
   std::error_code ec;
-  fs::create_directories(out.out_dir, ec);
+  fs::create_directories(parent, ec);
   if (ec) {
     // the folder comes from --out, or from `output:` (or its default) in the experiment
     const io::Mark where = ro.out_dir.empty() ? cfg.marks.Of("output") : io::Mark{"--out", 0, 0};
@@ -191,6 +303,18 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
                           "cannot create the output folder " + out.out_dir + ": " + ec.message(),
                           "a file of that name exists, or the parent folder is not writable");
   }
+
+  // one fit at a time into a folder; everything written into the staging folder DIR.partial,
+  // which replaces DIR only once complete
+  const FolderLock lock(out.out_dir, "sysid fit of " + cfg.source_file);
+  if (base) {
+    const std::optional<io::FitResultFile> now = FindCheckpoint(out.out_dir);
+    if (!now || now->run_id != base->run_id || now->iterations != base->iterations) {
+      throw OutputError("--resume " + out.out_dir + ": the checkpoint changed while starting");
+    }
+  }
+  const std::string staging =
+      CreateStagingFolder(out.out_dir, /*keep_checkpoint=*/base.has_value());
   FitOptions options = bp.options;
   options.verbose = ro.verbose && options.verbose;
   options.interrupt = ro.interrupt;
@@ -202,6 +326,7 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   file.mjsysid_version = MJSYSID_VERSION;
   file.mujoco_version = MujocoVersion();
   file.created = NowIso();
+  file.run_id = NewRunId();
   const SimulatorOptions sim_defaults;
   file.solver = {
       {"max_iterations", std::to_string(options.max_iterations)},
@@ -223,62 +348,119 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   std::map<std::string, double> truth;
   for (const io::NamedValue& t : cfg.simulate.truth) truth[t.name] = t.value;
 
-  // checkpoint after every good iteration: status running, current values
-  const std::string yaml_path = (fs::path(out.out_dir) / "result.yaml").string();
-  const std::string h5_path = (fs::path(out.out_dir) / "result.h5").string();
-  std::vector<std::string> names;
-  for (const io::ParameterSpec& p : cfg.parameters) names.push_back(p.name);
-  for (const io::MeasurementSpec& me : cfg.measurement) {
-    if (me.delay.fit) names.push_back(me.sensor + ".delay");
-    if (me.gain.fit) names.push_back(me.sensor + ".gain");
-    if (me.bias.fit) names.push_back(me.sensor + ".bias");
+  // checkpoint after every good iteration (DIR.partial/checkpoint.{yaml,h5}): status running,
+  // the current values, the successful iterations so far; a resumed run continues the
+  // checkpoint's count, trace and clock
+  const std::string checkpoint_path = (fs::path(staging) / "checkpoint.yaml").string();
+  const std::string checkpoint_h5 = (fs::path(staging) / "checkpoint.h5").string();
+  const std::string yaml_path = (fs::path(staging) / "result.yaml").string();
+  const std::string h5_path = (fs::path(staging) / "result.h5").string();
+  const std::vector<std::string> names = FittedNames(cfg);
+  std::vector<double> first_initial;  // the first run's start values
+  for (const FitParameter& p : bp.parameters) first_initial.push_back(p.initial);
+  for (const FitMeasurement& me : run_cfg.measurement) {
+    for (const FitMeasurement::Term* t : {&me.delay, &me.gain, &me.bias}) {
+      if (t->fit) first_initial.push_back(t->initial);
+    }
   }
+  if (base) {
+    for (size_t i = 0; i < first_initial.size(); ++i)
+      first_initial[i] = base->parameters[i].initial;
+  }
+  io::FitResultFile progress;     // the checkpoint so far
+  std::string checkpoint_failed;  // the first checkpoint write failure
+  if (base) progress = *base;
   options.on_iteration = [&](const IterationInfo& it) {
+    if (base && it.iteration == 0) return;  // the checkpoint it starts from
+    IterationInfo entry = it;
+    entry.iteration += base ? base->iterations : 0;
+    entry.seconds += base ? base->seconds : 0;
+    if (!base && it.iteration == 0) progress.initial_cost = it.cost;
+    progress.trace.push_back(entry);
     io::FitResultFile cp = file;
     cp.status = "running";
-    cp.termination = "checkpoint after iteration " + std::to_string(it.iteration);
-    cp.iterations = it.iteration;
+    cp.termination = "checkpoint after iteration " + std::to_string(entry.iteration);
+    cp.iterations = entry.iteration;
+    cp.initial_cost = progress.initial_cost;
     cp.final_cost = it.cost;
+    cp.seconds = entry.seconds;
+    cp.trace = progress.trace;
     for (int i = 0; i < it.parameters.size() && i < static_cast<int>(names.size()); ++i) {
       ParameterEstimate e;
       e.name = names[i];
       e.value = it.parameters[i];
+      e.initial = first_initial[i];
       e.std_error = std::numeric_limits<double>::quiet_NaN();
       e.ci95_low = e.ci95_high = std::numeric_limits<double>::quiet_NaN();
       if (truth.count(e.name)) e.truth = truth[e.name];
       cp.parameters.push_back(e);
     }
-    io::WriteResultYaml(yaml_path, cp);
+    // a checkpoint that cannot be written (full disk) does not stop the fit: its estimates are
+    // still printed; the warning is given once
+    try {
+      io::WriteResultH5(checkpoint_h5, cp);
+      io::WriteResultYaml(checkpoint_path, cp);
+    } catch (const io::ResultError& e) {
+      if (checkpoint_failed.empty()) {
+        checkpoint_failed = e.what();
+        std::fprintf(stderr, "sysid fit: warning: checkpoint not written: %s\n", e.what());
+      }
+    }
   };
 
   // fit
   for (const std::string& w : bp.warnings)
     std::fprintf(stderr, "sysid fit: warning: %s\n", w.c_str());
-  static_cast<FitResult&>(file) = bp.problem->Fit(options);
+  try {
+    static_cast<FitResult&>(file) = bp.problem->Fit(options);
+  } catch (const SimulationError& e) {
+    // trial points that fail are rejected: this is the start
+    throw SimulationError(std::string(e.what()) + "; " + AtInitialValues(run_cfg), e.sequence(),
+                          e.step());
+  }
+  if (base) {
+    AppendToCheckpoint(*base, &file);
+    file.warnings.push_back("resumed from the checkpoint of run " + base->run_id +
+                            " after iteration " + std::to_string(base->iterations));
+  }
   const FitResult& r = file;
 
   // results: the fit as it came, the truth where known, the run's warnings first
   file.status = r.interrupted ? "interrupted" : r.converged ? "converged" : "not_converged";
+  if (r.interrupted) {
+    file.termination =
+        "interrupted (a stop signal) after iteration " + std::to_string(r.iterations);
+  }
   for (ParameterEstimate& e : file.parameters) {
     if (truth.count(e.name)) e.truth = truth[e.name];
   }
   file.warnings.insert(file.warnings.begin(), bp.warnings.begin(), bp.warnings.end());
-  // identified models
+  out.exit_code = r.converged ? 0 : 1;
+
+  // the estimates are shown before any file is written (a full disk loses no result)
+  if (ro.on_estimates) ro.on_estimates(file);
+
+  // identified models, result.h5, then result.yaml (which says the run is complete), into the
+  // staging folder; then the staging folder replaces DIR
   for (size_t i = 0; i < cfg.models.size(); ++i) {
     const std::string fname = cfg.models[i].name + "_identified.xml";
     try {
       const std::vector<std::string> w =
           WriteIdentifiedModel(cfg, cfg.models[i].name, cfg.models[i].path, r.parameters,
-                               (fs::path(out.out_dir) / fname).string());
+                               (fs::path(staging) / fname).string(), file.run_id);
       file.warnings.insert(file.warnings.end(), w.begin(), w.end());
       file.identified_models[cfg.models[i].name] = fname;
+    } catch (const io::FileError&) {
+      throw;  // the disk refused: not a property of the model
     } catch (const std::exception& e) {
       file.warnings.push_back(std::string("identified model not written: ") + e.what());
     }
   }
   io::WriteResultH5(h5_path, file);
+  fs::remove(checkpoint_path, ec);
+  fs::remove(checkpoint_h5, ec);
   io::WriteResultYaml(yaml_path, file);
-  out.exit_code = r.converged ? 0 : 1;
+  PublishFolder(staging, out.out_dir);
   return out;
 }
 

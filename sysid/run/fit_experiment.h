@@ -8,12 +8,19 @@
 //   io::AssignSequences gives it (sysid/io/sequence_models.h: an explicit record, never a name);
 //   with sensor_time: post, row k+1 of a log is taken as y_k (the first control row is kept, the
 //   last dropped). The log's sample period must equal the model's timestep.
-// - RunFit writes DIR/result.yaml with status "running" after every successful iteration (the last
-//   good iterate survives an interruption), then the full results atomically, and the identified
-//   models. It never throws for a fit that merely fails to converge: see FitRunOutcome.
+// - RunFit refuses an output folder that holds an input or (without force) is foreign, and one that
+//   another fit is writing (OutputError, sysid/run/output_folder.h). It writes everything into the
+//   staging folder DIR.partial: checkpoint.yaml (status "running", the current values) after every
+//   successful iteration, then the identified models, result.h5 and result.yaml (last), all with
+//   one run id; only then does the staging folder replace DIR (one atomic rename). An
+//   interruption (FitRunOptions::interrupt) writes the complete results of the last good iterate
+//   the same way. A failed write (io::FileError / io::ResultError naming the file and the reason)
+//   leaves DIR as it was. It never throws for a fit that merely fails to converge: see
+//   FitRunOutcome.
 #pragma once
 
 #include <atomic>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -46,6 +53,10 @@ struct FitRunOptions {
   int threads = -1;                              // < 0: the config's solver.threads
   bool verbose = true;                           // progress lines on stderr
   const std::atomic<bool>* interrupt = nullptr;  // set (e.g. by SIGINT) to stop after an iteration
+  bool force = false;   // replace an existing output folder that is not an mjsysid result
+  bool resume = false;  // continue from the folder's checkpoint (sysid/run/resume.h)
+  // called with the results before any file is written (the CLI prints the estimates)
+  std::function<void(const io::FitResultFile&)> on_estimates;
 };
 
 struct FitRunOutcome {
@@ -56,13 +67,25 @@ struct FitRunOutcome {
 
 FitRunOutcome RunFit(const io::ExperimentConfig& config, const FitRunOptions& options);
 
+// the files a fit reads: the experiment, its models and its data logs
+std::vector<std::string> InputsOf(const io::ExperimentConfig& config);
+
+// "at the initial values NAME = VALUE, ... (EXP.yaml)", for a simulation that fails at the start
+std::string AtInitialValues(const io::ExperimentConfig& config);
+
+// the names of the fitted values in FitResult order: the parameters, then the measurement terms
+// (SENSOR.delay, SENSOR.gain, SENSOR.bias)
+std::vector<std::string> FittedNames(const io::ExperimentConfig& config);
+
 // Writes the model of model_path with the fitted values of the parameters that apply to it into
-// out_path (atomically) as MJCF, and checks that the written file compiles to those values.
+// out_path (atomically) as MJCF, and checks that the written file compiles to those values. A
+// non-empty run_id is written as io::RunIdComment before the root element.
 // Returns warnings (e.g. "field" parameters, which have no MJCF attribute).
 std::vector<std::string> WriteIdentifiedModel(const io::ExperimentConfig& config,
                                               const std::string& model_name,
                                               const std::string& model_path,
                                               const std::vector<ParameterEstimate>& estimates,
-                                              const std::string& out_path);
+                                              const std::string& out_path,
+                                              const std::string& run_id = "");
 
 }  // namespace mjsysid::run

@@ -589,4 +589,146 @@ TEST_F(BadInputTest, ReportOfBrokenResults) {
   }
 }
 
+// ---------------------------------------------------------------------------------------------
+// outputs that would lose data, limits, messages (issue 13)
+
+TEST_F(BadInputTest, OutputIsAnInput) {
+  const std::string exp = ExperimentOn("in_out.yaml", good_log_);
+  const std::string exp_bytes = ReadFile(exp);
+  ExpectBadInput("simulate " + exp + " --out " + exp, {"--out " + exp, "is an input of this run"});
+  ExpectBadInput("simulate " + exp + " --out " + kModels + "/pendulum.xml",
+                 {"pendulum.xml", "is an input of this run"});
+  const std::string csv = dir_ + "/in_out.csv";
+  WriteFile(csv, "time,torque,angle,rate\n0,0,0,0\n0.002,0,0,0\n");
+  ExpectBadInput("import " + kModels + "/pendulum.xml " + csv + " --out " + csv,
+                 {csv, "is an input of this run"});
+  ExpectBadInput(
+      "import " + kModels + "/pendulum.xml " + csv + " --out " + kModels + "/pendulum.xml",
+      {"pendulum.xml", "is an input of this run"});
+  ExpectBadInput("fit " + exp + " --out " + dir_ + " --quiet",
+                 {"--out " + dir_, "holds", "an input of this run"});
+  EXPECT_EQ(ReadFile(exp), exp_bytes);
+  EXPECT_EQ(ReadFile(csv), "time,torque,angle,rate\n0,0,0,0\n0.002,0,0,0\n");
+}
+
+TEST_F(BadInputTest, ForeignOutputWithoutForce) {
+  const std::string exp = ExperimentOn("foreign.yaml", good_log_);
+  const std::string notes = dir_ + "/notes.h5";
+  WriteFile(notes, "my notes\n");
+  ExpectBadInput("simulate " + exp + " --out " + notes, {notes, "not an mjsysid log", "--force"});
+  const std::string folder = dir_ + "/thesis";
+  fs::create_directories(folder);
+  WriteFile(folder + "/thesis.tex", "keep\n");
+  ExpectBadInput("fit " + exp + " --out " + folder + " --quiet",
+                 {folder, "not an mjsysid result folder", "--force"});
+  EXPECT_EQ(ReadFile(notes), "my notes\n");
+  EXPECT_EQ(ReadFile(folder + "/thesis.tex"), "keep\n");
+}
+
+TEST_F(BadInputTest, ReportOfMixedRuns) {
+  const std::string other = dir_ + "/other_run";
+  fs::remove_all(other);
+  ASSERT_EQ(Sysid("fit " + dir_ + "/good.yaml --out " + other + " --quiet").code, 0);
+  const std::string mixed = dir_ + "/mixed";
+  fs::remove_all(mixed);
+  fs::copy(prev_, mixed);
+  fs::copy_file(other + "/result.h5", mixed + "/result.h5", fs::copy_options::overwrite_existing);
+  ExpectBadInput("report " + mixed, {mixed, "the files come from different fits", "result.h5"});
+  EXPECT_FALSE(fs::exists(mixed + "/report.html"));
+}
+
+TEST_F(BadInputTest, ExperimentFileTooLarge) {
+  const std::string big = dir_ + "/big.yaml";
+  WriteFile(big, "name: big\n" + std::string(2 << 20, '#') + "\n");
+  ExpectBadExperiment(big,
+                      {big, "larger than the limit of 1048576 bytes", "MJSYSID_MAX_YAML_BYTES"});
+}
+
+TEST_F(BadInputTest, NothingToFit) {
+  // a log without sensor columns: zero residuals
+  const std::string csv = dir_ + "/nosensors.csv";
+  WriteFile(csv, "time,torque,qpos[0],qvel[0]\n0,0,0,0\n0.002,0.1,0,0\n0.004,0.1,0,0\n");
+  const std::string log = dir_ + "/nosensors.h5";
+  ASSERT_EQ(Sysid("import " + kModels + "/pendulum.xml " + csv + " --out " + log).code, 0);
+  const std::string exp =
+      Yaml("nosensors.yaml", "model: @MODELS@/pendulum.xml\ndata: " + log +
+                                 "\nparameters: [{name: damping, target: "
+                                 "joint_damping, object: hinge, initial: 0.1}]\n");
+  ExpectBadInput("fit " + exp + " --out " + prev_ + " --quiet", {exp, "no residuals"});
+  ExpectBadInput("check " + exp, {exp, "no residuals"});
+}
+
+TEST_F(BadInputTest, TwoParametersWriteOneQuantity) {
+  const std::string exp = Yaml("twice.yaml",
+                               "model: @MODELS@/pendulum.xml\ndata: @LOG@\nparameters:\n"
+                               "  - {name: damping, target: joint_damping, object: hinge, "
+                               "initial: 0.1}\n"
+                               "  - {name: damping2, target: joint_damping, object: hinge, "
+                               "initial: 0.2}\n");
+  ExpectBadInput("fit " + exp + " --out " + prev_ + " --quiet",
+                 {exp + ":5:", "'damping' and 'damping2' both write joint_damping hinge[0]"});
+  ExpectBadInput("check " + exp, {"both write"});
+}
+
+TEST_F(BadInputTest, FiniteDifferenceStepThatCannotWork) {
+  for (const char* step : {"1e308", "1e-300", "0.5"}) {
+    const std::string exp = Yaml(std::string("step_") + step + ".yaml",
+                                 "@BASE@solver: {relative_step: " + std::string(step) + "}\n");
+    ExpectBadInput("fit " + exp + " --out " + prev_ + " --quiet",
+                   {exp + ":4:", "relative_step", "cannot work as a finite-difference step"});
+  }
+}
+
+TEST_F(BadInputTest, CsvEncodings) {
+  const std::string model = kModels + "/pendulum.xml";
+  const std::string header = "time,torque,angle,rate";
+  const std::pair<std::string, std::string> cases[] = {
+      {"utf16.csv", std::string("\xFF\xFE", 2) + "t\0i\0m\0e\0"},
+      {"nul.csv", std::string("time,torque,angle,rate\n0,0\0,0,0\n", 32)},
+      {"cr.csv", header + "\r0,0,0,0\r0.002,0,0,0\r"},
+      {"semicolon.csv", "time;torque;angle;rate\n0;0,5;0;0\n"},
+      {"decimal_comma.csv", header + "\n0,0,5,0,0\n"},
+      {"huge_cell.csv", header + "\n0," + std::string(10 << 20, '7') + "x,0,0\n"}};
+  const std::string expected[] = {"UTF-16",         "NUL byte at byte 26", "CR-only line ends",
+                                  "';' separators", "decimal commas",      "... (10485761 bytes)"};
+  for (size_t i = 0; i < std::size(cases); ++i) {
+    const std::string csv = dir_ + "/" + cases[i].first;
+    WriteFile(csv, cases[i].second);
+    const CliRun r =
+        ExpectBadInput("import " + model + " " + csv + " --out " + prev_log_, {csv, expected[i]});
+    EXPECT_LT(r.err.size(), 400u) << "a long value echoed whole";
+  }
+}
+
+TEST_F(BadInputTest, CommandLineMessages) {
+  const std::string model = kModels + "/pendulum.xml";
+  ExpectBadInput("frobnicate", {"unknown subcommand 'frobnicate'", "simulate, fit, report"});
+  ExpectBadInput("rollout " + model + " --steps -1",
+                 {"sysid rollout: --steps: expected a whole number >= 1, got '-1'"});
+  ExpectBadInput("rollout " + model + " --amplitude nan",
+                 {"--amplitude: expected a finite number, got 'nan'"});
+  const CliRun r = ExpectBadInput("fit " + dir_ + "/good.yaml --threads -3 --out " + prev_,
+                                  {"--threads: expected a whole number >= 0, got '-3'"});
+  EXPECT_LT(r.err.size(), 200u) << r.err;
+  ExpectBadInput("fit --resume " + dir_ + "/nothing_here", {"nothing to resume"});
+  ExpectBadInput("report " + dir_ + "/no_such_folder", {"no_such_folder: no such folder"});
+  EXPECT_FALSE(fs::exists(dir_ + "/no_such_folder.lock"));
+}
+
+// a start where the simulation fails (exit 1: the run failed) names the initial values
+TEST_F(BadInputTest, FailingStartNamesTheInitialValues) {
+  const std::string exp = Yaml("negative_mass.yaml",
+                               "model: @MODELS@/pendulum.xml\ndata: @LOG@\nparameters:\n"
+                               "  - {name: bob_mass, target: body_mass, object: bob, "
+                               "initial: -1.0}\n");
+  for (const std::string& cmd : {"fit " + exp + " --out " + prev_ + " --quiet", "check " + exp}) {
+    SCOPED_TRACE(cmd);
+    const CliRun r = Sysid(cmd);
+    EXPECT_EQ(r.code, 1) << r.err;
+    EXPECT_NE(r.err.find("at the initial values bob_mass = -1 (" + exp + ")"), std::string::npos)
+        << r.err;
+    EXPECT_EQ(Snapshot(prev_), prev_files_);
+  }
+}
+
 }  // namespace

@@ -127,10 +127,10 @@ TEST(FitExperimentTest, IdentifiedModelReproducesTheEstimates) {
   io::ExperimentConfig cfg = Simulated("pendulum", dir);
   cfg.options.max_iterations = 3;
   FitRunOptions opt;
-  opt.out_dir = dir;
+  opt.out_dir = dir + "/out";  // a folder of its own: a fit replaces its output folder
   opt.verbose = false;
   const FitRunOutcome out = RunFit(cfg, opt);
-  ModelPtr m = LoadModel(dir + "/pendulum_identified.xml");
+  ModelPtr m = LoadModel(dir + "/out/pendulum_identified.xml");
   std::vector<ParameterSpec> specs;
   for (const io::ParameterSpec& p : cfg.parameters) {
     specs.push_back(p.target);
@@ -154,14 +154,14 @@ TEST(FitExperimentTest, InterruptKeepsTheLastGoodIterate) {
   io::ExperimentConfig cfg = Simulated("pendulum", dir);
   std::atomic<bool> stop{true};  // set before the first iteration: stops after iteration 0
   FitRunOptions opt;
-  opt.out_dir = dir;
+  opt.out_dir = dir + "/out";  // a folder of its own: a fit replaces its output folder
   opt.verbose = false;
   opt.interrupt = &stop;
   const FitRunOutcome out = RunFit(cfg, opt);
   EXPECT_EQ(out.file.status, "interrupted");
   EXPECT_EQ(out.exit_code, 1);
   EXPECT_TRUE(out.file.interrupted);
-  const io::FitResultFile back = io::ReadResult(dir);
+  const io::FitResultFile back = io::ReadResult(opt.out_dir);
   EXPECT_EQ(back.status, "interrupted");
   ASSERT_EQ(back.parameters.size(), cfg.parameters.size());
   // the iterate written is the fit's (initial values: stopped before any step)
@@ -209,7 +209,7 @@ simulate:
     EXPECT_EQ(s.name.rfind(s.model + "_seq", 0), 0u) << s.name << " fitted with " << s.model;
   }
   FitRunOptions opt;
-  opt.out_dir = dir;
+  opt.out_dir = dir + "/out";  // a folder of its own: a fit replaces its output folder
   opt.verbose = false;
   const FitRunOutcome out = RunFit(cfg, opt);
   ASSERT_TRUE(out.file.converged) << out.file.termination;
