@@ -233,12 +233,13 @@ void Simulator::SetInitialState(mjData* d, const InitialState& x0) const {
   d->time = x0.time;
 }
 
-void Simulator::CheckStep(const mjData& d, int seq_index, int step, const char* what) const {
+void Simulator::CheckStep(const mjData& d, double t, int seq_index, int step,
+                          const char* what) const {
   const std::string warnings = SimulationWarnings(d);
   if (!warnings.empty()) {
+    // t comes from the caller: MuJoCo's reset after a bad acceleration sets d.time to 0
     throw SimulationError(std::string(what) + ": sequence " + std::to_string(seq_index) +
-                              ", step " + std::to_string(step) +
-                              " (t = " + TimeString(d.time - model_->opt.timestep) +
+                              ", step " + std::to_string(step) + " (t = " + TimeString(t) +
                               " s): MuJoCo warning: " + warnings,
                           seq_index, step);
   }
@@ -255,9 +256,10 @@ void Simulator::RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq
     mju_copy(d->ctrl, seq.ctrl.row(k).data(), dims_.nu);
     if (full) GetFullState(m, d, full->row(k).data());
     GetPhysics(*m, *d, states->row(k).data());
+    const double t = d->time;
     StepSkip(m, d, mjSTAGE_NONE, !options_.sensors);
     ++w.steps;
-    CheckStep(*d, seq_index, k, "simulation");
+    CheckStep(*d, t, seq_index, k, "simulation");
     CountSolve(*m, *d, solver);
     if (want_sensors) mju_copy(sensors->row(k).data(), d->sensordata, dims_.ns);
     if (ncon) (*ncon)[k] = d->ncon;
@@ -399,7 +401,7 @@ void Simulator::DirectionalColumn(Worker& w, int seq_index, const Trajectory& no
     TangentPerturb(*m, d, w.s.data(), sign * h);
     StepSkip(m, d, mjSTAGE_NONE, !options_.sensors);
     ++w.steps;
-    CheckStep(*d, seq_index, k, "perturbed step");
+    CheckStep(*d, nom.full(k, 0), seq_index, k, "perturbed step");  // full state: time first
     CountSolve(*m, *d, &report->solver);
     GetPhysics(*m, *d, w.xp.data());
     TangentDifference(*model_, nom.states.row(k + 1).data(), w.xp.data(), sign / h, dx.data());
@@ -538,7 +540,7 @@ void Simulator::MatrixJacobian(int seq_index, const Trajectory& nom, const Jacob
           mjd_transitionFD(model_.get(), d, opt.state_step, 0, Ak, nullptr, Ck, nullptr);
         });
         w.steps += 1 + nx;
-        CheckStep(*d, seq_index, k, "mjd_transitionFD");
+        CheckStep(*d, full[0], seq_index, k, "mjd_transitionFD");
         // forward differences are checked too where the contact set may change near x_k
         const bool contact_near = nom.ncon[k] > 0 ||
                                   (k + 1 < T && nom.ncon[k + 1] != nom.ncon[k]) ||
@@ -551,7 +553,7 @@ void Simulator::MatrixJacobian(int seq_index, const Trajectory& nom, const Jacob
             mjd_transitionFD(model_.get(), d, -opt.state_step, 0, Abk, nullptr, Cbk, nullptr);
           });
           w.steps += 1 + nx;
-          CheckStep(*d, seq_index, k, "mjd_transitionFD");
+          CheckStep(*d, full[0], seq_index, k, "mjd_transitionFD");
           Eigen::Map<RowMatrix> Af(Ak, nx, nx), Abm(Abk, nx, nx);
           Eigen::Map<RowMatrix> Cf(Ck, ns, nx), Cbm(Cbk, ns, nx);
           for (int c = 0; c < nx; ++c) {
@@ -575,7 +577,7 @@ void Simulator::MatrixJacobian(int seq_index, const Trajectory& nom, const Jacob
           SetFullState(m, d, full);
           StepSkip(m, d, skip, !options_.sensors);
           ++w.steps;
-          CheckStep(*d, seq_index, k, "perturbed step");
+          CheckStep(*d, full[0], seq_index, k, "perturbed step");
           CountSolve(*m, *d, &chunk_solver[kk]);
           GetPhysics(*model_, *d, w.xp.data());
           TangentDifference(*model_, nom.states.row(k + 1).data(), w.xp.data(), sign / h,

@@ -224,7 +224,8 @@ class Simulator {
                        JacobianMode mode, const Eigen::VectorXd& steps,
                        std::vector<Sensitivity>* out, std::vector<SolverStats>* solver);
   void CheckZeroColumns(const std::vector<Sensitivity>& out) const;
-  void CheckStep(const mjData& d, int seq_index, int step, const char* what) const;
+  // throws SimulationError when the step just taken warned; t: the time at the start of the step
+  void CheckStep(const mjData& d, double t, int seq_index, int step, const char* what) const;
 
   ModelPtr model_;
   ParameterSet params_;

@@ -432,6 +432,25 @@ TEST(SimulatorTest, DivergentSimulationIsASimulationError) {
   }
 }
 
+// the message gives the step and the time at which it diverged (MuJoCo's reset after a bad
+// acceleration sets mjData::time to 0: the time must not be read from it)
+TEST(SimulatorTest, DivergenceNamesItsStepAndTime) {
+  ModelPtr model = LoadModel(kModels + "/pendulum.xml");
+  model->actuator_ctrllimited[0] = 0;
+  Simulator sim(*model, {});
+  InitialState x0 = sim.ReferenceState();
+  x0.time = 1.5;
+  RowMatrix ctrl = RowMatrix::Zero(50, 1);
+  ctrl.bottomRows(44).setConstant(1e200);  // from step 6 on
+  try {
+    sim.Rollout(SequenceInput{x0, ctrl});
+    FAIL() << "expected SimulationError";
+  } catch (const SimulationError& e) {
+    EXPECT_EQ(e.step(), 6);
+    EXPECT_NE(std::string(e.what()).find("step 6 (t = 1.512 s)"), std::string::npos) << e.what();
+  }
+}
+
 TEST(SimulatorTest, BadShapesAreInvalidArguments) {
   ModelPtr model = LoadModel(kModels + "/pendulum.xml");
   Simulator sim(*model, {});
