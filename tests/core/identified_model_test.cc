@@ -432,6 +432,46 @@ INSTANTIATE_TEST_SUITE_P(Options, IdentifiedCompilerTest, ::testing::ValuesIn(kC
                            return param_info.param.name;
                          });
 
+// asset files resolve when the text is saved in another folder: a mesh under meshdir (relative to
+// the model's folder) and an included file; a box geom fitted to the mesh's bounding box (fitaabb)
+TEST_F(IdentifiedModelTest, AssetPathsResolveFromAnotherFolder) {
+  fs::create_directories(dir_ / "model" / "meshes");
+  fs::create_directories(dir_ / "out");
+  std::ofstream(dir_ / "model" / "meshes" / "tet.obj")
+      << "v 0 0 0\nv 0.2 0 0\nv 0 0.2 0\nv 0 0 0.2\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+  std::ofstream(dir_ / "model" / "part.xml") << R"(<mujoco>
+  <body name="rock" pos="0 0 1">
+    <joint name="rock_hinge" axis="0 1 0" damping="0.1"/>
+    <geom type="mesh" mesh="tet"/>
+    <geom type="box" mesh="tet" pos="0.3 0 0"/>
+  </body>
+</mujoco>)";
+  const std::string path = (dir_ / "model" / "assets.xml").string();
+  std::ofstream(path) << R"(<mujoco model="assets">
+  <compiler meshdir="meshes" fitaabb="true"/>
+  <asset><mesh name="tet" file="tet.obj"/></asset>
+  <worldbody><include file="part.xml"/></worldbody>
+  <actuator><motor name="m" joint="rock_hinge"/></actuator>
+</mujoco>)";
+  const std::vector<ParameterSpec> specs = {Spec("body_mass", "rock"),
+                                            Spec("joint_damping", "rock_hinge")};
+  const std::vector<double> values = {0.9, 0.4};
+  std::vector<std::string> warnings;
+  const std::string xml = IdentifiedModelXml(path, specs, values, &warnings);
+  EXPECT_TRUE(warnings.empty()) << warnings.front();
+  EXPECT_EQ(xml.find("<include"), std::string::npos);
+
+  // saved in another folder, loaded from there
+  const std::string out = (dir_ / "out" / "assets_identified.xml").string();
+  std::ofstream(out) << xml;
+  ModelPtr identified = LoadModel(out);
+  ModelPtr fitted = Fitted(path, specs, values);
+  ModelPtr base = LoadModel(path);
+  EXPECT_EQ(DifferingArrays(*identified, *fitted), "");
+  EXPECT_GT(test::MaxAbsDiff(Rollout(*base), Rollout(*fitted)), 1e-9);
+  EXPECT_LE(test::MaxAbsDiff(Rollout(*identified), Rollout(*fitted)), 1e-12);
+}
+
 // several values at once, each in its element; bad input is an error, not a file
 TEST_F(IdentifiedModelTest, SeveralValuesAndBadInput) {
   const std::string path = ModelFile();
