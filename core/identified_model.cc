@@ -118,6 +118,29 @@ ModelPtr Compile(mjSpec* spec, const std::string& model_path, const char* what) 
   return ModelPtr(m);
 }
 
+// With alignfree, the compiler moves a free body's frame to its inertial frame, so the compiled
+// inertial frames are relative to the moved frames, while the text's inertial clause is read in
+// the body frame as written. Returns the identified model with every body's inertial frame
+// expressed in its written frame: T_written<-moved (the written inertial frame, compiled without
+// alignment, times the inverse of the same frame compiled with it) times the identified frame.
+ModelPtr InertialsInWrittenFrames(mjSpec* spec, const mjModel& aligned, const mjModel& identified,
+                                  const std::string& model_path) {
+  ModelPtr out = CopyModel(identified);
+  if (!spec->compiler.alignfree) return out;
+  spec->compiler.alignfree = 0;
+  const ModelPtr written = Compile(spec, model_path, "model");
+  spec->compiler.alignfree = 1;
+  for (int b = 1; b < out->nbody; ++b) {
+    mjtNum inv_pos[3], inv_quat[4], moved_pos[3], moved_quat[4];
+    mju_negPose(inv_pos, inv_quat, aligned.body_ipos + 3 * b, aligned.body_iquat + 4 * b);
+    mju_mulPose(moved_pos, moved_quat, written->body_ipos + 3 * b, written->body_iquat + 4 * b,
+                inv_pos, inv_quat);
+    mju_mulPose(out->body_ipos + 3 * b, out->body_iquat + 4 * b, moved_pos, moved_quat,
+                identified.body_ipos + 3 * b, identified.body_iquat + 4 * b);
+  }
+  return out;
+}
+
 // appends "name (worst difference)" for every mjtNum array where a and b (same sizes) differ by
 // more than 1e-9 relative to max(1, |value|)
 template <typename T>
@@ -193,7 +216,9 @@ std::string IdentifiedModelXml(const std::string& model_path,
   SpecPtr spec(mj_parseXML(model_path.c_str(), nullptr, error, sizeof(error)));
   if (!spec) throw ModelLoadError(model_path + ": " + error);
   MakeAssetDirsAbsolute(spec.get(), model_path);
-  Compile(spec.get(), model_path, "model");
+  const ModelPtr compiled = Compile(spec.get(), model_path, "model");
+  const ModelPtr to_write =
+      InertialsInWrittenFrames(spec.get(), *compiled, *identified, model_path);
 
   // each value into its object's element, by its kind's (or its array's) writer
   bool all_written = true;
@@ -205,7 +230,7 @@ std::string IdentifiedModelXml(const std::string& model_path,
       throw std::logic_error(model_path + ": " + mju_type2Str(t.object) + " " +
                              std::to_string(t.id) + " compiles but is not in the parsed spec");
     }
-    if (!element || !t.write_mjcf(element, *identified, t.id, t.index, values[i])) {
+    if (!element || !t.write_mjcf(element, *to_write, t.id, t.index, values[i])) {
       all_written = false;
       const std::string what =
           p.kind() == ParameterKind::kField
@@ -215,7 +240,7 @@ std::string IdentifiedModelXml(const std::string& model_path,
                           ") has no MJCF attribute: not written into the identified model");
     }
   }
-  KeepInertialsAsWritten(spec.get(), *identified);
+  KeepInertialsAsWritten(spec.get(), *to_write);
 
   // compile to check, then save at full precision
   Compile(spec.get(), model_path, "identified model");

@@ -10,7 +10,10 @@
 // - Compiler options that would rescale or replace written inertials (settotalmass,
 //   inertiafromgeom="true", boundmass, boundinertia, balanceinertia) are turned off in the text,
 //   and every body's compiled inertial is written explicitly, so the text compiles to the fitted
-//   model: the written values and every other body as compiled before.
+//   model: the written values and every other body as compiled before. With alignfree (a free
+//   body's frame moved to its inertial frame) inertial frames are written in the body frames as
+//   written; an identified centre of mass of such a body moves its frame, which the text cannot
+//   hold: the checks below warn.
 // - Asset paths: when the model has meshes, height fields, skins or textures, meshdir and
 //   texturedir are made absolute (the model file's folder joined with them), so the text can be
 //   saved in any folder. Included files are inlined by the parser.

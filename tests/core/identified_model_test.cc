@@ -52,11 +52,12 @@ const char* kTemplate = R"(
       <inertial pos="0 0 0" mass="2" diaginertia="0.01 0.01 0.01"/>
       <geom type="sphere" size="0.05" contype="0" conaffinity="0"/>
     </body>
-    <body name="box" pos="0 2 0.1">
+    <body name="box" pos="0 2 {box_z}">
       <joint name="free" type="free" damping="{free_damping}"/>
       <geom name="box" type="box" size=".1 .1 .1" mass="1" condim="4"
             friction="{box_mu} {box_torsion} 0.0001" solref="{box_timeconst} 1"/>
-      <geom name="foot" type="sphere" size="0.1" mass="0.1" contype="0" conaffinity="0"/>
+      <geom name="foot" type="sphere" size="0.1" mass="0.1" pos="{foot_pos}" contype="0"
+            conaffinity="0"/>
       <site name="push"/>
     </body>
   </worldbody>
@@ -99,6 +100,8 @@ const std::map<std::string, std::string> kDefaults = {{"compiler", ""},
                                                       {"gear", "1"},
                                                       {"box_gear5", "0.1"},
                                                       {"gravcomp", "0.1"},
+                                                      {"foot_pos", "0 0 0"},
+                                                      {"box_z", "0.1"},
                                                       {"box_timeconst", "0.02"},
                                                       {"pair_mu", "0.7"},
                                                       {"pair_timeconst", "0.02"},
@@ -427,6 +430,19 @@ const std::vector<CompilerCase> kCompilerCases = {
      1.6},
 };
 
+const std::vector<CompilerCase> kAlign = {
+    // the box's frame moved to its inertial frame (off centre: the foot is); the box in the air
+    // (on the floor, differences of 1e-16 from the realignment become the contact solver's 1e-8)
+    {"alignfree_mass",
+     {{"compiler", R"(<compiler alignfree="true"/>)"}, {"foot_pos", "0.05 0.02 0"}, {"box_z", "1"}},
+     Spec("body_mass", "box"),
+     1.4},
+};
+INSTANTIATE_TEST_SUITE_P(Align, IdentifiedCompilerTest, ::testing::ValuesIn(kAlign),
+                         [](const ::testing::TestParamInfo<CompilerCase>& param_info) {
+                           return param_info.param.name;
+                         });
+
 INSTANTIATE_TEST_SUITE_P(Options, IdentifiedCompilerTest, ::testing::ValuesIn(kCompilerCases),
                          [](const ::testing::TestParamInfo<CompilerCase>& param_info) {
                            return param_info.param.name;
@@ -470,6 +486,21 @@ TEST_F(IdentifiedModelTest, AssetPathsResolveFromAnotherFolder) {
   EXPECT_EQ(DifferingArrays(*identified, *fitted), "");
   EXPECT_GT(test::MaxAbsDiff(Rollout(*base), Rollout(*fitted)), 1e-9);
   EXPECT_LE(test::MaxAbsDiff(Rollout(*identified), Rollout(*fitted)), 1e-12);
+}
+
+// with alignfree a free body's frame follows its centre of mass: an identified centre of mass
+// moves the frame the text compiles to, so the file cannot hold the fitted model: warnings
+TEST_F(IdentifiedModelTest, CentreOfMassOfAnAlignedFreeBodyWarns) {
+  const std::string path = ModelFile({{"compiler", R"(<compiler alignfree="true"/>)"}});
+  std::vector<std::string> warnings;
+  IdentifiedModelXml(path, {Spec("body_com", "box", 0)}, {0.02}, &warnings);
+  ASSERT_EQ(warnings.size(), 2u);
+  EXPECT_NE(warnings[0].find("identified model: 'body_com:box[0]' reads "), std::string::npos)
+      << warnings[0];
+  EXPECT_NE(warnings[1].find("identified model: compiled from its text, it differs from the "
+                             "fitted model in qpos0"),
+            std::string::npos)
+      << warnings[1];
 }
 
 // several values at once, each in its element; bad input is an error, not a file
