@@ -11,6 +11,7 @@
 #include <fstream>
 #include <map>
 #include <ostream>
+#include <sstream>
 #include <string>
 #include <type_traits>
 #include <vector>
@@ -343,6 +344,31 @@ TEST_F(IdentifiedModelTest, EveryFieldArrayWithAnMjcfHomeIsWritten) {
     EXPECT_EQ(DifferingArrays(*LoadModelFromString(xml), *fitted), "");
     EXPECT_NE(DifferingArrays(*base, *fitted), "") << "the edit changes nothing";
   }
+}
+
+// the field table as the markdown rows of docs/experiment-schema.md
+std::string FieldArraysMarkdown() {
+  std::string out = "| `field` array | written to MJCF as |\n| --- | --- |\n";
+  for (const FieldMjcfInfo& f : FieldMjcfTable()) {
+    out += std::string("| `") + f.array + "` | " + f.attribute + " |\n";
+  }
+  return out;
+}
+
+// the doc lists the field table as it is
+TEST(FieldMjcfTableTest, SchemaDocListsTheTable) {
+  std::ifstream in(std::string(MJSYSID_SOURCE_DIR) + "/docs/experiment-schema.md");
+  ASSERT_TRUE(in.good());
+  std::stringstream text;
+  text << in.rdbuf();
+  const std::string doc = text.str();
+  const std::string begin = "<!-- field arrays: begin -->\n", end = "<!-- field arrays: end -->";
+  const size_t from = doc.find(begin), to = doc.find(end);
+  ASSERT_NE(from, std::string::npos);
+  ASSERT_NE(to, std::string::npos);
+  EXPECT_EQ(doc.substr(from + begin.size(), to - from - begin.size()), FieldArraysMarkdown())
+      << "paste this between the markers:\n"
+      << FieldArraysMarkdown();
 }
 
 // arrays without an MJCF home, and one dof of a joint with several (one attribute per joint),
