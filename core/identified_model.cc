@@ -236,8 +236,10 @@ std::string IdentifiedModelXml(const std::string& model_path,
           p.kind() == ParameterKind::kField
               ? "field " + specs[i].field + "[" + std::to_string(p.index()) + "]"
               : p.info().name;
-      warnings->push_back("parameter '" + p.label() + "' (" + what +
-                          ") has no MJCF attribute: not written into the identified model");
+      warnings->push_back(
+          "parameter '" + p.label() + "' (" + what +
+          ") has no MJCF attribute that holds it as fitted: not written into the identified "
+          "model");
     }
   }
   KeepInertialsAsWritten(spec.get(), *to_write);

@@ -371,25 +371,22 @@ TEST(FieldMjcfTableTest, SchemaDocListsTheTable) {
       << FieldArraysMarkdown();
 }
 
-// arrays without an MJCF home, and one dof of a joint with several (one attribute per joint),
+// an array without an MJCF home, and one dof of a joint with several (one attribute per joint),
 // are not written: a warning each, and the text is the model's
 TEST_F(IdentifiedModelTest, FieldsWithoutAnMjcfHomeWarn) {
   const std::string path = ModelFile();
-  ParameterSpec pos = Field("body_pos", 3 * 3);  // slider x
-  pos.label = "slider_x";
-  ParameterSpec free_dof = Field("dof_damping", 5);  // the first dof of the free joint
-  free_dof.label = "box_vx_damping";
+  const std::vector<std::pair<ParameterSpec, std::string>> cases = {
+      {Field("body_pos", 3 * 3), "'field:body_pos[9]' (field body_pos[9])"},        // slider x
+      {Field("dof_damping", 5), "'field:dof_damping[5]' (field dof_damping[5])"}};  // free joint
+  std::vector<ParameterSpec> specs;
+  for (const auto& c : cases) specs.push_back(c.first);
   std::vector<std::string> warnings;
-  const std::string xml = IdentifiedModelXml(path, {pos, free_dof}, {2.5, 0.9}, &warnings);
-  ASSERT_EQ(warnings.size(), 2u);
-  EXPECT_NE(warnings[0].find("'slider_x' (field body_pos[9]) has no MJCF attribute"),
-            std::string::npos)
-      << warnings[0];
-  EXPECT_NE(warnings[1].find("'box_vx_damping' (field dof_damping[5]) has no MJCF attribute"),
-            std::string::npos)
-      << warnings[1];
-  for (const std::string& w : warnings) {
-    EXPECT_NE(w.find("identified model"), std::string::npos) << w;
+  const std::string xml = IdentifiedModelXml(path, specs, {2.5, 0.9}, &warnings);
+  ASSERT_EQ(warnings.size(), cases.size());
+  for (size_t i = 0; i < cases.size(); ++i) {
+    EXPECT_NE(warnings[i].find(cases[i].second + " has no MJCF attribute"), std::string::npos)
+        << warnings[i];
+    EXPECT_NE(warnings[i].find("identified model"), std::string::npos) << warnings[i];
   }
   ModelPtr base = LoadModel(path);
   EXPECT_EQ(DifferingArrays(*LoadModelFromString(xml), *base), "");
