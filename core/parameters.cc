@@ -68,7 +68,8 @@ bool WriteActuatorGear(mjsElement* element, const mjModel&, int, int index, doub
   return true;
 }
 
-// field: an mjModel array has no MJCF attribute in general
+// field: written by its array's row in core/field_mjcf.h (which reuses the writers above); the
+// kind alone has no attribute
 bool WriteNothing(mjsElement*, const mjModel&, int, int, double) { return false; }
 
 // ---------------------------------------------------------------------------------------------
@@ -120,7 +121,9 @@ const std::vector<ParameterKindInfo> kKinds = {
     {ParameterKind::kField, "field", mjOBJ_UNKNOWN, 0,
      "flat index into the array, row * columns + column", "those of the array",
      "the array named in `field`", mjSTAGE_NONE, true,
-     "not written (a warning): an mjModel array has no MJCF attribute", WriteNothing},
+     "the array's attribute where it has one (`core/field_mjcf.h`: e.g. `solref` of a `<pair>`, "
+     "`damping` of a dof's `<joint>`); other arrays: not written (a warning)",
+     WriteNothing},
 };
 
 // ---------------------------------------------------------------------------------------------
