@@ -233,6 +233,12 @@ void Simulator::SetInitialState(mjData* d, const InitialState& x0) const {
   d->time = x0.time;
 }
 
+void Simulator::CheckCancel() const {
+  if (cancel_ && cancel_->load(std::memory_order_relaxed)) {
+    throw Cancelled("simulation cancelled (interrupted)");
+  }
+}
+
 void Simulator::CheckStep(const mjData& d, double t, int seq_index, int step,
                           const char* what) const {
   const std::string warnings = SimulationWarnings(d);
@@ -253,6 +259,7 @@ void Simulator::RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq
   const bool want_sensors = options_.sensors && sensors && dims_.ns > 0;
   // step the model, recording x_k (and the full state) before and y_k after each step
   for (int k = 0; k < T; ++k) {
+    CheckCancel();
     mju_copy(d->ctrl, seq.ctrl.row(k).data(), dims_.nu);
     if (full) GetFullState(m, d, full->row(k).data());
     GetPhysics(*m, *d, states->row(k).data());
@@ -410,6 +417,7 @@ void Simulator::DirectionalColumn(Worker& w, int seq_index, const Trajectory& no
   };
 
   for (int k = 0; k < T; ++k) {
+    CheckCancel();
     // forward side; the backward side too for central differences or a contact-set change
     const int ncon = side(w.plus.get(), 1.0, k, w.s_next, w.yp);
     if (opt.central || ncon != nom.ncon[k]) {
@@ -525,6 +533,7 @@ void Simulator::MatrixJacobian(int seq_index, const Trajectory& nom, const Jacob
       Worker& w = *workers_[worker];
       OnWorker(w, [&] {
         mjData* d = w.data.get();
+        CheckCancel();
         const int k = k0 + kk;
         const double* full = nom.full.row(k).data();
         ClearSimulationWarnings(d);

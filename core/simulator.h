@@ -48,6 +48,7 @@
 #include <mujoco/mujoco.h>
 
 #include <Eigen/Core>
+#include <atomic>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -60,6 +61,12 @@
 #include "core/thread_pool.h"
 
 namespace mjsysid {
+
+// Rollout or Jacobians stopped because the cancel flag was set (SetCancelFlag)
+class Cancelled : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
 
 class SimulationError : public std::runtime_error {
  public:
@@ -190,6 +197,11 @@ class Simulator {
   // parameter steps h_j used for the current values
   Eigen::VectorXd ParameterSteps(const JacobianOptions& options) const;
 
+  // While *flag is true, Rollout and Jacobians stop within one time step of every worker and
+  // throw Cancelled (e.g. a user's interrupt during a long Jacobian); nullptr: never (default).
+  // The flag must outlive its use here.
+  void SetCancelFlag(const std::atomic<bool>* flag) { cancel_ = flag; }
+
   // Step calls made since construction or ResetStepCount(), over all workers: every mj_step of
   // a rollout or a perturbed step (also those skipping stages) counts 1, a call of
   // mjd_transitionFD counts 1 + nx (its nominal and perturbed state steps). Not thread-safe
@@ -224,6 +236,8 @@ class Simulator {
                        JacobianMode mode, const Eigen::VectorXd& steps,
                        std::vector<Sensitivity>* out, std::vector<SolverStats>* solver);
   void CheckZeroColumns(const std::vector<Sensitivity>& out) const;
+  // throws Cancelled when the cancel flag is set
+  void CheckCancel() const;
   // throws SimulationError when the step just taken warned; t: the time at the start of the step
   void CheckStep(const mjData& d, double t, int seq_index, int step, const char* what) const;
 
@@ -232,6 +246,7 @@ class Simulator {
   StateDims dims_;
   SimulatorOptions options_;
   ThreadPool pool_;
+  const std::atomic<bool>* cancel_ = nullptr;
   DataPtr scratch_;  // for mj_setConst on model_
   std::vector<std::unique_ptr<Worker>> workers_;
 };

@@ -85,7 +85,10 @@ void EvaluationCache::Simulate(int mo, const std::vector<int>& segs, const doubl
       sim.Rollout(ins, &trs);
       for (size_t i = 0; i < roll.size(); ++i) entries_[roll[i]].tr = std::move(trs[i]);
     } catch (const std::exception& e) {
-      for (int s : roll) {  // a divergent trial point: rejected
+      // a divergent trial point: rejected; cancelled: failed now, simulated again when asked
+      const bool cancelled = dynamic_cast<const Cancelled*>(&e) != nullptr;
+      for (int s : roll) {
+        if (cancelled) entries_[s].key.clear();
         entries_[s].failed = true;
         entries_[s].error = e.what();
       }
@@ -115,10 +118,14 @@ void EvaluationCache::Simulate(int mo, const std::vector<int>& segs, const doubl
     jo.state_jacobians = with_states;
     jo.zero_column_is_error = false;
     std::vector<Sensitivity> sens;
-    bool ok = true;
+    bool ok = true, cancelled = false;
     std::string error;
     try {
       sim.Jacobians(jins, nominal, jo, &sens);
+    } catch (const Cancelled& e) {
+      ok = false;
+      cancelled = true;  // not a property of the point: computed again when asked
+      error = e.what();
     } catch (const std::exception& e) {
       ok = false;
       error = e.what();
@@ -127,7 +134,7 @@ void EvaluationCache::Simulate(int mo, const std::vector<int>& segs, const doubl
       Entry& c = entries_[jac[i]];
       c.tr = std::move(nominal[i]);
       c.has_jacobians = ok;
-      c.jacobians_failed = !ok;
+      c.jacobians_failed = !ok && !cancelled;
       c.error = error;
       if (ok) c.s = std::move(sens[i]);
     }

@@ -457,56 +457,60 @@ FitResult Problem::Fit(const FitOptions& options) {
         I.sequences[seg.seq].name + "' from step " + std::to_string(seg.k0) + ": " + what);
   }
 
-  // Jacobian at the estimate, in physical units (tangent space for states)
+  // the estimate: values, starts, bound flags (no interval yet)
+  const int nm = static_cast<int>(I.m.size());
+  const int nvar = np + nm;
+  auto on_bound = [&](int v, double val, bool lower) {
+    const double lo = v < np ? I.params[v].lower : mbounds[v - np].first;
+    const double hi = v < np ? I.params[v].upper : mbounds[v - np].second;
+    const double tol = 1e-6 * std::max(1.0, std::abs(val));
+    return lower ? (std::isfinite(lo) && val - lo <= tol) : (std::isfinite(hi) && hi - val <= tol);
+  };
+  result.parameters.resize(nvar);
+  for (int v = 0; v < nvar; ++v) {
+    ParameterEstimate& e = result.parameters[v];
+    e.name = names[v];
+    e.value = v < np ? I.Physical(v, I.z[v]) : I.m[v - np];
+    e.initial = v < np ? I.params[v].initial : prepared.minitial[v - np];
+    e.at_lower = on_bound(v, e.value, true);
+    e.at_upper = on_bound(v, e.value, false);
+    e.std_error = e.ci95_low = e.ci95_high = std::numeric_limits<double>::quiet_NaN();
+  }
+
+  // Jacobian at the estimate, in physical units (tangent space for states). An interrupt stops it
+  // at once (the simulators check the flag every time step): the result keeps the estimate,
+  // without intervals.
+  auto interrupted_now = [&] { return options.interrupt && options.interrupt->load(); };
+  for (auto& mo : I.models) mo.sim->SetCancelFlag(options.interrupt);
   ceres::Problem::EvaluateOptions eo;
   eo.num_threads = 1;  // as the solve
   double cost = 0;
   ceres::CRSMatrix crs;
   std::vector<double> residuals;
-  const bool evaluated = problem.Evaluate(eo, &cost, &residuals, nullptr, &crs);
-  const int nm = static_cast<int>(I.m.size());
-  const int nvar = np + nm;
-  if (evaluated) {
+  const bool evaluated =
+      !interrupted_now() && problem.Evaluate(eo, &cost, &residuals, nullptr, &crs);
+  for (auto& mo : I.models) mo.sim->SetCancelFlag(nullptr);
+  if (interrupted_now()) {
+    result.interrupted = true;
+    result.converged = false;
+    result.warnings.push_back("interrupted: no uncertainty step, the estimate has no intervals");
+  } else if (evaluated) {
     RowMatrix J = RowMatrix::Zero(crs.num_rows, crs.num_cols);
     for (int r = 0; r < crs.num_rows; ++r) {
       for (int i = crs.rows[r]; i < crs.rows[r + 1]; ++i) J(r, crs.cols[i]) = crs.values[i];
     }
     for (int g = 0; g < np; ++g) J.col(g) /= I.DpDz(g, I.z[g]);
-    // parameters first (as Ceres ordered the blocks: z, m, states)
-    Eigen::VectorXd values(J.cols());
-    values.setZero();
+    // parameters first (as Ceres ordered the blocks: z, m, states); those stopped on a bound are
+    // not estimated
+    Eigen::VectorXd values = Eigen::VectorXd::Zero(J.cols());
     std::vector<bool> fixed(J.cols(), false);
     std::vector<std::string> all_names = names;
-    for (int g = 0; g < np; ++g) values[g] = I.Physical(g, I.z[g]);
-    for (int i = 0; i < nm; ++i) values[np + i] = I.m[i];
+    for (int v = 0; v < nvar; ++v) {
+      values[v] = result.parameters[v].value;
+      fixed[v] = result.parameters[v].at_lower || result.parameters[v].at_upper;
+    }
     for (Eigen::Index c = nvar; c < J.cols(); ++c) {
       all_names.push_back("x0[" + std::to_string(c - nvar) + "]");
-    }
-    // parameters stopped on a bound are not estimated
-    auto on_bound = [&](int v, bool lower) {
-      double lo, hi, val;
-      if (v < np) {
-        lo = I.params[v].lower;
-        hi = I.params[v].upper;
-        val = values[v];
-      } else {
-        lo = mbounds[v - np].first;
-        hi = mbounds[v - np].second;
-        val = values[v];
-      }
-      const double tol = 1e-6 * std::max(1.0, std::abs(val));
-      return lower ? (std::isfinite(lo) && val - lo <= tol)
-                   : (std::isfinite(hi) && hi - val <= tol);
-    };
-    result.parameters.resize(nvar);
-    for (int v = 0; v < nvar; ++v) {
-      ParameterEstimate& e = result.parameters[v];
-      e.name = names[v];
-      e.value = values[v];
-      e.initial = v < np ? I.params[v].initial : prepared.minitial[v - np];
-      e.at_lower = on_bound(v, true);
-      e.at_upper = on_bound(v, false);
-      fixed[v] = e.at_lower || e.at_upper;
     }
     result.uncertainty = AnalyzeUncertainty(J, cost, all_names, values, fixed, options.uncertainty);
     // keep the parameter block of the covariance

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -449,6 +450,34 @@ TEST(SimulatorTest, DivergenceNamesItsStepAndTime) {
     EXPECT_EQ(e.step(), 6);
     EXPECT_NE(std::string(e.what()).find("step 6 (t = 1.512 s)"), std::string::npos) << e.what();
   }
+}
+
+// the cancel flag stops a rollout or a Jacobian within one time step per worker (Cancelled), and
+// the simulator gives the same results afterwards as one never cancelled
+TEST(SimulatorTest, CancelFlagStopsWithinAStepAndLeavesTheSimulatorUsable) {
+  ModelPtr model = LoadModel(kModels + "/pendulum.xml");
+  SimulatorOptions so;
+  so.threads = 2;
+  Simulator sim(*model, {test::Spec("joint_damping", "hinge")}, so);
+  Simulator fresh(*model, {test::Spec("joint_damping", "hinge")}, so);
+  const SequenceInput seq{sim.ReferenceState(), test::Excitation(*model, 400, 1.0, 3)};
+  const Trajectory nominal = sim.Rollout(seq);
+  JacobianOptions jo;
+  jo.mode = JacobianMode::kDirectional;
+  std::atomic<bool> cancel{true};
+  sim.SetCancelFlag(&cancel);
+  for (const JacobianMode mode : {JacobianMode::kDirectional, JacobianMode::kMatrix}) {
+    jo.mode = mode;
+    sim.ResetStepCount();
+    EXPECT_THROW(sim.Jacobians(seq, nominal, jo), Cancelled);
+    EXPECT_EQ(sim.StepCount(), 0) << JacobianModeName(mode);  // checked before every step
+  }
+  EXPECT_THROW(sim.Rollout(seq), Cancelled);
+  cancel = false;
+  const Trajectory again = sim.Rollout(seq);
+  EXPECT_TRUE(again.states == fresh.Rollout(seq).states);
+  jo.mode = JacobianMode::kDirectional;
+  EXPECT_TRUE(sim.Jacobians(seq, again, jo).DyDp == fresh.Jacobians(seq, again, jo).DyDp);
 }
 
 TEST(SimulatorTest, BadShapesAreInvalidArguments) {

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <random>
@@ -106,6 +107,45 @@ TEST(RecoveryTest, PendulumDampingAndFrictionLoss) {
   Print(r);
   EXPECT_TRUE(r.converged) << r.termination;
   for (const Truth& t : truth) EXPECT_NEAR(Estimate(r, t.name).value / t.value, 1.0, 1e-5);
+}
+
+// an interrupt (set here by the iteration callback after iteration 2) stops after that
+// iteration and skips the uncertainty step: the result is complete (every estimate, the
+// simulated signals), marked interrupted, not converged, with no intervals (NaN), and says why
+TEST(RecoveryTest, InterruptSkipsTheUncertaintyStepAndKeepsACompleteResult) {
+  ModelPtr m = LoadModel(kModels + "/pendulum.xml");
+  const std::vector<Truth> truth = {{"damping", Spec("joint_damping", "hinge"), 0.08},
+                                    {"friction", Spec("joint_frictionloss", "hinge"), 0.03}};
+  Problem problem;
+  problem.AddModel("pendulum", *m);
+  problem.AddParameter(FitParameter("damping", truth[0].spec, 0.2).Bounds(1e-6, 10).Log());
+  problem.AddParameter(FitParameter("friction", truth[1].spec, 0.1).Bounds(1e-6, 10).Log());
+  InitialState x0;
+  x0.qpos = Eigen::VectorXd::Constant(1, 0.3);
+  const RowMatrix u = Excitation(*m, 2000, 1.5, 3);
+  problem.AddSequence(FitSequence("seq0", "pendulum", x0, u, Measure(*m, truth, x0, u, 0, 0)));
+  std::atomic<bool> stop{false};
+  FitOptions opt;
+  opt.interrupt = &stop;
+  opt.on_iteration = [&](const IterationInfo& it) {
+    if (it.iteration == 2) stop = true;
+  };
+  const FitResult r = problem.Fit(opt);
+  EXPECT_TRUE(r.interrupted);
+  EXPECT_FALSE(r.converged);
+  EXPECT_EQ(r.iterations, 2);
+  ASSERT_EQ(r.parameters.size(), 2u);
+  for (const ParameterEstimate& e : r.parameters) {
+    EXPECT_TRUE(std::isfinite(e.value)) << e.name;
+    EXPECT_TRUE(std::isnan(e.std_error)) << e.name;
+    EXPECT_TRUE(std::isnan(e.ci95_low) && std::isnan(e.ci95_high)) << e.name;
+  }
+  EXPECT_EQ(r.jacobian.size(), 0);
+  ASSERT_EQ(r.sequences.size(), 1u);
+  EXPECT_TRUE(r.sequences[0].simulated_final.allFinite());
+  bool said = false;
+  for (const std::string& w : r.warnings) said |= w.find("interrupted: no uncertainty step") == 0;
+  EXPECT_TRUE(said);
 }
 
 // truth pole mass 0.2, cart damping 0.5, slide friction loss 0.2; start 0.5, 2.0, 0.05;
