@@ -1,0 +1,38 @@
+// Internal to sysid/io/result*.cc: the format's constants and the checks shared by the writers
+// and the reader of result.yaml (result.cc) and result.h5 (result_h5.cc). Each throws
+// ResultError "<file>: <where>: <what>".
+#pragma once
+
+#include <hdf5.h>
+
+#include <string>
+
+#include "sysid/io/result.h"
+
+namespace mjsysid::io::result_internal {
+
+inline constexpr char kFormat[] = "mjsysid-result";
+inline constexpr int kFormatVersion = 1;
+inline constexpr const char* kFlags[] = {"at_lower_bound", "at_upper_bound", "unidentifiable"};
+inline constexpr const char* kTraceColumns[] = {"iteration",     "cost",    "step_norm",
+                                                "gradient_norm", "seconds", "successful"};
+
+// "<file>: <where>: <what>"
+[[noreturn]] void Fail(const std::string& file, const std::string& where, const std::string& what);
+// the shortest of %.15g..%.17g that reads back as x; YAML's .inf, -.inf, .nan otherwise
+std::string Number(double x);
+
+// the parameter names (unique, non-empty); a sequence's matrices against its sizes; the trace,
+// covariance and jacobian against the parameters; all of them
+void CheckParameters(const FitResultFile& r, const std::string& file);
+void CheckSequenceMatrix(const RowMatrix& m, Eigen::Index rows, Eigen::Index cols,
+                         const std::string& file, const std::string& object);
+void CheckSequence(const SequenceResult& s, const std::string& file);
+void CheckMatrices(const FitResultFile& r, const std::string& file);
+void CheckArrays(const FitResultFile& r, const std::string& file);
+
+// result.h5 written to tmp (messages name file), and read back (with its run id)
+void WriteH5(const std::string& tmp, const FitResultFile& r, const std::string& file);
+void ReadH5(const std::string& path, FitResultFile* r, std::string* run_id);
+
+}  // namespace mjsysid::io::result_internal
