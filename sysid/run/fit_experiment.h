@@ -80,7 +80,7 @@ std::vector<std::string> FittedNames(const io::ExperimentConfig& config);
 // Writes the model of model_path with the fitted values of the parameters that apply to it into
 // out_path (atomically) as MJCF, and checks that the written file compiles to those values. A
 // non-empty run_id is written as io::RunIdComment before the root element.
-// Returns warnings (e.g. "field" parameters, which have no MJCF attribute).
+// Returns warnings (e.g. "field" arrays without an MJCF home, core/field_mjcf.h).
 std::vector<std::string> WriteIdentifiedModel(const io::ExperimentConfig& config,
                                               const std::string& model_name,
                                               const std::string& model_path,
