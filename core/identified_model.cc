@@ -1,14 +1,11 @@
 #include "core/identified_model.h"
 
-#include <mujoco/mjxmacro.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
 #include <stdexcept>
-#include <type_traits>
 
 #include "core/field_mjcf.h"
 #include "core/mujoco_env.h"
@@ -141,42 +138,6 @@ ModelPtr InertialsInWrittenFrames(mjSpec* spec, const mjModel& aligned, const mj
   return out;
 }
 
-// appends "name (worst difference)" for every mjtNum array where a and b (same sizes) differ by
-// more than 1e-9 relative to max(1, |value|)
-template <typename T>
-void CompareArray(const char* name, const T* a, const T* b, long long n, std::string* out) {
-  if constexpr (std::is_same_v<T, mjtNum>) {
-    bool differs = false;
-    double worst = 0;
-    for (long long i = 0; i < n; ++i) {
-      if (a[i] == b[i] || (std::isnan(a[i]) && std::isnan(b[i]))) continue;
-      const double diff = std::abs(a[i] - b[i]);
-      if (!(diff <= 1e-9 * std::max(1.0, std::abs(a[i])))) {
-        differs = true;
-        worst = std::isnan(diff) ? diff : std::max(worst, diff);
-      }
-    }
-    if (differs) {
-      *out += std::string(out->empty() ? "" : ", ") + name + " (" + FormatG17(worst) + ")";
-    }
-  }
-}
-std::string DifferingArrays(const mjModel& a, const mjModel& b) {
-  std::string out;
-  const mjModel* m = &a;
-  MJMODEL_POINTERS_PREAMBLE(m)
-  (void)nuser_body, (void)nuser_jnt, (void)nuser_geom, (void)nuser_site, (void)nuser_cam;
-  (void)nuser_tendon, (void)nuser_actuator, (void)nuser_sensor, (void)nq, (void)nv, (void)na;
-  (void)nu, (void)nmocap, (void)nplastic;
-#define X(type, name, nr, nc) \
-  CompareArray(#name, a.name, b.name, static_cast<long long>(a.nr) * (nc), &out);
-#define XNV X
-  MJMODEL_POINTERS
-#undef XNV
-#undef X
-  return out;
-}
-
 // the sizes that decide the layout of every array
 bool SameSizes(const mjModel& a, const mjModel& b) {
   return a.nq == b.nq && a.nv == b.nv && a.nu == b.nu && a.na == b.na && a.nbody == b.nbody &&
@@ -270,8 +231,9 @@ std::string IdentifiedModelXml(const std::string& model_path,
     }
   }
   if (all_written) {
-    const std::string differ = SameSizes(*back, *identified) ? DifferingArrays(*identified, *back)
-                                                             : std::string("the model sizes");
+    const std::string differ = SameSizes(*back, *identified)
+                                   ? DifferingArrays(*identified, *back, 1e-9)
+                                   : std::string("the model sizes");
     if (!differ.empty()) {
       warnings->push_back(
           "identified model: compiled from its text, it differs from the fitted model in " +
@@ -279,6 +241,33 @@ std::string IdentifiedModelXml(const std::string& model_path,
     }
   }
   return xml;
+}
+
+std::string DifferingArrays(const mjModel& a, const mjModel& b, double tolerance) {
+  std::string out;
+  for (const ModelArray& array : ModelArrays(a)) {
+    if (!array.is_mjtnum) continue;
+    const auto values = [&](const mjModel& m) {
+      return *reinterpret_cast<const mjtNum* const*>(reinterpret_cast<const char*>(&m) +
+                                                     array.offset);
+    };
+    const mjtNum* x = values(a);
+    const mjtNum* y = values(b);
+    bool differs = false;
+    double worst = 0;
+    for (int i = 0; i < array.size; ++i) {
+      if (x[i] == y[i] || (std::isnan(x[i]) && std::isnan(y[i]))) continue;
+      const double diff = std::abs(x[i] - y[i]);
+      if (!(diff <= tolerance * std::max(1.0, std::abs(x[i])))) {
+        differs = true;
+        worst = std::isnan(diff) ? diff : std::max(worst, diff);
+      }
+    }
+    if (differs) {
+      out += std::string(out.empty() ? "" : ", ") + array.name + " (" + FormatG17(worst) + ")";
+    }
+  }
+  return out;
 }
 
 }  // namespace mjsysid

@@ -46,4 +46,9 @@ std::string IdentifiedModelXml(const std::string& model_path,
                                const std::vector<double>& values,
                                std::vector<std::string>* warnings);
 
+// The mjtNum arrays of two models of the same sizes (nq, nbody, ... equal) where an entry differs
+// by more than tolerance * max(1, |value in a|), as "name (worst difference), ..."; "" when
+// none. NaN equals NaN.
+std::string DifferingArrays(const mjModel& a, const mjModel& b, double tolerance);
+
 }  // namespace mjsysid

@@ -184,33 +184,10 @@ void CheckIndex(const ParameterKindInfo& info, const ParameterSpec& spec, int co
 }
 
 // an array of mjModel: name, byte offset of its pointer, number of elements, element type
-struct ModelArray {
-  const char* name;
-  int offset;
-  int size;
-  const char* type;
-  bool is_mjtnum;
-};
-
-std::vector<ModelArray> ModelArrays(const mjModel* m) {
-  std::vector<ModelArray> out;
-  MJMODEL_POINTERS_PREAMBLE(m)
-  (void)nuser_body, (void)nuser_jnt, (void)nuser_geom, (void)nuser_site, (void)nuser_cam;
-  (void)nuser_tendon, (void)nuser_actuator, (void)nuser_sensor, (void)nq, (void)nv, (void)na;
-  (void)nu, (void)nmocap, (void)nplastic;
-#define X(type, fname, nr, nc)                                       \
-  out.push_back({#fname, static_cast<int>(offsetof(mjModel, fname)), \
-                 static_cast<int>(m->nr * (nc)), #type, std::is_same<type, mjtNum>::value});
-#define XNV X
-  MJMODEL_POINTERS
-#undef XNV
-#undef X
-  return out;
-}
 
 // the mjtNum array a field spec names, or ParameterError
 ModelArray FieldOf(const mjModel& m, const ParameterSpec& spec) {
-  const std::vector<ModelArray> arrays = ModelArrays(&m);
+  const std::vector<ModelArray> arrays = ModelArrays(m);
   const auto it = std::find_if(arrays.begin(), arrays.end(),
                                [&](const ModelArray& a) { return spec.field == a.name; });
   if (it == arrays.end()) {
@@ -256,6 +233,23 @@ mjtNum* FieldArray(const mjModel* m, int offset) {
 }
 
 }  // namespace
+
+std::vector<ModelArray> ModelArrays(const mjModel& model) {
+  const mjModel* m = &model;
+  std::vector<ModelArray> out;
+  MJMODEL_POINTERS_PREAMBLE(m)
+  (void)nuser_body, (void)nuser_jnt, (void)nuser_geom, (void)nuser_site, (void)nuser_cam;
+  (void)nuser_tendon, (void)nuser_actuator, (void)nuser_sensor, (void)nq, (void)nv, (void)na;
+  (void)nu, (void)nmocap, (void)nplastic;
+#define X(type, fname, nr, nc)                                       \
+  out.push_back({#fname, static_cast<int>(offsetof(mjModel, fname)), \
+                 static_cast<int>(m->nr * (nc)), #type, std::is_same<type, mjtNum>::value});
+#define XNV X
+  MJMODEL_POINTERS
+#undef XNV
+#undef X
+  return out;
+}
 
 // ---------------------------------------------------------------------------------------------
 // public look-ups

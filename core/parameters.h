@@ -93,6 +93,19 @@ struct ParameterKindInfo {
   const char* object_name() const;
 };
 
+// one array of mjModel (MJMODEL_POINTERS): its name, the byte offset of its pointer in mjModel,
+// its number of entries in a model, its element type, and whether that type is mjtNum
+struct ModelArray {
+  const char* name;
+  int offset;
+  int size;
+  const char* type;
+  bool is_mjtnum;
+};
+
+// every array of mjModel with its size in m, in mjModel's order
+std::vector<ModelArray> ModelArrays(const mjModel& m);
+
 // every kind, in ParameterKind order
 const std::vector<ParameterKindInfo>& ParameterKindTable();
 
