@@ -60,24 +60,10 @@ bool WriteDofArray(mjsElement* element, const mjModel& m, int joint, int /*index
   return KindWriter(kKind)(element, m, joint, 0, (m.*kArray)[first]);
 }
 
-// the kind writers that write an array component as it is
-bool WriteInertial(mjsElement* e, const mjModel& m, int id, int index, double value) {
-  return KindWriter(ParameterKind::kBodyMass)(e, m, id, index, value);
-}
-bool WriteStiffness(mjsElement* e, const mjModel& m, int id, int index, double value) {
-  return KindWriter(ParameterKind::kJointStiffness)(e, m, id, index, value);
-}
-bool WriteGeomFriction(mjsElement* e, const mjModel& m, int id, int index, double value) {
-  return KindWriter(ParameterKind::kGeomFriction)(e, m, id, index, value);
-}
-bool WriteGain(mjsElement* e, const mjModel& m, int id, int index, double value) {
-  return KindWriter(ParameterKind::kActuatorGain)(e, m, id, index, value);
-}
-bool WriteBias(mjsElement* e, const mjModel& m, int id, int index, double value) {
-  return KindWriter(ParameterKind::kActuatorBias)(e, m, id, index, value);
-}
-bool WriteGear(mjsElement* e, const mjModel& m, int id, int index, double value) {
-  return KindWriter(ParameterKind::kActuatorGear)(e, m, id, index, value);
+// a kind's writer, for an array component written as it is
+template <ParameterKind kKind>
+bool WriteAsKind(mjsElement* e, const mjModel& m, int id, int index, double value) {
+  return KindWriter(kKind)(e, m, id, index, value);
 }
 
 // shorthands for the template arguments
@@ -109,14 +95,17 @@ int Columns(const mjModel* m, const std::string& array) {
 const std::vector<FieldMjcfInfo>& FieldMjcfTable() {
   static const std::vector<FieldMjcfInfo> table = {
       // bodies: the explicit inertial clause (as the body kinds), gravity compensation
-      {"body_ipos", mjOBJ_BODY, "explicit `<inertial>` (as `body_mass`)", nullptr, WriteInertial},
-      {"body_mass", mjOBJ_BODY, "explicit `<inertial>` (as `body_mass`)", nullptr, WriteInertial},
+      {"body_ipos", mjOBJ_BODY, "explicit `<inertial>` (as `body_mass`)", nullptr,
+       WriteAsKind<ParameterKind::kBodyMass>},
+      {"body_mass", mjOBJ_BODY, "explicit `<inertial>` (as `body_mass`)", nullptr,
+       WriteAsKind<ParameterKind::kBodyMass>},
       {"body_inertia", mjOBJ_BODY, "explicit `<inertial>` (as `body_mass`)", nullptr,
-       WriteInertial},
+       WriteAsKind<ParameterKind::kBodyMass>},
       {"body_gravcomp", mjOBJ_BODY, "`gravcomp` of the `<body>`", nullptr,
        MJS_SCALAR(mjsBody, mjs_asBody, gravcomp, body_gravcomp)},
       // joints and their dofs (one attribute per joint: every dof must agree)
-      {"jnt_stiffness", mjOBJ_JOINT, "`stiffness` of the `<joint>`", nullptr, WriteStiffness},
+      {"jnt_stiffness", mjOBJ_JOINT, "`stiffness` of the `<joint>`", nullptr,
+       WriteAsKind<ParameterKind::kJointStiffness>},
       {"dof_frictionloss", mjOBJ_JOINT, "`frictionloss` of the dof's `<joint>`", JointOfDof,
        WriteDofArray<&mjModel::dof_frictionloss, ParameterKind::kJointFrictionLoss>},
       {"dof_armature", mjOBJ_JOINT, "`armature` of the dof's `<joint>`", JointOfDof,
@@ -130,7 +119,8 @@ const std::vector<FieldMjcfInfo>& FieldMjcfTable() {
        MJS_ROW(mjsGeom, mjs_asGeom, solref, geom_solref, mjNREF)},
       {"geom_solimp", mjOBJ_GEOM, "`solimp` of the `<geom>`", nullptr,
        MJS_ROW(mjsGeom, mjs_asGeom, solimp, geom_solimp, mjNIMP)},
-      {"geom_friction", mjOBJ_GEOM, "`friction` of the `<geom>`", nullptr, WriteGeomFriction},
+      {"geom_friction", mjOBJ_GEOM, "`friction` of the `<geom>`", nullptr,
+       WriteAsKind<ParameterKind::kGeomFriction>},
       {"geom_margin", mjOBJ_GEOM, "`margin` of the `<geom>`", nullptr,
        MJS_SCALAR(mjsGeom, mjs_asGeom, margin, geom_margin)},
       {"geom_gap", mjOBJ_GEOM, "`gap` of the `<geom>`", nullptr,
@@ -160,10 +150,12 @@ const std::vector<FieldMjcfInfo>& FieldMjcfTable() {
       // actuators
       {"actuator_dynprm", mjOBJ_ACTUATOR, "`dynprm` of the actuator", nullptr,
        MJS_ROW(mjsActuator, mjs_asActuator, dynprm, actuator_dynprm, mjNDYN)},
-      {"actuator_gainprm", mjOBJ_ACTUATOR, "`gainprm` of the actuator", nullptr, WriteGain},
-      {"actuator_biasprm", mjOBJ_ACTUATOR, "`biasprm` of the actuator", nullptr, WriteBias},
+      {"actuator_gainprm", mjOBJ_ACTUATOR, "`gainprm` of the actuator", nullptr,
+       WriteAsKind<ParameterKind::kActuatorGain>},
+      {"actuator_biasprm", mjOBJ_ACTUATOR, "`biasprm` of the actuator", nullptr,
+       WriteAsKind<ParameterKind::kActuatorBias>},
       {"actuator_gear", mjOBJ_ACTUATOR, "`gear` of the actuator (its first output)",
-       ActuatorOfOutput, WriteGear},
+       ActuatorOfOutput, WriteAsKind<ParameterKind::kActuatorGear>},
   };
   return table;
 }
