@@ -731,4 +731,32 @@ TEST_F(BadInputTest, FailingStartNamesTheInitialValues) {
   }
 }
 
+// a simulation that diverges names the step and the time at its start: controls 0 for six
+// steps, then 1 through a gain of 1e300 (bad acceleration at step 6, t = 6 x 0.002 s; MuJoCo's
+// reset after a bad acceleration sets mjData::time to 0, which the message used to print)
+TEST_F(BadInputTest, DivergenceNamesItsStepAndTime) {
+  std::string csv = "time,torque,angle,rate\n";
+  for (int k = 0; k < 20; ++k) {
+    csv += std::to_string(0.002 * k) + "," + (k < 6 ? "0" : "1") + ",0,0\n";
+  }
+  WriteFile(dir_ + "/diverges.csv", csv);
+  const std::string log = dir_ + "/diverges.h5";
+  const CliRun imported =
+      Sysid("import " + kModels + "/pendulum.xml " + dir_ + "/diverges.csv --out " + log);
+  ASSERT_EQ(imported.code, 0) << imported.err;
+  const std::string exp =
+      Yaml("diverges.yaml", "model: @MODELS@/pendulum.xml\ndata: " + log +
+                                "\nparameters:\n  - {name: gain, target: actuator_gain, "
+                                "object: torque, initial: 1.0e300}\n");
+  for (const std::string& cmd : {"fit " + exp + " --out " + prev_ + " --quiet", "check " + exp}) {
+    SCOPED_TRACE(cmd);
+    const CliRun r = Sysid(cmd);
+    EXPECT_EQ(r.code, 1) << r.err;
+    EXPECT_NE(r.err.find("simulation: sequence 0, step 6 (t = 0.012 s): MuJoCo warning: bad qacc"),
+              std::string::npos)
+        << r.err;
+    EXPECT_EQ(Snapshot(prev_), prev_files_);
+  }
+}
+
 }  // namespace

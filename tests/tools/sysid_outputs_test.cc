@@ -9,7 +9,9 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -308,6 +310,13 @@ TEST_F(SysidOutputsTest, StopSignalsWriteACompleteInterruptedResult) {
     EXPECT_EQ(r.termination.find("Ceres"), std::string::npos) << r.termination;
     EXPECT_NE(r.termination.find("stop signal"), std::string::npos) << r.termination;
     EXPECT_LT(r.iterations, 200);
+    // no uncertainty step after a signal: no intervals, and the result says so
+    for (const mjsysid::ParameterEstimate& p : r.parameters) {
+      EXPECT_TRUE(std::isnan(p.std_error) && std::isnan(p.ci95_low)) << p.name;
+    }
+    EXPECT_NE(std::find(r.warnings.begin(), r.warnings.end(),
+                        "interrupted: no uncertainty step, the estimate has no intervals"),
+              r.warnings.end());
     EXPECT_EQ(Run("report " + out).code, 0);
   }
 }
