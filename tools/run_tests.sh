@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs what is missing, builds with warnings as errors, checks formatting, runs every ctest
-# label that fits CI (unit, recovery, stress, browser), then the address+undefined sanitizer build of the
-# unit tests. Idempotent; incremental when the builds exist.
+# label that fits CI (unit, recovery, stress, browser), installs into a temporary prefix and builds
+# and runs tests/consumer against it (find_package(mjsysid)), then the address+undefined sanitizer
+# build of the unit tests. Idempotent; incremental when the builds exist.
 #
 # Then fuzzes the YAML and HDF5 loaders for a bounded time (libFuzzer, clang-14; docs/bad-input.md).
 #
@@ -30,6 +31,18 @@ cmake --build --preset default -j "$jobs"
 
 step "tests (labels unit, recovery, stress, browser; 'long' is excluded: see README)"
 ctest --preset default -j "$jobs" -LE long
+
+step "install into a temporary prefix; tests/consumer built against it with find_package(mjsysid)"
+install_tmp="$(mktemp -d)"
+trap 'rm -rf "$install_tmp"' EXIT
+cmake --install build/default --prefix "$install_tmp/prefix" >/dev/null
+# both programs must run without LD_LIBRARY_PATH (libmujoco through their RPATH)
+env -u LD_LIBRARY_PATH "$install_tmp/prefix/bin/sysid" --version
+cmake -S tests/consumer -B "$install_tmp/build" -G Ninja \
+  -DCMAKE_PREFIX_PATH="$install_tmp/prefix" >/dev/null
+cmake --build "$install_tmp/build" -j "$jobs"
+env -u LD_LIBRARY_PATH "$install_tmp/build/mjsysid_consumer" models/pendulum.xml \
+  "$install_tmp/log.h5"
 
 if ((quick == 0)); then
   step "sanitizer build (address, undefined) of the unit tests"
