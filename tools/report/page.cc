@@ -73,7 +73,8 @@ std::string StatusClass(const std::string& status) {
       s.find("diverg") != std::string::npos) {
     return "bad";
   }
-  if (s == "converged" || s == "success" || s == "succeeded" || s == "ok" || s == "done") {
+  if (s == FitStatusName(FitStatus::kConverged) || s == "success" || s == "succeeded" ||
+      s == "ok" || s == "done") {
     return "ok";
   }
   return "warn";
