@@ -4,19 +4,26 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "core/mujoco_env.h"
 #include "core/simulator.h"
+#include "sysid/io/experiment.h"
+#include "sysid/io/log.h"
 #include "sysid/io/result.h"
 #include "sysid/problem.h"
 #include "sysid/run/fit_experiment.h"
+#include "sysid/sim/simulate.h"
 #include "tests/test_util.h"
+#include "tools/report/report.h"
 
 namespace mjsysid {
 namespace {
@@ -224,6 +231,45 @@ TEST(FitStatusTest, NamesExitCodesAndResultFile) {
     EXPECT_EQ(back.converged, status == FitStatus::kConverged);
   }
   EXPECT_FALSE(FitStatusFromName("running").has_value());
+  fs::remove_all(dir);
+}
+
+// experiments/pendulum.yaml simulated as shipped (truth damping 0.08, frictionloss 0.03, bob_mass
+// 1.2; noise 0.001 rad and 0.01 rad/s, the sigmas), then fitted without its frictionloss
+// parameter (the model's 0.01 stays): RunFit writes every result file with status
+// model_mismatch, intervals_valid false, exit code 3, and the report says the intervals are not
+// valid
+TEST(FitStatusTest, RunFitWritesAModelMismatchWithExitCode3) {
+  const fs::path dir = fs::temp_directory_path() / ("status_run_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  io::ExperimentConfig cfg =
+      io::LoadExperiment(std::string(MJSYSID_EXPERIMENTS_DIR) + "/pendulum.yaml");
+  const std::string log = (dir / "log.h5").string();
+  cfg.data = {io::DataFile{log, {}}};
+  io::WriteLog(log, sim::SimulateExperiment(cfg, sim::SimulateSettings{}));
+  cfg.parameters.erase(
+      std::remove_if(cfg.parameters.begin(), cfg.parameters.end(),
+                     [](const io::ParameterSpec& p) { return p.name == "frictionloss"; }),
+      cfg.parameters.end());
+  cfg.options.verbose = false;
+  run::FitRunOptions opt;
+  opt.out_dir = (dir / "out").string();
+  opt.verbose = false;
+  opt.threads = 2;
+  const run::FitRunOutcome out = run::RunFit(cfg, opt);
+  Print("pendulum without frictionloss", out.file);
+  EXPECT_EQ(out.file.status, "model_mismatch");
+  EXPECT_EQ(out.exit_code, 3);
+  const io::FitResultFile back = io::ReadResult(opt.out_dir);
+  EXPECT_EQ(back.outcome, FitStatus::kModelMismatch);
+  EXPECT_FALSE(back.intervals_valid);
+  std::string summary;
+  EXPECT_GT(report::WriteReport(opt.out_dir, &summary), 0);
+  std::ifstream page(opt.out_dir + "/report.html");
+  std::stringstream html;
+  html << page.rdbuf();
+  EXPECT_NE(html.str().find("intervals not valid"), std::string::npos);
   fs::remove_all(dir);
 }
 
