@@ -19,6 +19,7 @@
 
 #include "sysid/cost_functions.h"
 #include "sysid/evaluation_cache.h"
+#include "sysid/fit_status.h"
 #include "sysid/problem_impl.h"
 #include "sysid/residual_model.h"
 #include "sysid/state_manifold.h"
@@ -31,6 +32,13 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // multiple shooting: a continuity gap (tangent space: m, rad, m/s, rad/s) above this at the
 // estimate is reported as segments that do not join
 constexpr double kContinuityGapWarning = 1e-3;
+
+// a number for a message: 3 digits
+std::string Num3(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.3g", v);
+  return buf;
+}
 
 // Reduces the sequence's matrices (T x nsensordata, the model's layout) to the columns of the
 // fitted sensors, in the order given, and fills their names, dimensions and the sample times.
@@ -359,6 +367,16 @@ FitResult Problem::Fit(const FitOptions& options) {
   const std::vector<std::pair<double, double>>& mbounds = prepared.mbounds;
   result.jacobian_mode = prepared.jacobian_mode;
 
+  // a start on a bound: the first step may leave the bound at once or never (a projected
+  // gradient pointing outwards)
+  for (const FitParameter& p : I.params) {
+    if (p.initial == p.lower || p.initial == p.upper) {
+      result.warnings.push_back(
+          "parameter '" + p.name + "' starts on its " + (p.initial == p.lower ? "lower" : "upper") +
+          " bound " + Num3(p.initial) + ": start inside the bounds, or the fit may not leave it");
+    }
+  }
+
   // ceres problem
   ceres::Problem::Options po;
   po.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
@@ -612,6 +630,12 @@ FitResult Problem::Fit(const FitOptions& options) {
         "): it describes no single trajectory; try shorter segments, a larger continuity_weight "
         "or a start closer to the data");
   }
+  // the verdict (sysid/fit_status.h): accepted steps, Jacobian warnings, chi-square
+  int accepted_steps = 0;
+  for (size_t i = 1; i < summary.iterations.size(); ++i) {
+    accepted_steps += summary.iterations[i].step_is_successful ? 1 : 0;
+  }
+  DecideFitStatus(options, accepted_steps, !I.jacobian_warnings.empty(), &result);
   for (const auto& mo : I.models) result.simulation_steps += mo.sim->StepCount();
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;

@@ -16,6 +16,37 @@ const char* LossTypeName(LossType loss) {
   }
 }
 
+namespace {
+constexpr FitStatus kAllStatuses[] = {FitStatus::kConverged,     FitStatus::kNotConverged,
+                                      FitStatus::kModelMismatch, FitStatus::kJacobianUnreliable,
+                                      FitStatus::kDidNotMove,    FitStatus::kInterrupted};
+}  // namespace
+
+const char* FitStatusName(FitStatus status) {
+  switch (status) {
+    case FitStatus::kConverged:
+      return "converged";
+    case FitStatus::kNotConverged:
+      return "not_converged";
+    case FitStatus::kModelMismatch:
+      return "model_mismatch";
+    case FitStatus::kJacobianUnreliable:
+      return "jacobian_unreliable";
+    case FitStatus::kDidNotMove:
+      return "did_not_move";
+    case FitStatus::kInterrupted:
+      return "interrupted";
+  }
+  return "not_converged";
+}
+
+std::optional<FitStatus> FitStatusFromName(const std::string& name) {
+  for (FitStatus s : kAllStatuses) {
+    if (name == FitStatusName(s)) return s;
+  }
+  return std::nullopt;
+}
+
 double FitParameter::ToVariable(double p) const {
   switch (transform) {
     case Transform::kLog:

@@ -35,6 +35,33 @@ enum class Transform { kNone, kLog, kScale };
 // "none", "huber", "cauchy" (the YAML spelling)
 const char* LossTypeName(LossType loss);
 
+// The verdict on a fit, decided once after the solve (sysid/problem.cc) and written, printed and
+// turned into the exit code everywhere else by these values and names (docs/cli.md):
+// - kConverged: the optimiser converged, the Jacobian at the estimate is reliable and, with sigmas
+//   given, the weighted residuals are as large as the noise explains; the intervals are valid.
+// - kNotConverged: the optimiser stopped without converging (iteration limit, failure).
+// - kModelMismatch: sigmas given and the weighted residual variance far above its chi-square
+//   expectation (overall or for one sensor): the model or the start cannot explain the data.
+// - kJacobianUnreliable: the core flagged the Jacobian as not reliable (e.g. a horizon too long
+//   for single shooting) and the cost fell by less than a few %.
+// - kDidNotMove: no estimated value left its start (no step was accepted).
+// - kInterrupted: a stop signal ended the fit.
+// Every value but kConverged marks the intervals not valid.
+enum class FitStatus {
+  kConverged,
+  kNotConverged,
+  kModelMismatch,
+  kJacobianUnreliable,
+  kDidNotMove,
+  kInterrupted
+};
+
+// "converged", "not_converged", "model_mismatch", "jacobian_unreliable", "did_not_move",
+// "interrupted" (result files, CLI, report)
+const char* FitStatusName(FitStatus status);
+// the status of a name written by FitStatusName; nullopt for any other text (e.g. "running")
+std::optional<FitStatus> FitStatusFromName(const std::string& name);
+
 // one physical parameter to identify
 struct FitParameter {
   FitParameter() = default;
@@ -133,6 +160,9 @@ struct FitOptions {
   int segment_steps = 0;  // multiple shooting: samples per segment; 0 = single
   double continuity_weight = 1.0;
   std::map<std::string, double> sensor_weights;  // sensor name -> weight (1/sigma); default 1
+  // sensors whose weight is 1/sigma (a noise level, not a mere weight): their weighted residuals
+  // are compared with their chi-square expectation to decide FitStatus::kModelMismatch
+  std::vector<std::string> sensors_with_sigma;
   UncertaintyOptions uncertainty;
   bool verbose = false;  // one progress line per iteration on stderr
   std::function<void(const IterationInfo&)> on_iteration;  // e.g. checkpoint the iterate
@@ -166,8 +196,14 @@ struct FitResult {
   std::vector<ParameterEstimate> parameters;  // physical parameters, then measurement terms
   double initial_cost = 0, final_cost = 0;    // 0.5 |r|^2
   int iterations = 0;
-  bool converged = false;
+  bool converged = false;  // the optimiser reported convergence (Ceres); the verdict is `outcome`
   bool interrupted = false;
+  FitStatus outcome = FitStatus::kNotConverged;  // the verdict (see FitStatus)
+  bool intervals_valid = false;  // std_error and ci95 mean something: outcome is kConverged
+  // with sensors_with_sigma: the weighted residual variance of those sensors' columns at the
+  // estimate, sum(r^2) / (m - p) (expected 1), and per sensor sum(r^2) / rows (NaN without sigmas)
+  double chi2_ratio = std::numeric_limits<double>::quiet_NaN();
+  std::map<std::string, double> sensor_chi2_ratio;
   std::string termination;  // why the optimiser stopped
   int num_residuals = 0;
   Uncertainty uncertainty;  // over FitResult::parameters (order as there)

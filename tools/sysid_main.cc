@@ -6,6 +6,7 @@
 //   0 success
 //   1 the run failed (a simulation failed, MuJoCo raised an error)
 //   2 bad input (command line, experiment file, model, parameters, data files)
+//   `sysid fit` also 1, 3, 4 for a fit whose status is not converged (run::ExitCodeOf)
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <atomic>
@@ -53,7 +54,8 @@ constexpr int kExitBadInput = 2;
 
 const char* const kExitCodesFooter =
     "Exit codes: 0 success, 1 the run failed (simulation or MuJoCo error), 2 bad input (command "
-    "line, experiment file, model, parameters or data files).";
+    "line, experiment file, model, parameters or data files); `fit` writes its results and exits "
+    "1 not_converged or interrupted, 3 model_mismatch, 4 jacobian_unreliable or did_not_move.";
 
 // a bad input found by the command line itself (exit code 2)
 class InputError : public std::runtime_error {
@@ -534,6 +536,10 @@ void PrintEstimates(const mjsysid::io::FitResultFile& f) {
   }
   for (const std::string& u : f.uncertainty.unidentifiable)
     std::printf("  unidentifiable: %s\n", u.c_str());
+  if (!f.intervals_valid) {
+    std::printf("  intervals NOT VALID: the status is %s, not converged (see the warnings)\n",
+                f.status.c_str());
+  }
   std::fflush(stdout);
 }
 

@@ -167,6 +167,8 @@ std::string EmitYaml(const FitResultFile& r) {
       {"jacobian_mode", &r.jacobian_mode}};
   for (const auto& [key, value] : texts) out << YAML::Key << key << YAML::Value << *value;
   if (!r.run_id.empty()) out << YAML::Key << "run_id" << YAML::Value << r.run_id;
+  // whether std and ci95 mean something (only for status converged)
+  out << YAML::Key << "intervals_valid" << YAML::Value << r.intervals_valid;
   out << YAML::Key << "iterations" << YAML::Value << r.iterations;
   out << YAML::Key << "initial_cost" << YAML::Value << Number(r.initial_cost);
   out << YAML::Key << "final_cost" << YAML::Value << Number(r.final_cost);
@@ -406,8 +408,20 @@ void ReadYaml(const std::string& path, FitResultFile* r) {
                                                         {"jacobian_mode", &r->jacobian_mode}};
   for (const auto& [key, value] : texts) *value = y.Text(y.Get(root, key, key), key);
   if (root["run_id"]) r->run_id = y.Text(root["run_id"], "run_id");
-  r->converged = r->status == "converged";
-  r->interrupted = r->status == "interrupted";
+  // the verdict from the status ("running" and other text: not converged); intervals_valid is
+  // optional (files before it: valid when converged)
+  r->outcome = FitStatusFromName(r->status).value_or(FitStatus::kNotConverged);
+  r->converged = r->outcome == FitStatus::kConverged;
+  r->interrupted = r->outcome == FitStatus::kInterrupted;
+  r->intervals_valid = r->converged;
+  if (root["intervals_valid"]) {
+    const std::string valid = y.Text(root["intervals_valid"], "intervals_valid");
+    if (valid != "true" && valid != "false") {
+      y.Fail(root["intervals_valid"], "intervals_valid",
+             "expected true or false, found " + Quote(valid));
+    }
+    r->intervals_valid = valid == "true";
+  }
   const std::pair<const char*, int*> ints[] = {{"iterations", &r->iterations},
                                                {"num_residuals", &r->num_residuals}};
   for (const auto& [key, value] : ints) *value = y.Int(y.Get(root, key, key), key);

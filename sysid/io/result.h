@@ -4,9 +4,9 @@
 // - Both writers are atomic (write PATH.tmp-<pid>, fsync, rename): a reader never sees a half file,
 //   and an interrupted fit leaves the last complete write (the last good iterate) in place.
 // - result.yaml keys (schema "mjsysid-result", version 1):
-//     format, format_version, name, experiment, status, termination, created, mjsysid_version,
-//     mujoco_version, jacobian_mode, iterations, initial_cost, final_cost, residual_variance,
-//     num_residuals, wall_time_s, solver (map of setting -> value as text),
+//     format, format_version, name, experiment, status, intervals_valid, termination, created,
+//     mjsysid_version, mujoco_version, jacobian_mode, iterations, initial_cost, final_cost,
+//     residual_variance, num_residuals, wall_time_s, solver (map of setting -> value as text),
 //     parameters (list of {name, value, initial, std, ci95: [lo, hi], flags: [...], truth?}),
 //     unidentifiable (list of text), warnings (list of text), identified_models (map model ->
 //     file), run_id (when the result has one)
@@ -46,10 +46,11 @@ class ResultError : public std::runtime_error {
 // Of FitResult the files keep: parameters (truth included), initial_cost, final_cost,
 // iterations, termination, num_residuals, jacobian_mode, seconds (wall_time_s),
 // uncertainty.{residual_variance, unidentifiable, covariance}, jacobian, trace, sequences
-// (x0_final excepted), warnings; converged and interrupted are read back from status.
+// (x0_final excepted), warnings, intervals_valid (result.yaml); outcome, converged and
+// interrupted are read back from status.
 struct FitResultFile : FitResult {
   std::string name, experiment, created;
-  std::string status;  // running, converged, not_converged, interrupted
+  std::string status;  // FitStatusName(outcome), or running (a checkpoint)
   std::string run_id;  // the fit that wrote the files; "" in results of older versions
   std::string mjsysid_version, mujoco_version;
   std::map<std::string, std::string> solver;             // setting -> value as text

@@ -77,6 +77,20 @@ void CheckFitSettings(const io::ExperimentConfig& cfg) {
 
 }  // namespace
 
+int ExitCodeOf(FitStatus status) {
+  switch (status) {
+    case FitStatus::kConverged:
+      return 0;
+    case FitStatus::kModelMismatch:
+      return 3;
+    case FitStatus::kJacobianUnreliable:
+    case FitStatus::kDidNotMove:
+      return 4;
+    default:
+      return 1;  // not converged, interrupted
+  }
+}
+
 BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
   BuiltProblem out;
   out.problem = std::make_unique<Problem>();
@@ -217,7 +231,10 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
   o.threads = threads >= 0 ? threads : cfg.options.threads;
   if (o.threads <= 0)
     o.threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  for (const io::SensorSpec& ss : cfg.sensors) o.sensor_weights[ss.name] = ss.ResidualWeight();
+  for (const io::SensorSpec& ss : cfg.sensors) {
+    o.sensor_weights[ss.name] = ss.ResidualWeight();
+    if (ss.sigma) o.sensors_with_sigma.push_back(ss.name);
+  }
   return out;
 }
 
@@ -426,7 +443,7 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   const FitResult& r = file;
 
   // results: the fit as it came, the truth where known, the run's warnings first
-  file.status = r.interrupted ? "interrupted" : r.converged ? "converged" : "not_converged";
+  file.status = FitStatusName(r.outcome);
   if (r.interrupted) {
     file.termination =
         "interrupted (a stop signal) after iteration " + std::to_string(r.iterations);
@@ -435,7 +452,7 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
     if (truth.count(e.name)) e.truth = truth[e.name];
   }
   file.warnings.insert(file.warnings.begin(), bp.warnings.begin(), bp.warnings.end());
-  out.exit_code = r.converged ? 0 : 1;
+  out.exit_code = ExitCodeOf(r.outcome);
 
   // the estimates are shown before any file is written (a full disk loses no result)
   if (ro.on_estimates) ro.on_estimates(file);

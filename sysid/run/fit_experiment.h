@@ -62,8 +62,12 @@ struct FitRunOptions {
 struct FitRunOutcome {
   io::FitResultFile file;  // the fit (a FitResult) and what the run adds
   std::string out_dir;
-  int exit_code = 0;  // 0 converged, 1 not converged, interrupted or failed
+  int exit_code = 0;  // ExitCodeOf(file.outcome)
 };
+
+// the exit code of `sysid fit` for a fit's status (docs/cli.md): 0 converged; 1 not converged or
+// interrupted; 3 model_mismatch; 4 jacobian_unreliable or did_not_move (2 is bad input)
+int ExitCodeOf(FitStatus status);
 
 FitRunOutcome RunFit(const io::ExperimentConfig& config, const FitRunOptions& options);
 

@@ -73,7 +73,8 @@ std::string StatusClass(const std::string& status) {
       s.find("diverg") != std::string::npos) {
     return "bad";
   }
-  if (s == "converged" || s == "success" || s == "succeeded" || s == "ok" || s == "done") {
+  if (s == FitStatusName(FitStatus::kConverged) || s == "success" || s == "succeeded" ||
+      s == "ok" || s == "done") {
     return "ok";
   }
   return "warn";
@@ -160,6 +161,13 @@ std::string Page(const FitResultFile& r, const std::vector<std::string>& sequenc
   h << "<h1>" << HtmlEscape(name) << "</h1>\n<p><span class=\"badge " << StatusClass(r.status)
     << "\">" << HtmlEscape(r.status.empty() ? "unknown" : r.status) << "</span> "
     << HtmlEscape(r.termination) << "</p>\n";
+  // the intervals mean something only for a converged fit (FitStatus, sysid/types.h)
+  if (!r.intervals_valid) {
+    h << "<p><span class=\"badge bad\">intervals not valid</span> the fit's status is "
+      << HtmlEscape(r.status.empty() ? "unknown" : r.status)
+      << ": the standard errors and 95% intervals below do not describe the estimate (see the "
+         "warnings)</p>\n";
+  }
 
   // facts
   const double ratio =

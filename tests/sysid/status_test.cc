@@ -1,0 +1,277 @@
+// The status of a fit (FitStatus, sysid/types.h): real fits of real models on data simulated from a
+// stated truth, each stating truth, start, noise and what the status must be; the result file and
+// exit code that carry it.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "core/mujoco_env.h"
+#include "core/simulator.h"
+#include "sysid/io/experiment.h"
+#include "sysid/io/log.h"
+#include "sysid/io/result.h"
+#include "sysid/problem.h"
+#include "sysid/run/fit_experiment.h"
+#include "sysid/sim/simulate.h"
+#include "tests/test_util.h"
+#include "tools/report/report.h"
+
+namespace mjsysid {
+namespace {
+
+namespace fs = std::filesystem;
+
+const std::string kModels = MJSYSID_MODELS_DIR;
+
+using test::Excitation;
+using test::Measure;
+using test::Spec;
+using test::Truth;
+
+const ParameterEstimate& Estimate(const FitResult& r, const std::string& name) {
+  for (const auto& p : r.parameters) {
+    if (p.name == name) return p;
+  }
+  throw std::runtime_error("no estimate " + name);
+}
+
+bool HasWarning(const FitResult& r, const std::string& text) {
+  for (const auto& w : r.warnings) {
+    if (w.find(text) != std::string::npos) return true;
+  }
+  return false;
+}
+
+void Print(const char* label, const FitResult& r) {
+  std::printf(
+      "[ measured ] %s: status %s, intervals %s, cost %.4e -> %.4e in %d iterations, chi2 ratio "
+      "%.4g, %.2f s\n",
+      label, FitStatusName(r.outcome), r.intervals_valid ? "valid" : "NOT valid", r.initial_cost,
+      r.final_cost, r.iterations, r.chi2_ratio, r.seconds);
+  for (const auto& [sensor, ratio] : r.sensor_chi2_ratio) {
+    std::printf("[ measured ]   chi2 ratio of %s: %.4g\n", sensor.c_str(), ratio);
+  }
+  for (const auto& p : r.parameters) {
+    std::printf("[ measured ]   %-10s %.9g (from %.4g) +- %.3g\n", p.name.c_str(), p.value,
+                p.initial, p.std_error);
+  }
+  for (const auto& w : r.warnings) std::printf("[ measured ]   warning: %s\n", w.c_str());
+}
+
+// the pendulum (sensors angle and rate) released at 0.3 rad under a 1.5 Nm multi-sine, 2000
+// steps, Gaussian noise sigma 0.01 on every channel, with the fit told that sigma
+struct PendulumData {
+  ModelPtr m = LoadModel(kModels + "/pendulum.xml");
+  InitialState x0;
+  RowMatrix u, y;
+  static constexpr double kSigma = 0.01;
+  explicit PendulumData(const std::vector<Truth>& truth) {
+    x0.qpos = Eigen::VectorXd::Constant(1, 0.3);
+    u = Excitation(*m, 2000, 1.5, 3);
+    y = Measure(*m, truth, x0, u, kSigma, 7);
+  }
+  FitOptions Options() const {
+    FitOptions opt;
+    for (const char* s : {"angle", "rate"}) {
+      opt.sensor_weights[s] = 1 / kSigma;
+      opt.sensors_with_sigma.push_back(s);
+    }
+    return opt;
+  }
+};
+
+// truth damping 0.2, friction loss 0.01 (the model's); start damping 0.4 (100 % off); noise 0.01
+// and sigma 0.01: the model explains the data, so the status is converged with valid intervals,
+// the weighted residual variance is 1 within 0.1 (its standard deviation is sqrt(2 / 4000) =
+// 0.022), and the truth is inside 4 standard errors
+TEST(FitStatusTest, RightModelWithSigmaIsConverged) {
+  const Truth damping{"damping", Spec("joint_damping", "hinge"), 0.2};
+  const PendulumData data({damping});
+  Problem problem;
+  problem.AddModel("pendulum", *data.m);
+  problem.AddParameter(FitParameter("damping", damping.spec, 0.4).Bounds(1e-4, 10).Log());
+  problem.AddSequence(FitSequence("seq0", "pendulum", data.x0, data.u, data.y));
+  const FitResult r = problem.Fit(data.Options());
+  Print("right model", r);
+  EXPECT_EQ(r.outcome, FitStatus::kConverged);
+  EXPECT_TRUE(r.intervals_valid);
+  EXPECT_NEAR(r.chi2_ratio, 1.0, 0.1);
+  const ParameterEstimate& e = Estimate(r, "damping");
+  EXPECT_LE(std::abs(e.value - damping.value), 4 * e.std_error);
+  EXPECT_EQ(run::ExitCodeOf(r.outcome), 0);
+}
+
+// data simulated with friction loss 0.3 (the model has 0.01) and damping 0.2; the fit has only
+// damping (start 0.4), sigma 0.01 = the noise: no damping explains the friction, so the status
+// is model_mismatch (exit 3), the intervals not valid, the warning names the sensors
+TEST(FitStatusTest, MissingParameterWithSigmaIsModelMismatch) {
+  const Truth damping{"damping", Spec("joint_damping", "hinge"), 0.2};
+  const Truth friction{"friction", Spec("joint_frictionloss", "hinge"), 0.3};
+  const PendulumData data({damping, friction});
+  Problem problem;
+  problem.AddModel("pendulum", *data.m);
+  problem.AddParameter(FitParameter("damping", damping.spec, 0.4).Bounds(1e-4, 10).Log());
+  problem.AddSequence(FitSequence("seq0", "pendulum", data.x0, data.u, data.y));
+  const FitResult r = problem.Fit(data.Options());
+  Print("missing parameter", r);
+  EXPECT_TRUE(r.converged) << "the optimiser converges: " << r.termination;
+  EXPECT_EQ(r.outcome, FitStatus::kModelMismatch);
+  EXPECT_FALSE(r.intervals_valid);
+  EXPECT_GT(r.chi2_ratio, 2.0);
+  EXPECT_TRUE(HasWarning(r, "model mismatch")) << "no model-mismatch warning";
+  EXPECT_EQ(run::ExitCodeOf(r.outcome), 3);
+
+  // the same fit without sigmas (weights only) cannot test the residuals: converged
+  FitOptions weights_only = data.Options();
+  weights_only.sensors_with_sigma.clear();
+  const FitResult w = problem.Fit(weights_only);
+  EXPECT_EQ(w.outcome, FitStatus::kConverged);
+  EXPECT_TRUE(std::isnan(w.chi2_ratio));
+}
+
+// the double pendulum at high energy (released at 2.5, -2.0 rad, 0 and 6 rad/s, 3 Nm multi-sine
+// seed 5; chaotic), 3000 steps, truth link masses 1.0 and 0.8, start 1.2 and 0.6, noise-free,
+// single shooting (tests/stress/horizon_stress_test.cc "high": measured, it does not recover):
+// the fit must not be converged, its intervals not valid and the exit code not 0
+TEST(FitStatusTest, ChaoticLongHorizonIsNotConverged) {
+  ModelPtr m = LoadModel(kModels + "/double_pendulum.xml");
+  const std::vector<Truth> truth = {{"m1", Spec("body_mass", "link1"), 1.0},
+                                    {"m2", Spec("body_mass", "link2"), 0.8}};
+  InitialState x0;
+  x0.qpos = Eigen::Vector2d(2.5, -2.0);
+  x0.qvel = Eigen::Vector2d(0, 6.0);
+  const RowMatrix u = Excitation(*m, 3000, 3.0, 5);
+  const RowMatrix y = Measure(*m, truth, x0, u, 0, 0);
+  Problem problem;
+  problem.AddModel("dp", *m);
+  problem.AddParameter(FitParameter("m1", truth[0].spec, 1.2).Bounds(0.05, 20).Log());
+  problem.AddParameter(FitParameter("m2", truth[1].spec, 0.6).Bounds(0.05, 20).Log());
+  problem.AddSequence(FitSequence("seq0", "dp", x0, u, y));
+  FitOptions opt;
+  opt.threads = 2;
+  opt.max_iterations = 50;
+  const FitResult r = problem.Fit(opt);
+  Print("chaotic single shooting", r);
+  const double err = std::max(std::abs(Estimate(r, "m1").value - 1.0),
+                              std::abs(Estimate(r, "m2").value / 0.8 - 1.0));
+  std::printf("[ measured ] chaotic: worst relative error %.3g\n", err);
+  EXPECT_NE(r.outcome, FitStatus::kConverged);
+  EXPECT_FALSE(r.intervals_valid);
+  EXPECT_NE(run::ExitCodeOf(r.outcome), 0);
+}
+
+// truth mass 1.0, noise-free, a start on a bound is a warning. From 2.0 on the upper bound 2.0
+// (log transform) the fit leaves it and recovers (relative 1e-6, converged). From 0.5 on the lower
+// bound 0.5 (no transform) the gradient there points out of the bounds (measured: Ceres stops at
+// iteration 0, "Gradient tolerance reached", projected gradient 0): the estimate is the start,
+// so the status is did_not_move (exit 4) with intervals not valid, not converged
+TEST(FitStatusTest, StartOnABoundIsAWarningAndAStuckStartDidNotMove) {
+  ModelPtr m = LoadModel(kModels + "/spring_mass.xml");
+  const RowMatrix u = Excitation(*m, 1000, 2.0, 1);
+  InitialState x0;
+  const RowMatrix y = Measure(*m, {{"mass", Spec("body_mass", "mass"), 1.0}}, x0, u, 0, 0);
+  auto fit = [&](const FitParameter& p) {
+    Problem problem;
+    problem.AddModel("spring", *m);
+    problem.AddParameter(p);
+    problem.AddSequence(FitSequence("seq0", "spring", x0, u, y));
+    return problem.Fit(FitOptions());
+  };
+  const FitResult up =
+      fit(FitParameter("mass", Spec("body_mass", "mass"), 2.0).Bounds(0.01, 2.0).Log());
+  Print("start on the upper bound", up);
+  EXPECT_TRUE(HasWarning(up, "parameter 'mass' starts on its upper bound"));
+  EXPECT_EQ(up.outcome, FitStatus::kConverged) << up.termination;
+  EXPECT_NEAR(Estimate(up, "mass").value, 1.0, 1e-6);
+
+  const FitResult low = fit(FitParameter("mass", Spec("body_mass", "mass"), 0.5).Bounds(0.5, 100));
+  Print("start on the lower bound", low);
+  std::printf("[ measured ] termination: %s\n", low.termination.c_str());
+  EXPECT_TRUE(HasWarning(low, "parameter 'mass' starts on its lower bound"));
+  EXPECT_EQ(Estimate(low, "mass").value, 0.5);
+  EXPECT_EQ(low.outcome, FitStatus::kDidNotMove);
+  EXPECT_FALSE(low.intervals_valid);
+  EXPECT_TRUE(HasWarning(low, "did not move"));
+  EXPECT_EQ(run::ExitCodeOf(low.outcome), 4);
+}
+
+// every status: its name reads back to it, its exit code (docs/cli.md), and result.yaml keeps it
+// with the intervals flag
+TEST(FitStatusTest, NamesExitCodesAndResultFile) {
+  const std::vector<std::pair<FitStatus, int>> codes = {
+      {FitStatus::kConverged, 0},     {FitStatus::kNotConverged, 1},
+      {FitStatus::kModelMismatch, 3}, {FitStatus::kJacobianUnreliable, 4},
+      {FitStatus::kDidNotMove, 4},    {FitStatus::kInterrupted, 1}};
+  const fs::path dir = fs::temp_directory_path() / ("status_test_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  for (const auto& [status, code] : codes) {
+    SCOPED_TRACE(FitStatusName(status));
+    EXPECT_EQ(FitStatusFromName(FitStatusName(status)), status);
+    EXPECT_EQ(run::ExitCodeOf(status), code);
+    io::FitResultFile f;
+    f.name = "status";
+    f.outcome = status;
+    f.status = FitStatusName(status);
+    f.intervals_valid = status == FitStatus::kConverged;
+    io::WriteResultH5((dir / "result.h5").string(), f);
+    io::WriteResultYaml((dir / "result.yaml").string(), f);
+    const io::FitResultFile back =
+        io::ReadResultFiles((dir / "result.yaml").string(), (dir / "result.h5").string());
+    EXPECT_EQ(back.outcome, status);
+    EXPECT_EQ(back.intervals_valid, status == FitStatus::kConverged);
+    EXPECT_EQ(back.converged, status == FitStatus::kConverged);
+  }
+  EXPECT_FALSE(FitStatusFromName("running").has_value());
+  fs::remove_all(dir);
+}
+
+// experiments/pendulum.yaml simulated as shipped (truth damping 0.08, frictionloss 0.03, bob_mass
+// 1.2; noise 0.001 rad and 0.01 rad/s, the sigmas), then fitted without its frictionloss
+// parameter (the model's 0.01 stays): RunFit writes every result file with status
+// model_mismatch, intervals_valid false, exit code 3, and the report says the intervals are not
+// valid
+TEST(FitStatusTest, RunFitWritesAModelMismatchWithExitCode3) {
+  const fs::path dir = fs::temp_directory_path() / ("status_run_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  io::ExperimentConfig cfg =
+      io::LoadExperiment(std::string(MJSYSID_EXPERIMENTS_DIR) + "/pendulum.yaml");
+  const std::string log = (dir / "log.h5").string();
+  cfg.data = {io::DataFile{log, {}}};
+  io::WriteLog(log, sim::SimulateExperiment(cfg, sim::SimulateSettings{}));
+  cfg.parameters.erase(
+      std::remove_if(cfg.parameters.begin(), cfg.parameters.end(),
+                     [](const io::ParameterSpec& p) { return p.name == "frictionloss"; }),
+      cfg.parameters.end());
+  cfg.options.verbose = false;
+  run::FitRunOptions opt;
+  opt.out_dir = (dir / "out").string();
+  opt.verbose = false;
+  opt.threads = 2;
+  const run::FitRunOutcome out = run::RunFit(cfg, opt);
+  Print("pendulum without frictionloss", out.file);
+  EXPECT_EQ(out.file.status, "model_mismatch");
+  EXPECT_EQ(out.exit_code, 3);
+  const io::FitResultFile back = io::ReadResult(opt.out_dir);
+  EXPECT_EQ(back.outcome, FitStatus::kModelMismatch);
+  EXPECT_FALSE(back.intervals_valid);
+  std::string summary;
+  EXPECT_GT(report::WriteReport(opt.out_dir, &summary), 0);
+  std::ifstream page(opt.out_dir + "/report.html");
+  std::stringstream html;
+  html << page.rdbuf();
+  EXPECT_NE(html.str().find("intervals not valid"), std::string::npos);
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace mjsysid
