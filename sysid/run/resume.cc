@@ -27,7 +27,7 @@ std::optional<io::FitResultFile> FindCheckpoint(const std::string& dir) {
   }
   if (fs::exists(fs::path(dir) / "result.yaml", ec)) {
     io::FitResultFile r = io::ReadResult(dir);
-    if (r.status == "interrupted") return r;
+    if (r.status == FitStatusName(FitStatus::kInterrupted)) return r;
   }
   return std::nullopt;
 }
