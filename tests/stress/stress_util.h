@@ -16,6 +16,7 @@
 #include "core/mujoco_env.h"
 #include "core/simulator.h"
 #include "sysid/problem.h"
+#include "tests/fit_test_util.h"
 #include "tests/test_util.h"
 
 namespace mjsysid {
@@ -29,17 +30,11 @@ inline bool LongMode() {
   return v && std::string(v) == "1";
 }
 
+using test::Estimate;
 using test::Excitation;
 using test::Measure;
 using test::Spec;
 using test::Truth;
-
-inline const ParameterEstimate& Estimate(const FitResult& r, const std::string& name) {
-  for (const auto& p : r.parameters) {
-    if (p.name == name) return p;
-  }
-  throw std::runtime_error("no estimate " + name);
-}
 
 // worst relative error of the estimates against the truth
 inline double WorstRelativeError(const FitResult& r, const std::vector<Truth>& truth) {

@@ -13,6 +13,7 @@
 
 #include "core/mujoco_env.h"
 #include "core/simulator.h"
+#include "tests/fit_test_util.h"
 #include "tests/test_util.h"
 
 namespace mjsysid {
@@ -20,17 +21,11 @@ namespace {
 
 const std::string kModels = MJSYSID_MODELS_DIR;
 
+using test::Estimate;
 using test::Excitation;
 using test::Measure;
 using test::Spec;
 using test::Truth;
-
-const ParameterEstimate& Estimate(const FitResult& r, const std::string& name) {
-  for (const auto& p : r.parameters) {
-    if (p.name == name) return p;
-  }
-  throw std::runtime_error("no estimate " + name);
-}
 
 void Print(const FitResult& r) {
   std::printf("[ measured ] cost %.3e -> %.3e in %d iterations (%s), %.2f s, jacobian %s\n",

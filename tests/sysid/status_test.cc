@@ -22,6 +22,7 @@
 #include "sysid/problem.h"
 #include "sysid/run/fit_experiment.h"
 #include "sysid/sim/simulate.h"
+#include "tests/fit_test_util.h"
 #include "tests/test_util.h"
 #include "tools/report/report.h"
 
@@ -32,17 +33,11 @@ namespace fs = std::filesystem;
 
 const std::string kModels = MJSYSID_MODELS_DIR;
 
+using test::Estimate;
 using test::Excitation;
 using test::Measure;
 using test::Spec;
 using test::Truth;
-
-const ParameterEstimate& Estimate(const FitResult& r, const std::string& name) {
-  for (const auto& p : r.parameters) {
-    if (p.name == name) return p;
-  }
-  throw std::runtime_error("no estimate " + name);
-}
 
 bool HasWarning(const FitResult& r, const std::string& text) {
   for (const auto& w : r.warnings) {

@@ -25,10 +25,14 @@
 #include <vector>
 
 #include "sysid/io/log.h"
+#include "tests/file_util.h"
 
 namespace {
 
 namespace fs = std::filesystem;
+using mjsysid::test::ReadFile;
+using mjsysid::test::Snapshot;
+using mjsysid::test::WriteFile;
 namespace io = mjsysid::io;
 
 const std::string kModels = MJSYSID_MODELS_DIR;
@@ -39,26 +43,6 @@ struct CliRun {
   std::string err;  // stderr
   std::string out;  // stdout
 };
-
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-void WriteFile(const std::string& path, const std::string& bytes) {
-  std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes;
-}
-
-// every regular file under dir (relative path -> bytes)
-std::map<std::string, std::string> Snapshot(const std::string& dir) {
-  std::map<std::string, std::string> files;
-  for (const auto& e : fs::recursive_directory_iterator(dir)) {
-    if (e.is_regular_file()) files[fs::relative(e.path(), dir).string()] = ReadFile(e.path());
-  }
-  return files;
-}
 
 class BadInputTest : public ::testing::Test {
  protected:

@@ -23,19 +23,15 @@
 #include <string>
 #include <vector>
 
+#include "tests/file_util.h"
+#include "tests/tools/png_util.h"
+
 namespace mjsysid {
 namespace {
 
 namespace fs = std::filesystem;
-
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
-
-void WriteFile(const std::string& path, const std::string& text) {
-  std::ofstream(path, std::ios::binary) << text;
-}
+using test::ReadFile;
+using test::WriteFile;
 
 // the last `n` characters of text (a long log's end)
 std::string Tail(const std::string& text, size_t n = 3000) {
@@ -181,27 +177,13 @@ TEST_F(ReportBrowserTest, EverySectionAndPlotRenders) {
   EXPECT_EQ(Verdict(Page(), "check.html"), "OK sections=6 images=3 svgs=2");
 }
 
-// cairo's reader of a PNG file in memory
-struct Reader {
-  const std::string* bytes;
-  size_t at = 0;
-};
-cairo_status_t Read(void* closure, unsigned char* data, unsigned int length) {
-  auto* r = static_cast<Reader*>(closure);
-  if (r->bytes->size() - r->at < length) return CAIRO_STATUS_READ_ERROR;
-  std::copy_n(r->bytes->data() + r->at, length, data);
-  r->at += length;
-  return CAIRO_STATUS_SUCCESS;
-}
-
 TEST_F(ReportBrowserTest, TheScreenshotIsNotBlank) {
   const std::string shot = dir_ + "/shot.png";
   fs::remove(shot);
   Chromium(dir_ + "/out/report.html", "--window-size=1280,3600 --screenshot=" + shot);
   const std::string bytes = ReadFile(shot);
   ASSERT_FALSE(bytes.empty()) << "no screenshot";
-  Reader reader{&bytes};
-  cairo_surface_t* s = cairo_image_surface_create_from_png_stream(Read, &reader);
+  cairo_surface_t* s = test::SurfaceFromPng(bytes);
   ASSERT_EQ(cairo_surface_status(s), CAIRO_STATUS_SUCCESS);
   const int w = cairo_image_surface_get_width(s), h = cairo_image_surface_get_height(s);
   EXPECT_EQ(w, 1280);

@@ -16,6 +16,7 @@
 #include <utility>
 #include <vector>
 
+#include "tests/tools/png_util.h"
 #include "tools/report/axes.h"
 #include "tools/report/canvas.h"
 
@@ -146,27 +147,13 @@ struct Png {
   }
 };
 
-// cairo's read callback: the next bytes of a std::string
-struct Reader {
-  const std::string* bytes;
-  size_t at = 0;
-};
-cairo_status_t Read(void* closure, unsigned char* data, unsigned int length) {
-  auto* r = static_cast<Reader*>(closure);
-  if (r->bytes->size() - r->at < length) return CAIRO_STATUS_READ_ERROR;
-  std::copy_n(r->bytes->data() + r->at, length, data);
-  r->at += length;
-  return CAIRO_STATUS_SUCCESS;
-}
-
 // decodes with cairo (libpng: signature, chunk CRCs, zlib stream); the header must say 8-bit RGB
 ::testing::AssertionResult Decode(const std::string& bytes, Png* out) {
   if (bytes.size() < 26 || bytes.compare(12, 4, "IHDR") != 0) {
     return ::testing::AssertionFailure() << "no png header";
   }
   if (bytes[24] != 8 || bytes[25] != 2) return ::testing::AssertionFailure() << "not 8-bit rgb";
-  Reader reader{&bytes};
-  cairo_surface_t* s = cairo_image_surface_create_from_png_stream(Read, &reader);
+  cairo_surface_t* s = test::SurfaceFromPng(bytes);
   const cairo_status_t status = cairo_surface_status(s);
   if (status != CAIRO_STATUS_SUCCESS) {
     cairo_surface_destroy(s);
