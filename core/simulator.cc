@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <stdexcept>
 
+#include "core/text.h"
+
 namespace mjsysid {
 namespace {
 
@@ -28,12 +30,6 @@ double StageCost(int skipstage) {
 // dst = src for two models of the same sizes (mj_copyModel into existing storage)
 void CopyModelInto(mjModel* dst, const mjModel* src) {
   CallMujoco([=] { mj_copyModel(dst, src); });
-}
-
-std::string TimeString(double t) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.6g", t);
-  return buf;
 }
 
 // Chooses between one-sided differences of a column (states dx and sensors dy, each forward
@@ -245,7 +241,7 @@ void Simulator::CheckStep(const mjData& d, double t, int seq_index, int step,
   if (!warnings.empty()) {
     // t comes from the caller: MuJoCo's reset after a bad acceleration sets d.time to 0
     throw SimulationError(std::string(what) + ": sequence " + std::to_string(seq_index) +
-                              ", step " + std::to_string(step) + " (t = " + TimeString(t) +
+                              ", step " + std::to_string(step) + " (t = " + FormatDigits(t, 6) +
                               " s): MuJoCo warning: " + warnings,
                           seq_index, step);
   }
@@ -445,8 +441,8 @@ void Simulator::DirectionalColumn(Worker& w, int seq_index, const Trajectory& no
   }
   if (growth_step >= 0) {
     report->warning = "column " + std::to_string(col) +
-                      ": sensitivity grew so that h*|S| = " + TimeString(max_growth) + " (> " +
-                      TimeString(kGrowthLimit) + ") from step " + std::to_string(growth_step) +
+                      ": sensitivity grew so that h*|S| = " + FormatDigits(max_growth, 6) + " (> " +
+                      FormatDigits(kGrowthLimit, 6) + ") from step " + std::to_string(growth_step) +
                       ": finite differences are no longer local; shorten the horizon (multiple "
                       "shooting)";
   }
@@ -642,8 +638,8 @@ void Simulator::MatrixJacobian(int seq_index, const Trajectory& nom, const Jacob
     if (growth_step[c] < 0) continue;
     out->warnings.push_back(
         "column " + std::to_string(c) +
-        ": sensitivity grew so that h*|S| = " + TimeString(max_growth[c]) + " (> " +
-        TimeString(kGrowthLimit) + ") from step " + std::to_string(growth_step[c]) +
+        ": sensitivity grew so that h*|S| = " + FormatDigits(max_growth[c], 6) + " (> " +
+        FormatDigits(kGrowthLimit, 6) + ") from step " + std::to_string(growth_step[c]) +
         ": the linearisation holds only for far smaller changes; shorten the horizon (multiple "
         "shooting)");
   }

@@ -8,11 +8,13 @@
 
 namespace mjsysid {
 
-std::string FormatG17(double x) {
+std::string FormatDigits(double x, int digits) {
   char buf[40];
-  std::snprintf(buf, sizeof(buf), "%.17g", x);
+  std::snprintf(buf, sizeof(buf), "%.*g", digits, x);
   return buf;
 }
+
+std::string FormatG17(double x) { return FormatDigits(x, 17); }
 
 std::string FormatShortest(double x) {
   char buf[40];

@@ -9,6 +9,10 @@
 
 namespace mjsysid {
 
+// "%.<digits>g": x with `digits` significant digits, for messages (e.g. 3 for a ratio, 6 for a
+// time)
+std::string FormatDigits(double x, int digits);
+
 // "%.17g": every double printed with 17 significant digits (reads back exactly)
 std::string FormatG17(double x);
 

@@ -10,6 +10,8 @@
 #include <utility>
 #include <vector>
 
+#include "core/text.h"
+
 namespace mjsysid {
 namespace {
 
@@ -34,13 +36,6 @@ double Chi2RatioLimit(double dof) {
   const double a = 2.0 / (9.0 * dof);
   const double q = dof * std::pow(1.0 - a + kChi2FalseAlarmZ * std::sqrt(a), 3);
   return std::max(q / dof, kChi2MinRatio);
-}
-
-// a number for a message: 3 digits
-std::string Num3(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.3g", v);
-  return buf;
 }
 
 }  // namespace
@@ -99,7 +94,7 @@ void DecideFitStatus(const FitOptions& options, int accepted_steps, bool jacobia
         r.sensor_chi2_ratio[name] = ratio;
         if (ratio > Chi2RatioLimit(share)) {
           mismatch = true;
-          mismatched.push_back(name + " " + Num3(ratio));
+          mismatched.push_back(name + " " + FormatDigits(ratio, 3));
         }
       }
       if (mismatch) {
@@ -108,8 +103,9 @@ void DecideFitStatus(const FitOptions& options, int accepted_steps, bool jacobia
         r.warnings.push_back(
             "model mismatch: the residuals are larger than the sigmas explain: weighted residual "
             "variance " +
-            Num3(r.chi2_ratio) + " (expected 1; limit " + Num3(Chi2RatioLimit(dof)) +
-            ", chi-square with " + std::to_string(m - p) + " degrees of freedom)" +
+            FormatDigits(r.chi2_ratio, 3) + " (expected 1; limit " +
+            FormatDigits(Chi2RatioLimit(dof), 3) + ", chi-square with " + std::to_string(m - p) +
+            " degrees of freedom)" +
             (sensors.empty() ? std::string() : "; per sensor: " + sensors) +
             ": the model lacks an effect in the data, the start is in another minimum, or the "
             "sigmas are too small; the intervals are not valid");
@@ -129,7 +125,7 @@ void DecideFitStatus(const FitOptions& options, int accepted_steps, bool jacobia
   } else if (jacobian_bad) {
     r.outcome = FitStatus::kJacobianUnreliable;
     r.warnings.push_back(
-        "Jacobian unreliable: the cost fell by only " + Num3(100 * decrease) +
+        "Jacobian unreliable: the cost fell by only " + FormatDigits(100 * decrease, 3) +
         " % while the Jacobian was not reliable: no fit was found (shorten the "
         "horizon: multiple_shooting, or start closer); the intervals are not valid");
   } else if (!r.converged) {

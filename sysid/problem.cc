@@ -17,6 +17,7 @@
 #include <map>
 #include <stdexcept>
 
+#include "core/text.h"
 #include "sysid/cost_functions.h"
 #include "sysid/evaluation_cache.h"
 #include "sysid/fit_status.h"
@@ -32,13 +33,6 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // multiple shooting: a continuity gap (tangent space: m, rad, m/s, rad/s) above this at the
 // estimate is reported as segments that do not join
 constexpr double kContinuityGapWarning = 1e-3;
-
-// a number for a message: 3 digits
-std::string Num3(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.3g", v);
-  return buf;
-}
 
 // Reduces the sequence's matrices (T x nsensordata, the model's layout) to the columns of the
 // fitted sensors, in the order given, and fills their names, dimensions and the sample times.
@@ -371,9 +365,10 @@ FitResult Problem::Fit(const FitOptions& options) {
   // gradient pointing outwards)
   for (const FitParameter& p : I.params) {
     if (p.initial == p.lower || p.initial == p.upper) {
-      result.warnings.push_back(
-          "parameter '" + p.name + "' starts on its " + (p.initial == p.lower ? "lower" : "upper") +
-          " bound " + Num3(p.initial) + ": start inside the bounds, or the fit may not leave it");
+      result.warnings.push_back("parameter '" + p.name + "' starts on its " +
+                                (p.initial == p.lower ? "lower" : "upper") + " bound " +
+                                FormatDigits(p.initial, 3) +
+                                ": start inside the bounds, or the fit may not leave it");
     }
   }
 
@@ -621,12 +616,10 @@ FitResult Problem::Fit(const FitOptions& options) {
     result.sequences.push_back(std::move(sr));
   }
   if (worst_gap > kContinuityGapWarning) {
-    char buf[64];
-    std::snprintf(buf, sizeof(buf), "%.3g", worst_gap);
     result.warnings.push_back(
         std::string("multiple shooting: segments do not join at the estimate (largest continuity "
                     "gap ") +
-        buf + " in state units, " + worst_gap_where +
+        FormatDigits(worst_gap, 3) + " in state units, " + worst_gap_where +
         "): it describes no single trajectory; try shorter segments, a larger continuity_weight "
         "or a start closer to the data");
   }

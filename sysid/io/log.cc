@@ -32,14 +32,6 @@ constexpr const char* kDatasets[] = {"time", "ctrl", "sensordata", "qpos", "qvel
 // ---------------------------------------------------------------------------------------------
 // messages
 
-// the shortest of %.15g..%.17g that reads back as x: tells two doubles apart, stays readable
-// "%.12g": short, for ratios and periods
-std::string Short(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.12g", x);
-  return buf;
-}
-
 std::string Join(const std::vector<std::string>& items, size_t max_items = 20) {
   std::string out;
   for (size_t i = 0; i < items.size() && i < max_items; ++i) {
@@ -625,8 +617,8 @@ void ValidateLogAgainstModel(const Log& log, const mjModel& m,
     const double whole = std::round(ratio);
     if (!(timestep > 0) || whole < 1 || std::abs(period - whole * timestep) > 1e-9 * period) {
       Fail(file, gpath + "/time",
-           "sample period " + Short(period) + " s (median of diff(time)) is " + Short(ratio) +
-               " times the model timestep " + Short(timestep) +
+           "sample period " + FormatDigits(period, 12) + " s (median of diff(time)) is " +
+               FormatDigits(ratio, 12) + " times the model timestep " + FormatDigits(timestep, 12) +
                " s; it must be a whole multiple (1, 2, 3, ...)");
     }
   }

@@ -31,13 +31,6 @@ namespace fs = std::filesystem;
 constexpr double kMinRelativeStep = 1e-13;
 constexpr double kMaxRelativeStep = 0.1;
 
-// a number for a message: 6 digits
-std::string ShortNum(double v) {
-  char buf[40];
-  std::snprintf(buf, sizeof(buf), "%g", v);
-  return buf;
-}
-
 std::string NowIso() {
   const std::time_t t = std::time(nullptr);
   char buf[32];
@@ -52,9 +45,10 @@ void CheckFitSettings(const io::ExperimentConfig& cfg) {
   if (!(h >= kMinRelativeStep && h <= kMaxRelativeStep)) {
     throw io::ConfigError(
         cfg.solver_marks.Of("relative_step"),
-        "solver.relative_step: " + ShortNum(h) + " cannot work as a finite-difference step",
-        "between " + ShortNum(kMinRelativeStep) + " (below, p + h rounds to p) and " +
-            ShortNum(kMaxRelativeStep) + " (above, the difference is no derivative); default 1e-6");
+        "solver.relative_step: " + FormatDigits(h, 6) + " cannot work as a finite-difference step",
+        "between " + FormatDigits(kMinRelativeStep, 6) + " (below, p + h rounds to p) and " +
+            FormatDigits(kMaxRelativeStep, 6) +
+            " (above, the difference is no derivative); default 1e-6");
   }
   for (const io::ModelSpec& ms : cfg.models) {
     const std::vector<const io::ParameterSpec*> ps = cfg.ParametersOf(ms.name);
@@ -274,7 +268,7 @@ std::vector<std::string> InputsOf(const io::ExperimentConfig& cfg) {
 std::string AtInitialValues(const io::ExperimentConfig& cfg) {
   std::string out;
   for (const io::ParameterSpec& p : cfg.parameters) {
-    out += (out.empty() ? "" : ", ") + p.name + " = " + ShortNum(p.initial);
+    out += (out.empty() ? "" : ", ") + p.name + " = " + FormatDigits(p.initial, 6);
   }
   return "at the initial values " + out + " (" + cfg.source_file + ")";
 }

@@ -7,6 +7,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "core/text.h"
+
 namespace mjsysid::sim {
 namespace {
 
@@ -27,12 +29,6 @@ double Normal(std::mt19937_64& rng) {
   const double u1 = static_cast<double>((rng() >> 11) + 1) * 0x1.0p-53;
   const double u2 = Uniform(rng);
   return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * M_PI * u2);
-}
-
-std::string Number(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%g", v);
-  return buf;
 }
 
 const char* TypeName(io::ExcitationType type) {
@@ -201,21 +197,21 @@ std::string DescribeExcitation(const std::vector<io::Excitation>& excitation) {
     if (!out.empty()) out += "; ";
     out += (e.actuator.empty() ? std::string("all") : e.actuator) + ": " + TypeName(e.type);
     if (e.type == io::ExcitationType::kZero) continue;
-    out += " amplitude=" + Number(e.amplitude);
+    out += " amplitude=" + FormatDigits(e.amplitude, 6);
     switch (e.type) {
       case io::ExcitationType::kSines: {
         out += " frequencies=[";
         for (size_t i = 0; i < e.frequencies.size(); ++i) {
-          out += (i ? ", " : "") + Number(e.frequencies[i]);
+          out += (i ? ", " : "") + FormatDigits(e.frequencies[i], 6);
         }
         out += "]";
         break;
       }
       case io::ExcitationType::kChirp:
-        out += " f0=" + Number(e.f0) + " f1=" + Number(e.f1);
+        out += " f0=" + FormatDigits(e.f0, 6) + " f1=" + FormatDigits(e.f1, 6);
         break;
       case io::ExcitationType::kPrbs:
-        out += " switch_period=" + Number(e.switch_period);
+        out += " switch_period=" + FormatDigits(e.switch_period, 6);
         break;
       case io::ExcitationType::kZero:
         break;
