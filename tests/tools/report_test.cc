@@ -5,7 +5,6 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -270,9 +269,7 @@ TEST_F(ReportTest, LongSequencesAreDecimatedAndManyColumnsTiled) {
     m->conservativeResize(Eigen::NoChange, 6);
     for (Eigen::Index j = 2; j < 6; ++j) m->col(j) = m->col(j % 2) * static_cast<double>(j);
   }
-  const auto start = std::chrono::steady_clock::now();
   EXPECT_EQ(WriteReport(r, Dir(), nullptr), 4);
-  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 20);
   ExpectPlot(Path("seq_long_run_1.png"), 1200, 76 + 3 * 230);
   ExpectPlot(Path("cost.png"), 900, 440);
   EXPECT_LT(fs::file_size(Path("report.html")), 3u << 20);
