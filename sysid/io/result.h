@@ -12,7 +12,8 @@
 //     file), run_id (when the result has one)
 //   std and ci95 bounds that are infinite are written as .inf / -.inf; flags are any of
 //   at_lower_bound, at_upper_bound, unidentifiable.
-// - result.h5 layout: root attributes format = "mjsysid-result", format_version = 1, status;
+// - result.h5 layout: root attributes format = "mjsysid-result", format_version = 1, status,
+//   intervals_valid (int 0/1, as result.yaml's; optional on reading, must agree with result.yaml);
 //   /parameters/{value, initial, std, ci95_low, ci95_high} (np) with string attribute `names`;
 //   /covariance (np x np); /jacobian (nres x np); /trace/{iteration, cost, step_norm,
 //   gradient_norm, seconds, successful} (nit) and /trace/parameters (nit x np);
@@ -46,7 +47,7 @@ class ResultError : public std::runtime_error {
 // Of FitResult the files keep: parameters (truth included), initial_cost, final_cost,
 // iterations, termination, num_residuals, jacobian_mode, seconds (wall_time_s),
 // uncertainty.{residual_variance, unidentifiable, covariance}, jacobian, trace, sequences
-// (x0_final excepted), warnings, intervals_valid (result.yaml); outcome, converged and
+// (x0_final excepted), warnings, intervals_valid (both files); outcome, converged and
 // interrupted are read back from status.
 struct FitResultFile : FitResult {
   std::string name, experiment, created;

@@ -128,6 +128,8 @@ void WriteH5(const std::string& tmp, const FitResultFile& r, const std::string& 
     h5::WriteStringAttr(root.get(), "format", kFormat, file, "/");
     h5::WriteIntAttr(root.get(), "format_version", {kFormatVersion}, true, file, "/");
     h5::WriteStringAttr(root.get(), "status", r.status, file, "/");
+    // whether std and ci95 mean something (0 or 1), as result.yaml's intervals_valid
+    h5::WriteIntAttr(root.get(), "intervals_valid", {r.intervals_valid ? 1 : 0}, true, file, "/");
     if (!r.run_id.empty()) h5::WriteStringAttr(root.get(), "run_id", r.run_id, file, "/");
     WriteH5Parameters(root.get(), r, file);
 
@@ -271,6 +273,24 @@ SequenceResult ReadH5Sequence(hid_t sequences, const std::string& name, const st
   return s;
 }
 
+// intervals_valid (optional: files before it have none): 0 or 1, and the same as result.yaml's
+void ReadH5IntervalsValid(hid_t root, const std::string& file, FitResultFile* r) {
+  h5::Id attr = h5::OpenAttrIfAny(root, "intervals_valid", file, "/");
+  if (attr.get() < 0) return;
+  const std::string where = "/ attribute 'intervals_valid'";
+  const std::vector<long long> v = h5::ReadInts(attr.get(), file, where);
+  if (v.size() != 1 || (v[0] != 0 && v[0] != 1)) {
+    Fail(file, where, "expected one value, 0 or 1");
+  }
+  const bool valid = v[0] == 1;
+  if (valid != r->intervals_valid) {
+    Fail(file, where,
+         std::string("is ") + (valid ? "1" : "0") + " but result.yaml's intervals_valid is " +
+             (r->intervals_valid ? "true" : "false") + " (written by different fits?)");
+  }
+  r->intervals_valid = valid;
+}
+
 // `run_id` is the run id of result.h5 ("" when it has none)
 }  // namespace
 
@@ -304,6 +324,7 @@ void ReadH5(const std::string& path, FitResultFile* r, std::string* run_id) {
   if (h5::OpenAttrIfAny(root.get(), "run_id", file, "/").get() >= 0) {
     *run_id = h5::ReadScalarString(root.get(), "run_id", file, "/", "");
   }
+  ReadH5IntervalsValid(root.get(), file, r);
 
   // arrays
   ReadH5Parameters(root.get(), file, *r);

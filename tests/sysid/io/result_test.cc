@@ -10,6 +10,7 @@
 #include <fstream>
 #include <iterator>
 #include <limits>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -119,6 +120,7 @@ FitResultFile FullResult() {
   r.name = "pendulum";
   r.experiment = "/work/experiments/pendulum.yaml";
   r.status = "converged";
+  r.intervals_valid = true;
   r.termination = "function tolerance reached: |dcost|/cost = 3e-11 < 1e-10";
   r.created = "2024-05-01T12:00:00Z";
   r.mjsysid_version = "0.1.0";
@@ -205,6 +207,7 @@ void ExpectSame(const FitResultFile& a, const FitResultFile& b) {
   EXPECT_EQ(a.name, b.name);
   EXPECT_EQ(a.experiment, b.experiment);
   EXPECT_EQ(a.status, b.status);
+  EXPECT_EQ(a.intervals_valid, b.intervals_valid);
   EXPECT_EQ(a.termination, b.termination);
   EXPECT_EQ(a.created, b.created);
   EXPECT_EQ(a.mjsysid_version, b.mjsysid_version);
@@ -452,6 +455,70 @@ hid_t OpenForEdit(const std::string& path) {
   const hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
   EXPECT_GE(f, 0);
   return f;
+}
+
+// the root attribute intervals_valid of result.h5 (-1 when it has none)
+int H5IntervalsValid(const std::string& path) {
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  const hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  EXPECT_GE(f, 0);
+  int value = -1;
+  if (H5Aexists(f, "intervals_valid") > 0) {
+    const hid_t a = H5Aopen(f, "intervals_valid", H5P_DEFAULT);
+    EXPECT_GE(H5Aread(a, H5T_NATIVE_INT, &value), 0);
+    H5Aclose(a);
+  }
+  H5Fclose(f);
+  return value;
+}
+
+// replaces the root attribute intervals_valid of result.h5 by `value` (none: removes it)
+void SetH5IntervalsValid(const std::string& path, std::optional<int> value) {
+  const hid_t f = OpenForEdit(path);
+  ASSERT_GE(H5Adelete(f, "intervals_valid"), 0);
+  if (value) {
+    const hid_t space = H5Screate(H5S_SCALAR);
+    const hid_t a =
+        H5Acreate2(f, "intervals_valid", H5T_STD_I32LE, space, H5P_DEFAULT, H5P_DEFAULT);
+    ASSERT_GE(a, 0);
+    EXPECT_GE(H5Awrite(a, H5T_NATIVE_INT, &*value), 0);
+    H5Aclose(a);
+    H5Sclose(space);
+  }
+  H5Fclose(f);
+}
+
+TEST_F(ResultTest, IntervalsValidIsStoredInTheH5FileToo) {
+  // both values round-trip, and result.h5 holds them itself (not only result.yaml)
+  for (const bool valid : {true, false}) {
+    FitResultFile r = FullResult();
+    r.intervals_valid = valid;
+    WriteBoth(r);
+    EXPECT_EQ(H5IntervalsValid(Path("result.h5")), valid ? 1 : 0);
+    EXPECT_EQ(ReadResult(Dir()).intervals_valid, valid);
+  }
+
+  // a result.h5 of an older version (no attribute) reads as result.yaml says
+  WriteBoth(FullResult());
+  SetH5IntervalsValid(Path("result.h5"), std::nullopt);
+  EXPECT_TRUE(ReadResult(Dir()).intervals_valid);
+
+  // disagreeing with result.yaml, or not 0/1: named
+  WriteBoth(FullResult());
+  SetH5IntervalsValid(Path("result.h5"), 0);
+  std::string msg = ReadError();
+  EXPECT_NE(
+      msg.find(Path("result.h5") + ": / attribute 'intervals_valid': is 0 but result.yaml's " +
+               "intervals_valid is true"),
+      std::string::npos)
+      << msg;
+  WriteBoth(FullResult());
+  SetH5IntervalsValid(Path("result.h5"), 2);
+  msg = ReadError();
+  EXPECT_NE(msg.find(Path("result.h5") + ": / attribute 'intervals_valid': expected one value, 0 " +
+                     "or 1"),
+            std::string::npos)
+      << msg;
 }
 
 TEST_F(ResultTest, MissingH5DatasetIsNamed) {
