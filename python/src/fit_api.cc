@@ -4,7 +4,9 @@
 // (names, bounds, shapes against the model) is checked by Problem as for a C++ caller.
 #include <nanobind/eigen/dense.h>
 #include <nanobind/nanobind.h>
+#include <nanobind/stl/map.h>
 #include <nanobind/stl/string.h>
+#include <nanobind/stl/vector.h>
 
 #include <set>
 #include <stdexcept>
