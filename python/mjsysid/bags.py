@@ -35,6 +35,8 @@ from rosbags.typesys import Stores, get_typestore
 import mjsysid
 
 BAG_SUFFIXES = (".bag", ".db3", ".mcap")
+# the joints a JointState message describes: one position and one velocity each
+_SCALAR_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
 
 
 class MappingError(ValueError):
@@ -169,8 +171,7 @@ def bag_to_sequence(bag: str, m, mapping: dict, mapping_path: str):
                     if name not in joints:
                         continue
                     jid = joints.index(name)
-                    if m.jnt_type[jid] not in (mujoco.mjtJoint.mjJNT_HINGE,
-                                               mujoco.mjtJoint.mjJNT_SLIDE):
+                    if int(m.jnt_type[jid]) not in _SCALAR_JOINTS:
                         continue
                     if len(msg.position) > j:
                         qpos[k, m.jnt_qposadr[jid]] = msg.position[j]
@@ -178,9 +179,9 @@ def bag_to_sequence(bag: str, m, mapping: dict, mapping_path: str):
                         qvel[k, m.jnt_dofadr[jid]] = msg.velocity[j]
             for s in range(m.nsensor):
                 jid = m.sensor_objid[s]
-                if m.sensor_type[s] == mujoco.mjtSensor.mjSENS_JOINTPOS:
+                if int(m.sensor_type[s]) == int(mujoco.mjtSensor.mjSENS_JOINTPOS):
                     col = qpos[:, m.jnt_qposadr[jid]]
-                elif m.sensor_type[s] == mujoco.mjtSensor.mjSENS_JOINTVEL:
+                elif int(m.sensor_type[s]) == int(mujoco.mjtSensor.mjSENS_JOINTVEL):
                     col = qvel[:, m.jnt_dofadr[jid]]
                 else:
                     continue
