@@ -49,12 +49,18 @@ def test_fit_equals_cli_fit(pendulum, tmp_path, sysid):
     assert written.run_id == fit.run_id
 
 
-def test_check_and_report(pendulum, tmp_path):
+def test_check_and_report(pendulum, tmp_path, sysid):
     mjsysid.simulate(str(pendulum))
     check = mjsysid.check(str(pendulum))
     assert set(check["per_variable"]) == {"damping", "frictionloss", "bob_mass"}
-    # the pendulum's smooth residuals: core and Ceres' numeric Jacobians agree to 1e-4
-    assert 0 <= check["worst_relative_error"] < 1e-4
+    # the same Jacobian check as `sysid check` prints (its worst error and per-variable lines)
+    proc = run([sysid, "check", str(pendulum)])
+    assert proc.returncode == 0, proc.stderr
+    lines = {line.split()[0]: line.split()[1] for line in proc.stdout.splitlines()
+             if len(line.split()) >= 2}
+    assert lines["worst"] == f"{check['worst_relative_error']:.2e}"
+    for name, err in check["per_variable"].items():
+        assert lines[name] == f"{err:.2e}", name
     out = tmp_path / "fit"
     mjsysid.fit_experiment(mjsysid.load_experiment(str(pendulum)), out=str(out))
     summary = mjsysid.report(str(out))
