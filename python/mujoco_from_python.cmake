@@ -14,4 +14,12 @@ if(NOT MUJOCO_ROOT AND NOT DEFINED ENV{MUJOCO_ROOT})
       "the pinned wheel as a build requirement of pyproject.toml): ${_err}")
   endif()
   set(MUJOCO_ROOT "${_mjsysid_py_mujoco}")
+  # pip's isolated build environments live in new temporary folders: a build folder kept from an
+  # earlier `pip install` must forget the MuJoCo (and nanobind) it found there
+  if(NOT "${_mjsysid_py_mujoco}" STREQUAL "${MJSYSID_PYTHON_MUJOCO}")
+    unset(MuJoCo_LIBRARY CACHE)
+    unset(MuJoCo_INCLUDE_DIR CACHE)
+    unset(nanobind_DIR CACHE)
+    set(MJSYSID_PYTHON_MUJOCO "${_mjsysid_py_mujoco}" CACHE INTERNAL "mujoco package of the build")
+  endif()
 endif()

@@ -48,8 +48,9 @@ env -u LD_LIBRARY_PATH "$install_tmp/build/mjsysid_consumer" models/pendulum.xml
 
 step "Python package: pip install . into the venv, then pytest tests/python"
 venv="${MJSYSID_VENV:-$root/.venv}"
-# build/python/ keeps pip's CMake build: a second install rebuilds incrementally
-"$venv/bin/pip" install -q --disable-pip-version-check "$root"
+# build/python/ keeps pip's CMake build; without build isolation (the build requirements are in
+# the venv: requirements-dev.txt) a second install rebuilds incrementally
+"$venv/bin/pip" install -q --disable-pip-version-check --no-build-isolation "$root"
 # the tests compare with this build's sysid, whose bag import runs the same venv's python
 MJSYSID_VENV="$venv" MJSYSID_SYSID="$root/build/default/bin/sysid" \
   "$venv/bin/python" -m pytest -q -p no:cacheprovider "$root/tests/python"

@@ -32,6 +32,16 @@ def test_mujoco_pins_agree(root):
             assert pins[name] == req[name], (section, name)
 
 
+def test_build_pins_agree(root):
+    # tools/run_tests.sh builds without isolation from requirements-dev.txt: the same pins
+    dev = _pins((root / "tools/deps/requirements-dev.txt").read_text())
+    block = re.search(r"requires\s*=\s*\[(.*?)\]", (root / "pyproject.toml").read_text(),
+                      re.S).group(1)
+    pins = _pins(block.replace(",", "\n"))
+    for name in ("scikit-build-core", "nanobind"):
+        assert pins[name] == dev[name], name
+
+
 def test_stubs_and_py_typed_installed():
     package = pathlib.Path(mjsysid.__file__).parent
     assert (package / "py.typed").is_file()
