@@ -1,12 +1,14 @@
-"""Ctrl-C during a fit: a child Python process fitting the pendulum gets SIGINT after its first
-iteration; it must stop after the current iteration and return status interrupted (not hang,
-not die)."""
+"""Ctrl-C during a fit: a child Python process fitting the pendulum (the library fit, and the
+experiment's fit that writes a result folder) gets SIGINT after its first iteration; it must stop
+after the current iteration and return status interrupted (not hang, not die)."""
 
 import os
 import signal
 import subprocess
 import sys
 import textwrap
+
+import pytest
 
 CHILD = textwrap.dedent("""
     import sys, time
@@ -19,15 +21,23 @@ CHILD = textwrap.dedent("""
     def on_iteration(it):
         print("iteration", it.iteration, flush=True)
         time.sleep(2)  # the signal arrives during the iteration
-    r = mjsysid.fit(sys.argv[2], params, seqs, options={"max_iterations": 100},
-                    callback=on_iteration)
+    if sys.argv[3] == "fit":
+        r = mjsysid.fit(sys.argv[2], params, seqs, options={"max_iterations": 100},
+                        callback=on_iteration)
+    else:  # the experiment's fit, written to a folder as `sysid fit` does
+        mjsysid.simulate(sys.argv[1])
+        r = mjsysid.fit_experiment(sys.argv[1], out=sys.argv[4], callback=on_iteration)
+        assert r.exit_code == 1  # as `sysid fit` exits for an interrupted fit
+        assert mjsysid.read_result(sys.argv[4]).status == "interrupted"
     print("status", r.status, r.iterations, flush=True)
 """)
 
 
-def test_sigint_stops_after_the_current_iteration(root, pendulum):
+@pytest.mark.parametrize("api", ["fit", "fit_experiment"])
+def test_sigint_stops_after_the_current_iteration(root, pendulum, tmp_path, api):
     child = subprocess.Popen(
-        [sys.executable, "-c", CHILD, str(pendulum), str(root / "models/pendulum.xml")],
+        [sys.executable, "-c", CHILD, str(pendulum), str(root / "models/pendulum.xml"), api,
+         str(tmp_path / "out")],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         first = child.stdout.readline()
