@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs what mjsysid needs and is missing: pinned Debian packages and a project-local Python
-# virtual environment (.venv) holding MuJoCo's official wheel (libmujoco.so + C headers).
+# virtual environment (.venv) holding MuJoCo's official wheel (libmujoco.so + C headers), the
+# Python packages of bag import (requirements.txt) and of the Python tests (requirements-dev.txt).
 # Idempotent: when everything is present at the pinned versions it only checks and returns.
 #
 # usage: tools/bootstrap.sh [--bench]     (--bench also installs mujoco[sysid] for peer benchmarks)
@@ -45,12 +46,13 @@ if [[ ! -x "$venv/bin/python" ]]; then
   "$py" -m venv "$venv"
 fi
 req="$deps/requirements.txt"
+req_dev="$deps/requirements-dev.txt"
 stamp="$venv/.mjsysid-requirements"
-want_stamp="$(cat "$req")"
+want_stamp="$(cat "$req" "$req_dev")"
 if ((bench)); then want_stamp+="$(cat "$deps/requirements-bench.txt")"; fi
 if [[ ! -f "$stamp" ]] || [[ "$(cat "$stamp")" != "$want_stamp" ]]; then
   log "installing Python requirements into $venv"
-  "$venv/bin/pip" install -q --disable-pip-version-check -r "$req"
+  "$venv/bin/pip" install -q --disable-pip-version-check -r "$req" -r "$req_dev"
   if ((bench)); then
     "$venv/bin/pip" install -q --disable-pip-version-check -r "$deps/requirements-bench.txt"
   fi

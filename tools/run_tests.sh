@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # Installs what is missing, builds with warnings as errors, checks formatting, runs every ctest
 # label that fits CI (unit, recovery, stress, browser), installs into a temporary prefix and builds
-# and runs tests/consumer against it (find_package(mjsysid)), then the address+undefined sanitizer
-# build of the unit tests. Idempotent; incremental when the builds exist.
+# and runs tests/consumer against it (find_package(mjsysid)), installs the Python package into the
+# venv (pip install .) and runs its tests (pytest tests/python: bindings, bag/MCAP import), then the
+# address+undefined sanitizer build of the unit tests. Idempotent; incremental when the builds
+# exist.
 #
 # Then fuzzes the YAML and HDF5 loaders for a bounded time (libFuzzer, clang-14; docs/bad-input.md).
 #
@@ -43,6 +45,15 @@ cmake -S tests/consumer -B "$install_tmp/build" -G Ninja \
 cmake --build "$install_tmp/build" -j "$jobs"
 env -u LD_LIBRARY_PATH "$install_tmp/build/mjsysid_consumer" models/pendulum.xml \
   "$install_tmp/log.h5"
+
+step "Python package: pip install . into the venv, then pytest tests/python"
+venv="${MJSYSID_VENV:-$root/.venv}"
+# build/python/ keeps pip's CMake build; without build isolation (the build requirements are in
+# the venv: requirements-dev.txt) a second install rebuilds incrementally
+"$venv/bin/pip" install -q --disable-pip-version-check --no-build-isolation "$root"
+# the tests compare with this build's sysid, whose bag import runs the same venv's python
+MJSYSID_VENV="$venv" MJSYSID_SYSID="$root/build/default/bin/sysid" \
+  "$venv/bin/python" -m pytest -q -p no:cacheprovider "$root/tests/python"
 
 if ((quick == 0)); then
   step "sanitizer build (address, undefined) of the unit tests"

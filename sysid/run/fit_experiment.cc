@@ -417,6 +417,7 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
         std::fprintf(stderr, "sysid fit: warning: checkpoint not written: %s\n", e.what());
       }
     }
+    if (ro.on_iteration) ro.on_iteration(it);
   };
 
   // fit

@@ -57,6 +57,9 @@ struct FitRunOptions {
   bool resume = false;  // continue from the folder's checkpoint (sysid/run/resume.h)
   // called with the results before any file is written (the CLI prints the estimates)
   std::function<void(const io::FitResultFile&)> on_estimates;
+  // called after every successful iteration, once its checkpoint is written (e.g. the Python
+  // module's iteration callback); iteration numbers as in Problem::Fit (not the resumed count)
+  std::function<void(const IterationInfo&)> on_iteration;
 };
 
 struct FitRunOutcome {

@@ -1,0 +1,278 @@
+"""ROS 1/2 bags and MCAP files into an mjsysid HDF5 log (`sysid import MODEL BAG --mapping M`).
+
+Reads with the `rosbags` package (ROS 1 .bag, ROS 2 bag folders, .db3 and .mcap files), maps
+topics onto the model's actuators, sensors and joints through a small YAML mapping, and writes
+the log with mjsysid.write_log (the C++ writer, checked against the model as for CSV import:
+sysid/io/log.h). One sequence per bag, named after the file (or folder).
+
+Mapping file (docs/cli.md, "Import of ROS bags and MCAP files"):
+
+    time_base: /joint_states     # the topic whose messages are the samples (default: the first)
+    stamp: log                   # log: the time the bag recorded; header: header.stamp
+    topics:
+      /joint_states: {type: JointState}          # by joint name: qpos/qvel, jointpos/jointvel
+      /cmd: {field: data, actuators: [a1, a2]}   # a numeric field -> these actuators, in order
+      /imu: {field: angular_velocity, sensors: [gyro]}  # -> these sensors (all components)
+
+Samples: one per message of the time base, at its time stamp as recorded (no resampling);
+every other topic gives its latest message at or before that time (zero-order hold). Samples
+before every topic has sent a message are dropped. Times are seconds since the first sample;
+its absolute stamp (nanoseconds) is the log attribute time_origin_ns.
+"""
+
+from __future__ import annotations
+
+import argparse
+import pathlib
+import sys
+
+import mujoco
+import numpy as np
+import yaml
+from rosbags.highlevel import AnyReader
+from rosbags.typesys import Stores, get_typestore
+
+import mjsysid
+
+BAG_SUFFIXES = (".bag", ".db3", ".mcap")
+# the joints a JointState message describes: one position and one velocity each
+_SCALAR_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+
+
+class MappingError(ValueError):
+    """A mapping that does not fit the model or the bag; the message names file and key."""
+
+
+def is_bag(path: str) -> bool:
+    """A ROS 1 bag, a ROS 2 storage file, an MCAP file, or a ROS 2 bag folder."""
+    p = pathlib.Path(path)
+    return p.suffix in BAG_SUFFIXES or (p.is_dir() and (p / "metadata.yaml").is_file())
+
+
+def _names(m, obj, count):
+    return [mujoco.mj_id2name(m, obj, i) or "" for i in range(count)]
+
+
+def load_mapping(path: str, m) -> dict:
+    """Reads and checks the mapping file against model m."""
+    try:
+        doc = yaml.safe_load(pathlib.Path(path).read_text())
+    except (OSError, yaml.YAMLError) as err:
+        raise MappingError(f"{path}: cannot read the mapping: {err}") from None
+    if not isinstance(doc, dict) or not isinstance(doc.get("topics"), dict) or not doc["topics"]:
+        raise MappingError(f"{path}: expected a map with `topics:` (topic -> {{type: JointState}}"
+                           " or {field: F, actuators: [...], sensors: [...]})")
+    unknown = set(doc) - {"topics", "time_base", "stamp"}
+    if unknown:
+        raise MappingError(f"{path}: unknown key(s) {sorted(unknown)}; valid: topics, time_base,"
+                           " stamp")
+    if doc.get("stamp", "log") not in ("log", "header"):
+        raise MappingError(f"{path}: stamp: expected log or header, not {doc['stamp']!r}")
+    actuators = _names(m, mujoco.mjtObj.mjOBJ_ACTUATOR, m.nu)
+    sensors = _names(m, mujoco.mjtObj.mjOBJ_SENSOR, m.nsensor)
+    for topic, entry in doc["topics"].items():
+        where = f"{path}: topics: {topic}"
+        if not isinstance(entry, dict):
+            raise MappingError(f"{where}: expected a map")
+        if entry.get("type") == "JointState":
+            if set(entry) != {"type"}:
+                raise MappingError(f"{where}: a JointState topic takes no other keys")
+            continue
+        if "type" in entry:
+            raise MappingError(f"{where}: type {entry['type']!r}: the only type is JointState;"
+                               " other messages take field:, actuators: and/or sensors:")
+        unknown = set(entry) - {"field", "actuators", "sensors"}
+        if unknown or "field" not in entry:
+            raise MappingError(f"{where}: expected field: and actuators: and/or sensors:"
+                               f" (unknown: {sorted(unknown)})")
+        for key, valid in (("actuators", actuators), ("sensors", sensors)):
+            for name in entry.get(key, []):
+                if name not in valid:
+                    raise MappingError(f"{where}: {key}: '{name}' is not one of the model's"
+                                       f" {key}: {', '.join(valid[:20])}")
+    base = doc.get("time_base", next(iter(doc["topics"])))
+    if base not in doc["topics"]:
+        raise MappingError(f"{path}: time_base {base!r} is not one of the topics")
+    return {"topics": doc["topics"], "time_base": base, "stamp": doc.get("stamp", "log")}
+
+
+def _values(msg, field: str, where: str) -> list[float]:
+    """The numbers of msg.FIELD (dotted path): a number, an array, or a Vector3/Point
+    (x, y, z) or Quaternion (w, x, y, z: MuJoCo's order)."""
+    value = msg
+    for part in field.split("."):
+        if not hasattr(value, part):
+            raise MappingError(f"{where}: field {field!r}: the message has no {part!r}")
+        value = getattr(value, part)
+    if hasattr(value, "w") and hasattr(value, "x"):
+        return [value.w, value.x, value.y, value.z]
+    if hasattr(value, "x") and hasattr(value, "z"):
+        return [value.x, value.y, value.z]
+    try:
+        return [float(v) for v in np.ravel(np.asarray(value, dtype=float))]
+    except (TypeError, ValueError):
+        raise MappingError(f"{where}: field {field!r} is not numeric") from None
+
+
+def _read_topics(bag: str, mapping: dict) -> dict[str, list[tuple[int, object]]]:
+    """topic -> [(stamp_ns, message)] in time order, for the mapped topics."""
+    out = {topic: [] for topic in mapping["topics"]}
+    with AnyReader([pathlib.Path(bag)],
+                   default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as reader:
+        present = {c.topic for c in reader.connections}
+        missing = [t for t in out if t not in present]
+        if missing:
+            raise MappingError(f"{bag}: topic(s) {', '.join(missing)} not in the bag; it has: "
+                               f"{', '.join(sorted(present))}")
+        connections = [c for c in reader.connections if c.topic in out]
+        for conn, timestamp, raw in reader.messages(connections=connections):
+            msg = reader.deserialize(raw, conn.msgtype)
+            if mapping["stamp"] == "header":
+                stamp = msg.header.stamp
+                timestamp = stamp.sec * 1_000_000_000 + stamp.nanosec
+            out[conn.topic].append((timestamp, msg))
+    for topic, messages in out.items():
+        if not messages:
+            raise MappingError(f"{bag}: topic {topic} has no messages")
+        messages.sort(key=lambda tm: tm[0])
+    return out
+
+
+def bag_to_sequence(bag: str, m, mapping: dict, mapping_path: str):
+    """One bag as an mjsysid.Sequence for model m (and its time origin in ns)."""
+    topics = _read_topics(bag, mapping)
+    base = np.array([t for t, _ in topics[mapping["time_base"]]], dtype=np.int64)
+    # the latest message of each topic at or before each sample; -1 before its first one
+    index = {topic: np.searchsorted(np.array([t for t, _ in msgs], dtype=np.int64), base,
+                                    side="right") - 1
+             for topic, msgs in topics.items()}
+    keep = np.all([i >= 0 for i in index.values()], axis=0)
+    if not keep.any():
+        raise MappingError(f"{bag}: no sample of {mapping['time_base']} comes after a message of"
+                           " every mapped topic")
+    rows = np.flatnonzero(keep)
+    T = len(rows)
+
+    actuators = _names(m, mujoco.mjtObj.mjOBJ_ACTUATOR, m.nu)
+    sensors = _names(m, mujoco.mjtObj.mjOBJ_SENSOR, m.nsensor)
+    joints = _names(m, mujoco.mjtObj.mjOBJ_JOINT, m.njnt)
+    ctrl = np.full((T, m.nu), np.nan)
+    sensor_cols: dict[int, np.ndarray] = {}  # sensor id -> T x dim
+    qpos = np.full((T, m.nq), np.nan)
+    qvel = np.full((T, m.nv), np.nan)
+
+    for topic, entry in mapping["topics"].items():
+        msgs = [topics[topic][i][1] for i in index[topic][rows]]
+        where = f"{bag}: {topic}"
+        if entry.get("type") == "JointState":
+            # by joint name: positions and velocities of hinge and slide joints
+            for k, msg in enumerate(msgs):
+                for j, name in enumerate(msg.name):
+                    if name not in joints:
+                        continue
+                    jid = joints.index(name)
+                    if int(m.jnt_type[jid]) not in _SCALAR_JOINTS:
+                        continue
+                    if len(msg.position) > j:
+                        qpos[k, m.jnt_qposadr[jid]] = msg.position[j]
+                    if len(msg.velocity) > j:
+                        qvel[k, m.jnt_dofadr[jid]] = msg.velocity[j]
+            for s in range(m.nsensor):
+                jid = m.sensor_objid[s]
+                if int(m.sensor_type[s]) == int(mujoco.mjtSensor.mjSENS_JOINTPOS):
+                    col = qpos[:, m.jnt_qposadr[jid]]
+                elif int(m.sensor_type[s]) == int(mujoco.mjtSensor.mjSENS_JOINTVEL):
+                    col = qvel[:, m.jnt_dofadr[jid]]
+                else:
+                    continue
+                if not np.isnan(col).any():
+                    sensor_cols[s] = col.reshape(T, 1).copy()
+            continue
+        names_a = entry.get("actuators", [])
+        names_s = entry.get("sensors", [])
+        width = len(names_a) + sum(int(m.sensor_dim[sensors.index(n)]) for n in names_s)
+        values = np.array([_values(msg, entry["field"], where) for msg in msgs])
+        if values.shape[1] != width:
+            raise MappingError(f"{where}: field {entry['field']!r} has {values.shape[1]} numbers;"
+                               f" the mapping needs {width} ({len(names_a)} actuators, sensors "
+                               f"{names_s})")
+        col = 0
+        for name in names_a:
+            ctrl[:, actuators.index(name)] = values[:, col]
+            col += 1
+        for name in names_s:
+            s = sensors.index(name)
+            dim = int(m.sensor_dim[s])
+            sensor_cols[s] = values[:, col:col + dim]
+            col += dim
+
+    missing = [actuators[i] for i in range(m.nu) if np.isnan(ctrl[:, i]).any()]
+    if missing:
+        raise MappingError(f"{mapping_path}: actuator(s) {', '.join(missing)} of the model are"
+                           " mapped from no topic (every actuator needs its control)")
+    seq = mjsysid.Sequence()
+    seq.name = pathlib.Path(bag).stem if not pathlib.Path(bag).is_dir() else \
+        pathlib.Path(bag).name
+    origin = int(base[rows[0]])
+    seq.time = (base[rows] - origin).astype(np.float64) * 1e-9
+    seq.ctrl = np.ascontiguousarray(ctrl)
+    order = sorted(sensor_cols)
+    seq.sensor_names = [sensors[s] for s in order]
+    seq.sensor_dims = [int(m.sensor_dim[s]) for s in order]
+    seq.sensordata = np.ascontiguousarray(
+        np.hstack([sensor_cols[s] for s in order]) if order else np.zeros((T, 0)))
+    seq.actuator_names = actuators
+    # states only when the joint states cover the whole configuration
+    if not np.isnan(qpos).any() and not np.isnan(qvel).any():
+        seq.qpos = qpos
+        seq.qvel = qvel
+    return seq, origin
+
+
+def import_bags(model: str, bags: list[str], mapping_path: str, out: str,
+                sensor_time: str = "pre") -> mjsysid.Log:
+    """Imports the bags into the HDF5 log `out` (written atomically, checked against model)."""
+    m = mujoco.MjModel.from_xml_path(model)
+    mapping = load_mapping(mapping_path, m)
+    log = mjsysid.Log()
+    log.sensor_time = sensor_time
+    sequences = []
+    attributes = {"generator": f"mjsysid {mjsysid.__version__} import",
+                  "model": str(pathlib.Path(model).resolve()),
+                  "mapping": str(pathlib.Path(mapping_path).resolve())}
+    for bag in bags:
+        seq, origin = bag_to_sequence(bag, m, mapping, mapping_path)
+        attributes[f"time_origin_ns.{seq.name}"] = str(origin)
+        attributes[f"source.{seq.name}"] = str(pathlib.Path(bag).resolve())
+        sequences.append(seq)
+    log.sequences = sequences
+    log.attributes = attributes
+    mjsysid.write_log(out, log, model)
+    return log
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="sysid import",
+                                     description="ROS bags / MCAP files into an HDF5 log")
+    parser.add_argument("model")
+    parser.add_argument("bags", nargs="+")
+    parser.add_argument("--mapping", required=True)
+    parser.add_argument("--out", required=True)
+    parser.add_argument("--sensor-time", default="pre", choices=("pre", "post"))
+    args = parser.parse_args(argv)
+    try:
+        log = import_bags(args.model, args.bags, args.mapping, args.out, args.sensor_time)
+    except (ValueError, FileNotFoundError) as err:  # MappingError, mjsysid's bad input
+        print(f"sysid import: {err}", file=sys.stderr)
+        return 2
+    except Exception as err:  # noqa: BLE001 (rosbags' reader errors: a corrupt or foreign file)
+        print(f"sysid import: {type(err).__name__}: {err}", file=sys.stderr)
+        return 2
+    print(f"imported {len(log.sequences)} sequence(s) into {args.out}")
+    for s in log.sequences:
+        print(f"  {s.name:<16} {len(s.time):6d} samples, sensors: {', '.join(s.sensor_names)}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,61 @@
+// Shared by the two files of the extension module mjsysid._mjsysid (python/CMakeLists.txt).
+//
+// A fit called from Python runs with the GIL released. FitGuard wraps the FitOptions (or the
+// runner's options) of one such fit:
+// - Ctrl-C: when the fit runs on Python's main thread, SIGINT is caught for its duration by a C
+//   handler that sets the fit's interrupt flag (the same mechanism as `sysid fit`): the fit stops
+//   after the current iteration and returns its result with status "interrupted"; Python's own
+//   handler is restored afterwards (no KeyboardInterrupt is raised for that signal).
+// - callback: a Python callable called with the IterationInfo after every successful iteration
+//   (the GIL taken for the call). An exception it raises stops the fit after that iteration and
+//   is raised again by the fit once it has returned.
+#pragma once
+
+#include <nanobind/nanobind.h>
+
+#include <atomic>
+#include <csignal>
+#include <functional>
+#include <optional>
+
+#include "sysid/types.h"
+
+namespace mjsysid::python {
+
+namespace nb = nanobind;
+
+class FitGuard {
+ public:
+  // callback: None or a callable taking an IterationInfo. Call with the GIL held.
+  explicit FitGuard(nb::object callback);
+  // restores the SIGINT handler; call with the GIL held
+  ~FitGuard();
+  FitGuard(const FitGuard&) = delete;
+  FitGuard& operator=(const FitGuard&) = delete;
+
+  // the interrupt flag to give the fit
+  const std::atomic<bool>* interrupt() const { return flag_; }
+  // chains the Python callback after `previous` (may be empty)
+  std::function<void(const IterationInfo&)> OnIteration(
+      std::function<void(const IterationInfo&)> previous);
+  // raises the callback's exception, if any; call with the GIL held after the fit
+  void RaiseCallbackError();
+
+ private:
+  nb::object callback_;
+  std::atomic<bool> own_flag_{false};  // off the main thread: set only by a failing callback
+  std::atomic<bool>* flag_;
+  bool sigint_installed_ = false;
+  struct sigaction previous_ {};
+  std::optional<nb::python_error> error_;
+};
+
+// registers the translation of mjsysid's exceptions into Python's: bad input (ConfigError,
+// LogError, ModelLoadError, ParameterError, OutputError, ResultError, std::invalid_argument) ->
+// ValueError with the message `sysid` prints; SimulationError and MujocoError -> RuntimeError
+void RegisterExceptions();
+
+// fit(model, parameters, sequences, options, callback): the library API on numpy arrays
+void BindFitApi(nb::module_& m);
+
+}  // namespace mjsysid::python

@@ -1,0 +1,435 @@
+// mjsysid._mjsysid: the Python module (nanobind). What the command line offers, as functions
+// (load_experiment, simulate, check, fit_experiment, report, read_log, write_log, read_result),
+// the plain data of a fit (sysid/types.h) and of a log (sysid/io/log.h) as Python classes with
+// numpy arrays, and the library API (fit_api.cc). Every function calls the C++ layers
+// (sysid/run, sysid/sim, sysid/io, tools/report); nothing is computed here.
+#include <nanobind/eigen/dense.h>
+#include <nanobind/nanobind.h>
+#include <nanobind/stl/function.h>
+#include <nanobind/stl/map.h>
+#include <nanobind/stl/optional.h>
+#include <nanobind/stl/pair.h>
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/vector.h>
+
+#include <atomic>
+#include <csignal>
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "bindings.h"
+#include "core/mujoco_env.h"
+#include "core/parameters.h"
+#include "core/simulator.h"
+#include "mjsysid/version.h"
+#include "sysid/io/experiment.h"
+#include "sysid/io/log.h"
+#include "sysid/io/result.h"
+#include "sysid/run/fit_experiment.h"
+#include "sysid/run/output_folder.h"
+#include "sysid/sim/simulate.h"
+#include "tools/report/report.h"
+
+namespace mjsysid::python {
+namespace {
+
+namespace fs = std::filesystem;
+using nb::arg;
+
+// the flag SIGINT sets during a fit on the main thread (one such fit at a time: the GIL is held
+// while a fit starts, and a second main-thread fit cannot start before the first returns)
+std::atomic<bool> g_sigint{false};
+extern "C" void OnSigint(int) { g_sigint.store(true); }
+
+bool OnMainThread() {
+  nb::module_ threading = nb::module_::import_("threading");
+  return threading.attr("current_thread")().is(threading.attr("main_thread")());
+}
+
+// `sysid fit` as a function: the outcome of run::RunFit, flattened
+struct ExperimentFit : io::FitResultFile {
+  std::string out_dir;
+  int exit_code = 0;
+};
+
+// an experiment given as a path or as a loaded ExperimentConfig
+io::ExperimentConfig ConfigOf(nb::handle experiment) {
+  if (nb::isinstance<io::ExperimentConfig>(experiment)) {
+    return nb::cast<io::ExperimentConfig>(experiment);
+  }
+  if (nb::isinstance<nb::str>(experiment) || nb::hasattr(experiment, "__fspath__")) {
+    return io::LoadExperiment(nb::cast<std::string>(nb::str(experiment)));
+  }
+  throw nb::type_error("experiment: expected a path (str, os.PathLike) or an Experiment");
+}
+
+// simulate: the experiment's `simulate` block; written to `out`, else to the first `data:` path
+// (as `sysid simulate`), unless write is false
+io::Log Simulate(nb::handle experiment, std::optional<std::string> out,
+                 std::optional<unsigned long long> seed, std::optional<int> threads, bool write) {
+  io::ExperimentConfig config = ConfigOf(experiment);
+  io::CheckModelFilesExist(config);
+  if (seed) config.simulate.seed = *seed;
+  std::string path = out.value_or("");
+  if (write && path.empty()) {
+    if (config.data.empty()) {
+      throw std::invalid_argument(config.source_file +
+                                  ": no output file: give out= or a `data:` path in the "
+                                  "experiment (or write=False)");
+    }
+    path = config.data.front().path;
+  }
+  std::vector<std::string> inputs = {config.source_file};
+  for (const io::ModelSpec& spec : config.models) inputs.push_back(spec.path);
+  if (write) run::CheckOutputFile(path, inputs, "out");
+  sim::SimulateSettings settings;
+  settings.threads = threads ? *threads : config.options.threads;
+  io::Log log;
+  {
+    nb::gil_scoped_release release;
+    log = sim::SimulateExperiment(config, settings);
+    if (write) {
+      std::error_code ec;
+      const fs::path parent = fs::absolute(path).parent_path();
+      fs::create_directories(parent, ec);
+      io::WriteLog(path, log);
+    }
+  }
+  return log;
+}
+
+// check: the experiment, its models and data (BuildProblem), then the Jacobians of every residual
+// block against ceres::GradientChecker (as `sysid check`); a dict
+nb::dict Check(nb::handle experiment, bool jacobians) {
+  const io::ExperimentConfig config = ConfigOf(experiment);
+  io::CheckModelFilesExist(config);
+  nb::dict out;
+  out["name"] = config.name;
+  out["data"] = !config.data.empty();
+  if (config.data.empty()) return out;
+  run::BuiltProblem built = run::BuildProblem(config);
+  out["warnings"] = built.warnings;
+  if (!jacobians) return out;
+  JacobianCheck check;
+  {
+    nb::gil_scoped_release release;
+    check = built.problem->CheckJacobians(built.options);
+  }
+  out["worst_relative_error"] = check.worst_relative_error;
+  out["worst_where"] = check.worst_where;
+  nb::dict per;
+  for (const auto& [name, err] : check.per_variable) per[nb::str(name.c_str())] = err;
+  out["per_variable"] = per;
+  return out;
+}
+
+// fit_experiment: `sysid fit` (writes DIR/result.yaml, result.h5, identified models)
+ExperimentFit FitExperiment(nb::handle experiment, std::optional<std::string> out, int threads,
+                            bool verbose, bool force, bool resume, nb::object callback) {
+  const io::ExperimentConfig config = ConfigOf(experiment);
+  run::FitRunOptions options;
+  options.out_dir = out.value_or("");
+  options.threads = threads;
+  options.verbose = verbose;
+  options.force = force;
+  options.resume = resume;
+  FitGuard guard(std::move(callback));
+  options.interrupt = guard.interrupt();
+  options.on_iteration = guard.OnIteration(nullptr);
+  run::FitRunOutcome outcome;
+  {
+    nb::gil_scoped_release release;
+    outcome = run::RunFit(config, options);
+  }
+  guard.RaiseCallbackError();
+  ExperimentFit fit;
+  static_cast<io::FitResultFile&>(fit) = std::move(outcome.file);
+  fit.out_dir = outcome.out_dir;
+  fit.exit_code = outcome.exit_code;
+  return fit;
+}
+
+// report: `sysid report DIR`; returns the summary it prints
+std::string Report(const std::string& dir) {
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) {
+    throw std::invalid_argument(dir +
+                                ": no such folder (a fit writes result.yaml and result.h5 into "
+                                "its output folder)");
+  }
+  std::string summary;
+  nb::gil_scoped_release release;
+  report::WriteReport(dir, &summary);
+  return summary;
+}
+
+// a log checked against a model before it is written (as `sysid import`)
+void WriteLogChecked(const std::string& path, const io::Log& log,
+                     std::optional<std::string> model) {
+  if (model) {
+    ModelPtr m = LoadModel(*model);
+    io::ValidateLogAgainstModel(log, *m, path);
+  }
+  nb::gil_scoped_release release;
+  io::WriteLog(path, log);
+}
+
+// estimate name -> value
+nb::dict Estimates(const FitResult& r) {
+  nb::dict d;
+  for (const ParameterEstimate& p : r.parameters) d[nb::str(p.name.c_str())] = p.value;
+  return d;
+}
+
+}  // namespace
+
+// --- FitGuard (bindings.h) ---
+
+FitGuard::FitGuard(nb::object callback) : callback_(std::move(callback)), flag_(&own_flag_) {
+  if (callback_.is_none()) callback_ = nb::object();
+  if (callback_.is_valid() && !PyCallable_Check(callback_.ptr())) {
+    throw nb::type_error("callback: expected a callable taking an IterationInfo, or None");
+  }
+  if (OnMainThread()) {
+    g_sigint.store(false);
+    struct sigaction action {};
+    action.sa_handler = OnSigint;
+    sigemptyset(&action.sa_mask);
+    if (sigaction(SIGINT, &action, &previous_) == 0) {
+      sigint_installed_ = true;
+      flag_ = &g_sigint;
+    }
+  }
+}
+
+FitGuard::~FitGuard() {
+  if (sigint_installed_) sigaction(SIGINT, &previous_, nullptr);
+}
+
+std::function<void(const IterationInfo&)> FitGuard::OnIteration(
+    std::function<void(const IterationInfo&)> previous) {
+  return [this, previous](const IterationInfo& it) {
+    if (previous) previous(it);
+    if (!callback_.is_valid() || error_) return;
+    nb::gil_scoped_acquire gil;
+    try {
+      callback_(it);
+    } catch (nb::python_error& e) {
+      error_.emplace(std::move(e));
+      flag_->store(true);
+    }
+  };
+}
+
+void FitGuard::RaiseCallbackError() {
+  if (error_) {
+    nb::python_error e = std::move(*error_);
+    error_.reset();
+    throw e;
+  }
+}
+
+void RegisterExceptions() {
+  nb::register_exception_translator([](const std::exception_ptr& p, void*) {
+    try {
+      std::rethrow_exception(p);
+    } catch (const io::ConfigError& e) {
+      PyErr_SetString(PyExc_ValueError, e.what());
+    } catch (const io::LogError& e) {
+      PyErr_SetString(PyExc_ValueError, e.what());
+    } catch (const io::ResultError& e) {
+      PyErr_SetString(PyExc_ValueError, e.what());
+    } catch (const ModelLoadError& e) {
+      PyErr_SetString(PyExc_ValueError, e.what());
+    } catch (const ParameterError& e) {
+      PyErr_SetString(PyExc_ValueError, e.what());
+    } catch (const run::OutputError& e) {
+      PyErr_SetString(PyExc_ValueError, e.what());
+    } catch (const std::invalid_argument& e) {
+      PyErr_SetString(PyExc_ValueError, e.what());
+    } catch (const SimulationError& e) {
+      PyErr_SetString(PyExc_RuntimeError, e.what());
+    }
+  });
+}
+
+}  // namespace mjsysid::python
+
+NB_MODULE(_mjsysid, m) {
+  namespace nb = nanobind;
+  namespace io = mjsysid::io;
+  using namespace mjsysid;
+  using namespace mjsysid::python;
+  using nb::arg;
+  InstallMujocoHandlers();
+  RegisterExceptions();
+  m.doc() = "mjsysid: system identification for MuJoCo models (C++ library bindings)";
+  m.attr("__version__") = MJSYSID_VERSION;
+  m.def("mujoco_version", &MujocoVersion, "X.Y.Z of the libmujoco loaded in this process");
+
+  // --- results of a fit (sysid/types.h) ---
+  nb::class_<ParameterEstimate>(m, "ParameterEstimate",
+                                "One estimated variable: a physical parameter or a measurement "
+                                "term (SENSOR.delay, SENSOR.gain, SENSOR.bias)")
+      .def_ro("name", &ParameterEstimate::name)
+      .def_ro("value", &ParameterEstimate::value)
+      .def_ro("initial", &ParameterEstimate::initial)
+      .def_ro("std_error", &ParameterEstimate::std_error, "+inf unidentifiable, 0 on a bound")
+      .def_prop_ro(
+          "ci95",
+          [](const ParameterEstimate& p) { return std::make_pair(p.ci95_low, p.ci95_high); })
+      .def_ro("at_lower", &ParameterEstimate::at_lower)
+      .def_ro("at_upper", &ParameterEstimate::at_upper)
+      .def_ro("identifiable", &ParameterEstimate::identifiable)
+      .def_ro("truth", &ParameterEstimate::truth, "the true value (simulated data), else None")
+      .def("__repr__", [](const ParameterEstimate& p) {
+        return "ParameterEstimate(" + p.name + " = " + std::to_string(p.value) + " +- " +
+               std::to_string(p.std_error) + ")";
+      });
+
+  nb::class_<IterationInfo>(m, "IterationInfo", "One iteration of the solver")
+      .def_ro("iteration", &IterationInfo::iteration)
+      .def_ro("cost", &IterationInfo::cost, "0.5 |r|^2")
+      .def_ro("step_norm", &IterationInfo::step_norm)
+      .def_ro("gradient_norm", &IterationInfo::gradient_norm)
+      .def_ro("seconds", &IterationInfo::seconds, "since the fit started")
+      .def_ro("successful", &IterationInfo::successful)
+      .def_ro("parameters", &IterationInfo::parameters,
+              "physical values after the iteration (FitResult.parameters order)");
+
+  nb::class_<SequenceResult>(m, "SequenceResult",
+                             "Fitted sensor columns of one sequence (T rows, model order)")
+      .def_ro("name", &SequenceResult::name)
+      .def_ro("model", &SequenceResult::model)
+      .def_ro("sensor_names", &SequenceResult::sensor_names)
+      .def_ro("sensor_dims", &SequenceResult::sensor_dims)
+      .def_ro("time", &SequenceResult::time)
+      .def_ro("measured", &SequenceResult::measured)
+      .def_ro("simulated_initial", &SequenceResult::simulated_initial)
+      .def_ro("simulated_final", &SequenceResult::simulated_final)
+      .def_ro("x0_final", &SequenceResult::x0_final);
+
+  nb::class_<FitResult>(m, "FitResult", "The result of a fit (sysid/types.h)")
+      .def_ro("parameters", &FitResult::parameters)
+      .def_prop_ro("estimates", &Estimates, "dict: name -> estimated value")
+      .def_prop_ro(
+          "status", [](const FitResult& r) { return FitStatusName(r.outcome); },
+          "converged, not_converged, model_mismatch, jacobian_unreliable, "
+          "did_not_move or interrupted")
+      .def_ro("initial_cost", &FitResult::initial_cost)
+      .def_ro("final_cost", &FitResult::final_cost)
+      .def_ro("iterations", &FitResult::iterations)
+      .def_ro("converged", &FitResult::converged)
+      .def_ro("interrupted", &FitResult::interrupted)
+      .def_ro("intervals_valid", &FitResult::intervals_valid)
+      .def_ro("chi2_ratio", &FitResult::chi2_ratio)
+      .def_ro("sensor_chi2_ratio", &FitResult::sensor_chi2_ratio)
+      .def_ro("termination", &FitResult::termination)
+      .def_ro("num_residuals", &FitResult::num_residuals)
+      .def_prop_ro("covariance",
+                   [](const FitResult& r) -> Eigen::MatrixXd { return r.uncertainty.covariance; })
+      .def_prop_ro("unidentifiable",
+                   [](const FitResult& r) { return r.uncertainty.unidentifiable; })
+      .def_ro("jacobian", &FitResult::jacobian, "dr/dp at the estimate, num_residuals x np")
+      .def_ro("trace", &FitResult::trace)
+      .def_ro("sequences", &FitResult::sequences)
+      .def_ro("warnings", &FitResult::warnings)
+      .def_ro("seconds", &FitResult::seconds)
+      .def_ro("simulation_steps", &FitResult::simulation_steps)
+      .def_ro("jacobian_mode", &FitResult::jacobian_mode);
+
+  nb::class_<io::FitResultFile, FitResult>(m, "ResultFile",
+                                           "A fit as stored in DIR/result.yaml + result.h5")
+      .def_ro("name", &io::FitResultFile::name)
+      .def_ro("experiment", &io::FitResultFile::experiment)
+      .def_ro("created", &io::FitResultFile::created)
+      .def_ro("run_id", &io::FitResultFile::run_id)
+      .def_ro("mjsysid_version", &io::FitResultFile::mjsysid_version)
+      .def_ro("mujoco_version", &io::FitResultFile::mujoco_version)
+      .def_ro("solver", &io::FitResultFile::solver)
+      .def_ro("identified_models", &io::FitResultFile::identified_models);
+
+  nb::class_<ExperimentFit, io::FitResultFile>(m, "ExperimentFit",
+                                               "The outcome of fit_experiment (`sysid fit`)")
+      .def_ro("out_dir", &ExperimentFit::out_dir)
+      .def_ro("exit_code", &ExperimentFit::exit_code, "the exit code `sysid fit` would give");
+
+  // --- logs (sysid/io/log.h) ---
+  nb::class_<io::Sequence>(m, "Sequence",
+                           "One logged rollout: time (T), ctrl (T x nu), sensordata (T x ns), "
+                           "optional qpos/qvel/act (T x nq|nv|na, else 0 x 0)")
+      .def(nb::init<>())
+      .def_rw("name", &io::Sequence::name)
+      .def_rw("time", &io::Sequence::time)
+      .def_rw("ctrl", &io::Sequence::ctrl)
+      .def_rw("sensordata", &io::Sequence::sensordata)
+      .def_rw("qpos", &io::Sequence::qpos)
+      .def_rw("qvel", &io::Sequence::qvel)
+      .def_rw("act", &io::Sequence::act)
+      .def_rw("sensor_names", &io::Sequence::sensor_names)
+      .def_rw("sensor_dims", &io::Sequence::sensor_dims)
+      .def_rw("actuator_names", &io::Sequence::actuator_names);
+
+  nb::class_<io::Log>(m, "Log", "Sequences recorded with one sensor_time convention")
+      .def(nb::init<>())
+      .def_rw("sequences", &io::Log::sequences)
+      .def_rw("sensor_time", &io::Log::sensor_time, "pre (y_k before the step) or post")
+      .def_rw("attributes", &io::Log::attributes);
+
+  // --- experiments (sysid/io/experiment.h) ---
+  nb::class_<io::ExperimentConfig>(m, "Experiment", "A loaded YAML experiment file")
+      .def_ro("name", &io::ExperimentConfig::name)
+      .def_ro("source_file", &io::ExperimentConfig::source_file)
+      .def_ro("output", &io::ExperimentConfig::output)
+      .def_prop_ro("models",
+                   [](const io::ExperimentConfig& c) {
+                     std::map<std::string, std::string> out;
+                     for (const io::ModelSpec& s : c.models) out[s.name] = s.path;
+                     return out;
+                   })
+      .def_prop_ro("data",
+                   [](const io::ExperimentConfig& c) {
+                     std::vector<std::string> out;
+                     for (const io::DataFile& d : c.data) out.push_back(d.path);
+                     return out;
+                   })
+      .def_prop_ro("parameters",
+                   [](const io::ExperimentConfig& c) {
+                     std::vector<std::string> out;
+                     for (const io::ParameterSpec& p : c.parameters) out.push_back(p.name);
+                     return out;
+                   })
+      .def_prop_ro("truth", [](const io::ExperimentConfig& c) {
+        std::map<std::string, double> out;
+        for (const io::NamedValue& t : c.simulate.truth) out[t.name] = t.value;
+        return out;
+      });
+
+  // --- what the command line offers ---
+  m.def("load_experiment", &io::LoadExperiment, arg("path"),
+        "Reads and checks a YAML experiment file (docs/experiment-schema.md)");
+  m.def("simulate", &Simulate, arg("experiment"), arg("out") = nb::none(), arg("seed") = nb::none(),
+        arg("threads") = nb::none(), arg("write") = true,
+        "`sysid simulate`: the experiment's synthetic log; written to out (default: its first "
+        "`data:` path) unless write=False. Returns the Log.");
+  m.def("check", &Check, arg("experiment"), arg("jacobians") = true,
+        "`sysid check`: validates the experiment, models and data; with data, the core's "
+        "Jacobians against ceres::GradientChecker. Returns a dict (worst_relative_error, "
+        "worst_where, per_variable).");
+  m.def("fit_experiment", &FitExperiment, arg("experiment"), arg("out") = nb::none(),
+        arg("threads") = -1, arg("verbose") = false, arg("force") = false, arg("resume") = false,
+        arg("callback") = nb::none(),
+        "`sysid fit`: fits the experiment and writes out (default: its `output`) as the command "
+        "line does. The GIL is released during the fit; callback(IterationInfo) after every "
+        "successful iteration; Ctrl-C stops after the current iteration (status interrupted).");
+  m.def("report", &Report, arg("dir"),
+        "`sysid report DIR`: writes report.html and the PNG plots; returns the summary");
+  m.def("read_result", &io::ReadResult, arg("dir"), "Reads DIR/result.yaml and DIR/result.h5");
+  m.def("read_log", &io::ReadLog, arg("path"), "Reads and checks an HDF5 log");
+  m.def("write_log", &WriteLogChecked, arg("path"), arg("log"), arg("model") = nb::none(),
+        "Writes an HDF5 log atomically; with model (an MJCF path), checked against it first as "
+        "`sysid import` does");
+  BindFitApi(m);
+}
