@@ -180,6 +180,14 @@ struct ParameterEstimate {
   std::optional<double> truth;  // the true value when known (synthetic data), for reports
 };
 
+// how well a simulation reproduces one measured column (sysid/metrics.h), at the start and at the
+// estimate: NRMSE = RMS(simulated - measured) / std(measured) and % fit = 100 (1 - NRMSE)
+struct ChannelFit {
+  std::string channel;  // "sensor" (1-D) or "sensor[i]"
+  double nrmse_initial = 0, nrmse_final = 0;
+  double fit_initial = 0, fit_final = 0;  // %; NaN for a constant measured column
+};
+
 // the fitted sensor columns of one sequence: measured and simulated, sensor by sensor
 struct SequenceResult {
   std::string name, model;
@@ -190,6 +198,8 @@ struct SequenceResult {
   RowMatrix simulated_initial;            // T x sum(sensor_dims), at the initial parameters
   RowMatrix simulated_final;  // T x sum(sensor_dims), at the estimate (measurement terms on)
   Eigen::VectorXd x0_final;   // estimated initial physics vector (or the given one); may be empty
+  // one per column above (sysid/metrics.h ChannelFits; filled by the runner and the result reader)
+  std::vector<ChannelFit> channel_fits;
 };
 
 struct FitResult {
@@ -214,6 +224,9 @@ struct FitResult {
   double seconds = 0;              // wall time of the fit
   long long simulation_steps = 0;  // step calls of all simulators (Simulator::StepCount)
   std::string jacobian_mode;       // the core mode used
+  // held-out sequences (experiment `validation:`), simulated at the start and at the estimate,
+  // never fitted (sysid/run/validation.h); x0 as logged
+  std::vector<SequenceResult> validation;
 };
 
 }  // namespace mjsysid

@@ -38,6 +38,7 @@
 #include "sysid/io/csv.h"
 #include "sysid/io/experiment.h"
 #include "sysid/io/log.h"
+#include "sysid/metrics.h"
 #include "sysid/run/fit_experiment.h"
 #include "sysid/run/output_folder.h"
 #include "sysid/run/resume.h"
@@ -520,6 +521,32 @@ std::string Flags(const mjsysid::ParameterEstimate& p) {
   return Join(f);
 }
 
+// a % fit for a table cell ("-" for NaN: a constant channel or a failed simulation)
+std::string Percent(double x) {
+  if (!std::isfinite(x)) return "-";
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.1f", x);
+  return buf;
+}
+
+// per sequence the worst and the median channel's % fit (sysid/metrics.h), at the start and at the
+// estimate; fitted sequences first, then the held-out ones (`validation:`)
+void PrintFitQuality(const mjsysid::io::FitResultFile& f) {
+  if (f.sequences.empty() && f.validation.empty()) return;
+  std::printf("  %-24s %-10s %8s  %-22s %s\n", "sequence", "role", "channels",
+              "worst % fit (start ->", "median % fit (start -> estimate)");
+  for (const std::vector<mjsysid::SequenceResult>* list : {&f.sequences, &f.validation}) {
+    for (const mjsysid::SequenceResult& s : *list) {
+      const mjsysid::FitSummary a = mjsysid::SummarizeFits(s.channel_fits, true);
+      const mjsysid::FitSummary b = mjsysid::SummarizeFits(s.channel_fits, false);
+      std::printf("  %-24s %-10s %8zu  %6s -> %-12s %6s -> %s\n", s.name.c_str(),
+                  list == &f.sequences ? "fit" : "validation", s.channel_fits.size(),
+                  Percent(a.worst).c_str(), Percent(b.worst).c_str(), Percent(a.median).c_str(),
+                  Percent(b.median).c_str());
+    }
+  }
+}
+
 // prints the estimates against the start (and the truth, for simulated data)
 void PrintEstimates(const mjsysid::io::FitResultFile& f) {
   std::printf("%s: %s after %d iterations (%s), cost %.6g -> %.6g, %.2f s\n", f.name.c_str(),
@@ -540,6 +567,7 @@ void PrintEstimates(const mjsysid::io::FitResultFile& f) {
     std::printf("  intervals NOT VALID: the status is %s, not converged (see the warnings)\n",
                 f.status.c_str());
   }
+  PrintFitQuality(f);
   std::fflush(stdout);
 }
 

@@ -131,6 +131,10 @@ struct ExperimentConfig {
   bool model_list = false;  // true when given as `models` (a list), false for `model`
   std::vector<DataFile> data;
   std::vector<SequenceRef> sequences;  // empty = every sequence in the data
+  // held-out sequences (same spelling as `sequences`): simulated at the start and the estimate,
+  // never fitted; never also in `sequences` (with `sequences` empty: every other sequence is
+  // fitted)
+  std::vector<SequenceRef> validation;
   SensorTime sensor_time = SensorTime::kPre;
   std::vector<SensorSpec> sensors;  // empty = every sensor, weight 1
   std::vector<ParameterSpec> parameters;

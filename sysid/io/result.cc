@@ -66,8 +66,8 @@ void CheckSequenceMatrix(const RowMatrix& m, Eigen::Index rows, Eigen::Index col
   }
 }
 
-void CheckSequence(const SequenceResult& s, const std::string& file) {
-  const std::string g = "/sequences/" + s.name;
+void CheckSequence(const SequenceResult& s, const std::string& file, const std::string& where) {
+  const std::string g = where + "/" + s.name;
   if (s.name.empty() || s.name == "." || s.name.find('/') != std::string::npos ||
       s.name.find('\0') != std::string::npos) {
     Fail(file, g, "sequence name " + Quote(s.name) + " is not a valid group name");
@@ -135,6 +135,12 @@ void CheckArrays(const FitResultFile& r, const std::string& file) {
       Fail(file, "/sequences/" + s.name, "two sequences are named " + Quote(s.name));
     }
     CheckSequence(s, file);
+  }
+  for (const SequenceResult& s : r.validation) {
+    if (!seen.insert(s.name).second) {
+      Fail(file, "/validation/" + s.name, "two sequences are named " + Quote(s.name));
+    }
+    CheckSequence(s, file, "/validation");
   }
 }
 
@@ -218,6 +224,32 @@ std::string EmitYaml(const FitResultFile& r) {
     out << YAML::Key << model << YAML::Value << file;
   }
   out << YAML::EndMap;
+
+  // per channel fit metrics (sysid/metrics.h) of the fitted and the held-out sequences, for the
+  // reader of the file (ReadResult recomputes them from result.h5's signals)
+  out << YAML::Key << "fit_metrics" << YAML::Value;
+  if (r.sequences.empty() && r.validation.empty()) out << YAML::Flow;
+  out << YAML::BeginSeq;
+  for (const std::vector<SequenceResult>* list : {&r.sequences, &r.validation}) {
+    for (const SequenceResult& s : *list) {
+      out << YAML::BeginMap;
+      out << YAML::Key << "sequence" << YAML::Value << s.name;
+      out << YAML::Key << "role" << YAML::Value << (list == &r.sequences ? "fit" : "validation");
+      out << YAML::Key << "channels" << YAML::Value << YAML::BeginSeq;
+      for (const ChannelFit& f : s.channel_fits) {
+        out << YAML::Flow << YAML::BeginMap;
+        out << YAML::Key << "channel" << YAML::Value << f.channel;
+        out << YAML::Key << "fit_initial" << YAML::Value << Number(f.fit_initial);
+        out << YAML::Key << "fit_final" << YAML::Value << Number(f.fit_final);
+        out << YAML::Key << "nrmse_initial" << YAML::Value << Number(f.nrmse_initial);
+        out << YAML::Key << "nrmse_final" << YAML::Value << Number(f.nrmse_final);
+        out << YAML::EndMap;
+      }
+      out << YAML::EndSeq;
+      out << YAML::EndMap;
+    }
+  }
+  out << YAML::EndSeq;
   out << YAML::EndMap;
   if (!out.good()) throw ResultError("cannot format result.yaml: " + out.GetLastError());
   return std::string(out.c_str()) + "\n";

@@ -19,8 +19,10 @@
 #include "sysid/io/atomic_file.h"
 #include "sysid/io/log.h"
 #include "sysid/io/sequence_models.h"
+#include "sysid/metrics.h"
 #include "sysid/run/output_folder.h"
 #include "sysid/run/resume.h"
+#include "sysid/run/validation.h"
 
 namespace mjsysid::run {
 namespace {
@@ -119,6 +121,11 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
   }
   std::vector<bool> entry_used(cfg.sequences.size(), false);
   std::vector<std::string> all_groups;
+  // `validation:` entries are assigned to models by the same rule as `sequences:` entries
+  io::ExperimentConfig held_out_cfg;
+  held_out_cfg.models = cfg.models;
+  held_out_cfg.sequences = cfg.validation;
+  std::vector<bool> held_out_used(cfg.validation.size(), false);
   for (const io::DataFile& df : cfg.data) {
     if (!fs::exists(df.path)) {
       throw io::ConfigError(df.mark, "data file not found: " + df.path,
@@ -126,18 +133,39 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
     }
     const io::Log log = io::ReadLog(df.path);
     for (const io::Sequence& s : log.sequences) all_groups.push_back(s.name);
-    // one validation per model over the sequences that belong to it
+    // held-out sequences first: they are taken out of the fitted selection (without `sequences:`
+    // every sequence of the log is selected, the held-out ones too)
+    std::vector<bool> held_out(log.sequences.size(), false);
+    if (!cfg.validation.empty()) {
+      for (const io::SequenceOwner& o :
+           io::AssignSequences(held_out_cfg, log, df.path, &held_out_used)) {
+        held_out[o.sequence] = true;
+      }
+    }
+    // one validation per model over the sequences that belong to it (fitted and held out)
     std::vector<io::Log> per_model(cfg.models.size());
-    for (const io::SequenceOwner& o : io::AssignSequences(cfg, log, df.path, &entry_used)) {
+    std::vector<std::vector<bool>> per_model_held_out(cfg.models.size());
+    std::vector<io::SequenceOwner> owners = io::AssignSequences(cfg, log, df.path, &entry_used);
+    if (!cfg.validation.empty()) {
+      for (const io::SequenceOwner& o : io::AssignSequences(held_out_cfg, log, df.path)) {
+        owners.push_back(o);
+      }
+    }
+    std::vector<bool> taken(log.sequences.size(), false);
+    for (const io::SequenceOwner& o : owners) {
+      if (taken[o.sequence]) continue;  // a held-out sequence also selected for the fit
+      taken[o.sequence] = true;
       per_model[o.model].sequences.push_back(log.sequences[o.sequence]);
       per_model[o.model].sensor_time = log.sensor_time;
+      per_model_held_out[o.model].push_back(held_out[o.sequence]);
     }
     for (size_t mi = 0; mi < cfg.models.size(); ++mi) {
       const mjModel& m = *out.models[mi];
       if (per_model[mi].sequences.empty()) continue;
       io::ValidateLogAgainstModel(per_model[mi], m, df.path);
       const bool post = log.sensor_time == "post" || cfg.sensor_time == io::SensorTime::kPost;
-      for (const io::Sequence& s : per_model[mi].sequences) {
+      for (size_t si = 0; si < per_model[mi].sequences.size(); ++si) {
+        const io::Sequence& s = per_model[mi].sequences[si];
         const std::string where = df.path + ": /" + s.name;
         const int rows = static_cast<int>(s.time.size());
         const double period = (s.time[rows - 1] - s.time[0]) / (rows - 1);
@@ -189,12 +217,17 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
                                  "reference state (set initial_state: {estimate: true} to fit it)");
         }
         fs_.time = s.time.head(T);
+        if (per_model_held_out[mi][si]) {
+          out.validation.push_back(fs_);  // simulated after the fit, never fitted
+          continue;
+        }
         out.problem->AddSequence(fs_);
         out.sequences.push_back(fs_);
       }
     }
   }
   io::CheckSequenceEntriesUsed(cfg, entry_used, all_groups);
+  io::CheckSequenceEntriesUsed(held_out_cfg, held_out_used, all_groups);
   // residual rows: fitted sensor columns x samples, and priors; none leaves nothing to fit
   long long rows = 0;
   for (size_t i = 0; i < out.sequences.size(); ++i) {
@@ -435,6 +468,17 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
                             " after iteration " + std::to_string(base->iterations));
   }
   const FitResult& r = file;
+
+  // fit metrics per channel of every fitted sequence; the held-out sequences simulated at the
+  // start and at the estimate (never fitted), with theirs
+  for (SequenceResult& sr : file.sequences) sr.channel_fits = ChannelFits(sr);
+  for (const FitSequence& sq : bp.validation) {
+    const size_t mi = static_cast<size_t>(
+        std::find(bp.model_names.begin(), bp.model_names.end(), sq.model) - bp.model_names.begin());
+    file.validation.push_back(SimulateHeldOut(*bp.models[mi], bp.parameters, bp.measurements,
+                                              file.parameters, sq, options.threads,
+                                              &file.warnings));
+  }
 
   // results: the fit as it came, the truth where known, the run's warnings first
   file.status = FitStatusName(r.outcome);

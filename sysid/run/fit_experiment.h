@@ -43,6 +43,9 @@ struct BuiltProblem {
   std::vector<FitParameter> parameters;
   std::vector<FitMeasurement> measurements;
   std::vector<FitSequence> sequences;
+  // the `validation:` sequences, read and checked like the fitted ones but not added to the
+  // problem (RunFit simulates them at the start and at the estimate: sysid/run/validation.h)
+  std::vector<FitSequence> validation;
 };
 
 // threads < 0: the config's solver.threads

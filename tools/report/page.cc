@@ -101,6 +101,7 @@ th{background:#f6f6f6}
 td.n{text-align:right;font-family:ui-monospace,Menlo,Consolas,monospace;white-space:nowrap}
 table.facts td:first-child{color:#666}
 tr.unid td{background:#fde8e8}
+tr.val td{background:#eef4fb}
 .flag{display:inline-block;padding:0 6px;margin:0 4px 2px 0;border-radius:4px;font-size:12px;
   background:#e8e8e8}
 .flag.unid{background:#c62828;color:#fff}
@@ -147,9 +148,44 @@ void ParameterSection(std::ostringstream& h, const FitResultFile& r) {
   }
 }
 
+// a % fit or an NRMSE cell; NaN (a constant channel, a failed simulation) as a dash
+std::string MetricCell(double v, const char* unit) {
+  if (!std::isfinite(v)) return "<td class=\"n\">&ndash;</td>";
+  return "<td class=\"n\">" + HtmlEscape(Num(v, 3)) + unit + "</td>";
+}
+
+// per sequence and channel: % fit and NRMSE at the start and at the estimate, fitted sequences
+// first, then the held-out ones
+void FitQualitySection(std::ostringstream& h, const FitResultFile& r) {
+  h << "<h2>Fit quality</h2>\n<p class=\"muted\">per channel: % fit = 100 (1 &minus; NRMSE), "
+       "NRMSE = RMS(simulated &minus; measured) / std(measured); 100 % is exact, 0 % no better "
+       "than the measured mean. Validation sequences are held out: simulated, not fitted.</p>\n";
+  if (r.sequences.empty() && r.validation.empty()) {
+    h << "<p class=\"muted\">no sequences recorded</p>\n";
+    return;
+  }
+  h << "<table class=\"metrics\">\n<tr><th>sequence</th><th>role</th><th>channel</th>"
+       "<th>% fit, start</th><th>% fit, estimate</th><th>NRMSE, start</th>"
+       "<th>NRMSE, estimate</th></tr>\n";
+  for (const std::vector<SequenceResult>* list : {&r.sequences, &r.validation}) {
+    const bool held_out = list == &r.validation;
+    for (const SequenceResult& s : *list) {
+      for (const ChannelFit& f : s.channel_fits) {
+        h << "<tr" << (held_out ? " class=\"val\"" : "") << "><td>" << HtmlEscape(s.name)
+          << "</td><td>" << (held_out ? "validation (not fitted)" : "fit") << "</td><td>"
+          << HtmlEscape(f.channel) << "</td>" << MetricCell(f.fit_initial, " %")
+          << MetricCell(f.fit_final, " %") << MetricCell(f.nrmse_initial, "")
+          << MetricCell(f.nrmse_final, "") << "</tr>\n";
+      }
+    }
+  }
+  h << "</table>\n";
+}
+
 }  // namespace
 
-std::string Page(const FitResultFile& r, const std::vector<std::string>& sequence_pngs) {
+std::string Page(const FitResultFile& r, const std::vector<std::string>& sequence_pngs,
+                 const std::vector<std::string>& validation_pngs) {
   std::ostringstream h;
   const std::string name = r.name.empty() ? "(unnamed)" : r.name;
   h << "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
@@ -224,6 +260,7 @@ std::string Page(const FitResultFile& r, const std::vector<std::string>& sequenc
   h << RenderSvg(cost.width, cost.height, "cost", cost.draw);
   h << "<h2>Parameters over the iterations</h2>\n";
   h << RenderSvg(params.width, params.height, "params", params.draw);
+  FitQualitySection(h, r);
   h << "<h2>Sequences</h2>\n";
   if (r.sequences.empty()) h << "<p class=\"muted\">no sequences recorded</p>\n";
   for (size_t i = 0; i < r.sequences.size() && i < sequence_pngs.size(); ++i) {
@@ -231,8 +268,21 @@ std::string Page(const FitResultFile& r, const std::vector<std::string>& sequenc
       << HtmlEscape(r.sequences[i].name) << "\" src=\"data:image/png;base64,"
       << Base64(sequence_pngs[i]) << "\">\n";
   }
+  if (!r.validation.empty()) {
+    h << "<h2>Validation sequences (not fitted)</h2>\n<p class=\"muted\">held out of the fit "
+         "(experiment <code>validation:</code>): simulated from their logged initial state at the "
+         "start and at the estimate</p>\n";
+  }
+  for (size_t i = 0; i < r.validation.size() && i < validation_pngs.size(); ++i) {
+    h << "<h3>" << HtmlEscape(r.validation[i].name)
+      << " <span class=\"muted\">validation (not fitted)</span></h3>\n<img alt=\"validation "
+         "sequence "
+      << HtmlEscape(r.validation[i].name) << "\" src=\"data:image/png;base64,"
+      << Base64(validation_pngs[i]) << "\">\n";
+  }
   h << "<p class=\"muted\">written by mjsysid from result.yaml and result.h5; the plots are also "
-       "in this folder as cost.png, parameters.png and seq_*.png</p>\n</body>\n</html>\n";
+       "in this folder as cost.png, parameters.png, seq_*.png"
+    << (r.validation.empty() ? "" : " and val_*.png") << "</p>\n</body>\n</html>\n";
   return h.str();
 }
 
