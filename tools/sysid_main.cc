@@ -533,8 +533,9 @@ std::string Percent(double x) {
 // estimate; fitted sequences first, then the held-out ones (`validation:`)
 void PrintFitQuality(const mjsysid::io::FitResultFile& f) {
   if (f.sequences.empty() && f.validation.empty()) return;
-  std::printf("  %-24s %-10s %8s  %-22s %s\n", "sequence", "role", "channels",
-              "worst % fit (start ->", "median % fit (start -> estimate)");
+  std::printf(
+      "  %% fit per channel, start -> estimate (100 = exact, 0 = no better than the mean)\n");
+  std::printf("  %-24s %-10s %8s  %-22s %s\n", "sequence", "role", "channels", "worst", "median");
   for (const std::vector<mjsysid::SequenceResult>* list : {&f.sequences, &f.validation}) {
     for (const mjsysid::SequenceResult& s : *list) {
       const mjsysid::FitSummary a = mjsysid::SummarizeFits(s.channel_fits, true);
