@@ -202,6 +202,23 @@ struct SequenceResult {
   std::vector<ChannelFit> channel_fits;
 };
 
+// one fit of a multi-start run (sysid/run/multi_start.h): where it started, where it ended
+struct StartResult {
+  Eigen::VectorXd start;                    // physical start values (FitResult::parameters order)
+  Eigen::VectorXd estimate;                 // the fit's values; empty when the fit failed
+  double initial_cost = 0, final_cost = 0;  // +inf when the fit failed
+  FitStatus status = FitStatus::kNotConverged;
+  int iterations = 0;
+  std::string error;  // why the fit failed (e.g. the simulation at the start); "" otherwise
+};
+
+// the spread of one estimated value over the starts that did not fail
+struct ParameterSpread {
+  std::string name;
+  double min = 0, max = 0;
+  double relative = 0;  // (max - min) / |best estimate| (inf when the best is 0 and max > min)
+};
+
 struct FitResult {
   std::vector<ParameterEstimate> parameters;  // physical parameters, then measurement terms
   double initial_cost = 0, final_cost = 0;    // 0.5 |r|^2
@@ -227,6 +244,11 @@ struct FitResult {
   // held-out sequences (experiment `validation:`), simulated at the start and at the estimate,
   // never fitted (sysid/run/validation.h); x0 as logged
   std::vector<SequenceResult> validation;
+  // multi-start (solver.starts > 1): every start in order, the index of the one this result is,
+  // and the spread of each estimated value; empty for a single start
+  std::vector<StartResult> starts;
+  int best_start = 0;
+  std::vector<ParameterSpread> start_spread;
 };
 
 }  // namespace mjsysid

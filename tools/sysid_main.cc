@@ -510,7 +510,9 @@ struct FitArgs {
   int threads = -1;
   bool quiet = false;
   bool force = false;
-  std::string resume;  // --resume DIR
+  std::string resume;   // --resume DIR
+  int starts = 0;       // --starts N (0: solver.starts)
+  long long seed = -1;  // --seed S (< 0: solver.seed)
 };
 
 std::string Flags(const mjsysid::ParameterEstimate& p) {
@@ -548,6 +550,25 @@ void PrintFitQuality(const mjsysid::io::FitResultFile& f) {
   }
 }
 
+// multi-start: per estimated value the range over the starts, and how many starts ended where
+void PrintStarts(const mjsysid::io::FitResultFile& f) {
+  if (f.starts.size() < 2) return;
+  int honest = 0, failed = 0;
+  for (const mjsysid::StartResult& s : f.starts) {
+    failed += s.error.empty() ? 0 : 1;
+    honest += s.error.empty() && (s.status == mjsysid::FitStatus::kConverged ||
+                                  s.status == mjsysid::FitStatus::kModelMismatch)
+                  ? 1
+                  : 0;
+  }
+  std::printf("  %zu starts (%d converged, %d failed); the result is start %d's (lowest cost)\n",
+              f.starts.size(), honest, failed, f.best_start);
+  std::printf("  %-24s %14s %14s %12s\n", "spread over the starts", "min", "max", "(max-min)/|v|");
+  for (const mjsysid::ParameterSpread& s : f.start_spread) {
+    std::printf("  %-24s %14.6g %14.6g %12.3g\n", s.name.c_str(), s.min, s.max, s.relative);
+  }
+}
+
 // prints the estimates against the start (and the truth, for simulated data)
 void PrintEstimates(const mjsysid::io::FitResultFile& f) {
   std::printf("%s: %s after %d iterations (%s), cost %.6g -> %.6g, %.2f s\n", f.name.c_str(),
@@ -569,6 +590,7 @@ void PrintEstimates(const mjsysid::io::FitResultFile& f) {
                 f.status.c_str());
   }
   PrintFitQuality(f);
+  PrintStarts(f);
   std::fflush(stdout);
 }
 
@@ -602,6 +624,8 @@ int RunFit(const FitArgs& args) {
   options.interrupt = &g_interrupted;
   options.force = args.force;
   options.on_estimates = PrintEstimates;
+  options.starts = args.starts;
+  options.seed = args.seed;
   CatchStopSignals(true);
   const mjsysid::run::FitRunOutcome out = mjsysid::run::RunFit(config, options);
   CatchStopSignals(false);
@@ -630,6 +654,12 @@ Command AddFit(CLI::App* app) {
   sub->add_flag("--force", args->force,
                 "replace an existing --out folder that is not an mjsysid result folder (its files "
                 "are deleted)");
+  sub->add_option("--starts", args->starts,
+                  "fit from N starts spread in the bounds, in parallel; keep the best, report the "
+                  "spread and flag local minima (default: solver.starts, 1)")
+      ->check(WholeNumberAtLeast(1));
+  sub->add_option("--seed", args->seed, "seed of the spread starts (default: solver.seed, 0)")
+      ->check(WholeNumberAtLeast(0));
   sub->add_option("--resume", args->resume,
                   "continue the fit of DIR from its checkpoint (DIR.partial/checkpoint.yaml of a "
                   "killed run, or DIR's interrupted result); writes into DIR");

@@ -453,7 +453,7 @@ void Parser::ParseSolver(const Field& f, ExperimentConfig* c) const {
   const MapReader r(
       *this, f,
       {"max_iterations", "function_tolerance", "gradient_tolerance", "parameter_tolerance",
-       "jacobian", "differences", "relative_step", "threads", "loss", "verbose"});
+       "jacobian", "differences", "relative_step", "threads", "loss", "verbose", "starts", "seed"});
   c->solver_marks = r.marks();
   FitOptions* o = &c->options;
   const long long kIntMax = std::numeric_limits<int>::max();
@@ -477,6 +477,12 @@ void Parser::ParseSolver(const Field& f, ExperimentConfig* c) const {
     if (l.Has("scale")) o->loss_scale = Positive(l.Get("scale"));
   }
   if (r.Has("verbose")) o->verbose = Bool(r.Get("verbose"));
+  // multi-start (sysid/run/multi_start.h)
+  if (r.Has("starts")) c->starts = static_cast<int>(Integer(r.Get("starts"), 1, 10000));
+  if (r.Has("seed")) {
+    c->start_seed = static_cast<std::uint64_t>(
+        Integer(r.Get("seed"), 0, std::numeric_limits<long long>::max()));
+  }
 }
 
 Excitation Parser::ParseExcitation(const Field& f, bool needs_actuator) const {

@@ -144,6 +144,10 @@ struct ExperimentConfig {
   // `multiple_shooting` (segment_steps, continuity_weight); sensor weights are in `sensors`
   FitOptions options;
   Marks solver_marks;  // of the keys of the `solver` block
+  // solver.starts (1..10000): fits from that many starts spread in the bounds, the best kept;
+  // solver.seed: the spread's seed (sysid/run/multi_start.h)
+  int starts = 1;
+  std::uint64_t start_seed = 0;
   SimulateOptions simulate;
   std::string output;  // absolute; default <base_dir>/results/<name>
   Marks marks;

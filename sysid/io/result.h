@@ -11,7 +11,10 @@
 //     unidentifiable (list of text), warnings (list of text), identified_models (map model ->
 //     file), run_id (when the result has one), fit_metrics (list of {sequence, role: fit |
 //     validation, channels: [{channel, fit_initial, fit_final, nrmse_initial, nrmse_final}]},
-//     sysid/metrics.h; written for readers of the file, recomputed from result.h5 by ReadResult)
+//     sysid/metrics.h; written for readers of the file, recomputed from result.h5 by ReadResult),
+//     starts (multi-start only, sysid/run/multi_start.h: {best, runs: [{start: [...], estimate:
+//     [...], initial_cost, final_cost, status, iterations, error?}], spread: [{name, min, max,
+//     relative}]}; values in the order of `parameters`; read back)
 //   std and ci95 bounds that are infinite are written as .inf / -.inf; flags are any of
 //   at_lower_bound, at_upper_bound, unidentifiable.
 // - result.h5 layout: root attributes format = "mjsysid-result", format_version = 1, status;
@@ -49,7 +52,8 @@ class ResultError : public std::runtime_error {
 // Of FitResult the files keep: parameters (truth included), initial_cost, final_cost,
 // iterations, termination, num_residuals, jacobian_mode, seconds (wall_time_s),
 // uncertainty.{residual_variance, unidentifiable, covariance}, jacobian, trace, sequences
-// (x0_final excepted; channel_fits recomputed from the signals), validation, warnings,
+// (x0_final excepted; channel_fits recomputed from the signals), validation, starts, best_start,
+// start_spread (result.yaml), warnings,
 // intervals_valid (result.yaml); outcome, converged and interrupted are read back from status.
 struct FitResultFile : FitResult {
   std::string name, experiment, created;

@@ -20,6 +20,7 @@
 #include "sysid/io/log.h"
 #include "sysid/io/sequence_models.h"
 #include "sysid/metrics.h"
+#include "sysid/run/multi_start.h"
 #include "sysid/run/output_folder.h"
 #include "sysid/run/resume.h"
 #include "sysid/run/validation.h"
@@ -333,6 +334,16 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   }
   const io::ExperimentConfig run_cfg = base ? ResumedConfig(cfg, *base) : cfg;
   BuiltProblem bp = BuildProblem(run_cfg, ro.threads);
+  // multi-start: N whole fits, no checkpoints (a resumed fit continues one start)
+  const int starts = ro.starts >= 1 ? ro.starts : cfg.starts;
+  const std::uint64_t start_seed =
+      ro.seed >= 0 ? static_cast<std::uint64_t>(ro.seed) : cfg.start_seed;
+  if (starts > 1 && base) {
+    throw io::ConfigError(
+        cfg.solver_marks.Of("starts"),
+        "--resume continues one fit; it cannot resume " + std::to_string(starts) + " starts",
+        "resume with --starts 1, or fit again from the starts");
+  }
 
   // the output folder only once the input is known good (bad input leaves nothing behind), never
   // one that holds an input, never a foreign one without force
@@ -388,6 +399,8 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
       {"continuity_weight", FormatG17(options.continuity_weight)},
       {"mujoco_solver_tolerance", "min(model, " + FormatG17(sim_defaults.solver_tolerance) + ")"},
       {"minimizer", "ceres levenberg-marquardt"},
+      {"starts", std::to_string(starts)},
+      {"seed", std::to_string(start_seed)},
   };
   std::map<std::string, double> truth;
   for (const io::NamedValue& t : cfg.simulate.truth) truth[t.name] = t.value;
@@ -456,7 +469,11 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   for (const std::string& w : bp.warnings)
     std::fprintf(stderr, "sysid fit: warning: %s\n", w.c_str());
   try {
-    static_cast<FitResult&>(file) = bp.problem->Fit(options);
+    if (starts > 1) {
+      static_cast<FitResult&>(file) = FitFromStarts(bp, options, starts, start_seed, ro.verbose);
+    } else {
+      static_cast<FitResult&>(file) = bp.problem->Fit(options);
+    }
   } catch (const SimulationError& e) {
     // trial points that fail are rejected: this is the start
     throw SimulationError(std::string(e.what()) + "; " + AtInitialValues(run_cfg), e.sequence(),

@@ -60,6 +60,9 @@ struct FitRunOptions {
   bool resume = false;  // continue from the folder's checkpoint (sysid/run/resume.h)
   // called with the results before any file is written (the CLI prints the estimates)
   std::function<void(const io::FitResultFile&)> on_estimates;
+  // multi-start (sysid/run/multi_start.h): < 1 / < 0: the config's solver.starts / solver.seed
+  int starts = 0;
+  long long seed = -1;
 };
 
 struct FitRunOutcome {
