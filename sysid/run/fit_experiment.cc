@@ -470,7 +470,8 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
     std::fprintf(stderr, "sysid fit: warning: %s\n", w.c_str());
   try {
     if (starts > 1) {
-      static_cast<FitResult&>(file) = FitFromStarts(bp, options, starts, start_seed, ro.verbose);
+      static_cast<FitResult&>(file) =
+          FitFromStarts(bp, options, starts, start_seed, /*progress=*/true);
     } else {
       static_cast<FitResult&>(file) = bp.problem->Fit(options);
     }

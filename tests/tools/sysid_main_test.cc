@@ -168,4 +168,32 @@ TEST(SysidCliTest, ValidationSequencesAreCheckedSimulatedAndReported) {
   fs::remove_all(dir);
 }
 
+// --starts through the real binary: one line per finished start, the spread table, the starts in
+// result.yaml and the report; --starts 0 is bad input
+TEST(SysidCliTest, StartsRunSeveralFitsAndReportTheirSpread) {
+  const std::string dir = TempDir("starts");
+  const std::string log = dir + "/log.h5";
+  ASSERT_EQ(Sysid("simulate " + kExperiments + "/spring_mass.yaml --out " + log).code, 0);
+  const std::string exp = ExperimentCopy("spring_mass", dir, log, "");
+  const CliRun fit = Sysid("fit " + exp + " --out " + dir + "/out --quiet --starts 3 --seed 5");
+  EXPECT_EQ(fit.code, 0) << fit.output;
+  for (const char* line : {"(1/3 done)", "(2/3 done)", "(3/3 done)", "3 starts (3 converged",
+                           "spread over the starts"}) {
+    EXPECT_NE(fit.output.find(line), std::string::npos) << line << "\n" << fit.output;
+  }
+  std::ifstream in(dir + "/out/result.yaml");
+  const std::string yaml((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(yaml.find("starts:\n  best: "), std::string::npos) << yaml;
+  EXPECT_NE(yaml.find("\n  starts: 3\n"), std::string::npos) << yaml;  // in the solver settings
+  EXPECT_NE(yaml.find("\n  seed: 5\n"), std::string::npos) << yaml;
+  const CliRun report = Sysid("report " + dir + "/out");
+  EXPECT_EQ(report.code, 0) << report.output;
+  std::ifstream page(dir + "/out/report.html");
+  const std::string html((std::istreambuf_iterator<char>(page)), std::istreambuf_iterator<char>());
+  EXPECT_NE(html.find("<h2>Starts</h2>"), std::string::npos);
+  const CliRun bad = Sysid("fit " + exp + " --out " + dir + "/out2 --starts 0");
+  EXPECT_EQ(bad.code, 2) << bad.output;
+  fs::remove_all(dir);
+}
+
 }  // namespace

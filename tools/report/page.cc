@@ -102,6 +102,7 @@ td.n{text-align:right;font-family:ui-monospace,Menlo,Consolas,monospace;white-sp
 table.facts td:first-child{color:#666}
 tr.unid td{background:#fde8e8}
 tr.val td{background:#eef4fb}
+tr.best td{font-weight:600}
 .flag{display:inline-block;padding:0 6px;margin:0 4px 2px 0;border-radius:4px;font-size:12px;
   background:#e8e8e8}
 .flag.unid{background:#c62828;color:#fff}
@@ -182,6 +183,48 @@ void FitQualitySection(std::ostringstream& h, const FitResultFile& r) {
   h << "</table>\n";
 }
 
+// multi-start: every start (status, costs, start and estimate per parameter, the best marked) and
+// the spread per parameter; the local-minimum warning is among the warnings
+void StartsSection(std::ostringstream& h, const FitResultFile& r) {
+  if (r.starts.size() < 2) return;
+  h << "<h2>Starts</h2>\n<p class=\"muted\">" << r.starts.size()
+    << " fits from starts spread in the bounds (start 0: the experiment's own); the result is "
+       "start "
+    << r.best_start << "'s, the lowest cost of a converged fit</p>\n";
+  h << "<table class=\"starts\">\n<tr><th>start</th><th>status</th><th>iterations</th>"
+       "<th>initial cost</th><th>final cost</th>";
+  for (const ParameterEstimate& p : r.parameters) {
+    h << "<th>" << HtmlEscape(p.name) << "<br><span class=\"muted\">start &rarr; estimate</span>"
+      << "</th>";
+  }
+  h << "</tr>\n";
+  for (size_t k = 0; k < r.starts.size(); ++k) {
+    const StartResult& st = r.starts[k];
+    const bool best = static_cast<int>(k) == r.best_start;
+    h << "<tr" << (best ? " class=\"best\"" : "") << "><td>" << k << (best ? " (best)" : "")
+      << "</td><td>"
+      << (st.error.empty() ? HtmlEscape(FitStatusName(st.status))
+                           : "failed: " + HtmlEscape(st.error))
+      << "</td><td class=\"n\">" << st.iterations << "</td><td class=\"n\">"
+      << HtmlNum(st.initial_cost) << "</td><td class=\"n\">" << HtmlNum(st.final_cost) << "</td>";
+    for (Eigen::Index j = 0; j < static_cast<Eigen::Index>(r.parameters.size()); ++j) {
+      h << "<td class=\"n\">" << (j < st.start.size() ? HtmlNum(st.start[j], 4) : "&ndash;")
+        << " &rarr; " << (j < st.estimate.size() ? HtmlNum(st.estimate[j], 6) : "&ndash;")
+        << "</td>";
+    }
+    h << "</tr>\n";
+  }
+  h << "</table>\n<h3>Spread of the estimates over the starts</h3>\n<table class=\"spread\">\n"
+       "<tr><th>parameter</th><th>min</th><th>max</th><th>(max &minus; min) / |estimate|</th>"
+       "</tr>\n";
+  for (const ParameterSpread& sp : r.start_spread) {
+    h << "<tr><td>" << HtmlEscape(sp.name) << "</td><td class=\"n\">" << HtmlNum(sp.min)
+      << "</td><td class=\"n\">" << HtmlNum(sp.max) << "</td><td class=\"n\">"
+      << HtmlNum(sp.relative, 3) << "</td></tr>\n";
+  }
+  h << "</table>\n";
+}
+
 }  // namespace
 
 std::string Page(const FitResultFile& r, const std::vector<std::string>& sequence_pngs,
@@ -243,6 +286,7 @@ std::string Page(const FitResultFile& r, const std::vector<std::string>& sequenc
   }
 
   ParameterSection(h, r);
+  StartsSection(h, r);
 
   // warnings
   h << "<h2>Warnings</h2>\n";

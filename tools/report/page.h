@@ -3,7 +3,8 @@
 //
 // Sections, in order: header (name, status badge, termination), facts (experiment, costs,
 // iterations, wall time, versions, identified models), solver settings, parameters (table;
-// unidentifiable rows highlighted; the unidentifiable combinations listed), warnings, cost,
+// unidentifiable rows highlighted; the unidentifiable combinations listed), starts (multi-start
+// only: every start's status, costs, start and estimate, and the spread), warnings, cost,
 // parameters over the iterations, fit quality (per sequence and channel: % fit and NRMSE at the
 // start and at the estimate, sysid/metrics.h; fitted and held-out sequences), sequences, validation
 // sequences (not fitted). Every text from the result is HTML-escaped.

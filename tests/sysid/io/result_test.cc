@@ -197,6 +197,27 @@ FitResultFile FullResult() {
   return r;
 }
 
+// FullResult with a multi-start block: three starts, one failed (cost .inf), the best the second
+// (not in FullResult: its keys repeat final_cost, which the edit-the-text tests expect once)
+FitResultFile MultiStartResult() {
+  FitResultFile r = FullResult();
+  for (int k = 0; k < 3; ++k) {
+    StartResult st;
+    st.start = Eigen::Vector3d(0.1 * (k + 1), 1.0 / 3.0, 1.0 + k);
+    if (k != 2) st.estimate = Eigen::Vector3d(0.1 + 1e-17 * k, 0.0501, 1.2 + 0.1 * k);
+    st.initial_cost = k == 2 ? kInf : 10.0 / (k + 1);
+    st.final_cost = k == 2 ? kInf : 0.1 + 0.2 * k;
+    st.status = k == 0 ? FitStatus::kModelMismatch : FitStatus::kConverged;
+    st.iterations = 7 * k;
+    if (k == 2) st.error = "simulation failed: 'bad qacc' at t = 0.5 s";
+    r.starts.push_back(st);
+  }
+  r.best_start = 1;
+  r.start_spread = {
+      {"damping", 0.1, 0.1, 0}, {"friction", 0.0501, 0.0501, 0}, {"bob_mass", 1.2, 1.3, 0.1 / 1.3}};
+  return r;
+}
+
 // doubles compared bit for bit (infinities included)
 void ExpectSame(const Eigen::Ref<const Eigen::MatrixXd>& a,
                 const Eigen::Ref<const Eigen::MatrixXd>& b, const std::string& what) {
@@ -259,6 +280,28 @@ void ExpectSame(const FitResultFile& a, const FitResultFile& b) {
     EXPECT_EQ(a.trace[i].parameters, b.trace[i].parameters);
   }
 
+  // multi-start
+  ASSERT_EQ(a.starts.size(), b.starts.size());
+  EXPECT_EQ(a.best_start, b.best_start);
+  for (size_t k = 0; k < a.starts.size(); ++k) {
+    const StartResult& s = a.starts[k];
+    const StartResult& t = b.starts[k];
+    EXPECT_EQ(s.start, t.start) << k;
+    EXPECT_EQ(s.estimate, t.estimate) << k;
+    EXPECT_EQ(s.initial_cost, t.initial_cost) << k;
+    EXPECT_EQ(s.final_cost, t.final_cost) << k;
+    EXPECT_EQ(s.status, t.status) << k;
+    EXPECT_EQ(s.iterations, t.iterations) << k;
+    EXPECT_EQ(s.error, t.error) << k;
+  }
+  ASSERT_EQ(a.start_spread.size(), b.start_spread.size());
+  for (size_t j = 0; j < a.start_spread.size(); ++j) {
+    EXPECT_EQ(a.start_spread[j].name, b.start_spread[j].name);
+    EXPECT_EQ(a.start_spread[j].min, b.start_spread[j].min);
+    EXPECT_EQ(a.start_spread[j].max, b.start_spread[j].max);
+    EXPECT_EQ(a.start_spread[j].relative, b.start_spread[j].relative);
+  }
+
   // arrays
   ExpectSame(a.uncertainty.covariance, b.uncertainty.covariance, "covariance");
   ExpectSame(a.jacobian, b.jacobian, "jacobian");
@@ -304,6 +347,12 @@ TEST_F(ResultTest, RoundTripKeepsEveryFieldExactly) {
   const FitResultFile r = FullResult();
   WriteBoth(r);
   EXPECT_EQ(Files(), (std::vector<std::string>{"result.h5", "result.yaml"}));
+  ExpectSame(ReadResult(Dir()), r);
+}
+
+TEST_F(ResultTest, RoundTripKeepsTheStartsOfAMultiStartFit) {
+  const FitResultFile r = MultiStartResult();
+  WriteBoth(r);
   ExpectSame(ReadResult(Dir()), r);
 }
 
