@@ -555,14 +555,20 @@ void PrintStarts(const mjsysid::io::FitResultFile& f) {
   if (f.starts.size() < 2) return;
   int honest = 0, failed = 0;
   for (const mjsysid::StartResult& s : f.starts) {
-    failed += s.error.empty() ? 0 : 1;
+    failed += s.error.empty() || s.status == mjsysid::FitStatus::kInterrupted ? 0 : 1;
     honest += s.error.empty() && (s.status == mjsysid::FitStatus::kConverged ||
                                   s.status == mjsysid::FitStatus::kModelMismatch)
                   ? 1
                   : 0;
   }
-  std::printf("  %zu starts (%d converged, %d failed); the result is start %d's (lowest cost)\n",
-              f.starts.size(), honest, failed, f.best_start);
+  int stopped = 0;
+  for (const mjsysid::StartResult& s : f.starts) {
+    stopped += s.status == mjsysid::FitStatus::kInterrupted ? 1 : 0;
+  }
+  std::printf(
+      "  %zu starts (%d converged, %d failed, %d interrupted); the result is start %d's (lowest "
+      "cost)\n",
+      f.starts.size(), honest, failed, stopped, f.best_start);
   std::printf("  %-24s %14s %14s %12s\n", "spread over the starts", "min", "max", "(max-min)/|v|");
   for (const mjsysid::ParameterSpread& s : f.start_spread) {
     std::printf("  %-24s %14.6g %14.6g %12.3g\n", s.name.c_str(), s.min, s.max, s.relative);

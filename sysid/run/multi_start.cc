@@ -22,6 +22,8 @@ constexpr double kLocalMinimumZ = 3.090232306167813;
 constexpr double kZ95 = 1.959963984540054;
 // an estimate without a finite interval "differs" above this relative difference
 constexpr double kRelativeDifference = 1e-3;
+// the error of a start that a stop signal kept from running
+constexpr char kNotStarted[] = "not started (interrupted)";
 
 // a uniform number in [0, 1) from the raw 64-bit output (the same on every platform, unlike
 // std::uniform_real_distribution)
@@ -109,10 +111,11 @@ FitResult FitFromStarts(const BuiltProblem& bp, const FitOptions& options, int n
       rec.start << starts.row(k).transpose(),
           Eigen::Map<const Eigen::VectorXd>(term_starts.data(),
                                             static_cast<Eigen::Index>(term_starts.size()));
-      if (options.interrupt && options.interrupt->load()) {
+      // start 0 always runs (a fit stops itself after its first iteration when interrupted)
+      if (k > 0 && options.interrupt && options.interrupt->load()) {
         rec.status = FitStatus::kInterrupted;
         rec.initial_cost = rec.final_cost = kInf;
-        rec.error = "not started (interrupted)";
+        rec.error = kNotStarted;
         continue;
       }
       try {
@@ -205,8 +208,21 @@ FitResult FitFromStarts(const BuiltProblem& bp, const FitOptions& options, int n
     result.start_spread.push_back(s);
   }
   for (const std::string& w : LocalMinimaWarnings(result)) result.warnings.push_back(w);
+  // a stop signal: the run is interrupted, whatever the best start's own verdict
+  int unfinished = 0;
+  for (const StartResult& r : records) unfinished += r.status == FitStatus::kInterrupted ? 1 : 0;
+  if (options.interrupt && options.interrupt->load()) {
+    result.outcome = FitStatus::kInterrupted;
+    result.interrupted = true;
+    result.intervals_valid = false;
+    result.warnings.push_back("interrupted: " + std::to_string(unfinished) + " of " +
+                              std::to_string(n) +
+                              " starts did not finish; the result is the best start's of those "
+                              "that ran (start " +
+                              std::to_string(best) + ")");
+  }
   for (const StartResult& r : records) {
-    if (!r.error.empty() && r.error != "not started (interrupted)") {
+    if (!r.error.empty() && r.error != kNotStarted) {
       result.warnings.push_back("a start failed: " + r.error);
     }
   }
@@ -228,7 +244,11 @@ std::vector<std::string> LocalMinimaWarnings(const FitResult& result) {
   std::vector<std::string> names;  // parameters that differ at any such start
   for (size_t k = 0; k < result.starts.size(); ++k) {
     const StartResult& r = result.starts[k];
-    if (k == b || !r.error.empty() || r.estimate.size() != best.estimate.size()) continue;
+    // a start stopped by a signal is not at a minimum
+    if (k == b || !r.error.empty() || r.status == FitStatus::kInterrupted ||
+        r.estimate.size() != best.estimate.size()) {
+      continue;
+    }
     // a cost excess the noise does not explain
     const double excess = 2.0 * (r.final_cost - best.final_cost) / s2;
     if (!(excess > limit)) continue;

@@ -29,7 +29,11 @@
 // starts, their costs and the parameters that differ.
 //
 // Interruption: FitOptions::interrupt stops every running fit after its iteration and starts no
-// new one; the best of what finished (or stopped) is the result.
+// new one (recorded with status interrupted, error "not started (interrupted)"); the best of what
+// ran is the result, with status interrupted (intervals not valid) and a warning saying how many
+// starts did not finish. Interrupted starts are never counted as local minima.
+//
+// The result's parameters (their `initial` included) are the best start's.
 #pragma once
 
 #include <cstdint>

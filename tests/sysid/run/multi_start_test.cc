@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cmath>
 #include <filesystem>
 #include <string>
@@ -159,6 +160,35 @@ TEST(MultiStartTest, NoFlagWhereEveryStartFindsTheSameMinimum) {
                 sp.relative, r.parameters[j].std_error / std::abs(r.parameters[j].value));
     EXPECT_LT(sp.max - sp.min, 2 * 1.96 * r.parameters[j].std_error) << sp.name;
   }
+  fs::remove_all(dir);
+}
+
+// a stop signal before the starts: start 0 stops after its first iteration, the others never run;
+// the result says interrupted (intervals not valid) and flags no local minimum
+TEST(MultiStartTest, AStopSignalStopsEveryStart) {
+  const std::string dir = TempDir("interrupt");
+  io::ExperimentConfig cfg = io::LoadExperiment(kExperiments + "/pendulum.yaml");
+  cfg.data = {io::DataFile{dir + "/log.h5", {}}};
+  io::WriteLog(cfg.data[0].path, sim::SimulateExperiment(cfg, sim::SimulateSettings{}));
+  cfg.options.verbose = false;
+  cfg.sequences = {io::SequenceRef{"", "seq0", {}}};
+  const BuiltProblem bp = BuildProblem(cfg);
+  std::atomic<bool> stop{true};
+  FitOptions options = bp.options;
+  options.threads = 2;
+  options.interrupt = &stop;
+  const FitResult r = FitFromStarts(bp, options, 4, 0, false);
+  ASSERT_EQ(r.starts.size(), 4u);
+  EXPECT_EQ(r.best_start, 0);
+  EXPECT_EQ(r.outcome, FitStatus::kInterrupted);
+  EXPECT_TRUE(r.interrupted);
+  EXPECT_FALSE(r.intervals_valid);
+  EXPECT_LE(r.starts[0].iterations, 1);
+  for (size_t k = 1; k < 4; ++k) {
+    EXPECT_EQ(r.starts[k].status, FitStatus::kInterrupted);
+    EXPECT_EQ(r.starts[k].error, "not started (interrupted)");
+  }
+  EXPECT_FALSE(HasLocalMinimaWarning(r));
   fs::remove_all(dir);
 }
 
