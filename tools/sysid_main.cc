@@ -423,6 +423,15 @@ int RunCheck(const CheckArgs& args) {
   // against Ceres' numeric differentiation
   if (!config.data.empty()) {
     mjsysid::run::BuiltProblem built = mjsysid::run::BuildProblem(config);
+    // what is fitted and what is held out (`validation:`)
+    std::vector<std::string> fitted, held_out;
+    for (const mjsysid::FitSequence& s : built.sequences) fitted.push_back(s.name);
+    for (const mjsysid::FitSequence& s : built.validation) held_out.push_back(s.name);
+    Appendf(&summary, "  fitted     %s\n", Join(fitted).c_str());
+    if (!held_out.empty()) {
+      Appendf(&summary, "  validation %s (held out: simulated, not fitted)\n",
+              Join(held_out).c_str());
+    }
     if (!args.jacobians) {
       std::printf("%sOK\n", summary.c_str());
       return kExitOk;

@@ -142,6 +142,9 @@ TEST(SysidCliTest, ValidationSequencesAreCheckedSimulatedAndReported) {
   const std::string exp = ExperimentCopy("pendulum", dir, log, "validation: [seq2]\n");
   const CliRun check = Sysid("check " + exp);
   EXPECT_EQ(check.code, 0) << check.output;
+  EXPECT_NE(check.output.find("  fitted     seq0, seq1\n  validation seq2 (held out"),
+            std::string::npos)
+      << check.output;
   const CliRun fit = Sysid("fit " + exp + " --out " + dir + "/out --quiet");
   EXPECT_EQ(fit.code, 0) << fit.output;
   // the table: two fitted rows and the held-out one, each "start -> estimate"
