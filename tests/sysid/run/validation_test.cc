@@ -167,6 +167,38 @@ TEST(ValidationTest, HeldOutAtTheTruthMatchesItsNoiseFreeSimulation) {
   fs::remove_all(dir);
 }
 
+// several models: a held-out sequence belongs to its model by the one rule (the log's record of
+// `sysid simulate`, or a `model/seq` entry), like a fitted one
+TEST(ValidationTest, HeldOutSequencesOfSeveralModelsKeepTheirModel) {
+  const std::string dir = TempDir("models");
+  io::ExperimentConfig cfg = io::ParseExperiment(R"(
+models:
+  - {name: cart, path: ../models/cart.xml}
+  - {name: cart_payload, path: ../models/cart_payload.xml}
+sensors: [x, xdot]
+parameters:
+  - {name: mass, target: body_mass, object: cart, initial: 1.2, bounds: [0.1, 10], transform: log}
+validation: [cart_payload_seq1, cart/cart_seq0]
+simulate:
+  truth: {mass: 2.0}
+  sequences: 2
+  steps: 200
+)",
+                                                 kExperiments + "/cart_pair.yaml");
+  cfg.data = {io::DataFile{dir + "/log.h5", {}}};
+  io::WriteLog(cfg.data[0].path, sim::SimulateExperiment(cfg, sim::SimulateSettings{}));
+  const BuiltProblem built = BuildProblem(cfg);
+  ASSERT_EQ(built.validation.size(), 2u);
+  ASSERT_EQ(built.sequences.size(), 2u);
+  for (const FitSequence& s : built.validation) {
+    EXPECT_EQ(s.name.rfind(s.model + "_seq", 0), 0u) << s.name << " held out with " << s.model;
+  }
+  for (const FitSequence& s : built.sequences) {
+    EXPECT_TRUE(s.name == "cart_seq1" || s.name == "cart_payload_seq0") << s.name;
+  }
+  fs::remove_all(dir);
+}
+
 TEST(ValidationTest, BadValidationEntriesAreNamedErrors) {
   const std::string dir = TempDir("bad");
   io::ExperimentConfig cfg = Pendulum(dir);
