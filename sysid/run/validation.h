@@ -8,9 +8,10 @@
 // terms (gain, bias, delay of each sensor: the estimate where fitted, the experiment's value
 // otherwise) applied as in the fit's residuals (sysid/residual_model.h). The result holds the
 // fitted sensors' columns, like a fitted sequence's SequenceResult, with channel_fits filled.
-// Failure: a simulation that fails (SimulationError, MujocoError) at one of the two points leaves
-// that simulation NaN and returns a warning naming the sequence; bad shapes throw
-// std::invalid_argument.
+// Failure: a simulation that fails at one of the two points (SimulationError, MujocoError, a
+// parameter write the model refuses) leaves that simulation NaN (its % fit NaN) and appends a
+// warning naming the sequence and the point; it never throws for it. The Simulator's own
+// construction (ParameterError) throws: the fit resolved the same parameters before.
 #pragma once
 
 #include <mujoco/mujoco.h>
