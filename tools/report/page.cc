@@ -190,7 +190,9 @@ void StartsSection(std::ostringstream& h, const FitResultFile& r) {
   h << "<h2>Starts</h2>\n<p class=\"muted\">" << r.starts.size()
     << " fits from starts spread in the bounds (start 0: the experiment's own); the result is "
        "start "
-    << r.best_start << "'s, the lowest cost of a converged fit</p>\n";
+    << r.best_start
+    << "'s: the lowest final cost of the fits that converged (status converged or "
+       "model_mismatch), else of all</p>\n";
   h << "<table class=\"starts\">\n<tr><th>start</th><th>status</th><th>iterations</th>"
        "<th>initial cost</th><th>final cost</th>";
   for (const ParameterEstimate& p : r.parameters) {
