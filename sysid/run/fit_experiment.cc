@@ -339,10 +339,9 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   const std::uint64_t start_seed =
       ro.seed >= 0 ? static_cast<std::uint64_t>(ro.seed) : cfg.start_seed;
   if (starts > 1 && base) {
-    throw io::ConfigError(
-        cfg.solver_marks.Of("starts"),
-        "--resume continues one fit; it cannot resume " + std::to_string(starts) + " starts",
-        "resume with --starts 1, or fit again from the starts");
+    throw OutputError("--resume " + out.out_dir + ": a resumed fit continues one start, not " +
+                      std::to_string(starts) +
+                      " (--starts or solver.starts); resume with --starts 1, or fit again");
   }
 
   // the output folder only once the input is known good (bad input leaves nothing behind), never

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "sysid/io/log.h"
+#include "sysid/run/output_folder.h"
 #include "sysid/sim/simulate.h"
 #include "tests/fit_test_util.h"
 
@@ -189,6 +190,35 @@ TEST(MultiStartTest, AStopSignalStopsEveryStart) {
     EXPECT_EQ(r.starts[k].error, "not started (interrupted)");
   }
   EXPECT_FALSE(HasLocalMinimaWarning(r));
+  fs::remove_all(dir);
+}
+
+// through RunFit: the starts in the result file; --resume of an interrupted fit refuses starts > 1
+TEST(MultiStartTest, RunFitWritesTheStartsAndResumeRefusesThem) {
+  const std::string dir = TempDir("runfit");
+  io::ExperimentConfig cfg = io::LoadExperiment(kExperiments + "/pendulum.yaml");
+  cfg.data = {io::DataFile{dir + "/log.h5", {}}};
+  io::WriteLog(cfg.data[0].path, sim::SimulateExperiment(cfg, sim::SimulateSettings{}));
+  cfg.options.verbose = false;
+  cfg.sequences = {io::SequenceRef{"", "seq0", {}}};
+  std::atomic<bool> stop{true};
+  FitRunOptions ro;
+  ro.out_dir = dir + "/out";
+  ro.verbose = false;
+  ro.threads = 2;
+  ro.starts = 2;
+  ro.interrupt = &stop;
+  const FitRunOutcome out = RunFit(cfg, ro);
+  EXPECT_EQ(out.file.status, "interrupted");
+  EXPECT_EQ(out.exit_code, 1);
+  const io::FitResultFile back = io::ReadResult(ro.out_dir);
+  ASSERT_EQ(back.starts.size(), 2u);
+  EXPECT_EQ(back.solver.at("starts"), "2");
+  ro.resume = true;
+  ro.interrupt = nullptr;
+  EXPECT_THROW(RunFit(cfg, ro), OutputError);
+  ro.starts = 1;  // one start resumes
+  EXPECT_EQ(RunFit(cfg, ro).exit_code, 0);
   fs::remove_all(dir);
 }
 
