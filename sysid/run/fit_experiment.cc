@@ -134,27 +134,23 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
     }
     const io::Log log = io::ReadLog(df.path);
     for (const io::Sequence& s : log.sequences) all_groups.push_back(s.name);
-    // held-out sequences first: they are taken out of the fitted selection (without `sequences:`
-    // every sequence of the log is selected, the held-out ones too)
+    // held-out sequences first, with their model: they are taken out of the fitted selection
+    // (without `sequences:` every sequence of the log is selected, the held-out ones too)
     std::vector<bool> held_out(log.sequences.size(), false);
+    std::vector<io::SequenceOwner> owners;
     if (!cfg.validation.empty()) {
-      for (const io::SequenceOwner& o :
-           io::AssignSequences(held_out_cfg, log, df.path, &held_out_used)) {
-        held_out[o.sequence] = true;
-      }
+      owners = io::AssignSequences(held_out_cfg, log, df.path, &held_out_used);
+      for (const io::SequenceOwner& o : owners) held_out[o.sequence] = true;
+    }
+    for (const io::SequenceOwner& o : io::AssignSequences(cfg, log, df.path, &entry_used)) {
+      owners.push_back(o);
     }
     // one validation per model over the sequences that belong to it (fitted and held out)
     std::vector<io::Log> per_model(cfg.models.size());
     std::vector<std::vector<bool>> per_model_held_out(cfg.models.size());
-    std::vector<io::SequenceOwner> owners = io::AssignSequences(cfg, log, df.path, &entry_used);
-    if (!cfg.validation.empty()) {
-      for (const io::SequenceOwner& o : io::AssignSequences(held_out_cfg, log, df.path)) {
-        owners.push_back(o);
-      }
-    }
     std::vector<bool> taken(log.sequences.size(), false);
     for (const io::SequenceOwner& o : owners) {
-      if (taken[o.sequence]) continue;  // a held-out sequence also selected for the fit
+      if (taken[o.sequence]) continue;  // a held-out sequence also in the fit's selection
       taken[o.sequence] = true;
       per_model[o.model].sequences.push_back(log.sequences[o.sequence]);
       per_model[o.model].sensor_time = log.sensor_time;
