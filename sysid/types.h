@@ -180,6 +180,14 @@ struct ParameterEstimate {
   std::optional<double> truth;  // the true value when known (synthetic data), for reports
 };
 
+// how well a simulation reproduces one measured column (sysid/metrics.h), at the start and at the
+// estimate: NRMSE = RMS(simulated - measured) / std(measured) and % fit = 100 (1 - NRMSE)
+struct ChannelFit {
+  std::string channel;  // "sensor" (1-D) or "sensor[i]"
+  double nrmse_initial = 0, nrmse_final = 0;
+  double fit_initial = 0, fit_final = 0;  // %; NaN for a constant measured column
+};
+
 // the fitted sensor columns of one sequence: measured and simulated, sensor by sensor
 struct SequenceResult {
   std::string name, model;
@@ -190,6 +198,25 @@ struct SequenceResult {
   RowMatrix simulated_initial;            // T x sum(sensor_dims), at the initial parameters
   RowMatrix simulated_final;  // T x sum(sensor_dims), at the estimate (measurement terms on)
   Eigen::VectorXd x0_final;   // estimated initial physics vector (or the given one); may be empty
+  // one per column above (sysid/metrics.h ChannelFits; filled by the runner and the result reader)
+  std::vector<ChannelFit> channel_fits;
+};
+
+// one fit of a multi-start run (sysid/run/multi_start.h): where it started, where it ended
+struct StartResult {
+  Eigen::VectorXd start;                    // physical start values (FitResult::parameters order)
+  Eigen::VectorXd estimate;                 // the fit's values; empty when the fit failed
+  double initial_cost = 0, final_cost = 0;  // +inf when the fit failed
+  FitStatus status = FitStatus::kNotConverged;
+  int iterations = 0;
+  std::string error;  // why the fit failed (e.g. the simulation at the start); "" otherwise
+};
+
+// the spread of one estimated value over the starts that did not fail
+struct ParameterSpread {
+  std::string name;
+  double min = 0, max = 0;
+  double relative = 0;  // (max - min) / |best estimate| (inf when the best is 0 and max > min)
 };
 
 struct FitResult {
@@ -214,6 +241,14 @@ struct FitResult {
   double seconds = 0;              // wall time of the fit
   long long simulation_steps = 0;  // step calls of all simulators (Simulator::StepCount)
   std::string jacobian_mode;       // the core mode used
+  // held-out sequences (experiment `validation:`), simulated at the start and at the estimate,
+  // never fitted (sysid/run/validation.h); x0 as logged
+  std::vector<SequenceResult> validation;
+  // multi-start (solver.starts > 1): every start in order, the index of the one this result is,
+  // and the spread of each estimated value; empty for a single start
+  std::vector<StartResult> starts;
+  int best_start = 0;
+  std::vector<ParameterSpread> start_spread;
 };
 
 }  // namespace mjsysid

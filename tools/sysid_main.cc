@@ -43,6 +43,7 @@
 #include "sysid/io/csv.h"
 #include "sysid/io/experiment.h"
 #include "sysid/io/log.h"
+#include "sysid/metrics.h"
 #include "sysid/run/fit_experiment.h"
 #include "sysid/run/output_folder.h"
 #include "sysid/run/resume.h"
@@ -427,6 +428,15 @@ int RunCheck(const CheckArgs& args) {
   // against Ceres' numeric differentiation
   if (!config.data.empty()) {
     mjsysid::run::BuiltProblem built = mjsysid::run::BuildProblem(config);
+    // what is fitted and what is held out (`validation:`)
+    std::vector<std::string> fitted, held_out;
+    for (const mjsysid::FitSequence& s : built.sequences) fitted.push_back(s.name);
+    for (const mjsysid::FitSequence& s : built.validation) held_out.push_back(s.name);
+    Appendf(&summary, "  fitted     %s\n", Join(fitted).c_str());
+    if (!held_out.empty()) {
+      Appendf(&summary, "  validation %s (held out: simulated, not fitted)\n",
+              Join(held_out).c_str());
+    }
     if (!args.jacobians) {
       std::printf("%sOK\n", summary.c_str());
       return kExitOk;
@@ -514,7 +524,9 @@ struct FitArgs {
   int threads = -1;
   bool quiet = false;
   bool force = false;
-  std::string resume;  // --resume DIR
+  std::string resume;   // --resume DIR
+  int starts = 0;       // --starts N (0: solver.starts)
+  long long seed = -1;  // --seed S (< 0: solver.seed)
 };
 
 std::string Flags(const mjsysid::ParameterEstimate& p) {
@@ -523,6 +535,58 @@ std::string Flags(const mjsysid::ParameterEstimate& p) {
   if (p.at_upper) f.push_back("at upper bound");
   if (!p.identifiable) f.push_back("UNIDENTIFIABLE");
   return Join(f);
+}
+
+// a % fit for a table cell ("-" for NaN: a constant channel or a failed simulation)
+std::string Percent(double x) {
+  if (!std::isfinite(x)) return "-";
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.1f", x);
+  return buf;
+}
+
+// per sequence the worst and the median channel's % fit (sysid/metrics.h), at the start and at the
+// estimate; fitted sequences first, then the held-out ones (`validation:`)
+void PrintFitQuality(const mjsysid::io::FitResultFile& f) {
+  if (f.sequences.empty() && f.validation.empty()) return;
+  std::printf(
+      "  %% fit per channel, start -> estimate (100 = exact, 0 = no better than the mean)\n");
+  std::printf("  %-24s %-10s %8s  %-22s %s\n", "sequence", "role", "channels", "worst", "median");
+  for (const std::vector<mjsysid::SequenceResult>* list : {&f.sequences, &f.validation}) {
+    for (const mjsysid::SequenceResult& s : *list) {
+      const mjsysid::FitSummary a = mjsysid::SummarizeFits(s.channel_fits, true);
+      const mjsysid::FitSummary b = mjsysid::SummarizeFits(s.channel_fits, false);
+      std::printf("  %-24s %-10s %8zu  %6s -> %-12s %6s -> %s\n", s.name.c_str(),
+                  list == &f.sequences ? "fit" : "validation", s.channel_fits.size(),
+                  Percent(a.worst).c_str(), Percent(b.worst).c_str(), Percent(a.median).c_str(),
+                  Percent(b.median).c_str());
+    }
+  }
+}
+
+// multi-start: per estimated value the range over the starts, and how many starts ended where
+void PrintStarts(const mjsysid::io::FitResultFile& f) {
+  if (f.starts.size() < 2) return;
+  int honest = 0, failed = 0;
+  for (const mjsysid::StartResult& s : f.starts) {
+    failed += s.error.empty() || s.status == mjsysid::FitStatus::kInterrupted ? 0 : 1;
+    honest += s.error.empty() && (s.status == mjsysid::FitStatus::kConverged ||
+                                  s.status == mjsysid::FitStatus::kModelMismatch)
+                  ? 1
+                  : 0;
+  }
+  int stopped = 0;
+  for (const mjsysid::StartResult& s : f.starts) {
+    stopped += s.status == mjsysid::FitStatus::kInterrupted ? 1 : 0;
+  }
+  std::printf(
+      "  %zu starts (%d converged, %d failed, %d interrupted); the result is start %d's (lowest "
+      "cost)\n",
+      f.starts.size(), honest, failed, stopped, f.best_start);
+  std::printf("  %-24s %14s %14s %12s\n", "spread over the starts", "min", "max", "(max-min)/|v|");
+  for (const mjsysid::ParameterSpread& s : f.start_spread) {
+    std::printf("  %-24s %14.6g %14.6g %12.3g\n", s.name.c_str(), s.min, s.max, s.relative);
+  }
 }
 
 // prints the estimates against the start (and the truth, for simulated data)
@@ -545,6 +609,8 @@ void PrintEstimates(const mjsysid::io::FitResultFile& f) {
     std::printf("  intervals NOT VALID: the status is %s, not converged (see the warnings)\n",
                 f.status.c_str());
   }
+  PrintFitQuality(f);
+  PrintStarts(f);
   std::fflush(stdout);
 }
 
@@ -578,6 +644,8 @@ int RunFit(const FitArgs& args) {
   options.interrupt = &g_interrupted;
   options.force = args.force;
   options.on_estimates = PrintEstimates;
+  options.starts = args.starts;
+  options.seed = args.seed;
   CatchStopSignals(true);
   const mjsysid::run::FitRunOutcome out = mjsysid::run::RunFit(config, options);
   CatchStopSignals(false);
@@ -606,6 +674,12 @@ Command AddFit(CLI::App* app) {
   sub->add_flag("--force", args->force,
                 "replace an existing --out folder that is not an mjsysid result folder (its files "
                 "are deleted)");
+  sub->add_option("--starts", args->starts,
+                  "fit from N starts spread in the bounds, in parallel; keep the best, report the "
+                  "spread and flag local minima (default: solver.starts, 1)")
+      ->check(WholeNumberAtLeast(1));
+  sub->add_option("--seed", args->seed, "seed of the spread starts (default: solver.seed, 0)")
+      ->check(WholeNumberAtLeast(0));
   sub->add_option("--resume", args->resume,
                   "continue the fit of DIR from its checkpoint (DIR.partial/checkpoint.yaml of a "
                   "killed run, or DIR's interrupted result); writes into DIR");

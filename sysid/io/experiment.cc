@@ -32,7 +32,9 @@ class Parser : public YamlReader {
   std::vector<NamedValue> NamedValues(const Field& f) const;
   void ParseModels(const MapReader& root, ExperimentConfig* c) const;
   void ParseData(const Field& f, ExperimentConfig* c) const;
-  void ParseSequences(const Field& f, ExperimentConfig* c) const;
+  // `sequences:` (into c->sequences) or `validation:` (into c->validation): "seq" or "model/seq"
+  void ParseSequences(const Field& f, ExperimentConfig* c,
+                      std::vector<SequenceRef> ExperimentConfig::*into) const;
   void ParseSensors(const Field& f, ExperimentConfig* c) const;
   ParameterSpec ParseParameter(const Field& f, const ExperimentConfig& c) const;
   MeasurementSpec ParseMeasurement(const Field& f, const ExperimentConfig& c) const;
@@ -70,7 +72,7 @@ std::vector<NamedValue> Parser::NamedValues(const Field& f) const {
 const std::vector<std::string> kRootKeys = {
     "version",     "name",     "model",      "models",      "data",          "sequences",
     "sensor_time", "sensors",  "parameters", "measurement", "initial_state", "multiple_shooting",
-    "solver",      "simulate", "output"};
+    "solver",      "simulate", "output",     "validation"};
 const std::vector<std::string> kParameterKeys = {"name",  "target",  "object", "field",
                                                  "index", "initial", "bounds", "transform",
                                                  "scale", "prior",   "models"};
@@ -103,7 +105,21 @@ ExperimentConfig Parser::Parse(const YAML::Node& root) {
 
   ParseModels(r, &c);
   if (r.Has("data")) ParseData(r.Get("data"), &c);
-  if (r.Has("sequences")) ParseSequences(r.Get("sequences"), &c);
+  if (r.Has("sequences")) ParseSequences(r.Get("sequences"), &c, &ExperimentConfig::sequences);
+  if (r.Has("validation")) {
+    ParseSequences(r.Get("validation"), &c, &ExperimentConfig::validation);
+    // a sequence is fitted or held out, never both
+    for (const SequenceRef& v : c.validation) {
+      for (const SequenceRef& q : c.sequences) {
+        if (q.name == v.name && (q.model.empty() || v.model.empty() || q.model == v.model)) {
+          Fail(v.mark,
+               "validation: sequence " + Quote(v.name) + " is also fitted (`sequences:` at line " +
+                   std::to_string(q.mark.line) + ")",
+               "a validation sequence is held out of the fit: remove it from one of the lists");
+        }
+      }
+    }
+  }
   if (r.Has("sensor_time")) {
     c.sensor_time = static_cast<SensorTime>(Enum(r.Get("sensor_time"), kSensorTimes));
   }
@@ -228,7 +244,8 @@ void Parser::ParseData(const Field& f, ExperimentConfig* c) const {
   for (const Field& item : items) c->data.push_back(DataFile{ResolvePath(item), item.mark});
 }
 
-void Parser::ParseSequences(const Field& f, ExperimentConfig* c) const {
+void Parser::ParseSequences(const Field& f, ExperimentConfig* c,
+                            std::vector<SequenceRef> ExperimentConfig::*into) const {
   std::vector<std::string> model_names;
   for (const ModelSpec& m : c->models) model_names.push_back(m.name);
   for (const Field& item : List(f)) {
@@ -246,13 +263,13 @@ void Parser::ParseSequences(const Field& f, ExperimentConfig* c) const {
       }
       if (ref.name.empty()) Fail(item.mark, item.path + ": the sequence name is empty");
     }
-    for (const SequenceRef& seen : c->sequences) {
+    for (const SequenceRef& seen : c->*into) {
       if (seen.model == ref.model && seen.name == ref.name) {
         Fail(item.mark, "duplicate sequence " + Quote(item.node.Scalar()),
              "first given at line " + std::to_string(seen.mark.line));
       }
     }
-    c->sequences.push_back(std::move(ref));
+    (c->*into).push_back(std::move(ref));
   }
 }
 
@@ -436,7 +453,7 @@ void Parser::ParseSolver(const Field& f, ExperimentConfig* c) const {
   const MapReader r(
       *this, f,
       {"max_iterations", "function_tolerance", "gradient_tolerance", "parameter_tolerance",
-       "jacobian", "differences", "relative_step", "threads", "loss", "verbose"});
+       "jacobian", "differences", "relative_step", "threads", "loss", "verbose", "starts", "seed"});
   c->solver_marks = r.marks();
   FitOptions* o = &c->options;
   const long long kIntMax = std::numeric_limits<int>::max();
@@ -460,6 +477,12 @@ void Parser::ParseSolver(const Field& f, ExperimentConfig* c) const {
     if (l.Has("scale")) o->loss_scale = Positive(l.Get("scale"));
   }
   if (r.Has("verbose")) o->verbose = Bool(r.Get("verbose"));
+  // multi-start (sysid/run/multi_start.h)
+  if (r.Has("starts")) c->starts = static_cast<int>(Integer(r.Get("starts"), 1, 10000));
+  if (r.Has("seed")) {
+    c->start_seed = static_cast<std::uint64_t>(
+        Integer(r.Get("seed"), 0, std::numeric_limits<long long>::max()));
+  }
 }
 
 Excitation Parser::ParseExcitation(const Field& f, bool needs_actuator) const {

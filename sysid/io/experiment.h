@@ -131,6 +131,10 @@ struct ExperimentConfig {
   bool model_list = false;  // true when given as `models` (a list), false for `model`
   std::vector<DataFile> data;
   std::vector<SequenceRef> sequences;  // empty = every sequence in the data
+  // held-out sequences (same spelling as `sequences`): simulated at the start and the estimate,
+  // never fitted; never also in `sequences` (with `sequences` empty: every other sequence is
+  // fitted)
+  std::vector<SequenceRef> validation;
   SensorTime sensor_time = SensorTime::kPre;
   std::vector<SensorSpec> sensors;  // empty = every sensor, weight 1
   std::vector<ParameterSpec> parameters;
@@ -140,6 +144,10 @@ struct ExperimentConfig {
   // `multiple_shooting` (segment_steps, continuity_weight); sensor weights are in `sensors`
   FitOptions options;
   Marks solver_marks;  // of the keys of the `solver` block
+  // solver.starts (1..10000): fits from that many starts spread in the bounds, the best kept;
+  // solver.seed: the spread's seed (sysid/run/multi_start.h)
+  int starts = 1;
+  std::uint64_t start_seed = 0;
   SimulateOptions simulate;
   std::string output;  // absolute; default <base_dir>/results/<name>
   Marks marks;

@@ -66,8 +66,8 @@ void CheckSequenceMatrix(const RowMatrix& m, Eigen::Index rows, Eigen::Index col
   }
 }
 
-void CheckSequence(const SequenceResult& s, const std::string& file) {
-  const std::string g = "/sequences/" + s.name;
+void CheckSequence(const SequenceResult& s, const std::string& file, const std::string& where) {
+  const std::string g = where + "/" + s.name;
   if (s.name.empty() || s.name == "." || s.name.find('/') != std::string::npos ||
       s.name.find('\0') != std::string::npos) {
     Fail(file, g, "sequence name " + Quote(s.name) + " is not a valid group name");
@@ -135,6 +135,12 @@ void CheckArrays(const FitResultFile& r, const std::string& file) {
       Fail(file, "/sequences/" + s.name, "two sequences are named " + Quote(s.name));
     }
     CheckSequence(s, file);
+  }
+  for (const SequenceResult& s : r.validation) {
+    if (!seen.insert(s.name).second) {
+      Fail(file, "/validation/" + s.name, "two sequences are named " + Quote(s.name));
+    }
+    CheckSequence(s, file, "/validation");
   }
 }
 
@@ -218,6 +224,69 @@ std::string EmitYaml(const FitResultFile& r) {
     out << YAML::Key << model << YAML::Value << file;
   }
   out << YAML::EndMap;
+
+  // per channel fit metrics (sysid/metrics.h) of the fitted and the held-out sequences, for the
+  // reader of the file (ReadResult recomputes them from result.h5's signals)
+  out << YAML::Key << "fit_metrics" << YAML::Value;
+  if (r.sequences.empty() && r.validation.empty()) out << YAML::Flow;
+  out << YAML::BeginSeq;
+  for (const std::vector<SequenceResult>* list : {&r.sequences, &r.validation}) {
+    for (const SequenceResult& s : *list) {
+      out << YAML::BeginMap;
+      out << YAML::Key << "sequence" << YAML::Value << s.name;
+      out << YAML::Key << "role" << YAML::Value << (list == &r.sequences ? "fit" : "validation");
+      out << YAML::Key << "channels" << YAML::Value << YAML::BeginSeq;
+      for (const ChannelFit& f : s.channel_fits) {
+        out << YAML::Flow << YAML::BeginMap;
+        out << YAML::Key << "channel" << YAML::Value << f.channel;
+        out << YAML::Key << "fit_initial" << YAML::Value << Number(f.fit_initial);
+        out << YAML::Key << "fit_final" << YAML::Value << Number(f.fit_final);
+        out << YAML::Key << "nrmse_initial" << YAML::Value << Number(f.nrmse_initial);
+        out << YAML::Key << "nrmse_final" << YAML::Value << Number(f.nrmse_final);
+        out << YAML::EndMap;
+      }
+      out << YAML::EndSeq;
+      out << YAML::EndMap;
+    }
+  }
+  out << YAML::EndSeq;
+
+  // multi-start: every start (values in the order of `parameters`), the best, the spread
+  if (!r.starts.empty()) {
+    const auto numbers = [&out](const Eigen::VectorXd& v) {
+      out << YAML::Flow << YAML::BeginSeq;
+      for (Eigen::Index i = 0; i < v.size(); ++i) out << Number(v[i]);
+      out << YAML::EndSeq;
+    };
+    out << YAML::Key << "starts" << YAML::Value << YAML::BeginMap;
+    out << YAML::Key << "best" << YAML::Value << r.best_start;
+    out << YAML::Key << "runs" << YAML::Value << YAML::BeginSeq;
+    for (const StartResult& st : r.starts) {
+      out << YAML::BeginMap;
+      out << YAML::Key << "start" << YAML::Value;
+      numbers(st.start);
+      out << YAML::Key << "estimate" << YAML::Value;
+      numbers(st.estimate);
+      out << YAML::Key << "initial_cost" << YAML::Value << Number(st.initial_cost);
+      out << YAML::Key << "final_cost" << YAML::Value << Number(st.final_cost);
+      out << YAML::Key << "status" << YAML::Value << FitStatusName(st.status);
+      out << YAML::Key << "iterations" << YAML::Value << st.iterations;
+      if (!st.error.empty()) out << YAML::Key << "error" << YAML::Value << st.error;
+      out << YAML::EndMap;
+    }
+    out << YAML::EndSeq;
+    out << YAML::Key << "spread" << YAML::Value << YAML::BeginSeq;
+    for (const ParameterSpread& sp : r.start_spread) {
+      out << YAML::Flow << YAML::BeginMap;
+      out << YAML::Key << "name" << YAML::Value << sp.name;
+      out << YAML::Key << "min" << YAML::Value << Number(sp.min);
+      out << YAML::Key << "max" << YAML::Value << Number(sp.max);
+      out << YAML::Key << "relative" << YAML::Value << Number(sp.relative);
+      out << YAML::EndMap;
+    }
+    out << YAML::EndSeq;
+    out << YAML::EndMap;
+  }
   out << YAML::EndMap;
   if (!out.good()) throw ResultError("cannot format result.yaml: " + out.GetLastError());
   return std::string(out.c_str()) + "\n";
@@ -360,6 +429,63 @@ ParameterEstimate ReadParameter(const YamlReader& y, const YAML::Node& node, siz
   return p;
 }
 
+// a list of numbers
+Eigen::VectorXd ReadNumbers(const YamlReader& y, const YAML::Node& node, const std::string& path) {
+  if (!node.IsSequence())
+    y.Fail(node, path, "expected a list of numbers, found " + YamlReader::Kind(node));
+  Eigen::VectorXd v(static_cast<Eigen::Index>(node.size()));
+  for (size_t i = 0; i < node.size(); ++i) {
+    v[static_cast<Eigen::Index>(i)] = y.Double(node[i], path + "[" + std::to_string(i) + "]");
+  }
+  return v;
+}
+
+// the multi-start block: best, runs, spread
+void ReadStarts(const YamlReader& y, const YAML::Node& node, FitResultFile* r) {
+  if (!node.IsMap()) y.Fail(node, "starts", "expected a map, found " + YamlReader::Kind(node));
+  const YAML::Node runs = y.Get(node, "runs", "starts.runs");
+  if (!runs.IsSequence())
+    y.Fail(runs, "starts.runs", "expected a list, found " + YamlReader::Kind(runs));
+  for (size_t i = 0; i < runs.size(); ++i) {
+    const std::string at = "starts.runs[" + std::to_string(i) + "]";
+    const YAML::Node n = runs[i];
+    if (!n.IsMap()) y.Fail(n, at, "expected a map, found " + YamlReader::Kind(n));
+    StartResult st;
+    st.start = ReadNumbers(y, y.Get(n, "start", at + ".start"), at + ".start");
+    st.estimate = ReadNumbers(y, y.Get(n, "estimate", at + ".estimate"), at + ".estimate");
+    st.initial_cost =
+        y.Double(y.Get(n, "initial_cost", at + ".initial_cost"), at + ".initial_cost");
+    st.final_cost = y.Double(y.Get(n, "final_cost", at + ".final_cost"), at + ".final_cost");
+    const std::string status = y.Text(y.Get(n, "status", at + ".status"), at + ".status");
+    const std::optional<FitStatus> s = FitStatusFromName(status);
+    if (!s) y.Fail(n["status"], at + ".status", "unknown status " + Quote(status));
+    st.status = *s;
+    st.iterations = y.Int(y.Get(n, "iterations", at + ".iterations"), at + ".iterations");
+    if (n["error"]) st.error = y.Text(n["error"], at + ".error");
+    r->starts.push_back(std::move(st));
+  }
+  r->best_start = y.Int(y.Get(node, "best", "starts.best"), "starts.best");
+  if (r->best_start < 0 || r->best_start >= static_cast<int>(r->starts.size())) {
+    y.Fail(node["best"], "starts.best",
+           "is " + std::to_string(r->best_start) + ", not one of the " +
+               std::to_string(r->starts.size()) + " runs");
+  }
+  const YAML::Node spread = y.Get(node, "spread", "starts.spread");
+  if (!spread.IsSequence())
+    y.Fail(spread, "starts.spread", "expected a list, found " + YamlReader::Kind(spread));
+  for (size_t i = 0; i < spread.size(); ++i) {
+    const std::string at = "starts.spread[" + std::to_string(i) + "]";
+    const YAML::Node n = spread[i];
+    if (!n.IsMap()) y.Fail(n, at, "expected a map, found " + YamlReader::Kind(n));
+    ParameterSpread sp;
+    sp.name = y.Text(y.Get(n, "name", at + ".name"), at + ".name");
+    sp.min = y.Double(y.Get(n, "min", at + ".min"), at + ".min");
+    sp.max = y.Double(y.Get(n, "max", at + ".max"), at + ".max");
+    sp.relative = y.Double(y.Get(n, "relative", at + ".relative"), at + ".relative");
+    r->start_spread.push_back(std::move(sp));
+  }
+}
+
 void ReadYaml(const std::string& path, FitResultFile* r) {
   const YamlReader y(path);
   std::error_code ec;
@@ -448,6 +574,7 @@ void ReadYaml(const std::string& path, FitResultFile* r) {
   r->warnings = y.Texts(y.Get(root, "warnings", "warnings"), "warnings");
   r->identified_models =
       y.TextMap(y.Get(root, "identified_models", "identified_models"), "identified_models");
+  if (root["starts"]) ReadStarts(y, root["starts"], r);
   CheckParameters(*r, path);
 }
 

@@ -9,7 +9,12 @@
 //     residual_variance, num_residuals, wall_time_s, solver (map of setting -> value as text),
 //     parameters (list of {name, value, initial, std, ci95: [lo, hi], flags: [...], truth?}),
 //     unidentifiable (list of text), warnings (list of text), identified_models (map model ->
-//     file), run_id (when the result has one)
+//     file), run_id (when the result has one), fit_metrics (list of {sequence, role: fit |
+//     validation, channels: [{channel, fit_initial, fit_final, nrmse_initial, nrmse_final}]},
+//     sysid/metrics.h; written for readers of the file, recomputed from result.h5 by ReadResult),
+//     starts (multi-start only, sysid/run/multi_start.h: {best, runs: [{start: [...], estimate:
+//     [...], initial_cost, final_cost, status, iterations, error?}], spread: [{name, min, max,
+//     relative}]}; values in the order of `parameters`; read back)
 //   std and ci95 bounds that are infinite are written as .inf / -.inf; flags are any of
 //   at_lower_bound, at_upper_bound, unidentifiable.
 // - result.h5 layout: root attributes format = "mjsysid-result", format_version = 1, status,
@@ -18,7 +23,8 @@
 //   /covariance (np x np); /jacobian (nres x np); /trace/{iteration, cost, step_norm,
 //   gradient_norm, seconds, successful} (nit) and /trace/parameters (nit x np);
 //   /sequences/<name>/{time (T), measured, simulated_initial, simulated_final (T x ns)} with
-//   attributes model, sensor_names (strings), sensor_dims (ints).
+//   attributes model, sensor_names (strings), sensor_dims (ints); held-out sequences (experiment
+//   `validation:`) in the same layout under /validation/<name> (absent when there are none).
 // - The run id (FitResultFile::run_id, e.g. "20261122T180501Z-12345-9f3a") names the fit that
 //   wrote a file: result.yaml key run_id, result.h5 root attribute run_id, and in each identified
 //   model the comment RunIdComment(run_id). ReadResult refuses a folder whose files carry
@@ -47,7 +53,8 @@ class ResultError : public std::runtime_error {
 // Of FitResult the files keep: parameters (truth included), initial_cost, final_cost,
 // iterations, termination, num_residuals, jacobian_mode, seconds (wall_time_s),
 // uncertainty.{residual_variance, unidentifiable, covariance}, jacobian, trace, sequences
-// (x0_final excepted), warnings, intervals_valid (both files); outcome, converged and
+// (x0_final excepted; channel_fits recomputed from the signals), validation, starts, best_start,
+// start_spread (result.yaml), warnings, intervals_valid (both files); outcome, converged and
 // interrupted are read back from status.
 struct FitResultFile : FitResult {
   std::string name, experiment, created;

@@ -20,6 +20,7 @@
 #include "sysid/io/atomic_file.h"
 #include "sysid/io/hdf5_util.h"
 #include "sysid/io/result_internal.h"
+#include "sysid/metrics.h"
 
 namespace mjsysid::io::result_internal {
 namespace {
@@ -100,8 +101,10 @@ void WriteH5Trace(hid_t root, const FitResultFile& r, const std::string& file) {
               "/trace/parameters");
 }
 
-void WriteH5Sequence(hid_t sequences, const SequenceResult& s, const std::string& file) {
-  const std::string g = "/sequences/" + s.name;
+// one sequence under /sequences (fitted) or /validation (held out): `where` is that group's path
+void WriteH5Sequence(hid_t sequences, const SequenceResult& s, const std::string& file,
+                     const std::string& where) {
+  const std::string g = where + "/" + s.name;
   h5::Id group = h5::CreateGroup(sequences, s.name, true, file, g);
   h5::WriteStringAttr(group.get(), "model", s.model, file, g);
   h5::WriteStringArrayAttr(group.get(), "sensor_names", s.sensor_names, file, g);
@@ -140,15 +143,22 @@ void WriteH5(const std::string& tmp, const FitResultFile& r, const std::string& 
                 file, "/jacobian");
     WriteH5Trace(root.get(), r, file);
 
-    // sequences, in order; each checked as it is written
-    h5::Id seqs = h5::CreateGroup(root.get(), "sequences", true, file, "/sequences");
+    // sequences, in order; each checked as it is written; the held-out ones (if any) under
+    // /validation in the same layout
     std::set<std::string> seen;
-    for (const SequenceResult& s : r.sequences) {
-      if (!seen.insert(s.name).second) {
-        Fail(file, "/sequences/" + s.name, "two sequences are named " + Quote(s.name));
+    const std::pair<const char*, const std::vector<SequenceResult>*> groups[] = {
+        {"sequences", &r.sequences}, {"validation", &r.validation}};
+    for (const auto& [gname, list] : groups) {
+      if (list == &r.validation && list->empty()) continue;
+      const std::string where = std::string("/") + gname;
+      h5::Id seqs = h5::CreateGroup(root.get(), gname, true, file, where);
+      for (const SequenceResult& s : *list) {
+        if (!seen.insert(s.name).second) {
+          Fail(file, where + "/" + s.name, "two sequences are named " + Quote(s.name));
+        }
+        CheckSequence(s, file, where);
+        WriteH5Sequence(seqs.get(), s, file, where);
       }
-      CheckSequence(s, file);
-      WriteH5Sequence(seqs.get(), s, file);
     }
   }
   if (!f.Close()) h5::FailH5(file, "", "cannot finish writing temporary file " + tmp);
@@ -241,8 +251,10 @@ void ReadH5Trace(hid_t root, const std::string& file, FitResultFile* r) {
   }
 }
 
-SequenceResult ReadH5Sequence(hid_t sequences, const std::string& name, const std::string& file) {
-  const std::string g = "/sequences/" + name;
+// one sequence of /sequences or /validation (`where`); its channel fits computed from its signals
+SequenceResult ReadH5Sequence(hid_t sequences, const std::string& name, const std::string& file,
+                              const std::string& where) {
+  const std::string g = where + "/" + name;
   h5::Id group = h5::Own(H5Gopen2(sequences, name.c_str(), H5P_DEFAULT), H5Gclose, file, g,
                          "cannot open group (not a group, or corrupt file?)");
   SequenceResult s;
@@ -270,6 +282,7 @@ SequenceResult ReadH5Sequence(hid_t sequences, const std::string& name, const st
   for (const auto& [dname, m] : mats) {
     *m = h5::ToMatrix(ReadRequired(group.get(), dname, 2, file, g + "/" + dname));
   }
+  s.channel_fits = ChannelFits(s);
   return s;
 }
 
@@ -334,7 +347,13 @@ void ReadH5(const std::string& path, FitResultFile* r, std::string* run_id) {
   ReadH5Trace(root.get(), file, r);
   h5::Id seqs = OpenGroup(root.get(), "sequences", file, "/sequences");
   for (const std::string& name : h5::LinkNames(seqs.get(), file, "/sequences")) {
-    r->sequences.push_back(ReadH5Sequence(seqs.get(), name, file));
+    r->sequences.push_back(ReadH5Sequence(seqs.get(), name, file, "/sequences"));
+  }
+  if (h5::HasLink(root.get(), "validation", file, "/")) {
+    h5::Id held_out = OpenGroup(root.get(), "validation", file, "/validation");
+    for (const std::string& name : h5::LinkNames(held_out.get(), file, "/validation")) {
+      r->validation.push_back(ReadH5Sequence(held_out.get(), name, file, "/validation"));
+    }
   }
   CheckArrays(*r, file);
 }

@@ -27,7 +27,9 @@ std::string Number(double x);
 void CheckParameters(const FitResultFile& r, const std::string& file);
 void CheckSequenceMatrix(const RowMatrix& m, Eigen::Index rows, Eigen::Index cols,
                          const std::string& file, const std::string& object);
-void CheckSequence(const SequenceResult& s, const std::string& file);
+// where: the group the sequence is stored in ("/sequences", or "/validation" for held-out ones)
+void CheckSequence(const SequenceResult& s, const std::string& file,
+                   const std::string& where = "/sequences");
 void CheckMatrices(const FitResultFile& r, const std::string& file);
 void CheckArrays(const FitResultFile& r, const std::string& file);
 

@@ -19,8 +19,11 @@
 #include "sysid/io/atomic_file.h"
 #include "sysid/io/log.h"
 #include "sysid/io/sequence_models.h"
+#include "sysid/metrics.h"
+#include "sysid/run/multi_start.h"
 #include "sysid/run/output_folder.h"
 #include "sysid/run/resume.h"
+#include "sysid/run/validation.h"
 
 namespace mjsysid::run {
 namespace {
@@ -119,6 +122,11 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
   }
   std::vector<bool> entry_used(cfg.sequences.size(), false);
   std::vector<std::string> all_groups;
+  // `validation:` entries are assigned to models by the same rule as `sequences:` entries
+  io::ExperimentConfig held_out_cfg;
+  held_out_cfg.models = cfg.models;
+  held_out_cfg.sequences = cfg.validation;
+  std::vector<bool> held_out_used(cfg.validation.size(), false);
   for (const io::DataFile& df : cfg.data) {
     if (!fs::exists(df.path)) {
       throw io::ConfigError(df.mark, "data file not found: " + df.path,
@@ -126,18 +134,35 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
     }
     const io::Log log = io::ReadLog(df.path);
     for (const io::Sequence& s : log.sequences) all_groups.push_back(s.name);
-    // one validation per model over the sequences that belong to it
-    std::vector<io::Log> per_model(cfg.models.size());
+    // held-out sequences first, with their model: they are taken out of the fitted selection
+    // (without `sequences:` every sequence of the log is selected, the held-out ones too)
+    std::vector<bool> held_out(log.sequences.size(), false);
+    std::vector<io::SequenceOwner> owners;
+    if (!cfg.validation.empty()) {
+      owners = io::AssignSequences(held_out_cfg, log, df.path, &held_out_used);
+      for (const io::SequenceOwner& o : owners) held_out[o.sequence] = true;
+    }
     for (const io::SequenceOwner& o : io::AssignSequences(cfg, log, df.path, &entry_used)) {
+      owners.push_back(o);
+    }
+    // one validation per model over the sequences that belong to it (fitted and held out)
+    std::vector<io::Log> per_model(cfg.models.size());
+    std::vector<std::vector<bool>> per_model_held_out(cfg.models.size());
+    std::vector<bool> taken(log.sequences.size(), false);
+    for (const io::SequenceOwner& o : owners) {
+      if (taken[o.sequence]) continue;  // a held-out sequence also in the fit's selection
+      taken[o.sequence] = true;
       per_model[o.model].sequences.push_back(log.sequences[o.sequence]);
       per_model[o.model].sensor_time = log.sensor_time;
+      per_model_held_out[o.model].push_back(held_out[o.sequence]);
     }
     for (size_t mi = 0; mi < cfg.models.size(); ++mi) {
       const mjModel& m = *out.models[mi];
       if (per_model[mi].sequences.empty()) continue;
       io::ValidateLogAgainstModel(per_model[mi], m, df.path);
       const bool post = log.sensor_time == "post" || cfg.sensor_time == io::SensorTime::kPost;
-      for (const io::Sequence& s : per_model[mi].sequences) {
+      for (size_t si = 0; si < per_model[mi].sequences.size(); ++si) {
+        const io::Sequence& s = per_model[mi].sequences[si];
         const std::string where = df.path + ": /" + s.name;
         const int rows = static_cast<int>(s.time.size());
         const double period = (s.time[rows - 1] - s.time[0]) / (rows - 1);
@@ -189,12 +214,17 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
                                  "reference state (set initial_state: {estimate: true} to fit it)");
         }
         fs_.time = s.time.head(T);
+        if (per_model_held_out[mi][si]) {
+          out.validation.push_back(fs_);  // simulated after the fit, never fitted
+          continue;
+        }
         out.problem->AddSequence(fs_);
         out.sequences.push_back(fs_);
       }
     }
   }
   io::CheckSequenceEntriesUsed(cfg, entry_used, all_groups);
+  io::CheckSequenceEntriesUsed(held_out_cfg, held_out_used, all_groups);
   // residual rows: fitted sensor columns x samples, and priors; none leaves nothing to fit
   long long rows = 0;
   for (size_t i = 0; i < out.sequences.size(); ++i) {
@@ -300,6 +330,15 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   }
   const io::ExperimentConfig run_cfg = base ? ResumedConfig(cfg, *base) : cfg;
   BuiltProblem bp = BuildProblem(run_cfg, ro.threads);
+  // multi-start: N whole fits, no checkpoints (a resumed fit continues one start)
+  const int starts = ro.starts >= 1 ? ro.starts : cfg.starts;
+  const std::uint64_t start_seed =
+      ro.seed >= 0 ? static_cast<std::uint64_t>(ro.seed) : cfg.start_seed;
+  if (starts > 1 && base) {
+    throw OutputError("--resume " + out.out_dir + ": a resumed fit continues one start, not " +
+                      std::to_string(starts) +
+                      " (--starts or solver.starts); resume with --starts 1, or fit again");
+  }
 
   // the output folder only once the input is known good (bad input leaves nothing behind), never
   // one that holds an input, never a foreign one without force
@@ -355,6 +394,8 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
       {"continuity_weight", FormatG17(options.continuity_weight)},
       {"mujoco_solver_tolerance", "min(model, " + FormatG17(sim_defaults.solver_tolerance) + ")"},
       {"minimizer", "ceres levenberg-marquardt"},
+      {"starts", std::to_string(starts)},
+      {"seed", std::to_string(start_seed)},
   };
   std::map<std::string, double> truth;
   for (const io::NamedValue& t : cfg.simulate.truth) truth[t.name] = t.value;
@@ -424,7 +465,12 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   for (const std::string& w : bp.warnings)
     std::fprintf(stderr, "sysid fit: warning: %s\n", w.c_str());
   try {
-    static_cast<FitResult&>(file) = bp.problem->Fit(options);
+    if (starts > 1) {
+      static_cast<FitResult&>(file) =
+          FitFromStarts(bp, options, starts, start_seed, /*progress=*/true);
+    } else {
+      static_cast<FitResult&>(file) = bp.problem->Fit(options);
+    }
   } catch (const SimulationError& e) {
     // trial points that fail are rejected: this is the start
     throw SimulationError(std::string(e.what()) + "; " + AtInitialValues(run_cfg), e.sequence(),
@@ -436,6 +482,17 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
                             " after iteration " + std::to_string(base->iterations));
   }
   const FitResult& r = file;
+
+  // fit metrics per channel of every fitted sequence; the held-out sequences simulated at the
+  // start and at the estimate (never fitted), with theirs
+  for (SequenceResult& sr : file.sequences) sr.channel_fits = ChannelFits(sr);
+  for (const FitSequence& sq : bp.validation) {
+    const size_t mi = static_cast<size_t>(
+        std::find(bp.model_names.begin(), bp.model_names.end(), sq.model) - bp.model_names.begin());
+    file.validation.push_back(SimulateHeldOut(*bp.models[mi], bp.parameters, bp.measurements,
+                                              file.parameters, sq, options.threads,
+                                              &file.warnings));
+  }
 
   // results: the fit as it came, the truth where known, the run's warnings first
   file.status = FitStatusName(r.outcome);

@@ -16,7 +16,10 @@
 //   interruption (FitRunOptions::interrupt) writes the complete results of the last good iterate
 //   the same way. A failed write (io::FileError / io::ResultError naming the file and the reason)
 //   leaves DIR as it was. It never throws for a fit that merely fails to converge: see
-//   FitRunOutcome.
+//   FitRunOutcome. Every fitted sequence gets its per-channel metrics (sysid/metrics.h); the
+//   `validation:` sequences are simulated at the start and at the estimate
+//   (sysid/run/validation.h) into FitResult::validation. With solver.starts (or
+//   FitRunOptions::starts) > 1 the fit is sysid/run/multi_start.h's, without checkpoints.
 #pragma once
 
 #include <atomic>
@@ -43,6 +46,9 @@ struct BuiltProblem {
   std::vector<FitParameter> parameters;
   std::vector<FitMeasurement> measurements;
   std::vector<FitSequence> sequences;
+  // the `validation:` sequences, read and checked like the fitted ones but not added to the
+  // problem (RunFit simulates them at the start and at the estimate: sysid/run/validation.h)
+  std::vector<FitSequence> validation;
 };
 
 // threads < 0: the config's solver.threads
@@ -60,6 +66,9 @@ struct FitRunOptions {
   // called after every successful iteration, once its checkpoint is written (e.g. the Python
   // module's iteration callback); iteration numbers as in Problem::Fit (not the resumed count)
   std::function<void(const IterationInfo&)> on_iteration;
+  // multi-start (sysid/run/multi_start.h): < 1 / < 0: the config's solver.starts / solver.seed
+  int starts = 0;
+  long long seed = -1;
 };
 
 struct FitRunOutcome {

@@ -101,6 +101,8 @@ th{background:#f6f6f6}
 td.n{text-align:right;font-family:ui-monospace,Menlo,Consolas,monospace;white-space:nowrap}
 table.facts td:first-child{color:#666}
 tr.unid td{background:#fde8e8}
+tr.val td{background:#eef4fb}
+tr.best td{font-weight:600}
 .flag{display:inline-block;padding:0 6px;margin:0 4px 2px 0;border-radius:4px;font-size:12px;
   background:#e8e8e8}
 .flag.unid{background:#c62828;color:#fff}
@@ -147,9 +149,88 @@ void ParameterSection(std::ostringstream& h, const FitResultFile& r) {
   }
 }
 
+// a % fit or an NRMSE cell; NaN (a constant channel, a failed simulation) as a dash
+std::string MetricCell(double v, const char* unit) {
+  if (!std::isfinite(v)) return "<td class=\"n\">&ndash;</td>";
+  return "<td class=\"n\">" + HtmlEscape(Num(v, 3)) + unit + "</td>";
+}
+
+// per sequence and channel: % fit and NRMSE at the start and at the estimate, fitted sequences
+// first, then the held-out ones
+void FitQualitySection(std::ostringstream& h, const FitResultFile& r) {
+  h << "<h2>Fit quality</h2>\n<p class=\"muted\">per channel: % fit = 100 (1 &minus; NRMSE), "
+       "NRMSE = RMS(simulated &minus; measured) / std(measured); 100 % is exact, 0 % no better "
+       "than the measured mean. Validation sequences are held out: simulated, not fitted.</p>\n";
+  if (r.sequences.empty() && r.validation.empty()) {
+    h << "<p class=\"muted\">no sequences recorded</p>\n";
+    return;
+  }
+  h << "<table class=\"metrics\">\n<tr><th>sequence</th><th>role</th><th>channel</th>"
+       "<th>% fit, start</th><th>% fit, estimate</th><th>NRMSE, start</th>"
+       "<th>NRMSE, estimate</th></tr>\n";
+  for (const std::vector<SequenceResult>* list : {&r.sequences, &r.validation}) {
+    const bool held_out = list == &r.validation;
+    for (const SequenceResult& s : *list) {
+      for (const ChannelFit& f : s.channel_fits) {
+        h << "<tr" << (held_out ? " class=\"val\"" : "") << "><td>" << HtmlEscape(s.name)
+          << "</td><td>" << (held_out ? "validation (not fitted)" : "fit") << "</td><td>"
+          << HtmlEscape(f.channel) << "</td>" << MetricCell(f.fit_initial, " %")
+          << MetricCell(f.fit_final, " %") << MetricCell(f.nrmse_initial, "")
+          << MetricCell(f.nrmse_final, "") << "</tr>\n";
+      }
+    }
+  }
+  h << "</table>\n";
+}
+
+// multi-start: every start (status, costs, start and estimate per parameter, the best marked) and
+// the spread per parameter; the local-minimum warning is among the warnings
+void StartsSection(std::ostringstream& h, const FitResultFile& r) {
+  if (r.starts.size() < 2) return;
+  h << "<h2>Starts</h2>\n<p class=\"muted\">" << r.starts.size()
+    << " fits from starts spread in the bounds (start 0: the experiment's own); the result is "
+       "start "
+    << r.best_start
+    << "'s: the lowest final cost of the fits that converged (status converged or "
+       "model_mismatch), else of all</p>\n";
+  h << "<table class=\"starts\">\n<tr><th>start</th><th>status</th><th>iterations</th>"
+       "<th>initial cost</th><th>final cost</th>";
+  for (const ParameterEstimate& p : r.parameters) {
+    h << "<th>" << HtmlEscape(p.name) << "<br><span class=\"muted\">start &rarr; estimate</span>"
+      << "</th>";
+  }
+  h << "</tr>\n";
+  for (size_t k = 0; k < r.starts.size(); ++k) {
+    const StartResult& st = r.starts[k];
+    const bool best = static_cast<int>(k) == r.best_start;
+    h << "<tr" << (best ? " class=\"best\"" : "") << "><td>" << k << (best ? " (best)" : "")
+      << "</td><td>"
+      << (st.error.empty() ? HtmlEscape(FitStatusName(st.status))
+                           : "failed: " + HtmlEscape(st.error))
+      << "</td><td class=\"n\">" << st.iterations << "</td><td class=\"n\">"
+      << HtmlNum(st.initial_cost) << "</td><td class=\"n\">" << HtmlNum(st.final_cost) << "</td>";
+    for (Eigen::Index j = 0; j < static_cast<Eigen::Index>(r.parameters.size()); ++j) {
+      h << "<td class=\"n\">" << (j < st.start.size() ? HtmlNum(st.start[j], 4) : "&ndash;")
+        << " &rarr; " << (j < st.estimate.size() ? HtmlNum(st.estimate[j], 6) : "&ndash;")
+        << "</td>";
+    }
+    h << "</tr>\n";
+  }
+  h << "</table>\n<h3>Spread of the estimates over the starts</h3>\n<table class=\"spread\">\n"
+       "<tr><th>parameter</th><th>min</th><th>max</th><th>(max &minus; min) / |estimate|</th>"
+       "</tr>\n";
+  for (const ParameterSpread& sp : r.start_spread) {
+    h << "<tr><td>" << HtmlEscape(sp.name) << "</td><td class=\"n\">" << HtmlNum(sp.min)
+      << "</td><td class=\"n\">" << HtmlNum(sp.max) << "</td><td class=\"n\">"
+      << HtmlNum(sp.relative, 3) << "</td></tr>\n";
+  }
+  h << "</table>\n";
+}
+
 }  // namespace
 
-std::string Page(const FitResultFile& r, const std::vector<std::string>& sequence_pngs) {
+std::string Page(const FitResultFile& r, const std::vector<std::string>& sequence_pngs,
+                 const std::vector<std::string>& validation_pngs) {
   std::ostringstream h;
   const std::string name = r.name.empty() ? "(unnamed)" : r.name;
   h << "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
@@ -207,6 +288,7 @@ std::string Page(const FitResultFile& r, const std::vector<std::string>& sequenc
   }
 
   ParameterSection(h, r);
+  StartsSection(h, r);
 
   // warnings
   h << "<h2>Warnings</h2>\n";
@@ -224,6 +306,7 @@ std::string Page(const FitResultFile& r, const std::vector<std::string>& sequenc
   h << RenderSvg(cost.width, cost.height, "cost", cost.draw);
   h << "<h2>Parameters over the iterations</h2>\n";
   h << RenderSvg(params.width, params.height, "params", params.draw);
+  FitQualitySection(h, r);
   h << "<h2>Sequences</h2>\n";
   if (r.sequences.empty()) h << "<p class=\"muted\">no sequences recorded</p>\n";
   for (size_t i = 0; i < r.sequences.size() && i < sequence_pngs.size(); ++i) {
@@ -231,8 +314,21 @@ std::string Page(const FitResultFile& r, const std::vector<std::string>& sequenc
       << HtmlEscape(r.sequences[i].name) << "\" src=\"data:image/png;base64,"
       << Base64(sequence_pngs[i]) << "\">\n";
   }
+  if (!r.validation.empty()) {
+    h << "<h2>Validation sequences (not fitted)</h2>\n<p class=\"muted\">held out of the fit "
+         "(experiment <code>validation:</code>): simulated from their logged initial state at the "
+         "start and at the estimate</p>\n";
+  }
+  for (size_t i = 0; i < r.validation.size() && i < validation_pngs.size(); ++i) {
+    h << "<h3>" << HtmlEscape(r.validation[i].name)
+      << " <span class=\"muted\">validation (not fitted)</span></h3>\n<img alt=\"validation "
+         "sequence "
+      << HtmlEscape(r.validation[i].name) << "\" src=\"data:image/png;base64,"
+      << Base64(validation_pngs[i]) << "\">\n";
+  }
   h << "<p class=\"muted\">written by mjsysid from result.yaml and result.h5; the plots are also "
-       "in this folder as cost.png, parameters.png and seq_*.png</p>\n</body>\n</html>\n";
+       "in this folder as cost.png, parameters.png, seq_*.png"
+    << (r.validation.empty() ? "" : " and val_*.png") << "</p>\n</body>\n</html>\n";
   return h.str();
 }
 

@@ -3,8 +3,11 @@
 //
 // Sections, in order: header (name, status badge, termination), facts (experiment, costs,
 // iterations, wall time, versions, identified models), solver settings, parameters (table;
-// unidentifiable rows highlighted; the unidentifiable combinations listed), warnings, cost,
-// parameters over the iterations, sequences. Every text from the result is HTML-escaped.
+// unidentifiable rows highlighted; the unidentifiable combinations listed), starts (multi-start
+// only: every start's status, costs, start and estimate, and the spread), warnings, cost,
+// parameters over the iterations, fit quality (per sequence and channel: % fit and NRMSE at the
+// start and at the estimate, sysid/metrics.h; fitted and held-out sequences), sequences, validation
+// sequences (not fitted). Every text from the result is HTML-escaped.
 #pragma once
 
 #include <string>
@@ -14,7 +17,9 @@
 
 namespace mjsysid::report {
 
-// the page; sequence_pngs[i] is the PNG of result.sequences[i]
-std::string Page(const io::FitResultFile& result, const std::vector<std::string>& sequence_pngs);
+// the page; sequence_pngs[i] is the PNG of result.sequences[i], validation_pngs[i] that of
+// result.validation[i]
+std::string Page(const io::FitResultFile& result, const std::vector<std::string>& sequence_pngs,
+                 const std::vector<std::string>& validation_pngs = {});
 
 }  // namespace mjsysid::report

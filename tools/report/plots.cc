@@ -163,10 +163,10 @@ int SeqRows(const SequenceResult& s) {
 }
 
 // a header with the legend, then one panel per sensor column
-void DrawSequence(Canvas& c, const SequenceResult& s) {
-  // header: what this is, and the legend
+void DrawSequence(Canvas& c, const SequenceResult& s, bool held_out) {
+  // header: what this is (a held-out sequence says so first), and the legend
   const Eigen::Index samples = s.time.size();
-  std::string header = "sequence " + s.name;
+  std::string header = (held_out ? "validation (not fitted): sequence " : "sequence ") + s.name;
   if (!s.model.empty()) header += " (model " + s.model + ")";
   header += ", " + std::to_string(samples) + " samples";
   if (samples > 0)
@@ -177,7 +177,14 @@ void DrawSequence(Canvas& c, const SequenceResult& s) {
               {"simulated, initial parameters", kBefore, 6, false},
               {"simulated, fitted parameters", kAfter, 0, false}});
 
-  const std::vector<std::string> labels = ColumnLabels(s);
+  // each panel's label with its % fit at the start and at the estimate (sysid/metrics.h)
+  std::vector<std::string> labels = ColumnLabels(s);
+  for (size_t j = 0; j < labels.size() && j < s.channel_fits.size(); ++j) {
+    const ChannelFit& f = s.channel_fits[j];
+    if (std::isfinite(f.fit_initial) && std::isfinite(f.fit_final)) {
+      labels[j] += "   fit " + Num(f.fit_initial, 3) + " % -> " + Num(f.fit_final, 3) + " %";
+    }
+  }
   const int cols = SeqColumns(s), rows = SeqRows(s);
   const double width = static_cast<double>(kSeqWidth) / cols;
   Range tr;
@@ -234,9 +241,9 @@ Figure ParametersFigure(const FitResultFile& result) {
           [&result](Canvas& c) { DrawParameters(c, result); }};
 }
 
-Figure SequenceFigure(const SequenceResult& sequence) {
+Figure SequenceFigure(const SequenceResult& sequence, bool held_out) {
   return {kSeqWidth, kSeqHeaderHeight + SeqRows(sequence) * kSeqPanelHeight,
-          [&sequence](Canvas& c) { DrawSequence(c, sequence); }};
+          [&sequence, held_out](Canvas& c) { DrawSequence(c, sequence, held_out); }};
 }
 
 }  // namespace mjsysid::report

@@ -24,7 +24,9 @@ Figure CostFigure(const io::FitResultFile& result);
 // one panel per parameter: value over the iterations, final value with its 95% interval, truth
 Figure ParametersFigure(const io::FitResultFile& result);
 
-// one panel per sensor column: measured, simulated with the initial and the fitted parameters
-Figure SequenceFigure(const SequenceResult& sequence);
+// one panel per sensor column: measured, simulated with the initial and the fitted parameters,
+// each panel labelled with its % fit at both (sysid/metrics.h); held_out: a `validation:`
+// sequence, its header starting "validation (not fitted)"
+Figure SequenceFigure(const SequenceResult& sequence, bool held_out = false);
 
 }  // namespace mjsysid::report

@@ -35,27 +35,29 @@ void WriteFile(const std::string& path, const std::string& bytes) {
 
 }  // namespace
 
-std::string SequenceFileName(const std::string& sequence_name) {
+std::string SequenceFileName(const std::string& sequence_name, const std::string& prefix) {
   std::string name;
   for (const char ch : sequence_name) {
     const auto c = static_cast<unsigned char>(ch);
     name += std::isalnum(c) || c == '_' || c == '.' || c == '-' ? ch : '_';
   }
-  return "seq_" + name + ".png";
+  return prefix + name + ".png";
 }
 
 std::string CostPng(const FitResultFile& result) { return Png(CostFigure(result)); }
 
 std::string ParametersPng(const FitResultFile& result) { return Png(ParametersFigure(result)); }
 
-std::string SequencePng(const FitResultFile&, const SequenceResult& sequence) {
-  return Png(SequenceFigure(sequence));
+std::string SequencePng(const FitResultFile&, const SequenceResult& sequence, bool held_out) {
+  return Png(SequenceFigure(sequence, held_out));
 }
 
 std::string ReportHtml(const FitResultFile& result) {
-  std::vector<std::string> pngs;
+  std::vector<std::string> pngs, held_out;
   for (const SequenceResult& s : result.sequences) pngs.push_back(SequencePng(result, s));
-  return Page(result, pngs);
+  for (const SequenceResult& s : result.validation)
+    held_out.push_back(SequencePng(result, s, true));
+  return Page(result, pngs, held_out);
 }
 
 int WriteReport(const FitResultFile& result, const std::string& dir, std::string* summary) {
@@ -70,19 +72,24 @@ int WriteReport(const FitResultFile& result, const std::string& dir, std::string
   written.push_back("cost.png");
   WriteFile((d / "parameters.png").string(), ParametersPng(result));
   written.push_back("parameters.png");
-  std::vector<std::string> pngs;
+  // the fitted sequences (seq_*.png), then the held-out ones (val_*.png)
+  std::vector<std::string> pngs, held_out_pngs;
   std::set<std::string> names;
-  for (const SequenceResult& s : result.sequences) {
-    // two names that sanitize alike: _2, _3, ...
-    std::string file = SequenceFileName(s.name);
-    for (int k = 2; !names.insert(file).second; ++k) {
-      file = SequenceFileName(s.name + "_" + std::to_string(k));
+  for (const bool held_out : {false, true}) {
+    const char* prefix = held_out ? "val_" : "seq_";
+    for (const SequenceResult& s : held_out ? result.validation : result.sequences) {
+      // two names that sanitize alike: _2, _3, ...
+      std::string file = SequenceFileName(s.name, prefix);
+      for (int k = 2; !names.insert(file).second; ++k) {
+        file = SequenceFileName(s.name + "_" + std::to_string(k), prefix);
+      }
+      std::vector<std::string>& into = held_out ? held_out_pngs : pngs;
+      into.push_back(SequencePng(result, s, held_out));
+      WriteFile((d / file).string(), into.back());
+      written.push_back(file);
     }
-    pngs.push_back(SequencePng(result, s));
-    WriteFile((d / file).string(), pngs.back());
-    written.push_back(file);
   }
-  WriteFile((d / "report.html").string(), Page(result, pngs));
+  WriteFile((d / "report.html").string(), Page(result, pngs, held_out_pngs));
   written.insert(written.begin(), "report.html");
 
   if (summary != nullptr) {

@@ -8,7 +8,10 @@
 //                    interval as an error bar, truth as a dashed line when known
 //   seq_<name>.png   per sequence, one panel per fitted sensor column vs time: measured (grey),
 //                    simulated with the initial parameters (blue, dashed), with the fitted ones
-//                    (red). <name> keeps [A-Za-z0-9_.-] of the sequence name, '_' for the rest.
+//                    (red), each panel labelled with its % fit at both. <name> keeps
+//                    [A-Za-z0-9_.-] of the sequence name, '_' for the rest.
+//   val_<name>.png   the same for each held-out sequence (experiment `validation:`), headed
+//                    "validation (not fitted)"
 // Lines of more than 2000 points are decimated (min and max per bucket, peaks kept). The plots are
 // drawn with cairo (tools/report/canvas.h), their text in DejaVu Sans.
 #pragma once
@@ -40,8 +43,9 @@ int WriteReport(const io::FitResultFile& result, const std::string& dir, std::st
 std::string ReportHtml(const io::FitResultFile& result);  // the page, PNGs embedded
 std::string CostPng(const io::FitResultFile& result);
 std::string ParametersPng(const io::FitResultFile& result);
-std::string SequencePng(const io::FitResultFile& result, const SequenceResult& sequence);
-// "seq_<name>.png", sanitized as above
-std::string SequenceFileName(const std::string& sequence_name);
+std::string SequencePng(const io::FitResultFile& result, const SequenceResult& sequence,
+                        bool held_out = false);
+// "<prefix><name>.png" (prefix "seq_", or "val_" for held-out sequences), sanitized as above
+std::string SequenceFileName(const std::string& sequence_name, const std::string& prefix = "seq_");
 
 }  // namespace mjsysid::report

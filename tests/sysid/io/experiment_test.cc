@@ -1005,5 +1005,39 @@ parameters:
   }
 }
 
+// `validation:`: held-out sequences spelled like `sequences:` entries, never also fitted
+TEST_F(ExperimentTest, ValidationSequences) {
+  const ExperimentConfig c = LoadExperiment(Write("val.yaml", R"(models:
+  - {name: nominal, path: a.xml}
+  - {name: payload, path: b.xml}
+sequences: [payload/seq0, seq1]
+validation: [payload/seq2, seq3]
+parameters:
+  - {name: m, target: body_mass, object: bob, initial: 1}
+)"));
+  ASSERT_EQ(c.validation.size(), 2u);
+  EXPECT_EQ(c.validation[0].model, "payload");
+  EXPECT_EQ(c.validation[0].name, "seq2");
+  EXPECT_EQ(c.validation[1].model, "");
+  EXPECT_EQ(c.validation[1].name, "seq3");
+  EXPECT_EQ(c.validation[1].mark.line, 5);
+  EXPECT_TRUE(LoadExperiment(Write("none.yaml", kPendulum)).validation.empty());
+
+  // a sequence both fitted and held out, a duplicate, an unknown model
+  ExpectError(std::string(kPendulum) + "sequences: [seq0, seq1]\nvalidation: [seq2, seq1]\n", 5, 20,
+              "validation: sequence 'seq1' is also fitted (`sequences:` at line 4)",
+              "remove it from one of the lists");
+  ExpectError(std::string(kPendulum) + "validation: [seq2, seq2]\n", 4, 20,
+              "duplicate sequence 'seq2'");
+  ExpectError(R"(models:
+  - {name: nominal, path: a.xml}
+  - {name: payload, path: b.xml}
+validation: [heavy/seq0]
+parameters:
+  - {name: m, target: body_mass, object: bob, initial: 1}
+)",
+              4, 14, "validation[0]: unknown model 'heavy'", "valid models: nominal, payload");
+}
+
 }  // namespace
 }  // namespace mjsysid::io

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <hdf5.h>
 #include <unistd.h>
+#include <yaml-cpp/yaml.h>
 
 #include <algorithm>
 #include <cmath>
@@ -15,6 +16,8 @@
 #include <string>
 #include <utility>
 #include <vector>
+
+#include "sysid/metrics.h"
 
 namespace mjsysid::io {
 namespace {
@@ -187,6 +190,33 @@ FitResultFile FullResult() {
   r.sequences = {Sequence("seq0", {"angle", "accel"}, {1, 3}, 25, 1),
                  Sequence("pendulum_seq1", {"rate"}, {1}, 4, 5),
                  Sequence("a", {"angle"}, {1}, 1, 11)};
+  // held-out sequences (under /validation in result.h5)
+  r.validation = {Sequence("val0", {"angle", "accel"}, {1, 3}, 7, 21)};
+  // the metrics as the runner fills them (the reader recomputes them from the signals)
+  for (std::vector<SequenceResult>* list : {&r.sequences, &r.validation}) {
+    for (SequenceResult& s : *list) s.channel_fits = ChannelFits(s);
+  }
+  return r;
+}
+
+// FullResult with a multi-start block: three starts, one failed (cost .inf), the best the second
+// (not in FullResult: its keys repeat final_cost, which the edit-the-text tests expect once)
+FitResultFile MultiStartResult() {
+  FitResultFile r = FullResult();
+  for (int k = 0; k < 3; ++k) {
+    StartResult st;
+    st.start = Eigen::Vector3d(0.1 * (k + 1), 1.0 / 3.0, 1.0 + k);
+    if (k != 2) st.estimate = Eigen::Vector3d(0.1 + 1e-17 * k, 0.0501, 1.2 + 0.1 * k);
+    st.initial_cost = k == 2 ? kInf : 10.0 / (k + 1);
+    st.final_cost = k == 2 ? kInf : 0.1 + 0.2 * k;
+    st.status = k == 0 ? FitStatus::kModelMismatch : FitStatus::kConverged;
+    st.iterations = 7 * k;
+    if (k == 2) st.error = "simulation failed: 'bad qacc' at t = 0.5 s";
+    r.starts.push_back(st);
+  }
+  r.best_start = 1;
+  r.start_spread = {
+      {"damping", 0.1, 0.1, 0}, {"friction", 0.0501, 0.0501, 0}, {"bob_mass", 1.2, 1.3, 0.1 / 1.3}};
   return r;
 }
 
@@ -253,13 +283,55 @@ void ExpectSame(const FitResultFile& a, const FitResultFile& b) {
     EXPECT_EQ(a.trace[i].parameters, b.trace[i].parameters);
   }
 
+  // multi-start
+  ASSERT_EQ(a.starts.size(), b.starts.size());
+  EXPECT_EQ(a.best_start, b.best_start);
+  for (size_t k = 0; k < a.starts.size(); ++k) {
+    const StartResult& s = a.starts[k];
+    const StartResult& t = b.starts[k];
+    EXPECT_EQ(s.start, t.start) << k;
+    EXPECT_EQ(s.estimate, t.estimate) << k;
+    EXPECT_EQ(s.initial_cost, t.initial_cost) << k;
+    EXPECT_EQ(s.final_cost, t.final_cost) << k;
+    EXPECT_EQ(s.status, t.status) << k;
+    EXPECT_EQ(s.iterations, t.iterations) << k;
+    EXPECT_EQ(s.error, t.error) << k;
+  }
+  ASSERT_EQ(a.start_spread.size(), b.start_spread.size());
+  for (size_t j = 0; j < a.start_spread.size(); ++j) {
+    EXPECT_EQ(a.start_spread[j].name, b.start_spread[j].name);
+    EXPECT_EQ(a.start_spread[j].min, b.start_spread[j].min);
+    EXPECT_EQ(a.start_spread[j].max, b.start_spread[j].max);
+    EXPECT_EQ(a.start_spread[j].relative, b.start_spread[j].relative);
+  }
+
   // arrays
   ExpectSame(a.uncertainty.covariance, b.uncertainty.covariance, "covariance");
   ExpectSame(a.jacobian, b.jacobian, "jacobian");
   ASSERT_EQ(a.sequences.size(), b.sequences.size());
-  for (size_t i = 0; i < a.sequences.size(); ++i) {
-    const SequenceResult& s = a.sequences[i];
-    const SequenceResult& t = b.sequences[i];
+  ASSERT_EQ(a.validation.size(), b.validation.size());
+  std::vector<std::pair<const SequenceResult*, const SequenceResult*>> pairs;
+  for (size_t i = 0; i < a.sequences.size(); ++i)
+    pairs.push_back({&a.sequences[i], &b.sequences[i]});
+  for (size_t i = 0; i < a.validation.size(); ++i) {
+    pairs.push_back({&a.validation[i], &b.validation[i]});
+  }
+  for (const auto& [sa, sb] : pairs) {
+    const SequenceResult& s = *sa;
+    const SequenceResult& t = *sb;
+    // the per-channel metrics (NaN for a constant column compares as NaN)
+    ASSERT_EQ(s.channel_fits.size(), t.channel_fits.size()) << s.name;
+    for (size_t c = 0; c < s.channel_fits.size(); ++c) {
+      const ChannelFit& f = s.channel_fits[c];
+      const ChannelFit& g = t.channel_fits[c];
+      EXPECT_EQ(f.channel, g.channel);
+      for (const auto& [x, y] : {std::pair{f.fit_initial, g.fit_initial},
+                                 {f.fit_final, g.fit_final},
+                                 {f.nrmse_initial, g.nrmse_initial},
+                                 {f.nrmse_final, g.nrmse_final}}) {
+        EXPECT_TRUE(x == y || (std::isnan(x) && std::isnan(y))) << s.name << " " << f.channel;
+      }
+    }
     EXPECT_EQ(s.name, t.name);
     EXPECT_EQ(s.model, t.model);
     EXPECT_EQ(s.sensor_names, t.sensor_names);
@@ -279,6 +351,35 @@ TEST_F(ResultTest, RoundTripKeepsEveryFieldExactly) {
   WriteBoth(r);
   EXPECT_EQ(Files(), (std::vector<std::string>{"result.h5", "result.yaml"}));
   ExpectSame(ReadResult(Dir()), r);
+}
+
+TEST_F(ResultTest, RoundTripKeepsTheStartsOfAMultiStartFit) {
+  const FitResultFile r = MultiStartResult();
+  WriteBoth(r);
+  ExpectSame(ReadResult(Dir()), r);
+}
+
+TEST_F(ResultTest, FitMetricsAreWrittenPerSequenceAndChannel) {
+  // result.yaml lists the metrics of the fitted and the held-out sequences, each channel by name,
+  // with the values the runner computed (read back with yaml-cpp, at full precision)
+  const FitResultFile r = FullResult();
+  WriteBoth(r);
+  const YAML::Node root = YAML::LoadFile(Dir() + "/result.yaml");
+  const YAML::Node m = root["fit_metrics"];
+  ASSERT_TRUE(m.IsSequence());
+  ASSERT_EQ(m.size(), 4u);  // seq0, pendulum_seq1, a, val0
+  EXPECT_EQ(m[0]["sequence"].as<std::string>(), "seq0");
+  EXPECT_EQ(m[0]["role"].as<std::string>(), "fit");
+  EXPECT_EQ(m[3]["sequence"].as<std::string>(), "val0");
+  EXPECT_EQ(m[3]["role"].as<std::string>(), "validation");
+  ASSERT_EQ(m[3]["channels"].size(), 4u);
+  EXPECT_EQ(m[3]["channels"][1]["channel"].as<std::string>(), "accel[0]");
+  EXPECT_EQ(m[3]["channels"][1]["fit_final"].as<double>(),
+            r.validation[0].channel_fits[1].fit_final);
+  EXPECT_EQ(m[3]["channels"][1]["nrmse_initial"].as<double>(),
+            r.validation[0].channel_fits[1].nrmse_initial);
+  // a one-sample sequence has a constant measured column: no fit (.nan)
+  EXPECT_EQ(m[2]["channels"][0]["fit_final"].as<std::string>(), ".nan");
 }
 
 TEST_F(ResultTest, RoundTripOfAnEmptyishResultAndOddText) {

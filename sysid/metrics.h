@@ -1,0 +1,39 @@
+// How well a simulation reproduces measured data, per channel (one sensor column), as MATLAB's
+// System Identification Toolbox `compare` reports it:
+//
+//   NRMSE = |y - yhat| / |y - mean(y)| = RMS(yhat - y) / std(y)   (std: population, 1/T)
+//   % fit = 100 (1 - NRMSE)
+//
+// y the measured column (T samples), yhat the simulated one. 100 % is a perfect match, 0 % is no
+// better than the constant mean(y), negative is worse than it. A measured column with no variation
+// (std(y) = 0) has no fit to speak of: NaN for both. No Ceres, no MuJoCo: Eigen only.
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "sysid/types.h"
+
+namespace mjsysid {
+
+// NRMSE of simulated against measured (both length T >= 1); NaN when measured is constant or the
+// lengths differ
+double Nrmse(const Eigen::Ref<const Eigen::VectorXd>& measured,
+             const Eigen::Ref<const Eigen::VectorXd>& simulated);
+
+// % fit = 100 (1 - NRMSE)
+double FitPercent(double nrmse);
+
+// one ChannelFit per column of s.measured (sensor_names/sensor_dims name them): the initial and
+// the final simulation against the measured data
+std::vector<ChannelFit> ChannelFits(const SequenceResult& s);
+
+// the worst (lowest) and the median of the final % fit of a sequence's channels, NaN channels left
+// out (NaN when none is left); initial = true: of the initial simulation
+struct FitSummary {
+  double worst = 0, median = 0;
+};
+FitSummary SummarizeFits(const std::vector<ChannelFit>& fits, bool initial);
+
+}  // namespace mjsysid
