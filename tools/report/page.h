@@ -4,7 +4,8 @@
 // Sections, in order: header (name, status badge, termination), facts (experiment, costs,
 // iterations, wall time, versions, identified models), solver settings, parameters (table;
 // unidentifiable rows highlighted; the unidentifiable combinations listed), warnings, cost,
-// parameters over the iterations, sequences. Every text from the result is HTML-escaped.
+// parameters over the iterations, sequences, motion (when
+// given: an animated WebP data URI). Every text from the result is HTML-escaped.
 #pragma once
 
 #include <string>
@@ -14,7 +15,14 @@
 
 namespace mjsysid::report {
 
-// the page; sequence_pngs[i] is the PNG of result.sequences[i]
-std::string Page(const io::FitResultFile& result, const std::vector<std::string>& sequence_pngs);
+// text for html: & < > " ' escaped
+std::string HtmlEscape(const std::string& s);
+// standard base64 with padding (RFC 4648), for data URIs
+std::string Base64(const std::string& bytes);
+
+// the page; sequence_pngs[i] is the PNG of result.sequences[i]; motion_html (MotionHtml,
+// tools/report/motion.h) goes after the sequences
+std::string Page(const io::FitResultFile& result, const std::vector<std::string>& sequence_pngs,
+                 const std::string& motion_html = "");
 
 }  // namespace mjsysid::report
