@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
@@ -68,6 +69,9 @@ TEST(RenderTest, PendulumFramesAreNonblankDifferAndRepeat) {
   Eigen::VectorXd q0(1), q1(1);
   q0 << 0.0;
   q1 << 1.2;  // rad: the bob ~0.47 m to the side
+  RowMatrix both(2, 1);
+  both << q0, q1;
+  r->Frame(both);
   RgbImage a, b, a2;
   r->Render(q0, "", &a);
   r->Render(q1, "", &b);
@@ -76,13 +80,49 @@ TEST(RenderTest, PendulumFramesAreNonblankDifferAndRepeat) {
   EXPECT_EQ(a.width, 320);
   EXPECT_EQ(a.height, 240);
   ASSERT_EQ(a.rgb.size(), 320u * 240 * 3);
-  // the rod and the bob: a few hundred pixels of the 76800 (measured 320 hanging, 477 at 1.2 rad)
+  // the rod and the bob: a few hundred pixels of the 76800 (measured 525 hanging, 774 at 1.2 rad)
   EXPECT_GT(Foreground(a), 200);
   EXPECT_LT(Foreground(a), 320 * 240 / 4);
   // another angle moves them
-  EXPECT_GT(Changed(a, b), 200);  // measured 743
+  EXPECT_GT(Changed(a, b), 200);  // measured 1214
   // the same state gives the same pixels
   EXPECT_EQ(a.rgb, a2.rgb);
+}
+
+TEST(RenderTest, FrameKeepsTheMotionInView) {
+  // the pendulum swung to +-1.5 rad (the bob ~0.5 m to either side): after Frame no drawn pixel
+  // touches the image border, and the swing spans more of the width than with MuJoCo's default
+  // camera
+  ModelPtr m = Pendulum();
+  auto r = Renderer(*m, 320, 240);
+  ASSERT_NE(r, nullptr);
+  RowMatrix swing(3, 1);
+  swing << -1.5, 0.0, 1.5;
+  auto span = [&](int* touching) {
+    int x_lo = 320, x_hi = -1;
+    *touching = 0;
+    for (int k = 0; k < 3; ++k) {
+      RgbImage im;
+      r->Render(swing.row(k).transpose(), "", &im);
+      for (int y = 0; y < 240; ++y) {
+        for (int x = 0; x < 320; ++x) {
+          const size_t i = (static_cast<size_t>(y) * 320 + x) * 3;
+          if (std::abs(im.rgb[i] - im.rgb[0]) <= 30) continue;
+          x_lo = std::min(x_lo, x);
+          x_hi = std::max(x_hi, x);
+          *touching += x == 0 || y == 0 || x == 319 || y == 239;
+        }
+      }
+    }
+    return x_hi - x_lo;
+  };
+  int touching = 0;
+  const int default_span = span(&touching);
+  r->Frame(swing);
+  const int framed_span = span(&touching);
+  EXPECT_EQ(touching, 0);
+  EXPECT_GT(framed_span, default_span);  // measured 157 vs 125 pixels
+  EXPECT_THROW(r->Frame(RowMatrix::Zero(2, 3)), std::invalid_argument);
 }
 
 TEST(RenderTest, TheLabelIsDrawn) {

@@ -279,7 +279,7 @@ class ReportBrowserTest : public ::testing::Test {
   // only the clip at the top-left is screenshotted as soon as it has loaded, and once more with
   // its load held back ~2 s (HoldServer); each half must be drawn in both shots (the rod, the bob
   // and the label: more than 200 pixels) and must have changed (more than 100 pixels; measured on
-  // the pendulum, three runs: 645-687 drawn, 546-566 changed; a still image: 0 changed). Otherwise
+  // the pendulum, two runs: 987-1047 drawn, 1131-1174 changed; a still image: 0 changed). Otherwise
   // the problems, "FAIL ...".
   static std::string MotionVerdict(const std::string& img, const std::string& name) {
     HoldServer server(std::chrono::milliseconds(2000));

@@ -129,6 +129,12 @@ MotionResult MakeMotion(const io::FitResultFile& r, const MotionOptions& o) {
   }
   out.gl_renderer = renderer->gl_renderer();
   const int frames = steps / stride + 1;
+  // the camera frames both simulations over the whole clip
+  RowMatrix shown(2 * frames, m.nq);
+  for (int f = 0; f < frames; ++f) {
+    shown.row(2 * f) = initial_run.states.row(f * stride).head(m.nq);
+    shown.row(2 * f + 1) = fitted_run.states.row(f * stride).head(m.nq);
+  }
   Progress(o, "rendering motion of sequence " + seq->name + ": " + std::to_string(frames) +
                   " frames, initial and fitted, " + std::to_string(o.width) + "x" +
                   std::to_string(o.height) + " each (" + out.gl_renderer + ")");
@@ -136,6 +142,7 @@ MotionResult MakeMotion(const io::FitResultFile& r, const MotionOptions& o) {
   RgbImage left, right;
   const int nq = m.nq;
   try {
+    renderer->Frame(shown);
     for (int f = 0; f < frames; ++f) {
       const int k = f * stride;
       renderer->Render(initial_run.states.row(k).head(nq).transpose(), "initial", &left);

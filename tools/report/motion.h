@@ -12,7 +12,8 @@
 //
 // Clip: the first `max_seconds` of the sequence, one frame every round(1 / (fps * timestep))
 // simulation steps; each frame width x height per simulation, left "initial", right "fitted",
-// from a fixed free camera framing the model.
+// from one fixed free camera that keeps both simulations' moving bodies in view over the whole clip
+// (OffscreenRenderer::Frame).
 //
 // Never an error: when the experiment or its logs cannot be read, a simulation fails, or no
 // OpenGL context can be made, the section says so (MotionResult::note) and the report goes on.

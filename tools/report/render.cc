@@ -4,6 +4,7 @@
 #include <GL/osmesa.h>
 
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -62,6 +63,9 @@ std::unique_ptr<OffscreenRenderer> OffscreenRenderer::Create(const mjModel& m, i
   g.model = CopyModel(m);
   g.model->vis.global.offwidth = std::max(g.model->vis.global.offwidth, width);
   g.model->vis.global.offheight = std::max(g.model->vis.global.offheight, height);
+  // a 1024 shadow map instead of MuJoCo's 4096: the clip is 320x240, and the software rasterizer
+  // spends most of a frame on the map otherwise
+  g.model->vis.quality.shadowsize = std::min(g.model->vis.quality.shadowsize, 1024);
   // a brighter headlight than MuJoCo's default (ambient 0.1, diffuse 0.4): most models have no
   // lights of their own, and the clip is small
   for (int i = 0; i < 3; ++i) {
@@ -79,7 +83,6 @@ std::unique_ptr<OffscreenRenderer> OffscreenRenderer::Create(const mjModel& m, i
       mjv_makeScene(model, &g.scene, 2000);
       g.scene_made = true;
       mjv_defaultFreeCamera(model, &g.camera);
-      g.camera.distance *= 0.8;  // MuJoCo's default (1.5 extents) leaves much empty space
       mjr_makeContext(model, &g.con, mjFONTSCALE_100);
       g.con_made = true;
       mjr_setBuffer(mjFB_OFFSCREEN, &g.con);
@@ -101,6 +104,39 @@ void OffscreenRenderer::MakeCurrent() {
   if (!OSMesaMakeCurrent(gl_->context, gl_->window.data(), GL_UNSIGNED_BYTE, width_, height_)) {
     throw MujocoError("OSMesa could not make its OpenGL context current");
   }
+}
+
+void OffscreenRenderer::Frame(const Eigen::Ref<const RowMatrix>& qpos) {
+  Gl& g = *gl_;
+  const mjModel* m = g.model.get();
+  if (qpos.cols() != m->nq) {
+    throw std::invalid_argument("Frame: qpos has " + std::to_string(qpos.cols()) +
+                                " columns, the model nq = " + std::to_string(m->nq));
+  }
+  // the bounding box of the moving geoms' bounding spheres over the configurations
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(mjMAXVAL), hi = -lo;
+  mjData* d = g.data.get();
+  for (Eigen::Index k = 0; k < qpos.rows(); ++k) {
+    const double* q = qpos.row(k).data();
+    CallMujoco([&] {
+      mju_copy(d->qpos, q, m->nq);
+      mj_kinematics(m, d);
+    });
+    for (int i = 0; i < m->ngeom; ++i) {
+      if (m->geom_bodyid[i] == 0 || m->geom_type[i] == mjGEOM_PLANE) continue;
+      const Eigen::Vector3d c(d->geom_xpos + 3 * i);
+      const Eigen::Vector3d r = Eigen::Vector3d::Constant(m->geom_rbound[i]);
+      lo = lo.cwiseMin(c - r);
+      hi = hi.cwiseMax(c + r);
+    }
+  }
+  if (!(lo.array() <= hi.array()).all()) return;  // no moving geoms: MuJoCo's default stays
+  // the camera: at the box's center, its sphere in the vertical field of view
+  const Eigen::Vector3d center = (lo + hi) / 2;
+  const double radius = std::max((hi - lo).norm() / 2, 1e-3);
+  const double half_fovy = m->vis.global.fovy * mjPI / 360;
+  for (int i = 0; i < 3; ++i) g.camera.lookat[i] = center[i];
+  g.camera.distance = radius / std::sin(half_fovy) * 1.1;
 }
 
 void OffscreenRenderer::Render(const Eigen::Ref<const Eigen::VectorXd>& qpos,

@@ -9,9 +9,11 @@
 //   process). When no context can be made it returns nullptr and says why: never an error, the
 //   caller reports the reason.
 // - Render draws the model at one configuration (qpos: nq values; qvel and act zero, mj_forward)
-//   from a fixed free camera that frames the whole model (mjv_defaultFreeCamera: the model's
-//   center and extent), with an optional label in the top-left corner (MuJoCo's font), into an
-//   RGB image: width*height*3 bytes, row-major, top row first. Equal inputs give equal pixels.
+//   from a fixed free camera: at first MuJoCo's default (mjv_defaultFreeCamera: the model's
+//   center and extent at qpos0); after Frame, looking at the center of the moving bodies' geoms
+//   over the given configurations from far enough that they stay in view. An optional label in the
+//   top-left corner (MuJoCo's font), into an RGB image: width*height*3 bytes, row-major, top row
+//   first. Equal inputs give equal pixels.
 // - One renderer per thread at a time: each call makes its context current on the calling thread.
 // - Failure: a MuJoCo error in the renderer is a MujocoError (core/mujoco_env.h); bad shapes are
 //   std::invalid_argument.
@@ -24,6 +26,8 @@
 #include <memory>
 #include <string>
 #include <vector>
+
+#include "core/state.h"
 
 namespace mjsysid::report {
 
@@ -46,6 +50,12 @@ class OffscreenRenderer {
   int height() const { return height_; }
   // the OpenGL renderer string of the context (e.g. "llvmpipe (LLVM 15.0.6, 256 bits)")
   const std::string& gl_renderer() const { return gl_renderer_; }
+
+  // points the camera at the geoms of the moving bodies (body > 0; planes excepted) over the
+  // configurations in the rows of qpos (k x nq): lookat = the center of their bounding box,
+  // distance = its half-diagonal / sin(fovy / 2) * 1.1 (the box's sphere fits in the vertical
+  // field of view); azimuth and elevation stay MuJoCo's defaults
+  void Frame(const Eigen::Ref<const RowMatrix>& qpos);
 
   // draws the model at qpos (nq) into *out (resized to width x height)
   void Render(const Eigen::Ref<const Eigen::VectorXd>& qpos, const std::string& label,
