@@ -700,6 +700,7 @@ Command AddFit(CLI::App* app) {
 
 struct ReportArgs {
   std::string dir;
+  bool no_video = false;
 };
 
 int RunReport(const ReportArgs& args) {
@@ -717,14 +718,19 @@ int RunReport(const ReportArgs& args) {
                      "output folder)");
   }
   const fs::path dir(args.dir);
-  for (const char* page : {"report.html", "cost.png", "parameters.png"}) {
+  for (const char* page : {"report.html", "cost.png", "parameters.png", "motion.webp"}) {
     mjsysid::run::CheckOutputFile((dir / page).string(),
                                   {(dir / "result.yaml").string(), (dir / "result.h5").string()},
                                   "report");
   }
   std::string summary;
   try {
-    mjsysid::report::WriteReport(args.dir, &summary);
+    mjsysid::report::ReportOptions options;
+    options.motion.enabled = !args.no_video;
+    options.motion.progress = [](const std::string& line) {
+      std::fprintf(stderr, "%s\n", line.c_str());
+    };
+    mjsysid::report::WriteReport(args.dir, options, &summary);
   } catch (const mjsysid::io::ResultError& e) {
     throw InputError(e.what());
   }
@@ -738,8 +744,13 @@ Command AddReport(CLI::App* app) {
       "report", "Plot a fit's results: measured vs simulated signals, parameters, cost trace");
   sub->add_option("dir", args->dir, "output folder of `sysid fit` (result.yaml, result.h5)")
       ->required();
+  sub->add_flag("--no-video", args->no_video,
+                "no motion clip (by default the first sequence is re-simulated at the initial "
+                "and the fitted values and rendered offscreen, side by side)");
   sub->footer(std::string("Writes DIR/report.html (self-contained: no network), DIR/cost.png, "
-                          "DIR/parameters.png and DIR/seq_<name>.png.\n") +
+                          "DIR/parameters.png, DIR/seq_<name>.png and DIR/motion.webp (the "
+                          "initial and fitted simulation, animated; needs the experiment file "
+                          "and its logs, and OSMesa; without them the page says why).\n") +
               kExitCodesFooter);
   return {sub, [args] { return RunReport(*args); }};
 }

@@ -6,14 +6,26 @@
 //   (naturalWidth > 0), every inline <svg> has a non-empty box and every id on the page is
 //   unique with every glyph reference resolved, and writes its verdict into the DOM.
 // - The page itself is rendered with --screenshot, which must not be blank.
-// - Broken copies (a corrupt image, an emptied plot) must get a failing verdict.
+// - The motion clip (an animated WebP <img>) is screenshotted twice, once as soon as the page has
+//   loaded and once ~2 s later (a page whose load a local server holds open for 2 s): both halves,
+//   initial and fitted, must be drawn and must have moved. Chromium animates images on its
+//   compositor in real time only: under --virtual-time-budget, and in a canvas drawImage, an
+//   animated image stays at its first frame (measured with Chromium 156), hence two real-time
+//   screenshots.
+// - Broken copies (a corrupt image, an emptied plot, a still image as the clip) must fail.
 // Chromium is required: without it the test fails (tools/bootstrap.sh installs it). Each
 // Chromium run is killed with its helper processes after 60 s.
+#include <arpa/inet.h>
 #include <cairo.h>
 #include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <cstdlib>
 #include <filesystem>
@@ -21,6 +33,7 @@
 #include <iterator>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "tests/file_util.h"
@@ -49,6 +62,86 @@ std::string FindProgram(const std::string& name) {
   return "";
 }
 
+// A local TCP server that holds every connection it accepts for `hold` and then closes it: an
+// <img> pointing at it keeps back the load event of a page (and so Chromium's --screenshot) for
+// that long in real time.
+class HoldServer {
+ public:
+  explicit HoldServer(std::chrono::milliseconds hold) : hold_(hold) {
+    fd_ = ::socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    socklen_t len = sizeof(a);
+    if (fd_ < 0 || ::bind(fd_, reinterpret_cast<sockaddr*>(&a), sizeof(a)) != 0 ||
+        ::listen(fd_, 8) != 0 || ::getsockname(fd_, reinterpret_cast<sockaddr*>(&a), &len) != 0) {
+      ADD_FAILURE() << "no local server socket";
+      return;
+    }
+    port_ = ntohs(a.sin_port);
+    thread_ = std::thread([this] { Serve(); });
+  }
+  ~HoldServer() {
+    stop_ = true;
+    if (thread_.joinable()) thread_.join();
+    if (fd_ >= 0) ::close(fd_);
+  }
+  int port() const { return port_; }
+
+ private:
+  // accept, hold, close; checks `stop_` every 50 ms
+  void Serve() {
+    while (!stop_) {
+      pollfd p{fd_, POLLIN, 0};
+      if (::poll(&p, 1, 50) <= 0) continue;
+      const int c = ::accept(fd_, nullptr, nullptr);
+      if (c < 0) continue;
+      const auto until = std::chrono::steady_clock::now() + hold_;
+      while (!stop_ && std::chrono::steady_clock::now() < until) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      }
+      ::close(c);
+    }
+  }
+  std::chrono::milliseconds hold_;
+  int fd_ = -1, port_ = 0;
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
+// the pixels of a w x h region at (x, y) of a screenshot that differ from the region's
+// bottom-right pixel (the background) by more than 30 in some channel; and those that differ by
+// as much between two screenshots
+struct RegionCount {
+  size_t foreground_a = 0, foreground_b = 0, changed = 0;
+};
+RegionCount CountRegion(cairo_surface_t* a, cairo_surface_t* b, int x0, int y0, int w, int h) {
+  auto pixel = [](cairo_surface_t* s, int x, int y) {
+    const unsigned char* row =
+        cairo_image_surface_get_data(s) + y * cairo_image_surface_get_stride(s);
+    return reinterpret_cast<const uint32_t*>(row)[x];
+  };
+  auto differ = [](uint32_t p, uint32_t q) {
+    for (int shift = 0; shift <= 16; shift += 8) {
+      if (std::abs(static_cast<int>((p >> shift) & 0xFF) - static_cast<int>((q >> shift) & 0xFF)) >
+          30) {
+        return true;
+      }
+    }
+    return false;
+  };
+  RegionCount n;
+  const uint32_t bg_a = pixel(a, x0 + w - 1, y0 + h - 1), bg_b = pixel(b, x0 + w - 1, y0 + h - 1);
+  for (int y = y0; y < y0 + h; ++y) {
+    for (int x = x0; x < x0 + w; ++x) {
+      n.foreground_a += differ(pixel(a, x, y), bg_a);
+      n.foreground_b += differ(pixel(b, x, y), bg_b);
+      n.changed += differ(pixel(a, x, y), pixel(b, x, y));
+    }
+  }
+  return n;
+}
+
 // the script appended to a copy of the page: its verdict, "OK ..." or "FAIL <problems>", goes
 // into <pre id="verdict"> once the page has loaded
 constexpr char kCheckScript[] = R"js(
@@ -60,7 +153,7 @@ window.addEventListener('load', () => {
 
   // every section, laid out
   const sections = ['Solver settings', 'Parameters', 'Warnings', 'Cost',
-                    'Parameters over the iterations', 'Sequences'];
+                    'Parameters over the iterations', 'Sequences', 'Motion'];
   const headings = [...document.querySelectorAll('h2')];
   for (const name of sections) {
     const h = headings.find((e) => e.textContent === name);
@@ -85,6 +178,11 @@ window.addEventListener('load', () => {
     if (svg.querySelectorAll('use').length === 0) problems.push('svg ' + i + ' has no text');
   }
 
+  // the motion clip: one image, decoded at its full size (two 320x240 views)
+  const clips = document.querySelectorAll('img.motion');
+  const motion = clips.length === 1 ? clips[0].naturalWidth + 'x' + clips[0].naturalHeight
+                                    : clips.length + ' clips';
+
   // ids unique on the page; every reference resolved
   const ids = new Set();
   for (const e of document.querySelectorAll('[id]')) {
@@ -98,7 +196,8 @@ window.addEventListener('load', () => {
 
   document.getElementById('verdict').textContent = problems.length
       ? 'FAIL ' + [...new Set(problems)].join('; ')
-      : 'OK sections=' + sections.length + ' images=' + images.length + ' svgs=' + svgs.length;
+      : 'OK sections=' + sections.length + ' images=' + images.length + ' svgs=' + svgs.length +
+        ' motion=' + motion;
 });
 </script>
 )js";
@@ -133,18 +232,20 @@ class ReportBrowserTest : public ::testing::Test {
   }
   static void TearDownTestSuite() { fs::remove_all(dir_); }
 
-  // runs headless Chromium on the file `html` with `options`; returns its standard output
-  static std::string Chromium(const std::string& html, const std::string& options) {
+  // runs headless Chromium on the file `html` with `options`; returns its standard output.
+  // virtual_time: up to 10 s of virtual time for the page's timers (no waiting in real time)
+  static std::string Chromium(const std::string& html, const std::string& options,
+                              bool virtual_time = true) {
     const std::string chromium = FindProgram("chromium");
     EXPECT_FALSE(chromium.empty()) << "chromium is not installed (tools/bootstrap.sh installs it)";
     if (chromium.empty()) return "";
     // timeout signals its whole process group: Chromium and its helpers
-    const std::string cmd = "timeout -s KILL 60 " + chromium +
-                            " --headless=new --no-sandbox --disable-gpu --disable-dev-shm-usage"
-                            " --no-first-run --user-data-dir=" +
-                            dir_ + "/chromium-profile --virtual-time-budget=10000 " + options +
-                            " file://" + html + " >" + dir_ + "/chromium.out 2>" + dir_ +
-                            "/chromium.err";
+    const std::string cmd =
+        "timeout -s KILL 60 " + chromium +
+        " --headless=new --no-sandbox --disable-gpu --disable-dev-shm-usage"
+        " --no-first-run --user-data-dir=" +
+        dir_ + "/chromium-profile " + (virtual_time ? "--virtual-time-budget=10000 " : "") +
+        options + " file://" + html + " >" + dir_ + "/chromium.out 2>" + dir_ + "/chromium.err";
     const int status = std::system(cmd.c_str());
     EXPECT_EQ(status, 0) << cmd << "\n" << Tail(ReadFile(dir_ + "/chromium.err"));
     return ReadFile(dir_ + "/chromium.out");
@@ -168,13 +269,81 @@ class ReportBrowserTest : public ::testing::Test {
 
   static std::string Page() { return ReadFile(dir_ + "/out/report.html"); }
 
+  // the motion clip's <img> tag of a page ("" when there is none)
+  static std::string MotionImg(const std::string& page) {
+    const size_t at = page.find("<img class=\"motion\"");
+    return at == std::string::npos ? "" : page.substr(at, page.find('>', at) + 1 - at);
+  }
+
+  // "OK" when the clip `img` (640x240: initial left, fitted right) moves in Chromium: a page with
+  // only the clip at the top-left is screenshotted as soon as it has loaded, and once more with
+  // its load held back ~2 s (HoldServer); each half must be drawn in both shots (the rod, the bob
+  // and the label: more than 200 pixels) and must have changed (more than 100 pixels; measured on
+  // the pendulum, two runs: 987-1047 drawn, 1131-1174 changed; a still image: 0 changed). Otherwise
+  // the problems, "FAIL ...".
+  static std::string MotionVerdict(const std::string& img, const std::string& name) {
+    HoldServer server(std::chrono::milliseconds(2000));
+    const std::string hold =
+        "<img alt=\"\" style=\"display:block;width:1px;height:1px\" src=\""
+        "http://127.0.0.1:" +
+        std::to_string(server.port()) + "/hold\">";
+    cairo_surface_t* shots[2];
+    for (int k = 0; k < 2; ++k) {
+      const std::string html = dir_ + "/" + name + std::to_string(k) + ".html";
+      const std::string png = dir_ + "/" + name + std::to_string(k) + ".png";
+      WriteFile(html, "<!DOCTYPE html><html><body style=\"margin:0;background:#fff\">" + img +
+                          (k == 1 ? hold : "") + "</body></html>");
+      fs::remove(png);
+      Chromium(html, "--window-size=700,300 --screenshot=" + png, /*virtual_time=*/false);
+      shots[k] = test::SurfaceFromPng(ReadFile(png));
+      if (cairo_surface_status(shots[k]) != CAIRO_STATUS_SUCCESS) return "FAIL no screenshot";
+    }
+    std::string problems;
+    const char* halves[2] = {"initial", "fitted"};
+    for (int h = 0; h < 2; ++h) {
+      const RegionCount n = CountRegion(shots[0], shots[1], 320 * h, 0, 320, 240);
+      if (n.foreground_a <= 200 || n.foreground_b <= 200) {
+        problems += std::string(" ") + halves[h] + " not drawn (" + std::to_string(n.foreground_a) +
+                    ", " + std::to_string(n.foreground_b) + ");";
+      }
+      if (n.changed <= 100) {
+        problems += std::string(" ") + halves[h] + " did not move (" + std::to_string(n.changed) +
+                    " pixels changed);";
+      }
+    }
+    for (cairo_surface_t* shot : shots) cairo_surface_destroy(shot);
+    return problems.empty() ? "OK" : "FAIL" + problems;
+  }
+
   static std::string dir_;
 };
 std::string ReportBrowserTest::dir_;
 
 TEST_F(ReportBrowserTest, EverySectionAndPlotRenders) {
-  // 6 sections, the 3 sequence PNGs, the cost and parameter SVGs
-  EXPECT_EQ(Verdict(Page(), "check.html"), "OK sections=6 images=3 svgs=2");
+  // 7 sections, the 3 sequence PNGs and the motion clip, the cost and parameter SVGs
+  EXPECT_EQ(Verdict(Page(), "check.html"), "OK sections=7 images=4 svgs=2 motion=640x240");
+}
+
+TEST_F(ReportBrowserTest, TheMotionClipPlays) {
+  const std::string img = MotionImg(Page());
+  ASSERT_FALSE(img.empty()) << "no motion clip on the page";
+  EXPECT_NE(img.find("src=\"data:image/webp;base64,"), std::string::npos) << img.substr(0, 200);
+  EXPECT_EQ(MotionVerdict(img, "motion"), "OK");
+}
+
+TEST_F(ReportBrowserTest, NoVideoSaysSo) {
+  // the same results reported again with --no-video: the section says so, no clip, no file
+  const std::string copy = dir_ + "/out_novideo";
+  fs::remove_all(copy);
+  fs::copy(dir_ + "/out", copy);
+  const std::string cmd = "timeout -s KILL 300 " + std::string(MJSYSID_SYSID_BIN) + " report " +
+                          copy + " --no-video >" + dir_ + "/sysid.txt 2>&1";
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd << "\n" << ReadFile(dir_ + "/sysid.txt");
+  const std::string page = ReadFile(copy + "/report.html");
+  EXPECT_EQ(MotionImg(page), "");
+  EXPECT_NE(page.find("no video: turned off (sysid report --no-video)"), std::string::npos);
+  EXPECT_FALSE(fs::exists(copy + "/motion.webp"));
+  EXPECT_EQ(Verdict(page, "check_novideo.html"), "OK sections=7 images=3 svgs=2 motion=0 clips");
 }
 
 TEST_F(ReportBrowserTest, TheScreenshotIsNotBlank) {
@@ -224,6 +393,18 @@ TEST_F(ReportBrowserTest, ABrokenPlotFailsTheCheck) {
   const std::string empty = Verdict(page, "empty_svg.html");
   EXPECT_EQ(empty.rfind("FAIL ", 0), 0u) << empty;
   EXPECT_NE(empty.find("svg 0 is empty"), std::string::npos) << empty;
+
+  // a still image in place of the clip: the first sequence plot, as large
+  page = Page();
+  std::string still = MotionImg(page);
+  const size_t src = still.find("src=\"");
+  ASSERT_NE(src, std::string::npos);
+  const size_t from = page.find(png);
+  still = still.substr(0, src) + "src=\"" + page.substr(from, page.find('"', from) - from) + "\">";
+  const std::string verdict_still = MotionVerdict(still, "still");
+  EXPECT_EQ(verdict_still.rfind("FAIL", 0), 0u) << verdict_still;
+  EXPECT_NE(verdict_still.find("initial did not move"), std::string::npos) << verdict_still;
+  EXPECT_NE(verdict_still.find("fitted did not move"), std::string::npos) << verdict_still;
 }
 
 }  // namespace

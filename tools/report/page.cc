@@ -15,10 +15,6 @@
 #include "tools/report/plots.h"
 
 namespace mjsysid::report {
-namespace {
-
-using io::FitResultFile;
-using mjsysid::ParameterEstimate;
 
 // text for html: & < > " ' escaped
 std::string HtmlEscape(const std::string& s) {
@@ -64,6 +60,11 @@ std::string Base64(const std::string& bytes) {
   }
   return out;
 }
+
+namespace {
+
+using io::FitResultFile;
+using mjsysid::ParameterEstimate;
 
 // the css class of a status badge
 std::string StatusClass(const std::string& status) {
@@ -230,7 +231,7 @@ void StartsSection(std::ostringstream& h, const FitResultFile& r) {
 }  // namespace
 
 std::string Page(const FitResultFile& r, const std::vector<std::string>& sequence_pngs,
-                 const std::vector<std::string>& validation_pngs) {
+                 const std::vector<std::string>& validation_pngs, const std::string& motion_html) {
   std::ostringstream h;
   const std::string name = r.name.empty() ? "(unnamed)" : r.name;
   h << "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
@@ -326,6 +327,8 @@ std::string Page(const FitResultFile& r, const std::vector<std::string>& sequenc
       << HtmlEscape(r.validation[i].name) << "\" src=\"data:image/png;base64,"
       << Base64(validation_pngs[i]) << "\">\n";
   }
+  // the motion section (tools/report/motion.h), when the caller made one
+  h << motion_html;
   h << "<p class=\"muted\">written by mjsysid from result.yaml and result.h5; the plots are also "
        "in this folder as cost.png, parameters.png, seq_*.png"
     << (r.validation.empty() ? "" : " and val_*.png") << "</p>\n</body>\n</html>\n";

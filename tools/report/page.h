@@ -7,7 +7,8 @@
 // only: every start's status, costs, start and estimate, and the spread), warnings, cost,
 // parameters over the iterations, fit quality (per sequence and channel: % fit and NRMSE at the
 // start and at the estimate, sysid/metrics.h; fitted and held-out sequences), sequences, validation
-// sequences (not fitted). Every text from the result is HTML-escaped.
+// sequences (not fitted), motion (when given: an animated WebP data URI). Every text from the
+// result is HTML-escaped.
 #pragma once
 
 #include <string>
@@ -17,9 +18,15 @@
 
 namespace mjsysid::report {
 
+// text for html: & < > " ' escaped
+std::string HtmlEscape(const std::string& s);
+// standard base64 with padding (RFC 4648), for data URIs
+std::string Base64(const std::string& bytes);
+
 // the page; sequence_pngs[i] is the PNG of result.sequences[i], validation_pngs[i] that of
-// result.validation[i]
+// result.validation[i]; motion_html (MotionHtml, tools/report/motion.h) goes after the sequences
 std::string Page(const io::FitResultFile& result, const std::vector<std::string>& sequence_pngs,
-                 const std::vector<std::string>& validation_pngs = {});
+                 const std::vector<std::string>& validation_pngs = {},
+                 const std::string& motion_html = "");
 
 }  // namespace mjsysid::report

@@ -60,7 +60,8 @@ std::string ReportHtml(const FitResultFile& result) {
   return Page(result, pngs, held_out);
 }
 
-int WriteReport(const FitResultFile& result, const std::string& dir, std::string* summary) {
+int WriteReport(const FitResultFile& result, const std::string& dir, const ReportOptions& options,
+                std::string* summary) {
   const auto start = std::chrono::steady_clock::now();
   std::error_code ec;
   if (!std::filesystem::is_directory(dir, ec)) throw ReportError(dir + ": no such directory");
@@ -89,7 +90,15 @@ int WriteReport(const FitResultFile& result, const std::string& dir, std::string
       written.push_back(file);
     }
   }
-  WriteFile((d / "report.html").string(), Page(result, pngs, held_out_pngs));
+  // the motion clip, also a file of its own
+  const MotionResult motion = MakeMotion(result, options.motion);
+  if (!motion.webp.empty()) {
+    WriteFile((d / "motion.webp").string(), motion.webp);
+    written.push_back("motion.webp");
+  } else {
+    std::filesystem::remove(d / "motion.webp", ec);  // a clip of an earlier report
+  }
+  WriteFile((d / "report.html").string(), Page(result, pngs, held_out_pngs, MotionHtml(motion)));
   written.insert(written.begin(), "report.html");
 
   if (summary != nullptr) {
@@ -110,6 +119,16 @@ int WriteReport(const FitResultFile& result, const std::string& dir, std::string
       << " in " << result.iterations << " iterations\n"
       << "  parameters  " << result.parameters.size();
     if (unidentifiable > 0) s << ", " << unidentifiable << " unidentifiable: " << unid_names;
+    s << "\n  motion      ";
+    if (motion.webp.empty()) {
+      s << "none: " << motion.note;
+    } else {
+      char line[160];
+      std::snprintf(line, sizeof(line), "%s: %d frames %dx%d at %.1f fps, %.2f s, %.0f KiB",
+                    motion.sequence.c_str(), motion.frames, motion.width, motion.height, motion.fps,
+                    motion.seconds, motion.webp.size() / 1024.0);
+      s << line;
+    }
     s << "\n  wrote       " << (d / "report.html").string();
     for (size_t i = 1; i < written.size(); ++i) s << (i == 1 ? " + " : ", ") << written[i];
     char buf[32];
@@ -120,8 +139,16 @@ int WriteReport(const FitResultFile& result, const std::string& dir, std::string
   return static_cast<int>(written.size());
 }
 
+int WriteReport(const FitResultFile& result, const std::string& dir, std::string* summary) {
+  return WriteReport(result, dir, ReportOptions(), summary);
+}
+
+int WriteReport(const std::string& dir, const ReportOptions& options, std::string* summary) {
+  return WriteReport(io::ReadResult(dir), dir, options, summary);
+}
+
 int WriteReport(const std::string& dir, std::string* summary) {
-  return WriteReport(io::ReadResult(dir), dir, summary);
+  return WriteReport(dir, ReportOptions(), summary);
 }
 
 }  // namespace mjsysid::report

@@ -12,6 +12,9 @@
 //                    [A-Za-z0-9_.-] of the sequence name, '_' for the rest.
 //   val_<name>.png   the same for each held-out sequence (experiment `validation:`), headed
 //                    "validation (not fitted)"
+//   motion.webp      the initial and fitted simulation of the first sequence side by side, an
+//                    animated WebP also embedded in the page (tools/report/motion.h); not written
+//                    when there is no clip (the page says why)
 // Lines of more than 2000 points are decimated (min and max per bucket, peaks kept). The plots are
 // drawn with cairo (tools/report/canvas.h), their text in DejaVu Sans.
 #pragma once
@@ -21,6 +24,7 @@
 #include <vector>
 
 #include "sysid/io/result.h"
+#include "tools/report/motion.h"
 
 namespace mjsysid::report {
 
@@ -30,17 +34,24 @@ class ReportError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+struct ReportOptions {
+  MotionOptions motion;  // the motion clip (motion.enabled = false: `--no-video`)
+};
+
 // Reads the results with io::ReadResult(dir) and writes the report files into dir. Returns the
 // number of files written; `summary` (optional) receives a few lines for the terminal ending in a
 // newline (name, status, parameters, the files). Throws io::ResultError when the results cannot
 // be read and ReportError when a file cannot be written.
 int WriteReport(const std::string& dir, std::string* summary);
+int WriteReport(const std::string& dir, const ReportOptions& options, std::string* summary);
 
 // the same for results already in memory (`result` as ReadResult would return it)
 int WriteReport(const io::FitResultFile& result, const std::string& dir, std::string* summary);
+int WriteReport(const io::FitResultFile& result, const std::string& dir,
+                const ReportOptions& options, std::string* summary);
 
 // the pieces, for tests and other front ends
-std::string ReportHtml(const io::FitResultFile& result);  // the page, PNGs embedded
+std::string ReportHtml(const io::FitResultFile& result);  // the page, PNGs embedded, no motion
 std::string CostPng(const io::FitResultFile& result);
 std::string ParametersPng(const io::FitResultFile& result);
 std::string SequencePng(const io::FitResultFile& result, const SequenceResult& sequence,
