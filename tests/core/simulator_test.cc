@@ -136,7 +136,8 @@ TEST_P(JacobianTest, ModesAgreeWithCentralWholeRolloutDifferences) {
   // the error through T steps; central differences are O(h^2) + roundoff O(eps/h) ~ 1e-10, so
   // 2e-6 is loose by the same margin. Contact scenes get 10x more: the solver's fixed iteration
   // count leaves a non-smooth residual in each step.
-  const bool contact = sim.model().ngeom > 1 && c.model == "box_floor.xml";
+  const bool contact =
+      sim.model().ngeom > 1 && (c.model == "box_floor.xml" || c.model == "box_pair.xml");
   for (JacobianMode mode : {JacobianMode::kDirectional, JacobianMode::kMatrix}) {
     for (bool central : {false, true}) {
       JacobianOptions opt;
@@ -208,6 +209,48 @@ const std::vector<JacobianCase> kCases = {
      0.7,
      "ball_pendulum",
      {}},
+    // robot-grade kinds: servo gains and the full inertia of the last link (log-Cholesky alpha,
+    // d2; its s and t variables are zero or near it, where the step floor 1e-3 makes h = 1e-9 m
+    // and the difference roundoff-bound: docs/numerics.md)
+    {"arm7.xml",
+     {Spec("actuator_kp", "s2"), Spec("actuator_kv", "s4"), Spec("body_inertial", "link7", 0),
+      Spec("body_inertial", "link7", 2)},
+     0.8,
+     0.0,
+     0.3,
+     "arm7_servo_inertial",
+     {}},
+    // a pid's three gains, a velocity servo, a tendon's four kinds, a full inertia's d1 and t1
+    // (its s variables are a few mm: the same step floor limit as above)
+    {"pid_tendon.xml",
+     {Spec("actuator_kp", "shoulder_pid"), Spec("actuator_ki", "shoulder_pid"),
+      Spec("actuator_kv", "shoulder_pid"), Spec("actuator_kv", "elbow_vel"),
+      Spec("tendon_stiffness", "coupling"), Spec("tendon_damping", "coupling"),
+      Spec("tendon_frictionloss", "coupling"), Spec("tendon_lengthspring", "coupling", 0),
+      Spec("body_inertial", "lower", 1), Spec("body_inertial", "lower", 7)},
+     1.0,
+     0.0,
+     0.4,
+     "pid_tendon",
+     {}},
+    // an explicit contact pair's friction and softness (the box settled on the floor first)
+    {"box_pair.xml",
+     {Spec("pair_friction", "box_floor", 0), Spec("pair_solref", "box_floor", 0),
+      Spec("pair_solimp", "box_floor", 0)},
+     5.0,
+     15.0,
+     0.0,
+     "box_pair",
+     1000},
+    // contact softness of a geom (the box settled on the floor first)
+    {"box_floor.xml",
+     {Spec("geom_solref", "box", 0), Spec("geom_solimp", "box", 0),
+      Spec("geom_friction", "box", 0)},
+     5.0,
+     15.0,
+     0.0,
+     "box_floor_softness",
+     1000},
 };
 
 INSTANTIATE_TEST_SUITE_P(Models, JacobianTest,
