@@ -124,6 +124,16 @@ bool WriteServo(mjsElement* element, const mjModel& m, int id, int, double) {
   return true;
 }
 
+// native delays: the element's delay (its history buffer, nsample and interp, stay as written)
+bool WriteActuatorDelay(mjsElement* element, const mjModel&, int, int, double value) {
+  mjs_asActuator(element)->delay = value;
+  return true;
+}
+bool WriteSensorDelay(mjsElement* element, const mjModel&, int, int, double value) {
+  mjs_asSensor(element)->delay = value;
+  return true;
+}
+
 // field: written by its array's row in core/field_mjcf.h (which reuses the writers above); the
 // kind alone has no attribute
 bool WriteNothing(mjsElement*, const mjModel&, int, int, double) { return false; }
@@ -230,6 +240,12 @@ const std::vector<ParameterKindInfo> kKinds = {
      "`body_mass`, `body_ipos`, `body_inertia`, `body_iquat` (the full inertia, eigen-decomposed)",
      mjSTAGE_NONE, true, "as `body_mass` (the full inertia as principal moments and quat)",
      WriteInertial},
+    {ParameterKind::kActuatorDelay, "actuator_delay", mjOBJ_ACTUATOR, 1,
+     "one value per actuator (needs a history buffer, nsample > 0, and interp=\"linear\")", "s",
+     "`actuator_delay`", mjSTAGE_VEL, false, "`delay` of the actuator", WriteActuatorDelay},
+    {ParameterKind::kSensorDelay, "sensor_delay", mjOBJ_SENSOR, 1,
+     "one value per sensor (needs a history buffer, nsample > 0, and interp=\"linear\")", "s",
+     "`sensor_delay`", mjSTAGE_VEL, false, "`delay` of the sensor", WriteSensorDelay},
     {ParameterKind::kField, "field", mjOBJ_UNKNOWN, 0,
      "flat index into the array, row * columns + column", "those of the array",
      "the array named in `field`", mjSTAGE_NONE, true,
@@ -256,6 +272,8 @@ int ObjectCount(const mjModel& m, mjtObj type) {
       return static_cast<int>(m.ntendon);
     case mjOBJ_PAIR:
       return static_cast<int>(m.npair);
+    case mjOBJ_SENSOR:
+      return static_cast<int>(m.nsensor);
     default:
       return 0;
   }
@@ -532,6 +550,29 @@ Parameter Parameter::Resolve(const mjModel& m, const ParameterSpec& spec) {
       }
       break;
     }
+    case ParameterKind::kActuatorDelay:
+    case ParameterKind::kSensorDelay: {
+      // the delayed value is read from the history buffer, interpolated: linearly, the rollout is
+      // continuous in the delay; with zero-order hold it is piecewise constant (no derivative)
+      const bool actuator = info.kind == ParameterKind::kActuatorDelay;
+      const int* history = (actuator ? m.actuator_history : m.sensor_history) + 2 * p.id_;
+      const int adr = (actuator ? m.actuator_historyadr : m.sensor_historyadr)[p.id_];
+      if (adr < 0 || history[0] <= 0) {
+        throw ParameterError(ParameterSpecPart::kObject,
+                             Subject(info, spec) + ": the " + info.object_name() +
+                                 " has no history buffer, so its delay cannot change",
+                             "give it nsample=\"N\" (N timesteps >= the longest delay to fit) "
+                             "and interp=\"linear\" in the model");
+      }
+      if (history[1] != 1) {
+        throw ParameterError(ParameterSpecPart::kObject,
+                             Subject(info, spec) + ": the " + info.object_name() +
+                                 "'s history is interpolated with zero-order hold, where a "
+                                 "delay's effect is a step function without a derivative",
+                             "set interp=\"linear\" on it in the model");
+      }
+      break;
+    }
     case ParameterKind::kActuatorGear:
       if (m.actuator_outnum[p.id_] < 1) {
         throw ParameterError(ParameterSpecPart::kObject,
@@ -609,6 +650,10 @@ double Parameter::Read(const mjModel& m) const {
       }
       return theta[index_];
     }
+    case ParameterKind::kActuatorDelay:
+      return m.actuator_delay[b];
+    case ParameterKind::kSensorDelay:
+      return m.sensor_delay[b];
     case ParameterKind::kField:
       return FieldArray(&m, field_offset_)[index_];
   }
@@ -721,6 +766,12 @@ void Parameter::WriteRaw(mjModel* m, double value) const {
       SetBodyInertial(m, b, FromLogCholesky(theta));
       break;
     }
+    case ParameterKind::kActuatorDelay:
+      m->actuator_delay[b] = value;
+      break;
+    case ParameterKind::kSensorDelay:
+      m->sensor_delay[b] = value;
+      break;
     case ParameterKind::kField:
       FieldArray(m, field_offset_)[index_] = value;
       break;

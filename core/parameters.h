@@ -73,6 +73,8 @@ enum class ParameterKind {
   kActuatorKv,          // velocity gain of a position/velocity servo or pid (biasprm[2], ...)
   kActuatorKi,          // integral gain of a pid actuator (gainprm[0])
   kBodyInertial,        // log-Cholesky variable [index] of a body's 10 inertial parameters
+  kActuatorDelay,       // actuator_delay: the native delay of an actuator's control (history)
+  kSensorDelay,         // sensor_delay: the native delay of a sensor's output (history)
   kField,               // any mjtNum array of mjModel, by field name and flat index
 };
 
@@ -155,7 +157,9 @@ class Parameter {
   // Throws ParameterError: unknown kind, object or array, index out of range, the world body,
   // a massless body for body_mass_inertia, an actuator without output for actuator_gear, an
   // actuator that is not a servo of the gain's kind (actuator_kp/kv/ki), a body whose inertial
-  // is not strictly physically consistent (body_inertial: no log-Cholesky variables).
+  // is not strictly physically consistent (body_inertial: no log-Cholesky variables), an actuator
+  // or sensor without a history buffer or with zero-order-hold interpolation (its delay would have
+  // no derivative) for actuator_delay/sensor_delay.
   static Parameter Resolve(const mjModel& m, const ParameterSpec& spec);
 
   const std::string& label() const { return label_; }

@@ -81,7 +81,7 @@ const char* kTemplate = R"(
   </tendon>
   <actuator>
     <general name="act" joint="hinge" biastype="affine" gainprm="{gain}" biasprm="0 {bias1} 0"
-             gear="{gear}"/>
+             gear="{gear}" delay="{delay}" nsample="8" interp="linear"/>
     <motor name="slide_motor" joint="slide"/>
     <motor name="box_motor" site="push" gear="1 0 0 0 0 {box_gear5}"/>
     <motor name="twist" joint="ball" gear="0.3 0.2 1"/>
@@ -89,6 +89,9 @@ const char* kTemplate = R"(
     <velocity name="vservo" joint="hinge" kv="{vkv}"/>
     <pid name="pid" joint="slide" kp="{pid_kp}" ki="{pid_ki}" kv="{pid_kv}"/>
   </actuator>
+  <sensor>
+    <jointpos name="slide_pos" joint="slide" delay="{sensor_delay}" nsample="5" interp="linear"/>
+  </sensor>
 </mujoco>)";
 
 const std::map<std::string, std::string> kDefaults = {
@@ -130,6 +133,8 @@ const std::map<std::string, std::string> kDefaults = {
     {"pid_kp", "5"},
     {"pid_ki", "2"},
     {"pid_kv", "0.3"},
+    {"delay", "0.005"},
+    {"sensor_delay", "0.003"},
     {"pl_com", "0.05 0.02 -0.2"},
     {"pl_mass", "0.8"},
     {"pl_inertia", "0.01 0.012 0.006 0.001 0 0.0005"}};
@@ -147,8 +152,9 @@ std::string Xml(const std::map<std::string, std::string>& overrides) {
   return test::FillTemplate(kTemplate, values);
 }
 
-// 50 steps under sine controls: the physics vectors x_1..x_50
-std::vector<double> Rollout(const mjModel& m) { return test::SineRollout(m, 50, 0.2); }
+// 50 steps under sine controls: the physics vectors x_1..x_50, each with the sensors (a delayed
+// sensor's delay shows only there)
+std::vector<double> Rollout(const mjModel& m) { return test::SineRollout(m, 50, 0.2, true); }
 
 ParameterSpec Spec(const std::string& kind, const std::string& object, int index = 0) {
   ParameterSpec s;
@@ -263,7 +269,9 @@ const std::vector<KindCase> kCases = {
     KindCase{Spec("actuator_kv", "vservo"), 1.2, {{"vkv", "1.2"}}},
     KindCase{Spec("actuator_kp", "pid"), 8, {{"pid_kp", "8"}}},
     KindCase{Spec("actuator_kv", "pid"), 0.7, {{"pid_kv", "0.7"}}},
-    KindCase{Spec("actuator_ki", "pid"), 4, {{"pid_ki", "4"}}}};
+    KindCase{Spec("actuator_ki", "pid"), 4, {{"pid_ki", "4"}}},
+    KindCase{Spec("actuator_delay", "act"), 0.009, {{"delay", "0.009"}}},
+    KindCase{Spec("sensor_delay", "slide_pos"), 0.007, {{"sensor_delay", "0.007"}}}};
 
 INSTANTIATE_TEST_SUITE_P(EveryKind, IdentifiedKindTest, ::testing::ValuesIn(kCases),
                          [](const ::testing::TestParamInfo<KindCase>& param_info) {

@@ -10,6 +10,7 @@
 #include <set>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/mujoco_env.h"
@@ -252,12 +253,16 @@ const char* kRobotTemplate = R"(
     </fixed>
   </tendon>
   <actuator>
-    <position name="shoulder_servo" joint="shoulder" kp="{kp}" kv="{kv}"/>
+    <position name="shoulder_servo" joint="shoulder" kp="{kp}" kv="{kv}" delay="{delay}"
+              nsample="8" interp="linear"/>
     <velocity name="spin_servo" joint="spin" kv="{spin_kv}"/>
     <pid name="elbow_pid" joint="elbow" kp="{pid_kp}" ki="{pid_ki}" kv="{pid_kv}"/>
     <motor name="box_motor" site="push" gear="1 0 0 0 0 0"/>
     <motor name="puck_motor" site="puck_push" gear="0.6 0.8 0 0 0 0"/>
   </actuator>
+  <sensor>
+    <jointpos name="elbow_angle" joint="elbow" delay="{sensor_delay}" nsample="5" interp="linear"/>
+  </sensor>
 </mujoco>)";
 
 const std::map<std::string, std::string> kRobotDefaults = {
@@ -279,7 +284,9 @@ const std::map<std::string, std::string> kRobotDefaults = {
     {"spin_kv", "0.5"},
     {"pid_kp", "5"},
     {"pid_ki", "2"},
-    {"pid_kv", "0.3"}};
+    {"pid_kv", "0.3"},
+    {"delay", "0.005"},
+    {"sensor_delay", "0.003"}};
 
 std::string RobotXml(const std::map<std::string, std::string>& overrides) {
   std::map<std::string, std::string> values = overrides;
@@ -288,18 +295,22 @@ std::string RobotXml(const std::map<std::string, std::string>& overrides) {
 }
 
 // 500 steps under sines on every control (servo targets, the pid's position and velocity
-// setpoints, pushes that make the box and the puck slide): the physics vectors x_1..x_500
+// setpoints, pushes that make the box and the puck slide): the physics vectors x_1..x_500, each
+// followed by the sensors (the delayed elbow angle)
 std::vector<double> RobotRollout(const mjModel& m) {
   DataPtr d = MakeData(m);
   const StateDims dims(m);
-  std::vector<double> out(static_cast<size_t>(500) * dims.nphys);
+  const int row = dims.nphys + dims.ns;
+  std::vector<double> out(static_cast<size_t>(500) * row);
   const double amplitude[] = {0.8, 3.0, 0.6, 0.5, 9.0, 2.5};
   for (int k = 0; k < 500; ++k) {
     for (int i = 0; i < m.nu; ++i) {
       d->ctrl[i] = amplitude[i % 6] * std::sin(0.02 * (1 + 0.3 * i) * k + i);
     }
     mj_step(&m, d.get());
-    GetPhysics(m, *d, out.data() + static_cast<size_t>(k) * dims.nphys);
+    double* x = out.data() + static_cast<size_t>(k) * row;
+    GetPhysics(m, *d, x);
+    std::copy(d->sensordata, d->sensordata + dims.ns, x + dims.nphys);
   }
   EXPECT_EQ(SimulationWarnings(*d), "");
   return out;
@@ -351,7 +362,9 @@ INSTANTIATE_TEST_SUITE_P(
         RobotCase{Spec("actuator_kv", "spin_servo"), {{"spin_kv", "1.2"}}, 1.2},
         RobotCase{Spec("actuator_kp", "elbow_pid"), {{"pid_kp", "8"}}, 8},
         RobotCase{Spec("actuator_kv", "elbow_pid"), {{"pid_kv", "0.7"}}, 0.7},
-        RobotCase{Spec("actuator_ki", "elbow_pid"), {{"pid_ki", "4"}}, 4}),
+        RobotCase{Spec("actuator_ki", "elbow_pid"), {{"pid_ki", "4"}}, 4},
+        RobotCase{Spec("actuator_delay", "shoulder_servo"), {{"delay", "0.009"}}, 0.009},
+        RobotCase{Spec("sensor_delay", "elbow_angle"), {{"sensor_delay", "0.007"}}, 0.007}),
     [](const ::testing::TestParamInfo<RobotCase>& param_info) {
       return param_info.param.spec.kind + "_" + param_info.param.spec.object + "_" +
              std::to_string(param_info.param.spec.index);
@@ -421,6 +434,21 @@ TEST(RobotWriterTest, ServoAndInertialKindsRefuseOtherForms) {
   } catch (const ParameterError& e) {
     EXPECT_NE(std::string(e.what()).find("not strictly physically consistent"), std::string::npos)
         << e.what();
+  }
+  // a delay without a linearly interpolated history buffer has no derivative
+  ModelPtr hold = LoadModelFromString(
+      "<mujoco><worldbody><body><joint name='j'/><geom size='.1'/></body></worldbody><actuator>"
+      "<motor name='zoh' joint='j' delay='0.01' nsample='10'/><motor name='none' joint='j'/>"
+      "</actuator></mujoco>");
+  for (const auto& [actuator, expected] :
+       {std::pair<std::string, std::string>{"zoh", "zero-order hold"},
+        {"none", "no history buffer"}}) {
+    try {
+      Parameter::Resolve(*hold, Spec("actuator_delay", actuator));
+      ADD_FAILURE() << actuator << " accepted";
+    } catch (const ParameterError& e) {
+      EXPECT_NE(std::string(e.what()).find(expected), std::string::npos) << e.what();
+    }
   }
   // a dead-band spring has no one rest length
   ModelPtr band = LoadModelFromString(RobotXml({{"tendon_l", "0.1 0.3"}}));

@@ -138,6 +138,23 @@ TEST_P(JacobianTest, ModesAgreeWithCentralWholeRolloutDifferences) {
   // count leaves a non-smooth residual in each step.
   const bool contact =
       sim.model().ngeom > 1 && (c.model == "box_floor.xml" || c.model == "box_pair.xml");
+  // native delays (history buffers): the one-step modes are refused, auto takes whole rollouts,
+  // and forward whole-rollout differences agree with the central reference
+  if (sim.model().nhistory > 0) {
+    for (JacobianMode mode : {JacobianMode::kDirectional, JacobianMode::kMatrix}) {
+      JacobianOptions opt;
+      opt.mode = mode;
+      EXPECT_THROW(sim.Jacobians(seq, nominal, opt), std::invalid_argument);
+    }
+    JacobianOptions opt;
+    opt.initial_state = initial;
+    opt.zero_column_is_error = ref_opt.zero_column_is_error;
+    const Sensitivity s = sim.Jacobians(seq, nominal, opt);
+    EXPECT_EQ(s.mode, JacobianMode::kWholeRollout);
+    EXPECT_LE(ColumnScaledError(s.DyDp, ref.DyDp), 1e-4);
+    EXPECT_LE(ColumnScaledError(s.DxDp, ref.DxDp), 1e-4);
+    return;
+  }
   for (JacobianMode mode : {JacobianMode::kDirectional, JacobianMode::kMatrix}) {
     for (bool central : {false, true}) {
       JacobianOptions opt;
@@ -242,6 +259,14 @@ const std::vector<JacobianCase> kCases = {
      0.0,
      "box_pair",
      1000},
+    // native delays (history buffers): the actuator's and the sensor's delay, and a servo gain
+    {"servo_delay.xml",
+     {Spec("actuator_delay", "servo"), Spec("sensor_delay", "angle"), Spec("actuator_kp", "servo")},
+     0.8,
+     0.0,
+     0.3,
+     "servo_delay",
+     {}},
     // contact softness of a geom (the box settled on the floor first)
     {"box_floor.xml",
      {Spec("geom_solref", "box", 0), Spec("geom_solimp", "box", 0),
