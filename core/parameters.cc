@@ -134,6 +134,15 @@ bool WriteSensorDelay(mjsElement* element, const mjModel&, int, int, double valu
   return true;
 }
 
+// DC motors: gain, bias and dynamics rows written whole from the compiled actuator (the
+// <dcmotor> attributes are stored in them: K and R in gainprm, L / R and two LuGre entries in
+// dynprm, cogging and three LuGre entries in biasprm)
+bool WriteDcMotor(mjsElement* element, const mjModel& m, int id, int index, double value) {
+  WriteServo(element, m, id, index, value);
+  CopyRow<mjNDYN>(mjs_asActuator(element)->dynprm, m.actuator_dynprm, id);
+  return true;
+}
+
 // field: written by its array's row in core/field_mjcf.h (which reuses the writers above); the
 // kind alone has no attribute
 bool WriteNothing(mjsElement*, const mjModel&, int, int, double) { return false; }
@@ -246,6 +255,24 @@ const std::vector<ParameterKindInfo> kKinds = {
     {ParameterKind::kSensorDelay, "sensor_delay", mjOBJ_SENSOR, 1,
      "one value per sensor (needs a history buffer, nsample > 0, and interp=\"linear\")", "s",
      "`sensor_delay`", mjSTAGE_VEL, false, "`delay` of the sensor", WriteSensorDelay},
+    {ParameterKind::kDcMotorConstant, "dcmotor_motorconst", mjOBJ_ACTUATOR, 1,
+     "motor constant K of a <dcmotor> (torque per current = back-EMF per speed)",
+     "N m/A (= V s/rad)", "`actuator_gainprm[1]`", mjSTAGE_VEL, false,
+     "`gainprm`, `biasprm`, `dynprm` of the actuator (the compiled rows)", WriteDcMotor},
+    {ParameterKind::kDcMotorResistance, "dcmotor_resistance", mjOBJ_ACTUATOR, 1,
+     "terminal resistance R of a <dcmotor> (its inductance kept)", "Ohm",
+     "`actuator_gainprm[0]`, and `actuator_dynprm[0]` = L / R when the inductance is modelled",
+     mjSTAGE_VEL, false, "as `dcmotor_motorconst`", WriteDcMotor},
+    {ParameterKind::kDcMotorInductance, "dcmotor_inductance", mjOBJ_ACTUATOR, 1,
+     "inductance L of a <dcmotor> that models it (an electrical time constant L / R)", "H",
+     "`actuator_dynprm[0]` = L / R", mjSTAGE_VEL, false, "as `dcmotor_motorconst`", WriteDcMotor},
+    {ParameterKind::kDcMotorCogging, "dcmotor_cogging", mjOBJ_ACTUATOR, 3,
+     "entry of the <dcmotor>'s `cogging`: amplitude, periods per revolution, phase", "N m, 1, rad",
+     "`actuator_biasprm[index]`", mjSTAGE_VEL, false, "as `dcmotor_motorconst`", WriteDcMotor},
+    {ParameterKind::kDcMotorLugre, "dcmotor_lugre", mjOBJ_ACTUATOR, 5,
+     "entry of the <dcmotor>'s `lugre` attribute, in its order", "those of the attribute",
+     "`actuator_dynprm[5]`, `[6]` (entries 0, 1), `actuator_biasprm[3..5]` (entries 2..4)",
+     mjSTAGE_VEL, false, "as `dcmotor_motorconst`", WriteDcMotor},
     {ParameterKind::kField, "field", mjOBJ_UNKNOWN, 0,
      "flat index into the array, row * columns + column", "those of the array",
      "the array named in `field`", mjSTAGE_NONE, true,
@@ -573,6 +600,24 @@ Parameter Parameter::Resolve(const mjModel& m, const ParameterSpec& spec) {
       }
       break;
     }
+    case ParameterKind::kDcMotorConstant:
+    case ParameterKind::kDcMotorResistance:
+    case ParameterKind::kDcMotorInductance:
+    case ParameterKind::kDcMotorCogging:
+    case ParameterKind::kDcMotorLugre:
+      if (m.actuator_gaintype[p.id_] != mjGAIN_DCMOTOR) {
+        throw ParameterError(ParameterSpecPart::kObject,
+                             Subject(info, spec) + ": the actuator is not a <dcmotor>",
+                             "fit its actuator_gain and actuator_bias entries instead");
+      }
+      if (info.kind == ParameterKind::kDcMotorInductance &&
+          !(m.actuator_dynprm[mjNDYN * p.id_] > 0)) {
+        throw ParameterError(
+            ParameterSpecPart::kObject,
+            Subject(info, spec) + ": the motor does not model its inductance (no electrical state)",
+            "give the <dcmotor> an inductance to fit it");
+      }
+      break;
     case ParameterKind::kActuatorGear:
       if (m.actuator_outnum[p.id_] < 1) {
         throw ParameterError(ParameterSpecPart::kObject,
@@ -654,6 +699,17 @@ double Parameter::Read(const mjModel& m) const {
       return m.actuator_delay[b];
     case ParameterKind::kSensorDelay:
       return m.sensor_delay[b];
+    case ParameterKind::kDcMotorConstant:
+      return m.actuator_gainprm[mjNGAIN * b + 1];
+    case ParameterKind::kDcMotorResistance:
+      return m.actuator_gainprm[mjNGAIN * b];
+    case ParameterKind::kDcMotorInductance:
+      return m.actuator_dynprm[mjNDYN * b] * m.actuator_gainprm[mjNGAIN * b];
+    case ParameterKind::kDcMotorCogging:
+      return m.actuator_biasprm[mjNBIAS * b + index_];
+    case ParameterKind::kDcMotorLugre:
+      return index_ < 2 ? m.actuator_dynprm[mjNDYN * b + 5 + index_]
+                        : m.actuator_biasprm[mjNBIAS * b + 1 + index_];
     case ParameterKind::kField:
       return FieldArray(&m, field_offset_)[index_];
   }
@@ -771,6 +827,29 @@ void Parameter::WriteRaw(mjModel* m, double value) const {
       break;
     case ParameterKind::kSensorDelay:
       m->sensor_delay[b] = value;
+      break;
+    case ParameterKind::kDcMotorConstant:
+      m->actuator_gainprm[mjNGAIN * b + 1] = value;
+      break;
+    case ParameterKind::kDcMotorResistance: {
+      // the electrical time constant L / R follows R, the inductance stays
+      const double inductance = m->actuator_dynprm[mjNDYN * b] * m->actuator_gainprm[mjNGAIN * b];
+      m->actuator_gainprm[mjNGAIN * b] = value;
+      m->actuator_dynprm[mjNDYN * b] = inductance / value;
+      break;
+    }
+    case ParameterKind::kDcMotorInductance:
+      m->actuator_dynprm[mjNDYN * b] = value / m->actuator_gainprm[mjNGAIN * b];
+      break;
+    case ParameterKind::kDcMotorCogging:
+      m->actuator_biasprm[mjNBIAS * b + index_] = value;
+      break;
+    case ParameterKind::kDcMotorLugre:
+      if (index_ < 2) {
+        m->actuator_dynprm[mjNDYN * b + 5 + index_] = value;
+      } else {
+        m->actuator_biasprm[mjNBIAS * b + 1 + index_] = value;
+      }
       break;
     case ParameterKind::kField:
       FieldArray(m, field_offset_)[index_] = value;

@@ -75,6 +75,11 @@ enum class ParameterKind {
   kBodyInertial,        // log-Cholesky variable [index] of a body's 10 inertial parameters
   kActuatorDelay,       // actuator_delay: the native delay of an actuator's control (history)
   kSensorDelay,         // sensor_delay: the native delay of a sensor's output (history)
+  kDcMotorConstant,     // dcmotor: motor constant K (gainprm[1])
+  kDcMotorResistance,   // dcmotor: resistance R (gainprm[0]; the inductance L kept)
+  kDcMotorInductance,   // dcmotor: inductance L (dynprm[0] = L / R)
+  kDcMotorCogging,      // dcmotor: cogging[index] (biasprm[index])
+  kDcMotorLugre,        // dcmotor: lugre[index] (dynprm[5..6], biasprm[3..5])
   kField,               // any mjtNum array of mjModel, by field name and flat index
 };
 
@@ -159,7 +164,8 @@ class Parameter {
   // actuator that is not a servo of the gain's kind (actuator_kp/kv/ki), a body whose inertial
   // is not strictly physically consistent (body_inertial: no log-Cholesky variables), an actuator
   // or sensor without a history buffer or with zero-order-hold interpolation (its delay would have
-  // no derivative) for actuator_delay/sensor_delay.
+  // no derivative) for actuator_delay/sensor_delay, an actuator that is not a <dcmotor> (or has no
+  // inductance, for dcmotor_inductance) for the dcmotor kinds.
   static Parameter Resolve(const mjModel& m, const ParameterSpec& spec);
 
   const std::string& label() const { return label_; }

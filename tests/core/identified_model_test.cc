@@ -88,6 +88,8 @@ const char* kTemplate = R"(
     <position name="servo" joint="slide" kp="{kp}" kv="{kv}"/>
     <velocity name="vservo" joint="hinge" kv="{vkv}"/>
     <pid name="pid" joint="slide" kp="{pid_kp}" ki="{pid_ki}" kv="{pid_kv}"/>
+    <dcmotor name="dc" joint="slide" motorconst="{dc_k}" resistance="{dc_r}" inductance="{dc_l}"
+             cogging="{cog_a} 6 0.2" lugre="{lugre0} 0.3 0.02 0.03 0.1"/>
   </actuator>
   <sensor>
     <jointpos name="slide_pos" joint="slide" delay="{sensor_delay}" nsample="5" interp="linear"/>
@@ -135,6 +137,11 @@ const std::map<std::string, std::string> kDefaults = {
     {"pid_kv", "0.3"},
     {"delay", "0.005"},
     {"sensor_delay", "0.003"},
+    {"dc_k", "0.5"},
+    {"dc_r", "2"},
+    {"dc_l", "0.004"},
+    {"cog_a", "0.02"},
+    {"lugre0", "100"},
     {"pl_com", "0.05 0.02 -0.2"},
     {"pl_mass", "0.8"},
     {"pl_inertia", "0.01 0.012 0.006 0.001 0 0.0005"}};
@@ -271,7 +278,12 @@ const std::vector<KindCase> kCases = {
     KindCase{Spec("actuator_kv", "pid"), 0.7, {{"pid_kv", "0.7"}}},
     KindCase{Spec("actuator_ki", "pid"), 4, {{"pid_ki", "4"}}},
     KindCase{Spec("actuator_delay", "act"), 0.009, {{"delay", "0.009"}}},
-    KindCase{Spec("sensor_delay", "slide_pos"), 0.007, {{"sensor_delay", "0.007"}}}};
+    KindCase{Spec("sensor_delay", "slide_pos"), 0.007, {{"sensor_delay", "0.007"}}},
+    KindCase{Spec("dcmotor_motorconst", "dc"), 0.7, {{"dc_k", "0.7"}}},
+    KindCase{Spec("dcmotor_resistance", "dc"), 2.5, {{"dc_r", "2.5"}}},
+    KindCase{Spec("dcmotor_inductance", "dc"), 0.006, {{"dc_l", "0.006"}}},
+    KindCase{Spec("dcmotor_cogging", "dc", 0), 0.04, {{"cog_a", "0.04"}}},
+    KindCase{Spec("dcmotor_lugre", "dc", 0), 150, {{"lugre0", "150"}}}};
 
 INSTANTIATE_TEST_SUITE_P(EveryKind, IdentifiedKindTest, ::testing::ValuesIn(kCases),
                          [](const ::testing::TestParamInfo<KindCase>& param_info) {

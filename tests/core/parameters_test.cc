@@ -229,6 +229,10 @@ const char* kRobotTemplate = R"(
       <joint name="spin" type="hinge" axis="1 0 0"/>
       <geom type="cylinder" size="0.1 0.02" mass="0.5" contype="0" conaffinity="0"/>
     </body>
+    <body name="rotor" pos="-2 1 1">
+      <joint name="rotor" type="hinge" axis="1 0 0" damping="0.001"/>
+      <geom type="cylinder" size="0.05 0.02" mass="0.3" contype="0" conaffinity="0"/>
+    </body>
     <body name="box" pos="0 2 0.1">
       <freejoint/>
       <geom name="box" type="box" size=".1 .1 .1" mass="1" friction="0.6 0.005 0.0001"
@@ -259,6 +263,8 @@ const char* kRobotTemplate = R"(
     <pid name="elbow_pid" joint="elbow" kp="{pid_kp}" ki="{pid_ki}" kv="{pid_kv}"/>
     <motor name="box_motor" site="push" gear="1 0 0 0 0 0"/>
     <motor name="puck_motor" site="puck_push" gear="0.6 0.8 0 0 0 0"/>
+    <dcmotor name="dc" joint="rotor" motorconst="{dc_k}" resistance="{dc_r}" inductance="{dc_l}"
+             cogging="{cog_a} 6 {cog_ph}" lugre="{lugre0} 0.3 {lugre2} 0.03 {lugre4}"/>
   </actuator>
   <sensor>
     <jointpos name="elbow_angle" joint="elbow" delay="{sensor_delay}" nsample="5" interp="linear"/>
@@ -286,7 +292,15 @@ const std::map<std::string, std::string> kRobotDefaults = {
     {"pid_ki", "2"},
     {"pid_kv", "0.3"},
     {"delay", "0.005"},
-    {"sensor_delay", "0.003"}};
+    {"sensor_delay", "0.003"},
+    {"dc_k", "0.05"},
+    {"dc_r", "2"},
+    {"dc_l", "0.004"},
+    {"cog_a", "0.002"},
+    {"cog_ph", "0.2"},
+    {"lugre0", "100"},
+    {"lugre2", "0.02"},
+    {"lugre4", "0.1"}};
 
 std::string RobotXml(const std::map<std::string, std::string>& overrides) {
   std::map<std::string, std::string> values = overrides;
@@ -364,7 +378,15 @@ INSTANTIATE_TEST_SUITE_P(
         RobotCase{Spec("actuator_kv", "elbow_pid"), {{"pid_kv", "0.7"}}, 0.7},
         RobotCase{Spec("actuator_ki", "elbow_pid"), {{"pid_ki", "4"}}, 4},
         RobotCase{Spec("actuator_delay", "shoulder_servo"), {{"delay", "0.009"}}, 0.009},
-        RobotCase{Spec("sensor_delay", "elbow_angle"), {{"sensor_delay", "0.007"}}, 0.007}),
+        RobotCase{Spec("sensor_delay", "elbow_angle"), {{"sensor_delay", "0.007"}}, 0.007},
+        RobotCase{Spec("dcmotor_motorconst", "dc"), {{"dc_k", "0.07"}}, 0.07},
+        RobotCase{Spec("dcmotor_resistance", "dc"), {{"dc_r", "2.5"}}, 2.5},
+        RobotCase{Spec("dcmotor_inductance", "dc"), {{"dc_l", "0.006"}}, 0.006},
+        RobotCase{Spec("dcmotor_cogging", "dc", 0), {{"cog_a", "0.004"}}, 0.004},
+        RobotCase{Spec("dcmotor_cogging", "dc", 2), {{"cog_ph", "0.5"}}, 0.5},
+        RobotCase{Spec("dcmotor_lugre", "dc", 0), {{"lugre0", "150"}}, 150},
+        RobotCase{Spec("dcmotor_lugre", "dc", 2), {{"lugre2", "0.03"}}, 0.03},
+        RobotCase{Spec("dcmotor_lugre", "dc", 4), {{"lugre4", "0.2"}}, 0.2}),
     [](const ::testing::TestParamInfo<RobotCase>& param_info) {
       return param_info.param.spec.kind + "_" + param_info.param.spec.object + "_" +
              std::to_string(param_info.param.spec.index);

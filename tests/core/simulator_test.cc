@@ -267,6 +267,15 @@ const std::vector<JacobianCase> kCases = {
      0.3,
      "servo_delay",
      {}},
+    // a voltage-input DC motor: constant, resistance, inductance, cogging
+    {"dcmotor.xml",
+     {Spec("dcmotor_motorconst", "motor"), Spec("dcmotor_resistance", "motor"),
+      Spec("dcmotor_inductance", "motor"), Spec("dcmotor_cogging", "motor", 0)},
+     3.0,
+     0.0,
+     0.5,
+     "dcmotor",
+     {}},
     // contact softness of a geom (the box settled on the floor first)
     {"box_floor.xml",
      {Spec("geom_solref", "box", 0), Spec("geom_solimp", "box", 0),
