@@ -120,4 +120,17 @@ void PhysicalInertial(const double theta[kInertialVariables], double physical[kI
   }
 }
 
+void PhysicalInertialCovariance(const double theta[kInertialVariables], const double* covariance,
+                                double* physical_covariance) {
+  using Jacobian = Eigen::Matrix<double, kInertialPhysical, kInertialVariables, Eigen::RowMajor>;
+  using Covariance10 =
+      Eigen::Matrix<double, kInertialVariables, kInertialVariables, Eigen::RowMajor>;
+  using Covariance7 = Eigen::Matrix<double, kInertialPhysical, kInertialPhysical, Eigen::RowMajor>;
+  double physical[kInertialPhysical];
+  Jacobian g;
+  PhysicalInertial(theta, physical, g.data());
+  Eigen::Map<Covariance7> out(physical_covariance);
+  out = g * Eigen::Map<const Covariance10>(covariance) * g.transpose();
+}
+
 }  // namespace mjsysid

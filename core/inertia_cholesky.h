@@ -55,4 +55,12 @@ inline constexpr int kInertialPhysical = 7;
 void PhysicalInertial(const double theta[kInertialVariables], double physical[kInertialPhysical],
                       double* jacobian);
 
+// The covariance of the physical quantities (7 x 7, row-major) from that of the variables
+// (10 x 10, row-major; zero rows and columns for variables not fitted) by the delta method,
+// G C G^T with G the Jacobian of PhysicalInertial: a first-order propagation, valid while the
+// standard errors are small against the variables' curvature scale (checked against Monte Carlo
+// in tests/core/inertia_cholesky_test.cc).
+void PhysicalInertialCovariance(const double theta[kInertialVariables], const double* covariance,
+                                double* physical_covariance);
+
 }  // namespace mjsysid
