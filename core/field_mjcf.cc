@@ -13,7 +13,7 @@ int JointOfDof(const mjModel& m, int dof) { return m.dof_jntid[dof]; }
 
 // the actuator whose first output is this row of actuator_gear; -1 for a later output
 int ActuatorOfOutput(const mjModel& m, int output) {
-  for (int a = 0; a < m.nu; ++a) {
+  for (int a = 0; a < m.nactuator; ++a) {
     if (m.actuator_outadr[a] == output && m.actuator_outnum[a] > 0) return a;
   }
   return -1;
@@ -41,14 +41,6 @@ bool CopyScalar(mjsElement* element, const mjModel& m, int id, int /*index*/, do
   return true;
 }
 
-// the first entry of a polynomial attribute (the linear coefficient) from the compiled value
-template <typename Spec, Spec* (*kAs)(mjsElement*), double (Spec::*kAttr)[mjNPOLY + 1],
-          mjtNum* mjModel::*kArray>
-bool CopyLinear(mjsElement* element, const mjModel& m, int id, int /*index*/, double /*value*/) {
-  (kAs(element)->*kAttr)[0] = (m.*kArray)[id];
-  return true;
-}
-
 // a per-dof array into its joint's one attribute: only when every dof of the joint agrees
 template <mjtNum* mjModel::*kArray, ParameterKind kKind>
 bool WriteDofArray(mjsElement* element, const mjModel& m, int joint, int /*index*/,
@@ -70,7 +62,6 @@ bool WriteAsKind(mjsElement* e, const mjModel& m, int id, int index, double valu
 #define MJS_ROW(S, as, attr, array, n) \
   CopyRow<S, as, decltype(&S::attr), &S::attr, &mjModel::array, n>
 #define MJS_SCALAR(S, as, attr, array) CopyScalar<S, as, &S::attr, &mjModel::array>
-#define MJS_LINEAR(S, as, attr, array) CopyLinear<S, as, &S::attr, &mjModel::array>
 
 // the number of columns of an mjModel array, from MuJoCo's own table; 0 when unknown
 int Columns(const mjModel* m, const std::string& array) {
@@ -116,9 +107,9 @@ const std::vector<FieldMjcfInfo>& FieldMjcfTable() {
       {"geom_solmix", mjOBJ_GEOM, "`solmix` of the `<geom>`", nullptr,
        MJS_SCALAR(mjsGeom, mjs_asGeom, solmix, geom_solmix)},
       {"geom_solref", mjOBJ_GEOM, "`solref` of the `<geom>`", nullptr,
-       MJS_ROW(mjsGeom, mjs_asGeom, solref, geom_solref, mjNREF)},
+       WriteAsKind<ParameterKind::kGeomSolref>},
       {"geom_solimp", mjOBJ_GEOM, "`solimp` of the `<geom>`", nullptr,
-       MJS_ROW(mjsGeom, mjs_asGeom, solimp, geom_solimp, mjNIMP)},
+       WriteAsKind<ParameterKind::kGeomSolimp>},
       {"geom_friction", mjOBJ_GEOM, "`friction` of the `<geom>`", nullptr,
        WriteAsKind<ParameterKind::kGeomFriction>},
       {"geom_margin", mjOBJ_GEOM, "`margin` of the `<geom>`", nullptr,
@@ -127,26 +118,28 @@ const std::vector<FieldMjcfInfo>& FieldMjcfTable() {
        MJS_SCALAR(mjsGeom, mjs_asGeom, gap, geom_gap)},
       // explicit contact pairs (values MuJoCo took from the geoms become explicit)
       {"pair_solref", mjOBJ_PAIR, "`solref` of the `<pair>`", nullptr,
-       MJS_ROW(mjsPair, mjs_asPair, solref, pair_solref, mjNREF)},
+       WriteAsKind<ParameterKind::kPairSolref>},
       {"pair_solreffriction", mjOBJ_PAIR, "`solreffriction` of the `<pair>`", nullptr,
        MJS_ROW(mjsPair, mjs_asPair, solreffriction, pair_solreffriction, mjNREF)},
       {"pair_solimp", mjOBJ_PAIR, "`solimp` of the `<pair>`", nullptr,
-       MJS_ROW(mjsPair, mjs_asPair, solimp, pair_solimp, mjNIMP)},
+       WriteAsKind<ParameterKind::kPairSolimp>},
       {"pair_margin", mjOBJ_PAIR, "`margin` of the `<pair>`", nullptr,
        MJS_SCALAR(mjsPair, mjs_asPair, margin, pair_margin)},
       {"pair_gap", mjOBJ_PAIR, "`gap` of the `<pair>`", nullptr,
        MJS_SCALAR(mjsPair, mjs_asPair, gap, pair_gap)},
       {"pair_friction", mjOBJ_PAIR, "`friction` of the `<pair>`", nullptr,
-       MJS_ROW(mjsPair, mjs_asPair, friction, pair_friction, 5)},
+       WriteAsKind<ParameterKind::kPairFriction>},
       // tendons
       {"tendon_stiffness", mjOBJ_TENDON, "`stiffness` of the tendon", nullptr,
-       MJS_LINEAR(mjsTendon, mjs_asTendon, stiffness, tendon_stiffness)},
+       WriteAsKind<ParameterKind::kTendonStiffness>},
       {"tendon_damping", mjOBJ_TENDON, "`damping` of the tendon", nullptr,
-       MJS_LINEAR(mjsTendon, mjs_asTendon, damping, tendon_damping)},
+       WriteAsKind<ParameterKind::kTendonDamping>},
       {"tendon_armature", mjOBJ_TENDON, "`armature` of the tendon", nullptr,
        MJS_SCALAR(mjsTendon, mjs_asTendon, armature, tendon_armature)},
       {"tendon_frictionloss", mjOBJ_TENDON, "`frictionloss` of the tendon", nullptr,
-       MJS_SCALAR(mjsTendon, mjs_asTendon, frictionloss, tendon_frictionloss)},
+       WriteAsKind<ParameterKind::kTendonFrictionLoss>},
+      {"tendon_lengthspring", mjOBJ_TENDON, "`springlength` of the tendon", nullptr,
+       WriteAsKind<ParameterKind::kTendonLengthSpring>},
       // actuators
       {"actuator_dynprm", mjOBJ_ACTUATOR, "`dynprm` of the actuator", nullptr,
        MJS_ROW(mjsActuator, mjs_asActuator, dynprm, actuator_dynprm, mjNDYN)},
@@ -162,7 +155,6 @@ const std::vector<FieldMjcfInfo>& FieldMjcfTable() {
 
 #undef MJS_ROW
 #undef MJS_SCALAR
-#undef MJS_LINEAR
 
 const FieldMjcfInfo* FindFieldMjcf(const std::string& array) {
   for (const FieldMjcfInfo& f : FieldMjcfTable()) {

@@ -48,19 +48,39 @@ class ParameterError : public std::runtime_error {
 };
 
 enum class ParameterKind {
-  kBodyMass,           // body_mass of a body
-  kBodyMassInertia,    // body_mass, with body_inertia scaled along (uniform density change)
-  kBodyInertia,        // body_inertia[index], principal inertia in the inertial frame
-  kBodyCom,            // body_ipos[index], centre of mass in the body frame
-  kJointDamping,       // dof_damping of every dof of a joint
-  kJointFrictionLoss,  // dof_frictionloss of every dof of a joint
-  kJointArmature,      // dof_armature of every dof of a joint
-  kJointStiffness,     // jnt_stiffness of a joint
-  kGeomFriction,       // geom_friction[index] of a geom: 0 sliding, 1 torsional, 2 rolling
-  kActuatorGain,       // actuator_gainprm[index]
-  kActuatorBias,       // actuator_biasprm[index]
-  kActuatorGear,       // actuator_gear[index] (first output of the actuator)
-  kField,              // any mjtNum array of mjModel, by field name and flat index
+  kBodyMass,            // body_mass of a body
+  kBodyMassInertia,     // body_mass, with body_inertia scaled along (uniform density change)
+  kBodyInertia,         // body_inertia[index], principal inertia in the inertial frame
+  kBodyCom,             // body_ipos[index], centre of mass in the body frame
+  kJointDamping,        // dof_damping of every dof of a joint
+  kJointFrictionLoss,   // dof_frictionloss of every dof of a joint
+  kJointArmature,       // dof_armature of every dof of a joint
+  kJointStiffness,      // jnt_stiffness of a joint
+  kGeomFriction,        // geom_friction[index] of a geom: 0 sliding, 1 torsional, 2 rolling
+  kActuatorGain,        // actuator_gainprm[index]
+  kActuatorBias,        // actuator_biasprm[index]
+  kActuatorGear,        // actuator_gear[index] (first output of the actuator)
+  kTendonDamping,       // tendon_damping of a tendon
+  kTendonStiffness,     // tendon_stiffness of a tendon
+  kTendonFrictionLoss,  // tendon_frictionloss of a tendon
+  kTendonLengthSpring,  // tendon_lengthspring: 0 both ends (rest length), 1 lower, 2 upper end
+  kGeomSolref,          // geom_solref[index] of a geom
+  kGeomSolimp,          // geom_solimp[index] of a geom
+  kPairSolref,          // pair_solref[index] of an explicit contact pair
+  kPairSolimp,          // pair_solimp[index] of an explicit contact pair
+  kPairFriction,        // pair_friction[index] of an explicit contact pair
+  kActuatorKp,          // position gain of a position servo (gainprm[0], biasprm[1]) or pid
+  kActuatorKv,          // velocity gain of a position/velocity servo or pid (biasprm[2], ...)
+  kActuatorKi,          // integral gain of a pid actuator (gainprm[0])
+  kBodyInertial,        // log-Cholesky variable [index] of a body's 10 inertial parameters
+  kActuatorDelay,       // actuator_delay: the native delay of an actuator's control (history)
+  kSensorDelay,         // sensor_delay: the native delay of a sensor's output (history)
+  kDcMotorConstant,     // dcmotor: motor constant K (gainprm[1])
+  kDcMotorResistance,   // dcmotor: resistance R (gainprm[0]; the inductance L kept)
+  kDcMotorInductance,   // dcmotor: inductance L (dynprm[0] = L / R)
+  kDcMotorCogging,      // dcmotor: cogging[index] (biasprm[index])
+  kDcMotorLugre,        // dcmotor: lugre[index] (dynprm[5..6], biasprm[3..5])
+  kField,               // any mjtNum array of mjModel, by field name and flat index
 };
 
 // Writes an identified value back into the MJCF element of its object.
@@ -140,7 +160,12 @@ int ParameterIndexCount(const mjModel& m, const ParameterSpec& spec);
 class Parameter {
  public:
   // Throws ParameterError: unknown kind, object or array, index out of range, the world body,
-  // a massless body for body_mass_inertia, an actuator without output for actuator_gear.
+  // a massless body for body_mass_inertia, an actuator without output for actuator_gear, an
+  // actuator that is not a servo of the gain's kind (actuator_kp/kv/ki), a body whose inertial
+  // is not strictly physically consistent (body_inertial: no log-Cholesky variables), an actuator
+  // or sensor without a history buffer or with zero-order-hold interpolation (its delay would have
+  // no derivative) for actuator_delay/sensor_delay, an actuator that is not a <dcmotor> (or has no
+  // inductance, for dcmotor_inductance) for the dcmotor kinds.
   static Parameter Resolve(const mjModel& m, const ParameterSpec& spec);
 
   const std::string& label() const { return label_; }
@@ -171,6 +196,9 @@ class Parameter {
   int field_size_ = 0;     // number of entries of the array (kField)
   double ref_mass_ = 0;    // kBodyMassInertia: mass and inertia at resolution
   double ref_inertia_[3] = {0, 0, 0};
+  // servo kinds: the actuator's form, which decides where a gain lives
+  enum class Servo { kNone, kPosition, kVelocity, kPid };
+  Servo servo_ = Servo::kNone;
 };
 
 // An ordered set of parameters of one model.

@@ -362,6 +362,8 @@ bool Simulator::ContactsPossible() const {
 JacobianMode Simulator::ChooseJacobianMode(const JacobianOptions& opt,
                                            double contact_fraction) const {
   if (opt.mode != JacobianMode::kAuto) return opt.mode;
+  // native delays: the history buffer is state that the one-step modes do not carry
+  if (model_->nhistory > 0) return JacobianMode::kWholeRollout;
   // mjd_transitionFD rejects RK4 and history (delays)
   const bool matrix_ok = model_->opt.integrator != mjINT_RK4 && model_->nhistory == 0;
   if (matrix_ok && JacobianCostPerStep(JacobianMode::kMatrix, opt, contact_fraction) <
@@ -668,6 +670,17 @@ void Simulator::Jacobians(const std::vector<SequenceInput>& sequences,
     throw std::invalid_argument(
         "Jacobian mode 'matrix' needs mjd_transitionFD, which supports neither the RK4 "
         "integrator nor delays (history); use 'directional'");
+  }
+  // Native delays (actuator/sensor history buffers) make the delayed controls and sensor values
+  // state that one-step differences over [qpos, qvel, act] leave out (measured on
+  // models/servo_delay.xml with a 4 ms delayed angle sensor: the servo gain's sensor column off by
+  // 0.09 after 200 steps, column-scaled): only whole rollouts differentiate them
+  if (mode == JacobianMode::kDirectional && model_->nhistory > 0) {
+    throw std::invalid_argument(
+        "Jacobian mode 'directional' differentiates one step at a time over qpos, qvel and act, "
+        "and this model has native delays (history buffers of " +
+        std::to_string(model_->nhistory) +
+        " numbers) that it would leave out; use 'whole_rollout' or 'auto'");
   }
   const Eigen::VectorXd steps = ParameterSteps(opt);
 

@@ -18,7 +18,9 @@
 //   skips the pipeline stages the parameter cannot affect; then the chain. Parallel over time
 //   steps.
 // - kWholeRollout: whole perturbed rollouts (what mujoco.sysid does); kept as oracle and baseline.
-// kAuto picks the cheaper of the first two from the counts (ChooseJacobianMode).
+// kAuto picks the cheaper of the first two from the counts (ChooseJacobianMode); for a model with
+// native delays (nhistory > 0) it picks kWholeRollout, and kDirectional/kMatrix are refused
+// (std::invalid_argument): the history buffer is state the one-step modes do not carry.
 //
 // Non-smooth steps (docs/numerics.md, "Contact-set changes"): a difference that straddles a
 // contact-set change spikes. Central differences are computed as the mean of a forward and a

@@ -87,18 +87,23 @@ inline std::string FillTemplate(std::string xml, const std::map<std::string, std
 
 // `steps` steps of a model with four actuators (the writer tests' scene) from its reference state
 // under sines of angular rate w per step (slower or faster per actuator): the physics vectors
-// x_1..x_steps; expects no simulation warning
-inline std::vector<double> SineRollout(const mjModel& m, int steps, double w) {
+// x_1..x_steps, each followed by the sensor values after its step when with_sensors; expects no
+// simulation warning
+inline std::vector<double> SineRollout(const mjModel& m, int steps, double w,
+                                       bool with_sensors = false) {
   DataPtr d = MakeData(m);
   const StateDims dims(m);
-  std::vector<double> out(static_cast<size_t>(steps) * dims.nphys);
+  const int row = dims.nphys + (with_sensors ? dims.ns : 0);
+  std::vector<double> out(static_cast<size_t>(steps) * row);
   for (int k = 0; k < steps; ++k) {
     d->ctrl[0] = 2.0 * std::sin(w * k);
     d->ctrl[1] = 1.5 * std::sin(0.75 * w * k + 1);
     d->ctrl[2] = 8.0 + 4.0 * std::sin(0.5 * w * k);
     d->ctrl[3] = 0.2 * std::sin(1.5 * w * k);
     mj_step(&m, d.get());
-    GetPhysics(m, *d, out.data() + static_cast<size_t>(k) * dims.nphys);
+    double* x = out.data() + static_cast<size_t>(k) * row;
+    GetPhysics(m, *d, x);
+    if (with_sensors) std::copy(d->sensordata, d->sensordata + dims.ns, x + dims.nphys);
   }
   EXPECT_EQ(SimulationWarnings(*d), "");
   return out;

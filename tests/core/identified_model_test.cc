@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -18,6 +19,7 @@
 #include "core/mujoco_env.h"
 #include "core/parameters.h"
 #include "core/state.h"
+#include "tests/core/inertial_by_hand.h"
 #include "tests/test_util.h"
 
 namespace mjsysid {
@@ -26,8 +28,9 @@ namespace {
 namespace fs = std::filesystem;
 
 // a hinge link with an explicit inertial, a ball joint, a slider, a box on a free joint sliding on
-// a floor (and a foot in an explicit contact pair with it), a tendon on the hinge, and four
-// actuators; {key} marks every value a test edits by hand
+// a floor (and a foot in an explicit contact pair with it), a tendon on the hinge, a payload with
+// a full inertia swinging on two hinges, four motors and three servos (position, velocity, pid);
+// {key} marks every value a test edits by hand
 const char* kTemplate = R"(
 <mujoco model="identified">
   <option timestep="0.002"/>
@@ -54,59 +57,94 @@ const char* kTemplate = R"(
     <body name="box" pos="0 2 {box_z}">
       <joint name="free" type="free" damping="{free_damping}"/>
       <geom name="box" type="box" size=".1 .1 .1" mass="1" condim="4"
-            friction="{box_mu} {box_torsion} 0.0001" solref="{box_timeconst} 1"/>
+            friction="{box_mu} {box_torsion} 0.0001" solref="{box_timeconst} 1"
+            solimp="0.9 {box_solimp1} 0.001 0.5 2"/>
       <geom name="foot" type="sphere" size="0.1" mass="0.1" pos="{foot_pos}" contype="0"
             conaffinity="0"/>
       <site name="push"/>
     </body>
+    <body name="payload" pos="-2 0 1">
+      <joint name="pitch" type="hinge" axis="0 1 0" damping="0.02"/>
+      <joint name="roll" type="hinge" axis="1 0 0" damping="0.02"/>
+      <inertial pos="{pl_com}" mass="{pl_mass}" fullinertia="{pl_inertia}"/>
+    </body>
   </worldbody>
   <contact>
-    <pair geom1="floor" geom2="foot" condim="3" friction="{pair_mu} 0.7 0.005 0.0001 0.0001"
+    <pair name="foot_floor" geom1="floor" geom2="foot" condim="3" friction="{pair_mu} 0.7 0.005 0.0001 0.0001"
           solref="{pair_timeconst} 1" solimp="0.9 {pair_solimp1} 0.001 0.5 2"/>
   </contact>
   <tendon>
-    <fixed name="spring" stiffness="{tendon_k}" damping="{tendon_d}">
+    <fixed name="spring" stiffness="{tendon_k}" damping="{tendon_d}" frictionloss="{tendon_f}"
+           springlength="{tendon_l}">
       <joint joint="hinge" coef="1"/>
     </fixed>
   </tendon>
   <actuator>
     <general name="act" joint="hinge" biastype="affine" gainprm="{gain}" biasprm="0 {bias1} 0"
-             gear="{gear}"/>
+             gear="{gear}" delay="{delay}" nsample="8" interp="linear"/>
     <motor name="slide_motor" joint="slide"/>
     <motor name="box_motor" site="push" gear="1 0 0 0 0 {box_gear5}"/>
     <motor name="twist" joint="ball" gear="0.3 0.2 1"/>
+    <position name="servo" joint="slide" kp="{kp}" kv="{kv}"/>
+    <velocity name="vservo" joint="hinge" kv="{vkv}"/>
+    <pid name="pid" joint="slide" kp="{pid_kp}" ki="{pid_ki}" kv="{pid_kv}"/>
+    <dcmotor name="dc" joint="slide" motorconst="{dc_k}" resistance="{dc_r}" inductance="{dc_l}"
+             cogging="{cog_a} 6 0.2" lugre="{lugre0} 0.3 0.02 0.03 0.1"/>
   </actuator>
+  <sensor>
+    <jointpos name="slide_pos" joint="slide" delay="{sensor_delay}" nsample="5" interp="linear"/>
+  </sensor>
 </mujoco>)";
 
-const std::map<std::string, std::string> kDefaults = {{"compiler", ""},
-                                                      {"damping", "0.2"},
-                                                      {"frictionloss", "0.05"},
-                                                      {"stiffness", "1.5"},
-                                                      {"com_x", "0"},
-                                                      {"ball_damping", "0.1"},
-                                                      {"ball_friction", "0.01"},
-                                                      {"ball_armature", "0.01"},
-                                                      {"tip_mass", "0.5"},
-                                                      {"ix", "0.01"},
-                                                      {"iy", "0.012"},
-                                                      {"iz", "0.005"},
-                                                      {"slide_armature", "0"},
-                                                      {"free_damping", "0.3"},
-                                                      {"box_mu", "0.6"},
-                                                      {"box_torsion", "0.005"},
-                                                      {"gain", "3"},
-                                                      {"bias1", "-1"},
-                                                      {"gear", "1"},
-                                                      {"box_gear5", "0.1"},
-                                                      {"gravcomp", "0.1"},
-                                                      {"foot_pos", "0 0 0"},
-                                                      {"box_z", "0.1"},
-                                                      {"box_timeconst", "0.02"},
-                                                      {"pair_mu", "0.7"},
-                                                      {"pair_timeconst", "0.02"},
-                                                      {"pair_solimp1", "0.95"},
-                                                      {"tendon_k", "0.5"},
-                                                      {"tendon_d", "0.1"}};
+const std::map<std::string, std::string> kDefaults = {
+    {"compiler", ""},
+    {"damping", "0.2"},
+    {"frictionloss", "0.05"},
+    {"stiffness", "1.5"},
+    {"com_x", "0"},
+    {"ball_damping", "0.1"},
+    {"ball_friction", "0.01"},
+    {"ball_armature", "0.01"},
+    {"tip_mass", "0.5"},
+    {"ix", "0.01"},
+    {"iy", "0.012"},
+    {"iz", "0.005"},
+    {"slide_armature", "0"},
+    {"free_damping", "0.3"},
+    {"box_mu", "0.6"},
+    {"box_torsion", "0.005"},
+    {"gain", "3"},
+    {"bias1", "-1"},
+    {"gear", "1"},
+    {"box_gear5", "0.1"},
+    {"gravcomp", "0.1"},
+    {"foot_pos", "0 0 0"},
+    {"box_z", "0.1"},
+    {"box_timeconst", "0.02"},
+    {"box_solimp1", "0.95"},
+    {"pair_mu", "0.7"},
+    {"pair_timeconst", "0.02"},
+    {"pair_solimp1", "0.95"},
+    {"tendon_k", "0.5"},
+    {"tendon_d", "0.1"},
+    {"tendon_f", "0.01"},
+    {"tendon_l", "0.1"},
+    {"kp", "20"},
+    {"kv", "1"},
+    {"vkv", "0.5"},
+    {"pid_kp", "5"},
+    {"pid_ki", "2"},
+    {"pid_kv", "0.3"},
+    {"delay", "0.005"},
+    {"sensor_delay", "0.003"},
+    {"dc_k", "0.5"},
+    {"dc_r", "2"},
+    {"dc_l", "0.004"},
+    {"cog_a", "0.02"},
+    {"lugre0", "100"},
+    {"pl_com", "0.05 0.02 -0.2"},
+    {"pl_mass", "0.8"},
+    {"pl_inertia", "0.01 0.012 0.006 0.001 0 0.0005"}};
 
 std::string Num(double v) {
   char buf[40];
@@ -121,8 +159,9 @@ std::string Xml(const std::map<std::string, std::string>& overrides) {
   return test::FillTemplate(kTemplate, values);
 }
 
-// 50 steps under sine controls: the physics vectors x_1..x_50
-std::vector<double> Rollout(const mjModel& m) { return test::SineRollout(m, 50, 0.2); }
+// 50 steps under sine controls: the physics vectors x_1..x_50, each with the sensors (a delayed
+// sensor's delay shows only there)
+std::vector<double> Rollout(const mjModel& m) { return test::SineRollout(m, 50, 0.2, true); }
 
 ParameterSpec Spec(const std::string& kind, const std::string& object, int index = 0) {
   ParameterSpec s;
@@ -221,7 +260,30 @@ const std::vector<KindCase> kCases = {
     KindCase{Spec("actuator_gain", "act", 0), 5.0, {{"gain", "5"}}},
     KindCase{Spec("actuator_bias", "act", 1), -2.5, {{"bias1", "-2.5"}}},
     KindCase{Spec("actuator_gear", "act", 0), 1.8, {{"gear", "1.8"}}},
-    KindCase{Spec("actuator_gear", "box_motor", 5), 0.25, {{"box_gear5", "0.25"}}}};
+    KindCase{Spec("actuator_gear", "box_motor", 5), 0.25, {{"box_gear5", "0.25"}}},
+    KindCase{Spec("tendon_damping", "spring"), 0.3, {{"tendon_d", "0.3"}}},
+    KindCase{Spec("tendon_stiffness", "spring"), 3.5, {{"tendon_k", "3.5"}}},
+    KindCase{Spec("tendon_frictionloss", "spring"), 0.03, {{"tendon_f", "0.03"}}},
+    KindCase{Spec("tendon_lengthspring", "spring", 0), 0.25, {{"tendon_l", "0.25"}}},
+    KindCase{Spec("tendon_lengthspring", "spring", 1), -0.05, {{"tendon_l", "-0.05 0.1"}}},
+    KindCase{Spec("geom_solref", "box", 0), 0.03, {{"box_timeconst", "0.03"}}},
+    KindCase{Spec("geom_solimp", "box", 1), 0.99, {{"box_solimp1", "0.99"}}},
+    KindCase{Spec("pair_solref", "foot_floor", 0), 0.05, {{"pair_timeconst", "0.05"}}},
+    KindCase{Spec("pair_solimp", "foot_floor", 1), 0.97, {{"pair_solimp1", "0.97"}}},
+    KindCase{Spec("pair_friction", "foot_floor", 0), 0.9, {{"pair_mu", "0.9"}}},
+    KindCase{Spec("actuator_kp", "servo"), 35, {{"kp", "35"}}},
+    KindCase{Spec("actuator_kv", "servo"), 2.5, {{"kv", "2.5"}}},
+    KindCase{Spec("actuator_kv", "vservo"), 1.2, {{"vkv", "1.2"}}},
+    KindCase{Spec("actuator_kp", "pid"), 8, {{"pid_kp", "8"}}},
+    KindCase{Spec("actuator_kv", "pid"), 0.7, {{"pid_kv", "0.7"}}},
+    KindCase{Spec("actuator_ki", "pid"), 4, {{"pid_ki", "4"}}},
+    KindCase{Spec("actuator_delay", "act"), 0.009, {{"delay", "0.009"}}},
+    KindCase{Spec("sensor_delay", "slide_pos"), 0.007, {{"sensor_delay", "0.007"}}},
+    KindCase{Spec("dcmotor_motorconst", "dc"), 0.7, {{"dc_k", "0.7"}}},
+    KindCase{Spec("dcmotor_resistance", "dc"), 2.5, {{"dc_r", "2.5"}}},
+    KindCase{Spec("dcmotor_inductance", "dc"), 0.006, {{"dc_l", "0.006"}}},
+    KindCase{Spec("dcmotor_cogging", "dc", 0), 0.04, {{"cog_a", "0.04"}}},
+    KindCase{Spec("dcmotor_lugre", "dc", 0), 150, {{"lugre0", "150"}}}};
 
 INSTANTIATE_TEST_SUITE_P(EveryKind, IdentifiedKindTest, ::testing::ValuesIn(kCases),
                          [](const ::testing::TestParamInfo<KindCase>& param_info) {
@@ -229,13 +291,47 @@ INSTANTIATE_TEST_SUITE_P(EveryKind, IdentifiedKindTest, ::testing::ValuesIn(kCas
                                   "_" + std::to_string(param_info.param.spec.index);
                          });
 
-// every kind of the table but field (tested below) has a case above
+// every kind of the table but field and body_inertial (tested below) has a case above
 TEST(IdentifiedKindCoverage, EveryKindHasACase) {
   for (const ParameterKindInfo& k : ParameterKindTable()) {
-    if (k.kind == ParameterKind::kField) continue;
+    if (k.kind == ParameterKind::kField || k.kind == ParameterKind::kBodyInertial) continue;
     bool covered = false;
     for (const KindCase& c : kCases) covered = covered || c.spec.kind == k.name;
     EXPECT_TRUE(covered) << k.name;
+  }
+}
+
+// body_inertial: a log-Cholesky variable of the payload written into MJCF compiles to the model
+// whose full inertia is written by hand (tests/core/inertial_by_hand.h) from the same variables
+TEST_F(IdentifiedModelTest, BodyInertialMatchesFullInertiaByHand) {
+  const double theta[10] = {-0.1, -2.0, -1.9, -2.2, 0.01, -0.02, 0.005, 0.05, 0.02, -0.2};
+  const test::InertialText base_text = test::InertialByHand(theta);
+  const std::string path = ModelFile({{"pl_mass", base_text.mass},
+                                      {"pl_com", base_text.pos},
+                                      {"pl_inertia", base_text.fullinertia}});
+  for (int i : {0, 2, 5, 9}) {
+    SCOPED_TRACE("variable " + std::to_string(i));
+    double edited[10];
+    std::copy(theta, theta + 10, edited);
+    edited[i] += i < 4 ? 0.2 : 0.03;
+    std::vector<std::string> warnings;
+    const std::string xml =
+        IdentifiedModelXml(path, {Spec("body_inertial", "payload", i)}, {edited[i]}, &warnings);
+    EXPECT_TRUE(warnings.empty()) << warnings.front();
+    const test::InertialText t = test::InertialByHand(edited);
+    ModelPtr by_hand = LoadModelFromString(
+        Xml({{"pl_mass", t.mass}, {"pl_com", t.pos}, {"pl_inertia", t.fullinertia}}));
+    ModelPtr identified = LoadModelFromString(xml);
+    for (int k = 0; k < 10; ++k) {
+      EXPECT_NEAR(
+          Parameter::Resolve(*identified, Spec("body_inertial", "payload", k)).Read(*identified),
+          edited[k], 1e-12);
+    }
+    // the two eigen-decompositions (MuJoCo's compiler, core) differ by roundoff: the inertial
+    // arrays agree to 1e-12 relative up to the principal axes' signs, so compare rollouts
+    const std::vector<double> traj_hand = Rollout(*by_hand);
+    EXPECT_GT(test::MaxAbsDiff(Rollout(*LoadModel(path)), traj_hand), 1e-9) << "no effect";
+    EXPECT_LE(test::MaxAbsDiff(Rollout(*identified), traj_hand), 1e-12);
   }
 }
 
@@ -295,10 +391,13 @@ TEST_F(IdentifiedModelTest, EveryFieldArrayWithAnMjcfHomeIsWritten) {
     const std::string array = f.array;
     // a row whose object has the attribute: the tip (body), the box (geom), else the first
     const int row = f.object == mjOBJ_BODY ? 2 : f.object == mjOBJ_GEOM ? 4 : 0;
+    // a spring's rest length range grows at its upper end (a lower end above it does not compile)
+    const int column = array == "tendon_lengthspring" ? 1 : 0;
     const ParameterSpec spec = Field(array, row * ParameterIndexCount(*base, Field(array, 0)) /
-                                                (array.rfind("body_", 0) == 0   ? base->nbody
-                                                 : array.rfind("geom_", 0) == 0 ? base->ngeom
-                                                                                : 1));
+                                                    (array.rfind("body_", 0) == 0   ? base->nbody
+                                                     : array.rfind("geom_", 0) == 0 ? base->ngeom
+                                                                                    : 1) +
+                                                column);
     const double value = 1.05 * Parameter::Resolve(*base, spec).Read(*base) + 0.001;
     std::vector<std::string> warnings;
     const std::string xml = IdentifiedModelXml(path, {spec}, {value}, &warnings);

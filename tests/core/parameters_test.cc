@@ -3,16 +3,19 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <map>
 #include <set>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/mujoco_env.h"
 #include "core/state.h"
+#include "tests/core/inertial_by_hand.h"
 #include "tests/test_util.h"
 
 namespace mjsysid {
@@ -198,6 +201,283 @@ TEST(WriterTest, TrapsAreRealWithoutSetConstAndPrepare) {
   }
   EXPECT_TRUE(rejected || test::MaxAbsDiff(traj, xml) > 1e-6)
       << "MuJoCo honours a raw body_ipos write on a same-frame body: update core/parameters.h";
+}
+
+// ---------------------------------------------------------------------------------------------
+// robot-grade kinds: tendons, contact softness and pair friction, servo gains, full inertia
+
+// a position servo (kp, kv) on an arm with a full inertia (and a free roll joint), a pid on its
+// elbow (with a tendon spring), a velocity servo on a wheel, a box pushed over the floor and a puck
+// in an explicit contact pair with the floor
+const char* kRobotTemplate = R"(
+<mujoco>
+  <option timestep="0.002"/>
+  <worldbody>
+    <geom name="floor" type="plane" size="5 5 .1"/>
+    <body name="arm" pos="0 0 2">
+      <joint name="shoulder" type="hinge" axis="0 1 0" damping="0.05"/>
+      <joint name="roll" type="hinge" axis="1 0 0" damping="0.05"/>
+      <inertial pos="{arm_com}" mass="{arm_mass}" fullinertia="{arm_inertia}"/>
+      <geom type="capsule" fromto="0 0 0 0 0 -0.3" size="0.03" contype="0" conaffinity="0"/>
+      <body name="forearm" pos="0 0 -0.3">
+        <joint name="elbow" type="hinge" axis="0 1 0"/>
+        <geom type="capsule" fromto="0 0 0 0.2 0 -0.2" size="0.02" mass="0.3" contype="0"
+              conaffinity="0"/>
+      </body>
+    </body>
+    <body name="wheel" pos="-2 0 1">
+      <joint name="spin" type="hinge" axis="1 0 0"/>
+      <geom type="cylinder" size="0.1 0.02" mass="0.5" contype="0" conaffinity="0"/>
+    </body>
+    <body name="rotor" pos="-2 1 1">
+      <joint name="rotor" type="hinge" axis="1 0 0" damping="0.001"/>
+      <geom type="cylinder" size="0.05 0.02" mass="0.3" contype="0" conaffinity="0"/>
+    </body>
+    <body name="box" pos="0 2 0.1">
+      <freejoint/>
+      <geom name="box" type="box" size=".1 .1 .1" mass="1" friction="0.6 0.005 0.0001"
+            solref="{box_tc} 1" solimp="0.9 {box_dmax} 0.001 0.5 2"/>
+      <site name="push"/>
+    </body>
+    <body name="puck" pos="2 2 0.05">
+      <freejoint/>
+      <geom name="puck" type="sphere" size="0.05" mass="0.2" contype="0" conaffinity="0"/>
+      <site name="puck_push"/>
+    </body>
+  </worldbody>
+  <contact>
+    <pair name="puck_floor" geom1="floor" geom2="puck" condim="3"
+          friction="{pair_mu} {pair_mu2} 0.005 0.0001 0.0001" solref="{pair_tc} 1"
+          solimp="{pair_dmin} 0.95 0.001 0.5 2"/>
+  </contact>
+  <tendon>
+    <fixed name="elbow_spring" stiffness="{tendon_k}" damping="{tendon_d}"
+           frictionloss="{tendon_f}" springlength="{tendon_l}">
+      <joint joint="elbow" coef="1"/>
+    </fixed>
+  </tendon>
+  <actuator>
+    <position name="shoulder_servo" joint="shoulder" kp="{kp}" kv="{kv}" delay="{delay}"
+              nsample="8" interp="linear"/>
+    <velocity name="spin_servo" joint="spin" kv="{spin_kv}"/>
+    <pid name="elbow_pid" joint="elbow" kp="{pid_kp}" ki="{pid_ki}" kv="{pid_kv}"/>
+    <motor name="box_motor" site="push" gear="1 0 0 0 0 0"/>
+    <motor name="puck_motor" site="puck_push" gear="0.6 0.8 0 0 0 0"/>
+    <dcmotor name="dc" joint="rotor" motorconst="{dc_k}" resistance="{dc_r}" inductance="{dc_l}"
+             cogging="{cog_a} 6 {cog_ph}" lugre="{lugre0} 0.3 {lugre2} 0.03 {lugre4}"/>
+  </actuator>
+  <sensor>
+    <jointpos name="elbow_angle" joint="elbow" delay="{sensor_delay}" nsample="5" interp="linear"/>
+  </sensor>
+</mujoco>)";
+
+const std::map<std::string, std::string> kRobotDefaults = {
+    {"arm_com", "0.02 0.01 -0.15"},
+    {"arm_mass", "1.1"},
+    {"arm_inertia", "0.02 0.025 0.012 0.002 -0.001 0.003"},
+    {"box_tc", "0.02"},
+    {"box_dmax", "0.95"},
+    {"pair_mu", "0.7"},
+    {"pair_mu2", "0.7"},
+    {"pair_tc", "0.02"},
+    {"pair_dmin", "0.9"},
+    {"tendon_k", "2"},
+    {"tendon_d", "0.1"},
+    {"tendon_f", "0.01"},
+    {"tendon_l", "0.1"},
+    {"kp", "20"},
+    {"kv", "1"},
+    {"spin_kv", "0.5"},
+    {"pid_kp", "5"},
+    {"pid_ki", "2"},
+    {"pid_kv", "0.3"},
+    {"delay", "0.005"},
+    {"sensor_delay", "0.003"},
+    {"dc_k", "0.05"},
+    {"dc_r", "2"},
+    {"dc_l", "0.004"},
+    {"cog_a", "0.002"},
+    {"cog_ph", "0.2"},
+    {"lugre0", "100"},
+    {"lugre2", "0.02"},
+    {"lugre4", "0.1"}};
+
+std::string RobotXml(const std::map<std::string, std::string>& overrides) {
+  std::map<std::string, std::string> values = overrides;
+  values.insert(kRobotDefaults.begin(), kRobotDefaults.end());  // keeps the overrides
+  return test::FillTemplate(kRobotTemplate, values);
+}
+
+// 500 steps under sines on every control (servo targets, the pid's position and velocity
+// setpoints, pushes that make the box and the puck slide): the physics vectors x_1..x_500, each
+// followed by the sensors (the delayed elbow angle)
+std::vector<double> RobotRollout(const mjModel& m) {
+  DataPtr d = MakeData(m);
+  const StateDims dims(m);
+  const int row = dims.nphys + dims.ns;
+  std::vector<double> out(static_cast<size_t>(500) * row);
+  const double amplitude[] = {0.8, 3.0, 0.6, 0.5, 9.0, 2.5};
+  for (int k = 0; k < 500; ++k) {
+    for (int i = 0; i < m.nu; ++i) {
+      d->ctrl[i] = amplitude[i % 6] * std::sin(0.02 * (1 + 0.3 * i) * k + i);
+    }
+    mj_step(&m, d.get());
+    double* x = out.data() + static_cast<size_t>(k) * row;
+    GetPhysics(m, *d, x);
+    std::copy(d->sensordata, d->sensordata + dims.ns, x + dims.nphys);
+  }
+  EXPECT_EQ(SimulationWarnings(*d), "");
+  return out;
+}
+
+struct RobotCase {
+  ParameterSpec spec;
+  std::map<std::string, std::string> by_hand;  // the same value edited into the template
+  double value;
+};
+
+class RobotWriterTest : public ::testing::TestWithParam<RobotCase> {};
+
+TEST_P(RobotWriterTest, InPlaceWriteMatchesCompiledXml) {
+  const RobotCase& c = GetParam();
+  ModelPtr base = LoadModelFromString(RobotXml({}));
+  ModelPtr edited_xml = LoadModelFromString(RobotXml(c.by_hand));
+  ModelPtr written = CopyModel(*base);
+  ParameterSet params(*written, {c.spec});
+  params.Prepare(written.get());
+  DataPtr scratch = MakeData(*written);
+  params.Write(written.get(), scratch.get(), &c.value);
+  double readback = 0;
+  params.Read(*written, &readback);
+  EXPECT_EQ(readback, c.value);
+  EXPECT_EQ(params[0].Read(*edited_xml), c.value) << "the template edit is this value";
+
+  const std::vector<double> traj_base = RobotRollout(*base);
+  const std::vector<double> traj_xml = RobotRollout(*edited_xml);
+  EXPECT_GT(test::MaxAbsDiff(traj_base, traj_xml), 1e-6) << "the edit has no effect";
+  EXPECT_LE(test::MaxAbsDiff(RobotRollout(*written), traj_xml), 1e-12) << params[0].label();
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Kinds, RobotWriterTest,
+    ::testing::Values(
+        RobotCase{Spec("tendon_damping", "elbow_spring"), {{"tendon_d", "0.3"}}, 0.3},
+        RobotCase{Spec("tendon_stiffness", "elbow_spring"), {{"tendon_k", "3.5"}}, 3.5},
+        RobotCase{Spec("tendon_frictionloss", "elbow_spring"), {{"tendon_f", "0.03"}}, 0.03},
+        RobotCase{Spec("tendon_lengthspring", "elbow_spring", 0), {{"tendon_l", "0.25"}}, 0.25},
+        RobotCase{Spec("geom_solref", "box", 0), {{"box_tc", "0.03"}}, 0.03},
+        RobotCase{Spec("geom_solimp", "box", 1), {{"box_dmax", "0.99"}}, 0.99},
+        RobotCase{Spec("pair_solref", "puck_floor", 0), {{"pair_tc", "0.05"}}, 0.05},
+        RobotCase{Spec("pair_solimp", "puck_floor", 0), {{"pair_dmin", "0.8"}}, 0.8},
+        RobotCase{Spec("pair_friction", "puck_floor", 0), {{"pair_mu", "0.3"}}, 0.3},
+        RobotCase{Spec("pair_friction", "puck_floor", 1), {{"pair_mu2", "0.4"}}, 0.4},
+        RobotCase{Spec("actuator_kp", "shoulder_servo"), {{"kp", "35"}}, 35},
+        RobotCase{Spec("actuator_kv", "shoulder_servo"), {{"kv", "2.5"}}, 2.5},
+        RobotCase{Spec("actuator_kv", "spin_servo"), {{"spin_kv", "1.2"}}, 1.2},
+        RobotCase{Spec("actuator_kp", "elbow_pid"), {{"pid_kp", "8"}}, 8},
+        RobotCase{Spec("actuator_kv", "elbow_pid"), {{"pid_kv", "0.7"}}, 0.7},
+        RobotCase{Spec("actuator_ki", "elbow_pid"), {{"pid_ki", "4"}}, 4},
+        RobotCase{Spec("actuator_delay", "shoulder_servo"), {{"delay", "0.009"}}, 0.009},
+        RobotCase{Spec("sensor_delay", "elbow_angle"), {{"sensor_delay", "0.007"}}, 0.007},
+        RobotCase{Spec("dcmotor_motorconst", "dc"), {{"dc_k", "0.07"}}, 0.07},
+        RobotCase{Spec("dcmotor_resistance", "dc"), {{"dc_r", "2.5"}}, 2.5},
+        RobotCase{Spec("dcmotor_inductance", "dc"), {{"dc_l", "0.006"}}, 0.006},
+        RobotCase{Spec("dcmotor_cogging", "dc", 0), {{"cog_a", "0.004"}}, 0.004},
+        RobotCase{Spec("dcmotor_cogging", "dc", 2), {{"cog_ph", "0.5"}}, 0.5},
+        RobotCase{Spec("dcmotor_lugre", "dc", 0), {{"lugre0", "150"}}, 150},
+        RobotCase{Spec("dcmotor_lugre", "dc", 2), {{"lugre2", "0.03"}}, 0.03},
+        RobotCase{Spec("dcmotor_lugre", "dc", 4), {{"lugre4", "0.2"}}, 0.2}),
+    [](const ::testing::TestParamInfo<RobotCase>& param_info) {
+      return param_info.param.spec.kind + "_" + param_info.param.spec.object + "_" +
+             std::to_string(param_info.param.spec.index);
+    });
+
+// the arm's inertial attributes of log-Cholesky variables (tests/core/inertial_by_hand.h)
+std::map<std::string, std::string> InertialByHand(const double theta[10]) {
+  const test::InertialText t = test::InertialByHand(theta);
+  return {{"arm_mass", t.mass}, {"arm_com", t.pos}, {"arm_inertia", t.fullinertia}};
+}
+
+// body_inertial: each of the 10 variables written in place reproduces the model compiled from a
+// full inertia written by hand. Truth: theta below; each variable moved by 0.1 (0.02 m for s, t).
+// Tolerance 1e-10: MuJoCo's compiler and core eigen-decompose the same tensor with different
+// roundoff (1e-16 relative), which 500 steps of a driven arm amplify to ~1e-13.
+TEST(RobotWriterTest, BodyInertialEachVariableMatchesCompiledFullInertia) {
+  const double theta[10] = {0.05, -1.6, -1.8, -2.1, 0.02, -0.01, 0.015, 0.02, 0.01, -0.15};
+  ModelPtr base = LoadModelFromString(RobotXml(InertialByHand(theta)));
+  const std::vector<double> traj_base = RobotRollout(*base);
+  for (int i = 0; i < 10; ++i) {
+    SCOPED_TRACE("variable " + std::to_string(i));
+    double edited[10];
+    std::copy(theta, theta + 10, edited);
+    edited[i] += i < 4 ? 0.1 : 0.02;
+    ModelPtr edited_xml = LoadModelFromString(RobotXml(InertialByHand(edited)));
+    ModelPtr written = CopyModel(*base);
+    ParameterSet params(*written, {Spec("body_inertial", "arm", i)});
+    EXPECT_NEAR(params[0].Read(*base), theta[i], 1e-12) << "read from the compiled model";
+    params.Prepare(written.get());
+    DataPtr scratch = MakeData(*written);
+    params.Write(written.get(), scratch.get(), &edited[i]);
+    for (int k = 0; k < 10; ++k) {
+      EXPECT_NEAR(Parameter::Resolve(*written, Spec("body_inertial", "arm", k)).Read(*written),
+                  edited[k], 1e-12)
+          << "variable " << k << " after the write";
+    }
+    const std::vector<double> traj_xml = RobotRollout(*edited_xml);
+    EXPECT_GT(test::MaxAbsDiff(traj_base, traj_xml), 1e-6) << "the edit has no effect";
+    EXPECT_LE(test::MaxAbsDiff(RobotRollout(*written), traj_xml), 1e-10);
+  }
+}
+
+// a servo kind on an actuator of another form, and body_inertial of a point mass, are refused
+TEST(RobotWriterTest, ServoAndInertialKindsRefuseOtherForms) {
+  ModelPtr m = LoadModelFromString(RobotXml({}));
+  auto message = [&](const ParameterSpec& spec) -> std::string {
+    try {
+      Parameter::Resolve(*m, spec);
+    } catch (const ParameterError& e) {
+      EXPECT_EQ(e.part(), ParameterSpecPart::kObject);
+      return e.what();
+    }
+    return "";
+  };
+  EXPECT_NE(message(Spec("actuator_kp", "box_motor")).find("is not a <position> servo"),
+            std::string::npos);
+  EXPECT_NE(message(Spec("actuator_ki", "shoulder_servo")).find("is not a <pid> actuator"),
+            std::string::npos);
+  EXPECT_NE(message(Spec("actuator_kp", "spin_servo")).find("actuator_gain"), std::string::npos);
+  EXPECT_NE(message(Spec("body_inertial", "world")).find("world body"), std::string::npos);
+  ModelPtr point = LoadModelFromString(
+      "<mujoco><worldbody><body name='p'><freejoint/><inertial pos='0 0 0' mass='1' "
+      "diaginertia='1 1 2'/></body></worldbody></mujoco>");
+  try {
+    Parameter::Resolve(*point, Spec("body_inertial", "p"));
+    ADD_FAILURE() << "a flat plate (1 + 1 = 2) accepted";
+  } catch (const ParameterError& e) {
+    EXPECT_NE(std::string(e.what()).find("not strictly physically consistent"), std::string::npos)
+        << e.what();
+  }
+  // a delay without a linearly interpolated history buffer has no derivative
+  ModelPtr hold = LoadModelFromString(
+      "<mujoco><worldbody><body><joint name='j'/><geom size='.1'/></body></worldbody><actuator>"
+      "<motor name='zoh' joint='j' delay='0.01' nsample='10'/><motor name='none' joint='j'/>"
+      "</actuator></mujoco>");
+  for (const auto& [actuator, expected] :
+       {std::pair<std::string, std::string>{"zoh", "zero-order hold"},
+        {"none", "no history buffer"}}) {
+    try {
+      Parameter::Resolve(*hold, Spec("actuator_delay", actuator));
+      ADD_FAILURE() << actuator << " accepted";
+    } catch (const ParameterError& e) {
+      EXPECT_NE(std::string(e.what()).find(expected), std::string::npos) << e.what();
+    }
+  }
+  // a dead-band spring has no one rest length
+  ModelPtr band = LoadModelFromString(RobotXml({{"tendon_l", "0.1 0.3"}}));
+  EXPECT_THROW(Parameter::Resolve(*band, Spec("tendon_lengthspring", "elbow_spring", 0)),
+               ParameterError);
+  EXPECT_EQ(Parameter::Resolve(*band, Spec("tendon_lengthspring", "elbow_spring", 2)).Read(*band),
+            0.3);
 }
 
 TEST(ParameterTest, BadSpecsAreClearErrors) {

@@ -136,7 +136,25 @@ TEST_P(JacobianTest, ModesAgreeWithCentralWholeRolloutDifferences) {
   // the error through T steps; central differences are O(h^2) + roundoff O(eps/h) ~ 1e-10, so
   // 2e-6 is loose by the same margin. Contact scenes get 10x more: the solver's fixed iteration
   // count leaves a non-smooth residual in each step.
-  const bool contact = sim.model().ngeom > 1 && c.model == "box_floor.xml";
+  const bool contact =
+      sim.model().ngeom > 1 && (c.model == "box_floor.xml" || c.model == "box_pair.xml");
+  // native delays (history buffers): the one-step modes are refused, auto takes whole rollouts,
+  // and forward whole-rollout differences agree with the central reference
+  if (sim.model().nhistory > 0) {
+    for (JacobianMode mode : {JacobianMode::kDirectional, JacobianMode::kMatrix}) {
+      JacobianOptions opt;
+      opt.mode = mode;
+      EXPECT_THROW(sim.Jacobians(seq, nominal, opt), std::invalid_argument);
+    }
+    JacobianOptions opt;
+    opt.initial_state = initial;
+    opt.zero_column_is_error = ref_opt.zero_column_is_error;
+    const Sensitivity s = sim.Jacobians(seq, nominal, opt);
+    EXPECT_EQ(s.mode, JacobianMode::kWholeRollout);
+    EXPECT_LE(ColumnScaledError(s.DyDp, ref.DyDp), 1e-4);
+    EXPECT_LE(ColumnScaledError(s.DxDp, ref.DxDp), 1e-4);
+    return;
+  }
   for (JacobianMode mode : {JacobianMode::kDirectional, JacobianMode::kMatrix}) {
     for (bool central : {false, true}) {
       JacobianOptions opt;
@@ -208,6 +226,65 @@ const std::vector<JacobianCase> kCases = {
      0.7,
      "ball_pendulum",
      {}},
+    // robot-grade kinds: servo gains and the full inertia of the last link (log-Cholesky alpha,
+    // d2; its s and t variables are zero or near it, where the step floor 1e-3 makes h = 1e-9 m
+    // and the difference roundoff-bound: docs/numerics.md)
+    {"arm7.xml",
+     {Spec("actuator_kp", "s2"), Spec("actuator_kv", "s4"), Spec("body_inertial", "link7", 0),
+      Spec("body_inertial", "link7", 2)},
+     0.8,
+     0.0,
+     0.3,
+     "arm7_servo_inertial",
+     {}},
+    // a pid's three gains, a velocity servo, a tendon's four kinds, a full inertia's d1 and t1
+    // (its s variables are a few mm: the same step floor limit as above)
+    {"pid_tendon.xml",
+     {Spec("actuator_kp", "shoulder_pid"), Spec("actuator_ki", "shoulder_pid"),
+      Spec("actuator_kv", "shoulder_pid"), Spec("actuator_kv", "elbow_vel"),
+      Spec("tendon_stiffness", "coupling"), Spec("tendon_damping", "coupling"),
+      Spec("tendon_frictionloss", "coupling"), Spec("tendon_lengthspring", "coupling", 0),
+      Spec("body_inertial", "lower", 1), Spec("body_inertial", "lower", 7)},
+     1.0,
+     0.0,
+     0.4,
+     "pid_tendon",
+     {}},
+    // an explicit contact pair's friction and softness (the box settled on the floor first)
+    {"box_pair.xml",
+     {Spec("pair_friction", "box_floor", 0), Spec("pair_solref", "box_floor", 0),
+      Spec("pair_solimp", "box_floor", 0)},
+     5.0,
+     15.0,
+     0.0,
+     "box_pair",
+     1000},
+    // native delays (history buffers): the actuator's and the sensor's delay, and a servo gain
+    {"servo_delay.xml",
+     {Spec("actuator_delay", "servo"), Spec("sensor_delay", "angle"), Spec("actuator_kp", "servo")},
+     0.8,
+     0.0,
+     0.3,
+     "servo_delay",
+     {}},
+    // a voltage-input DC motor: constant, resistance, inductance, cogging
+    {"dcmotor.xml",
+     {Spec("dcmotor_motorconst", "motor"), Spec("dcmotor_resistance", "motor"),
+      Spec("dcmotor_inductance", "motor"), Spec("dcmotor_cogging", "motor", 0)},
+     3.0,
+     0.0,
+     0.5,
+     "dcmotor",
+     {}},
+    // contact softness of a geom (the box settled on the floor first)
+    {"box_floor.xml",
+     {Spec("geom_solref", "box", 0), Spec("geom_solimp", "box", 0),
+      Spec("geom_friction", "box", 0)},
+     5.0,
+     15.0,
+     0.0,
+     "box_floor_softness",
+     1000},
 };
 
 INSTANTIATE_TEST_SUITE_P(Models, JacobianTest,

@@ -97,6 +97,9 @@ struct ModelCase {
   std::string name;
   int T = 500;
   std::string body[2], joint[2], geom[2], actuator[2];  // geom empty: no geom_friction
+  std::string tendon[2];                                // empty: no tendon kinds
+  std::string servo[2];          // position/velocity servos or pids: the servo gain kinds
+  std::string inertial_body[2];  // bodies with a strictly consistent inertial: body_inertial
 };
 
 ModelCase CaseFor(const std::string& name, const mjModel& m, bool quick) {
@@ -117,6 +120,14 @@ ModelCase CaseFor(const std::string& name, const mjModel& m, bool quick) {
     c.actuator[0] = "knee_right", c.actuator[1] = "knee_left";
     return c;
   }
+  if (name == "arm7") {
+    c.T = quick ? 300 : 1000;
+    c.body[0] = "link5", c.body[1] = "link6";
+    c.joint[0] = "j5", c.joint[1] = "j6";
+    c.servo[0] = "s5", c.servo[1] = "s6";
+    c.inertial_body[0] = "link6", c.inertial_body[1] = "link7";
+    return c;
+  }
   // any other model: the first two named bodies with mass, hinge/slide joints and actuators
   c.T = quick ? 200 : 500;
   auto pick = [&](mjtObj type, int n, const std::function<bool(int)>& ok, std::string* out) {
@@ -134,7 +145,17 @@ ModelCase CaseFor(const std::string& name, const mjModel& m, bool quick) {
       mjOBJ_JOINT, static_cast<int>(m.njnt),
       [&](int i) { return m.jnt_type[i] == mjJNT_HINGE || m.jnt_type[i] == mjJNT_SLIDE; }, c.joint);
   pick(
-      mjOBJ_ACTUATOR, static_cast<int>(m.nu), [&](int) { return true; }, c.actuator);
+      mjOBJ_ACTUATOR, static_cast<int>(m.nactuator), [&](int) { return true; }, c.actuator);
+  pick(
+      mjOBJ_TENDON, static_cast<int>(m.ntendon), [&](int) { return true; }, c.tendon);
+  pick(
+      mjOBJ_ACTUATOR, static_cast<int>(m.nactuator),
+      [&](int i) {
+        // pids and position servos (both have kp and kv)
+        return m.actuator_gaintype[i] == mjGAIN_PID || (m.actuator_biastype[i] == mjBIAS_AFFINE &&
+                                                        m.actuator_biasprm[mjNBIAS * i + 1] != 0);
+      },
+      c.servo);
   return c;
 }
 
@@ -162,6 +183,14 @@ std::vector<KindCase> KindsFor(const ModelCase& c) {
   add("geom_friction", c.geom, 0);
   add("actuator_gain", c.actuator, 0);
   add("actuator_gear", c.actuator, 0);
+  add("tendon_damping", c.tendon, 0);
+  add("tendon_stiffness", c.tendon, 0);
+  add("tendon_frictionloss", c.tendon, 0);
+  add("geom_solref", c.geom, 0);
+  add("geom_solimp", c.geom, 0);
+  add("actuator_kp", c.servo, 0);
+  add("actuator_kv", c.servo, 0);
+  add("body_inertial", c.inertial_body, 2);  // d2
   return kinds;
 }
 

@@ -374,11 +374,39 @@ measurement:
 }
 
 TEST(ParameterKindNamesTest, ListsEveryKindInEnumOrder) {
-  const std::vector<std::string> expected = {
-      "body_mass",     "body_mass_inertia",  "body_inertia",   "body_com",
-      "joint_damping", "joint_frictionloss", "joint_armature", "joint_stiffness",
-      "geom_friction", "actuator_gain",      "actuator_bias",  "actuator_gear",
-      "field"};
+  const std::vector<std::string> expected = {"body_mass",
+                                             "body_mass_inertia",
+                                             "body_inertia",
+                                             "body_com",
+                                             "joint_damping",
+                                             "joint_frictionloss",
+                                             "joint_armature",
+                                             "joint_stiffness",
+                                             "geom_friction",
+                                             "actuator_gain",
+                                             "actuator_bias",
+                                             "actuator_gear",
+                                             "tendon_damping",
+                                             "tendon_stiffness",
+                                             "tendon_frictionloss",
+                                             "tendon_lengthspring",
+                                             "geom_solref",
+                                             "geom_solimp",
+                                             "pair_solref",
+                                             "pair_solimp",
+                                             "pair_friction",
+                                             "actuator_kp",
+                                             "actuator_kv",
+                                             "actuator_ki",
+                                             "body_inertial",
+                                             "actuator_delay",
+                                             "sensor_delay",
+                                             "dcmotor_motorconst",
+                                             "dcmotor_resistance",
+                                             "dcmotor_inductance",
+                                             "dcmotor_cogging",
+                                             "dcmotor_lugre",
+                                             "field"};
   EXPECT_EQ(ParameterKindNames(), expected);
   EXPECT_EQ(ParameterKindName(ParameterKind::kJointArmature), "joint_armature");
   EXPECT_EQ(ParameterKindName(ParameterKind::kField), "field");

@@ -58,6 +58,7 @@ const std::map<std::string, Expectation> kShipped = {
     {"cartpole", {"ci"}},
     {"arm5", {"ci"}},
     {"arm7", {"ci"}},
+    {"servo_arm7", {"ci"}},
     {"box_floor", {"relative", 0.03}},
     {"humanoid", {"closer", 0, 10}},
 };
