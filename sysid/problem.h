@@ -88,6 +88,9 @@ class Problem {
     std::vector<std::pair<double, double>> mbounds;  // bounds of the measurement terms
     std::vector<double> minitial;                    // their initial values
     std::string jacobian_mode;
+    int segment_steps = 0;       // multiple shooting as chosen (0: single shooting)
+    std::string segment_reason;  // why (FitResult::segment_reason)
+    double probe_rate = 0;       // growth rate per step of the auto probe
   };
   // validates the inputs, builds the simulators, variables and segments
   void Prepare(const FitOptions& options, Prepared* out);

@@ -189,6 +189,11 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
                                  "reference state (set initial_state: {estimate: true} to fit it)");
         }
         fs_.time = s.time.head(T);
+        // logged states: where multiple shooting starts its segments
+        if (s.qpos.rows() >= T && s.qvel.rows() >= T) {
+          fs_.states.resize(T, s.qpos.cols() + s.qvel.cols());
+          fs_.states << s.qpos.topRows(T), s.qvel.topRows(T);
+        }
         out.problem->AddSequence(fs_);
         out.sequences.push_back(fs_);
       }
