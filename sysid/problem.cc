@@ -763,17 +763,20 @@ FitResult Problem::Fit(const FitOptions& options) {
       values[v] = result.parameters[v].value;
       fixed[v] = result.parameters[v].at_lower || result.parameters[v].at_upper;
     }
+    // the rank tolerance follows the finite differences' accuracy (relative step h: O(h)
+    // forward, O(h^2) central) unless the user's rank_tolerance is larger
+    UncertaintyOptions uo = options.uncertainty;
+    const double h = options.jacobian.relative_step;
+    uo.jacobian_accuracy = std::max(uo.jacobian_accuracy, options.jacobian.central ? h * h : h);
     if (multiple) {
-      result.uncertainty =
-          AnalyzeUncertaintyReduced(A, B, cost, all_names, values, fixed, options.uncertainty);
+      result.uncertainty = AnalyzeUncertaintyReduced(A, B, cost, all_names, values, fixed, uo);
     } else {
       RowMatrix J(crs.num_rows, crs.num_cols);
       J << A, Eigen::MatrixXd(B);
       for (int c = nvar; c < crs.num_cols; ++c) {
         all_names.push_back("x0[" + std::to_string(c - nvar) + "]");
       }
-      result.uncertainty =
-          AnalyzeUncertainty(J, cost, all_names, values, fixed, options.uncertainty);
+      result.uncertainty = AnalyzeUncertainty(J, cost, all_names, values, fixed, uo);
     }
     // keep the parameter block of the covariance
     Eigen::MatrixXd cov = result.uncertainty.covariance.topLeftCorner(nvar, nvar);

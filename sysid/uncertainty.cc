@@ -48,9 +48,12 @@ Uncertainty AnalyzeUncertainty(const RowMatrix& J, double cost,
   const Eigen::MatrixXd& V = svd.matrixV();
   const Eigen::VectorXd lambda = u.singular_values.array().square();
   const double smax = u.singular_values.size() ? u.singular_values[0] : 0.0;
+  // the rank decision: relative to the largest singular value, and above the Jacobian's error
+  const double threshold = std::max(options.rank_tolerance * smax,
+                                    options.jacobian_accuracy * std::sqrt(static_cast<double>(nf)));
   std::vector<bool> kept(nf, false);
   for (int i = 0; i < nf; ++i) {
-    kept[i] = smax > 0 && u.singular_values[i] > options.rank_tolerance * smax;
+    kept[i] = smax > 0 && u.singular_values[i] > threshold;
     u.rank += kept[i] ? 1 : 0;
   }
   u.dof = m - u.rank;

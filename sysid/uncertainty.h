@@ -7,7 +7,8 @@
 //   covariance rows are zero and they are reported as fixed, not as estimated.
 // - The columns are scaled to unit norm and the SVD of the scaled J is taken (of the R of its thin
 //   QR when m > n); directions whose singular value is
-//   below rank_tolerance times the largest cannot be determined from the data. Their variables
+//   below rank_tolerance times the largest, or below the Jacobian's own error
+//   (UncertaintyOptions::jacobian_accuracy), cannot be determined from the data. Their variables
 //   are reported unidentifiable (infinite standard error), with the combination of relative changes
 //   that leaves the residuals unchanged, instead of a meaningless number.
 // - Covariance = s^2 (J^T J)^+ on the determined directions, s^2 = 2 cost / (m - rank), the
@@ -29,6 +30,11 @@ struct UncertaintyOptions {
   double participation = 0.1;    // |component| of a lost direction that makes a variable
                                  // unidentifiable
   bool scale_by_residual_variance = true;
+  // relative accuracy of each Jacobian column (finite differences: ~h forward, ~h^2 central);
+  // a singular value of the column-scaled J below jacobian_accuracy * sqrt(n free) cannot be told
+  // from the Jacobian's own error and is lost too. 0: only rank_tolerance decides. Problem::Fit
+  // sets it from FitOptions::jacobian.
+  double jacobian_accuracy = 0;
 };
 
 struct Uncertainty {

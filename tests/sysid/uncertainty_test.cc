@@ -4,6 +4,7 @@
 
 #include <Eigen/LU>
 #include <cmath>
+#include <cstdio>
 #include <random>
 #include <string>
 #include <vector>
@@ -117,6 +118,32 @@ TEST(UncertaintyTest, ReducedEqualsDenseOnMultipleShootingStructure) {
     EXPECT_NEAR(reduced.std_error[j], dense.std_error[j], 1e-8 * dense.std_error[j]) << j;
     EXPECT_TRUE(reduced.identifiable[j]);
   }
+}
+
+// the rank decision follows the Jacobian's accuracy: columns a and b = a + 1e-5 * c (c orthogonal
+// noise-like), 100 rows; the pair's small singular value of the column-scaled J is 2.2e-6
+// (measured, printed). With jacobian_accuracy 0 (rank_tolerance 1e-7) the pair is kept; with 1e-5
+// (a forward difference with step 1e-5) it is below the Jacobian's own error and reported
+// unidentifiable
+TEST(UncertaintyTest, RankToleranceFollowsJacobianAccuracy) {
+  const int m = 100;
+  RowMatrix J(m, 2);
+  for (int i = 0; i < m; ++i) {
+    J(i, 0) = std::sin(0.1 * i) + 2.0;
+    J(i, 1) = J(i, 0) + 1e-5 * std::cos(0.37 * i);
+  }
+  const Uncertainty loose =
+      AnalyzeUncertainty(J, 1.0, {"a", "b"}, Eigen::Vector2d(1, 1), {false, false});
+  std::printf("[ measured ] singular values %.3g %.3g\n", loose.singular_values[0],
+              loose.singular_values[1]);
+  EXPECT_EQ(loose.rank, 2);
+  UncertaintyOptions o;
+  o.jacobian_accuracy = 1e-5;
+  const Uncertainty strict =
+      AnalyzeUncertainty(J, 1.0, {"a", "b"}, Eigen::Vector2d(1, 1), {false, false}, o);
+  EXPECT_EQ(strict.rank, 1);
+  EXPECT_FALSE(strict.identifiable[0]);
+  EXPECT_FALSE(strict.identifiable[1]);
 }
 
 }  // namespace
