@@ -7,10 +7,10 @@
 //     format, format_version, name, experiment, status, intervals_valid, termination, created,
 //     mjsysid_version, mujoco_version, jacobian_mode, iterations, initial_cost, final_cost,
 //     residual_variance, num_residuals, wall_time_s, segment_steps_used and segment_reason
-//     (multiple shooting as used and why; optional when read), solver (map of setting -> value as text),
-//     parameters (list of {name, value, initial, std, ci95: [lo, hi], flags: [...], truth?}),
-//     unidentifiable (list of text), warnings (list of text), identified_models (map model ->
-//     file), run_id (when the result has one)
+//     (multiple shooting as used and why; optional when read), solver (map of setting -> value
+//     as text), parameters (list of {name, value, initial, std, ci95: [lo, hi], flags: [...],
+//     truth?}), unidentifiable (list of text), warnings (list of text), identified_models (map
+//     model -> file), run_id (when the result has one)
 //   std and ci95 bounds that are infinite are written as .inf / -.inf; flags are any of
 //   at_lower_bound, at_upper_bound, unidentifiable.
 // - result.h5 layout: root attributes format = "mjsysid-result", format_version = 1, status;
