@@ -16,7 +16,7 @@ constexpr double kCostSkipPos = 0.6;
 constexpr double kCostSkipVel = 0.4;
 
 // a perturbation h*|S| past this (in state units) is no longer a local finite difference
-constexpr double kGrowthLimit = 1e-2;
+constexpr double kGrowthLimit = kSensitivityGrowthLimit;
 
 // forward and backward differences further apart than this (relative) straddle a kink
 constexpr double kKinkTolerance = 0.1;

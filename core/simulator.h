@@ -123,6 +123,11 @@ double ContactFraction(const std::vector<Trajectory>& trajectories);
 enum class JacobianMode { kAuto, kDirectional, kMatrix, kWholeRollout };
 const char* JacobianModeName(JacobianMode mode);
 
+// A finite-difference perturbation h*|S| (parameter step times the state sensitivity, state
+// units) past this is no longer local: the Jacobians warn (Sensitivity::warnings), and the fit's
+// automatic multiple shooting (sysid/problem.h) splits horizons where it is reached.
+constexpr double kSensitivityGrowthLimit = 1e-2;
+
 struct JacobianOptions {
   JacobianMode mode = JacobianMode::kAuto;
   bool central = false;         // central instead of forward differences (twice the steps)

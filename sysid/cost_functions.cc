@@ -229,6 +229,8 @@ ceres::CallbackReturnType ProgressCallback::operator()(const ceres::IterationSum
   }
   result_->trace.push_back(info);
   if (I.options.on_iteration && info.successful) I.options.on_iteration(info);
+  // auto multiple shooting: the single-shooting Jacobian stopped being local (Problem::Fit refits)
+  if (I.stop_on_jacobian_warning && !I.jacobian_warnings.empty()) return ceres::SOLVER_ABORT;
   if (I.options.interrupt && I.options.interrupt->load()) {
     result_->interrupted = true;
     return ceres::SOLVER_TERMINATE_SUCCESSFULLY;

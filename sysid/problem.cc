@@ -9,18 +9,22 @@
 #include <ceres/ceres.h>
 #include <ceres/gradient_checker.h>
 
+#include <Eigen/SparseCore>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <limits>
 #include <map>
+#include <memory>
 #include <stdexcept>
+#include <vector>
 
 #include "core/text.h"
 #include "sysid/cost_functions.h"
 #include "sysid/evaluation_cache.h"
 #include "sysid/fit_status.h"
+#include "sysid/multiple_shooting.h"
 #include "sysid/problem_impl.h"
 #include "sysid/residual_model.h"
 #include "sysid/state_manifold.h"
@@ -311,9 +315,15 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
   // segments (multiple shooting) and state blocks
   I.segments.clear();
   I.states.clear();
+  const HorizonChoice horizon = ChooseHorizon(I, initial, options);
+  out->segment_steps = horizon.steps;
+  out->segment_reason = horizon.reason;
+  out->probe_rate = horizon.rate;
+  I.stop_on_jacobian_warning = options.segment_steps < 0 && horizon.steps == 0;
+  std::string start_source;
   for (size_t q = 0; q < I.sequences.size(); ++q) {
     const int T = static_cast<int>(I.sequences[q].ctrl.rows());
-    const int len = options.segment_steps > 0 ? options.segment_steps : T;
+    const int len = horizon.steps > 0 ? horizon.steps : T;
     const size_t first = I.segments.size();
     for (int k0 = 0; k0 < T; k0 += len) {
       Segment seg;
@@ -324,9 +334,16 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
       const bool free = k0 > 0 || options.estimate_initial_state;
       if (free) {
         seg.block = static_cast<int>(I.states.size());
-        // start from the initial-parameter rollout (continuity holds at the start)
-        const auto row = initial[q].states.row(k0);
-        I.states.emplace_back(row.data(), row.data() + row.size());
+        std::vector<double> x;
+        if (k0 == 0) {
+          // the sequence's given x0 (the estimate's start)
+          const auto row = initial[q].states.row(0);
+          x.assign(row.data(), row.data() + row.size());
+        } else {
+          // later segments from the data where they determine the state, else the rollout
+          start_source = SegmentStart(I, static_cast<int>(q), k0, initial[q], &x);
+        }
+        I.states.push_back(std::move(x));
       }
       I.segments.push_back(seg);
     }
@@ -334,6 +351,8 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
       I.segments[s].next = I.segments[s + 1].block;
     }
   }
+
+  if (!start_source.empty()) out->segment_reason += "; segment states from " + start_source;
 
   // evaluation cache, seeded with the initial rollouts (and Jacobians) of whole sequences
   std::vector<EvaluationCache::Model> simulated;
@@ -360,6 +379,8 @@ FitResult Problem::Fit(const FitOptions& options) {
   const std::vector<std::string>& names = prepared.names;
   const std::vector<std::pair<double, double>>& mbounds = prepared.mbounds;
   result.jacobian_mode = prepared.jacobian_mode;
+  result.segment_steps_used = prepared.segment_steps;
+  result.segment_reason = prepared.segment_reason;
 
   // a start on a bound: the first step may leave the bound at once or never (a projected
   // gradient pointing outwards)
@@ -421,7 +442,7 @@ FitResult Problem::Fit(const FitOptions& options) {
   so_ceres.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
   int tangent = np + static_cast<int>(I.m.size());
   for (const auto& st : I.states) tangent += static_cast<int>(st.size());
-  so_ceres.linear_solver_type = tangent <= 200 ? ceres::DENSE_QR : ceres::SPARSE_NORMAL_CHOLESKY;
+  ChooseLinearSolver(I, tangent, &so_ceres);
   so_ceres.max_num_iterations = options.max_iterations;
   so_ceres.function_tolerance = options.function_tolerance;
   so_ceres.gradient_tolerance = options.gradient_tolerance;
@@ -445,6 +466,27 @@ FitResult Problem::Fit(const FitOptions& options) {
   I.rejected_evaluations = 0;
   I.jacobian_warnings.clear();
   ceres::Solve(so_ceres, &problem, &summary);
+
+  // auto: single shooting whose Jacobian stopped being local is refitted in multiple shooting
+  if (I.stop_on_jacobian_warning && !I.jacobian_warnings.empty() && !result.interrupted) {
+    std::string reason;
+    FitOptions segmented = options;
+    segmented.segment_steps =
+        SegmentStepsAfterWarning(I.jacobian_warnings.begin()->second, prepared.probe_rate, &reason);
+    if (segmented.segment_steps > 0) {
+      const double first_seconds =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      FitResult refit = Fit(segmented);
+      refit.segment_reason = reason + "; " +
+                             refit.segment_reason.substr(
+                                 refit.segment_reason.find("segment states") == std::string::npos
+                                     ? refit.segment_reason.size()
+                                     : refit.segment_reason.find("segment states"));
+      refit.seconds += first_seconds;
+      refit.trace.insert(refit.trace.begin(), result.trace.begin(), result.trace.end());
+      return refit;
+    }
+  }
 
   result.initial_cost = summary.initial_cost;
   result.final_cost = summary.final_cost;
@@ -508,24 +550,37 @@ FitResult Problem::Fit(const FitOptions& options) {
     result.converged = false;
     result.warnings.push_back("interrupted: no uncertainty step, the estimate has no intervals");
   } else if (evaluated) {
-    RowMatrix J = RowMatrix::Zero(crs.num_rows, crs.num_cols);
-    for (int r = 0; r < crs.num_rows; ++r) {
-      for (int i = crs.rows[r]; i < crs.rows[r + 1]; ++i) J(r, crs.cols[i]) = crs.values[i];
-    }
-    for (int g = 0; g < np; ++g) J.col(g) /= I.DpDz(g, I.z[g]);
     // parameters first (as Ceres ordered the blocks: z, m, states); those stopped on a bound are
-    // not estimated
-    Eigen::VectorXd values = Eigen::VectorXd::Zero(J.cols());
-    std::vector<bool> fixed(J.cols(), false);
+    // not estimated. Multiple shooting: the state columns are eliminated (Schur complement,
+    // AnalyzeUncertaintyReduced) instead of entering a dense analysis of every segment state.
+    RowMatrix A;
+    Eigen::SparseMatrix<double> B;
+    SplitJacobian(crs, nvar, &A, &B);
+    for (int g = 0; g < np; ++g) A.col(g) /= I.DpDz(g, I.z[g]);
+    bool multiple = false;
+    for (const Segment& seg : I.segments) multiple = multiple || seg.next >= 0;
+    Eigen::VectorXd values = Eigen::VectorXd::Zero(multiple ? nvar : crs.num_cols);
+    std::vector<bool> fixed(values.size(), false);
     std::vector<std::string> all_names = names;
     for (int v = 0; v < nvar; ++v) {
       values[v] = result.parameters[v].value;
       fixed[v] = result.parameters[v].at_lower || result.parameters[v].at_upper;
     }
-    for (Eigen::Index c = nvar; c < J.cols(); ++c) {
-      all_names.push_back("x0[" + std::to_string(c - nvar) + "]");
+    // the rank tolerance follows the finite differences' accuracy (relative step h: O(h)
+    // forward, O(h^2) central) unless the user's rank_tolerance is larger
+    UncertaintyOptions uo = options.uncertainty;
+    const double h = options.jacobian.relative_step;
+    uo.jacobian_accuracy = std::max(uo.jacobian_accuracy, options.jacobian.central ? h * h : h);
+    if (multiple) {
+      result.uncertainty = AnalyzeUncertaintyReduced(A, B, cost, all_names, values, fixed, uo);
+    } else {
+      RowMatrix J(crs.num_rows, crs.num_cols);
+      J << A, Eigen::MatrixXd(B);
+      for (int c = nvar; c < crs.num_cols; ++c) {
+        all_names.push_back("x0[" + std::to_string(c - nvar) + "]");
+      }
+      result.uncertainty = AnalyzeUncertainty(J, cost, all_names, values, fixed, uo);
     }
-    result.uncertainty = AnalyzeUncertainty(J, cost, all_names, values, fixed, options.uncertainty);
     // keep the parameter block of the covariance
     Eigen::MatrixXd cov = result.uncertainty.covariance.topLeftCorner(nvar, nvar);
     result.uncertainty.covariance = cov;
@@ -539,7 +594,7 @@ FitResult Problem::Fit(const FitOptions& options) {
       e.ci95_low = e.value - kZ95 * e.std_error;
       e.ci95_high = e.value + kZ95 * e.std_error;
     }
-    result.jacobian = J.leftCols(nvar);
+    result.jacobian = A;
   } else {
     result.warnings.push_back("the residuals could not be evaluated at the estimate");
   }

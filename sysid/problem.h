@@ -17,7 +17,12 @@
 // time convention of core/simulator.h, w = 1/sigma (or a weight) per sensor, rho_hat the square
 // root of a robust loss applied per scalar residual, plus Gaussian prior residuals
 // (p - mean)/sigma, plus, in multiple shooting, continuity residuals
-// continuity_weight * (x_end(segment i) (-) x_0(segment i+1)) in tangent space.
+// continuity_weight * (x_end(segment i) (-) x_0(segment i+1)) in tangent space. Segments:
+// FitOptions::segment_steps, by default auto (a growth probe at the initial values, then a refit
+// in segments if the core flags single shooting's Jacobian as no longer local; the rule is in
+// docs/numerics.md); later segments start from the data where it determines the state.
+// Multiple shooting solves with Ceres' Schur complement (states eliminated first) and computes
+// the parameters' covariance with the states eliminated (AnalyzeUncertaintyReduced).
 //
 // Variables. Physical parameters are optimised as z = p, log p or p / scale, with bounds mapped
 // accordingly; measurement terms (delay in seconds, gain, bias) as themselves; initial states of
@@ -88,6 +93,9 @@ class Problem {
     std::vector<std::pair<double, double>> mbounds;  // bounds of the measurement terms
     std::vector<double> minitial;                    // their initial values
     std::string jacobian_mode;
+    int segment_steps = 0;       // multiple shooting as chosen (0: single shooting)
+    std::string segment_reason;  // why (FitResult::segment_reason)
+    double probe_rate = 0;       // growth rate per step of the auto probe
   };
   // validates the inputs, builds the simulators, variables and segments
   void Prepare(const FitOptions& options, Prepared* out);

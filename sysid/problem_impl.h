@@ -65,6 +65,9 @@ struct Problem::Impl {
   int rejected_evaluations = 0;
   std::string first_rejection;
   std::map<int, std::string> jacobian_warnings;  // segment -> first warning
+  // auto multiple shooting chose single shooting: the first Jacobian warning ends the solve
+  // (ProgressCallback), and Fit refits in multiple shooting
+  bool stop_on_jacobian_warning = false;
   void NoteRejection(const std::string& what) {
     if (rejected_evaluations++ == 0) first_rejection = what;
   }

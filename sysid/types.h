@@ -134,6 +134,9 @@ struct FitSequence {
   RowMatrix measured;  // T x nsensordata of the model: y_k in the model's sensordata layout
   std::vector<std::string> sensors;  // sensors whose columns are fitted; empty = all sensors
   Eigen::VectorXd time;              // T sample times (s); empty: x0.time + k * timestep
+  // optional states x_k from the log, row k: T x (nq + nv) ([qpos, qvel]) or T x nphys
+  // ([qpos, qvel, act]); 0 x 0 when absent. Multiple shooting starts its segments there.
+  RowMatrix states;
 };
 
 // one Gauss-Newton/LM iteration, as reported to callbacks and kept in FitResult::trace
@@ -157,7 +160,9 @@ struct FitOptions {
   LossType loss = LossType::kNone;
   double loss_scale = 1.0;  // in weighted residual units, > 0
   bool estimate_initial_state = false;
-  int segment_steps = 0;  // multiple shooting: samples per segment; 0 = single
+  // multiple shooting: samples per segment; 0 = single shooting; -1 = auto (the sensitivity
+  // growth measured at the initial values decides, see FitResult::segment_reason)
+  int segment_steps = -1;
   double continuity_weight = 1.0;
   std::map<std::string, double> sensor_weights;  // sensor name -> weight (1/sigma); default 1
   // sensors whose weight is 1/sigma (a noise level, not a mere weight): their weighted residuals
@@ -249,6 +254,10 @@ struct FitResult {
   std::vector<StartResult> starts;
   int best_start = 0;
   std::vector<ParameterSpread> start_spread;
+  // multiple shooting as used: samples per segment (0: single shooting) and why, one line
+  // (e.g. "single shooting: sensitivity bounded (max h*|S| 3.1e-05 <= 0.01)")
+  int segment_steps_used = 0;
+  std::string segment_reason;
 };
 
 }  // namespace mjsysid

@@ -1,10 +1,13 @@
 #include "sysid/uncertainty.h"
 
-#include <Eigen/Eigenvalues>
+#include <Eigen/QR>
+#include <Eigen/SVD>
+#include <Eigen/SparseQR>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <stdexcept>
 
 namespace mjsysid {
 
@@ -27,23 +30,30 @@ Uncertainty AnalyzeUncertainty(const RowMatrix& J, double cost,
   Eigen::VectorXd D(nf);
   for (int a = 0; a < nf; ++a) D[a] = J.col(free[a]).norm();
 
-  // normal matrix of the column-scaled Jacobian (a zero column stays zero: lost direction)
-  Eigen::MatrixXd N(nf, nf);
-  for (int a = 0; a < nf; ++a) {
-    for (int b = a; b < nf; ++b) {
-      const double da = D[a] > 0 ? D[a] : 1.0, db = D[b] > 0 ? D[b] : 1.0;
-      N(a, b) = N(b, a) = J.col(free[a]).dot(J.col(free[b])) / (da * db);
-    }
+  // SVD of the column-scaled Jacobian (a zero column stays zero: lost direction), through the
+  // R of its thin QR when it has more rows than columns (same singular values and V, nf x nf)
+  RowMatrix Js(m, nf);
+  for (int a = 0; a < nf; ++a) Js.col(a) = J.col(free[a]) / (D[a] > 0 ? D[a] : 1.0);
+  Eigen::MatrixXd R;
+  if (m > nf) {
+    Eigen::HouseholderQR<Eigen::MatrixXd> qr(Js);
+    R = qr.matrixQR().topRows(nf).triangularView<Eigen::Upper>();
+  } else {
+    R = Js;
   }
-  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(N);
-  // descending singular values
-  Eigen::VectorXd lambda = eig.eigenvalues().reverse();
-  Eigen::MatrixXd V = eig.eigenvectors().rowwise().reverse();
-  u.singular_values = lambda.cwiseMax(0.0).cwiseSqrt();
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(R, Eigen::ComputeFullV);
+  // descending singular values, padded with zeros when there are fewer rows than variables
+  u.singular_values = Eigen::VectorXd::Zero(nf);
+  u.singular_values.head(svd.singularValues().size()) = svd.singularValues();
+  const Eigen::MatrixXd& V = svd.matrixV();
+  const Eigen::VectorXd lambda = u.singular_values.array().square();
   const double smax = u.singular_values.size() ? u.singular_values[0] : 0.0;
+  // the rank decision: relative to the largest singular value, and above the Jacobian's error
+  const double threshold = std::max(options.rank_tolerance * smax,
+                                    options.jacobian_accuracy * std::sqrt(static_cast<double>(nf)));
   std::vector<bool> kept(nf, false);
   for (int i = 0; i < nf; ++i) {
-    kept[i] = smax > 0 && u.singular_values[i] > options.rank_tolerance * smax;
+    kept[i] = smax > 0 && u.singular_values[i] > threshold;
     u.rank += kept[i] ? 1 : 0;
   }
   u.dof = m - u.rank;
@@ -97,6 +107,33 @@ Uncertainty AnalyzeUncertainty(const RowMatrix& J, double cost,
                                          : std::numeric_limits<double>::infinity();
   }
   return u;
+}
+
+Uncertainty AnalyzeUncertaintyReduced(const RowMatrix& A, const Eigen::SparseMatrix<double>& B,
+                                      double cost, const std::vector<std::string>& names,
+                                      const Eigen::VectorXd& values, const std::vector<bool>& fixed,
+                                      const UncertaintyOptions& options) {
+  if (B.cols() == 0) return AnalyzeUncertainty(A, cost, names, values, fixed, options);
+  const Eigen::Index m = A.rows();
+  // nuisance columns scaled to unit norm (a zero column stays zero and drops out of the rank)
+  Eigen::VectorXd scale = Eigen::VectorXd::Ones(B.cols());
+  for (Eigen::Index c = 0; c < B.cols(); ++c) {
+    const double norm = B.col(c).norm();
+    if (norm > 0) scale[c] = 1.0 / norm;
+  }
+  Eigen::SparseMatrix<double> Bs = B * scale.asDiagonal();
+  Bs.makeCompressed();
+  // sparse QR of the nuisance columns: B P = Q [R; 0]. The last m - rank(B) rows of Q^T A are A
+  // projected onto the complement of B's range, the Jacobian of the reduced problem (the Schur
+  // complement A^T A - A^T B (B^T B)^+ B^T A is its normal matrix)
+  Eigen::SparseQR<Eigen::SparseMatrix<double>, Eigen::COLAMDOrdering<int>> qr(Bs);
+  if (qr.info() != Eigen::Success) {
+    throw std::runtime_error("uncertainty: sparse QR of the initial-state columns failed");
+  }
+  const Eigen::Index rank_b = qr.rank();
+  Eigen::MatrixXd QtA = qr.matrixQ().transpose() * Eigen::MatrixXd(A);
+  const RowMatrix reduced = QtA.bottomRows(m - rank_b);
+  return AnalyzeUncertainty(reduced, cost, names, values, fixed, options);
 }
 
 }  // namespace mjsysid

@@ -5,8 +5,10 @@
 //   variables in the units the user reads (physical parameters; nuisance variables such as initial
 //   states may follow them). Variables flagged fixed (e.g. active bounds) are left out: their
 //   covariance rows are zero and they are reported as fixed, not as estimated.
-// - The columns are scaled to unit norm and J^T J is decomposed; directions whose singular value is
-//   below rank_tolerance times the largest cannot be determined from the data. Their variables
+// - The columns are scaled to unit norm and the SVD of the scaled J is taken (of the R of its thin
+//   QR when m > n); directions whose singular value is
+//   below rank_tolerance times the largest, or below the Jacobian's own error
+//   (UncertaintyOptions::jacobian_accuracy), cannot be determined from the data. Their variables
 //   are reported unidentifiable (infinite standard error), with the combination of relative changes
 //   that leaves the residuals unchanged, instead of a meaningless number.
 // - Covariance = s^2 (J^T J)^+ on the determined directions, s^2 = 2 cost / (m - rank), the
@@ -15,6 +17,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/SparseCore>
 #include <string>
 #include <vector>
 
@@ -27,6 +30,11 @@ struct UncertaintyOptions {
   double participation = 0.1;    // |component| of a lost direction that makes a variable
                                  // unidentifiable
   bool scale_by_residual_variance = true;
+  // relative accuracy of each Jacobian column (finite differences: ~h forward, ~h^2 central);
+  // a singular value of the column-scaled J below jacobian_accuracy * sqrt(n free) cannot be told
+  // from the Jacobian's own error and is lost too. 0: only rank_tolerance decides. Problem::Fit
+  // sets it from FitOptions::jacobian.
+  double jacobian_accuracy = 0;
 };
 
 struct Uncertainty {
@@ -45,5 +53,17 @@ Uncertainty AnalyzeUncertainty(const RowMatrix& J, double cost,
                                const std::vector<std::string>& names, const Eigen::VectorXd& values,
                                const std::vector<bool>& fixed,
                                const UncertaintyOptions& options = UncertaintyOptions());
+
+// The same for the variables A (m x na, row-major: physical parameters, measurement terms) of a
+// Jacobian [A B] whose further columns B (m x nb, sparse: multiple-shooting initial states,
+// tangent space) are nuisance variables, without forming the m x (na + nb) matrix: B is
+// eliminated by a sparse QR (the Schur complement of the state block) and the reduced Jacobian
+// of A goes through AnalyzeUncertainty. Equals the na x na block of AnalyzeUncertainty([A B]) when
+// B has full column rank; dof = m - rank(B) - rank(reduced A). Everything returned has size na
+// (lost directions name variables of A only). Throws std::runtime_error when the QR fails.
+Uncertainty AnalyzeUncertaintyReduced(const RowMatrix& A, const Eigen::SparseMatrix<double>& B,
+                                      double cost, const std::vector<std::string>& names,
+                                      const Eigen::VectorXd& values, const std::vector<bool>& fixed,
+                                      const UncertaintyOptions& options = UncertaintyOptions());
 
 }  // namespace mjsysid

@@ -594,6 +594,7 @@ void PrintEstimates(const mjsysid::io::FitResultFile& f) {
   std::printf("%s: %s after %d iterations (%s), cost %.6g -> %.6g, %.2f s\n", f.name.c_str(),
               f.status.c_str(), f.iterations, f.termination.c_str(), f.initial_cost, f.final_cost,
               f.seconds);
+  if (!f.segment_reason.empty()) std::printf("  %s\n", f.segment_reason.c_str());
   std::printf("  %-24s %14s %14s %14s %12s  %-29s %s\n", "parameter", "initial", "estimate",
               "truth", "std", "95% interval", "flags");
   for (const mjsysid::ParameterEstimate& p : f.parameters) {

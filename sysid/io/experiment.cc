@@ -166,12 +166,21 @@ ExperimentConfig Parser::Parse(const YAML::Node& root) {
     const MapReader s(*this, r.Get("initial_state"), {"estimate"});
     if (s.Has("estimate")) c.options.estimate_initial_state = Bool(s.Get("estimate"));
   }
-  if (r.Has("multiple_shooting")) {
-    const MapReader s(*this, r.Get("multiple_shooting"), {"segment_steps", "continuity_weight"});
-    if (s.Has("segment_steps")) {
-      c.options.segment_steps =
-          static_cast<int>(Integer(s.Get("segment_steps"), 0, std::numeric_limits<int>::max()));
+  // multiple_shooting: auto (also when absent), or {segment_steps: auto|0|N, continuity_weight}
+  auto segment_steps = [&](const Field& f) {
+    if (f.node.IsScalar() && f.node.Scalar() == "auto") return -1;
+    return static_cast<int>(Integer(f, 0, std::numeric_limits<int>::max()));
+  };
+  if (r.Has("multiple_shooting") && r.Get("multiple_shooting").node.IsScalar()) {
+    const Field f = r.Get("multiple_shooting");
+    if (f.node.Scalar() != "auto") {
+      Fail(f.mark, f.path + ": expected 'auto' or a map, got " + Quote(f.node.Scalar()),
+           "multiple_shooting: auto, or {segment_steps: auto|0|N, continuity_weight: w}");
     }
+    c.options.segment_steps = -1;
+  } else if (r.Has("multiple_shooting")) {
+    const MapReader s(*this, r.Get("multiple_shooting"), {"segment_steps", "continuity_weight"});
+    if (s.Has("segment_steps")) c.options.segment_steps = segment_steps(s.Get("segment_steps"));
     if (s.Has("continuity_weight")) {
       c.options.continuity_weight = Positive(s.Get("continuity_weight"));
     }

@@ -181,6 +181,9 @@ std::string EmitYaml(const FitResultFile& r) {
   out << YAML::Key << "residual_variance" << YAML::Value << Number(r.uncertainty.residual_variance);
   out << YAML::Key << "num_residuals" << YAML::Value << r.num_residuals;
   out << YAML::Key << "wall_time_s" << YAML::Value << Number(r.seconds);
+  // multiple shooting as used (0: single shooting) and why
+  out << YAML::Key << "segment_steps_used" << YAML::Value << r.segment_steps_used;
+  out << YAML::Key << "segment_reason" << YAML::Value << r.segment_reason;
 
   // solver settings, as text
   out << YAML::Key << "solver" << YAML::Value << YAML::BeginMap;
@@ -534,6 +537,17 @@ void ReadYaml(const std::string& path, FitResultFile* r) {
                                                         {"jacobian_mode", &r->jacobian_mode}};
   for (const auto& [key, value] : texts) *value = y.Text(y.Get(root, key, key), key);
   if (root["run_id"]) r->run_id = y.Text(root["run_id"], "run_id");
+  // optional (results before automatic multiple shooting have neither)
+  if (root["segment_reason"]) r->segment_reason = y.Text(root["segment_reason"], "segment_reason");
+  if (root["segment_steps_used"]) {
+    const std::string steps = y.Text(root["segment_steps_used"], "segment_steps_used");
+    try {
+      r->segment_steps_used = std::stoi(steps);
+    } catch (const std::exception&) {
+      y.Fail(root["segment_steps_used"], "segment_steps_used",
+             "expected an integer, found " + Quote(steps));
+    }
+  }
   // the verdict from the status ("running" and other text: not converged); intervals_valid is
   // optional (files before it: valid when converged)
   r->outcome = FitStatusFromName(r->status).value_or(FitStatus::kNotConverged);

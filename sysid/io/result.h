@@ -6,11 +6,12 @@
 // - result.yaml keys (schema "mjsysid-result", version 1):
 //     format, format_version, name, experiment, status, intervals_valid, termination, created,
 //     mjsysid_version, mujoco_version, jacobian_mode, iterations, initial_cost, final_cost,
-//     residual_variance, num_residuals, wall_time_s, solver (map of setting -> value as text),
-//     parameters (list of {name, value, initial, std, ci95: [lo, hi], flags: [...], truth?}),
-//     unidentifiable (list of text), warnings (list of text), identified_models (map model ->
-//     file), run_id (when the result has one), fit_metrics (list of {sequence, role: fit |
-//     validation, channels: [{channel, fit_initial, fit_final, nrmse_initial, nrmse_final}]},
+//     residual_variance, num_residuals, wall_time_s, segment_steps_used and segment_reason
+//     (multiple shooting as used and why; optional when read), solver (map of setting -> value
+//     as text), parameters (list of {name, value, initial, std, ci95: [lo, hi], flags: [...],
+//     truth?}), unidentifiable (list of text), warnings (list of text), identified_models (map
+//     model -> file), run_id (when the result has one), fit_metrics (list of {sequence, role: fit
+//     | validation, channels: [{channel, fit_initial, fit_final, nrmse_initial, nrmse_final}]},
 //     sysid/metrics.h; written for readers of the file, recomputed from result.h5 by ReadResult),
 //     starts (multi-start only, sysid/run/multi_start.h: {best, runs: [{start: [...], estimate:
 //     [...], initial_cost, final_cost, status, iterations, error?}], spread: [{name, min, max,
@@ -52,6 +53,7 @@ class ResultError : public std::runtime_error {
 // A fit's result as stored: the fit itself (sysid/types.h) and what the run adds about it.
 // Of FitResult the files keep: parameters (truth included), initial_cost, final_cost,
 // iterations, termination, num_residuals, jacobian_mode, seconds (wall_time_s),
+// segment_steps_used, segment_reason,
 // uncertainty.{residual_variance, unidentifiable, covariance}, jacobian, trace, sequences
 // (x0_final excepted; channel_fits recomputed from the signals), validation, starts, best_start,
 // start_spread (result.yaml), warnings, intervals_valid (both files); outcome, converged and

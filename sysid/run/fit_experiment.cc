@@ -214,6 +214,11 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
                                  "reference state (set initial_state: {estimate: true} to fit it)");
         }
         fs_.time = s.time.head(T);
+        // logged states: where multiple shooting starts its segments
+        if (s.qpos.rows() >= T && s.qvel.rows() >= T) {
+          fs_.states.resize(T, s.qpos.cols() + s.qvel.cols());
+          fs_.states << s.qpos.topRows(T), s.qvel.topRows(T);
+        }
         if (per_model_held_out[mi][si]) {
           out.validation.push_back(fs_);  // simulated after the fit, never fitted
           continue;

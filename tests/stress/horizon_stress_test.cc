@@ -21,6 +21,7 @@ namespace mjsysid {
 namespace {
 
 using stress::ColumnScaledError;
+using stress::Estimate;
 using stress::Excitation;
 using stress::kModels;
 using stress::Spec;
@@ -164,6 +165,12 @@ TEST(HorizonStressTest, BoxSlideJacobianAccuracyVsHorizon) {
 //   states start from a rollout that has left the data); it must say so
 // - high energy (released at 2.5, -2.0 rad, 6 rad/s, 3 Nm; the Jacobian test above), start 1.2,
 //   0.6: measured, neither recovers; both must say so
+// Auto (FitOptions::segment_steps = -1, segment states from the joint sensors) runs on each too:
+// it must split the horizon and recover (1e-5) on "moderate" (measured: the core's Jacobian
+// warns from step 1492 during single shooting, refit with 196-step segments, error 1.3e-11) and
+// "high" (measured: the probe's growth passes x100 beyond linear at step 2188, 328-step segments,
+// error 2e-12); on "moderate_start2" (measured: probe growth x82, no Jacobian warning) it keeps
+// single shooting, which must then recover or report like single shooting
 struct ChaoticCase {
   const char* name;
   Eigen::Vector2d qpos, qvel;
@@ -173,6 +180,7 @@ struct ChaoticCase {
   int segment_steps;
   bool single_must_report;  // single shooting: recover or report (else: measured only)
   bool multiple_must_recover;
+  bool auto_must_split;  // auto must choose multiple shooting (and then recover, 1e-5)
 };
 // gtest prints a case by name (not as bytes) in test listings and failures
 void PrintTo(const ChaoticCase& c, std::ostream* os) { *os << c.name; }
@@ -203,9 +211,11 @@ TEST_P(ChaoticFitTest, LongHorizonSingleAndMultipleShooting) {
     opt.max_iterations = 50;
     return problem.Fit(opt);
   };
-  for (int segment_steps : {0, c.segment_steps}) {
+  for (int segment_steps : {0, c.segment_steps, -1}) {
     const FitResult r = fit(segment_steps);
-    const std::string label = std::string(c.name) + (segment_steps ? " multiple" : " single");
+    const char* kind = segment_steps < 0 ? "auto" : segment_steps ? "multiple" : "single";
+    const std::string label = std::string(c.name) + " " + kind;
+    std::printf("[ stress ] %s: %s\n", label.c_str(), r.segment_reason.c_str());
     stress::PrintFit(label.c_str(), r);
     const double err = stress::WorstRelativeError(r, truth);
     const bool reported = !r.converged || stress::HasWarning(r, "Jacobian not reliable") ||
@@ -213,8 +223,8 @@ TEST_P(ChaoticFitTest, LongHorizonSingleAndMultipleShooting) {
     std::printf(
         "[ stress ] chaotic fit %-8s T=%-5d %-8s shooting: error %.2e, %d iterations, "
         "%.1f s, %s, %s\n",
-        c.name, T, segment_steps ? "multiple" : "single", err, r.iterations, r.seconds,
-        r.converged ? "converged" : "not converged", reported ? "failure reported" : "no warning");
+        c.name, T, kind, err, r.iterations, r.seconds, r.converged ? "converged" : "not converged",
+        reported ? "failure reported" : "no warning");
     EXPECT_TRUE(stress::AllFinite(r)) << label;
     if (segment_steps || c.single_must_report) {
       EXPECT_TRUE(err <= 1e-4 || reported) << label << ": wrong estimate returned silently";
@@ -222,6 +232,16 @@ TEST_P(ChaoticFitTest, LongHorizonSingleAndMultipleShooting) {
     if (segment_steps && c.multiple_must_recover) {
       EXPECT_TRUE(r.converged) << label << ": " << r.termination;
       EXPECT_LE(err, 1e-5) << label;
+    }
+    // auto: the chaotic horizon is split (segments chosen from the measured growth), and where
+    // multiple shooting must recover, auto does too
+    if (segment_steps < 0 && c.auto_must_split) {
+      EXPECT_GT(r.segment_steps_used, 0) << label << ": " << r.segment_reason;
+      EXPECT_LT(r.segment_steps_used, T) << label;
+      if (c.multiple_must_recover || c.auto_must_split) {
+        EXPECT_TRUE(r.converged) << label << ": " << r.termination;
+        EXPECT_LE(err, 1e-5) << label;
+      }
     }
   }
 }
@@ -235,6 +255,7 @@ INSTANTIATE_TEST_SUITE_P(Energies, ChaoticFitTest,
                                                        12,
                                                        100,
                                                        false,
+                                                       true,
                                                        true},
                                            ChaoticCase{"moderate_start2",
                                                        Eigen::Vector2d(2.0, -1.0),
@@ -244,6 +265,7 @@ INSTANTIATE_TEST_SUITE_P(Energies, ChaoticFitTest,
                                                        12,
                                                        100,
                                                        true,
+                                                       false,
                                                        false},
                                            ChaoticCase{"high",
                                                        Eigen::Vector2d(2.5, -2.0),
@@ -253,8 +275,52 @@ INSTANTIATE_TEST_SUITE_P(Energies, ChaoticFitTest,
                                                        5,
                                                        100,
                                                        true,
-                                                       false}),
+                                                       false,
+                                                       true}),
                          [](const auto& param_info) { return std::string(param_info.param.name); });
+
+// automatic multiple shooting on a chaotic long horizon with noise: the double pendulum at
+// moderate energy (as above), 3000 steps (long mode 10,000), truth link masses 1.0 and 0.8 from
+// 1.4 and 0.5, Gaussian noise 1e-3 on every sensor channel (joint angles and velocities; sigma
+// weights 1e3), FitOptions defaults for the horizon (auto). Required: auto splits the horizon,
+// the fit converges, relative error <= 1e-3, and the truth is inside the 95% intervals.
+TEST(HorizonStressTest, AutoMultipleShootingRecoversChaoticNoisyFit) {
+  ModelPtr m = LoadModel(kModels + "/double_pendulum.xml");
+  const std::vector<stress::Truth> truth = {{"m1", Spec("body_mass", "link1"), 1.0},
+                                            {"m2", Spec("body_mass", "link2"), 0.8}};
+  InitialState x0;
+  x0.qpos = Eigen::Vector2d(2.0, -1.0);
+  const int T = stress::LongMode() ? 10000 : 3000;
+  const RowMatrix u = Excitation(*m, T, 0.5, 12);
+  const double sigma = 1e-3;
+  const RowMatrix y = stress::Measure(*m, truth, x0, u, sigma, 3);
+  Problem problem;
+  problem.AddModel("dp", *m);
+  problem.AddParameter(FitParameter("m1", truth[0].spec, 1.4).Bounds(0.05, 20).Log());
+  problem.AddParameter(FitParameter("m2", truth[1].spec, 0.5).Bounds(0.05, 20).Log());
+  problem.AddSequence(FitSequence("seq0", "dp", x0, u, y));
+  FitOptions opt;
+  for (int i = 0; i < m->nsensor; ++i) {
+    opt.sensor_weights[mj_id2name(m.get(), mjOBJ_SENSOR, i)] = 1.0 / sigma;
+  }
+  opt.continuity_weight = 10;
+  opt.threads = 2;
+  opt.max_iterations = 50;
+  const FitResult r = problem.Fit(opt);
+  stress::PrintFit("auto noisy", r);
+  std::printf("[ stress ] auto noisy: %s\n", r.segment_reason.c_str());
+  EXPECT_GT(r.segment_steps_used, 0) << r.segment_reason;
+  EXPECT_LT(r.segment_steps_used, T) << r.segment_reason;
+  EXPECT_TRUE(r.converged) << r.termination;
+  EXPECT_LE(stress::WorstRelativeError(r, truth), 1e-3);
+  for (const stress::Truth& t : truth) {
+    const ParameterEstimate& e = Estimate(r, t.name);
+    std::printf("[ stress ] auto noisy: %s %.6f [%.6f, %.6f] truth %.3f\n", t.name.c_str(), e.value,
+                e.ci95_low, e.ci95_high, t.value);
+    EXPECT_LE(e.ci95_low, t.value) << t.name;
+    EXPECT_GE(e.ci95_high, t.value) << t.name;
+  }
+}
 
 }  // namespace
 }  // namespace mjsysid

@@ -31,6 +31,7 @@ void Print(const FitResult& r) {
   std::printf("[ measured ] cost %.3e -> %.3e in %d iterations (%s), %.2f s, jacobian %s\n",
               r.initial_cost, r.final_cost, r.iterations,
               r.converged ? "converged" : "NOT converged", r.seconds, r.jacobian_mode.c_str());
+  std::printf("[ measured ]   %s\n", r.segment_reason.c_str());
   for (const auto& p : r.parameters) {
     std::printf("[ measured ]   %-14s %.9g (from %.4g) +- %.3g%s\n", p.name.c_str(), p.value,
                 p.initial, p.std_error, p.identifiable ? "" : " UNIDENTIFIABLE");
@@ -508,6 +509,50 @@ TEST(RecoveryTest, MultipleShootingOnChaoticDoublePendulum) {
   Print(r);
   EXPECT_TRUE(r.converged) << r.termination;
   for (const Truth& t : truth) EXPECT_NEAR(Estimate(r, t.name).value / t.value, 1.0, 1e-5);
+}
+
+// segment Jacobians in parallel: a multiple-shooting fit of the chaotic double pendulum (600
+// steps, 100-step segments, noise 1e-3 seed 4, at most 8 iterations) with 1, 2 and 3 simulator
+// threads. Bit-identity was the goal and is NOT met: measured, 1 thread differs from 2 in the
+// last bit of the initial cost (2561.9718725799262 vs ...257), and 2 from 3 after the first
+// Jacobians (the core's parallel segment Jacobians depend on the task-to-worker assignment; not
+// found yet). LM carries the difference through: the estimates agree to 3e-13 relative; the bound
+// here is 1e-9, far inside their standard errors (4e-5)
+TEST(RecoveryTest, MultipleShootingThreadCountsAgree) {
+  ModelPtr m = LoadModel(kModels + "/double_pendulum.xml");
+  const std::vector<Truth> truth = {{"m1", Spec("body_mass", "link1"), 1.0},
+                                    {"m2", Spec("body_mass", "link2"), 0.8}};
+  InitialState x0;
+  x0.qpos = Eigen::Vector2d(2.0, -1.0);
+  const RowMatrix u = Excitation(*m, 600, 0.5, 12);
+  const RowMatrix y = Measure(*m, truth, x0, u, 1e-3, 4);
+  auto fit = [&](int threads) {
+    Problem problem;
+    problem.AddModel("dp", *m);
+    problem.AddParameter(FitParameter("m1", truth[0].spec, 1.4).Bounds(0.05, 20).Log());
+    problem.AddParameter(FitParameter("m2", truth[1].spec, 0.5).Bounds(0.05, 20).Log());
+    problem.AddSequence(FitSequence("seq0", "dp", x0, u, y));
+    FitOptions opt;
+    opt.segment_steps = 100;
+    opt.continuity_weight = 10;
+    opt.threads = threads;
+    opt.max_iterations = 8;
+    return problem.Fit(opt);
+  };
+  const FitResult one = fit(1);
+  Print(one);
+  for (int threads : {2, 3}) {
+    const FitResult r = fit(threads);
+    EXPECT_EQ(r.iterations, one.iterations) << threads;
+    ASSERT_EQ(r.parameters.size(), one.parameters.size());
+    for (size_t i = 0; i < r.parameters.size(); ++i) {
+      const std::string& name = r.parameters[i].name;
+      std::printf("[ measured ] %s: 1 vs %d threads relative difference %.2e\n", name.c_str(),
+                  threads, std::abs(r.parameters[i].value / one.parameters[i].value - 1));
+      EXPECT_NEAR(r.parameters[i].value / one.parameters[i].value, 1.0, 1e-9) << name;
+      EXPECT_NEAR(r.parameters[i].std_error / one.parameters[i].std_error, 1.0, 1e-6) << name;
+    }
+  }
 }
 
 // the Ceres cost functions' Jacobians (from the core) against ceres::GradientChecker's central

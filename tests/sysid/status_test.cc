@@ -152,6 +152,7 @@ TEST(FitStatusTest, ChaoticLongHorizonIsNotConverged) {
   problem.AddParameter(FitParameter("m2", truth[1].spec, 0.6).Bounds(0.05, 20).Log());
   problem.AddSequence(FitSequence("seq0", "dp", x0, u, y));
   FitOptions opt;
+  opt.segment_steps = 0;  // single shooting (the default, auto, splits this horizon and recovers)
   opt.threads = 2;
   opt.max_iterations = 50;
   const FitResult r = problem.Fit(opt);

@@ -4,7 +4,10 @@
 
 #include <Eigen/LU>
 #include <cmath>
+#include <cstdio>
 #include <random>
+#include <string>
+#include <vector>
 
 namespace mjsysid {
 namespace {
@@ -68,6 +71,79 @@ TEST(UncertaintyTest, FixedAndZeroColumns) {
   EXPECT_EQ(u.std_error[2], 0.0) << "a fixed variable is not estimated";
   ASSERT_EQ(u.unidentifiable.size(), 1u);
   EXPECT_NE(u.unidentifiable[0].find("no effect: b"), std::string::npos) << u.unidentifiable[0];
+}
+
+// Schur elimination of nuisance columns (AnalyzeUncertaintyReduced) against the dense analysis of
+// the whole Jacobian, on the structure of multiple shooting: 3 global columns in every row, 5
+// segments of 40 rows, each with its own 2 initial-state columns and (but the last) the next
+// segment's 2 columns in its last 2 rows (continuity, -w I). Entries: a fixed seed's normal
+// draws. Tolerance: 1e-8 relative on covariance and standard errors.
+TEST(UncertaintyTest, ReducedEqualsDenseOnMultipleShootingStructure) {
+  const int na = 3, nseg = 5, rows = 40, nx = 2, m = nseg * rows, nb = nseg * nx;
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> n(0, 1);
+  RowMatrix full = RowMatrix::Zero(m, na + nb);
+  for (int s = 0; s < nseg; ++s) {
+    for (int k = 0; k < rows; ++k) {
+      const int r = s * rows + k;
+      for (int j = 0; j < na; ++j) full(r, j) = n(rng);
+      for (int j = 0; j < nx; ++j) full(r, na + s * nx + j) = 10.0 * n(rng);
+    }
+    if (s + 1 < nseg) {
+      for (int j = 0; j < nx; ++j) full(s * rows + rows - nx + j, na + (s + 1) * nx + j) = -10.0;
+    }
+  }
+  double cost = 0;
+  for (int r = 0; r < m; ++r) {
+    const double e = 0.1 * n(rng);
+    cost += 0.5 * e * e;
+  }
+  std::vector<std::string> names = {"a", "b", "c"};
+  for (int j = 0; j < nb; ++j) names.push_back("x" + std::to_string(j));
+  const Eigen::VectorXd values = Eigen::VectorXd::Ones(na + nb);
+  const Uncertainty dense =
+      AnalyzeUncertainty(full, cost, names, values, std::vector<bool>(na + nb, false));
+  const RowMatrix A = full.leftCols(na);
+  const Eigen::SparseMatrix<double> B = full.rightCols(nb).sparseView();
+  const Uncertainty reduced = AnalyzeUncertaintyReduced(
+      A, B, cost, {"a", "b", "c"}, Eigen::VectorXd::Ones(na), std::vector<bool>(na, false));
+  EXPECT_EQ(dense.rank, na + nb);
+  EXPECT_EQ(reduced.rank, na);
+  EXPECT_EQ(reduced.dof, dense.dof);
+  EXPECT_NEAR(reduced.residual_variance, dense.residual_variance, 1e-12 * dense.residual_variance);
+  const Eigen::MatrixXd dense_cov = dense.covariance.topLeftCorner(na, na);
+  EXPECT_LE((reduced.covariance - dense_cov).cwiseAbs().maxCoeff(),
+            1e-8 * dense_cov.cwiseAbs().maxCoeff());
+  for (int j = 0; j < na; ++j) {
+    EXPECT_NEAR(reduced.std_error[j], dense.std_error[j], 1e-8 * dense.std_error[j]) << j;
+    EXPECT_TRUE(reduced.identifiable[j]);
+  }
+}
+
+// the rank decision follows the Jacobian's accuracy: columns a and b = a + 1e-5 * c (c orthogonal
+// noise-like), 100 rows; the pair's small singular value of the column-scaled J is 2.2e-6
+// (measured, printed). With jacobian_accuracy 0 (rank_tolerance 1e-7) the pair is kept; with 1e-5
+// (a forward difference with step 1e-5) it is below the Jacobian's own error and reported
+// unidentifiable
+TEST(UncertaintyTest, RankToleranceFollowsJacobianAccuracy) {
+  const int m = 100;
+  RowMatrix J(m, 2);
+  for (int i = 0; i < m; ++i) {
+    J(i, 0) = std::sin(0.1 * i) + 2.0;
+    J(i, 1) = J(i, 0) + 1e-5 * std::cos(0.37 * i);
+  }
+  const Uncertainty loose =
+      AnalyzeUncertainty(J, 1.0, {"a", "b"}, Eigen::Vector2d(1, 1), {false, false});
+  std::printf("[ measured ] singular values %.3g %.3g\n", loose.singular_values[0],
+              loose.singular_values[1]);
+  EXPECT_EQ(loose.rank, 2);
+  UncertaintyOptions o;
+  o.jacobian_accuracy = 1e-5;
+  const Uncertainty strict =
+      AnalyzeUncertainty(J, 1.0, {"a", "b"}, Eigen::Vector2d(1, 1), {false, false}, o);
+  EXPECT_EQ(strict.rank, 1);
+  EXPECT_FALSE(strict.identifiable[0]);
+  EXPECT_FALSE(strict.identifiable[1]);
 }
 
 }  // namespace

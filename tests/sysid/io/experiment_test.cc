@@ -235,6 +235,23 @@ output: results/pendulum
   EXPECT_EQ(c.output, (exp_dir / "results/pendulum").string());
 }
 
+// multiple_shooting: auto (scalar), {segment_steps: auto|0|N}; anything else names the value
+TEST_F(ExperimentTest, MultipleShootingAutoForms) {
+  const std::string base = kPendulum;
+  EXPECT_EQ(
+      LoadExperiment(Write("a.yaml", base + "multiple_shooting: auto\n")).options.segment_steps,
+      -1);
+  const ExperimentConfig c = LoadExperiment(
+      Write("b.yaml", base + "multiple_shooting: {segment_steps: auto, continuity_weight: 3}\n"));
+  EXPECT_EQ(c.options.segment_steps, -1);
+  EXPECT_DOUBLE_EQ(c.options.continuity_weight, 3.0);
+  EXPECT_EQ(LoadExperiment(Write("c.yaml", base + "multiple_shooting: {segment_steps: 0}\n"))
+                .options.segment_steps,
+            0);
+  ExpectError(base + "multiple_shooting: sometimes\n", 4, 20, "expected 'auto' or a map",
+              "segment_steps: auto|0|N");
+}
+
 TEST_F(ExperimentTest, MinimalFileGetsTheDefaults) {
   const ExperimentConfig c = LoadExperiment(Write("swing.yaml", kPendulum));
   EXPECT_EQ(c.name, "swing");
@@ -251,7 +268,7 @@ TEST_F(ExperimentTest, MinimalFileGetsTheDefaults) {
   EXPECT_DOUBLE_EQ(p.scale, 1.0);
   EXPECT_TRUE(c.measurement.empty());
   EXPECT_FALSE(c.options.estimate_initial_state);
-  EXPECT_EQ(c.options.segment_steps, 0);
+  EXPECT_EQ(c.options.segment_steps, -1);  // auto (multiple_shooting absent)
   EXPECT_DOUBLE_EQ(c.options.continuity_weight, 1.0);
   EXPECT_EQ(c.options.max_iterations, 100);
   EXPECT_DOUBLE_EQ(c.options.function_tolerance, 1e-10);

@@ -1,0 +1,210 @@
+// Multiple shooting (sysid/multiple_shooting.h): the automatic segment length, the segments'
+// initial states from the data, the Schur-complement linear solver and the Jacobian split for
+// the reduced uncertainty.
+#include "sysid/multiple_shooting.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <regex>
+#include <string>
+#include <vector>
+
+#include "core/state.h"
+#include "core/text.h"
+
+namespace mjsysid {
+
+// Multiple shooting has the structure of bundle adjustment: each segment's residuals touch the
+// global variables (z, m) and its own initial state (plus the next segment's, by continuity).
+// The linear solver is then Ceres' Schur complement: state blocks are eliminated first, as
+// many as form an independent set (no residual block holds two of them: along each sequence's
+// chain of segments every other block), and the reduced system of the
+// global variables and the remaining states is solved dense (<= 200 tangent dimensions) or
+// sparse (SuiteSparse). Single shooting keeps dense QR (sparse normal Cholesky past 200).
+void ChooseLinearSolver(Problem::Impl& I, int tangent, ceres::Solver::Options* so) {
+  bool multiple = false;
+  for (const Segment& seg : I.segments) multiple = multiple || seg.next >= 0;
+  if (!multiple) {
+    so->linear_solver_type = tangent <= 200 ? ceres::DENSE_QR : ceres::SPARSE_NORMAL_CHOLESKY;
+    return;
+  }
+  // the state blocks of a sequence in segment order form a chain (a segment's residual holds its
+  // own block and the next one): every other one of it is eliminated
+  std::vector<bool> eliminated(I.states.size(), false);
+  int position = 0, seq = -1;
+  for (const Segment& seg : I.segments) {
+    if (seg.seq != seq) seq = seg.seq, position = 0;
+    if (seg.block >= 0) eliminated[seg.block] = position++ % 2 == 0;
+  }
+  auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
+  int reduced = tangent;
+  for (size_t b = 0; b < I.states.size(); ++b) {
+    ordering->AddElementToGroup(I.states[b].data(), eliminated[b] ? 0 : 1);
+    if (eliminated[b]) reduced -= static_cast<int>(I.states[b].size());
+  }
+  if (!I.z.empty()) ordering->AddElementToGroup(I.z.data(), 1);
+  if (!I.m.empty()) ordering->AddElementToGroup(I.m.data(), 1);
+  so->linear_solver_ordering = ordering;
+  so->linear_solver_type = reduced <= 200 ? ceres::DENSE_SCHUR : ceres::SPARSE_SCHUR;
+}
+
+// Ceres' Jacobian (CRS, columns: z, m, then the state blocks in tangent space) split into the
+// dense columns of the first nvar variables (A, m x nvar) and the sparse state columns (B)
+void SplitJacobian(const ceres::CRSMatrix& crs, int nvar, RowMatrix* A,
+                   Eigen::SparseMatrix<double>* B) {
+  *A = RowMatrix::Zero(crs.num_rows, nvar);
+  std::vector<Eigen::Triplet<double>> entries;
+  for (int r = 0; r < crs.num_rows; ++r) {
+    for (int i = crs.rows[r]; i < crs.rows[r + 1]; ++i) {
+      const int c = crs.cols[i];
+      if (c < nvar) {
+        (*A)(r, c) = crs.values[i];
+      } else {
+        entries.emplace_back(r, c - nvar, crs.values[i]);
+      }
+    }
+  }
+  B->resize(crs.num_rows, crs.num_cols - nvar);
+  B->setFromTriplets(entries.begin(), entries.end());
+}
+
+// Automatic multiple shooting (FitOptions::segment_steps = -1), decided by a probe at the
+// initial values: each sequence is simulated once more from its x0 with every velocity raised by
+// h = kProbeStep (1 + |qvel|_inf), and the perturbation's growth P_k = |x'_k (-) x_k|_inf / h
+// (tangent space, state units) is measured along the rollout. A velocity perturbation moves
+// positions linearly in time, so the growth beyond that, E_k = P_k / (1 + t_k) (t_k in seconds
+// from the start), is the exponential part: bounded or oscillating (E ~ 1) on stable and
+// dissipative systems, e^(lambda k) on chaotic ones. Single shooting is kept while
+// E_k <= kExponentialGrowth over every sequence. Otherwise, at the first step k* where E passes
+// it, the rate per step is lambda = ln(E_k*) / k* and segments are ln(2) / lambda steps long (the
+// perturbation at most doubles beyond linear in each), at least kMinSegmentSteps. The probe stops
+// where its perturbation reaches kSensitivityGrowthLimit (still local) or the horizon ends.
+constexpr double kProbeStep = 1e-8;
+constexpr double kExponentialGrowth = 1e2;
+constexpr int kMinSegmentSteps = 10;
+// growth beyond linear allowed within one segment (measured: with 10, 1090-step segments on the
+// high-energy chaotic double pendulum did not recover, tests/stress/horizon_stress_test.cc)
+constexpr double kSegmentGrowth = 2;
+
+HorizonChoice ChooseHorizon(Problem::Impl& I, const std::vector<Trajectory>& initial,
+                            const FitOptions& options) {
+  HorizonChoice out;
+  if (options.segment_steps >= 0) {
+    out.steps = options.segment_steps;
+    out.reason = out.steps == 0
+                     ? "single shooting: segment_steps 0 (set)"
+                     : "multiple shooting: segment_steps " + std::to_string(out.steps) + " (set)";
+    return out;
+  }
+  double worst_e = 0, rate = 0;  // largest E; lambda of the earliest crossing
+  int first = -1;                // the earliest k*
+  std::string where;             // its sequence
+  for (size_t q = 0; q < I.sequences.size(); ++q) {
+    const FitSequence& sq = I.sequences[q];
+    Simulator& sim = *I.models[I.ModelIndex(sq.model)].sim;
+    const mjModel& m = sim.model();
+    const StateDims& d = sim.dims();
+    SequenceInput in{sq.x0, sq.ctrl};
+    if (in.x0.qvel.size() != m.nv) in.x0.qvel = Eigen::VectorXd::Zero(m.nv);
+    const double h = kProbeStep * (1 + in.x0.qvel.lpNorm<Eigen::Infinity>());
+    in.x0.qvel.array() += h;
+    Trajectory probe;
+    try {
+      probe = sim.Rollout(in);
+    } catch (const std::exception&) {
+      continue;  // a probe that diverges decides nothing; the fit reports its own failures
+    }
+    const Trajectory& nominal = initial[q];
+    Eigen::VectorXd diff(d.nx);
+    for (int k = 0; k <= nominal.T; ++k) {
+      TangentDifference(m, probe.states.row(k).data(), nominal.states.row(k).data(), 1.0,
+                        diff.data());
+      const double p = diff.lpNorm<Eigen::Infinity>();
+      const double e = p / h / (1 + k * m.opt.timestep);
+      worst_e = std::max(worst_e, e);
+      if (k >= kMinSegmentSteps && e > 1) out.rate = std::max(out.rate, std::log(e) / k);
+      if (e > kExponentialGrowth && (first < 0 || k < first)) {
+        first = k;
+        rate = std::log(e) / k;
+        where = sq.name;
+      }
+      if (e > kExponentialGrowth || p > kSensitivityGrowthLimit) break;
+    }
+  }
+  if (first < 0) {
+    out.reason = "single shooting: sensitivity bounded (growth beyond linear x" +
+                 FormatDigits(worst_e, 3) + " <= " + FormatDigits(kExponentialGrowth, 3) + ")";
+    return out;
+  }
+  out.steps =
+      std::max(static_cast<int>(std::ceil(std::log(kSegmentGrowth) / rate)), kMinSegmentSteps);
+  out.reason = "multiple shooting: sensitivity grows exponentially, rate " + FormatDigits(rate, 3) +
+               " per step (x" + FormatDigits(kExponentialGrowth, 3) + " beyond linear at step " +
+               std::to_string(first) + " of sequence '" + where + "'): segments of " +
+               std::to_string(out.steps) + " steps";
+  return out;
+}
+
+// Auto, second stage: a single-shooting fit whose Jacobians the core flags as no longer local
+// (h*|S| > kSensitivityGrowthLimit from step k*, at some iterate: the sensitivity grew between
+// the initial values and there) is stopped and refitted in multiple shooting with segments of
+// min(k*/2, ln(2) / lambda) steps, lambda the probe's rate, at least kMinSegmentSteps. Returns
+// 0 when the warning names no step.
+int SegmentStepsAfterWarning(const std::string& warning, double rate, std::string* reason) {
+  static const std::regex kStep("from step ([0-9]+)");
+  int kstar = -1;
+  for (auto it = std::sregex_iterator(warning.begin(), warning.end(), kStep);
+       it != std::sregex_iterator(); ++it) {
+    kstar = std::stoi((*it)[1]);
+  }
+  if (kstar < 0) return 0;
+  int len = kstar / 2;
+  if (rate > 0) len = std::min(len, static_cast<int>(std::ceil(std::log(kSegmentGrowth) / rate)));
+  len = std::max(len, kMinSegmentSteps);
+  *reason = "multiple shooting: the single-shooting Jacobian stopped being local (h*|S| > " +
+            FormatDigits(kSensitivityGrowthLimit, 2) + " from step " + std::to_string(kstar) +
+            ", probe rate " + FormatDigits(rate, 3) + " per step): segments of " +
+            std::to_string(len) + " steps";
+  return len;
+}
+
+// The initial state of the segment of sequence q starting at sample k0 > 0, from the data where
+// they determine it: the sequence's logged states (FitSequence::states), else the fitted
+// jointpos/jointvel sensors when every joint is a hinge or slide with one of each (sensors
+// without measurement terms), else the rollout at the initial values. act is always the
+// rollout's. Returns where it came from.
+std::string SegmentStart(const Problem::Impl& I, int q, int k0, const Trajectory& rollout,
+                         std::vector<double>* x) {
+  const FitSequence& sq = I.sequences[q];
+  const Simulator& sim = *I.models[I.ModelIndex(sq.model)].sim;
+  const mjModel& m = sim.model();
+  const auto row = rollout.states.row(k0);
+  x->assign(row.data(), row.data() + row.size());
+  const int nq = m.nq, nv = m.nv;
+  if (sq.states.rows() > k0 && sq.states.cols() >= nq + nv) {
+    std::copy(sq.states.row(k0).data(), sq.states.row(k0).data() + nq + nv, x->begin());
+    return "logged qpos/qvel";
+  }
+  std::vector<int> pos_col(m.njnt, -1), vel_col(m.njnt, -1);
+  for (const std::string& name : I.fitted[q]) {
+    bool has_terms = false;
+    for (const FitMeasurement& me : I.measurements) has_terms = has_terms || me.sensor == name;
+    const int id = mj_name2id(&m, mjOBJ_SENSOR, name.c_str());
+    if (has_terms || id < 0 || m.sensor_objtype[id] != mjOBJ_JOINT) continue;
+    if (m.sensor_type[id] == mjSENS_JOINTPOS) pos_col[m.sensor_objid[id]] = m.sensor_adr[id];
+    if (m.sensor_type[id] == mjSENS_JOINTVEL) vel_col[m.sensor_objid[id]] = m.sensor_adr[id];
+  }
+  for (int j = 0; j < m.njnt; ++j) {
+    const bool scalar = m.jnt_type[j] == mjJNT_HINGE || m.jnt_type[j] == mjJNT_SLIDE;
+    if (!scalar || pos_col[j] < 0 || vel_col[j] < 0) return "the rollout";
+  }
+  for (int j = 0; j < m.njnt; ++j) {
+    (*x)[m.jnt_qposadr[j]] = sq.measured(k0, pos_col[j]);
+    (*x)[nq + m.jnt_dofadr[j]] = sq.measured(k0, vel_col[j]);
+  }
+  return "joint position and velocity sensors";
+}
+
+}  // namespace mjsysid
