@@ -116,7 +116,18 @@ struct FitMeasurement {
   Term bias{0.0, false};
 };
 
-// one recorded sequence of one model
+// how the logged controls of one actuator reach the simulation steps (sysid/sample_grid.h):
+// zero-order hold (a digital controller's) or linear interpolation
+enum class ControlHold { kZeroOrder, kLinear };
+
+// "zoh", "linear" (the YAML spelling)
+const char* ControlHoldName(ControlHold hold);
+
+// One recorded sequence of one model. Its measured samples come at `time` (any rate, jitter,
+// gaps: the simulation runs on the model's timestep from time[0] and each sample is compared with
+// the simulation interpolated at its own time, sysid/sample_grid.h); NaN in measured means "not
+// measured" (masked out of the residuals). The controls come at ctrl_time (their own rate) or,
+// without it, at the sample times.
 struct FitSequence {
   FitSequence() = default;
   FitSequence(std::string name_, std::string model_, InitialState x0_, RowMatrix ctrl_,
@@ -134,6 +145,10 @@ struct FitSequence {
   RowMatrix measured;  // T x nsensordata of the model: y_k in the model's sensordata layout
   std::vector<std::string> sensors;  // sensors whose columns are fitted; empty = all sensors
   Eigen::VectorXd time;              // T sample times (s); empty: x0.time + k * timestep
+  // the controls' own times: Tc (s), ctrl then Tc x nu; empty: ctrl rows at `time`
+  Eigen::VectorXd ctrl_time;
+  std::vector<ControlHold> ctrl_hold;  // per actuator (nu) or empty: zero-order hold
+  std::vector<double> ctrl_delay;      // per actuator (nu, s, >= 0) or empty: no transport delay
 };
 
 // one Gauss-Newton/LM iteration, as reported to callbacks and kept in FitResult::trace
@@ -190,6 +205,8 @@ struct SequenceResult {
   RowMatrix simulated_initial;            // T x sum(sensor_dims), at the initial parameters
   RowMatrix simulated_final;  // T x sum(sensor_dims), at the estimate (measurement terms on)
   Eigen::VectorXd x0_final;   // estimated initial physics vector (or the given one); may be empty
+  // per column of measured: the samples not measured (NaN in measured, masked out of the fit)
+  std::vector<int> missing;
 };
 
 struct FitResult {
