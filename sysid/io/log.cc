@@ -21,6 +21,7 @@
 #include "sysid/io/atomic_file.h"
 #include "sysid/io/hdf5_util.h"
 #include "sysid/io/log_child_process.h"
+#include "sysid/io/time_base.h"
 
 namespace mjsysid::io {
 namespace {
@@ -511,8 +512,8 @@ Log ReadLogInProcess(const std::string& path) {
 
 }  // namespace internal
 
-void ValidateLogAgainstModel(const Log& log, const mjModel& m,
-                             const std::string& path_for_messages) {
+void ValidateLogAgainstModel(const Log& log, const mjModel& m, const std::string& path_for_messages,
+                             std::vector<std::string>* warnings) {
   const std::string& file = path_for_messages;
   CheckLog(log, file);
   const auto nu = static_cast<Eigen::Index>(m.nu);
@@ -602,24 +603,9 @@ void ValidateLogAgainstModel(const Log& log, const mjModel& m,
                std::to_string(width));
     }
 
-    // sample period: a whole multiple of the timestep
-    const Eigen::Index samples = seq.time.size();
-    if (samples < 2) {
-      Fail(file, gpath + "/time", "has 1 sample: at least 2 are needed to know the sample period");
-    }
-    std::vector<double> diffs(static_cast<size_t>(samples - 1));
-    for (Eigen::Index k = 1; k < samples; ++k) diffs[k - 1] = seq.time[k] - seq.time[k - 1];
-    std::sort(diffs.begin(), diffs.end());
-    const size_t mid = diffs.size() / 2;
-    const double period = diffs.size() % 2 ? diffs[mid] : 0.5 * (diffs[mid - 1] + diffs[mid]);
-    const double timestep = m.opt.timestep;
-    const double ratio = period / timestep;
-    const double whole = std::round(ratio);
-    if (!(timestep > 0) || whole < 1 || std::abs(period - whole * timestep) > 1e-9 * period) {
-      Fail(file, gpath + "/time",
-           "sample period " + FormatDigits(period, 12) + " s (median of diff(time)) is " +
-               FormatDigits(ratio, 12) + " times the model timestep " + FormatDigits(timestep, 12) +
-               " s; it must be a whole multiple (1, 2, 3, ...)");
+    // the time base (sysid/io/time_base.h): increasing, in seconds; its warnings
+    for (std::string& w : CheckTimeBase(seq.time, m.opt.timestep, file, gpath + "/time")) {
+      if (warnings) warnings->push_back(std::move(w));
     }
   }
 }

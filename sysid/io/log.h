@@ -96,12 +96,14 @@ Log ReadLog(const std::string& path);
 // Checks a log against the model it is meant for (`path_for_messages` names the log in
 // messages). Per sequence: every sensor name is a sensor of `m` with the same dimension
 // (m.sensor_dim), names unique; ctrl has exactly the model's actuators, in model order (missing,
-// extra and misplaced names are named); qpos/qvel/act, when present, are nq/nv/na wide; at least
-// two samples, and the sample period (median of diff(time)) is a whole multiple n >= 1 of
-// m.opt.timestep within 1e-9 relative (the ratio is reported otherwise). Unknown names come with
-// the model's names (up to 20) as a hint. Throws LogError on the first problem found.
-void ValidateLogAgainstModel(const Log& log, const mjModel& m,
-                             const std::string& path_for_messages);
+// extra and misplaced names are named); qpos/qvel/act, when present, are nq/nv/na wide; the time
+// base passes CheckTimeBase (sysid/io/time_base.h: at least two samples, in seconds; any rate,
+// jitter and gaps are accepted, since each sample is fitted at its own time), whose warnings
+// (varying period, long gaps) go to *warnings when given. Unknown names come with the model's
+// names (up to 20) as a hint. Throws LogError on the first problem found. `sysid import`, `check`
+// and `fit` all check logs through this one function.
+void ValidateLogAgainstModel(const Log& log, const mjModel& m, const std::string& path_for_messages,
+                             std::vector<std::string>* warnings = nullptr);
 
 namespace internal {
 

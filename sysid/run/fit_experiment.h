@@ -7,7 +7,9 @@
 //   maps them onto a Problem: one FitSequence per selected log sequence, fitted with the model
 //   io::AssignSequences gives it (sysid/io/sequence_models.h: an explicit record, never a name);
 //   with sensor_time: post, row k+1 of a log is taken as y_k (the first control row is kept, the
-//   last dropped). The log's sample period must equal the model's timestep.
+//   last dropped). The log's samples may come at any times (any rate, jitter, gaps; checked by
+//   io::ValidateLogAgainstModel, whose warnings join BuiltProblem::warnings): the fit simulates
+//   on the model's timestep from the first sample and reads each sample at its own time.
 // - RunFit refuses an output folder that holds an input or (without force) is foreign, and one that
 //   another fit is writing (OutputError, sysid/run/output_folder.h). It writes everything into the
 //   staging folder DIR.partial: checkpoint.yaml (status "running", the current values) after every
