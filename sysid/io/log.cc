@@ -123,16 +123,18 @@ void CheckName(const std::string& name, const std::string& file, const std::stri
   }
 }
 
+// every value finite; with nan_allowed, NaN passes (a value not measured) and only Inf fails
 void CheckFinite(const double* data, Eigen::Index rows, Eigen::Index cols, const std::string& file,
-                 const std::string& object) {
+                 const std::string& object, bool nan_allowed = false) {
   for (Eigen::Index r = 0; r < rows; ++r) {
     for (Eigen::Index c = 0; c < cols; ++c) {
       const double v = data[r * cols + c];
-      if (!std::isfinite(v)) {
-        Fail(file, object,
-             "row " + std::to_string(r) + ", column " + std::to_string(c) + ": value " +
-                 FormatShortest(v) + " is not finite (NaN/Inf are not allowed)");
-      }
+      if (std::isfinite(v) || (nan_allowed && std::isnan(v))) continue;
+      Fail(file, object,
+           "row " + std::to_string(r) + ", column " + std::to_string(c) + ": value " +
+               FormatShortest(v) + " is not finite" +
+               (nan_allowed ? " (NaN marks a value not measured; Inf is not allowed)"
+                            : " (NaN/Inf are not allowed)"));
     }
   }
 }
@@ -211,14 +213,16 @@ void CheckSequence(const Sequence& seq, const std::string& file) {
              std::to_string(seq.sensordata.cols()) + " columns");
   }
 
-  // values: finite everywhere
-  const std::pair<const char*, const RowMatrix*> mats[] = {{"ctrl", &seq.ctrl},
-                                                           {"sensordata", &seq.sensordata},
-                                                           {"qpos", &seq.qpos},
-                                                           {"qvel", &seq.qvel},
-                                                           {"act", &seq.act}};
-  for (const auto& [name, mat] : mats) {
-    CheckFinite(mat->data(), mat->rows(), mat->cols(), file, gpath + "/" + name);
+  // values: finite, except NaN in ctrl and sensordata (not measured: a sensor value is masked out
+  // of the fit, a control held from the last valid one)
+  const std::tuple<const char*, const RowMatrix*, bool> mats[] = {
+      {"ctrl", &seq.ctrl, true},
+      {"sensordata", &seq.sensordata, true},
+      {"qpos", &seq.qpos, false},
+      {"qvel", &seq.qvel, false},
+      {"act", &seq.act, false}};
+  for (const auto& [name, mat, nan_allowed] : mats) {
+    CheckFinite(mat->data(), mat->rows(), mat->cols(), file, gpath + "/" + name, nan_allowed);
   }
 }
 
@@ -601,6 +605,26 @@ void ValidateLogAgainstModel(const Log& log, const mjModel& m, const std::string
       Fail(file, gpath + "/" + name,
            "has " + std::to_string(mat->cols()) + " columns, the model has " + size_name + " = " +
                std::to_string(width));
+    }
+
+    // values not measured (NaN): a control needs a valid first value to hold, a sensor column at
+    // least one measured sample
+    for (Eigen::Index i = 0; i < seq.ctrl.cols(); ++i) {
+      if (std::isnan(seq.ctrl(0, i))) {
+        Fail(file, gpath + "/ctrl",
+             "row 0, column " + std::to_string(i) + " (actuator " +
+                 Quote(display(seq.actuator_names[i])) +
+                 "): NaN in the first row: a NaN control is held from the last valid value, and "
+                 "there is none before it (start the log at the first command)");
+      }
+    }
+    for (Eigen::Index c = 0, i = 0, first = 0; c < seq.sensordata.cols(); ++c) {
+      if (c == first + seq.sensor_dims[i]) first += seq.sensor_dims[i++];
+      if (seq.sensordata.col(c).array().isNaN().all()) {
+        Fail(file, gpath + "/sensordata",
+             "column " + std::to_string(c) + " (sensor " + Quote(seq.sensor_names[i]) +
+                 "): every value is NaN (not measured): nothing to fit; leave the sensor out");
+      }
     }
 
     // the time base (sysid/io/time_base.h): increasing, in seconds; its warnings
