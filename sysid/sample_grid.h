@@ -39,8 +39,8 @@ struct SampleGrid {
   // in steps: 2 us at a 2 ms timestep. Covers rounded decimal times and float32 time (its
   // rounding, 6e-8 t, stays below it for logs up to ~30 s at 2 ms); far below any real jitter.
   static constexpr double kOnGridTolerance = 1e-3;
-  int steps = 0;                                    // N simulated steps
-  RowMatrix ctrl;                                   // N x nu: the control of each step
+  int steps = 0;                 // N simulated steps
+  RowMatrix ctrl;                // N x nu: the control of each step
   std::vector<double> position;  // T: position of each measured sample, in steps, ascending
   bool on_grid = true;           // every position a whole number
 
