@@ -172,7 +172,7 @@ struct FitOptions {
   LossType loss = LossType::kNone;
   double loss_scale = 1.0;  // in weighted residual units, > 0
   bool estimate_initial_state = false;
-  int segment_steps = 0;  // multiple shooting: samples per segment; 0 = single
+  int segment_steps = 0;  // multiple shooting: simulation steps per segment; 0 = single
   double continuity_weight = 1.0;
   std::map<std::string, double> sensor_weights;  // sensor name -> weight (1/sigma); default 1
   // sensors whose weight is 1/sigma (a noise level, not a mere weight): their weighted residuals
