@@ -70,11 +70,13 @@ std::vector<NamedValue> Parser::NamedValues(const Field& f) const {
 const std::vector<std::string> kRootKeys = {
     "version",     "name",     "model",      "models",      "data",          "sequences",
     "sensor_time", "sensors",  "parameters", "measurement", "initial_state", "multiple_shooting",
-    "solver",      "simulate", "output"};
+    "solver",      "simulate", "output",     "controls"};
 const std::vector<std::string> kParameterKeys = {"name",  "target",  "object", "field",
                                                  "index", "initial", "bounds", "transform",
                                                  "scale", "prior",   "models"};
 const std::vector<std::string> kSensorTimes = {"pre", "post"};
+// in the order of ControlHold
+const std::vector<std::string> kControlHolds = {"zoh", "linear"};
 const std::vector<std::string> kTransforms = {"none", "log", "scale"};
 // in the order of core's JacobianMode
 const std::vector<std::string> kJacobianModes = {"auto", "directional", "matrix", "whole_rollout"};
@@ -159,6 +161,12 @@ ExperimentConfig Parser::Parse(const YAML::Node& root) {
     if (s.Has("continuity_weight")) {
       c.options.continuity_weight = Positive(s.Get("continuity_weight"));
     }
+  }
+  if (r.Has("controls")) {
+    const MapReader s(*this, r.Get("controls"), {"hold", "delay"});
+    if (s.Has("hold"))
+      c.control_hold = static_cast<ControlHold>(Enum(s.Get("hold"), kControlHolds));
+    if (s.Has("delay")) c.control_delay = NonNegative(s.Get("delay"));
   }
   c.options.verbose = true;  // a file's default; `solver: {verbose: false}` turns it off
   if (r.Has("solver")) ParseSolver(r.Get("solver"), &c);

@@ -143,6 +143,10 @@ struct ExperimentConfig {
   SimulateOptions simulate;
   std::string output;  // absolute; default <base_dir>/results/<name>
   Marks marks;
+  // `controls`: how the logged commands reach the simulation steps (every actuator, every
+  // sequence; docs/real-logs.md): the hold rule and a known transport delay (s, >= 0)
+  ControlHold control_hold = ControlHold::kZeroOrder;
+  double control_delay = 0;
 
   // nullptr when absent
   const ParameterSpec* FindParameter(const std::string& name) const;

@@ -184,6 +184,9 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
                                  "reference state (set initial_state: {estimate: true} to fit it)");
         }
         fs_.time = s.time.head(T);
+        // controls: the experiment's hold rule and transport delay for every actuator
+        fs_.ctrl_hold.assign(m.nu, cfg.control_hold);
+        fs_.ctrl_delay.assign(m.nu, cfg.control_delay);
         out.problem->AddSequence(fs_);
         out.sequences.push_back(fs_);
       }

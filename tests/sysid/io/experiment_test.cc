@@ -399,6 +399,22 @@ TEST(ConfigErrorTest, FormatsPositionMessageAndHint) {
 // -------------------------------------------------------------------------------------------
 // errors: each at its file:line:column with its hint
 
+// `controls`: the hold rule and transport delay of the logged commands (docs/real-logs.md)
+TEST_F(ExperimentTest, ControlsHoldAndDelay) {
+  const std::string base =
+      "model: pendulum.xml\nparameters:\n"
+      "  - {name: m, target: body_mass, object: bob, initial: 1}\n";
+  const ExperimentConfig def = LoadExperiment(Write("exp.yaml", base));
+  EXPECT_EQ(def.control_hold, ControlHold::kZeroOrder);
+  EXPECT_EQ(def.control_delay, 0.0);
+  const ExperimentConfig c =
+      LoadExperiment(Write("exp.yaml", base + "controls: {hold: linear, delay: 0.015}\n"));
+  EXPECT_EQ(c.control_hold, ControlHold::kLinear);
+  EXPECT_EQ(c.control_delay, 0.015);
+  ExpectError(base + "controls: {hold: foh}\n", 4, 18, "foh", "zoh");
+  ExpectError(base + "controls: {delay: -0.01}\n", 4, 19, "-0.01");
+}
+
 TEST_F(ExperimentTest, UnknownTopLevelKeySuggestsTheClosest) {
   ExpectError(R"(model: pendulum.xml
 solvr: {max_iterations: 3}
