@@ -50,6 +50,10 @@ struct SequenceRef {
   std::string model;  // "" = the sequence of that name for every model
   std::string name;
   Mark mark;
+  // the window fitted (`{name: ..., start: s, end: s}`): the samples with start <= time <= end
+  // (seconds, the log's clock); the whole sequence by default
+  double start = -std::numeric_limits<double>::infinity();
+  double end = std::numeric_limits<double>::infinity();
 };
 
 // whether a log's sensor row at step k is read before (pre) or after (post) step k

@@ -516,6 +516,28 @@ Log ReadLogInProcess(const std::string& path) {
 
 }  // namespace internal
 
+Sequence WindowOf(const Sequence& seq, double start, double end, const std::string& file) {
+  Eigen::Index first = 0, last = seq.time.size();  // rows [first, last)
+  while (first < last && seq.time[first] < start) ++first;
+  while (last > first && seq.time[last - 1] > end) --last;
+  const Eigen::Index n = last - first;
+  if (n < 2) {
+    Fail(file, "/" + seq.name + "/time",
+         "the window [" + FormatDigits(start, 9) + ", " + FormatDigits(end, 9) + "] s holds " +
+             std::to_string(n) + " sample(s) of " + FormatDigits(seq.time[0], 9) + " .. " +
+             FormatDigits(seq.time[seq.time.size() - 1], 9) + " s: at least 2 are needed");
+  }
+  Sequence w = seq;
+  w.time = seq.time.segment(first, n);
+  w.ctrl = seq.ctrl.middleRows(first, n);
+  w.sensordata = seq.sensordata.middleRows(first, n);
+  for (auto [from, to] :
+       {std::pair{&seq.qpos, &w.qpos}, {&seq.qvel, &w.qvel}, {&seq.act, &w.act}}) {
+    if (from->rows() > 0) *to = from->middleRows(first, n);
+  }
+  return w;
+}
+
 void ValidateLogAgainstModel(const Log& log, const mjModel& m, const std::string& path_for_messages,
                              std::vector<std::string>* warnings) {
   const std::string& file = path_for_messages;

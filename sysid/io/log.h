@@ -110,6 +110,11 @@ Log ReadLog(const std::string& path);
 void ValidateLogAgainstModel(const Log& log, const mjModel& m, const std::string& path_for_messages,
                              std::vector<std::string>* warnings = nullptr);
 
+// The samples of `seq` with start <= time <= end (seconds, the log's clock): every dataset's rows
+// in that range. Throws LogError naming `file`, the sequence and the window when fewer than 2
+// samples fall in it.
+Sequence WindowOf(const Sequence& seq, double start, double end, const std::string& file);
+
 namespace internal {
 
 // ReadLog without the child process: HDF5 runs in this process (a corrupt file can crash it).

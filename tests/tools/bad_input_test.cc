@@ -409,6 +409,10 @@ TEST_F(BadInputTest, TimeBaseErrors) {
     l->sequences[0].ctrl(0, 0) = std::numeric_limits<double>::quiet_NaN();
   });
   ExpectBadLog(nan_first, {nan_first, "/seq0/ctrl", "row 0", "'torque'", "NaN in the first row"});
+  // a window (`sequences: [{name, start, end}]`) with fewer than 2 samples
+  const std::string window = dir_ + "/window.yaml";
+  WriteFile(window, Experiment(good_log_) + "sequences: [{name: seq0, start: 5.0, end: 6.0}]\n");
+  ExpectBadInput("check " + window, {good_log_, "/seq0/time", "the window [5, 6] s holds 0"});
   // a sensor with nothing measured
   const std::string all_nan = LogVariant("sensor_all_nan.h5", [](io::Log* l) {
     l->sequences[0].sensordata.col(1).setConstant(std::numeric_limits<double>::quiet_NaN());
@@ -480,6 +484,12 @@ TEST_F(BadInputTest, OffGridGappyNanLogFitsAsIs) {
   EXPECT_EQ(r.code, 0) << r.err;
   const std::string result = ReadFile(out + "/result.yaml");
   EXPECT_NE(result.find("1 of 26 values not measured (NaN)"), std::string::npos) << result;
+  // a window of it, from the logged state at its first sample
+  const std::string windowed = dir_ + "/robot_window.yaml";
+  WriteFile(windowed, Experiment(log) + "sequences: [{name: seq0, start: 0.1, end: 0.4}]\n");
+  r = Sysid("fit " + windowed + " --out " + dir_ + "/robot_window_fit --quiet");
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.err.find("1 of 26"), std::string::npos) << r.err;  // the NaN of row 3 is outside
 }
 
 TEST_F(BadInputTest, LogOfAnotherModel) {
