@@ -312,6 +312,48 @@ TEST(RealLogTest, OnGridTimesGiveTheSameEstimateBitForBit) {
   EXPECT_TRUE(r[0].sequences[0].simulated_final == r[1].sequences[0].simulated_final);
 }
 
+// The Jacobian of an off-grid fit against Ceres' numeric differences: jittered samples between
+// steps (value and Jacobian rows interpolated alike), NaN cells; (a) multiple shooting with
+// segments whose last samples lie past their last step (one step more simulated), (b) single
+// shooting with a fitted sensor delay on top. Not covered: a fitted sensor delay with multiple
+// shooting on jittered samples, whose delay column disagrees with the numeric one (1e-2 .. 0.4
+// relative, measured; on regular off-grid rates it agrees to 1e-12): an open issue.
+TEST(RealLogTest, OffGridJacobiansAgreeWithNumericDifferences) {
+  const Case c = SpringMass();  // smooth: the pendulum's friction loss has kinks
+  RobotSettings rs;
+  rs.duration = 2;
+  rs.sensor_rate = 150;
+  rs.jitter = 0.001;
+  const RobotLog log = MakeRobotLog(c.file, c.truth, c.x0, c.amplitude, c.positions, rs);
+  ModelPtr model = WithTimestep(c.file, 0.002);
+  for (const bool segments : {true, false}) {
+    SCOPED_TRACE(segments ? "multiple shooting" : "single shooting, sensor delay");
+    Problem problem;
+    problem.AddModel("m", *model);
+    for (const FitParameter& p : c.start) problem.AddParameter(p);
+    if (!segments) {
+      FitMeasurement delay;
+      delay.sensor = "xdot";
+      delay.delay = {0.003, true, 0.0, 0.05};
+      problem.AddMeasurement(delay);
+    }
+    FitSequence sq("robot", "m", c.x0, log.ctrl, log.measured);
+    sq.time = log.time;
+    sq.ctrl_time = log.ctrl_time;
+    sq.ctrl_delay.assign(model->nu, rs.control_delay);
+    problem.AddSequence(sq);
+    FitOptions o;
+    o.threads = 1;
+    o.segment_steps = segments ? 97 : 0;  // segment ends fall between samples
+    const JacobianCheck check = problem.CheckJacobians(o);
+    for (const auto& [name, err] : check.per_variable) {
+      std::printf("[ measured ] %-28s worst relative error %.2e\n", name.c_str(), err);
+    }
+    EXPECT_GE(check.per_variable.size(), 4u);  // 3 parameters, then xdot.delay or x0
+    EXPECT_LE(check.worst_relative_error, 1e-4) << check.worst_where;
+  }
+}
+
 // the bench: the floor on the grid, then the robot's log as it comes
 void RunBench(const Case& c, RobotSettings rs, double floor_tolerance, double tolerance) {
   rs.on_grid = true;
