@@ -11,12 +11,12 @@ namespace mjsysid {
 // -----------------------------------------------------------------------------------------------
 // segment residuals
 
-// residual count: T * nch sensor rows, nx continuity rows; blocks z, m, x_0, x_next when present
+// residual count: one row per measured (not NaN) cell of the segment's samples x channels, nx
+// continuity rows; blocks z, m, x_0, x_next when present
 SegmentCost::SegmentCost(Problem::Impl* impl, int segment) : impl_(impl), segment_(segment) {
   const Segment& seg = impl->segments[segment];
   const StateDims& dims = impl->models[seg.model].sim->dims();
-  const int nch = static_cast<int>(impl->channels[seg.seq].size());
-  set_num_residuals(seg.T * nch + (seg.next >= 0 ? dims.nx : 0));
+  set_num_residuals(impl->MeasuredRows(segment) + (seg.next >= 0 ? dims.nx : 0));
   if (!impl->z.empty()) mutable_parameter_block_sizes()->push_back(impl->z.size());
   if (!impl->m.empty()) mutable_parameter_block_sizes()->push_back(impl->m.size());
   if (seg.block >= 0) mutable_parameter_block_sizes()->push_back(dims.nphys);
@@ -86,19 +86,25 @@ bool SegmentCost::EvaluateOrThrow(double const* const* parameters, double* resid
     mo.manifold->PlusJacobianPseudoInverse(x0, pinv.data());
   }
 
-  // sensor residuals (sysid/residual_model.h), chained to the blocks: z through dp/dz, the
-  // measurement terms directly, x_0 through P^+
-  for (int k = 0; k < seg.T; ++k) {
+  // sensor residuals (sysid/residual_model.h) of the segment's measured samples, each read at its
+  // position on the grid (sysid/sample_grid.h), NaN cells masked out; chained to the blocks: z
+  // through dp/dz, the measurement terms directly, x_0 through P^+
+  int first = 0, count = 0;
+  I.SamplesOf(segment_, &first, &count);
+  const std::vector<double>& position = I.grids[seg.seq].position;
+  int row = -1;
+  for (int k = first; k < first + count; ++k) {
     for (int c = 0; c < nch; ++c) {
       const Channel& ch = chans[c];
+      const double measured = sq.measured(k, ch.column);
+      if (std::isnan(measured)) continue;
+      ++row;
       const MeasurementTerms terms =
           ch.measurement >= 0 ? I.Terms(ch.measurement, mv) : MeasurementTerms();
-      const DelayedSample at(k, seg.T, terms.delay, dt);
+      const DelayedSample at(position[k] - seg.k0, tr.T, terms.delay, dt);
       const SensorResidual r =
-          EvaluateSensorResidual(at, {tr.sensors.data() + ch.column, tr.sensors.cols()},
-                                 sq.measured(seg.k0 + k, ch.column), ch.weight, terms,
-                                 I.options.loss, I.options.loss_scale);
-      const int row = k * nch + c;
+          EvaluateSensorResidual(at, {tr.sensors.data() + ch.column, tr.sensors.cols()}, measured,
+                                 ch.weight, terms, I.options.loss, I.options.loss_scale);
       residuals[row] = r.value;
       if (!want) continue;
       InterpolatedRow(at, s.DyDp.data(), ns, ch.column, ncol, row_t.data());
@@ -131,7 +137,7 @@ bool SegmentCost::EvaluateOrThrow(double const* const* parameters, double* resid
   // columns and -w I (exact off quaternions, first order on them) for the next x_0's tangent
   if (seg.next >= 0) {
     const double w = I.options.continuity_weight;
-    const int r0 = seg.T * nch;
+    const int r0 = row + 1;
     std::vector<double> d(nx);
     TangentDifference(sim.model(), xn, tr.states.row(seg.T).data(), 1.0, d.data());
     for (int i = 0; i < nx; ++i) residuals[r0 + i] = w * d[i];

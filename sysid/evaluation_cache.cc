@@ -29,6 +29,16 @@ EvaluationCache::EvaluationCache(std::vector<Model> models,
       entries_(segments->size()),
       owner_(std::this_thread::get_id()) {}
 
+EvaluationCache::EvaluationCache(std::vector<Model> models,
+                                 const std::vector<FitParameter>* parameters,
+                                 const std::vector<FitSequence>* sequences,
+                                 const std::vector<Segment>* segments,
+                                 const JacobianOptions& jacobian,
+                                 const std::vector<SampleGrid>* grids)
+    : EvaluationCache(std::move(models), parameters, sequences, segments, jacobian) {
+  grids_ = grids;
+}
+
 // a second thread would race on the entries and the simulators: a broken invariant, not an error
 void EvaluationCache::CheckThread(const char* where) const {
   if (std::this_thread::get_id() == owner_) return;
@@ -58,7 +68,12 @@ SequenceInput EvaluationCache::InputOf(int segment, const double* x0) const {
   in.x0.qvel = Eigen::Map<const Eigen::VectorXd>(x0 + d.nq, d.nv);
   in.x0.act = Eigen::Map<const Eigen::VectorXd>(x0 + d.nq + d.nv, d.na);
   in.x0.time = seg.k0 * sim.model().opt.timestep;
-  in.ctrl = (*sequences_)[seg.seq].ctrl.middleRows(seg.k0, seg.T);
+  if (grids_) {
+    const SampleGrid& grid = (*grids_)[seg.seq];
+    in.ctrl = grid.ctrl.middleRows(seg.k0, grid.SimulatedSteps(seg.k0, seg.T));
+  } else {
+    in.ctrl = (*sequences_)[seg.seq].ctrl.middleRows(seg.k0, seg.T);
+  }
   return in;
 }
 

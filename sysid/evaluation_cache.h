@@ -39,6 +39,7 @@
 #include <vector>
 
 #include "core/simulator.h"
+#include "sysid/sample_grid.h"
 #include "sysid/types.h"
 
 namespace mjsysid {
@@ -83,6 +84,12 @@ class EvaluationCache {
   EvaluationCache(std::vector<Model> models, const std::vector<FitParameter>* parameters,
                   const std::vector<FitSequence>* sequences, const std::vector<Segment>* segments,
                   const JacobianOptions& jacobian);
+  // the same with the sequences' simulation grids (sysid/sample_grid.h; one per sequence,
+  // borrowed): a segment's input is SimulatedSteps rows of its grid's ctrl from k0, so that its
+  // Trajectory::T may exceed Segment::T by one
+  EvaluationCache(std::vector<Model> models, const std::vector<FitParameter>* parameters,
+                  const std::vector<FitSequence>* sequences, const std::vector<Segment>* segments,
+                  const JacobianOptions& jacobian, const std::vector<SampleGrid>* grids);
 
   // The entry of a segment at variables z (nullptr when the fit has no parameters) and initial
   // physics vector x0 (nphys), with its Jacobians if asked for: from the cache, else simulated
@@ -111,6 +118,7 @@ class EvaluationCache {
   const std::vector<FitParameter>* parameters_;  // borrowed, as the three below
   const std::vector<FitSequence>* sequences_;
   const std::vector<Segment>* segments_;
+  const std::vector<SampleGrid>* grids_ = nullptr;  // borrowed; nullptr: sequences' ctrl
   JacobianOptions jacobian_;
   std::vector<Entry> entries_;  // one per segment
   std::thread::id owner_;       // the constructing thread

@@ -66,11 +66,13 @@ void DecideFitStatus(const FitOptions& options, int accepted_steps, bool jacobia
         if (std::find(sig.begin(), sig.end(), name) != sig.end()) {
           const auto w = options.sensor_weights.find(name);
           const double weight = w != options.sensor_weights.end() ? w->second : 1.0;
+          // samples not measured (NaN) were masked out of the fit: left out here too
           const auto diff =
-              (sr.measured.middleCols(col, dim) - sr.simulated_final.middleCols(col, dim));
+              (sr.measured.middleCols(col, dim) - sr.simulated_final.middleCols(col, dim)).array();
+          const auto measured = !sr.measured.middleCols(col, dim).array().isNaN();
           auto& [sum, rows] = per_sensor[name];
-          sum += weight * weight * diff.squaredNorm();
-          rows += static_cast<long long>(diff.size());
+          sum += weight * weight * measured.select(diff, 0.0).square().sum();
+          rows += static_cast<long long>(measured.count());
         }
         col += dim;
       }

@@ -106,7 +106,7 @@ HorizonChoice ChooseHorizon(Problem::Impl& I, const std::vector<Trajectory>& ini
     Simulator& sim = *I.models[I.ModelIndex(sq.model)].sim;
     const mjModel& m = sim.model();
     const StateDims& d = sim.dims();
-    SequenceInput in{sq.x0, sq.ctrl};
+    SequenceInput in{sq.x0, I.grids[q].ctrl};  // the controls on the simulation grid
     if (in.x0.qvel.size() != m.nv) in.x0.qvel = Eigen::VectorXd::Zero(m.nv);
     const double h = kProbeStep * (1 + in.x0.qvel.lpNorm<Eigen::Infinity>());
     in.x0.qvel.array() += h;
@@ -170,8 +170,9 @@ int SegmentStepsAfterWarning(const std::string& warning, double rate, std::strin
   return len;
 }
 
-// The initial state of the segment of sequence q starting at sample k0 > 0, from the data where
-// they determine it: the sequence's logged states (FitSequence::states), else the fitted
+// The initial state of the segment of sequence q starting at simulation step k0 > 0, from the data
+// where a measured sample lies on that step (SampleGrid::position; none: the rollout) and
+// determines the state there: the sequence's logged states (FitSequence::states), else the fitted
 // jointpos/jointvel sensors when every joint is a hinge or slide with one of each (sensors
 // without measurement terms), else the rollout at the initial values. act is always the
 // rollout's. Returns where it came from.
@@ -183,8 +184,14 @@ std::string SegmentStart(const Problem::Impl& I, int q, int k0, const Trajectory
   const auto row = rollout.states.row(k0);
   x->assign(row.data(), row.data() + row.size());
   const int nq = m.nq, nv = m.nv;
-  if (sq.states.rows() > k0 && sq.states.cols() >= nq + nv) {
-    std::copy(sq.states.row(k0).data(), sq.states.row(k0).data() + nq + nv, x->begin());
+  // the measured sample at step k0, if one lies on it (off-grid logs: often none)
+  const std::vector<double>& position = I.grids[q].position;
+  const auto at = std::lower_bound(position.begin(), position.end(), static_cast<double>(k0));
+  if (at == position.end() || *at != static_cast<double>(k0)) return "the rollout";
+  const Eigen::Index i = at - position.begin();
+  if (sq.states.rows() > i && sq.states.cols() >= nq + nv &&
+      sq.states.row(i).head(nq + nv).allFinite()) {
+    std::copy(sq.states.row(i).data(), sq.states.row(i).data() + nq + nv, x->begin());
     return "logged qpos/qvel";
   }
   std::vector<int> pos_col(m.njnt, -1), vel_col(m.njnt, -1);
@@ -201,8 +208,12 @@ std::string SegmentStart(const Problem::Impl& I, int q, int k0, const Trajectory
     if (!scalar || pos_col[j] < 0 || vel_col[j] < 0) return "the rollout";
   }
   for (int j = 0; j < m.njnt; ++j) {
-    (*x)[m.jnt_qposadr[j]] = sq.measured(k0, pos_col[j]);
-    (*x)[nq + m.jnt_dofadr[j]] = sq.measured(k0, vel_col[j]);
+    const double qj = sq.measured(i, pos_col[j]), vj = sq.measured(i, vel_col[j]);
+    if (!std::isfinite(qj) || !std::isfinite(vj)) return "the rollout";  // a masked cell
+  }
+  for (int j = 0; j < m.njnt; ++j) {
+    (*x)[m.jnt_qposadr[j]] = sq.measured(i, pos_col[j]);
+    (*x)[nq + m.jnt_dofadr[j]] = sq.measured(i, vel_col[j]);
   }
   return "joint position and velocity sensors";
 }

@@ -55,11 +55,28 @@ void KeepFittedColumns(const mjModel& m, const std::vector<std::string>& fitted,
     for (size_t c = 0; c < cols.size(); ++c) kept.col(c) = mat->col(cols[c]);
     *mat = std::move(kept);
   }
+  sr->missing.assign(cols.size(), 0);
+  for (size_t c = 0; c < cols.size(); ++c) {
+    sr->missing[c] = static_cast<int>(sr->measured.col(c).array().isNaN().count());
+  }
   if (sq.time.size() == T) {
     sr->time = sq.time;
   } else {
     sr->time = Eigen::VectorXd::LinSpaced(T, 0, static_cast<double>(T - 1)) * m.opt.timestep;
     sr->time.array() += sq.x0.time;
+  }
+}
+
+// Rows [first, first + count) of *out: the simulated sensors (a rollout's T x ns rows from step
+// k0) at those measured samples' positions, interpolated between steps like the residuals
+void SensorsAtSamples(const RowMatrix& sensors, const SampleGrid& grid, int k0, int first,
+                      int count, double dt, RowMatrix* out) {
+  const int T = static_cast<int>(sensors.rows());
+  for (int k = first; k < first + count; ++k) {
+    const DelayedSample at(grid.position[k] - k0, T, 0.0, dt);
+    for (Eigen::Index c = 0; c < sensors.cols(); ++c) {
+      (*out)(k, c) = at.Value({sensors.data() + c, sensors.cols()});
+    }
   }
 }
 
@@ -181,29 +198,44 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
     add(me.bias, &I.term_index[i].bias, "bias");
   }
 
-  // sequences: shapes, finite data, channels
+  // sequences: shapes, channels, missing samples, the simulation grid
   I.channels.assign(I.sequences.size(), {});
   I.fitted.assign(I.sequences.size(), {});
   I.fixed_x0.assign(I.sequences.size(), {});
+  I.grids.assign(I.sequences.size(), {});
+  I.missing.assign(I.sequences.size(), {});
+  I.prepare_warnings.clear();
   for (size_t q = 0; q < I.sequences.size(); ++q) {
     FitSequence& sq = I.sequences[q];
     const Impl::Model& mo = I.models[I.ModelIndex(sq.model)];
     const StateDims& d = mo.sim->dims();
     const std::string where = "sequence '" + sq.name + "': ";
-    const int T = static_cast<int>(sq.ctrl.rows());
-    if (T < 1 || sq.ctrl.cols() != d.nu) {
-      throw std::invalid_argument(
-          where + "ctrl must be T x nu with T >= 1 and nu = " + std::to_string(d.nu));
-    }
-    if (sq.measured.rows() != T || sq.measured.cols() != d.ns) {
-      throw std::invalid_argument(where + "measured must be " + std::to_string(T) + " x " +
-                                  std::to_string(d.ns) + " (T x nsensordata), got " +
+    const int T = static_cast<int>(sq.measured.rows());
+    const int Tc = static_cast<int>(sq.ctrl_time.size() ? sq.ctrl_time.size() : T);
+    if (T < 1 || sq.measured.cols() != d.ns) {
+      throw std::invalid_argument(where + "measured must be T x " + std::to_string(d.ns) +
+                                  " (T x nsensordata, T >= 1), got " +
                                   std::to_string(sq.measured.rows()) + " x " +
                                   std::to_string(sq.measured.cols()));
+    }
+    if (sq.ctrl.rows() != Tc || sq.ctrl.cols() != d.nu) {
+      throw std::invalid_argument(
+          where + "ctrl must be " + std::to_string(Tc) + " x nu with nu = " + std::to_string(d.nu) +
+          " (" + (sq.ctrl_time.size() ? "one row per ctrl_time" : "T x nu") + "), got " +
+          std::to_string(sq.ctrl.rows()) + " x " + std::to_string(sq.ctrl.cols()));
     }
     if (sq.time.size() != 0 && sq.time.size() != T) {
       throw std::invalid_argument(where + "time must be empty or have " + std::to_string(T) +
                                   " entries, got " + std::to_string(sq.time.size()));
+    }
+    if ((!sq.ctrl_hold.empty() && static_cast<int>(sq.ctrl_hold.size()) != d.nu) ||
+        (!sq.ctrl_delay.empty() && static_cast<int>(sq.ctrl_delay.size()) != d.nu)) {
+      throw std::invalid_argument(where + "ctrl_hold and ctrl_delay need one entry per actuator");
+    }
+    for (double delay : sq.ctrl_delay) {
+      if (!(delay >= 0) || !std::isfinite(delay)) {
+        throw std::invalid_argument(where + "a control delay must be finite and >= 0");
+      }
     }
     const mjModel& m = mo.sim->model();
     std::vector<std::string> used = sq.sensors;
@@ -229,21 +261,63 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
       for (size_t i = 0; i < I.measurements.size(); ++i) {
         if (I.measurements[i].sensor == sname) meas = static_cast<int>(i);
       }
+      // NaN: not measured (masked, counted); Inf: an error; a column with nothing left: an error
       for (int c = 0; c < m.sensor_dim[id]; ++c) {
         const int col = m.sensor_adr[id] + c;
+        int missing = 0;
         for (int k = 0; k < T; ++k) {
-          if (!std::isfinite(sq.measured(k, col))) {
+          const double y = sq.measured(k, col);
+          if (std::isnan(y)) {
+            ++missing;
+          } else if (!std::isfinite(y)) {
             throw std::invalid_argument(where + "measured sensor '" + sname +
                                         "' is not finite at row " + std::to_string(k));
           }
         }
+        if (missing == T) {
+          throw std::invalid_argument(where + "measured sensor '" + sname + "'" +
+                                      (m.sensor_dim[id] > 1 ? " column " + std::to_string(c) : "") +
+                                      " has no measured sample (all " + std::to_string(T) +
+                                      " are NaN): nothing to fit");
+        }
         I.channels[q].push_back({col, weight, meas});
+        I.missing[q].push_back(missing);
       }
       if (std::find(I.fitted[q].begin(), I.fitted[q].end(), sname) == I.fitted[q].end()) {
         I.fitted[q].push_back(sname);
       }
     }
-    if (!sq.ctrl.allFinite()) throw std::invalid_argument(where + "ctrl contains NaN/Inf");
+    // controls: Inf is an error; NaN is held from the last valid value (warned), an error before
+    // the first one
+    std::string held;
+    int held_rows = 0;
+    for (int i = 0; i < d.nu; ++i) {
+      int first_valid = 0;
+      while (first_valid < Tc && std::isnan(sq.ctrl(first_valid, i))) ++first_valid;
+      if (first_valid > 0) {
+        throw std::invalid_argument(
+            where + "ctrl of actuator " + std::to_string(i) + " is NaN from row 0 to " +
+            (first_valid < Tc ? "row " + std::to_string(first_valid - 1) : "the end") +
+            ": a NaN control is held from the last valid value, and there is none before it");
+      }
+      for (int k = 0; k < Tc; ++k) {
+        const double u = sq.ctrl(k, i);
+        if (std::isinf(u)) {
+          throw std::invalid_argument(where + "ctrl of actuator " + std::to_string(i) +
+                                      " is infinite at row " + std::to_string(k));
+        }
+        if (std::isnan(u) && held_rows++ < 5) {
+          held += (held.empty() ? "" : ", ") + std::to_string(k);
+        }
+      }
+    }
+    if (held_rows > 0) {
+      I.prepare_warnings.push_back(where + std::to_string(held_rows) +
+                                   " NaN control value(s) held from the last valid " +
+                                   "one (rows " + held + (held_rows > 5 ? ", ..." : "") + ")");
+    }
+    I.grids[q] = BuildSampleGrid(sq.time, T, sq.x0.time, sq.ctrl, sq.ctrl_time, sq.ctrl_hold,
+                                 sq.ctrl_delay, m.opt.timestep, where);
     // the given initial state as a physics vector
     InitialState x0 = sq.x0;
     if (x0.qpos.size() == 0) x0.qpos = Eigen::Map<const Eigen::VectorXd>(m.qpos0, d.nq);
@@ -280,7 +354,7 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
     std::vector<int> which;
     for (size_t q = 0; q < I.sequences.size(); ++q) {
       if (I.sequences[q].model != mo.name) continue;
-      ins.push_back({I.sequences[q].x0, I.sequences[q].ctrl});
+      ins.push_back({I.sequences[q].x0, I.grids[q].ctrl});
       which.push_back(static_cast<int>(q));
     }
     if (ins.empty()) continue;
@@ -322,7 +396,7 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
   I.stop_on_jacobian_warning = options.segment_steps < 0 && horizon.steps == 0;
   std::string start_source;
   for (size_t q = 0; q < I.sequences.size(); ++q) {
-    const int T = static_cast<int>(I.sequences[q].ctrl.rows());
+    const int T = I.grids[q].steps;  // simulation steps
     const int len = horizon.steps > 0 ? horizon.steps : T;
     const size_t first = I.segments.size();
     for (int k0 = 0; k0 < T; k0 += len) {
@@ -358,7 +432,7 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
   std::vector<EvaluationCache::Model> simulated;
   for (const Impl::Model& mo : I.models) simulated.push_back({mo.sim.get(), mo.global});
   I.cache = std::make_unique<EvaluationCache>(std::move(simulated), &I.params, &I.sequences,
-                                              &I.segments, options.jacobian);
+                                              &I.segments, options.jacobian, &I.grids);
   for (size_t s = 0; s < I.segments.size(); ++s) {
     const Segment& seg = I.segments[s];
     if (seg.block >= 0 || seg.next >= 0 || seg.T != initial[seg.seq].T) continue;
@@ -382,6 +456,7 @@ FitResult Problem::Fit(const FitOptions& options) {
   result.segment_steps_used = prepared.segment_steps;
   result.segment_reason = prepared.segment_reason;
 
+  result.warnings = I.prepare_warnings;
   // a start on a bound: the first step may leave the bound at once or never (a projected
   // gradient pointing outwards)
   for (const FitParameter& p : I.params) {
@@ -623,10 +698,13 @@ FitResult Problem::Fit(const FitOptions& options) {
     sr.name = sq.name;
     sr.model = sq.model;
     sr.measured = sq.measured;
-    sr.simulated_initial = initial[q].sensors;
+    const SampleGrid& grid = I.grids[q];
+    const double dt = mo.sim->model().opt.timestep;
+    sr.simulated_initial.resize(sq.measured.rows(), sq.measured.cols());
+    SensorsAtSamples(initial[q].sensors, grid, 0, 0, static_cast<int>(sq.measured.rows()), dt,
+                     &sr.simulated_initial);
     sr.simulated_final.resize(sq.measured.rows(), sq.measured.cols());
     if (np) ApplyVariables(I.params, mo.global, I.z.data(), mo.sim.get());
-    const double dt = mo.sim->model().opt.timestep;
     for (size_t s = 0; s < I.segments.size(); ++s) {
       const Segment& seg = I.segments[s];
       if (seg.seq != static_cast<int>(q)) continue;
@@ -639,7 +717,9 @@ FitResult Problem::Fit(const FitOptions& options) {
             I.cache->Evaluate(static_cast<int>(s), np ? I.z.data() : nullptr, x0, false);
         if (cached.failed) throw std::runtime_error(cached.error);
         const Trajectory& tr = cached.tr;
-        sr.simulated_final.middleRows(seg.k0, seg.T) = tr.sensors;
+        int first = 0, count = 0;
+        I.SamplesOf(static_cast<int>(s), &first, &count);
+        SensorsAtSamples(tr.sensors, grid, seg.k0, first, count, dt, &sr.simulated_final);
         if (seg.next >= 0) {
           const int nx = mo.sim->dims().nx;
           Eigen::VectorXd gap(nx);
@@ -657,9 +737,9 @@ FitResult Problem::Fit(const FitOptions& options) {
           const MeasurementTerms terms =
               I.Terms(ch.measurement, I.m.empty() ? nullptr : I.m.data());
           const Signal simulated{tr.sensors.data() + ch.column, tr.sensors.cols()};
-          for (int k = 0; k < seg.T; ++k) {
-            sr.simulated_final(seg.k0 + k, ch.column) =
-                terms.Apply(DelayedSample(k, seg.T, terms.delay, dt).Value(simulated));
+          for (int k = first; k < first + count; ++k) {
+            const DelayedSample at(grid.position[k] - seg.k0, tr.T, terms.delay, dt);
+            sr.simulated_final(k, ch.column) = terms.Apply(at.Value(simulated));
           }
         }
       } catch (const std::exception& e) {
@@ -668,6 +748,16 @@ FitResult Problem::Fit(const FitOptions& options) {
       }
     }
     KeepFittedColumns(mo.sim->model(), I.fitted[q], sq, &sr);
+    // masked samples, sensor by sensor
+    for (size_t i = 0, col = 0; i < sr.sensor_names.size(); col += sr.sensor_dims[i++]) {
+      int missing = 0;
+      for (int c = 0; c < sr.sensor_dims[i]; ++c) missing += sr.missing[col + c];
+      if (missing == 0) continue;
+      result.warnings.push_back("sequence '" + sq.name + "': sensor '" + sr.sensor_names[i] +
+                                "': " + std::to_string(missing) + " of " +
+                                std::to_string(sr.measured.rows() * sr.sensor_dims[i]) +
+                                " values not measured (NaN), masked out of the fit");
+    }
     result.sequences.push_back(std::move(sr));
   }
   if (worst_gap > kContinuityGapWarning) {

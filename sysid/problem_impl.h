@@ -25,6 +25,7 @@
 #include "sysid/evaluation_cache.h"
 #include "sysid/problem.h"
 #include "sysid/residual_model.h"
+#include "sysid/sample_grid.h"
 #include "sysid/state_manifold.h"
 #include "sysid/types.h"
 
@@ -56,6 +57,10 @@ struct Problem::Impl {
   std::vector<std::vector<double>> states;    // state blocks (physics vectors)
   std::vector<std::vector<double>> fixed_x0;  // per sequence: the given x0 as physics vector
   std::unique_ptr<EvaluationCache> cache;     // borrows params, sequences, segments, simulators
+  std::vector<SampleGrid> grids;  // per sequence: its samples and controls on the simulation grid
+  // per sequence and fitted channel (as `channels`): the samples not measured (NaN, masked)
+  std::vector<std::vector<int>> missing;
+  std::vector<std::string> prepare_warnings;  // what Prepare noticed (held NaN controls)
 
   // What the cost functions met during a fit, so that FitResult::warnings can say it (a rejected
   // trial point or a Jacobian past its validity is otherwise invisible to the user): the number
@@ -101,6 +106,24 @@ struct Problem::Impl {
   MeasurementTerms Terms(int i, const double* mv) const {
     const FitMeasurement& me = measurements[i];
     return CurrentTerms({me.delay.initial, me.gain.initial, me.bias.initial}, term_index[i], mv);
+  }
+
+  // the measured samples of a segment: [*first, *first + *count) of its sequence, and the steps
+  // its rollout holds (sysid/sample_grid.h)
+  void SamplesOf(int segment, int* first, int* count) const {
+    const Segment& seg = segments[segment];
+    grids[seg.seq].SamplesOf(seg.k0, seg.T, first, count);
+  }
+  // residual rows of a segment's measured cells (NaN cells are masked out)
+  int MeasuredRows(int segment) const {
+    const Segment& seg = segments[segment];
+    int first = 0, count = 0, rows = 0;
+    SamplesOf(segment, &first, &count);
+    const RowMatrix& y = sequences[seg.seq].measured;
+    for (int k = first; k < first + count; ++k) {
+      for (const Channel& ch : channels[seg.seq]) rows += std::isnan(y(k, ch.column)) ? 0 : 1;
+    }
+    return rows;
   }
 
   // x_0 of a segment in the current variables (its state block, or the sequence's given x0)

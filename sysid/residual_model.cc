@@ -1,5 +1,6 @@
 #include "sysid/residual_model.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace mjsysid {
@@ -45,12 +46,13 @@ MeasurementTerms CurrentTerms(const MeasurementTerms& initial, const TermIndex& 
   return t;
 }
 
-DelayedSample::DelayedSample(int k, int T, double delay, double dt) : dt_(dt) {
-  // no delay: sample k itself, the backward slope
-  if (delay == 0) {
-    i0_ = k;
-    lo_ = k > 0 ? k - 1 : k;
-    hi_ = k;
+DelayedSample::DelayedSample(double k, int T, double delay, double dt) : dt_(dt) {
+  // no delay at a whole step: sample k itself, the backward slope
+  if (delay == 0 && k == std::floor(k)) {
+    const int i = std::min(static_cast<int>(k), T - 1);
+    i0_ = i;
+    lo_ = i > 0 ? i - 1 : i;
+    hi_ = i;
     return;
   }
   // between samples i0 and i0 + 1 at fraction a; held outside the signal

@@ -59,15 +59,18 @@ struct Signal {
   double operator[](Eigen::Index i) const { return data[i * stride]; }
 };
 
-// Where sample k of a signal of T samples spaced dt, delayed by `delay` seconds, is read:
-// y(t_k - delay), linear between the two samples around q = k - delay / dt; held at sample 0 before
-// the start (q < 0) and at sample T - 1 past the end. The derivative by the delay is the slope of
-// that interpolation, -(s[i0 + 1] - s[i0]) / dt, 0 where held; at delay 0 it is the backward
-// slope -(s[k] - s[k - 1]) / dt (0 at k = 0): one-sided, the forward one would read the future.
-// Kinks at every q that is an integer (one per timestep of delay).
+// Where a measured sample at position k (in steps of dt from the signal's sample 0; a whole
+// number for a sample on the simulation grid, any real >= 0 for a log at its own times) of a
+// signal of T samples spaced dt, delayed by `delay` seconds, is read: y(t_k - delay), linear
+// between the two samples around q = k - delay / dt; held at sample 0 before the start (q < 0)
+// and at sample T - 1 past the end. The derivative by the delay is the slope of that
+// interpolation, -(s[i0 + 1] - s[i0]) / dt, 0 where held; at delay 0 and a whole k it is the
+// backward slope -(s[k] - s[k - 1]) / dt (0 at k = 0): one-sided, the forward one would read the
+// future. Kinks at every q that is an integer (one per timestep of delay). The same weights read
+// the Jacobian rows (InterpolatedRow), so an off-grid sample's row is interpolated like its value.
 class DelayedSample {
  public:
-  DelayedSample(int k, int T, double delay, double dt);
+  DelayedSample(double k, int T, double delay, double dt);
 
   // the signal's value at t_k - delay
   double Value(Signal s) const {

@@ -5,6 +5,10 @@
 
 namespace mjsysid {
 
+const char* ControlHoldName(ControlHold hold) {
+  return hold == ControlHold::kLinear ? "linear" : "zoh";
+}
+
 const char* LossTypeName(LossType loss) {
   switch (loss) {
     case LossType::kHuber:

@@ -116,7 +116,18 @@ struct FitMeasurement {
   Term bias{0.0, false};
 };
 
-// one recorded sequence of one model
+// how the logged controls of one actuator reach the simulation steps (sysid/sample_grid.h):
+// zero-order hold (a digital controller's) or linear interpolation
+enum class ControlHold { kZeroOrder, kLinear };
+
+// "zoh", "linear" (the YAML spelling)
+const char* ControlHoldName(ControlHold hold);
+
+// One recorded sequence of one model. Its measured samples come at `time` (any rate, jitter,
+// gaps: the simulation runs on the model's timestep from time[0] and each sample is compared with
+// the simulation interpolated at its own time, sysid/sample_grid.h); NaN in measured means "not
+// measured" (masked out of the residuals). The controls come at ctrl_time (their own rate) or,
+// without it, at the sample times.
 struct FitSequence {
   FitSequence() = default;
   FitSequence(std::string name_, std::string model_, InitialState x0_, RowMatrix ctrl_,
@@ -137,6 +148,10 @@ struct FitSequence {
   // optional states x_k from the log, row k: T x (nq + nv) ([qpos, qvel]) or T x nphys
   // ([qpos, qvel, act]); 0 x 0 when absent. Multiple shooting starts its segments there.
   RowMatrix states;
+  // the controls' own times: Tc (s), ctrl then Tc x nu; empty: ctrl rows at `time`
+  Eigen::VectorXd ctrl_time;
+  std::vector<ControlHold> ctrl_hold;  // per actuator (nu) or empty: zero-order hold
+  std::vector<double> ctrl_delay;      // per actuator (nu, s, >= 0) or empty: no transport delay
 };
 
 // one Gauss-Newton/LM iteration, as reported to callbacks and kept in FitResult::trace
@@ -160,8 +175,8 @@ struct FitOptions {
   LossType loss = LossType::kNone;
   double loss_scale = 1.0;  // in weighted residual units, > 0
   bool estimate_initial_state = false;
-  // multiple shooting: samples per segment; 0 = single shooting; -1 = auto (the sensitivity
-  // growth measured at the initial values decides, see FitResult::segment_reason)
+  // multiple shooting: simulation steps per segment; 0 = single shooting; -1 = auto (the
+  // sensitivity growth measured at the initial values decides, see FitResult::segment_reason)
   int segment_steps = -1;
   double continuity_weight = 1.0;
   std::map<std::string, double> sensor_weights;  // sensor name -> weight (1/sigma); default 1
@@ -205,6 +220,8 @@ struct SequenceResult {
   Eigen::VectorXd x0_final;   // estimated initial physics vector (or the given one); may be empty
   // one per column above (sysid/metrics.h ChannelFits; filled by the runner and the result reader)
   std::vector<ChannelFit> channel_fits;
+  // per column of measured: the samples not measured (NaN in measured, masked out of the fit)
+  std::vector<int> missing;
 };
 
 // one fit of a multi-start run (sysid/run/multi_start.h): where it started, where it ended

@@ -428,6 +428,9 @@ int RunCheck(const CheckArgs& args) {
   // against Ceres' numeric differentiation
   if (!config.data.empty()) {
     mjsysid::run::BuiltProblem built = mjsysid::run::BuildProblem(config);
+    for (const std::string& w : built.warnings) {
+      std::fprintf(stderr, "sysid check: warning: %s\n", w.c_str());
+    }
     // what is fitted and what is held out (`validation:`)
     std::vector<std::string> fitted, held_out;
     for (const mjsysid::FitSequence& s : built.sequences) fitted.push_back(s.name);
@@ -855,7 +858,10 @@ int RunImport(const ImportArgs& args) {
   for (const std::string& path : args.csv) {
     log.sequences.push_back(io::ImportCsv(path, *m, fs::path(path).stem().string()));
   }
-  io::ValidateLogAgainstModel(log, *m, args.out);
+  std::vector<std::string> warnings;
+  io::ValidateLogAgainstModel(log, *m, args.out, &warnings);
+  for (const std::string& w : warnings)
+    std::fprintf(stderr, "sysid import: warning: %s\n", w.c_str());
   std::vector<std::string> inputs = {args.model};
   inputs.insert(inputs.end(), args.csv.begin(), args.csv.end());
   PrepareLogOutput(args.out, inputs, args.force);

@@ -1,11 +1,13 @@
 #include "sysid/io/csv.h"
 
+#include <cctype>
 #include <cerrno>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <string>
 #include <tuple>
@@ -135,6 +137,16 @@ double ParseNumber(const std::string& text, const std::string& where) {
   if (ec != std::errc() || ptr != end) Fail(where, Quote(text) + " is not a number");
   if (!std::isfinite(value)) Fail(where, "value " + Quote(text) + " is not finite (NaN/Inf)");
   return value;
+}
+
+// a sensor or control cell: empty or NaN (any case) is NaN, a value not measured; else a finite
+// double
+double ParseNumberOrMissing(const std::string& text, const std::string& where) {
+  if (text.empty()) return std::numeric_limits<double>::quiet_NaN();
+  std::string lower = text;
+  for (char& ch : lower) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+  if (lower == "nan") return std::numeric_limits<double>::quiet_NaN();
+  return ParseNumber(text, where);
 }
 
 // Refuses what is not a comma-separated UTF-8/ASCII text with LF or CRLF line ends, from the
@@ -305,8 +317,14 @@ Sequence ImportCsv(const std::string& path, const mjModel& m, const std::string&
                            (fields.size() > ncols ? " (decimal commas? numbers need a '.')" : ""));
     }
     for (size_t c = 0; c < ncols; ++c) {
-      values.push_back(ParseNumber(fields[c], where_line + ": column " + std::to_string(c + 1) +
-                                                  " (" + Quote(header[c]) + ")"));
+      // sensors and controls: an empty cell or NaN is a value not measured (NaN)
+      const bool may_miss = targets[c].kind == Kind::kSensor || targets[c].kind == Kind::kCtrl;
+      values.push_back(
+          may_miss
+              ? ParseNumberOrMissing(fields[c], where_line + ": column " + std::to_string(c + 1) +
+                                                    " (" + Quote(header[c]) + ")")
+              : ParseNumber(fields[c], where_line + ": column " + std::to_string(c + 1) + " (" +
+                                           Quote(header[c]) + ")"));
     }
     row_lines.push_back(line_no);
   }

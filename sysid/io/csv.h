@@ -13,6 +13,9 @@
 //     qpos[i], qvel[i], act[i]    optional states; when one component is given, all are required
 //   Sensors may be left out: the Sequence keeps the sensors present, in model order, with
 //   sensor_names/sensor_dims describing them (a multi-dimensional sensor needs all components).
+//   A sensor or actuator cell that is empty or NaN is a value not measured (NaN in the Sequence:
+//   masked out of the fit, or for a control held from the last valid value), so sensors logged
+//   at their own times share one file, each row holding the sensors sampled at its time.
 // - The result follows log.h's Sequence contract: ctrl is T x nu in model order with the model's
 //   actuator names; qpos/qvel/act are 0 x 0 unless given. Row k's sensors are taken as y_k of
 //   the convention the caller records in Log::sensor_time.
@@ -20,8 +23,9 @@
 //   1 unless blank lines precede it), the column (1-based) and its header: an unknown column
 //   (with the valid names as a hint), a duplicate or ambiguous column, a missing required column
 //   or sensor component, a row with a different number of fields than the header, an empty or
-//   non-numeric cell, NaN/Inf, non-increasing time, no data rows, an invalid sequence name; a
-//   file that is not comma-separated UTF-8/ASCII text (UTF-16/32, NUL bytes, CR-only line ends,
+//   non-numeric time or state cell, Inf, NaN outside sensor and actuator columns, non-increasing
+//   time, no data rows, an invalid sequence name; a file that is not comma-separated UTF-8/ASCII
+//   text (UTF-16/32, NUL bytes, CR-only line ends,
 //   ';' separators), with a hint. Values in messages are cut after 60 bytes, control bytes shown
 //   as \xNN.
 #pragma once

@@ -72,11 +72,13 @@ std::vector<NamedValue> Parser::NamedValues(const Field& f) const {
 const std::vector<std::string> kRootKeys = {
     "version",     "name",     "model",      "models",      "data",          "sequences",
     "sensor_time", "sensors",  "parameters", "measurement", "initial_state", "multiple_shooting",
-    "solver",      "simulate", "output",     "validation"};
+    "solver",      "simulate", "output",     "validation",  "controls"};
 const std::vector<std::string> kParameterKeys = {"name",  "target",  "object", "field",
                                                  "index", "initial", "bounds", "transform",
                                                  "scale", "prior",   "models"};
 const std::vector<std::string> kSensorTimes = {"pre", "post"};
+// in the order of ControlHold
+const std::vector<std::string> kControlHolds = {"zoh", "linear"};
 const std::vector<std::string> kTransforms = {"none", "log", "scale"};
 // in the order of core's JacobianMode
 const std::vector<std::string> kJacobianModes = {"auto", "directional", "matrix", "whole_rollout"};
@@ -185,6 +187,12 @@ ExperimentConfig Parser::Parse(const YAML::Node& root) {
       c.options.continuity_weight = Positive(s.Get("continuity_weight"));
     }
   }
+  if (r.Has("controls")) {
+    const MapReader s(*this, r.Get("controls"), {"hold", "delay"});
+    if (s.Has("hold"))
+      c.control_hold = static_cast<ControlHold>(Enum(s.Get("hold"), kControlHolds));
+    if (s.Has("delay")) c.control_delay = NonNegative(s.Get("delay"));
+  }
   c.options.verbose = true;  // a file's default; `solver: {verbose: false}` turns it off
   if (r.Has("solver")) ParseSolver(r.Get("solver"), &c);
   if (r.Has("simulate")) ParseSimulate(r.Get("simulate"), c, &c.simulate);
@@ -259,22 +267,36 @@ void Parser::ParseSequences(const Field& f, ExperimentConfig* c,
   for (const ModelSpec& m : c->models) model_names.push_back(m.name);
   for (const Field& item : List(f)) {
     SequenceRef ref;
-    ref.name = Name(item);
-    ref.mark = item.mark;
+    // a name, or {name, start, end}: a window of the sequence (seconds)
+    Field name_field = item;
+    if (!item.node.IsScalar()) {
+      const MapReader window(*this, item, {"name", "start", "end"});
+      window.Require("name");
+      name_field = window.Get("name");
+      if (window.Has("start")) ref.start = Finite(window.Get("start"));
+      if (window.Has("end")) ref.end = Finite(window.Get("end"));
+      if (!(ref.start < ref.end)) {
+        Fail(item.mark, item.path + ": the window's start must be before its end",
+             "start and end are times in seconds on the log's clock");
+      }
+    }
+    ref.name = Name(name_field);
+    ref.mark = name_field.mark;
     const size_t slash = ref.name.find('/');
     if (c->models.size() > 1 && slash != std::string::npos) {
       ref.model = ref.name.substr(0, slash);
       ref.name = ref.name.substr(slash + 1);
       if (!c->FindModel(ref.model)) {
         Fail(item.mark,
-             item.path + ": unknown model " + Quote(ref.model) + " in " + Quote(item.node.Scalar()),
+             item.path + ": unknown model " + Quote(ref.model) + " in " +
+                 Quote(name_field.node.Scalar()),
              NamesHint(ref.model, model_names, "models"));
       }
       if (ref.name.empty()) Fail(item.mark, item.path + ": the sequence name is empty");
     }
     for (const SequenceRef& seen : c->*into) {
       if (seen.model == ref.model && seen.name == ref.name) {
-        Fail(item.mark, "duplicate sequence " + Quote(item.node.Scalar()),
+        Fail(item.mark, "duplicate sequence " + Quote(name_field.node.Scalar()),
              "first given at line " + std::to_string(seen.mark.line));
       }
     }

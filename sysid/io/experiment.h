@@ -50,6 +50,10 @@ struct SequenceRef {
   std::string model;  // "" = the sequence of that name for every model
   std::string name;
   Mark mark;
+  // the window fitted (`{name: ..., start: s, end: s}`): the samples with start <= time <= end
+  // (seconds, the log's clock); the whole sequence by default
+  double start = -std::numeric_limits<double>::infinity();
+  double end = std::numeric_limits<double>::infinity();
 };
 
 // whether a log's sensor row at step k is read before (pre) or after (post) step k
@@ -151,6 +155,10 @@ struct ExperimentConfig {
   SimulateOptions simulate;
   std::string output;  // absolute; default <base_dir>/results/<name>
   Marks marks;
+  // `controls`: how the logged commands reach the simulation steps (every actuator, every
+  // sequence; docs/real-logs.md): the hold rule and a known transport delay (s, >= 0)
+  ControlHold control_hold = ControlHold::kZeroOrder;
+  double control_delay = 0;
 
   // nullptr when absent
   const ParameterSpec* FindParameter(const std::string& name) const;

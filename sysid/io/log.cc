@@ -21,6 +21,7 @@
 #include "sysid/io/atomic_file.h"
 #include "sysid/io/hdf5_util.h"
 #include "sysid/io/log_child_process.h"
+#include "sysid/io/time_base.h"
 
 namespace mjsysid::io {
 namespace {
@@ -122,16 +123,18 @@ void CheckName(const std::string& name, const std::string& file, const std::stri
   }
 }
 
+// every value finite; with nan_allowed, NaN passes (a value not measured) and only Inf fails
 void CheckFinite(const double* data, Eigen::Index rows, Eigen::Index cols, const std::string& file,
-                 const std::string& object) {
+                 const std::string& object, bool nan_allowed = false) {
   for (Eigen::Index r = 0; r < rows; ++r) {
     for (Eigen::Index c = 0; c < cols; ++c) {
       const double v = data[r * cols + c];
-      if (!std::isfinite(v)) {
-        Fail(file, object,
-             "row " + std::to_string(r) + ", column " + std::to_string(c) + ": value " +
-                 FormatShortest(v) + " is not finite (NaN/Inf are not allowed)");
-      }
+      if (std::isfinite(v) || (nan_allowed && std::isnan(v))) continue;
+      Fail(file, object,
+           "row " + std::to_string(r) + ", column " + std::to_string(c) + ": value " +
+               FormatShortest(v) + " is not finite" +
+               (nan_allowed ? " (NaN marks a value not measured; Inf is not allowed)"
+                            : " (NaN/Inf are not allowed)"));
     }
   }
 }
@@ -210,14 +213,16 @@ void CheckSequence(const Sequence& seq, const std::string& file) {
              std::to_string(seq.sensordata.cols()) + " columns");
   }
 
-  // values: finite everywhere
-  const std::pair<const char*, const RowMatrix*> mats[] = {{"ctrl", &seq.ctrl},
-                                                           {"sensordata", &seq.sensordata},
-                                                           {"qpos", &seq.qpos},
-                                                           {"qvel", &seq.qvel},
-                                                           {"act", &seq.act}};
-  for (const auto& [name, mat] : mats) {
-    CheckFinite(mat->data(), mat->rows(), mat->cols(), file, gpath + "/" + name);
+  // values: finite, except NaN in ctrl and sensordata (not measured: a sensor value is masked out
+  // of the fit, a control held from the last valid one)
+  const std::tuple<const char*, const RowMatrix*, bool> mats[] = {
+      {"ctrl", &seq.ctrl, true},
+      {"sensordata", &seq.sensordata, true},
+      {"qpos", &seq.qpos, false},
+      {"qvel", &seq.qvel, false},
+      {"act", &seq.act, false}};
+  for (const auto& [name, mat, nan_allowed] : mats) {
+    CheckFinite(mat->data(), mat->rows(), mat->cols(), file, gpath + "/" + name, nan_allowed);
   }
 }
 
@@ -511,8 +516,30 @@ Log ReadLogInProcess(const std::string& path) {
 
 }  // namespace internal
 
-void ValidateLogAgainstModel(const Log& log, const mjModel& m,
-                             const std::string& path_for_messages) {
+Sequence WindowOf(const Sequence& seq, double start, double end, const std::string& file) {
+  Eigen::Index first = 0, last = seq.time.size();  // rows [first, last)
+  while (first < last && seq.time[first] < start) ++first;
+  while (last > first && seq.time[last - 1] > end) --last;
+  const Eigen::Index n = last - first;
+  if (n < 2) {
+    Fail(file, "/" + seq.name + "/time",
+         "the window [" + FormatDigits(start, 9) + ", " + FormatDigits(end, 9) + "] s holds " +
+             std::to_string(n) + " sample(s) of " + FormatDigits(seq.time[0], 9) + " .. " +
+             FormatDigits(seq.time[seq.time.size() - 1], 9) + " s: at least 2 are needed");
+  }
+  Sequence w = seq;
+  w.time = seq.time.segment(first, n);
+  w.ctrl = seq.ctrl.middleRows(first, n);
+  w.sensordata = seq.sensordata.middleRows(first, n);
+  for (auto [from, to] :
+       {std::pair{&seq.qpos, &w.qpos}, {&seq.qvel, &w.qvel}, {&seq.act, &w.act}}) {
+    if (from->rows() > 0) *to = from->middleRows(first, n);
+  }
+  return w;
+}
+
+void ValidateLogAgainstModel(const Log& log, const mjModel& m, const std::string& path_for_messages,
+                             std::vector<std::string>* warnings) {
   const std::string& file = path_for_messages;
   CheckLog(log, file);
   const auto nu = static_cast<Eigen::Index>(m.nu);
@@ -602,24 +629,29 @@ void ValidateLogAgainstModel(const Log& log, const mjModel& m,
                std::to_string(width));
     }
 
-    // sample period: a whole multiple of the timestep
-    const Eigen::Index samples = seq.time.size();
-    if (samples < 2) {
-      Fail(file, gpath + "/time", "has 1 sample: at least 2 are needed to know the sample period");
+    // values not measured (NaN): a control needs a valid first value to hold, a sensor column at
+    // least one measured sample
+    for (Eigen::Index i = 0; i < seq.ctrl.cols(); ++i) {
+      if (std::isnan(seq.ctrl(0, i))) {
+        Fail(file, gpath + "/ctrl",
+             "row 0, column " + std::to_string(i) + " (actuator " +
+                 Quote(display(seq.actuator_names[i])) +
+                 "): NaN in the first row: a NaN control is held from the last valid value, and "
+                 "there is none before it (start the log at the first command)");
+      }
     }
-    std::vector<double> diffs(static_cast<size_t>(samples - 1));
-    for (Eigen::Index k = 1; k < samples; ++k) diffs[k - 1] = seq.time[k] - seq.time[k - 1];
-    std::sort(diffs.begin(), diffs.end());
-    const size_t mid = diffs.size() / 2;
-    const double period = diffs.size() % 2 ? diffs[mid] : 0.5 * (diffs[mid - 1] + diffs[mid]);
-    const double timestep = m.opt.timestep;
-    const double ratio = period / timestep;
-    const double whole = std::round(ratio);
-    if (!(timestep > 0) || whole < 1 || std::abs(period - whole * timestep) > 1e-9 * period) {
-      Fail(file, gpath + "/time",
-           "sample period " + FormatDigits(period, 12) + " s (median of diff(time)) is " +
-               FormatDigits(ratio, 12) + " times the model timestep " + FormatDigits(timestep, 12) +
-               " s; it must be a whole multiple (1, 2, 3, ...)");
+    for (Eigen::Index c = 0, i = 0, first = 0; c < seq.sensordata.cols(); ++c) {
+      if (c == first + seq.sensor_dims[i]) first += seq.sensor_dims[i++];
+      if (seq.sensordata.col(c).array().isNaN().all()) {
+        Fail(file, gpath + "/sensordata",
+             "column " + std::to_string(c) + " (sensor " + Quote(seq.sensor_names[i]) +
+                 "): every value is NaN (not measured): nothing to fit; leave the sensor out");
+      }
+    }
+
+    // the time base (sysid/io/time_base.h): increasing, in seconds; its warnings
+    for (std::string& w : CheckTimeBase(seq.time, m.opt.timestep, file, gpath + "/time")) {
+      if (warnings) warnings->push_back(std::move(w));
     }
   }
 }

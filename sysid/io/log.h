@@ -26,9 +26,12 @@
 //                          sensor_time = "pre" | "post" (string), and one string attribute per
 //                          Log::attributes entry
 //   /<sequence name>/      one group per sequence, in Log::sequences order (creation order)
-//     time                 float64 (T)           attribute units = "s"
-//     ctrl                 float64 (T, nu)       attribute names: string (nu), actuator names
-//     sensordata           float64 (T, ns)       attribute names: string (nsensor), sensor names;
+//     time                 float64 (T)           attribute units = "s"; any sample times (rate,
+//                                                jitter, gaps): each is fitted at its own time
+//     ctrl                 float64 (T, nu)       attribute names: string (nu), actuator names;
+//                                                NaN: held from the last valid value
+//     sensordata           float64 (T, ns)       NaN: not measured (masked out of the fit);
+//                                                attribute names: string (nsensor), sensor names;
 //                                                attribute dims: int32 (nsensor), columns each
 //     qpos, qvel, act      float64 (T, nq|nv|na) optional
 // Strings are variable-length UTF-8. A zero-width matrix (nu = 0, ns = 0) is stored as a
@@ -88,7 +91,9 @@ void WriteLog(const std::string& path, const Log& log);
 // ("the HDF5 library crashed reading the file", "did not finish ... in N s", "killed (out of
 // memory?)"). The child's address space may grow by max(1 GiB, 64 x the file size).
 // Checks: the format attributes; every required dataset present with rank 1 (time) or 2 (others)
-// and T rows; names/dims counts matching the columns; no NaN or Inf anywhere; time strictly
+// and T rows; names/dims counts matching the columns; no Inf anywhere and no NaN except in ctrl
+// and sensordata, where NaN means "not measured" (a sensor cell is masked out of the fit and
+// counted, a control is held from the last valid value: docs/real-logs.md); time strictly
 // increasing; no unknown datasets in a sequence group and no objects other than groups at the
 // root. Sequences come back in the order they were written.
 Log ReadLog(const std::string& path);
@@ -96,12 +101,19 @@ Log ReadLog(const std::string& path);
 // Checks a log against the model it is meant for (`path_for_messages` names the log in
 // messages). Per sequence: every sensor name is a sensor of `m` with the same dimension
 // (m.sensor_dim), names unique; ctrl has exactly the model's actuators, in model order (missing,
-// extra and misplaced names are named); qpos/qvel/act, when present, are nq/nv/na wide; at least
-// two samples, and the sample period (median of diff(time)) is a whole multiple n >= 1 of
-// m.opt.timestep within 1e-9 relative (the ratio is reported otherwise). Unknown names come with
-// the model's names (up to 20) as a hint. Throws LogError on the first problem found.
-void ValidateLogAgainstModel(const Log& log, const mjModel& m,
-                             const std::string& path_for_messages);
+// extra and misplaced names are named); qpos/qvel/act, when present, are nq/nv/na wide; the time
+// base passes CheckTimeBase (sysid/io/time_base.h: at least two samples, in seconds; any rate,
+// jitter and gaps are accepted, since each sample is fitted at its own time), whose warnings
+// (varying period, long gaps) go to *warnings when given. Unknown names come with the model's
+// names (up to 20) as a hint. Throws LogError on the first problem found. `sysid import`, `check`
+// and `fit` all check logs through this one function.
+void ValidateLogAgainstModel(const Log& log, const mjModel& m, const std::string& path_for_messages,
+                             std::vector<std::string>* warnings = nullptr);
+
+// The samples of `seq` with start <= time <= end (seconds, the log's clock): every dataset's rows
+// in that range. Throws LogError naming `file`, the sequence and the window when fewer than 2
+// samples fall in it.
+Sequence WindowOf(const Sequence& seq, double start, double end, const std::string& file);
 
 namespace internal {
 

@@ -159,18 +159,21 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
     for (size_t mi = 0; mi < cfg.models.size(); ++mi) {
       const mjModel& m = *out.models[mi];
       if (per_model[mi].sequences.empty()) continue;
-      io::ValidateLogAgainstModel(per_model[mi], m, df.path);
+      io::ValidateLogAgainstModel(per_model[mi], m, df.path, &out.warnings);
       const bool post = log.sensor_time == "post" || cfg.sensor_time == io::SensorTime::kPost;
       for (size_t si = 0; si < per_model[mi].sequences.size(); ++si) {
-        const io::Sequence& s = per_model[mi].sequences[si];
-        const std::string where = df.path + ": /" + s.name;
-        const int rows = static_cast<int>(s.time.size());
-        const double period = (s.time[rows - 1] - s.time[0]) / (rows - 1);
-        if (std::abs(period - m.opt.timestep) > 1e-9 * m.opt.timestep * rows) {
-          throw io::LogError(where + ": sample period " + FormatG17(period) +
-                             " s differs from the model timestep " + FormatG17(m.opt.timestep) +
-                             " s; resample the log or set the model's <option timestep>");
+        const io::Sequence& whole = per_model[mi].sequences[si];
+        // the window the experiment fits (`sequences: [{name, start, end}]`), else all of it
+        const io::SequenceRef* ref = nullptr;
+        for (const io::SequenceRef& r : cfg.sequences) {
+          if (r.name == whole.name && (r.model.empty() || r.model == cfg.models[mi].name)) ref = &r;
         }
+        const bool windowed = ref && (std::isfinite(ref->start) || std::isfinite(ref->end));
+        const io::Sequence s =
+            windowed ? io::WindowOf(whole, ref->start, ref->end, df.path) : whole;
+        const std::string where = df.path + ": /" + s.name;
+        // any sample period: each sample is fitted at its own time (sysid/sample_grid.h)
+        const int rows = static_cast<int>(s.time.size());
         // sensor_time post: the sensors of row k+1 are y_k
         const int T = post ? rows - 1 : rows;
         if (T < 2) throw io::LogError(where + ": too few samples");
@@ -208,7 +211,12 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
         if (s.qvel.rows() > 0) fs_.x0.qvel = s.qvel.row(0).transpose();
         if (s.act.rows() > 0) fs_.x0.act = s.act.row(0).transpose();
         fs_.x0.time = s.time[0];
-        if (s.qpos.rows() == 0 && !cfg.options.estimate_initial_state) {
+        if (windowed && s.qpos.rows() == 0) {
+          // a window starts mid-motion: without a logged state there, the state is estimated
+          out.estimate_initial_state = true;
+          out.warnings.push_back(where + ": the window from " + FormatDigits(s.time[0], 9) +
+                                 " s has no logged qpos/qvel: its initial state is estimated");
+        } else if (s.qpos.rows() == 0 && !cfg.options.estimate_initial_state) {
           out.warnings.push_back(where +
                                  ": the log has no qpos: the fit starts from the model's "
                                  "reference state (set initial_state: {estimate: true} to fit it)");
@@ -219,6 +227,9 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
           fs_.states.resize(T, s.qpos.cols() + s.qvel.cols());
           fs_.states << s.qpos.topRows(T), s.qvel.topRows(T);
         }
+        // controls: the experiment's hold rule and transport delay for every actuator
+        fs_.ctrl_hold.assign(m.nu, cfg.control_hold);
+        fs_.ctrl_delay.assign(m.nu, cfg.control_delay);
         if (per_model_held_out[mi][si]) {
           out.validation.push_back(fs_);  // simulated after the fit, never fitted
           continue;
@@ -258,6 +269,7 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
   FitOptions& o = out.options;
   o = cfg.options;
   o.threads = threads >= 0 ? threads : cfg.options.threads;
+  if (out.estimate_initial_state) o.estimate_initial_state = true;
   if (o.threads <= 0)
     o.threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   for (const io::SensorSpec& ss : cfg.sensors) {

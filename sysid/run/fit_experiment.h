@@ -7,7 +7,11 @@
 //   maps them onto a Problem: one FitSequence per selected log sequence, fitted with the model
 //   io::AssignSequences gives it (sysid/io/sequence_models.h: an explicit record, never a name);
 //   with sensor_time: post, row k+1 of a log is taken as y_k (the first control row is kept, the
-//   last dropped). The log's sample period must equal the model's timestep.
+//   last dropped). The log's samples may come at any times (any rate, jitter, gaps; checked by
+//   io::ValidateLogAgainstModel, whose warnings join BuiltProblem::warnings): the fit simulates
+//   on the model's timestep from the first sample and reads each sample at its own time. A
+//   `sequences:` entry with start/end fits that window only, from the logged state at its first
+//   sample (estimated when the log has none).
 // - RunFit refuses an output folder that holds an input or (without force) is foreign, and one that
 //   another fit is writing (OutputError, sysid/run/output_folder.h). It writes everything into the
 //   staging folder DIR.partial: checkpoint.yaml (status "running", the current values) after every
@@ -49,6 +53,9 @@ struct BuiltProblem {
   // the `validation:` sequences, read and checked like the fitted ones but not added to the
   // problem (RunFit simulates them at the start and at the estimate: sysid/run/validation.h)
   std::vector<FitSequence> validation;
+  // a window (`sequences: [{name, start, end}]`) without a logged state at its start: the
+  // initial states are estimated (options.estimate_initial_state)
+  bool estimate_initial_state = false;
 };
 
 // threads < 0: the config's solver.threads

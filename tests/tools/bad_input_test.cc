@@ -375,13 +375,121 @@ TEST_F(BadInputTest, TimeLengthDiffersFromRows) {
 }
 
 TEST_F(BadInputTest, NanRows) {
+  // NaN in ctrl and sensordata means "not measured" (docs/real-logs.md); in time, or Inf, an error
   const double nan = std::numeric_limits<double>::quiet_NaN();
-  for (const char* dataset : {"ctrl", "sensordata", "time"}) {
+  const double inf = std::numeric_limits<double>::infinity();
+  for (const auto& [dataset, value] : std::vector<std::pair<std::string, double>>{
+           {"ctrl", inf}, {"sensordata", inf}, {"time", nan}}) {
     SCOPED_TRACE(dataset);
-    const std::string log = ElementVariant(std::string("nan_") + dataset + ".h5",
-                                           std::string("/seq0/") + dataset, 17, 0, nan);
-    ExpectBadLog(log, {log, std::string("/seq0/") + dataset, "row 17"});
+    const std::string log =
+        ElementVariant("nonfinite_" + dataset + ".h5", "/seq0/" + dataset, 17, 0, value);
+    ExpectBadLog(log, {log, "/seq0/" + dataset, "row 17"});
   }
+}
+
+// Time bases (sysid/io/time_base.h), one check for import, check and fit: times that look like the
+// wrong unit, non-increasing and single-sample times are bad input naming the dataset; any rate,
+// gaps and NaN cells are accepted (each sample fitted at its own time)
+TEST_F(BadInputTest, TimeBaseErrors) {
+  // seconds written as 1/1000 of their value: the period 2 us is below 1/100 of the 2 ms timestep
+  const std::string tiny =
+      LogVariant("time_units.h5", [](io::Log* l) { l->sequences[0].time *= 1e-3; });
+  ExpectBadLog(tiny, {tiny, "/seq0/time", "below 1/100 of the model timestep", "seconds"});
+  const std::string tiny_csv = dir_ + "/time_units.csv";
+  WriteFile(tiny_csv, "time,torque,angle,rate\n0,0,0,0\n0.000002,0,0,0\n0.000004,0,0,0\n");
+  ExpectBadInput("import " + kModels + "/pendulum.xml " + tiny_csv + " --out " + prev_log_,
+                 {"below 1/100 of the model timestep"});
+  // one sample
+  const std::string one_csv = dir_ + "/one_sample.csv";
+  WriteFile(one_csv, "time,torque,angle,rate\n0,0,0,0\n");
+  ExpectBadInput("import " + kModels + "/pendulum.xml " + one_csv + " --out " + prev_log_,
+                 {"at least 2"});
+  // a control NaN from the first row: nothing to hold (found when the fit is prepared)
+  const std::string nan_first = LogVariant("ctrl_nan_first.h5", [](io::Log* l) {
+    l->sequences[0].ctrl(0, 0) = std::numeric_limits<double>::quiet_NaN();
+  });
+  ExpectBadLog(nan_first, {nan_first, "/seq0/ctrl", "row 0", "'torque'", "NaN in the first row"});
+  // a window (`sequences: [{name, start, end}]`) with fewer than 2 samples
+  const std::string window = dir_ + "/window.yaml";
+  WriteFile(window, Experiment(good_log_) + "sequences: [{name: seq0, start: 5.0, end: 6.0}]\n");
+  ExpectBadInput("check " + window, {good_log_, "/seq0/time", "the window [5, 6] s holds 0"});
+  // a sensor with nothing measured
+  const std::string all_nan = LogVariant("sensor_all_nan.h5", [](io::Log* l) {
+    l->sequences[0].sensordata.col(1).setConstant(std::numeric_limits<double>::quiet_NaN());
+  });
+  ExpectBadLog(all_nan, {all_nan, "/seq0/sensordata", "'rate'", "every value is NaN"});
+}
+
+// A robot's log as it comes, fitted as is: 100 Hz against the 2 ms model (every 5th step), a gap
+// of 15 periods, NaN cells, float32 time. `check` and `fit` accept it (exit 0), warn about the gap
+// and count the masked cells. The commands are held for 0.2 s (PRBS) and the gap lies within one
+// hold: a row dropped from this one-table log drops its command too.
+TEST_F(BadInputTest, OffGridGappyNanLogFitsAsIs) {
+  const std::string source = dir_ + "/robot_source.h5";
+  WriteFile(
+      dir_ + "/robot_source.yaml",
+      Experiment(source) + "  excitation: {type: prbs, amplitude: 2.0, switch_period: 0.2}\n");
+  ASSERT_EQ(Sysid("simulate " + dir_ + "/robot_source.yaml --out " + source).code, 0);
+  const std::string log = dir_ + "/robot.h5";
+  {
+    io::Log l = io::ReadLog(source);
+    io::Sequence& s = l.sequences[0];
+    std::vector<Eigen::Index> keep;
+    for (Eigen::Index k = 0; k < s.time.size(); k += 5) {
+      if (k <= 120 || k >= 195) keep.push_back(k);  // a gap of 15 periods
+    }
+    const auto n = static_cast<Eigen::Index>(keep.size());
+    io::Sequence t = s;
+    t.time.resize(n);
+    t.ctrl.resize(n, s.ctrl.cols());
+    t.sensordata.resize(n, s.sensordata.cols());
+    for (Eigen::Index i = 0; i < n; ++i) {
+      t.time[i] = s.time[keep[i]];
+      t.ctrl.row(i) = s.ctrl.row(keep[i]);
+      t.sensordata.row(i) = s.sensordata.row(keep[i]);
+    }
+    for (auto [from, to] : {std::pair{&s.qpos, &t.qpos}, {&s.qvel, &t.qvel}, {&s.act, &t.act}}) {
+      to->resize(from->rows() ? n : 0, from->rows() ? from->cols() : 0);
+      for (Eigen::Index i = 0; i < to->rows(); ++i) to->row(i) = from->row(keep[i]);
+    }
+    t.sensordata(3, 0) = t.sensordata(9, 1) = std::numeric_limits<double>::quiet_NaN();
+    s = t;
+    io::WriteLog(log, l);
+  }
+  // time stored as float32, as some loggers write it (log.h: accepted)
+  {
+    io::Log l = io::ReadLog(log);
+    const std::vector<float> t32(l.sequences[0].time.data(),
+                                 l.sequences[0].time.data() + l.sequences[0].time.size());
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+    const hid_t f = H5Fopen(log.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+    ASSERT_GE(f, 0);
+    ASSERT_GE(H5Ldelete(f, "/seq0/time", H5P_DEFAULT), 0);
+    const hsize_t dims[1] = {t32.size()};
+    const hid_t space = H5Screate_simple(1, dims, nullptr);
+    const hid_t d =
+        H5Dcreate2(f, "/seq0/time", H5T_IEEE_F32LE, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    ASSERT_GE(d, 0);
+    ASSERT_GE(H5Dwrite(d, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, t32.data()), 0);
+    H5Dclose(d);
+    H5Sclose(space);
+    H5Fclose(f);
+  }
+  const std::string exp = ExperimentOn("robot.yaml", log);
+  CliRun r = Sysid("check " + exp);
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("gap(s) longer than 10 sample periods"), std::string::npos) << r.err;
+  const std::string out = dir_ + "/robot_fit";
+  r = Sysid("fit " + exp + " --out " + out + " --quiet");
+  EXPECT_EQ(r.code, 0) << r.err;
+  const std::string result = ReadFile(out + "/result.yaml");
+  EXPECT_NE(result.find("1 of 26 values not measured (NaN)"), std::string::npos) << result;
+  // a window of it, from the logged state at its first sample
+  const std::string windowed = dir_ + "/robot_window.yaml";
+  WriteFile(windowed, Experiment(log) + "sequences: [{name: seq0, start: 0.1, end: 0.4}]\n");
+  r = Sysid("fit " + windowed + " --out " + dir_ + "/robot_window_fit --quiet");
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.err.find("1 of 26"), std::string::npos) << r.err;  // the NaN of row 3 is outside
 }
 
 TEST_F(BadInputTest, LogOfAnotherModel) {
@@ -536,7 +644,7 @@ TEST_F(BadInputTest, BadInputLeavesNoOutputBehind) {
 
 TEST_F(BadInputTest, CsvWithNanRowsAndUnknownColumns) {
   const std::string nan_csv = dir_ + "/nan.csv";
-  WriteFile(nan_csv, "time,torque,angle,rate\n0,0,0,0\n0.002,nan,0,0\n");
+  WriteFile(nan_csv, "time,torque,angle,rate\n0,0,0,0\nnan,0,0,0\n");
   ExpectBadInput("import " + kModels + "/pendulum.xml " + nan_csv + " --out " + prev_log_,
                  {nan_csv, ":3:"});
   const std::string unknown_csv = dir_ + "/unknown.csv";

@@ -190,7 +190,9 @@ void DrawSeries(Canvas& c, const Panel& p, const std::vector<double>& xs,
                 const std::vector<double>& ys, Rgb color, double width, double dash,
                 double marker) {
   std::vector<Point> points;
-  for (size_t i = 0; i < xs.size() && i < ys.size(); ++i) points.push_back(p.Map(xs[i], ys[i]));
+  for (size_t i = 0; i < xs.size() && i < ys.size(); ++i) {
+    if (std::isfinite(ys[i])) points.push_back(p.Map(xs[i], ys[i]));  // NaN: not measured
+  }
   c.Clip(p.plot);
   if (width > 0) c.Polyline(points, color, width, dash);
   if (marker > 0) {

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -110,6 +111,22 @@ TEST_F(CsvTest, MissingSensorsAreLeftOut) {
   EXPECT_EQ(s.sensordata(1, 0), 4.0);
   EXPECT_EQ(s.qpos.rows(), 0);
   EXPECT_EQ(s.qvel.rows(), 0);
+}
+
+// sensors at their own times in one file: each row holds what was sampled at its time, the other
+// cells empty (or NaN): values not measured, NaN in the sequence
+TEST_F(CsvTest, EmptySensorAndControlCellsAreNotMeasured) {
+  const std::string path =
+      Write("p.csv", "time,torque,angle,rate\n0,1,0.1,\n0.0013,,,2\n0.004,3,NaN,4\n");
+  const Sequence s = ImportCsv(path, *pendulum_, "run");
+  ASSERT_EQ(s.sensordata.rows(), 3);
+  EXPECT_EQ(s.sensordata(0, 0), 0.1);
+  EXPECT_TRUE(std::isnan(s.sensordata(0, 1)));
+  EXPECT_TRUE(std::isnan(s.sensordata(1, 0)));
+  EXPECT_EQ(s.sensordata(1, 1), 2.0);
+  EXPECT_TRUE(std::isnan(s.sensordata(2, 0)));
+  EXPECT_TRUE(std::isnan(s.ctrl(1, 0)));
+  EXPECT_EQ(s.time[1], 0.0013);
 }
 
 TEST_F(CsvTest, MultiDimensionalSensors) {
@@ -221,14 +238,17 @@ TEST_F(CsvTest, TrailingGarbageIsNotANumber) {
 }
 
 TEST_F(CsvTest, EmptyCell) {
+  // an empty time cell is an error; an empty sensor or actuator cell is a value not measured
   std::string path;
-  ExpectMentions(PendulumError("time,torque,angle\n0,,3\n", &path),
-                 {path + ":2", "column 2", "empty cell"});
+  ExpectMentions(PendulumError("time,torque,angle\n,1,3\n", &path),
+                 {path + ":2", "column 1", "empty cell"});
 }
 
 TEST_F(CsvTest, NanCell) {
   std::string path;
-  ExpectMentions(PendulumError("time,torque,angle\n0,1,2\n0.002,1,nan\n", &path),
+  ExpectMentions(PendulumError("time,torque,angle\n0,1,2\nnan,1,0\n", &path),
+                 {path + ":3", "column 1", "'time'", "not finite"});
+  ExpectMentions(PendulumError("time,torque,angle\n0,1,2\n0.002,1,inf\n", &path),
                  {path + ":3", "column 3", "'angle'", "not finite"});
 }
 

@@ -444,6 +444,40 @@ TEST(ConfigErrorTest, FormatsPositionMessageAndHint) {
 // -------------------------------------------------------------------------------------------
 // errors: each at its file:line:column with its hint
 
+// `controls`: the hold rule and transport delay of the logged commands (docs/real-logs.md)
+TEST_F(ExperimentTest, ControlsHoldAndDelay) {
+  const std::string base =
+      "model: pendulum.xml\nparameters:\n"
+      "  - {name: m, target: body_mass, object: bob, initial: 1}\n";
+  const ExperimentConfig def = LoadExperiment(Write("exp.yaml", base));
+  EXPECT_EQ(def.control_hold, ControlHold::kZeroOrder);
+  EXPECT_EQ(def.control_delay, 0.0);
+  const ExperimentConfig c =
+      LoadExperiment(Write("exp.yaml", base + "controls: {hold: linear, delay: 0.015}\n"));
+  EXPECT_EQ(c.control_hold, ControlHold::kLinear);
+  EXPECT_EQ(c.control_delay, 0.015);
+  ExpectError(base + "controls: {hold: foh}\n", 4, 18, "foh", "zoh");
+  ExpectError(base + "controls: {delay: -0.01}\n", 4, 19, "-0.01");
+}
+
+// a sequence entry may fit a window of the sequence: {name, start, end} in seconds
+TEST_F(ExperimentTest, SequenceWindows) {
+  const std::string base =
+      "model: pendulum.xml\nparameters:\n"
+      "  - {name: m, target: body_mass, object: bob, initial: 1}\n";
+  const ExperimentConfig c = LoadExperiment(
+      Write("exp.yaml", base + "sequences: [{name: seq0, start: 0.5, end: 2.0}, seq1]\n"));
+  ASSERT_EQ(c.sequences.size(), 2u);
+  EXPECT_EQ(c.sequences[0].name, "seq0");
+  EXPECT_EQ(c.sequences[0].start, 0.5);
+  EXPECT_EQ(c.sequences[0].end, 2.0);
+  EXPECT_EQ(c.sequences[1].name, "seq1");
+  EXPECT_FALSE(std::isfinite(c.sequences[1].start));
+  ExpectError(base + "sequences: [{name: seq0, start: 2.0, end: 1.0}]\n", 4, 13,
+              "the window's start must be before its end");
+  ExpectError(base + "sequences: [{start: 2.0}]\n", 4, 13, "missing required key 'name'");
+}
+
 TEST_F(ExperimentTest, UnknownTopLevelKeySuggestsTheClosest) {
   ExpectError(R"(model: pendulum.xml
 solvr: {max_iterations: 3}

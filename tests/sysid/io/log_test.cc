@@ -453,7 +453,8 @@ TEST_F(LogTest, WriteRejectsInvalidLogs) {
   const std::string path = Path("log.h5");
   {
     Log log = PendulumLog(10);
-    log.sequences[0].sensordata(6, 1) = std::numeric_limits<double>::quiet_NaN();
+    // NaN in sensordata is a value not measured (masked out of the fit); Inf is an error
+    log.sequences[0].sensordata(6, 1) = std::numeric_limits<double>::infinity();
     ExpectMentions(LogErrorOf([&] { WriteLog(path, log); }),
                    {path, "/run1/sensordata", "row 6", "column 1"});
   }
@@ -517,8 +518,24 @@ class LogReadErrorTest : public LogTest {
 };
 
 TEST_F(LogReadErrorTest, NanNamesDatasetRowAndColumn) {
+  // NaN is allowed in ctrl and sensordata only (not measured: docs/real-logs.md)
+  SetElement(path_, "/run1/qpos", 3, 0, std::numeric_limits<double>::quiet_NaN());
+  ExpectMentions(ReadError(), {path_, "/run1/qpos", "row 3", "column 0", "nan"});
+}
+
+TEST_F(LogReadErrorTest, InfControlIsAnError) {
+  SetElement(path_, "/run1/ctrl", 3, 0, std::numeric_limits<double>::infinity());
+  ExpectMentions(ReadError(), {path_, "/run1/ctrl", "row 3", "column 0", "inf"});
+}
+
+// NaN in ctrl and sensordata reads back as NaN: values not measured
+TEST_F(LogReadErrorTest, NanSensorAndControlCellsReadBack) {
   SetElement(path_, "/run1/ctrl", 3, 0, std::numeric_limits<double>::quiet_NaN());
-  ExpectMentions(ReadError(), {path_, "/run1/ctrl", "row 3", "column 0", "nan"});
+  SetElement(path_, "/run1/sensordata", 7, 1, std::numeric_limits<double>::quiet_NaN());
+  const Log log = ReadLog(path_);
+  EXPECT_TRUE(std::isnan(log.sequences[0].ctrl(3, 0)));
+  EXPECT_TRUE(std::isnan(log.sequences[0].sensordata(7, 1)));
+  EXPECT_FALSE(std::isnan(log.sequences[0].sensordata(7, 0)));
 }
 
 TEST_F(LogReadErrorTest, InfNamesDatasetRowAndColumn) {
@@ -757,16 +774,39 @@ TEST_F(ValidateTest, StateWidths) {
   ExpectMentions(ValidateError(log), {"data.h5", "/run1/act", "na = 0"});
 }
 
-TEST_F(ValidateTest, PeriodNotAMultipleOfTimestep) {
+// Any sample period is accepted (each sample is fitted at its own time, sysid/sample_grid.h); the
+// time base's warnings name where the period varies or a gap is long; a period below 1/100 of the
+// timestep is a unit error (sysid/io/time_base.h)
+TEST_F(ValidateTest, AnySamplePeriodWithWarningsAndUnitErrors) {
   Log log = PendulumLog();
-  log.sequences[0].time = Time(20, 0.003);
-  ExpectMentions(ValidateError(log), {"data.h5", "/run1/time", "0.003", "1.5 times", "0.002"});
-  log.sequences[0].time = Time(20, 0.001);
-  ExpectMentions(ValidateError(log), {"data.h5", "/run1/time", "0.5 times"});
-  // one odd gap does not move the median
-  log.sequences[0].time = Time(20, 0.004);
-  for (Eigen::Index k = 10; k < 20; ++k) log.sequences[0].time[k] += 0.001;
-  EXPECT_NO_THROW(ValidateLogAgainstModel(log, *model_, "data.h5"));
+  std::vector<std::string> warnings;
+  for (double period : {0.003, 0.001, 0.01}) {
+    log.sequences[0].time = Time(20, period);
+    EXPECT_NO_THROW(ValidateLogAgainstModel(log, *model_, "data.h5", &warnings)) << period;
+  }
+  EXPECT_TRUE(warnings.empty());
+  // every other step 30 % longer: within 50 %, no warning
+  for (Eigen::Index k = 1; k < 20; k += 2) log.sequences[0].time.tail(20 - k).array() += 0.003;
+  EXPECT_NO_THROW(ValidateLogAgainstModel(log, *model_, "data.h5", &warnings));
+  EXPECT_TRUE(warnings.empty());
+  // one step 1.6 x the median: a varying period, named by its rows
+  log.sequences[0].time = Time(20, 0.01);
+  log.sequences[0].time.tail(13).array() += 0.006;
+  ValidateLogAgainstModel(log, *model_, "data.h5", &warnings);
+  ASSERT_EQ(warnings.size(), 1u);
+  ExpectMentions(warnings[0],
+                 {"data.h5", "/run1/time", "varies by more than 50 %", "rows 6 and 7"});
+  // a gap of 12 periods
+  warnings.clear();
+  log.sequences[0].time = Time(20, 0.01);
+  log.sequences[0].time.tail(5).array() += 0.11;
+  ValidateLogAgainstModel(log, *model_, "data.h5", &warnings);
+  ASSERT_EQ(warnings.size(), 1u);
+  ExpectMentions(warnings[0], {"1 gap(s) longer than 10 sample periods", "rows 14 and 15", "12"});
+  // microseconds against a 2 ms model, read as seconds
+  log.sequences[0].time = Time(20, 0.000002);
+  ExpectMentions(ValidateError(log),
+                 {"data.h5", "/run1/time", "below 1/100 of the model timestep"});
 }
 
 TEST_F(ValidateTest, SingleSampleCannotGiveAPeriod) {

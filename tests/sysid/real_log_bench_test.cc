@@ -1,0 +1,440 @@
+// Real robot logs, as a robot writes them, fitted as they come (sysid/sample_grid.h): a finer
+// simulation (0.5 ms) of the true model plays the robot. Its controller updates at 50-100 Hz, each
+// command held until the next and reaching the motors late (a transport delay); its sensors are
+// logged at 100-250 Hz at jittered instants, with dropped rows, NaN cells, encoder quantization
+// and noise. The fit uses the nominal model at 2 ms, the logged times, the controls at their own
+// times with the known delay.
+//
+// Per case: truth, start, and the tolerance (the worst relative error of the estimates). The floor
+// is the discretisation of the coarser model: the same fit on exact samples at every 2 ms step (no
+// jitter, noise, gaps or NaN; the same held, delayed controls) is measured first and must stay
+// below its stated bound; the off-grid fit must then come within 1-1.5 % of the truth (measured
+// values next to each case: 0.1-0.7 %, as on the grid). The control delay is given (known), not
+// fitted. The same log with the controls interpolated linearly is fitted too and its error printed
+// (BENCHMARKS.md), not asserted. A log on the model's grid gives the same estimate whether its
+// times are given or not, bit for bit (the path every fit took before off-grid logs).
+//
+// Cases (truth; start): spring-mass (mass 1.5, damping 0.5, stiffness 6; 1, 0.2, 3), pendulum
+// (damping 0.08, bob mass 1.2; 0.2, 0.8), cart-pole (pole mass 0.25, cart damping 0.7; 0.15, 0.3),
+// arm5 (armatures 0.5 .. 0.1; 0.05 each, multiple shooting).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "core/mujoco_env.h"
+#include "core/simulator.h"
+#include "sysid/problem.h"
+#include "tests/fit_test_util.h"
+#include "tests/test_util.h"
+
+namespace mjsysid {
+namespace {
+
+const std::string kModels = MJSYSID_MODELS_DIR;
+const double kNan = std::numeric_limits<double>::quiet_NaN();
+
+std::string ReadText(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// the model file with its timestep set to dt
+ModelPtr WithTimestep(const std::string& file, double dt) {
+  std::string xml = ReadText(kModels + "/" + file);
+  const size_t at = xml.find("timestep=\"");
+  EXPECT_NE(at, std::string::npos);
+  const size_t end = xml.find('"', at + 10);
+  char value[32];
+  std::snprintf(value, sizeof(value), "%.17g", dt);
+  xml.replace(at + 10, end - at - 10, value);
+  return LoadModelFromString(xml);
+}
+
+// how the robot logs
+struct RobotSettings {
+  double fine_dt = 0.0005;      // the robot's physics (s)
+  double duration = 6.0;        // s
+  double control_rate = 100;    // controller updates (Hz), each command held until the next
+  double control_delay = 0.01;  // s from command to motor
+  double sensor_rate = 100;     // Hz
+  double jitter = 0.0003;       // sample instants: nominal + uniform(-jitter, jitter) (s)
+  int dropped = 4;              // rows dropped
+  int nan_cells = 6;            // cells logged as NaN
+  double quantum = 0;           // encoder step of the position sensors (0: none)
+  double sigma = 0;             // Gaussian noise on every sensor
+  double model_dt = 0.002;      // on_grid: samples at every step of this
+  bool on_grid = false;         // exact samples at every model step (the discretisation floor)
+  int seed = 1;
+};
+
+struct RobotLog {
+  Eigen::VectorXd time;  // sample instants (s)
+  RowMatrix measured;    // T x nsensordata, NaN where not logged
+  Eigen::VectorXd ctrl_time;
+  RowMatrix ctrl;  // the controller's commands at ctrl_time
+};
+
+// The robot: the true model stepped at fine_dt under its controller's delayed, held commands
+// (multi-sines of `amplitude`, from before the log starts so that a command is always in force),
+// its sensors read at the (jittered) sample instants by linear interpolation between fine steps.
+RobotLog MakeRobotLog(const std::string& file, const std::vector<test::Truth>& truth,
+                      const InitialState& x0, double amplitude, const std::vector<int>& positions,
+                      const RobotSettings& rs) {
+  ModelPtr fine = WithTimestep(file, rs.fine_dt);
+  const mjModel& m = *fine;
+  std::mt19937_64 rng(rs.seed);
+  RobotLog log;
+
+  // controller: ticks from -0.2 s, multi-sine commands
+  const double tick = 1.0 / rs.control_rate;
+  const int J = static_cast<int>(std::ceil((rs.duration + 0.2) / tick)) + 1;
+  log.ctrl_time.resize(J);
+  log.ctrl.resize(J, m.nu);
+  std::uniform_real_distribution<double> phase(0, 2 * M_PI);
+  std::vector<double> ph(3 * m.nu);
+  for (double& p : ph) p = phase(rng);
+  const double freqs[3] = {0.3, 0.9, 1.9};
+  for (int j = 0; j < J; ++j) {
+    const double t = -0.2 + j * tick;
+    log.ctrl_time[j] = t;
+    for (int i = 0; i < m.nu; ++i) {
+      double v = 0;
+      for (int f = 0; f < 3; ++f)
+        v += std::sin(2 * M_PI * freqs[f] * (1 + 0.3 * i) * t + ph[3 * i + f]);
+      log.ctrl(j, i) = amplitude * v / 3;
+    }
+  }
+
+  // physics: fine step n at n fine_dt sees the last command with t_j + delay <= t_n
+  const int N = static_cast<int>(std::round(rs.duration / rs.fine_dt)) + 2;
+  RowMatrix u(N, m.nu);
+  int j = 0;
+  for (int n = 0; n < N; ++n) {
+    const double t = n * rs.fine_dt;
+    while (j + 1 < J && log.ctrl_time[j + 1] + rs.control_delay <= t + 1e-12) ++j;
+    u.row(n) = log.ctrl.row(j);
+  }
+  std::vector<ParameterSpec> specs;
+  Eigen::VectorXd values(truth.size());
+  for (size_t i = 0; i < truth.size(); ++i) {
+    specs.push_back(truth[i].spec);
+    values[i] = truth[i].value;
+  }
+  Simulator sim(m, specs);
+  sim.SetParameters(values);
+  const RowMatrix y = sim.Rollout(SequenceInput{x0, u}).sensors;  // y_n at n fine_dt
+
+  // sample instants
+  std::vector<double> times;
+  std::uniform_real_distribution<double> jitter(-rs.jitter, rs.jitter);
+  const double period = rs.on_grid ? rs.model_dt : 1.0 / rs.sensor_rate;
+  for (int k = 0;; ++k) {
+    double t = k * period;
+    if (k > 0 && !rs.on_grid) t += jitter(rng);
+    if (t > rs.duration) break;
+    times.push_back(t);
+  }
+  if (!rs.on_grid) {
+    for (int d = 0; d < rs.dropped; ++d) {
+      std::uniform_int_distribution<size_t> row(1, times.size() - 2);
+      times.erase(times.begin() + static_cast<long>(row(rng)));
+    }
+  }
+  const auto T = static_cast<Eigen::Index>(times.size());
+  log.time = Eigen::Map<Eigen::VectorXd>(times.data(), T);
+  log.measured.resize(T, m.nsensordata);
+  std::normal_distribution<double> noise(0, 1);
+  for (Eigen::Index k = 0; k < T; ++k) {
+    const double q = times[k] / rs.fine_dt;
+    const int n = std::min(static_cast<int>(std::floor(q)), N - 2);
+    const double a = q - n;
+    for (int c = 0; c < m.nsensordata; ++c) {
+      double v = (1 - a) * y(n, c) + a * y(n + 1, c);
+      if (!rs.on_grid) v += rs.sigma * noise(rng);
+      const bool position = std::find(positions.begin(), positions.end(), c) != positions.end();
+      if (!rs.on_grid && position && rs.quantum > 0) v = rs.quantum * std::round(v / rs.quantum);
+      log.measured(k, c) = v;
+    }
+  }
+  if (!rs.on_grid) {
+    std::uniform_int_distribution<Eigen::Index> row(1, T - 1);
+    std::uniform_int_distribution<int> col(0, m.nsensordata - 1);
+    for (int i = 0; i < rs.nan_cells; ++i) log.measured(row(rng), col(rng)) = kNan;
+  }
+  return log;
+}
+
+struct Case {
+  std::string file;
+  std::vector<test::Truth> truth;
+  std::vector<FitParameter> start;
+  InitialState x0;
+  double amplitude;
+  std::vector<int> positions;  // sensordata columns quantized like encoders
+  int segment_steps = 0;       // multiple shooting (simulation steps), 0: single
+};
+
+FitResult FitRobotLog(const Case& c, const RobotLog& log, double delay,
+                      ControlHold hold = ControlHold::kZeroOrder) {
+  ModelPtr model = WithTimestep(c.file, 0.002);
+  Problem problem;
+  problem.AddModel("m", *model);
+  for (const FitParameter& p : c.start) problem.AddParameter(p);
+  FitSequence sq("robot", "m", c.x0, log.ctrl, log.measured);
+  sq.time = log.time;
+  sq.ctrl_time = log.ctrl_time;
+  sq.ctrl_delay.assign(model->nu, delay);
+  sq.ctrl_hold.assign(model->nu, hold);
+  problem.AddSequence(sq);
+  FitOptions o;
+  o.max_iterations = 40;
+  o.threads = 1;
+  o.segment_steps = c.segment_steps;
+  o.continuity_weight = 10;
+  return problem.Fit(o);
+}
+
+// the largest relative error of the estimates against the truth
+double WorstError(const FitResult& r, const std::vector<test::Truth>& truth) {
+  double worst = 0;
+  for (const test::Truth& t : truth) {
+    const double v = test::Estimate(r, t.name).value;
+    worst = std::max(worst, std::abs(v - t.value) / std::abs(t.value));
+  }
+  return worst;
+}
+
+Case SpringMass() {
+  Case c;
+  c.file = "spring_mass.xml";
+  c.truth = {{"mass", test::Spec("body_mass", "mass"), 1.5},
+             {"damping", test::Spec("joint_damping", "slide"), 0.5},
+             {"stiffness", test::Spec("joint_stiffness", "slide"), 6.0}};
+  c.start = {
+      FitParameter("mass", test::Spec("body_mass", "mass"), 1.0).Bounds(0.01, 100).Log(),
+      FitParameter("damping", test::Spec("joint_damping", "slide"), 0.2).Bounds(1e-4, 100).Log(),
+      FitParameter("stiffness", test::Spec("joint_stiffness", "slide"), 3.0)
+          .Bounds(1e-3, 1000)
+          .Log()};
+  c.amplitude = 2.0;
+  c.positions = {0};
+  return c;
+}
+
+Case Pendulum() {
+  Case c;
+  c.file = "pendulum.xml";
+  c.truth = {{"damping", test::Spec("joint_damping", "hinge"), 0.08},
+             {"bob_mass", test::Spec("body_mass", "bob"), 1.2}};
+  c.start = {
+      FitParameter("damping", test::Spec("joint_damping", "hinge"), 0.2).Bounds(1e-4, 5).Log(),
+      FitParameter("bob_mass", test::Spec("body_mass", "bob"), 0.8).Bounds(0.05, 10).Log()};
+  c.x0.qpos = Eigen::VectorXd::Constant(1, 0.3);
+  c.x0.qvel = Eigen::VectorXd::Zero(1);
+  c.amplitude = 2.0;
+  c.positions = {0};
+  return c;
+}
+
+Case CartPole() {
+  Case c;
+  c.file = "cartpole.xml";
+  c.truth = {{"pole_mass", test::Spec("body_mass", "pole"), 0.25},
+             {"cart_damping", test::Spec("joint_damping", "slider"), 0.7}};
+  c.start = {FitParameter("pole_mass", test::Spec("body_mass", "pole"), 0.15).Bounds(0.01, 5).Log(),
+             FitParameter("cart_damping", test::Spec("joint_damping", "slider"), 0.3)
+                 .Bounds(1e-3, 10)
+                 .Log()};
+  c.x0.qpos = Eigen::Vector2d(0.0, M_PI);
+  c.x0.qvel = Eigen::Vector2d::Zero();
+  c.amplitude = 4.0;
+  c.positions = {0, 1};
+  return c;
+}
+
+Case Arm5() {
+  Case c;
+  c.file = "arm5.xml";
+  const double truth[5] = {0.5, 0.4, 0.3, 0.2, 0.1};
+  for (int j = 0; j < 5; ++j) {
+    const std::string joint = "j" + std::to_string(j + 1);
+    c.truth.push_back({joint + "_armature", test::Spec("joint_armature", joint), truth[j]});
+    c.start.push_back(FitParameter(joint + "_armature", test::Spec("joint_armature", joint), 0.05)
+                          .Bounds(1e-4, 5)
+                          .Log());
+  }
+  c.amplitude = 3.0;
+  c.positions = {0, 1, 2, 3, 4};
+  c.segment_steps = 250;  // multiple shooting, 0.5 s segments
+  return c;
+}
+
+// A log on the grid gives the same estimate with its times given (as a logger writes them, from
+// 0.7 s) or not: the off-grid machinery reads the steps themselves
+TEST(RealLogTest, OnGridTimesGiveTheSameEstimateBitForBit) {
+  ModelPtr model = LoadModel(kModels + "/pendulum.xml");
+  const Case c = Pendulum();
+  const RowMatrix u = test::Excitation(*model, 1500, 2.0, 3);
+  InitialState x0 = c.x0;
+  x0.time = 0.7;
+  const RowMatrix y = test::Measure(*model, c.truth, x0, u, 0.001, 5);
+  FitResult r[2];
+  for (int with_time = 0; with_time < 2; ++with_time) {
+    Problem problem;
+    problem.AddModel("m", *model);
+    for (const FitParameter& p : c.start) problem.AddParameter(p);
+    FitSequence sq("s", "m", x0, u, y);
+    if (with_time) {
+      sq.time.resize(u.rows());
+      for (Eigen::Index k = 0; k < u.rows(); ++k) sq.time[k] = 0.7 + k * model->opt.timestep;
+    }
+    problem.AddSequence(sq);
+    FitOptions o;
+    o.threads = 1;
+    r[with_time] = problem.Fit(o);
+  }
+  ASSERT_EQ(r[0].parameters.size(), r[1].parameters.size());
+  for (size_t i = 0; i < r[0].parameters.size(); ++i) {
+    EXPECT_EQ(r[0].parameters[i].value, r[1].parameters[i].value) << r[0].parameters[i].name;
+    EXPECT_EQ(r[0].parameters[i].std_error, r[1].parameters[i].std_error);
+  }
+  EXPECT_EQ(r[0].final_cost, r[1].final_cost);
+  EXPECT_EQ(r[0].iterations, r[1].iterations);
+  EXPECT_TRUE(r[0].sequences[0].simulated_final == r[1].sequences[0].simulated_final);
+}
+
+// The Jacobian of an off-grid fit against Ceres' numeric differences: jittered samples between
+// steps (value and Jacobian rows interpolated alike), NaN cells; (a) multiple shooting with
+// segments whose last samples lie past their last step (one step more simulated), (b) single
+// shooting with a fitted sensor delay on top. Not covered: a fitted sensor delay with multiple
+// shooting on jittered samples, whose delay column disagrees with the numeric one (1e-2 .. 0.4
+// relative, measured; on regular off-grid rates it agrees to 1e-12): an open issue.
+TEST(RealLogTest, OffGridJacobiansAgreeWithNumericDifferences) {
+  const Case c = SpringMass();  // smooth: the pendulum's friction loss has kinks
+  RobotSettings rs;
+  rs.duration = 2;
+  rs.sensor_rate = 150;
+  rs.jitter = 0.001;
+  const RobotLog log = MakeRobotLog(c.file, c.truth, c.x0, c.amplitude, c.positions, rs);
+  ModelPtr model = WithTimestep(c.file, 0.002);
+  for (const bool segments : {true, false}) {
+    SCOPED_TRACE(segments ? "multiple shooting" : "single shooting, sensor delay");
+    Problem problem;
+    problem.AddModel("m", *model);
+    for (const FitParameter& p : c.start) problem.AddParameter(p);
+    if (!segments) {
+      FitMeasurement delay;
+      delay.sensor = "xdot";
+      delay.delay = {0.003, true, 0.0, 0.05};
+      problem.AddMeasurement(delay);
+    }
+    FitSequence sq("robot", "m", c.x0, log.ctrl, log.measured);
+    sq.time = log.time;
+    sq.ctrl_time = log.ctrl_time;
+    sq.ctrl_delay.assign(model->nu, rs.control_delay);
+    problem.AddSequence(sq);
+    FitOptions o;
+    o.threads = 1;
+    o.segment_steps = segments ? 97 : 0;  // segment ends fall between samples
+    const JacobianCheck check = problem.CheckJacobians(o);
+    for (const auto& [name, err] : check.per_variable) {
+      std::printf("[ measured ] %-28s worst relative error %.2e\n", name.c_str(), err);
+    }
+    EXPECT_GE(check.per_variable.size(), 4u);  // 3 parameters, then xdot.delay or x0
+    EXPECT_LE(check.worst_relative_error, 1e-4) << check.worst_where;
+  }
+}
+
+// the bench: the floor on the grid, then the robot's log as it comes
+void RunBench(const Case& c, RobotSettings rs, double floor_tolerance, double tolerance) {
+  rs.on_grid = true;
+  const FitResult floor = FitRobotLog(
+      c, MakeRobotLog(c.file, c.truth, c.x0, c.amplitude, c.positions, rs), rs.control_delay);
+  const double floor_error = WorstError(floor, c.truth);
+  rs.on_grid = false;
+  const RobotLog log = MakeRobotLog(c.file, c.truth, c.x0, c.amplitude, c.positions, rs);
+  const FitResult r = FitRobotLog(c, log, rs.control_delay);
+  const double error = WorstError(r, c.truth);
+  // the same log with the held controls interpolated linearly instead (what toolboxes that
+  // interpolate controls do)
+  const double linear_error =
+      WorstError(FitRobotLog(c, log, rs.control_delay, ControlHold::kLinear), c.truth);
+  std::printf(
+      "%s: %lld samples at %g Hz (jitter %g ms), controls %g Hz delayed %g ms: "
+      "worst error on the grid %.3f %%, off-grid %.3f %% (linear hold %.3f %%); "
+      "fit %.3f s / %lld steps on the grid (%lld samples), %.3f s / %lld steps off it\n",
+      c.file.c_str(), static_cast<long long>(log.time.size()), rs.sensor_rate, rs.jitter * 1e3,
+      rs.control_rate, rs.control_delay * 1e3, 100 * floor_error, 100 * error, 100 * linear_error,
+      floor.seconds, floor.simulation_steps, static_cast<long long>(floor.sequences[0].time.size()),
+      r.seconds, r.simulation_steps);
+  for (const ParameterEstimate& e : r.parameters) {
+    std::printf("  %-10s %.6g +- %.2g (start %g)\n", e.name.c_str(), e.value, e.std_error,
+                e.initial);
+  }
+  EXPECT_LT(floor_error, floor_tolerance);
+  EXPECT_LT(error, tolerance);
+  // the masked cells are counted
+  int missing = 0;
+  for (int n : r.sequences[0].missing) missing += n;
+  EXPECT_EQ(missing, log.measured.array().isNaN().count());
+  EXPECT_GT(missing, 0);
+}
+
+TEST(RealLogBenchTest, SpringMass) {
+  RobotSettings rs;
+  rs.quantum = 1e-4;  // m
+  rs.sigma = 1e-4;
+  // measured: worst error 0.11 % on the grid, 0.10 % off it (linear hold: 0.64 %)
+  RunBench(SpringMass(), rs, 0.005, 0.01);
+}
+
+TEST(RealLogBenchTest, Pendulum) {
+  RobotSettings rs;
+  rs.sensor_rate = 250;
+  rs.control_rate = 50;
+  rs.control_delay = 0.015;
+  rs.jitter = 0.0008;
+  rs.quantum = 2 * M_PI / 4096;  // a 12-bit encoder
+  rs.sigma = 1e-4;
+  // measured: worst error 0.70 % on the grid (the damping: Euler at 2 ms), 0.70 % off it
+  // (linear hold: 6.3 %)
+  RunBench(Pendulum(), rs, 0.01, 0.015);
+}
+
+TEST(RealLogBenchTest, CartPole) {
+  RobotSettings rs;
+  rs.sensor_rate = 200;
+  rs.control_rate = 50;
+  rs.control_delay = 0.02;
+  rs.jitter = 0.001;
+  rs.quantum = 1e-4;  // m and rad
+  rs.sigma = 1e-4;
+  rs.duration = 5;
+  // measured: 0.16 % on the grid, 0.16 % off it (linear hold: 11 %)
+  RunBench(CartPole(), rs, 0.005, 0.01);
+}
+
+TEST(RealLogBenchTest, Arm5) {
+  RobotSettings rs;
+  rs.sensor_rate = 100;
+  rs.control_rate = 100;
+  rs.control_delay = 0.005;
+  rs.jitter = 0.0005;
+  rs.quantum = 2 * M_PI / 16384;  // 14-bit encoders
+  rs.sigma = 1e-4;
+  rs.duration = 3;
+  // measured: 0.37 % on the grid, 0.42 % off it, multiple shooting in 0.5 s segments
+  RunBench(Arm5(), rs, 0.01, 0.01);
+}
+
+}  // namespace
+}  // namespace mjsysid
