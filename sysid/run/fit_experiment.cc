@@ -184,6 +184,23 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
                                  "reference state (set initial_state: {estimate: true} to fit it)");
         }
         fs_.time = s.time.head(T);
+        // logged states fitted as data (experiment `states`): row k is x_k
+        const FitStates& st = cfg.options.states;
+        const std::pair<const char*, const RowMatrix*> parts[3] = {
+            {"qpos", &s.qpos}, {"qvel", &s.qvel}, {"act", &s.act}};
+        const bool fit_part[3] = {st.qpos.fit, st.qvel.fit, st.act.fit};
+        for (int i = 0; i < 3; ++i) {
+          if (!fit_part[i]) continue;
+          if (parts[i].second->rows() == 0) {
+            throw io::ConfigError(
+                cfg.states_marks.Of(parts[i].first),
+                "states." + std::string(parts[i].first) + " is fitted but " + where + " has no " +
+                    parts[i].first + " dataset",
+                "log the states, or leave states." + std::string(parts[i].first) + " out");
+          }
+          RowMatrix& dst = i == 0 ? fs_.qpos : i == 1 ? fs_.qvel : fs_.act;
+          dst = parts[i].second->topRows(T);
+        }
         out.problem->AddSequence(fs_);
         out.sequences.push_back(fs_);
       }
@@ -203,10 +220,14 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
     }
   }
   for (const FitParameter& p : cfg.parameters) rows += p.has_prior ? 1 : 0;
+  // fitted states (their columns are checked by the Problem)
+  if (cfg.options.states.any()) {
+    for (const FitSequence& fs_ : out.sequences) rows += fs_.time.size();
+  }
   if (rows == 0) {
     throw io::ConfigError(cfg.marks.Of("sensors"),
                           "the fit has no residuals: no sensor column of the selected log "
-                          "sequences is fitted",
+                          "sequences is fitted and no `states`",
                           "the logs need sensordata columns of the sensors listed under sensors:");
   }
   if (out.sequences.empty()) {
