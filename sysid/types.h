@@ -240,6 +240,10 @@ struct SequenceResult {
   RowMatrix state_residual_final;
 };
 
+// The sequence's plotted columns: the sensor columns followed by the fitted state columns, each
+// state as one more "sensor" named as in state_names (what the report draws)
+SequenceResult WithStateColumns(const SequenceResult& s);
+
 struct FitResult {
   std::vector<ParameterEstimate> parameters;  // physical parameters, then measurement terms
   double initial_cost = 0, final_cost = 0;    // 0.5 |r|^2

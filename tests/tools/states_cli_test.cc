@@ -12,6 +12,7 @@
 #include "core/mujoco_env.h"
 #include "core/simulator.h"
 #include "sysid/io/log.h"
+#include "sysid/io/result.h"
 #include "tests/file_util.h"
 #include "tests/test_util.h"
 
@@ -133,6 +134,21 @@ TEST_F(StatesCliTest, FitsAModelWithoutSensorsFromItsStates) {
   std::printf("[ measured ] damping %.6g (truth 0.35)\n", value);
   EXPECT_NEAR(value, 0.35, 0.0035);
   EXPECT_NE(result.find("status: converged"), std::string::npos) << result;
+  // result.h5 keeps the fitted state columns (read back), and the report plots them
+  const io::FitResultFile back = io::ReadResult(dir_ + "/out");
+  ASSERT_EQ(back.sequences.size(), 1u);
+  const SequenceResult& sr = back.sequences[0];
+  EXPECT_EQ(sr.state_names,
+            (std::vector<std::string>{"qpos:hinge1", "qpos:hinge2", "qvel:hinge1", "qvel:hinge2"}));
+  EXPECT_EQ(sr.state_measured.rows(), 800);
+  EXPECT_EQ(sr.state_simulated_final.cols(), 4);
+  EXPECT_EQ(sr.state_residual_final.cols(), 4);
+  // the fitted qpos within 5 sigma of the logged one at every sample
+  EXPECT_LE((sr.state_measured.col(0) - sr.state_simulated_final.col(0)).cwiseAbs().maxCoeff(),
+            5e-3);
+  const CliRun report = Sysid("report " + dir_ + "/out");
+  EXPECT_EQ(report.code, 0) << report.output;
+  EXPECT_TRUE(fs::exists(dir_ + "/out/report.html"));
 }
 
 // the key's errors: exit 2 with file:line:column and what was expected

@@ -49,7 +49,7 @@ std::string CostPng(const FitResultFile& result) { return Png(CostFigure(result)
 std::string ParametersPng(const FitResultFile& result) { return Png(ParametersFigure(result)); }
 
 std::string SequencePng(const FitResultFile&, const SequenceResult& sequence) {
-  return Png(SequenceFigure(sequence));
+  return Png(SequenceFigure(WithStateColumns(sequence)));  // fitted states plotted as sensors
 }
 
 std::string ReportHtml(const FitResultFile& result) {
