@@ -238,7 +238,10 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
     }
     const mjModel& m = mo.sim->model();
     std::vector<std::string> used = sq.sensors;
-    if (used.empty()) {
+    if (sq.no_sensors && !used.empty()) {
+      throw std::invalid_argument(where + "no_sensors is set and sensors are named");
+    }
+    if (used.empty() && !sq.no_sensors) {
       for (int i = 0; i < m.nsensor; ++i) {
         const char* nm = mj_id2name(&m, mjOBJ_SENSOR, i);
         used.push_back(nm ? nm : "");

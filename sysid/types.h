@@ -152,6 +152,8 @@ struct FitSequence {
   // logged states at the sample times (rows as `measured`): T x nq, T x nv, T x na; NaN = not
   // measured (masked); 0 rows = not logged. Read only for what FitOptions::states fits.
   RowMatrix qpos, qvel, act;
+  // no sensor column is fitted (a log of states only, FitOptions::states); `sensors` must be empty
+  bool no_sensors = false;
 };
 
 // Logged states fitted as data next to the sensors (sysid/state_residuals.h): the positions and

@@ -161,9 +161,10 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
           col += s.sensor_dims[i];
           logged.push_back(s.sensor_names[i]);
         }
-        // fitted sensors: the config's, or every logged one
+        // fitted sensors: the config's, or every logged one (none: a log of states only)
         if (cfg.sensors.empty()) {
           fs_.sensors = logged;
+          fs_.no_sensors = logged.empty() && cfg.options.states.any();
         } else {
           for (const io::SensorSpec& ss : cfg.sensors) {
             if (std::find(logged.begin(), logged.end(), ss.name) == logged.end()) {

@@ -150,6 +150,35 @@ TEST(StateResidualsTest, FreeBodyJacobiansAgreeWithCeres) {
   EXPECT_LE(check.worst_relative_error, 1e-4) << check.worst_where;
 }
 
+// free body as above logged at 3.3 ms on a 2 ms grid: an orientation between two steps is
+// interpolated on SO(3) but its Jacobian rows linearly (first order in one step's rotation, here
+// up to 3.2 rad/s x 2 ms); x_0 fixed. Tolerance 1e-4 column-scaled, as on the grid
+TEST(StateResidualsTest, FreeBodyOffGridJacobiansAgreeWithCeres) {
+  ModelPtr m = LoadModelFromString(kFreeBody);
+  InitialState x0;
+  x0.qpos.resize(7);
+  x0.qpos << 0, 0, 1, std::cos(0.3), std::sin(0.3) * 0.6, 0, std::sin(0.3) * 0.8;
+  x0.qvel.resize(6);
+  x0.qvel << 0.2, -0.1, 0.5, 2.0, -1.0, 3.0;
+  const int T = 120;
+  const Eigen::VectorXd time = Eigen::VectorXd::LinSpaced(T, 0, (T - 1) * 0.0033);
+  const RowMatrix u = Excitation(*m, 400, 1.0, 4);
+  const std::vector<Truth> truth = {{"damping", Spec("joint_damping", "free"), 0.3},
+                                    {"mass", Spec("body_mass", "box"), 1.5}};
+  const FitSequence sq = StateLog(*m, truth, x0, u, T, time, 0, 0, 0);
+  Problem problem;
+  problem.AddModel("m", *m);
+  problem.AddParameter(FitParameter("damping", truth[0].spec, 0.6).Bounds(1e-3, 10).Log());
+  problem.AddParameter(FitParameter("mass", truth[1].spec, 1.1).Bounds(0.1, 10));
+  problem.AddSequence(sq);
+  FitOptions opt;
+  opt.states = QposQvel(1e-3, 1e-2);
+  const JacobianCheck check = problem.CheckJacobians(opt);
+  PrintCheck(check);
+  EXPECT_GE(check.per_variable.size(), 2u);
+  EXPECT_LE(check.worst_relative_error, 1e-4) << check.worst_where;
+}
+
 // hinge chain, qpos and qvel of both joints logged at 3.3 ms on a 2 ms grid (every sample off
 // the grid: the state and its rows interpolated), truth damping 0.2, mass 1.0, start 0.5, 1.6;
 // tolerance 1e-4 column-scaled
@@ -228,6 +257,55 @@ TEST(StateResidualsTest, RecoversDampingAndMassWithoutSensors) {
       EXPECT_EQ(r.sensor_chi2_ratio.count("qpos:hinge1"), 1u);
     }
   }
+}
+
+// The same noisy data fitted once as jointpos/jointvel sensors (sigmas given) and once as logged
+// states: the double pendulum's sensors q1, q2, v1, v2 are its qpos and qvel, so both fits must
+// agree. Truth damping 0.05 on both hinges (the model says 0.02), start 0.01, noise 1e-3 rad /
+// 1e-2 rad/s (seed 3), 800 steps: estimates equal to 1e-9 relative, standard errors to 1e-6, the
+// same chi-square ratio (1e-8)
+TEST(StateResidualsTest, StatesFitLikeTheEquivalentSensors) {
+  ModelPtr m = LoadModel(std::string(MJSYSID_MODELS_DIR) + "/double_pendulum.xml");
+  InitialState x0;
+  x0.qpos = Eigen::Vector2d(0.5, -0.2);
+  const int T = 800;
+  const RowMatrix u = Excitation(*m, T, 1.0, 2);
+  const std::vector<Truth> truth = {{"d1", Spec("joint_damping", "hinge1"), 0.05},
+                                    {"d2", Spec("joint_damping", "hinge2"), 0.05}};
+  FitSequence sq = StateLog(*m, truth, x0, u, T, Eigen::VectorXd(), 1e-3, 1e-2, 3);
+  sq.measured.resize(T, 4);
+  sq.measured << sq.qpos, sq.qvel;
+  FitResult r[2];
+  for (int as_states = 0; as_states < 2; ++as_states) {
+    Problem problem;
+    problem.AddModel("m", *m);
+    for (const Truth& t : truth) {
+      problem.AddParameter(FitParameter(t.name, t.spec, 0.01).Bounds(1e-4, 10).Log());
+    }
+    FitSequence s = sq;
+    FitOptions opt;
+    if (as_states) {
+      s.no_sensors = true;
+      s.measured.setConstant(std::nan(""));  // no sensor data
+      opt.states = QposQvel(1e-3, 1e-2);
+    } else {
+      opt.sensor_weights = {{"q1", 1e3}, {"q2", 1e3}, {"v1", 1e2}, {"v2", 1e2}};
+      opt.sensors_with_sigma = {"q1", "q2", "v1", "v2"};
+    }
+    problem.AddSequence(s);
+    r[as_states] = problem.Fit(opt);
+  }
+  for (const Truth& t : truth) {
+    const ParameterEstimate &a = Estimate(r[0], t.name), &b = Estimate(r[1], t.name);
+    std::printf("[ measured ] %s: sensors %.12g +- %.6g, states %.12g +- %.6g\n", t.name.c_str(),
+                a.value, a.std_error, b.value, b.std_error);
+    EXPECT_NEAR(b.value / a.value, 1.0, 1e-9);
+    // the Jacobians come by two finite-difference paths (dy = C dx + D du from mjd_transitionFD
+    // vs the state rows themselves), equal to their O(1e-6) step error: measured 1.3e-8
+    EXPECT_NEAR(b.std_error / a.std_error, 1.0, 1e-6);
+  }
+  std::printf("[ measured ] chi2 sensors %.9f, states %.9f\n", r[0].chi2_ratio, r[1].chi2_ratio);
+  EXPECT_NEAR(r[1].chi2_ratio / r[0].chi2_ratio, 1.0, 1e-8);
 }
 
 // A qpos log with a NaN sample: masked (one residual row fewer, warned), not an error

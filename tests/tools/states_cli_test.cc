@@ -151,6 +151,30 @@ TEST_F(StatesCliTest, FitsAModelWithoutSensorsFromItsStates) {
   EXPECT_TRUE(fs::exists(dir_ + "/out/report.html"));
 }
 
+// a model with sensors (the double pendulum: jointpos/jointvel of the same joints, hinge2's
+// damping 0.02 where the log's is 0.1) and a log of states only: no sensor is fitted (none is
+// logged), the states are. Both dampings fitted from 0.1 and 0.05: exit 0, converged, hinge1's
+// within 1 % of 0.35
+TEST_F(StatesCliTest, ModelWithSensorsFitsALogOfStatesOnly) {
+  const std::string exp = dir_ + "/dp.yaml";
+  test::WriteFile(exp, "model: " + std::string(MJSYSID_MODELS_DIR) +
+                           "/double_pendulum.xml\ndata: log.h5\n"
+                           "parameters:\n"
+                           "  - {name: damping, target: joint_damping, object: hinge1, "
+                           "initial: 0.1, bounds: [0.001, 10], transform: log}\n"
+                           "  - {name: damping2, target: joint_damping, object: hinge2, "
+                           "initial: 0.05, bounds: [0.001, 10], transform: log}\n"
+                           "initial_state: {estimate: true}\n"
+                           "states:\n  qpos: {sigma: 1.0e-3}\n  qvel: {sigma: 1.0e-2}\n");
+  const CliRun fit = Sysid("fit " + exp + " --out " + dir_ + "/out_dp --quiet");
+  std::printf("%s\n", fit.output.c_str());
+  EXPECT_EQ(fit.code, 0) << fit.output;
+  const io::FitResultFile back = io::ReadResult(dir_ + "/out_dp");
+  ASSERT_EQ(back.parameters.size(), 2u);
+  EXPECT_NEAR(back.parameters[0].value, 0.35, 0.0035);
+  EXPECT_TRUE(back.sequences[0].sensor_names.empty());
+}
+
 // the key's errors: exit 2 with file:line:column and what was expected
 TEST_F(StatesCliTest, BadStatesKeyExitsWithTwo) {
   struct Case {
