@@ -206,6 +206,62 @@ TEST(StateResidualsTest, HingeChainOffGridJacobiansAgreeWithCeres) {
   EXPECT_LE(check.worst_relative_error, 1e-4) << check.worst_where;
 }
 
+// a hinge driven through a first-order filter actuator (one activation), no sensor
+const char* kFiltered = R"(
+<mujoco model="filtered">
+  <option timestep="0.002" integrator="Euler"/>
+  <worldbody>
+    <body name="link" pos="0 0 1">
+      <joint name="hinge" type="hinge" axis="0 1 0" damping="0.1"/>
+      <geom name="link" type="capsule" fromto="0 0 0 0 0 -0.5" size="0.03" mass="1.0"/>
+    </body>
+  </worldbody>
+  <actuator>
+    <general name="motor" joint="hinge" dyntype="filter" dynprm="0.05" gainprm="2"/>
+  </actuator>
+</mujoco>)";
+
+// act residuals (and qpos, qvel) of a filter actuator: time constant 0.05 s (start 0.1) and the
+// hinge's damping 0.1 (start 0.3) as a `field` and a kind, noise-free; x_0 a variable. Tolerance
+// 1e-4 column-scaled, as the sensor check
+TEST(StateResidualsTest, ActivationJacobiansAgreeWithCeres) {
+  ModelPtr m = LoadModelFromString(kFiltered);
+  ASSERT_EQ(m->na, 1);
+  InitialState x0;
+  x0.qpos = Eigen::VectorXd::Constant(1, 0.3);
+  const int T = 150;
+  const RowMatrix u = Excitation(*m, T, 1.0, 9);
+  ParameterSpec tau;
+  tau.kind = "field";
+  tau.field = "actuator_dynprm";
+  tau.index = 0;
+  const std::vector<Truth> truth = {{"tau", tau, 0.05},
+                                    {"damping", Spec("joint_damping", "hinge"), 0.1}};
+  FitSequence sq = StateLog(*m, truth, x0, u, T, Eigen::VectorXd(), 0, 0, 0);
+  // the activations of the true rollout
+  Simulator sim(*m, {tau});
+  sim.SetParameters(Eigen::VectorXd::Constant(1, 0.05));
+  const Trajectory tr = sim.Rollout(SequenceInput{x0, u});
+  sq.act = tr.states.topRows(T).rightCols(1);
+  Problem problem;
+  problem.AddModel("m", *m);
+  problem.AddParameter(FitParameter("tau", tau, 0.1).Bounds(1e-3, 1).Log());
+  problem.AddParameter(FitParameter("damping", truth[1].spec, 0.3).Bounds(1e-3, 10).Log());
+  problem.AddSequence(sq);
+  FitOptions opt;
+  opt.states = QposQvel(1e-3, 1e-2);
+  opt.states.act.fit = true;
+  opt.states.act.sigma = {1e-2};
+  opt.estimate_initial_state = true;
+  const JacobianCheck check = problem.CheckJacobians(opt);
+  PrintCheck(check);
+  EXPECT_GE(check.per_variable.size(), 3u);
+  EXPECT_LE(check.worst_relative_error, 1e-4) << check.worst_where;
+  const FitResult r = problem.Fit(opt);
+  EXPECT_NEAR(Estimate(r, "tau").value, 0.05, 0.05 * 1e-6);
+  EXPECT_EQ(r.sequences[0].state_names.back(), "act:motor");
+}
+
 // A model without sensors fitted from its logged states alone (qpos, qvel of both hinges, 1000
 // steps): truth damping 0.2, mass 1.0, start 0.05 and 2.0. Noise-free: relative error <= 1e-6.
 // With noise (sigma 1e-3 rad on qpos, 1e-2 rad/s on qvel, seed 7): converged, the truth inside
