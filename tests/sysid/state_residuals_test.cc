@@ -361,6 +361,9 @@ TEST(StateResidualsTest, StatesFitLikeTheEquivalentSensors) {
     EXPECT_NEAR(b.std_error / a.std_error, 1.0, 1e-6);
   }
   std::printf("[ measured ] chi2 sensors %.9f, states %.9f\n", r[0].chi2_ratio, r[1].chi2_ratio);
+  std::printf("[ measured ] sensors: %d iterations, %lld steps, %.3f s; states: %d, %lld, %.3f s\n",
+              r[0].iterations, r[0].simulation_steps, r[0].seconds, r[1].iterations,
+              r[1].simulation_steps, r[1].seconds);
   EXPECT_NEAR(r[1].chi2_ratio / r[0].chi2_ratio, 1.0, 1e-8);
 }
 
