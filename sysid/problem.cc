@@ -858,7 +858,7 @@ JacobianCheck Problem::CheckJacobians(const FitOptions& options) {
     };
     std::vector<size_t> all(blocks.size());
     for (size_t b = 0; b < blocks.size(); ++b) all[b] = b;
-    if (cost.num_residuals() > 0 && !blocks.empty()) probe(&cost, all, "sensor");
+    if (cost.num_residuals() > 0 && !blocks.empty()) probe(&cost, all, "sensor and continuity");
     // the fitted states: the z block and the segment's x_0 block (sysid/state_residuals.h)
     if (seg.state_rows) {
       StateCost state_cost(&I, static_cast<int>(s));
