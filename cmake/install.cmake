@@ -48,6 +48,7 @@ foreach(_dir core sysid)
     FILES_MATCHING PATTERN "*.h"
     PATTERN "problem_impl.h" EXCLUDE
     PATTERN "cost_functions.h" EXCLUDE
+    PATTERN "state_residuals.h" EXCLUDE
     PATTERN "hdf5_util.h" EXCLUDE
     PATTERN "result_internal.h" EXCLUDE)
 endforeach()

@@ -112,7 +112,8 @@ void EvaluationCache::Simulate(int mo, const std::vector<int>& segs, const doubl
   if (!jacobians) return;
 
   // the missing Jacobians, one batch per group: initial-state columns (x_0 is a variable) x
-  // state rows (continuity needs them); the nominal rollouts are lent to the core and moved back
+  // state rows (continuity and fitted states need them); the nominal rollouts are lent to the core
+  // and moved back
   for (int group = 0; group < 4; ++group) {
     const bool with_x0 = group & 1, with_states = group & 2;
     std::vector<int> jac;
@@ -122,7 +123,7 @@ void EvaluationCache::Simulate(int mo, const std::vector<int>& segs, const doubl
       Entry& c = entries_[segs[i]];
       const Segment& seg = (*segments_)[segs[i]];
       if (c.failed || c.has_jacobians || c.jacobians_failed) continue;
-      if ((seg.block >= 0) != with_x0 || (seg.next >= 0) != with_states) continue;
+      if ((seg.block >= 0) != with_x0 || (seg.next >= 0 || seg.state_rows) != with_states) continue;
       jac.push_back(segs[i]);
       jins.push_back(InputOf(segs[i], x0s[i]));
       nominal.push_back(std::move(c.tr));

@@ -8,7 +8,8 @@
 // rows, row-major) and, once asked for, its Sensitivity: ncol = the model's simulator parameters
 // (ParameterSet order, physical units) followed, when the segment's x_0 is a variable
 // (Segment::block >= 0), by its nx tangent directions; DyDp is T*ns x ncol, DxDp ((T+1)*nx x ncol,
-// tangent space) is filled only for segments with a continuity residual (Segment::next >= 0).
+// tangent space) is filled only for segments with a continuity residual (Segment::next >= 0) or
+// fitted states (Segment::state_rows).
 //
 // Reuse. Ceres evaluates the residuals at a trial point and, when it accepts the step, the
 // Jacobians at the same point: the rollout is reused and only the Jacobians are added. Before
@@ -52,6 +53,7 @@ struct Segment {
   int k0 = 0, T = 0;  // first sample and number of samples
   int block = -1;     // state block of x_0 (a variable), or -1: x_0 is the sequence's given x0
   int next = -1;      // state block of the next segment's x_0 (continuity), or -1
+  bool state_rows = false;  // fits logged states (sysid/state_residuals.h): needs DxDp too
 };
 
 // Writes the physical values of the variables z (one per FitParameter) into the simulator's

@@ -52,10 +52,11 @@ void DecideFitStatus(const FitOptions& options, int accepted_steps, bool jacobia
   const double decrease = r.initial_cost > 0 ? (r.initial_cost - r.final_cost) / r.initial_cost : 0;
   const bool jacobian_bad = jacobian_warned && decrease < kSmallCostDecrease;
 
-  // with sigmas: the weighted residuals of those sensors at the estimate against chi-square
+  // with sigmas: the weighted residuals of those sensors (and of the fitted states) at the
+  // estimate against chi-square
   std::vector<std::string> mismatched;
   bool mismatch = false;
-  if (!options.sensors_with_sigma.empty() && !r.interrupted) {
+  if ((!options.sensors_with_sigma.empty() || options.states.any()) && !r.interrupted) {
     std::map<std::string, std::pair<double, long long>> per_sensor;  // sum r^2, rows
     for (const SequenceResult& sr : r.sequences) {
       Eigen::Index col = 0;
@@ -74,6 +75,17 @@ void DecideFitStatus(const FitOptions& options, int accepted_steps, bool jacobia
           sum += weight * weight * measured.select(diff, 0.0).square().sum();
           rows += static_cast<long long>(measured.count());
         }
+        col += dim;
+      }
+      // fitted states always have a sigma (sysid/state_residuals.h): their weighted residuals
+      col = 0;
+      for (size_t i = 0; i < sr.state_names.size(); ++i) {
+        const int dim = sr.state_residual_dims[i];
+        const auto res = sr.state_residual_final.middleCols(col, dim).array();
+        const auto measured = !res.isNaN();
+        auto& [sum, rows] = per_sensor[sr.state_names[i]];
+        sum += measured.select(res, 0.0).square().sum();
+        rows += static_cast<long long>(measured.count());
         col += dim;
       }
     }

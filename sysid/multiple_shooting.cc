@@ -172,9 +172,9 @@ int SegmentStepsAfterWarning(const std::string& warning, double rate, std::strin
 
 // The initial state of the segment of sequence q starting at simulation step k0 > 0, from the data
 // where a measured sample lies on that step (SampleGrid::position; none: the rollout) and
-// determines the state there: the sequence's logged states (FitSequence::states), else the fitted
-// jointpos/jointvel sensors when every joint is a hinge or slide with one of each (sensors
-// without measurement terms), else the rollout at the initial values. act is always the
+// determines the state there: the sequence's logged qpos and qvel (FitSequence::qpos, qvel), else
+// the fitted jointpos/jointvel sensors when every joint is a hinge or slide with one of each
+// (sensors without measurement terms), else the rollout at the initial values. act is always the
 // rollout's. Returns where it came from.
 std::string SegmentStart(const Problem::Impl& I, int q, int k0, const Trajectory& rollout,
                          std::vector<double>* x) {
@@ -189,9 +189,10 @@ std::string SegmentStart(const Problem::Impl& I, int q, int k0, const Trajectory
   const auto at = std::lower_bound(position.begin(), position.end(), static_cast<double>(k0));
   if (at == position.end() || *at != static_cast<double>(k0)) return "the rollout";
   const Eigen::Index i = at - position.begin();
-  if (sq.states.rows() > i && sq.states.cols() >= nq + nv &&
-      sq.states.row(i).head(nq + nv).allFinite()) {
-    std::copy(sq.states.row(i).data(), sq.states.row(i).data() + nq + nv, x->begin());
+  if (sq.qpos.rows() > i && sq.qvel.rows() > i && sq.qpos.cols() == nq && sq.qvel.cols() == nv &&
+      sq.qpos.row(i).allFinite() && sq.qvel.row(i).allFinite()) {
+    std::copy(sq.qpos.row(i).data(), sq.qpos.row(i).data() + nq, x->begin());
+    std::copy(sq.qvel.row(i).data(), sq.qvel.row(i).data() + nv, x->begin() + nq);
     return "logged qpos/qvel";
   }
   std::vector<int> pos_col(m.njnt, -1), vel_col(m.njnt, -1);

@@ -28,6 +28,7 @@
 #include "sysid/problem_impl.h"
 #include "sysid/residual_model.h"
 #include "sysid/state_manifold.h"
+#include "sysid/state_residuals.h"
 
 namespace mjsysid {
 namespace {
@@ -204,6 +205,8 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
   I.fixed_x0.assign(I.sequences.size(), {});
   I.grids.assign(I.sequences.size(), {});
   I.missing.assign(I.sequences.size(), {});
+  I.state_channels.assign(I.sequences.size(), {});
+  I.state_missing.assign(I.sequences.size(), {});
   I.prepare_warnings.clear();
   for (size_t q = 0; q < I.sequences.size(); ++q) {
     FitSequence& sq = I.sequences[q];
@@ -239,7 +242,10 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
     }
     const mjModel& m = mo.sim->model();
     std::vector<std::string> used = sq.sensors;
-    if (used.empty()) {
+    if (sq.no_sensors && !used.empty()) {
+      throw std::invalid_argument(where + "no_sensors is set and sensors are named");
+    }
+    if (used.empty() && !sq.no_sensors) {
       for (int i = 0; i < m.nsensor; ++i) {
         const char* nm = mj_id2name(&m, mjOBJ_SENSOR, i);
         used.push_back(nm ? nm : "");
@@ -331,6 +337,11 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
     Eigen::Map<Eigen::VectorXd>(I.fixed_x0[q].data() + d.nq, d.nv) = x0.qvel;
     Eigen::Map<Eigen::VectorXd>(I.fixed_x0[q].data() + d.nq + d.nv, d.na) = x0.act;
     sq.x0 = x0;
+    // logged states fitted as data (sysid/state_residuals.h)
+    if (options.states.any()) {
+      I.state_channels[q] = BuildStateChannels(m, options.states, "model '" + mo.name + "': ");
+      I.state_missing[q] = CheckLoggedStates(m, I.state_channels[q], T, where, &sq);
+    }
   }
   for (const FitMeasurement& me : I.measurements) {
     bool found = false;
@@ -405,6 +416,7 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
       seg.model = I.ModelIndex(I.sequences[q].model);
       seg.k0 = k0;
       seg.T = std::min(len, T - k0);
+      seg.state_rows = !I.state_channels[q].empty();
       const bool free = k0 > 0 || options.estimate_initial_state;
       if (free) {
         seg.block = static_cast<int>(I.states.size());
@@ -504,8 +516,27 @@ FitResult Problem::Fit(const FitOptions& options) {
     if (!I.m.empty()) blocks.push_back(I.m.data());
     if (seg.block >= 0) blocks.push_back(I.states[seg.block].data());
     if (seg.next >= 0) blocks.push_back(I.states[seg.next].data());
-    problem.AddResidualBlock(new SegmentCost(&I, static_cast<int>(s)), nullptr, blocks);
-    if (seg.block >= 0) problem.SetManifold(I.states[seg.block].data(), mo.manifold.get());
+    auto* cost = new SegmentCost(&I, static_cast<int>(s));
+    if (cost->num_residuals() > 0 && !blocks.empty()) {
+      problem.AddResidualBlock(cost, nullptr, blocks);
+    } else {
+      delete cost;  // e.g. a model without sensors fitted from its states alone
+    }
+    // the fitted states (sysid/state_residuals.h): the z and x_0 blocks
+    if (seg.state_rows) {
+      std::vector<double*> state_blocks;
+      if (np) state_blocks.push_back(I.z.data());
+      if (seg.block >= 0) state_blocks.push_back(I.states[seg.block].data());
+      auto* state_cost = new StateCost(&I, static_cast<int>(s));
+      if (state_cost->num_residuals() > 0 && !state_blocks.empty()) {
+        problem.AddResidualBlock(state_cost, nullptr, state_blocks);
+      } else {
+        delete state_cost;
+      }
+    }
+    if (seg.block >= 0 && problem.HasParameterBlock(I.states[seg.block].data())) {
+      problem.SetManifold(I.states[seg.block].data(), mo.manifold.get());
+    }
   }
   for (int g = 0; g < np; ++g) {
     if (I.params[g].has_prior) problem.AddResidualBlock(new PriorCost(&I, g), nullptr, I.z.data());
@@ -748,6 +779,32 @@ FitResult Problem::Fit(const FitOptions& options) {
       }
     }
     KeepFittedColumns(mo.sim->model(), I.fitted[q], sq, &sr);
+    // fitted states: logged, at the initial values, at the estimate, weighted residuals
+    if (!I.state_channels[q].empty()) {
+      const std::vector<StateChannel>& chans = I.state_channels[q];
+      const int T = static_cast<int>(sq.measured.rows());
+      InitStateResult(chans, sq, &sr);
+      StatesAtSamples(mo.sim->model(), chans, sq, initial[q].states, grid.position, 0, 0, T,
+                      &sr.state_simulated_initial, nullptr);
+      for (size_t s = 0; s < I.segments.size(); ++s) {
+        const Segment& seg = I.segments[s];
+        if (seg.seq != static_cast<int>(q)) continue;
+        const EvaluationCache::Entry& cached = I.cache->Evaluate(
+            static_cast<int>(s), np ? I.z.data() : nullptr, I.X0(static_cast<int>(s)), false);
+        if (cached.failed) continue;  // warned above
+        int first = 0, count = 0;
+        I.SamplesOf(static_cast<int>(s), &first, &count);
+        StatesAtSamples(mo.sim->model(), chans, sq, cached.tr.states, grid.position, seg.k0, first,
+                        count, &sr.state_simulated_final, &sr.state_residual_final);
+      }
+      for (size_t i = 0; i < chans.size(); ++i) {
+        if (I.state_missing[q][i] == 0) continue;
+        result.warnings.push_back("sequence '" + sq.name + "': state '" + chans[i].name +
+                                  "': " + std::to_string(I.state_missing[q][i]) + " of " +
+                                  std::to_string(T) +
+                                  " samples not measured (NaN), masked out of the fit");
+      }
+    }
     // masked samples, sensor by sensor
     for (size_t i = 0, col = 0; i < sr.sensor_names.size(); col += sr.sensor_dims[i++]) {
       int missing = 0;
@@ -821,29 +878,49 @@ JacobianCheck Problem::CheckJacobians(const FitOptions& options) {
       labels.emplace_back(mo.sim->dims().nx, label);
       if (std::find(order.begin(), order.end(), label) == order.end()) order.push_back(label);
     }
-    ceres::GradientChecker checker(&cost, &manifolds, nd);
-    ceres::GradientChecker::ProbeResults results;
-    checker.Probe(blocks.data(), 1.0, &results);
-    if (!results.return_value) {
-      throw SimulationError("CheckJacobians: the residuals of sequence '" + seq_name +
-                                "' cannot be evaluated at the initial values",
-                            seg.seq, seg.k0);
-    }
-    // worst column-scaled error of each variable
-    for (size_t b = 0; b < blocks.size(); ++b) {
-      const auto& A = results.local_jacobians[b];
-      const auto& N = results.local_numeric_jacobians[b];
-      for (Eigen::Index c = 0; c < A.cols(); ++c) {
-        const double scale = std::max(N.col(c).lpNorm<Eigen::Infinity>(), 1e-12);
-        const double err = (A.col(c) - N.col(c)).lpNorm<Eigen::Infinity>() / scale;
-        const std::string& label = labels[b][std::min<size_t>(c, labels[b].size() - 1)];
-        worst[label] = std::max(worst[label], err);
-        if (err > check.worst_relative_error) {
-          check.worst_relative_error = err;
-          check.worst_where = label + ", residual block of sequence '" + seq_name + "' from step " +
-                              std::to_string(seg.k0);
+    // worst column-scaled error of each variable of one residual block (blocks as `which`)
+    auto probe = [&](ceres::CostFunction* f, const std::vector<size_t>& which, const char* what) {
+      std::vector<const double*> bs;
+      std::vector<const ceres::Manifold*> ms;
+      for (size_t b : which) {
+        bs.push_back(blocks[b]);
+        ms.push_back(manifolds[b]);
+      }
+      ceres::GradientChecker checker(f, &ms, nd);
+      ceres::GradientChecker::ProbeResults results;
+      checker.Probe(bs.data(), 1.0, &results);
+      if (!results.return_value) {
+        throw SimulationError("CheckJacobians: the residuals of sequence '" + seq_name +
+                                  "' cannot be evaluated at the initial values",
+                              seg.seq, seg.k0);
+      }
+      for (size_t i = 0; i < which.size(); ++i) {
+        const auto& A = results.local_jacobians[i];
+        const auto& N = results.local_numeric_jacobians[i];
+        const std::vector<std::string>& lab = labels[which[i]];
+        for (Eigen::Index c = 0; c < A.cols(); ++c) {
+          const double scale = std::max(N.col(c).lpNorm<Eigen::Infinity>(), 1e-12);
+          const double err = (A.col(c) - N.col(c)).lpNorm<Eigen::Infinity>() / scale;
+          const std::string& label = lab[std::min<size_t>(c, lab.size() - 1)];
+          worst[label] = std::max(worst[label], err);
+          if (err > check.worst_relative_error) {
+            check.worst_relative_error = err;
+            check.worst_where = label + ", " + what + " residual block of sequence '" + seq_name +
+                                "' from step " + std::to_string(seg.k0);
+          }
         }
       }
+    };
+    std::vector<size_t> all(blocks.size());
+    for (size_t b = 0; b < blocks.size(); ++b) all[b] = b;
+    if (cost.num_residuals() > 0 && !blocks.empty()) probe(&cost, all, "sensor and continuity");
+    // the fitted states: the z block and the segment's x_0 block (sysid/state_residuals.h)
+    if (seg.state_rows) {
+      StateCost state_cost(&I, static_cast<int>(s));
+      std::vector<size_t> which;
+      if (np) which.push_back(0);
+      if (seg.block >= 0) which.push_back((np ? 1 : 0) + (nm ? 1 : 0));
+      if (state_cost.num_residuals() > 0 && !which.empty()) probe(&state_cost, which, "state");
     }
   }
   for (const std::string& label : order) {

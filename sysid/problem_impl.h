@@ -27,6 +27,7 @@
 #include "sysid/residual_model.h"
 #include "sysid/sample_grid.h"
 #include "sysid/state_manifold.h"
+#include "sysid/state_residuals.h"
 #include "sysid/types.h"
 
 namespace mjsysid {
@@ -61,6 +62,10 @@ struct Problem::Impl {
   // per sequence and fitted channel (as `channels`): the samples not measured (NaN, masked)
   std::vector<std::vector<int>> missing;
   std::vector<std::string> prepare_warnings;  // what Prepare noticed (held NaN controls)
+  // per sequence: its fitted states (FitOptions::states, sysid/state_residuals.h) and, per
+  // channel, the samples not measured (NaN, masked)
+  std::vector<std::vector<StateChannel>> state_channels;
+  std::vector<std::vector<int>> state_missing;
 
   // What the cost functions met during a fit, so that FitResult::warnings can say it (a rejected
   // trial point or a Jacobian past its validity is otherwise invisible to the user): the number

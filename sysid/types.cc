@@ -78,4 +78,24 @@ bool FitParameter::AppliesTo(const std::string& model_name) const {
          std::find(models.begin(), models.end(), model_name) != models.end();
 }
 
+SequenceResult WithStateColumns(const SequenceResult& s) {
+  if (s.state_names.empty()) return s;
+  SequenceResult out = s;
+  out.sensor_names.insert(out.sensor_names.end(), s.state_names.begin(), s.state_names.end());
+  out.sensor_dims.insert(out.sensor_dims.end(), s.state_dims.begin(), s.state_dims.end());
+  // [sensors | states] side by side, sample by sample
+  const auto join = [](const RowMatrix& a, const RowMatrix& b) {
+    RowMatrix m(a.rows(), a.cols() + b.cols());
+    m << a, b;
+    return m;
+  };
+  out.measured = join(s.measured, s.state_measured);
+  out.simulated_initial = join(s.simulated_initial, s.state_simulated_initial);
+  out.simulated_final = join(s.simulated_final, s.state_simulated_final);
+  for (Eigen::Index c = 0; c < s.state_measured.cols(); ++c) {
+    out.missing.push_back(static_cast<int>(s.state_measured.col(c).array().isNaN().count()));
+  }
+  return out;
+}
+
 }  // namespace mjsysid

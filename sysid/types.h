@@ -145,13 +145,32 @@ struct FitSequence {
   RowMatrix measured;  // T x nsensordata of the model: y_k in the model's sensordata layout
   std::vector<std::string> sensors;  // sensors whose columns are fitted; empty = all sensors
   Eigen::VectorXd time;              // T sample times (s); empty: x0.time + k * timestep
-  // optional states x_k from the log, row k: T x (nq + nv) ([qpos, qvel]) or T x nphys
-  // ([qpos, qvel, act]); 0 x 0 when absent. Multiple shooting starts its segments there.
-  RowMatrix states;
   // the controls' own times: Tc (s), ctrl then Tc x nu; empty: ctrl rows at `time`
   Eigen::VectorXd ctrl_time;
   std::vector<ControlHold> ctrl_hold;  // per actuator (nu) or empty: zero-order hold
   std::vector<double> ctrl_delay;      // per actuator (nu, s, >= 0) or empty: no transport delay
+  // logged states at the sample times (rows as `measured`): T x nq, T x nv, T x na; NaN = not
+  // measured (masked); 0 rows = not logged. Fitted as data where FitOptions::states says so;
+  // multiple shooting starts its segments at logged qpos and qvel.
+  RowMatrix qpos, qvel, act;
+  // no sensor column is fitted (a log of states only, FitOptions::states); `sensors` must be empty
+  bool no_sensors = false;
+};
+
+// Logged states fitted as data next to the sensors (sysid/state_residuals.h): the positions and
+// velocities of joints and the activations of actuators, in tangent space (a ball or free joint's
+// orientation as the 3-vector of mju_subQuat, rad). Each part fits the named joints (actuators
+// for act; empty = every joint or actuator with one, in model order) with a noise level sigma
+// (> 0, the part's units: m or rad, m/s or rad/s, activation units): one sigma shared, or one per
+// name. Every fitted state counts in the chi-square test of FitStatus::kModelMismatch.
+struct FitStates {
+  struct Part {
+    bool fit = false;
+    std::vector<std::string> names;  // joints (qpos, qvel) or actuators (act); empty = all
+    std::vector<double> sigma;       // 1 shared value, or one per name
+  };
+  Part qpos, qvel, act;
+  bool any() const { return qpos.fit || qvel.fit || act.fit; }
 };
 
 // one Gauss-Newton/LM iteration, as reported to callbacks and kept in FitResult::trace
@@ -187,6 +206,7 @@ struct FitOptions {
   bool verbose = false;  // one progress line per iteration on stderr
   std::function<void(const IterationInfo&)> on_iteration;  // e.g. checkpoint the iterate
   const std::atomic<bool>* interrupt = nullptr;  // set to stop after the current iteration
+  FitStates states;                              // logged states fitted as data (none by default)
 };
 
 // one estimated variable: a physical parameter or a measurement term ("<sensor>.delay", ...)
@@ -222,7 +242,22 @@ struct SequenceResult {
   std::vector<ChannelFit> channel_fits;
   // per column of measured: the samples not measured (NaN in measured, masked out of the fit)
   std::vector<int> missing;
+  // fitted states (FitOptions::states), as the sensors above: "qpos:<joint>", "qvel:<joint>",
+  // "act:<actuator>", their physics-vector widths (a free joint's qpos 7, a ball joint's 4, else
+  // 1) and T x sum(state_dims) columns in physics coordinates (NaN where not measured)
+  std::vector<std::string> state_names;
+  std::vector<int> state_dims;
+  RowMatrix state_measured, state_simulated_initial, state_simulated_final;
+  // T x sum(state_residual_dims) weighted residuals (simulated (-) measured) / sigma at the
+  // estimate in tangent space (an orientation 3 rows), NaN where not measured: what the
+  // chi-square test sums
+  std::vector<int> state_residual_dims;
+  RowMatrix state_residual_final;
 };
+
+// The sequence's plotted columns: the sensor columns followed by the fitted state columns, each
+// state as one more "sensor" named as in state_names (what the report draws)
+SequenceResult WithStateColumns(const SequenceResult& s);
 
 // one fit of a multi-start run (sysid/run/multi_start.h): where it started, where it ended
 struct StartResult {
@@ -250,7 +285,8 @@ struct FitResult {
   FitStatus outcome = FitStatus::kNotConverged;  // the verdict (see FitStatus)
   bool intervals_valid = false;  // std_error and ci95 mean something: outcome is kConverged
   // with sensors_with_sigma: the weighted residual variance of those sensors' columns at the
-  // estimate, sum(r^2) / (m - p) (expected 1), and per sensor sum(r^2) / rows (NaN without sigmas)
+  // estimate, sum(r^2) / (m - p) (expected 1), and per sensor sum(r^2) / rows (NaN without sigmas);
+  // fitted states count too, each under its name ("qpos:<joint>", ...)
   double chi2_ratio = std::numeric_limits<double>::quiet_NaN();
   std::map<std::string, double> sensor_chi2_ratio;
   std::string termination;  // why the optimiser stopped

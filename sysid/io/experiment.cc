@@ -40,6 +40,7 @@ class Parser : public YamlReader {
   MeasurementSpec ParseMeasurement(const Field& f, const ExperimentConfig& c) const;
   void ParseTerm(const Field& f, bool is_delay, FitMeasurement::Term* term, Marks* marks) const;
   void ParseSolver(const Field& f, ExperimentConfig* c) const;
+  void ParseStates(const Field& f, ExperimentConfig* c) const;
   void ParseSimulate(const Field& f, const ExperimentConfig& c, SimulateOptions* s) const;
   Excitation ParseExcitation(const Field& f, bool needs_actuator) const;
 
@@ -72,7 +73,7 @@ std::vector<NamedValue> Parser::NamedValues(const Field& f) const {
 const std::vector<std::string> kRootKeys = {
     "version",     "name",     "model",      "models",      "data",          "sequences",
     "sensor_time", "sensors",  "parameters", "measurement", "initial_state", "multiple_shooting",
-    "solver",      "simulate", "output",     "validation",  "controls"};
+    "solver",      "simulate", "output",     "validation",  "controls",      "states"};
 const std::vector<std::string> kParameterKeys = {"name",  "target",  "object", "field",
                                                  "index", "initial", "bounds", "transform",
                                                  "scale", "prior",   "models"};
@@ -193,6 +194,7 @@ ExperimentConfig Parser::Parse(const YAML::Node& root) {
       c.control_hold = static_cast<ControlHold>(Enum(s.Get("hold"), kControlHolds));
     if (s.Has("delay")) c.control_delay = NonNegative(s.Get("delay"));
   }
+  if (r.Has("states")) ParseStates(r.Get("states"), &c);
   c.options.verbose = true;  // a file's default; `solver: {verbose: false}` turns it off
   if (r.Has("solver")) ParseSolver(r.Get("solver"), &c);
   if (r.Has("simulate")) ParseSimulate(r.Get("simulate"), c, &c.simulate);
@@ -478,6 +480,57 @@ MeasurementSpec Parser::ParseMeasurement(const Field& f, const ExperimentConfig&
   if (r.Has("gain")) ParseTerm(r.Get("gain"), false, &ms.gain, &ms.gain_marks);
   if (r.Has("bias")) ParseTerm(r.Get("bias"), false, &ms.bias, &ms.bias_marks);
   return ms;
+}
+
+// states: {qpos: {sigma, joints}, qvel: {sigma, joints}, act: {sigma, actuators}}; sigma a
+// positive number (shared) or a list with one per name (then the names must be given); marks
+// under "<part>", "<part>.sigma" and "<part>.<joints|actuators>[i]"
+void Parser::ParseStates(const Field& f, ExperimentConfig* c) const {
+  const MapReader r(*this, f, {"qpos", "qvel", "act"});
+  c->states_marks = r.marks();
+  FitStates& st = c->options.states;
+  FitStates::Part* parts[3] = {&st.qpos, &st.qvel, &st.act};
+  const char* names[3] = {"qpos", "qvel", "act"};
+  for (int i = 0; i < 3; ++i) {
+    if (!r.Has(names[i])) continue;
+    const std::string objects = i == 2 ? "actuators" : "joints";
+    const MapReader pr(*this, r.Get(names[i]), {"sigma", objects});
+    pr.Require("sigma", "the noise level of the logged " + std::string(names[i]) +
+                            ": one positive number, or a list with one per name in '" + objects +
+                            "'");
+    FitStates::Part& part = *parts[i];
+    part.fit = true;
+    const std::string at = std::string(names[i]) + ".";
+    c->states_marks.keys[at + "sigma"] = pr.Get("sigma").mark;
+    if (pr.Has(objects)) {
+      const std::vector<Field> items = List(pr.Get(objects));
+      for (size_t k = 0; k < items.size(); ++k) {
+        part.names.push_back(Name(items[k]));
+        for (size_t j = 0; j < k; ++j) {
+          if (part.names[j] == part.names[k]) {
+            Fail(items[k].mark, items[k].path + ": " + Quote(part.names[k]) + " given twice");
+          }
+        }
+        c->states_marks.keys[at + objects + "[" + std::to_string(k) + "]"] = items[k].mark;
+      }
+      if (items.empty()) {
+        Fail(pr.Get(objects).mark, pr.Path(objects) + " is empty",
+             "leave it out to fit every one of the model's " + objects);
+      }
+    }
+    const Field sigma = pr.Get("sigma");
+    if (sigma.node.IsSequence()) {
+      for (const Field& item : List(sigma)) part.sigma.push_back(Positive(item));
+      if (part.sigma.size() != part.names.size()) {
+        Fail(sigma.mark,
+             sigma.path + " has " + std::to_string(part.sigma.size()) + " values for " +
+                 std::to_string(part.names.size()) + " " + objects,
+             "give one sigma per entry of '" + objects + "', or one number for all");
+      }
+    } else {
+      part.sigma.push_back(Positive(sigma));
+    }
+  }
 }
 
 void Parser::ParseSolver(const Field& f, ExperimentConfig* c) const {

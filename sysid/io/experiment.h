@@ -159,6 +159,9 @@ struct ExperimentConfig {
   // sequence; docs/real-logs.md): the hold rule and a known transport delay (s, >= 0)
   ControlHold control_hold = ControlHold::kZeroOrder;
   double control_delay = 0;
+  // the `states` block (logged states fitted as data, in options.states): keys "qpos", "qvel",
+  // "act", "<part>.sigma" and "<part>.joints[i]" / "act.actuators[i]"
+  Marks states_marks;
 
   // nullptr when absent
   const ParameterSpec* FindParameter(const std::string& name) const;
@@ -180,7 +183,8 @@ ExperimentConfig ParseExperiment(const std::string& yaml_text,
 // ModelSpec::name; "" = apply every parameter): sensors, parameters (each resolved by core's
 // Parameter::Resolve: its ParameterError becomes a ConfigError at the offending key with core's
 // message followed by " in <model>", and core's hint), measurement and noise sensors, excitation
-// actuators, simulate.initial_state sizes (nq, nv). Throws ConfigError at the first offending
+// actuators, simulate.initial_state sizes (nq, nv), the joints and actuators of `states` (an
+// actuator there must have an activation). Throws ConfigError at the first offending
 // element, with a hint listing up to 20 valid names.
 void ValidateExperimentAgainstModel(const ExperimentConfig& config, const mjModel& m,
                                     const std::string& model_name);

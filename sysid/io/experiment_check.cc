@@ -94,6 +94,29 @@ void ValidateExperimentAgainstModel(const ExperimentConfig& config, const mjMode
             sim.initial_state.marks.Of("qpos"), "simulate.initial_state.qpos", label + " (nq)");
   CheckSize(sim.initial_state.qvel, static_cast<long long>(m.nv),
             sim.initial_state.marks.Of("qvel"), "simulate.initial_state.qvel", label + " (nv)");
+
+  // states: the joints and actuators named (sysid/state_residuals.h)
+  const FitStates& st = config.options.states;
+  for (const auto& [part, joints] :
+       {std::pair<const char*, const FitStates::Part*>{"qpos", &st.qpos}, {"qvel", &st.qvel}}) {
+    for (size_t k = 0; k < joints->names.size(); ++k) {
+      RequireObject(
+          m, mjOBJ_JOINT, m.njnt, "joint", joints->names[k],
+          config.states_marks.Of(std::string(part) + ".joints[" + std::to_string(k) + "]"), label);
+    }
+  }
+  for (size_t k = 0; k < st.act.names.size(); ++k) {
+    const Mark& mark = config.states_marks.Of("act.actuators[" + std::to_string(k) + "]");
+    const int id = RequireObject(m, mjOBJ_ACTUATOR, m.nu, "actuator", st.act.names[k], mark, label);
+    if (m.actuator_actadr[id] < 0) {
+      throw ConfigError(mark, "actuator " + Quote(st.act.names[k]) + " of " + label +
+                                  " has no activation (no dyntype): nothing to fit in states.act");
+    }
+  }
+  if (st.act.fit && st.act.names.empty() && m.na == 0) {
+    throw ConfigError(config.states_marks.Of("act"),
+                      "states.act: " + label + " has no actuator with an activation (na = 0)");
+  }
 }
 
 void CheckModelFilesExist(const ExperimentConfig& config) {

@@ -119,6 +119,19 @@ void WriteH5Sequence(hid_t sequences, const SequenceResult& s, const std::string
   for (const auto& [name, m] : mats) {
     WriteMatrix(group.get(), name, m->data(), m->rows(), m->cols(), file, g + "/" + name);
   }
+  // fitted states (optional: only when the fit had `states`), laid out like the sensors
+  if (s.state_names.empty()) return;
+  h5::WriteStringArrayAttr(group.get(), "state_names", s.state_names, file, g);
+  h5::WriteIntAttr(group.get(), "state_dims", s.state_dims, false, file, g);
+  h5::WriteIntAttr(group.get(), "state_residual_dims", s.state_residual_dims, false, file, g);
+  const std::pair<const char*, const RowMatrix*> states[] = {
+      {"state_measured", &s.state_measured},
+      {"state_simulated_initial", &s.state_simulated_initial},
+      {"state_simulated_final", &s.state_simulated_final},
+      {"state_residual_final", &s.state_residual_final}};
+  for (const auto& [name, m] : states) {
+    WriteMatrix(group.get(), name, m->data(), m->rows(), m->cols(), file, g + "/" + name);
+  }
 }
 
 }  // namespace
@@ -283,6 +296,42 @@ SequenceResult ReadH5Sequence(hid_t sequences, const std::string& name, const st
     *m = h5::ToMatrix(ReadRequired(group.get(), dname, 2, file, g + "/" + dname));
   }
   s.channel_fits = ChannelFits(s);
+  // fitted states, when the fit had them
+  h5::Id names = h5::OpenAttrIfAny(group.get(), "state_names", file, g);
+  if (names.get() < 0) return s;
+  s.state_names = h5::ReadStrings(names.get(), file, g + " attribute 'state_names'");
+  const std::pair<const char*, std::vector<int>*> dims[] = {
+      {"state_dims", &s.state_dims}, {"state_residual_dims", &s.state_residual_dims}};
+  for (const auto& [aname, out] : dims) {
+    h5::Id attr = RequiredAttr(group.get(), aname, file, g);
+    for (long long d : h5::ReadInts(attr.get(), file, g + " attribute '" + aname + "'")) {
+      if (d < 1 || d > 1000000000) {
+        Fail(file, g + " attribute '" + aname + "'",
+             "dimension " + std::to_string(d) + " is out of range (must be >= 1)");
+      }
+      out->push_back(static_cast<int>(d));
+    }
+    if (out->size() != s.state_names.size()) {
+      Fail(file, g + " attribute '" + aname + "'", "needs one entry per state name");
+    }
+  }
+  const std::pair<const char*, RowMatrix*> states[] = {
+      {"state_measured", &s.state_measured},
+      {"state_simulated_initial", &s.state_simulated_initial},
+      {"state_simulated_final", &s.state_simulated_final},
+      {"state_residual_final", &s.state_residual_final}};
+  for (const auto& [dname, m] : states) {
+    *m = h5::ToMatrix(ReadRequired(group.get(), dname, 2, file, g + "/" + dname));
+    const bool residual = m == &s.state_residual_final;
+    long long cols = 0;
+    for (int d : residual ? s.state_residual_dims : s.state_dims) cols += d;
+    if (m->rows() != s.time.size() || m->cols() != cols) {
+      Fail(file, g + "/" + dname,
+           "must be " + std::to_string(s.time.size()) + " x " + std::to_string(cols) +
+               " (samples x the columns of the " +
+               (residual ? "state_residual_dims" : "state_dims") + ")");
+    }
+  }
   return s;
 }
 

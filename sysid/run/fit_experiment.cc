@@ -194,9 +194,10 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
           col += s.sensor_dims[i];
           logged.push_back(s.sensor_names[i]);
         }
-        // fitted sensors: the config's, or every logged one
+        // fitted sensors: the config's, or every logged one (none: a log of states only)
         if (cfg.sensors.empty()) {
           fs_.sensors = logged;
+          fs_.no_sensors = logged.empty() && cfg.options.states.any();
         } else {
           for (const io::SensorSpec& ss : cfg.sensors) {
             if (std::find(logged.begin(), logged.end(), ss.name) == logged.end()) {
@@ -222,10 +223,22 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
                                  "reference state (set initial_state: {estimate: true} to fit it)");
         }
         fs_.time = s.time.head(T);
-        // logged states: where multiple shooting starts its segments
-        if (s.qpos.rows() >= T && s.qvel.rows() >= T) {
-          fs_.states.resize(T, s.qpos.cols() + s.qvel.cols());
-          fs_.states << s.qpos.topRows(T), s.qvel.topRows(T);
+        // logged states: fitted as data (experiment `states`; row k is x_k) and where multiple
+        // shooting starts its segments
+        const FitStates& st = cfg.options.states;
+        const std::pair<const char*, const RowMatrix*> parts[3] = {
+            {"qpos", &s.qpos}, {"qvel", &s.qvel}, {"act", &s.act}};
+        const bool fit_part[3] = {st.qpos.fit, st.qvel.fit, st.act.fit};
+        for (int i = 0; i < 3; ++i) {
+          if (fit_part[i] && parts[i].second->rows() == 0) {
+            throw io::ConfigError(
+                cfg.states_marks.Of(parts[i].first),
+                "states." + std::string(parts[i].first) + " is fitted but " + where + " has no " +
+                    parts[i].first + " dataset",
+                "log the states, or leave states." + std::string(parts[i].first) + " out");
+          }
+          RowMatrix& dst = i == 0 ? fs_.qpos : i == 1 ? fs_.qvel : fs_.act;
+          if (parts[i].second->rows() >= T) dst = parts[i].second->topRows(T);
         }
         // controls: the experiment's hold rule and transport delay for every actuator
         fs_.ctrl_hold.assign(m.nu, cfg.control_hold);
@@ -254,10 +267,14 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
     }
   }
   for (const FitParameter& p : cfg.parameters) rows += p.has_prior ? 1 : 0;
+  // fitted states (their columns are checked by the Problem)
+  if (cfg.options.states.any()) {
+    for (const FitSequence& fs_ : out.sequences) rows += fs_.time.size();
+  }
   if (rows == 0) {
     throw io::ConfigError(cfg.marks.Of("sensors"),
                           "the fit has no residuals: no sensor column of the selected log "
-                          "sequences is fitted",
+                          "sequences is fitted and no `states`",
                           "the logs need sensordata columns of the sensors listed under sensors:");
   }
   if (out.sequences.empty()) {

@@ -49,7 +49,7 @@ std::string CostPng(const FitResultFile& result) { return Png(CostFigure(result)
 std::string ParametersPng(const FitResultFile& result) { return Png(ParametersFigure(result)); }
 
 std::string SequencePng(const FitResultFile&, const SequenceResult& sequence, bool held_out) {
-  return Png(SequenceFigure(sequence, held_out));
+  return Png(SequenceFigure(WithStateColumns(sequence), held_out));  // fitted states as sensors
 }
 
 std::string ReportHtml(const FitResultFile& result) {

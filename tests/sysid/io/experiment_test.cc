@@ -1120,3 +1120,56 @@ parameters:
 
 }  // namespace
 }  // namespace mjsysid::io
+
+namespace mjsysid::io {
+namespace {
+
+// the `states` key (logged states fitted as data): parsed into FitOptions::states, sigma shared
+// or per name
+TEST_F(ExperimentTest, StatesKeyParses) {
+  const ExperimentConfig c = LoadExperiment(Write("exp.yaml", std::string(kPendulum) + R"(states:
+  qpos: {sigma: 1.0e-3}
+  qvel: {sigma: [0.01, 0.02], joints: [a, b]}
+)"));
+  const FitStates& st = c.options.states;
+  EXPECT_TRUE(st.qpos.fit);
+  EXPECT_TRUE(st.qpos.names.empty());
+  EXPECT_EQ(st.qpos.sigma, std::vector<double>{1e-3});
+  EXPECT_TRUE(st.qvel.fit);
+  EXPECT_EQ(st.qvel.names, (std::vector<std::string>{"a", "b"}));
+  EXPECT_EQ(st.qvel.sigma, (std::vector<double>{0.01, 0.02}));
+  EXPECT_FALSE(st.act.fit);
+  EXPECT_EQ(c.states_marks.Of("qvel.joints[1]").line, 6);
+}
+
+// its errors, at the element, naming what was expected
+TEST_F(ExperimentTest, StatesKeyErrors) {
+  const std::string p = kPendulum;
+  ExpectError(p + "states:\n  qpos: {joints: [a]}\n", 5, 9, "missing required key 'sigma'");
+  ExpectError(p + "states:\n  qpos: {sigma: -1}\n", 5, 17, "must be > 0");
+  ExpectError(p + "states:\n  qpos: {sigma: [1, 2]}\n", 5, 17, "has 2 values for 0 joints",
+              "one sigma per entry");
+  ExpectError(p + "states:\n  qpos: {sigma: 1, joints: [a, a]}\n", 5, 32, "given twice");
+  ExpectError(p + "states:\n  qpos: {sigma: 1, joints: []}\n", 5, 28, "is empty");
+  ExpectError(p + "states:\n  qpoz: {sigma: 1}\n", 5, 3, "qpoz", "qpos");
+  ExpectError(p + "states:\n  act: {sigma: 1, joints: [a]}\n", 5, 19, "joints", "actuators");
+}
+
+// against the model: an unknown joint with a hint, an actuator without activation
+TEST_F(ModelValidationTest, StatesNamesExistInTheModel) {
+  ExpectModelError(R"(parameters:
+  - {name: m, target: body_mass, object: bob, initial: 1}
+states:
+  qpos: {sigma: 1, joints: [hinge, hinj]}
+)",
+                   4, 36, "no joint named 'hinj'", "did you mean 'hinge'");
+  ExpectModelError(R"(parameters:
+  - {name: m, target: body_mass, object: bob, initial: 1}
+states:
+  act: {sigma: 1}
+)",
+                   4, 8, "has no actuator with an activation");
+}
+
+}  // namespace
+}  // namespace mjsysid::io
