@@ -41,7 +41,7 @@ double Chi2RatioLimit(double dof) {
 }  // namespace
 
 void DecideFitStatus(const FitOptions& options, int accepted_steps, bool jacobian_warned,
-                     FitResult* result) {
+                     FitResult* result, bool cost_not_local) {
   FitResult& r = *result;
 
   // did the estimate leave its start: an accepted step that changed some estimated value
@@ -146,6 +146,9 @@ void DecideFitStatus(const FitOptions& options, int accepted_steps, bool jacobia
     r.outcome = FitStatus::kNotConverged;
   } else if (mismatch) {
     r.outcome = FitStatus::kModelMismatch;
+  } else if (cost_not_local) {
+    // converged on a cost that jumps within the intervals (the warning says where)
+    r.outcome = FitStatus::kJacobianUnreliable;
   } else {
     r.outcome = FitStatus::kConverged;
   }

@@ -24,6 +24,7 @@
 #include "sysid/cost_functions.h"
 #include "sysid/evaluation_cache.h"
 #include "sysid/fit_status.h"
+#include "sysid/interval_check.h"
 #include "sysid/multiple_shooting.h"
 #include "sysid/problem_impl.h"
 #include "sysid/residual_model.h"
@@ -642,6 +643,7 @@ FitResult Problem::Fit(const FitOptions& options) {
   // at once (the simulators check the flag every time step): the result keeps the estimate,
   // without intervals.
   auto interrupted_now = [&] { return options.interrupt && options.interrupt->load(); };
+  bool cost_not_local = false;  // the cost jumps within the intervals (CheckIntervalScale)
   for (auto& mo : I.models) mo.sim->SetCancelFlag(options.interrupt);
   ceres::Problem::EvaluateOptions eo;
   eo.num_threads = 1;  // as the solve
@@ -701,6 +703,32 @@ FitResult Problem::Fit(const FitOptions& options) {
       e.ci95_high = e.value + kZ95 * e.std_error;
     }
     result.jacobian = A;
+    // the intervals' quadratic model against the cost one standard error away: contacts can make
+    // the cost jump far inside an interval (sysid/interval_check.h)
+    const IntervalCheck ic =
+        CheckIntervalScale(Eigen::Map<const Eigen::VectorXd>(residuals.data(), crs.num_rows),
+                           result.jacobian, se, names, [&](int v, double delta, double* c) {
+                             const ParameterEstimate& e = result.parameters[v];
+                             const double value = e.value + delta;
+                             const double lo = v < np ? I.params[v].lower : mbounds[v - np].first;
+                             const double hi = v < np ? I.params[v].upper : mbounds[v - np].second;
+                             if (e.at_lower || e.at_upper || value < lo || value > hi) return false;
+                             double* slot = v < np ? &I.z[v] : &I.m[v - np];
+                             const double saved = *slot;
+                             *slot = v < np ? I.params[v].ToVariable(value) : value;
+                             const bool ok = std::isfinite(*slot) &&
+                                             problem.Evaluate(eo, c, nullptr, nullptr, nullptr);
+                             *slot = saved;
+                             return ok;
+                           });
+    if (!ic.local) {
+      cost_not_local = true;
+      result.warnings.push_back(
+          "the cost is not smooth at the scale of the intervals: " + ic.worst +
+          "; contacts, impacts or stick-slip make the rollouts jump when a parameter moves by less "
+          "than its standard error, so the Jacobian describes the cost only very locally and the "
+          "intervals are not valid (docs/numerics.md, \"Contact: a rugged cost\")");
+    }
   } else {
     result.warnings.push_back("the residuals could not be evaluated at the estimate");
   }
@@ -830,7 +858,7 @@ FitResult Problem::Fit(const FitOptions& options) {
   for (size_t i = 1; i < summary.iterations.size(); ++i) {
     accepted_steps += summary.iterations[i].step_is_successful ? 1 : 0;
   }
-  DecideFitStatus(options, accepted_steps, !I.jacobian_warnings.empty(), &result);
+  DecideFitStatus(options, accepted_steps, !I.jacobian_warnings.empty(), &result, cost_not_local);
   for (const auto& mo : I.models) result.simulation_steps += mo.sim->StepCount();
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;

@@ -43,7 +43,9 @@ const char* LossTypeName(LossType loss);
 // - kModelMismatch: sigmas given and the weighted residual variance far above its chi-square
 //   expectation (overall or for one sensor): the model or the start cannot explain the data.
 // - kJacobianUnreliable: the core flagged the Jacobian as not reliable (e.g. a horizon too long
-//   for single shooting) and the cost fell by less than a few %.
+//   for single shooting) and the cost fell by less than a few %; or the optimiser converged but
+//   the cost at the estimate +- one standard error is far from the Jacobian's prediction (a cost
+//   that jumps within the intervals, sysid/interval_check.h).
 // - kDidNotMove: no estimated value left its start (no step was accepted).
 // - kInterrupted: a stop signal ended the fit.
 // Every value but kConverged marks the intervals not valid.
