@@ -1,5 +1,7 @@
 #include "core/state.h"
 
+#include <cmath>
+
 #include "core/mujoco_env.h"
 
 namespace mjsysid {
@@ -52,6 +54,24 @@ void TangentDifference(const mjModel& m, const double* x1, const double* x2, dou
   // velocities and activations: vector difference
   for (int i = 0; i < nv; ++i) dx[nv + i] = (x2[nq + i] - x1[nq + i]) * inv_scale;
   for (int i = 0; i < na; ++i) dx[2 * nv + i] = (x2[nq + nv + i] - x1[nq + nv + i]) * inv_scale;
+}
+
+void InverseRightJacobianSO3(const double* phi, double w, double* out) {
+  const double theta2 = phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2];
+  const double theta = std::sqrt(theta2);
+  // the coefficient of [phi]x^2: 1/theta^2 - (1 + cos theta) / (2 theta sin theta), its series
+  // 1/12 + theta^2/720 near 0
+  const double c = theta < 1e-4
+                       ? 1.0 / 12 + theta2 / 720
+                       : 1.0 / theta2 - (1 + std::cos(theta)) / (2 * theta * std::sin(theta));
+  const double K[9] = {0, -phi[2], phi[1], phi[2], 0, -phi[0], -phi[1], phi[0], 0};
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) {
+      double k2 = 0;
+      for (int t = 0; t < 3; ++t) k2 += K[i * 3 + t] * K[t * 3 + j];
+      out[i * 3 + j] = w * ((i == j ? 1.0 : 0.0) + 0.5 * K[i * 3 + j] + c * k2);
+    }
+  }
 }
 
 void TangentPerturb(const mjModel& m, mjData* d, const double* dx, double scale) {

@@ -49,6 +49,12 @@ void SetFullState(const mjModel* m, mjData* d, const double* state);
 void TangentDifference(const mjModel& m, const double* x1, const double* x2, double inv_scale,
                        double* dx);
 
+// out = w Jr^-1(phi) (3 x 3, row-major): the inverse right Jacobian of SO(3), so that
+// log(exp(phi) exp(d)) = phi + Jr^-1(phi) d + O(|d|^2) for rotation vectors phi, d (rad), and
+// log(exp(-d) exp(phi)) = phi - Jr^-1(phi)^T d + O(|d|^2). An orientation's TangentDifference
+// (mju_subQuat: log(q1^-1 q2)) moves by Jr^-1 times a tangent perturbation of q2 on the right.
+void InverseRightJacobianSO3(const double* phi, double w, double* out);
+
 // perturbs d's qpos, qvel, act in place along the tangent vector dx scaled by scale
 void TangentPerturb(const mjModel& m, mjData* d, const double* dx, double scale);
 

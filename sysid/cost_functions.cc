@@ -7,6 +7,24 @@
 #include <vector>
 
 namespace mjsysid {
+namespace {
+
+// rows r0 .. r0 + 2 of a row-major Jacobian block with `cols` columns (nullptr: none) replaced by
+// A (3 x 3, row-major) or its transpose times them
+void MixRotationRows(const double* A, bool transpose, int r0, double* block, int cols) {
+  if (block == nullptr) return;
+  for (int c = 0; c < cols; ++c) {
+    const double v[3] = {block[r0 * cols + c], block[(r0 + 1) * cols + c],
+                         block[(r0 + 2) * cols + c]};
+    for (int i = 0; i < 3; ++i) {
+      double sum = 0;
+      for (int t = 0; t < 3; ++t) sum += (transpose ? A[t * 3 + i] : A[i * 3 + t]) * v[t];
+      block[(r0 + i) * cols + c] = sum;
+    }
+  }
+}
+
+}  // namespace
 
 // -----------------------------------------------------------------------------------------------
 // segment residuals
@@ -134,7 +152,9 @@ bool SegmentCost::EvaluateOrThrow(double const* const* parameters, double* resid
 
   // continuity: w * (x_end (-) x_next) in tangent space (the difference is MuJoCo's
   // mj_differentiatePos); its Jacobian is w times the end-state rows of DxDp for the core's
-  // columns and -w I (exact off quaternions, first order on them) for the next x_0's tangent
+  // columns and -w I for the next x_0's tangent, exact off orientations; the 3 rows of a ball or
+  // free joint's orientation d = log(q_next^-1 q_end) are then mixed by Jr^-1(d) (end state)
+  // and Jr^-1(d)^T (next state) (InverseRightJacobianSO3, core/state.h)
   if (seg.next >= 0) {
     const double w = I.options.continuity_weight;
     const int r0 = row + 1;
@@ -169,6 +189,18 @@ bool SegmentCost::EvaluateOrThrow(double const* const* parameters, double* resid
             jacobians[nb][(r0 + i) * dims.nphys + a] = -w * pn[i * dims.nphys + a];
           }
         }
+      }
+      const mjModel& mm = sim.model();
+      for (int j = 0; j < mm.njnt; ++j) {
+        const int type = mm.jnt_type[j];
+        if (type != mjJNT_BALL && type != mjJNT_FREE) continue;
+        const int k = mm.jnt_dofadr[j] + (type == mjJNT_FREE ? 3 : 0);
+        double A[9];
+        InverseRightJacobianSO3(d.data() + k, 1.0, A);
+        MixRotationRows(A, false, r0 + k, zb >= 0 ? jacobians[zb] : nullptr,
+                        static_cast<int>(I.z.size()));
+        MixRotationRows(A, false, r0 + k, xb >= 0 ? jacobians[xb] : nullptr, dims.nphys);
+        MixRotationRows(A, true, r0 + k, nb >= 0 ? jacobians[nb] : nullptr, dims.nphys);
       }
     }
   }

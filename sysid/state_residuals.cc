@@ -21,26 +21,6 @@ std::vector<std::string> NamesOf(const mjModel& m, mjtObj type, int n) {
   return names;
 }
 
-// Jr^-1(phi) (3 x 3, row-major) times w: the inverse right Jacobian of SO(3), so that
-// log(exp(phi) exp(d)) = phi + Jr^-1(phi) d + O(|d|^2)
-void InverseRightJacobian(const double* phi, double w, double* out) {
-  const double theta2 = phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2];
-  const double theta = std::sqrt(theta2);
-  // the coefficient of [phi]x^2: 1/theta^2 - (1 + cos theta) / (2 theta sin theta), its series
-  // 1/12 + theta^2/720 near 0
-  const double c = theta < 1e-4
-                       ? 1.0 / 12 + theta2 / 720
-                       : 1.0 / theta2 - (1 + std::cos(theta)) / (2 * theta * std::sin(theta));
-  const double K[9] = {0, -phi[2], phi[1], phi[2], 0, -phi[0], -phi[1], phi[0], 0};
-  for (int i = 0; i < 3; ++i) {
-    for (int j = 0; j < 3; ++j) {
-      double k2 = 0;
-      for (int t = 0; t < 3; ++t) k2 += K[i * 3 + t] * K[t * 3 + j];
-      out[i * 3 + j] = w * ((i == j ? 1.0 : 0.0) + 0.5 * K[i * 3 + j] + c * k2);
-    }
-  }
-}
-
 // the part's name and sigma; throws for a bad sigma or count
 void CheckSigma(const FitStates::Part& part, const char* what, const std::string& where) {
   const size_t n = part.sigma.size();
@@ -232,7 +212,7 @@ bool StateDifference(const StateChannel& ch, const double* x, const double* logg
     for (int c = 0; c < 3; ++c) e[ch.scalars + c] = ch.weight * phi[c];
     if (de) {
       double J[9];
-      InverseRightJacobian(phi, ch.weight, J);
+      InverseRightJacobianSO3(phi, ch.weight, J);
       for (int i = 0; i < 3; ++i) {
         for (int j = 0; j < 3; ++j) de[(ch.scalars + i) * rows + ch.scalars + j] = J[i * 3 + j];
       }
