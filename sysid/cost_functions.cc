@@ -44,14 +44,8 @@ SegmentCost::SegmentCost(Problem::Impl* impl, int segment) : impl_(impl), segmen
 // a divergent or warning trial point is rejected, not an error: the trust region shrinks
 bool SegmentCost::Evaluate(double const* const* parameters, double* residuals,
                            double** jacobians) const {
-  try {
-    if (EvaluateOrThrow(parameters, residuals, jacobians)) return true;
-    impl_->NoteRejection("non-finite residual");
-    return false;
-  } catch (const std::exception& e) {
-    impl_->NoteRejection(e.what());
-    return false;
-  }
+  return impl_->EvaluateOrReject("non-finite residual",
+                                 [&] { return EvaluateOrThrow(parameters, residuals, jacobians); });
 }
 
 bool SegmentCost::EvaluateOrThrow(double const* const* parameters, double* residuals,

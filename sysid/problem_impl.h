@@ -81,6 +81,20 @@ struct Problem::Impl {
   void NoteRejection(const std::string& what) {
     if (rejected_evaluations++ == 0) first_rejection = what;
   }
+  // A cost function's evaluation: true when `evaluate` returns true; false (Ceres rejects the
+  // trial point and shrinks the trust region) when it returns false (non-finite residuals,
+  // counted under `non_finite`) or throws (counted under the exception's text)
+  template <class F>
+  bool EvaluateOrReject(const char* non_finite, F&& evaluate) {
+    try {
+      if (evaluate()) return true;
+      NoteRejection(non_finite);
+      return false;
+    } catch (const std::exception& e) {
+      NoteRejection(e.what());
+      return false;
+    }
+  }
   void NoteJacobianWarning(int segment, const std::string& what) {
     jacobian_warnings.emplace(segment, what);
   }

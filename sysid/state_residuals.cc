@@ -284,14 +284,8 @@ StateCost::StateCost(Problem::Impl* impl, int segment) : impl_(impl), segment_(s
 
 bool StateCost::Evaluate(double const* const* parameters, double* residuals,
                          double** jacobians) const {
-  try {
-    if (EvaluateOrThrow(parameters, residuals, jacobians)) return true;
-    impl_->NoteRejection("non-finite state residual");
-    return false;
-  } catch (const std::exception& e) {
-    impl_->NoteRejection(e.what());
-    return false;
-  }
+  return impl_->EvaluateOrReject("non-finite state residual",
+                                 [&] { return EvaluateOrThrow(parameters, residuals, jacobians); });
 }
 
 bool StateCost::EvaluateOrThrow(double const* const* parameters, double* residuals,
