@@ -654,8 +654,9 @@ int RunFit(const FitArgs& args) {
   const mjsysid::run::FitRunOutcome out = mjsysid::run::RunFit(config, options);
   CatchStopSignals(false);
   const io::FitResultFile& f = out.file;
-  for (const std::string& w : f.warnings)
-    std::fprintf(stderr, "sysid fit: warning: %s\n", w.c_str());
+  // the data's warnings were printed before the fit (FitRunOutcome::printed_warnings)
+  for (size_t i = static_cast<size_t>(out.printed_warnings); i < f.warnings.size(); ++i)
+    std::fprintf(stderr, "sysid fit: warning: %s\n", f.warnings[i].c_str());
   std::printf("  wrote %s/{result.yaml, result.h5", out.out_dir.c_str());
   for (const auto& [model, file] : f.identified_models) std::printf(", %s", file.c_str());
   std::printf("} (run %s)\n", f.run_id.c_str());

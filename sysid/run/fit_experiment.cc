@@ -538,6 +538,7 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
     if (truth.count(e.name)) e.truth = truth[e.name];
   }
   file.warnings.insert(file.warnings.begin(), bp.warnings.begin(), bp.warnings.end());
+  out.printed_warnings = static_cast<int>(bp.warnings.size());
   out.exit_code = ExitCodeOf(r.outcome);
 
   // the estimates are shown before any file is written (a full disk loses no result)

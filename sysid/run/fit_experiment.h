@@ -82,6 +82,9 @@ struct FitRunOutcome {
   io::FitResultFile file;  // the fit (a FitResult) and what the run adds
   std::string out_dir;
   int exit_code = 0;  // ExitCodeOf(file.outcome)
+  // the first file.warnings that RunFit already printed to stderr before the fit (the data's
+  // warnings, shown early); a front end prints the rest
+  int printed_warnings = 0;
 };
 
 // the exit code of `sysid fit` for a fit's status (docs/cli.md): 0 converged; 1 not converged or

@@ -6,6 +6,7 @@
 #include "core/simulator.h"
 #include "sysid/metrics.h"
 #include "sysid/residual_model.h"
+#include "sysid/sample_grid.h"
 
 namespace mjsysid::run {
 namespace {
@@ -83,22 +84,27 @@ SequenceResult SimulateHeldOut(const mjModel& m, const std::vector<FitParameter>
     sr.time.array() += sequence.x0.time;
   }
 
-  // one rollout per point, the measurement terms applied column by column
+  // the log's samples and controls on the simulation grid, as the fit reads them
+  // (sysid/sample_grid.h: any sample rate, controls held or interpolated, transport delay)
   const double dt = m.opt.timestep;
+  const SampleGrid grid = BuildSampleGrid(
+      sequence.time, static_cast<int>(T), sequence.x0.time, sequence.ctrl, sequence.ctrl_time,
+      sequence.ctrl_hold, sequence.ctrl_delay, dt, "validation sequence '" + sequence.name + "': ");
+
+  // one rollout per point, the measurement terms applied column by column
   for (const bool final_value : {false, true}) {
     RowMatrix& out = final_value ? sr.simulated_final : sr.simulated_initial;
     out = RowMatrix::Constant(T, ncol, std::numeric_limits<double>::quiet_NaN());
     try {
       const std::vector<double>& v = final_value ? estimate : start;
       if (!v.empty()) sim.SetParameters(Eigen::Map<const Eigen::VectorXd>(v.data(), v.size()));
-      const Trajectory tr = sim.Rollout(SequenceInput{sequence.x0, sequence.ctrl});
+      const Trajectory tr = sim.Rollout(SequenceInput{sequence.x0, grid.ctrl});
       for (Eigen::Index c = 0; c < ncol; ++c) {
         const MeasurementTerms terms = TermsOf(measurements, estimates, col_sensor[c], final_value);
         const Signal simulated{tr.sensors.data() + cols[c], tr.sensors.cols()};
         for (Eigen::Index k = 0; k < T; ++k) {
           out(k, c) =
-              terms.Apply(DelayedSample(static_cast<int>(k), static_cast<int>(T), terms.delay, dt)
-                              .Value(simulated));
+              terms.Apply(DelayedSample(grid.position[k], tr.T, terms.delay, dt).Value(simulated));
         }
       }
     } catch (const std::exception& e) {
