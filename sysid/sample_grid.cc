@@ -83,9 +83,24 @@ SampleGrid BuildSampleGrid(const Eigen::VectorXd& time, int T, double x0_time,
       while (v + 1 < nv && cpos[valid[v + 1]] <= at + SampleGrid::kOnGridTolerance) ++v;
       if (nv == 0) {
         g.ctrl(n, i) = 0;  // Problem::Prepare rejects a control with no valid value before
+      } else if (!linear) {
+        // zero-order hold: the average of the held command over the step [at, at + 1], i.e.
+        // the command in force at its start weighted by the fraction of the step until the next
+        // one, and so on (piecewise linear in the delay; a command within the on-grid tolerance
+        // of the step's end belongs to the next step, so commands on the grid give the command
+        // in force at the step's start exactly)
+        double cur = ctrl(valid[v < 0 ? 0 : v], i), sum = 0, done = 0;
+        for (Eigen::Index w = v + 1;
+             w < nv && cpos[valid[w]] < at + 1 - SampleGrid::kOnGridTolerance; ++w) {
+          const double f = cpos[valid[w]] - at;  // in (tolerance, 1 - tolerance)
+          sum += cur * (f - done);
+          done = f;
+          cur = ctrl(valid[w], i);
+        }
+        g.ctrl(n, i) = done == 0 ? cur : sum + cur * (1 - done);
       } else if (v < 0) {
         g.ctrl(n, i) = ctrl(valid[0], i);
-      } else if (!linear || v + 1 >= nv || cpos[valid[v]] >= at) {
+      } else if (v + 1 >= nv || cpos[valid[v]] >= at) {
         g.ctrl(n, i) = ctrl(valid[v], i);
       } else {
         const Eigen::Index j0 = valid[v], j1 = valid[v + 1];

@@ -11,10 +11,17 @@
 // the grid reads the steps themselves, exactly as before off-grid logs were accepted.
 //
 // Controls. Each actuator's logged controls (at their own times) reach step n by a hold rule:
-// zero-order hold (the last control at or before t_n, what a digital controller does) or linear
+// zero-order hold (what a digital controller does: each command holds until the next) or linear
 // interpolation between the two around t_n; before the first logged control the first is held,
 // after the last the last. An optional transport delay d (seconds, per actuator) shifts the
-// controls before the hold: step n sees the control logged at t_n - d.
+// controls before the hold. With zero-order hold step n sees the step average of the held,
+// delayed command u_zoh:
+//   u_n = (1/dt) * integral over [t_n, t_n + dt] of u_zoh(t - d) dt,
+// the command in force at the step's start weighted by the fraction of the step until the next
+// command, and so on: piecewise linear in d (and in the command times), where a point sample
+// would jump. Commands on the grid with d a whole number of steps give exactly the command in
+// force at t_n - d (a command within kOnGridTolerance of a step's end belongs to the next step).
+// Linear interpolation samples at t_n - d.
 //
 // Segments (multiple shooting) are in simulation steps. A segment [k0, k0 + T) owns the samples
 // whose position lies in it; when one lies past its last step and the sequence goes on, it

@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <limits>
 #include <mutex>
 #include <set>
 #include <string>
@@ -28,7 +29,11 @@ namespace {
 
 constexpr char kFormat[] = "mjsysid-log";
 constexpr int kFormatVersion = 1;
-constexpr const char* kDatasets[] = {"time", "ctrl", "sensordata", "qpos", "qvel", "act"};
+constexpr const char* kDatasets[] = {"time", "ctrl", "sensordata", "qpos",
+                                     "qvel", "act",  "ctrl_time"};
+// the optional groups of sensors logged at their own times
+constexpr char kSensorTime[] = "sensor_time";
+constexpr char kSensorValues[] = "sensor_values";
 
 // ---------------------------------------------------------------------------------------------
 // messages
@@ -111,6 +116,14 @@ void WriteSequence(hid_t file_id, const Sequence& seq, const std::string& file) 
     if (mat->rows() == 0) continue;
     WriteMatrix(group.get(), name, *mat, file, gpath + "/" + name);
   }
+
+  // optional: the controls' own times
+  if (seq.ctrl_time.size() > 0) {
+    const hsize_t c_dims[1] = {static_cast<hsize_t>(seq.ctrl_time.size())};
+    H5Id ct = WriteDataset(group.get(), "ctrl_time", seq.ctrl_time.data(), 1, c_dims, file,
+                           gpath + "/ctrl_time");
+    WriteStringAttr(ct.get(), "units", "s", file, gpath + "/ctrl_time");
+  }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -141,7 +154,7 @@ void CheckFinite(const double* data, Eigen::Index rows, Eigen::Index cols, const
 
 // rows of a matrix against the sample count, with a hint for transposed storage
 void CheckRows(const RowMatrix& mat, Eigen::Index samples, bool optional, const std::string& file,
-               const std::string& object) {
+               const std::string& object, const std::string& times = "time") {
   if (optional && mat.rows() == 0) {
     if (mat.cols() != 0) {
       Fail(file, object,
@@ -156,7 +169,23 @@ void CheckRows(const RowMatrix& mat, Eigen::Index samples, bool optional, const 
     Fail(file, object,
          "has " + std::to_string(mat.rows()) + " rows (shape " + std::to_string(mat.rows()) +
              " x " + std::to_string(mat.cols()) + "), expected " + std::to_string(samples) +
-             " = the samples in time" + transposed);
+             " = the samples in " + times + transposed);
+  }
+}
+
+// a time dataset: at least one sample, finite, strictly increasing
+void CheckTimeDataset(const Eigen::VectorXd& time, const std::string& file,
+                      const std::string& object) {
+  const Eigen::Index samples = time.size();
+  if (samples < 1) Fail(file, object, "is empty (a sequence needs at least 1 sample)");
+  CheckFinite(time.data(), samples, 1, file, object);
+  for (Eigen::Index k = 1; k < samples; ++k) {
+    if (!(time[k] > time[k - 1])) {
+      Fail(file, object,
+           "row " + std::to_string(k) + ": time " + FormatShortest(time[k]) +
+               " is not greater than row " + std::to_string(k - 1) + "'s " +
+               FormatShortest(time[k - 1]) + " (time must be strictly increasing)");
+    }
   }
 }
 
@@ -164,20 +193,14 @@ void CheckSequence(const Sequence& seq, const std::string& file) {
   const std::string gpath = "/" + seq.name;
   const Eigen::Index samples = seq.time.size();
 
-  // time: at least one sample, finite, strictly increasing
-  if (samples < 1) Fail(file, gpath + "/time", "is empty (a sequence needs at least 1 sample)");
-  CheckFinite(seq.time.data(), samples, 1, file, gpath + "/time");
-  for (Eigen::Index k = 1; k < samples; ++k) {
-    if (!(seq.time[k] > seq.time[k - 1])) {
-      Fail(file, gpath + "/time",
-           "row " + std::to_string(k) + ": time " + FormatShortest(seq.time[k]) +
-               " is not greater than row " + std::to_string(k - 1) + "'s " +
-               FormatShortest(seq.time[k - 1]) + " (time must be strictly increasing)");
-    }
-  }
+  // time (and the controls' own times): at least one sample, finite, strictly increasing
+  CheckTimeDataset(seq.time, file, gpath + "/time");
+  const bool own_ctrl_time = seq.ctrl_time.size() > 0;
+  if (own_ctrl_time) CheckTimeDataset(seq.ctrl_time, file, gpath + "/ctrl_time");
 
   // shapes
-  CheckRows(seq.ctrl, samples, false, file, gpath + "/ctrl");
+  CheckRows(seq.ctrl, own_ctrl_time ? seq.ctrl_time.size() : samples, false, file, gpath + "/ctrl",
+            own_ctrl_time ? "ctrl_time" : "time");
   CheckRows(seq.sensordata, samples, false, file, gpath + "/sensordata");
   CheckRows(seq.qpos, samples, true, file, gpath + "/qpos");
   CheckRows(seq.qvel, samples, true, file, gpath + "/qvel");
@@ -303,10 +326,10 @@ Array ReadArray(hid_t group, const char* name, int rank, const std::string& file
 // other attributes
 H5Id ReadNamedColumns(hid_t group, const char* dataset, Eigen::Index rows, const std::string& file,
                       const std::string& gpath, const std::string& meaning, RowMatrix* values,
-                      std::vector<std::string>* names) {
+                      std::vector<std::string>* names, const std::string& times = "time") {
   const std::string where = gpath + "/" + dataset;
   *values = ToMatrix(ReadArray(group, dataset, 2, file, where));
-  CheckRows(*values, rows, false, file, where);
+  CheckRows(*values, rows, false, file, where, times);
   H5Id dset =
       Own(H5Dopen2(group, dataset, H5P_DEFAULT), H5Dclose, file, where, "cannot open dataset");
   H5Id attr = OpenAttrIfAny(dset.get(), "names", file, where);
@@ -318,6 +341,80 @@ H5Id ReadNamedColumns(hid_t group, const char* dataset, Eigen::Index rows, const
   return dset;
 }
 
+// a time dataset of a group (rank 1, seconds), checked finite and strictly increasing
+Eigen::VectorXd ReadTimes(hid_t group, const char* name, const std::string& file,
+                          const std::string& where) {
+  Array t = ReadArray(group, name, 1, file, where);
+  Eigen::VectorXd time =
+      Eigen::Map<Eigen::VectorXd>(t.data.data(), static_cast<Eigen::Index>(t.dims[0]));
+  H5Id dset = Own(H5Dopen2(group, name, H5P_DEFAULT), H5Dclose, file, where, "cannot open dataset");
+  H5Id units = OpenAttrIfAny(dset.get(), "units", file, where);
+  if (units.get() >= 0) {
+    std::vector<std::string> u = ReadStrings(units.get(), file, where + " attribute 'units'");
+    if (u.size() != 1 || u[0] != "s") {
+      Fail(file, where + " attribute 'units'",
+           "must be \"s\" (time is stored in seconds), found \"" + Join(u) + "\"");
+    }
+  }
+  CheckTimeDataset(time, file, where);
+  return time;
+}
+
+// a sensor logged at its own times (sensor_time/<name>, sensor_values/<name>)
+struct OwnTimeSensor {
+  std::string name;
+  Eigen::VectorXd time;  // Ts
+  RowMatrix values;      // Ts x dim
+};
+
+// the sensors of groups sensor_time/ and sensor_values/ of sequence group `gpath`
+std::vector<OwnTimeSensor> ReadOwnTimeSensors(hid_t group, const std::string& file,
+                                              const std::string& gpath) {
+  const std::string tpath = gpath + "/" + kSensorTime, vpath = gpath + "/" + kSensorValues;
+  H5Id tgroup = Own(H5Gopen2(group, kSensorTime, H5P_DEFAULT), H5Gclose, file, tpath,
+                    "cannot open group (sensor_time must be a group of one time dataset per "
+                    "sensor)");
+  H5Id vgroup = Own(H5Gopen2(group, kSensorValues, H5P_DEFAULT), H5Gclose, file, vpath,
+                    "cannot open group (sensor_values must be a group of one dataset per sensor)");
+  const std::vector<std::string> names = LinkNames(tgroup.get(), file, tpath);
+  const std::vector<std::string> value_names = LinkNames(vgroup.get(), file, vpath);
+  for (const std::string& v : value_names) {
+    if (std::find(names.begin(), names.end(), v) == names.end()) {
+      Fail(file, vpath + "/" + v,
+           "has no times: expected dataset " + tpath + "/" + v + " (Ts) with the sample times");
+    }
+  }
+  if (names.empty()) Fail(file, tpath, "is empty (expected one time dataset per sensor)");
+  std::vector<OwnTimeSensor> out;
+  for (const std::string& n : names) {
+    if (std::find(value_names.begin(), value_names.end(), n) == value_names.end()) {
+      Fail(file, vpath + "/" + n,
+           "is missing: expected the values of sensor " + Quote(n) + " at " + tpath + "/" + n +
+               " (Ts x dim)");
+    }
+    OwnTimeSensor s;
+    s.name = n;
+    s.time = ReadTimes(tgroup.get(), n.c_str(), file, tpath + "/" + n);
+    const std::string where = vpath + "/" + n;
+    s.values = ToMatrix(h5::ReadArray(vgroup.get(), n.c_str(), 2, file, where,
+                                      " (Ts samples x the sensor's columns)"));
+    CheckRows(s.values, s.time.size(), false, file, where, tpath + "/" + n);
+    if (s.values.cols() < 1) Fail(file, where, "has 0 columns (a sensor has at least 1)");
+    CheckFinite(s.values.data(), s.values.rows(), s.values.cols(), file, where, true);
+    out.push_back(std::move(s));
+  }
+  return out;
+}
+
+// the rows of `times` in `all` (every time of `times` is in `all`, exactly)
+std::vector<Eigen::Index> RowsIn(const std::vector<double>& all, const Eigen::VectorXd& times) {
+  std::vector<Eigen::Index> rows(static_cast<size_t>(times.size()));
+  for (Eigen::Index k = 0; k < times.size(); ++k) {
+    rows[k] = std::lower_bound(all.begin(), all.end(), times[k]) - all.begin();
+  }
+  return rows;
+}
+
 Sequence ReadSequence(hid_t file_id, const std::string& name, const std::string& file) {
   const std::string gpath = "/" + name;
   H5Id group =
@@ -325,47 +422,65 @@ Sequence ReadSequence(hid_t file_id, const std::string& name, const std::string&
   Sequence seq;
   seq.name = name;
 
-  // members: only the known datasets
+  // members: only the known datasets and groups
   std::set<std::string> present;
   for (const std::string& member : LinkNames(group.get(), file, gpath)) {
-    if (std::find(std::begin(kDatasets), std::end(kDatasets), member) == std::end(kDatasets)) {
+    if (std::find(std::begin(kDatasets), std::end(kDatasets), member) == std::end(kDatasets) &&
+        member != kSensorTime && member != kSensorValues) {
       Fail(file, gpath + "/" + member,
            "unknown member of a sequence group (expected time, ctrl, sensordata and optionally "
-           "qpos, qvel, act)");
+           "qpos, qvel, act, ctrl_time, sensor_time/, sensor_values/)");
     }
     present.insert(member);
   }
+  // which datasets are required: sensors at their own times make time and sensordata optional
+  const bool own_sensors = present.count(kSensorTime) || present.count(kSensorValues);
+  if (own_sensors) {
+    for (const char* pair : {kSensorTime, kSensorValues}) {
+      if (!present.count(pair)) {
+        Fail(file, gpath + "/" + pair,
+             "is missing: sensor_time/ (times) and sensor_values/ (values) come together");
+      }
+    }
+    if (present.count("time") != present.count("sensordata")) {
+      Fail(file, gpath + "/" + (present.count("time") ? "sensordata" : "time"),
+           "is missing: time and sensordata come together (both may be left out when every "
+           "sensor is in sensor_time/ and sensor_values/)");
+    }
+    if (!present.count("time") && !present.count("ctrl_time")) {
+      Fail(file, gpath + "/ctrl_time",
+           "is missing: without a time dataset the controls need their own times (Tc)");
+    }
+    for (const char* state : {"qpos", "qvel", "act"}) {
+      if (present.count(state) && !present.count("time")) {
+        Fail(file, gpath + "/time", std::string("is missing: ") + state + " needs its times");
+      }
+    }
+  }
+  const bool has_time = present.count("time") > 0;
   for (const char* required : {"time", "ctrl", "sensordata"}) {
-    if (!present.count(required)) {
+    if (!present.count(required) && !(own_sensors && std::string(required) != "ctrl")) {
       Fail(file, gpath + "/" + required, "required dataset is missing");
     }
   }
 
-  // time, in seconds
-  {
-    const std::string where = gpath + "/time";
-    Array t = ReadArray(group.get(), "time", 1, file, where);
-    seq.time = Eigen::Map<Eigen::VectorXd>(t.data.data(), static_cast<Eigen::Index>(t.dims[0]));
-    H5Id dset = Own(H5Dopen2(group.get(), "time", H5P_DEFAULT), H5Dclose, file, where,
-                    "cannot open dataset");
-    H5Id units = OpenAttrIfAny(dset.get(), "units", file, where);
-    if (units.get() >= 0) {
-      std::vector<std::string> u = ReadStrings(units.get(), file, where + " attribute 'units'");
-      if (u.size() != 1 || u[0] != "s") {
-        Fail(file, where + " attribute 'units'",
-             "must be \"s\" (time is stored in seconds), found \"" + Join(u) + "\"");
-      }
-    }
+  // time and the controls' own times, in seconds
+  Eigen::VectorXd time;
+  if (has_time) time = ReadTimes(group.get(), "time", file, gpath + "/time");
+  if (present.count("ctrl_time")) {
+    seq.ctrl_time = ReadTimes(group.get(), "ctrl_time", file, gpath + "/ctrl_time");
   }
+  seq.time = time;
 
   // ctrl and actuator names
-  ReadNamedColumns(group.get(), "ctrl", seq.time.size(), file, gpath,
-                   "one actuator name per column", &seq.ctrl, &seq.actuator_names);
+  ReadNamedColumns(group.get(), "ctrl", seq.ctrl_time.size() ? seq.ctrl_time.size() : time.size(),
+                   file, gpath, "one actuator name per column", &seq.ctrl, &seq.actuator_names,
+                   seq.ctrl_time.size() ? "ctrl_time" : "time");
 
   // sensordata, sensor names and dimensions
-  {
+  if (present.count("sensordata")) {
     const std::string where = gpath + "/sensordata";
-    H5Id dset = ReadNamedColumns(group.get(), "sensordata", seq.time.size(), file, gpath,
+    H5Id dset = ReadNamedColumns(group.get(), "sensordata", time.size(), file, gpath,
                                  "one name per sensor", &seq.sensordata, &seq.sensor_names);
     H5Id dims = OpenAttrIfAny(dset.get(), "dims", file, where);
     if (dims.get() >= 0) {
@@ -387,7 +502,53 @@ Sequence ReadSequence(hid_t file_id, const std::string& name, const std::string&
   for (const auto& [dname, mat] : optional) {
     if (!present.count(dname)) continue;
     *mat = ToMatrix(ReadArray(group.get(), dname, 2, file, gpath + "/" + dname));
-    CheckRows(*mat, seq.time.size(), false, file, gpath + "/" + dname);
+    CheckRows(*mat, time.size(), false, file, gpath + "/" + dname);
+  }
+  if (!own_sensors) return seq;
+
+  // sensors at their own times: merged onto the union of all sample times, NaN where a sensor
+  // was not sampled
+  const std::vector<OwnTimeSensor> own = ReadOwnTimeSensors(group.get(), file, gpath);
+  std::vector<double> all(time.data(), time.data() + time.size());
+  if (has_time) seq.own_times.emplace_back(gpath + "/time", time);
+  for (const OwnTimeSensor& s : own) {
+    all.insert(all.end(), s.time.data(), s.time.data() + s.time.size());
+    seq.own_times.emplace_back(gpath + "/" + kSensorTime + "/" + s.name, s.time);
+  }
+  std::sort(all.begin(), all.end());
+  all.erase(std::unique(all.begin(), all.end()), all.end());
+  const auto T = static_cast<Eigen::Index>(all.size());
+  Eigen::Index cols = seq.sensordata.cols();
+  for (const OwnTimeSensor& s : own) cols += s.values.cols();
+  RowMatrix merged = RowMatrix::Constant(T, cols, std::numeric_limits<double>::quiet_NaN());
+  const std::vector<Eigen::Index> base_rows = RowsIn(all, time);
+  for (Eigen::Index k = 0; k < time.size(); ++k) {
+    merged.row(base_rows[k]).head(seq.sensordata.cols()) = seq.sensordata.row(k);
+  }
+  Eigen::Index col = seq.sensordata.cols();
+  for (const OwnTimeSensor& s : own) {
+    const std::vector<Eigen::Index> rows = RowsIn(all, s.time);
+    for (Eigen::Index k = 0; k < s.time.size(); ++k) {
+      merged.row(rows[k]).segment(col, s.values.cols()) = s.values.row(k);
+    }
+    col += s.values.cols();
+    seq.sensor_names.push_back(s.name);
+    seq.sensor_dims.push_back(static_cast<int>(s.values.cols()));
+  }
+  seq.sensordata = std::move(merged);
+  seq.time = Eigen::Map<const Eigen::VectorXd>(all.data(), T);
+
+  // the controls and states of `time`, when the sensor times add samples to it
+  if (has_time && T != time.size()) {
+    for (const auto& [dname, mat] : optional) {
+      if (mat->rows() == 0) continue;
+      Fail(file, gpath + "/" + dname,
+           "the sensors in sensor_time/ add " + std::to_string(T - time.size()) +
+               " sample time(s) not in " + gpath +
+               "/time, where this state has no value (logged states need a value at every sample "
+               "time: log them at times that include every sensor time, or leave them out)");
+    }
+    if (seq.ctrl_time.size() == 0) seq.ctrl_time = time;
   }
   return seq;
 }
@@ -529,7 +690,8 @@ Sequence WindowOf(const Sequence& seq, double start, double end, const std::stri
   }
   Sequence w = seq;
   w.time = seq.time.segment(first, n);
-  w.ctrl = seq.ctrl.middleRows(first, n);
+  // controls at their own times stay whole: the hold and a delay reach back before the window
+  if (seq.ctrl_time.size() == 0) w.ctrl = seq.ctrl.middleRows(first, n);
   w.sensordata = seq.sensordata.middleRows(first, n);
   for (auto [from, to] :
        {std::pair{&seq.qpos, &w.qpos}, {&seq.qvel, &w.qvel}, {&seq.act, &w.act}}) {
@@ -649,8 +811,28 @@ void ValidateLogAgainstModel(const Log& log, const mjModel& m, const std::string
       }
     }
 
-    // the time base (sysid/io/time_base.h): increasing, in seconds; its warnings
-    for (std::string& w : CheckTimeBase(seq.time, m.opt.timestep, file, gpath + "/time")) {
+    // the time base (sysid/io/time_base.h) of every time dataset: increasing, in seconds; its
+    // warnings. The sample times and the controls' own times must overlap. With sensors at their
+    // own times the union is checked for errors only (its period varies by construction) and
+    // each time dataset as read gives the warnings.
+    const double dt = m.opt.timestep;
+    const Eigen::VectorXd* ctrl_time = seq.ctrl_time.size() ? &seq.ctrl_time : nullptr;
+    const bool merged = !seq.own_times.empty();
+    std::vector<std::string> found = CheckTimeBase(
+        seq.time, dt, file,
+        gpath + (merged ? " (sample times: the union of its time datasets)" : "/time"), ctrl_time);
+    if (merged) {
+      found.clear();
+      for (const auto& [object, times] : seq.own_times) {
+        for (std::string& w : CheckTimeBase(times, dt, file, object)) found.push_back(std::move(w));
+      }
+    }
+    if (ctrl_time && ctrl_time->size() >= 2) {
+      for (std::string& w : CheckTimeBase(*ctrl_time, dt, file, gpath + "/ctrl_time")) {
+        found.push_back(std::move(w));
+      }
+    }
+    for (std::string& w : found) {
       if (warnings) warnings->push_back(std::move(w));
     }
   }

@@ -34,6 +34,22 @@
 //                                                attribute names: string (nsensor), sensor names;
 //                                                attribute dims: int32 (nsensor), columns each
 //     qpos, qvel, act      float64 (T, nq|nv|na) optional
+//     ctrl_time            float64 (Tc)          optional: the controls' own times (their own rate,
+//                                                seconds); ctrl is then (Tc, nu). Without it ctrl
+//                                                has one row per `time`
+//     sensor_time/<sensor> float64 (Ts)          optional group: one dataset per sensor logged at
+//                                                its own times, named like the model's sensor
+//     sensor_values/<sensor> float64 (Ts, dim)   that sensor's values at those times (dim = its
+//                                                columns; no attributes needed); NaN: not measured
+//   With sensor_time/ and sensor_values/ (both or neither, the same sensor names), `time` and
+//   `sensordata` are optional (both or neither) and `ctrl_time` is required when there is no
+//   `time`. Reading merges every sensor onto the sequence's sample times: Sequence::time is the
+//   union of `time` and all sensor times (sorted, exact duplicates merged), each sensor is NaN
+//   (not measured) at the times it was not sampled, and the per-sensor sensors follow the
+//   `sensordata` ones in Sequence::sensor_names (in name order). When that union adds times to
+//   `time`, ctrl without ctrl_time keeps its own times (Sequence::ctrl_time = `time`), and
+//   qpos/qvel/act are an error (states need a value at every sample time). Every time dataset is
+//   checked (finite, strictly increasing; CheckTimeBase against the model).
 // Strings are variable-length UTF-8. A zero-width matrix (nu = 0, ns = 0) is stored as a
 // dataset with a zero dimension. On reading, fixed-length strings, integer or float32 data and
 // scalar numeric attributes (stored in Log::attributes as decimal text) are accepted too.
@@ -45,6 +61,7 @@
 #include <map>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/state.h"
@@ -61,6 +78,12 @@ struct Sequence {
   std::vector<std::string> sensor_names;    // one per sensor (not per column)
   std::vector<int> sensor_dims;             // columns of each sensor (>= 1); sum = cols
   std::vector<std::string> actuator_names;  // one per ctrl column
+  // optional: the controls' own times (Tc, seconds, strictly increasing; dataset ctrl_time); ctrl
+  // is then Tc x nu. Empty: ctrl has one row per `time`.
+  Eigen::VectorXd ctrl_time;
+  // set by ReadLog when sensors come at their own times: the time datasets as read ("/seq/time",
+  // "/seq/sensor_time/<sensor>") for the time-base check; empty otherwise. Not written.
+  std::vector<std::pair<std::string, Eigen::VectorXd>> own_times;
 };
 
 // A set of sequences recorded with one convention, plus free-form metadata.
@@ -101,18 +124,19 @@ Log ReadLog(const std::string& path);
 // Checks a log against the model it is meant for (`path_for_messages` names the log in
 // messages). Per sequence: every sensor name is a sensor of `m` with the same dimension
 // (m.sensor_dim), names unique; ctrl has exactly the model's actuators, in model order (missing,
-// extra and misplaced names are named); qpos/qvel/act, when present, are nq/nv/na wide; the time
-// base passes CheckTimeBase (sysid/io/time_base.h: at least two samples, in seconds; any rate,
-// jitter and gaps are accepted, since each sample is fitted at its own time), whose warnings
-// (varying period, long gaps) go to *warnings when given. Unknown names come with the model's
-// names (up to 20) as a hint. Throws LogError on the first problem found. `sysid import`, `check`
-// and `fit` all check logs through this one function.
+// extra and misplaced names are named); qpos/qvel/act, when present, are nq/nv/na wide; every time
+// dataset (time, ctrl_time, sensor_time/<sensor>) passes CheckTimeBase (sysid/io/time_base.h: at
+// least two samples, in seconds; any rate, jitter and gaps are accepted, since each sample is
+// fitted at its own time), whose warnings (varying period, long gaps) go to *warnings when given.
+// Unknown names come with the model's names (up to 20) as a hint. Throws LogError on the first
+// problem found. `sysid import`, `check` and `fit` all check logs through this one function.
 void ValidateLogAgainstModel(const Log& log, const mjModel& m, const std::string& path_for_messages,
                              std::vector<std::string>* warnings = nullptr);
 
 // The samples of `seq` with start <= time <= end (seconds, the log's clock): every dataset's rows
-// in that range. Throws LogError naming `file`, the sequence and the window when fewer than 2
-// samples fall in it.
+// in that range; controls with their own times (ctrl_time) are kept whole (the hold and a delay
+// reach back before the window). Throws LogError naming `file`, the sequence and the window when
+// fewer than 2 samples fall in it.
 Sequence WindowOf(const Sequence& seq, double start, double end, const std::string& file);
 
 namespace internal {

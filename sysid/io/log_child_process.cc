@@ -61,6 +61,14 @@ std::string Encode(const Log& log) {
     }
     PutSize(&out, s.actuator_names.size());
     for (const std::string& a : s.actuator_names) PutString(&out, a);
+    PutSize(&out, static_cast<uint64_t>(s.ctrl_time.size()));
+    Put(&out, s.ctrl_time.data(), sizeof(double) * static_cast<size_t>(s.ctrl_time.size()));
+    PutSize(&out, s.own_times.size());
+    for (const auto& [object, times] : s.own_times) {
+      PutString(&out, object);
+      PutSize(&out, static_cast<uint64_t>(times.size()));
+      Put(&out, times.data(), sizeof(double) * static_cast<size_t>(times.size()));
+    }
   }
   return out;
 }
@@ -120,6 +128,14 @@ Log Decode(const std::string& in, const std::string& file) {
     }
     s.actuator_names.resize(d.Size());
     for (std::string& a : s.actuator_names) a = d.String();
+    s.ctrl_time.resize(static_cast<Eigen::Index>(d.Size()));
+    d.Get(s.ctrl_time.data(), sizeof(double) * static_cast<size_t>(s.ctrl_time.size()));
+    s.own_times.resize(d.Size());
+    for (auto& [object, times] : s.own_times) {
+      object = d.String();
+      times.resize(static_cast<Eigen::Index>(d.Size()));
+      d.Get(times.data(), sizeof(double) * static_cast<size_t>(times.size()));
+    }
   }
   return log;
 }

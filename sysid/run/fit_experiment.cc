@@ -180,7 +180,12 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
         FitSequence fs_;
         fs_.name = s.name;
         fs_.model = cfg.models[mi].name;
-        fs_.ctrl = s.ctrl.topRows(T);
+        if (s.ctrl_time.size() > 0) {
+          fs_.ctrl = s.ctrl;  // the controls at their own times (dataset ctrl_time)
+          fs_.ctrl_time = s.ctrl_time;
+        } else {
+          fs_.ctrl = s.ctrl.topRows(T);
+        }
         fs_.measured = RowMatrix::Zero(T, m.nsensordata);
         // log columns into the model's sensordata layout
         std::vector<std::string> logged;

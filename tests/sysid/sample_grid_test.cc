@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <vector>
@@ -50,10 +51,11 @@ TEST(SampleGridTest, OffGridPositionsAndSteps) {
   EXPECT_NEAR(g.position[2], 9.9, 1e-9);
   EXPECT_EQ(g.position[3], 15.0);
   EXPECT_EQ(g.steps, 22);  // the last sample (20.4) lies between steps 20 and 21
-  // zero-order hold: the control logged at or before each step
+  // zero-order hold: the average over each step of the held control
   EXPECT_EQ(g.ctrl(0, 0), 1);
-  EXPECT_EQ(g.ctrl(5, 0), 1);  // 5 < 5.15
+  EXPECT_NEAR(g.ctrl(5, 0), 0.15 * 1 + 0.85 * 2, 1e-9);  // 2 from 5.15 on
   EXPECT_EQ(g.ctrl(6, 0), 2);
+  EXPECT_NEAR(g.ctrl(9, 0), 0.9 * 2 + 0.1 * 3, 1e-9);
   EXPECT_EQ(g.ctrl(15, 0), 4);  // on the sample
   EXPECT_EQ(g.ctrl(21, 0), 5);
   // segments of 10 steps: [0, 10) holds samples 0..2, and the one at 9.9 lies past step 9
@@ -90,6 +92,34 @@ TEST(SampleGridTest, ControlsAtTheirOwnTimesHeldOrInterpolatedAndDelayed) {
   const SampleGrid d = BuildSampleGrid(t, 21, 0.0, u2, tc, {}, {0.003, 0.003}, kDt, "");
   EXPECT_EQ(d.ctrl(3, 0), 0);  // 6 - 3 = 3 ms: still the first control
   EXPECT_EQ(d.ctrl(4, 0), 10);
+}
+
+// Zero-order hold gives each step the average of the held (and delayed) command over the step:
+// commands on the grid with a delay of whole steps give exactly the command in force at each
+// step's start (the rule before the average), and the average is linear in the delay between two
+// commands.
+TEST(SampleGridTest, HeldCommandsAreAveragedOverEachStep) {
+  // commands every 5 steps (100 Hz against 2 ms), values 3, -1, 7, 2 at rows of 10 ms
+  const Eigen::VectorXd t = Times({0.0, 0.01, 0.02, 0.03});
+  const Eigen::VectorXd tc = Times({0.0, 0.01, 0.02, 0.03});
+  const RowMatrix u = Column({3, -1, 7, 2});
+  for (const double delay : {0.0, 0.004, 0.01}) {
+    const SampleGrid g = BuildSampleGrid(t, 4, 0.0, u, tc, {}, {delay}, kDt, "");
+    ASSERT_EQ(g.steps, 16);
+    const int shift = static_cast<int>(std::lround(delay / kDt));
+    for (int n = 0; n < g.steps; ++n) {
+      // the command in force at step n's start: the last one logged at or before n - shift
+      const int j = std::min(3, std::max(0, (n - shift) / 5));
+      EXPECT_EQ(g.ctrl(n, 0), u(n - shift < 0 ? 0 : j, 0)) << "delay " << delay << " step " << n;
+    }
+  }
+  // between whole steps the average moves linearly: step 5 with a delay of s steps covers the
+  // command 3 for s of the step and -1 for the rest
+  for (const double s : {0.25, 0.5, 0.75}) {
+    const SampleGrid g = BuildSampleGrid(t, 4, 0.0, u, tc, {}, {s * kDt}, kDt, "");
+    EXPECT_NEAR(g.ctrl(5, 0), 3 * s + -1 * (1 - s), 1e-9) << s;
+    EXPECT_NEAR(g.ctrl(4, 0), 3, 1e-12) << s;
+  }
 }
 
 TEST(SampleGridTest, NanControlsAreHeldFromTheLastValidOne) {

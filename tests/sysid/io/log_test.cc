@@ -4,6 +4,7 @@
 #include <hdf5.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -887,6 +888,226 @@ TEST(NameHintTest, SuggestsCloseNamesOnly) {
   EXPECT_NE(hint.find("s19"), std::string::npos);
   EXPECT_EQ(hint.find("s20"), std::string::npos);
   EXPECT_NE(hint.find("5 more"), std::string::npos);
+}
+
+// ---------------------------------------------------------------------------------------------
+// controls and sensors at their own times (ctrl_time, sensor_time/, sensor_values/)
+
+// writes float64 dataset `dataset` (1-D when cols == 0) of `values`, creating missing groups
+void AddDataset(const std::string& path, const std::string& dataset, const double* values,
+                hsize_t rows, hsize_t cols) {
+  EditFile(path, [&](hid_t f) {
+    const hid_t lcpl = H5Pcreate(H5P_LINK_CREATE);
+    H5Pset_create_intermediate_group(lcpl, 1);
+    const hsize_t dims[2] = {rows, cols};
+    const hid_t space = H5Screate_simple(cols ? 2 : 1, dims, nullptr);
+    const hid_t d =
+        H5Dcreate2(f, dataset.c_str(), H5T_IEEE_F64LE, space, lcpl, H5P_DEFAULT, H5P_DEFAULT);
+    ASSERT_GE(d, 0) << dataset;
+    if (rows > 0) {
+      ASSERT_GE(H5Dwrite(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values), 0);
+    }
+    H5Dclose(d);
+    H5Sclose(space);
+    H5Pclose(lcpl);
+  });
+}
+
+void AddTimes(const std::string& path, const std::string& dataset, const Eigen::VectorXd& t) {
+  AddDataset(path, dataset, t.data(), static_cast<hsize_t>(t.size()), 0);
+}
+
+void AddValues(const std::string& path, const std::string& dataset, const RowMatrix& v) {
+  AddDataset(path, dataset, v.data(), static_cast<hsize_t>(v.rows()),
+             static_cast<hsize_t>(v.cols()));
+}
+
+void DeleteLink(const std::string& path, const std::string& link) {
+  EditFile(path, [&](hid_t f) { ASSERT_GE(H5Ldelete(f, link.c_str(), H5P_DEFAULT), 0) << link; });
+}
+
+TEST_F(LogTest, ControlsAtTheirOwnTimesRoundTrip) {
+  // truth: controls at 50 Hz (6 rows) beside sensors at 100 Hz (11 rows)
+  Log log = PendulumLog(11);
+  Sequence& s = log.sequences[0];
+  s.time = Time(11, 0.01);
+  s.ctrl_time = Time(6, 0.02);
+  s.ctrl = Matrix(6, 1, 7);
+  const std::string path = Path("ctrl_time.h5");
+  WriteLog(path, log);
+  const Log back = ReadLog(path);
+  ExpectSameSequence(back.sequences[0], s);
+  ASSERT_EQ(back.sequences[0].ctrl_time.size(), 6);
+  EXPECT_TRUE(BitEqual(back.sequences[0].ctrl_time.data(), s.ctrl_time.data(), 6));
+  EXPECT_TRUE(back.sequences[0].own_times.empty());
+  // ctrl rows must follow ctrl_time, named as such
+  s.ctrl = Matrix(11, 1, 7);
+  ExpectMentions(LogErrorOf([&] { WriteLog(path, log); }),
+                 {"/run1/ctrl", "has 11 rows", "expected 6 = the samples in ctrl_time"});
+  s.ctrl = Matrix(6, 1, 7);
+  s.ctrl_time[3] = s.ctrl_time[2];
+  ExpectMentions(LogErrorOf([&] { WriteLog(path, log); }),
+                 {"/run1/ctrl_time", "row 3", "strictly increasing"});
+}
+
+// a file whose sequence has `angle` in sensordata at 100 Hz and `rate` at 250 Hz in
+// sensor_time/rate, sensor_values/rate; controls at 50 Hz; 0.1 s long
+class OwnTimesTest : public LogTest {
+ protected:
+  void SetUp() override {
+    LogTest::SetUp();
+    path_ = Path("own_times.h5");
+    Log log = PendulumLog(11);
+    Sequence& s = log.sequences[0];
+    s.time = Time(11, 0.01);
+    s.sensordata = Matrix(11, 1, 2);
+    s.sensor_names = {"angle"};
+    s.sensor_dims = {1};
+    s.qpos.resize(0, 0);
+    s.qvel.resize(0, 0);
+    s.ctrl_time = Time(6, 0.02);
+    s.ctrl = Matrix(6, 1, 7);
+    WriteLog(path_, log);
+    rate_time_ = Time(26, 0.004);
+    rate_ = Matrix(26, 1, 5);
+    AddTimes(path_, "/run1/sensor_time/rate", rate_time_);
+    AddValues(path_, "/run1/sensor_values/rate", rate_);
+    angle_ = s.sensordata;
+  }
+  std::string ReadError() const {
+    return LogErrorOf([&] { ReadLog(path_); });
+  }
+  std::string path_;
+  Eigen::VectorXd rate_time_;
+  RowMatrix rate_, angle_;
+};
+
+TEST_F(OwnTimesTest, SensorsMergeOntoTheUnionOfTheirTimes) {
+  const Log log = ReadLog(path_);
+  const Sequence& s = log.sequences[0];
+  // the union of 0:0.01:0.1 and 0:0.004:0.1, sorted, equal doubles merged
+  std::vector<double> all(s.time.data(), s.time.data() + s.time.size());
+  std::vector<double> expect;
+  for (Eigen::Index k = 0; k < 11; ++k) expect.push_back(Time(11, 0.01)[k]);
+  for (Eigen::Index k = 0; k < 26; ++k) expect.push_back(rate_time_[k]);
+  std::sort(expect.begin(), expect.end());
+  expect.erase(std::unique(expect.begin(), expect.end()), expect.end());
+  EXPECT_EQ(all, expect);
+  EXPECT_EQ(s.sensor_names, (std::vector<std::string>{"angle", "rate"}));
+  EXPECT_EQ(s.sensor_dims, (std::vector<int>{1, 1}));
+  ASSERT_EQ(s.sensordata.rows(), s.time.size());
+  // each sensor at its own times, NaN (not measured) elsewhere
+  int angle_seen = 0, rate_seen = 0;
+  for (Eigen::Index k = 0; k < s.time.size(); ++k) {
+    const double t = s.time[k];
+    const Eigen::VectorXd at = Time(11, 0.01);
+    const auto a = std::find(at.data(), at.data() + 11, t) - at.data();
+    const auto r = std::find(rate_time_.data(), rate_time_.data() + 26, t) - rate_time_.data();
+    if (a < 11) {
+      EXPECT_EQ(s.sensordata(k, 0), angle_(a, 0)) << t;
+      ++angle_seen;
+    } else {
+      EXPECT_TRUE(std::isnan(s.sensordata(k, 0))) << t;
+    }
+    if (r < 26) {
+      EXPECT_EQ(s.sensordata(k, 1), rate_(r, 0)) << t;
+      ++rate_seen;
+    } else {
+      EXPECT_TRUE(std::isnan(s.sensordata(k, 1))) << t;
+    }
+  }
+  EXPECT_EQ(angle_seen, 11);
+  EXPECT_EQ(rate_seen, 26);
+  // the controls keep their own times; the time datasets as read are kept for the checks
+  EXPECT_EQ(s.ctrl_time.size(), 6);
+  ASSERT_EQ(s.own_times.size(), 2u);
+  EXPECT_EQ(s.own_times[0].first, "/run1/time");
+  EXPECT_EQ(s.own_times[1].first, "/run1/sensor_time/rate");
+}
+
+TEST_F(OwnTimesTest, EverySensorAtItsOwnTimesWithoutTimeOrSensordata) {
+  DeleteLink(path_, "/run1/time");
+  ExpectMentions(ReadError(), {path_, "/run1/time", "is missing", "time and sensordata"});
+  DeleteLink(path_, "/run1/sensordata");
+  AddTimes(path_, "/run1/sensor_time/angle", Time(11, 0.01));
+  AddValues(path_, "/run1/sensor_values/angle", angle_);
+  const Sequence s = ReadLog(path_).sequences[0];
+  EXPECT_EQ(s.sensor_names, (std::vector<std::string>{"angle", "rate"}));  // name order
+  EXPECT_EQ(s.own_times.size(), 2u);
+  EXPECT_EQ(s.own_times[0].first, "/run1/sensor_time/angle");
+  // without time, the controls need their own times
+  DeleteLink(path_, "/run1/ctrl_time");
+  ExpectMentions(ReadError(), {path_, "/run1/ctrl_time", "is missing", "their own times"});
+}
+
+TEST_F(OwnTimesTest, ControlsOfTimeKeepTheirTimesWhenSensorsAddSamples) {
+  // ctrl at `time` (11 rows): the union adds times, so ctrl keeps `time` as its own times
+  DeleteLink(path_, "/run1/ctrl_time");
+  DeleteLink(path_, "/run1/ctrl");
+  const RowMatrix ctrl = Matrix(11, 1, 8);
+  AddValues(path_, "/run1/ctrl", ctrl);
+  ReplaceStringAttr(path_, "/run1/ctrl", "names", {"torque"});
+  const Sequence s = ReadLog(path_).sequences[0];
+  ASSERT_EQ(s.ctrl_time.size(), 11);
+  EXPECT_TRUE(BitEqual(s.ctrl_time.data(), Time(11, 0.01).data(), 11));
+  ExpectBitEqual(s.ctrl, ctrl, "ctrl");
+  // states at `time` cannot take the added times
+  AddValues(path_, "/run1/qpos", Matrix(11, 1, 3));
+  ExpectMentions(ReadError(), {path_, "/run1/qpos", "sample time(s) not in /run1/time",
+                               "need a value at every sample time"});
+}
+
+TEST_F(OwnTimesTest, BadLayoutsNameFileDatasetAndExpectation) {
+  // values without times
+  AddValues(path_, "/run1/sensor_values/angle2", Matrix(3, 1, 1));
+  ExpectMentions(ReadError(),
+                 {path_, "/run1/sensor_values/angle2", "has no times", "/run1/sensor_time/angle2"});
+  DeleteLink(path_, "/run1/sensor_values/angle2");
+  // times without values
+  AddTimes(path_, "/run1/sensor_time/angle2", Time(3, 0.01));
+  ExpectMentions(ReadError(), {path_, "/run1/sensor_values/angle2", "is missing", "Ts x dim"});
+  DeleteLink(path_, "/run1/sensor_time/angle2");
+  // rows differing from the sensor's times
+  DeleteLink(path_, "/run1/sensor_values/rate");
+  AddValues(path_, "/run1/sensor_values/rate", Matrix(25, 1, 5));
+  ExpectMentions(ReadError(), {path_, "/run1/sensor_values/rate", "has 25 rows",
+                               "expected 26 = the samples in /run1/sensor_time/rate"});
+  DeleteLink(path_, "/run1/sensor_values/rate");
+  AddValues(path_, "/run1/sensor_values/rate", rate_);
+  // a sensor time going back
+  Eigen::VectorXd t = rate_time_;
+  t[4] = t[2];
+  DeleteLink(path_, "/run1/sensor_time/rate");
+  AddTimes(path_, "/run1/sensor_time/rate", t);
+  ExpectMentions(ReadError(), {path_, "/run1/sensor_time/rate", "row 4", "strictly increasing"});
+  // one of the pair missing
+  DeleteLink(path_, "/run1/sensor_time");
+  ExpectMentions(ReadError(), {path_, "/run1/sensor_time", "is missing", "come together"});
+}
+
+TEST_F(OwnTimesTest, EveryTimeDatasetPassesTheTimeBaseCheck) {
+  const ModelPtr model = LoadModel(kModels + "/pendulum.xml");
+  Log log = ReadLog(path_);
+  // 100 Hz and 250 Hz merged: the union's period varies, each dataset's does not: no warning
+  std::vector<std::string> warnings;
+  ValidateLogAgainstModel(log, *model, "data.h5", &warnings);
+  EXPECT_TRUE(warnings.empty()) << warnings[0];
+  // a gap in the rate sensor's own times is named by its dataset
+  Eigen::VectorXd t = rate_time_;
+  t.tail(5).array() += 0.05;
+  DeleteLink(path_, "/run1/sensor_time/rate");
+  AddTimes(path_, "/run1/sensor_time/rate", t);
+  log = ReadLog(path_);
+  ValidateLogAgainstModel(log, *model, "data.h5", &warnings);
+  ASSERT_EQ(warnings.size(), 1u);
+  ExpectMentions(warnings[0], {"data.h5", "/run1/sensor_time/rate", "gap(s)", "rows 20 and 21"});
+  // controls on another clock, then in the wrong unit: named by ctrl_time
+  log.sequences[0].ctrl_time.array() += 10.0;
+  ExpectMentions(LogErrorOf([&] { ValidateLogAgainstModel(log, *model, "data.h5"); }),
+                 {"data.h5", "/run1", "do not overlap"});
+  log.sequences[0].ctrl_time = Time(6, 0.00001);
+  ExpectMentions(LogErrorOf([&] { ValidateLogAgainstModel(log, *model, "data.h5"); }),
+                 {"data.h5", "/run1/ctrl_time", "below 1/100 of the model timestep"});
 }
 
 }  // namespace
