@@ -241,7 +241,7 @@ struct KindCase {
   std::string model;
   std::vector<Truth> truth;
   std::vector<double> start, lower, upper;
-  double amplitude = 1;
+  double amplitude = 1, offset = 0;
   std::vector<std::pair<std::string, double>> sigma;  // sensor name, noise level
 };
 
@@ -256,7 +256,7 @@ FitResult FitCase(const KindCase& c, bool noisy, int seed) {
     if (c.lower[i] > 0) p.Log();
     problem.AddParameter(p);
   }
-  const RowMatrix u = Excitation(*m, 1500, c.amplitude, seed);
+  const RowMatrix u = Excitation(*m, 1500, c.amplitude, seed, c.offset);
   InitialState x0;
   RowMatrix y = Measure(*m, c.truth, x0, u, 0, 0);
   FitOptions opt;
@@ -339,6 +339,48 @@ KindCase SensorDelayCase() {
 TEST(KindsRecoveryTest, SensorDelayNoiseFree) { ExpectNoiseFreeRecovery(SensorDelayCase()); }
 TEST(KindsRecoveryTest, SensorDelayNoisyTruthInsideIntervals) {
   ExpectNoisyRecovery(SensorDelayCase());
+}
+
+// contact friction and softness (models/box_slide.xml: a box pushed to and fro along the floor):
+// the box's sliding friction and its solref time constant (the contact uses the mean of the box's
+// and the floor's) from x, x rate and height. The cost is rugged: the soft contact switches on
+// and off as the box hovers at the contact threshold and stick-slip switches the friction regime
+// (tests/sysid/problem_test.cc, BoxOnFloorFrictionAndMass). Keeping the contact in the set by a
+// margin and gap (1 cm, 5 mm, elliptic cone) and the box sliding does not make it smooth: measured
+// with MuJoCo's Python bindings, |rollout difference| / parameter step grows 78x from a step of
+// 1e-4 to 1e-6 in the time constant and 12x from 1e-3 to 1e-4 in friction (a smooth rollout
+// keeps it constant); the box still lifts off at 2-3 m/s. So no 1e-6 recovery is asked; the test
+// asks for an honest status: from noisy data (sigma 1 mm, 10 mm/s, 0.1 mm; truth friction 0.4,
+// time constant 0.015 s; start 0.5, 0.02) the fit lands far from the time constant (measured:
+// 0.064) and must not call its intervals valid; the interval check must say why.
+TEST(KindsRecoveryTest, ContactFrictionSoftnessRuggedHonestStatus) {
+  KindCase c;
+  c.model = "box_slide.xml";
+  c.truth = {{"mu", Spec("geom_friction", "box", 0), 0.4},
+             {"timeconst", Spec("geom_solref", "box", 0), 0.015}};
+  c.start = {0.5, 0.02};
+  c.lower = {0.05, 0.004};
+  c.upper = {2.0, 0.2};
+  c.amplitude = 14;
+  c.offset = 3;
+  c.sigma = {{"x", 0.001}, {"xdot", 0.01}, {"z", 1e-4}};
+  const FitResult r = FitCase(c, true, 52);
+  std::printf("[ measured ] status %s, intervals %s\n", FitStatusName(r.outcome),
+              r.intervals_valid ? "valid" : "not valid");
+  for (const std::string& w : r.warnings) std::printf("[ measured ]   warning: %s\n", w.c_str());
+  EXPECT_EQ(r.intervals_valid, r.outcome == FitStatus::kConverged);
+  bool inside = true;
+  for (const Truth& t : c.truth) {
+    const ParameterEstimate& e = Estimate(r, t.name);
+    inside = inside && e.ci95_low <= t.value && t.value <= e.ci95_high;
+  }
+  EXPECT_TRUE(inside || !r.intervals_valid) << "intervals called valid that miss the truth";
+  EXPECT_FALSE(r.intervals_valid);
+  bool rugged_warning = false;
+  for (const std::string& w : r.warnings) {
+    rugged_warning = rugged_warning || w.find("the cost is not smooth") != std::string::npos;
+  }
+  EXPECT_TRUE(rugged_warning);
 }
 
 }  // namespace
