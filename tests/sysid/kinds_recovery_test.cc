@@ -141,7 +141,8 @@ TEST(KindsRecoveryTest, ServoGainsAndDelayNoisyTruthInsideIntervals) {
 // centre of mass and principal moments as derived quantities: the mass interval covers 0.75 kg,
 // and the delta-method standard errors equal the ones computed here by hand (mass = e^(2 alpha):
 // se(mass) = 2 mass se(alpha); com x = t1: se = se(t1)) and through PhysicalInertialCovariance
-// from the covariance of all 10 variables (relative 1e-6); result.yaml keeps them (round trip)
+// from the covariance of all 10 variables (relative 1e-6); result.yaml and result.h5 keep them
+// (round trip)
 TEST(KindsRecoveryTest, PayloadInertialDerivedMassInterval) {
   ModelPtr m = LoadModel(kModels + "/pid_tendon.xml");
   const std::vector<Truth> truth = {
@@ -219,6 +220,11 @@ TEST(KindsRecoveryTest, PayloadInertialDerivedMassInterval) {
   io::WriteResultYaml((dir / "result.yaml").string(), file);
   io::WriteResultH5((dir / "result.h5").string(), file);
   const io::FitResultFile back = io::ReadResult(dir.string());
+  // result.h5 carries them too: one without /derived does not match this result.yaml
+  io::FitResultFile without = file;
+  without.derived.clear();
+  io::WriteResultH5((dir / "result.h5").string(), without);
+  EXPECT_THROW(io::ReadResult(dir.string()), io::ResultError);
   std::filesystem::remove_all(dir);
   ASSERT_EQ(back.derived.size(), r.derived.size());
   for (size_t k = 0; k < r.derived.size(); ++k) {
