@@ -22,6 +22,7 @@
 
 #include "core/text.h"
 #include "sysid/cost_functions.h"
+#include "sysid/derived_inertials.h"
 #include "sysid/evaluation_cache.h"
 #include "sysid/fit_status.h"
 #include "sysid/interval_check.h"
@@ -731,6 +732,27 @@ FitResult Problem::Fit(const FitOptions& options) {
     }
   } else {
     result.warnings.push_back("the residuals could not be evaluated at the estimate");
+  }
+
+  // the physical quantities of bodies fitted through body_inertial (mass, centre of mass,
+  // principal moments) with delta-method intervals from the parameters' covariance
+  {
+    Eigen::VectorXd values(np), se(np);
+    for (int v = 0; v < np; ++v) {
+      values[v] = result.parameters[v].value;
+      se[v] = result.parameters[v].std_error;
+    }
+    Eigen::MatrixXd cov;
+    if (result.uncertainty.covariance.rows() >= np) {
+      cov = result.uncertainty.covariance.topLeftCorner(np, np);
+    }
+    for (const Impl::Model& mo : I.models) {
+      const std::string prefix = I.models.size() > 1 ? mo.name + "/" : "";
+      for (DerivedQuantity& d :
+           DeriveInertials(*mo.model, mo.name, I.params, values, se, cov, prefix)) {
+        result.derived.push_back(std::move(d));
+      }
+    }
   }
   for (const auto& p : result.parameters) {
     if (p.at_lower || p.at_upper) {

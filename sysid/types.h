@@ -278,6 +278,22 @@ struct ParameterSpread {
   double relative = 0;  // (max - min) / |best estimate| (inf when the best is 0 and max > min)
 };
 
+// A quantity computed from estimated variables, not itself estimated (e.g. a body's mass from its
+// log-Cholesky variables): its value at the estimate and a first-order (delta-method) standard
+// error and 95 % interval from the covariance of the variables it is derived from. std_error is
+// NaN without intervals (FitResult::intervals_valid false or no uncertainty step) and +inf when a
+// source variable is unidentifiable.
+struct DerivedQuantity {
+  std::string name;  // e.g. "payload.mass", "payload.com[0]", "payload.inertia[2]"
+  std::string unit;  // "kg", "m", "kg m^2"
+  double value = 0;
+  double std_error = std::numeric_limits<double>::quiet_NaN();
+  double ci95_low = std::numeric_limits<double>::quiet_NaN();
+  double ci95_high = std::numeric_limits<double>::quiet_NaN();
+  std::string derived_from;     // how: the estimated variables and the method, one line
+  std::optional<double> truth;  // the true value when known (synthetic data), for reports
+};
+
 struct FitResult {
   std::vector<ParameterEstimate> parameters;  // physical parameters, then measurement terms
   double initial_cost = 0, final_cost = 0;    // 0.5 |r|^2
@@ -313,6 +329,10 @@ struct FitResult {
   // (e.g. "single shooting: sensitivity bounded (max h*|S| 3.1e-05 <= 0.01)")
   int segment_steps_used = 0;
   std::string segment_reason;
+  // physical quantities derived from the estimate (sysid/derived_inertials.h): per body fitted
+  // through body_inertial its mass, centre of mass and principal moments, with delta-method
+  // intervals; empty when nothing is derived
+  std::vector<DerivedQuantity> derived;
 };
 
 }  // namespace mjsysid

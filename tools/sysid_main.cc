@@ -607,6 +607,18 @@ void PrintEstimates(const mjsysid::io::FitResultFile& f) {
     std::printf("  %-24s %14.6g %14.8g %14s %12.3g  %-29s %s\n", p.name.c_str(), p.initial, p.value,
                 truth, p.std_error, ci, Flags(p).c_str());
   }
+  // quantities derived from the estimate (body_inertial: mass, centre of mass, principal moments)
+  if (!f.derived.empty()) {
+    std::printf("  %-24s %14s %14s %14s %12s  %-29s %s\n", "derived", "unit", "value", "truth",
+                "std", "95% interval", "from");
+  }
+  for (const mjsysid::DerivedQuantity& d : f.derived) {
+    char truth[32] = "-", ci[64];
+    if (d.truth) std::snprintf(truth, sizeof(truth), "%.6g", *d.truth);
+    std::snprintf(ci, sizeof(ci), "[%.6g, %.6g]", d.ci95_low, d.ci95_high);
+    std::printf("  %-24s %14s %14.8g %14s %12.3g  %-29s %s\n", d.name.c_str(), d.unit.c_str(),
+                d.value, truth, d.std_error, ci, d.derived_from.c_str());
+  }
   for (const std::string& u : f.uncertainty.unidentifiable)
     std::printf("  unidentifiable: %s\n", u.c_str());
   if (!f.intervals_valid) {

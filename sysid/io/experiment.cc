@@ -595,8 +595,9 @@ Excitation Parser::ParseExcitation(const Field& f, bool needs_actuator) const {
 }
 
 void Parser::ParseSimulate(const Field& f, const ExperimentConfig& c, SimulateOptions* s) const {
-  const MapReader r(
-      *this, f, {"truth", "sequences", "steps", "seed", "excitation", "noise", "initial_state"});
+  const MapReader r(*this, f,
+                    {"truth", "sequences", "steps", "seed", "excitation", "noise", "initial_state",
+                     "sample_rate", "jitter", "drop"});
   s->marks = r.marks();
   const long long kIntMax = std::numeric_limits<int>::max();
 
@@ -656,6 +657,32 @@ void Parser::ParseSimulate(const Field& f, const ExperimentConfig& c, SimulateOp
     s->initial_state.marks = is.marks();
     if (is.Has("qpos")) s->initial_state.qpos = Numbers(is.Get("qpos"));
     if (is.Has("qvel")) s->initial_state.qvel = Numbers(is.Get("qvel"));
+  }
+
+  // logged as a robot logs: sample rate (Hz), stamp jitter (s), fraction of rows dropped
+  if (r.Has("sample_rate")) {
+    const Field fr = r.Get("sample_rate");
+    s->sample_rate = Finite(fr);
+    if (s->sample_rate <= 0) {
+      Fail(fr.mark, fr.path + ": a sample rate must be > 0 Hz, got " + FormatNumber(s->sample_rate),
+           "leave it out for one sample per simulation step");
+    }
+  }
+  if (r.Has("jitter")) {
+    const Field fj = r.Get("jitter");
+    s->jitter = Finite(fj);
+    if (s->jitter < 0 || !r.Has("sample_rate") || s->jitter >= 0.5 / s->sample_rate) {
+      Fail(fj.mark, fj.path + ": jitter must be >= 0 s and below half a sample period (it needs " +
+                        r.Path("sample_rate") + "), got " + FormatNumber(s->jitter));
+    }
+  }
+  if (r.Has("drop")) {
+    const Field fd = r.Get("drop");
+    s->drop = Finite(fd);
+    if (s->drop < 0 || s->drop >= 0.5 || !r.Has("sample_rate")) {
+      Fail(fd.mark, fd.path + ": drop is the fraction of rows dropped, 0 <= drop < 0.5 (it needs " +
+                        r.Path("sample_rate") + "), got " + FormatNumber(s->drop));
+    }
   }
 }
 

@@ -123,6 +123,12 @@ struct SimulateOptions {
   std::vector<NamedValue> noise;                     // sensor name -> sigma (>= 0)
   SimulateInitialState initial_state;
   Marks marks;
+  // logged as a robot logs (sysid/sim/simulate.h): samples at sample_rate (Hz, > 0; 0: one per
+  // simulation step), each instant but the first moved by uniform(-jitter, jitter) (s, >= 0,
+  // below half a sample period), and a fraction `drop` (0 <= drop < 0.5) of the rows dropped
+  double sample_rate = 0;
+  double jitter = 0;
+  double drop = 0;
 };
 
 // a whole experiment file

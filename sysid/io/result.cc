@@ -210,6 +210,24 @@ std::string EmitYaml(const FitResultFile& r) {
   }
   out << YAML::EndSeq;
 
+  // quantities derived from the estimate (body_inertial: mass, com, principal moments)
+  if (!r.derived.empty()) {
+    out << YAML::Key << "derived" << YAML::Value << YAML::BeginSeq;
+    for (const DerivedQuantity& d : r.derived) {
+      out << YAML::BeginMap;
+      out << YAML::Key << "name" << YAML::Value << d.name;
+      out << YAML::Key << "unit" << YAML::Value << d.unit;
+      out << YAML::Key << "value" << YAML::Value << Number(d.value);
+      out << YAML::Key << "std" << YAML::Value << Number(d.std_error);
+      out << YAML::Key << "ci95" << YAML::Value << YAML::Flow << YAML::BeginSeq
+          << Number(d.ci95_low) << Number(d.ci95_high) << YAML::EndSeq;
+      out << YAML::Key << "derived_from" << YAML::Value << d.derived_from;
+      if (d.truth) out << YAML::Key << "truth" << YAML::Value << Number(*d.truth);
+      out << YAML::EndMap;
+    }
+    out << YAML::EndSeq;
+  }
+
   // lists of text, models
   const std::pair<const char*, const std::vector<std::string>*> lists[] = {
       {"unidentifiable", &r.uncertainty.unidentifiable}, {"warnings", &r.warnings}};
@@ -391,6 +409,26 @@ class YamlReader {
  private:
   std::string file_;
 };
+
+// one entry of `derived:` (name, unit, value, std, ci95 [low, high], derived_from, truth?)
+DerivedQuantity ReadDerived(const YamlReader& y, const YAML::Node& node, size_t index) {
+  const std::string at = "derived[" + std::to_string(index) + "]";
+  if (!node.IsMap()) y.Fail(node, at, "expected a map, found " + YamlReader::Kind(node));
+  DerivedQuantity d;
+  d.name = y.Text(y.Get(node, "name", at + ".name"), at + ".name");
+  d.unit = y.Text(y.Get(node, "unit", at + ".unit"), at + ".unit");
+  d.value = y.Double(y.Get(node, "value", at + ".value"), at + ".value");
+  d.std_error = y.Double(y.Get(node, "std", at + ".std"), at + ".std");
+  const YAML::Node ci = y.Get(node, "ci95", at + ".ci95");
+  if (!ci.IsSequence() || ci.size() != 2) {
+    y.Fail(ci, at + ".ci95", "expected [low, high], found " + YamlReader::Kind(ci));
+  }
+  d.ci95_low = y.Double(ci[0], at + ".ci95[0]");
+  d.ci95_high = y.Double(ci[1], at + ".ci95[1]");
+  d.derived_from = y.Text(y.Get(node, "derived_from", at + ".derived_from"), at + ".derived_from");
+  if (node["truth"]) d.truth = y.Double(node["truth"], at + ".truth");
+  return d;
+}
 
 ParameterEstimate ReadParameter(const YamlReader& y, const YAML::Node& node, size_t index) {
   const std::string path = "parameters[" + std::to_string(index) + "]";
@@ -580,6 +618,16 @@ void ReadYaml(const std::string& path, FitResultFile* r) {
   }
   for (size_t i = 0; i < params.size(); ++i) {
     r->parameters.push_back(ReadParameter(y, params[i], i));
+  }
+
+  // derived quantities (optional: absent when nothing is derived)
+  if (const YAML::Node derived = root["derived"]) {
+    if (!derived.IsSequence()) {
+      y.Fail(derived, "derived", "expected a list, found " + YamlReader::Kind(derived));
+    }
+    for (size_t i = 0; i < derived.size(); ++i) {
+      r->derived.push_back(ReadDerived(y, derived[i], i));
+    }
   }
 
   // lists, models

@@ -15,14 +15,18 @@
 //     sysid/metrics.h; written for readers of the file, recomputed from result.h5 by ReadResult),
 //     starts (multi-start only, sysid/run/multi_start.h: {best, runs: [{start: [...], estimate:
 //     [...], initial_cost, final_cost, status, iterations, error?}], spread: [{name, min, max,
-//     relative}]}; values in the order of `parameters`; read back)
+//     relative}]}; values in the order of `parameters`; read back), derived (only when the fit
+//     derived quantities, sysid/derived_inertials.h: [{name, unit, value, std, ci95: [lo, hi],
+//     derived_from, truth?}]; read back)
 //   std and ci95 bounds that are infinite are written as .inf / -.inf; flags are any of
 //   at_lower_bound, at_upper_bound, unidentifiable.
 // - result.h5 layout: root attributes format = "mjsysid-result", format_version = 1, status,
 //   intervals_valid (int 0/1, as result.yaml's; optional on reading, must agree with result.yaml);
 //   /parameters/{value, initial, std, ci95_low, ci95_high} (np) with string attribute `names`;
-//   /covariance (np x np); /jacobian (nres x np); /trace/{iteration, cost, step_norm,
-//   gradient_norm, seconds, successful} (nit) and /trace/parameters (nit x np);
+//   /derived/{value, std, ci95_low, ci95_high} with attribute `names` (only when result.yaml has
+//   derived; must name the same quantities); /covariance (np x np); /jacobian (nres x np);
+//   /trace/{iteration, cost, step_norm, gradient_norm, seconds, successful} (nit) and
+//   /trace/parameters (nit x np);
 //   /sequences/<name>/{time (T), measured, simulated_initial, simulated_final (T x ns)} with
 //   attributes model, sensor_names (strings), sensor_dims (ints); held-out sequences (experiment
 //   `validation:`) in the same layout under /validation/<name> (absent when there are none).

@@ -73,6 +73,25 @@ void WriteH5Parameters(hid_t root, const FitResultFile& r, const std::string& fi
   }
 }
 
+// /derived (only when the fit derived quantities, e.g. body_inertial's mass): attribute names,
+// datasets value, std, ci95_low, ci95_high (units and provenance: result.yaml's derived)
+void WriteH5Derived(hid_t root, const FitResultFile& r, const std::string& file) {
+  if (r.derived.empty()) return;
+  h5::Id group = h5::CreateGroup(root, "derived", true, file, "/derived");
+  std::vector<std::string> names;
+  std::vector<double> columns[4];
+  for (const DerivedQuantity& d : r.derived) {
+    names.push_back(d.name);
+    const double values[4] = {d.value, d.std_error, d.ci95_low, d.ci95_high};
+    for (int i = 0; i < 4; ++i) columns[i].push_back(values[i]);
+  }
+  h5::WriteStringArrayAttr(group.get(), "names", names, file, "/derived");
+  const char* datasets[4] = {"value", "std", "ci95_low", "ci95_high"};
+  for (int i = 0; i < 4; ++i) {
+    WriteVector(group.get(), datasets[i], columns[i], file, std::string("/derived/") + datasets[i]);
+  }
+}
+
 void WriteH5Trace(hid_t root, const FitResultFile& r, const std::string& file) {
   h5::Id group = h5::CreateGroup(root, "trace", true, file, "/trace");
   std::vector<int> iteration, successful;
@@ -148,6 +167,7 @@ void WriteH5(const std::string& tmp, const FitResultFile& r, const std::string& 
     h5::WriteIntAttr(root.get(), "intervals_valid", {r.intervals_valid ? 1 : 0}, true, file, "/");
     if (!r.run_id.empty()) h5::WriteStringAttr(root.get(), "run_id", r.run_id, file, "/");
     WriteH5Parameters(root.get(), r, file);
+    WriteH5Derived(root.get(), r, file);
 
     // covariance (np x np) and jacobian (nres x np); ColMajor covariance stored row-major
     const RowMatrix cov = r.uncertainty.covariance;
@@ -226,6 +246,28 @@ void ReadH5Parameters(hid_t root, const std::string& file, const FitResultFile& 
   }
   for (const char* name : {"value", "initial", "std", "ci95_low", "ci95_high"}) {
     ReadColumn(group.get(), name, names.size(), file, std::string("/parameters/") + name);
+  }
+}
+
+// /derived, when present: the names of result.yaml's derived quantities, and every column
+void ReadH5Derived(hid_t root, const std::string& file, const FitResultFile& r) {
+  std::vector<std::string> expected;
+  for (const DerivedQuantity& d : r.derived) expected.push_back(d.name);
+  if (!h5::HasLink(root, "derived", file, "/")) {
+    if (!expected.empty()) Fail(file, "/derived", "is missing (result.yaml has derived:)");
+    return;
+  }
+  h5::Id group = OpenGroup(root, "derived", file, "/derived");
+  h5::Id names_attr = RequiredAttr(group.get(), "names", file, "/derived");
+  const std::vector<std::string> names =
+      h5::ReadStrings(names_attr.get(), file, "/derived attribute 'names'");
+  if (names != expected) {
+    Fail(file, "/derived attribute 'names'",
+         "the derived quantities differ from result.yaml's (" + std::to_string(names.size()) +
+             " vs " + std::to_string(expected.size()) + "; written by different fits?)");
+  }
+  for (const char* name : {"value", "std", "ci95_low", "ci95_high"}) {
+    ReadColumn(group.get(), name, names.size(), file, std::string("/derived/") + name);
   }
 }
 
@@ -390,6 +432,7 @@ void ReadH5(const std::string& path, FitResultFile* r, std::string* run_id) {
 
   // arrays
   ReadH5Parameters(root.get(), file, *r);
+  ReadH5Derived(root.get(), file, *r);
   r->uncertainty.covariance =
       h5::ToMatrix(ReadRequired(root.get(), "covariance", 2, file, "/covariance"));
   r->jacobian = h5::ToMatrix(ReadRequired(root.get(), "jacobian", 2, file, "/jacobian"));

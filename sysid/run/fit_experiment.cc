@@ -16,6 +16,7 @@
 #include "core/identified_model.h"
 #include "core/text.h"
 #include "mjsysid/version.h"
+#include "sysid/derived_inertials.h"
 #include "sysid/io/atomic_file.h"
 #include "sysid/io/log.h"
 #include "sysid/io/sequence_models.h"
@@ -87,6 +88,40 @@ int ExitCodeOf(FitStatus status) {
       return 1;  // not converged, interrupted
   }
 }
+
+namespace {
+
+// the true value of each derived quantity (sysid/derived_inertials.h) whose body has a truth for
+// every body_inertial parameter (simulate.truth): the same derivation at the true values
+void SetDerivedTruth(const BuiltProblem& bp, const std::map<std::string, double>& truth,
+                     std::vector<DerivedQuantity>* derived) {
+  if (derived->empty()) return;
+  const auto n = static_cast<Eigen::Index>(bp.parameters.size());
+  Eigen::VectorXd values = Eigen::VectorXd::Zero(n);
+  std::map<std::string, bool> known;  // body -> every body_inertial parameter has a truth
+  for (Eigen::Index v = 0; v < n; ++v) {
+    const FitParameter& p = bp.parameters[static_cast<size_t>(v)];
+    const auto it = truth.find(p.name);
+    if (it != truth.end()) values[v] = it->second;
+    if (p.target.kind != "body_inertial") continue;
+    const bool has = it != truth.end();
+    known[p.target.object] = known.count(p.target.object) ? known[p.target.object] && has : has;
+  }
+  for (size_t mi = 0; mi < bp.models.size(); ++mi) {
+    const std::string prefix = bp.models.size() > 1 ? bp.model_names[mi] + "/" : "";
+    for (const DerivedQuantity& t :
+         DeriveInertials(*bp.models[mi], bp.model_names[mi], bp.parameters, values,
+                         Eigen::VectorXd(), Eigen::MatrixXd(), prefix)) {
+      const std::string body = t.name.substr(prefix.size(), t.name.rfind('.') - prefix.size());
+      if (!known.count(body) || !known[body]) continue;
+      for (DerivedQuantity& d : *derived) {
+        if (d.name == t.name) d.truth = t.value;
+      }
+    }
+  }
+}
+
+}  // namespace
 
 BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
   BuiltProblem out;
@@ -542,6 +577,7 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   for (ParameterEstimate& e : file.parameters) {
     if (truth.count(e.name)) e.truth = truth[e.name];
   }
+  SetDerivedTruth(bp, truth, &file.derived);
   file.warnings.insert(file.warnings.begin(), bp.warnings.begin(), bp.warnings.end());
   out.printed_warnings = static_cast<int>(bp.warnings.size());
   out.exit_code = ExitCodeOf(r.outcome);

@@ -2,9 +2,11 @@
 
 #include <mujoco/mujoco.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -13,6 +15,8 @@
 #include "core/simulator.h"
 #include "core/text.h"
 #include "mjsysid/version.h"
+#include "sysid/residual_model.h"
+#include "sysid/sample_grid.h"
 #include "sysid/sim/excitation.h"
 
 namespace mjsysid::sim {
@@ -84,6 +88,49 @@ struct TruthRecord {
   bool from_model = false;                               // no truth entry: the model's value
 };
 
+// The instants a robot logs at (simulate.sample_rate, jitter, drop): t_0 = 0, then k / rate moved
+// by uniform(-jitter, jitter), up to the last simulation step's time; then round(drop T) rows other
+// than the first and last dropped at random. Strictly increasing (jitter < half a period).
+std::vector<double> RobotSampleTimes(const io::SimulateOptions& so, double duration,
+                                     std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> jitter(-so.jitter, so.jitter);
+  std::vector<double> times = {0.0};
+  const double period = 1.0 / so.sample_rate;
+  for (int k = 1; k * period + so.jitter <= duration; ++k) {
+    times.push_back(k * period + (so.jitter > 0 ? jitter(rng) : 0.0));
+  }
+  const int drops = static_cast<int>(std::round(so.drop * static_cast<double>(times.size())));
+  for (int d = 0; d < drops && times.size() > 2; ++d) {
+    std::uniform_int_distribution<size_t> row(1, times.size() - 2);
+    times.erase(times.begin() + static_cast<long>(row(rng)));
+  }
+  return times;
+}
+
+// rows of `steps` (N x n, one per simulation step) read at the samples' positions (in steps) by
+// the fit's own interpolation (DelayedSample, delay 0): T x n
+RowMatrix ReadAtPositions(const RowMatrix& steps, const std::vector<double>& position, double dt) {
+  RowMatrix out(static_cast<Eigen::Index>(position.size()), steps.cols());
+  for (size_t k = 0; k < position.size(); ++k) {
+    const DelayedSample at(position[k], static_cast<int>(steps.rows()), 0.0, dt);
+    for (Eigen::Index c = 0; c < steps.cols(); ++c) {
+      out(static_cast<Eigen::Index>(k), c) = at.Value(Signal{steps.data() + c, steps.cols()});
+    }
+  }
+  return out;
+}
+
+// interpolated qpos rows: the quaternions of ball and free joints normalised again
+void NormalizeQuaternions(const mjModel& m, RowMatrix* qpos) {
+  for (int j = 0; j < m.njnt; ++j) {
+    const int type = m.jnt_type[j];
+    if (type != mjJNT_BALL && type != mjJNT_FREE) continue;
+    const int adr = m.jnt_qposadr[j] + (type == mjJNT_FREE ? 3 : 0);
+    for (Eigen::Index k = 0; k < qpos->rows(); ++k) mju_normalize4(qpos->row(k).data() + adr);
+  }
+}
+
 }  // namespace
 
 std::string SimulatedSequenceName(const io::ExperimentConfig& config, const std::string& model,
@@ -146,9 +193,29 @@ io::Log SimulateExperiment(const io::ExperimentConfig& config, const SimulateSet
     const StateDims& dims = sim.dims();
     const double dt = m.opt.timestep;
     std::vector<SequenceInput> inputs(so.sequences);
+    // a robot's log (sample_rate): its sample instants, its controls logged at them, and where
+    // each instant sits on the simulation grid; the rollout holds the logged controls exactly as
+    // the fit does (BuildSampleGrid), so a noise-free log is reproduced by the true parameters
+    std::vector<std::vector<double>> sample_times(so.sequences), positions(so.sequences);
+    std::vector<RowMatrix> logged_ctrl(so.sequences);
     for (int s = 0; s < so.sequences; ++s) {
       inputs[s].x0 = InitialStateOf(config, sim);
       inputs[s].ctrl = GenerateControls(m, so.excitation, so.steps, so.seed + s);
+      if (so.sample_rate <= 0) continue;
+      const std::vector<double>& times = sample_times[s] =
+          RobotSampleTimes(so, (so.steps - 1) * dt, SeedFor(so.seed + s, kSampleStream + mi));
+      RowMatrix& uk = logged_ctrl[s];
+      uk.resize(static_cast<Eigen::Index>(times.size()), dims.nu);
+      for (size_t k = 0; k < times.size(); ++k) {
+        const int n = std::min(so.steps - 1, static_cast<int>(std::floor(times[k] / dt + 1e-9)));
+        uk.row(static_cast<Eigen::Index>(k)) = inputs[s].ctrl.row(n);
+      }
+      const Eigen::VectorXd t = Eigen::Map<const Eigen::VectorXd>(times.data(), times.size());
+      const SampleGrid grid =
+          BuildSampleGrid(t, static_cast<int>(times.size()), 0.0, uk, Eigen::VectorXd(), {}, {}, dt,
+                          "simulate: sequence " + std::to_string(s));
+      inputs[s].ctrl = grid.ctrl;
+      positions[s] = grid.position;
     }
     std::vector<Trajectory> traj;
     sim.Rollout(inputs, &traj);
@@ -161,17 +228,32 @@ io::Log SimulateExperiment(const io::ExperimentConfig& config, const SimulateSet
     }
     std::vector<std::string> names;
     for (int s = 0; s < so.sequences; ++s) {
-      const int T = so.steps;
       io::Sequence seq;
       seq.name = SimulatedSequenceName(config, spec.name, s);
-      seq.time.resize(T);
-      for (int k = 0; k < T; ++k) seq.time[k] = k * dt;
-      seq.ctrl = inputs[s].ctrl;
-      seq.sensordata = traj[s].sensors;
+      if (so.sample_rate <= 0) {
+        // one sample per simulation step
+        const int T = so.steps;
+        seq.time.resize(T);
+        for (int k = 0; k < T; ++k) seq.time[k] = k * dt;
+        seq.ctrl = inputs[s].ctrl;
+        seq.sensordata = traj[s].sensors;
+        seq.qpos = traj[s].states.block(0, 0, T, dims.nq);
+        seq.qvel = traj[s].states.block(0, dims.nq, T, dims.nv);
+        if (dims.na > 0) seq.act = traj[s].states.block(0, dims.nq + dims.nv, T, dims.na);
+      } else {
+        // at the robot's instants: sensors and states interpolated between the steps around each
+        const std::vector<double>& times = sample_times[s];
+        seq.time = Eigen::Map<const Eigen::VectorXd>(times.data(), times.size());
+        seq.ctrl = logged_ctrl[s];
+        seq.sensordata = ReadAtPositions(traj[s].sensors, positions[s], dt);
+        const RowMatrix states = ReadAtPositions(traj[s].states, positions[s], dt);
+        const Eigen::Index T = states.rows();
+        seq.qpos = states.block(0, 0, T, dims.nq);
+        NormalizeQuaternions(m, &seq.qpos);
+        seq.qvel = states.block(0, dims.nq, T, dims.nv);
+        if (dims.na > 0) seq.act = states.block(0, dims.nq + dims.nv, T, dims.na);
+      }
       AddSensorNoise(m, so.noise, SeedFor(so.seed + s, kNoiseStream + mi), &seq.sensordata);
-      seq.qpos = traj[s].states.block(0, 0, T, dims.nq);
-      seq.qvel = traj[s].states.block(0, dims.nq, T, dims.nv);
-      if (dims.na > 0) seq.act = traj[s].states.block(0, dims.nq + dims.nv, T, dims.na);
       seq.sensor_names = sensor_names;
       seq.sensor_dims = sensor_dims;
       seq.actuator_names = actuator_names;
@@ -199,6 +281,11 @@ io::Log SimulateExperiment(const io::ExperimentConfig& config, const SimulateSet
   attr["sequences"] = std::to_string(so.sequences);
   attr["steps"] = std::to_string(so.steps);
   attr["excitation"] = DescribeExcitation(so.excitation);
+  if (so.sample_rate > 0) {
+    attr["sample_rate"] = FormatG17(so.sample_rate);
+    attr["jitter"] = FormatG17(so.jitter);
+    attr["drop"] = FormatG17(so.drop);
+  }
   for (const io::NamedValue& n : so.noise) attr["noise." + n.name] = FormatG17(n.value);
   std::vector<std::string> from_model;
   for (const io::ParameterSpec& p : config.parameters) {

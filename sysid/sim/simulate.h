@@ -14,6 +14,15 @@
 //   noise), and the true qpos, qvel (and act when na > 0) x_0 .. x_{T-1}, so that a user can
 //   check state estimation. Re-simulating ctrl from x_0 with the true parameters through a
 //   Simulator with the same options reproduces sensordata bit for bit when the noise is zero.
+// - Logged as a robot logs (simulate.sample_rate > 0): the sequence's samples come at t_0 = 0 and
+//   k / sample_rate moved by uniform(-jitter, jitter), up to (steps - 1) * timestep, with
+//   round(drop * T) rows other than the first and last dropped. ctrl is logged at those instants
+//   (the generated control of the step each falls in) and the rollout holds it on the simulation
+//   grid as the fit does (BuildSampleGrid, zero-order hold); sensordata, qpos, qvel, act are the
+//   rollout interpolated linearly between the two steps around each instant (the fit's
+//   DelayedSample; ball and free joints' quaternions normalised again), so re-fitting the
+//   noise-free log at the true values gives zero residuals. The instants of sequence s of model
+//   i use SeedFor(seed + s, kSampleStream + i). Attributes sample_rate, jitter, drop.
 // - Randomness (all reproducible from simulate.seed): the controls of sequence s use seed
 //   `seed + s` (the same for every model, so models see the same excitation), the noise of
 //   sequence s of model i uses SeedFor(seed + s, kNoiseStream + i).
@@ -46,6 +55,8 @@ namespace mjsysid::sim {
 
 // stream index of the sensor noise (see SeedFor); model i uses kNoiseStream + i
 inline constexpr std::uint64_t kNoiseStream = 0x6e6f697365;  // "noise"
+// stream index of a robot log's sample instants and drops; model i uses kSampleStream + i
+inline constexpr std::uint64_t kSampleStream = 0x74696d65;  // "time"
 
 struct SimulateSettings {
   int threads = 0;  // simulator workers; <= 0: all cores

@@ -2,14 +2,18 @@
 // simulator from known truth, fits started away from it; each test states truth, start, noise and
 // tolerance, and fails when recovery fails
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <random>
 #include <string>
 #include <vector>
 
+#include "core/inertia_cholesky.h"
 #include "core/mujoco_env.h"
+#include "sysid/io/result.h"
 #include "sysid/problem.h"
 #include "tests/fit_test_util.h"
 #include "tests/test_util.h"
@@ -129,6 +133,260 @@ TEST(KindsRecoveryTest, ServoGainsAndDelayNoisyTruthInsideIntervals) {
     EXPECT_LE(e.ci95_low, t.value) << t.name;
     EXPECT_GE(e.ci95_high, t.value) << t.name;
   }
+}
+
+// the lower link's mass and centre of mass x through body_inertial (alpha, t1) from noisy joint
+// angles and rate (sigma 1 mrad, 1 mrad, 10 mrad/s, weighted by them). Truth: alpha ln sqrt(0.75)
+// (0.75 kg), t1 0.14 m; start: the model's ln sqrt(0.6), 0.12. The fit reports the link's mass,
+// centre of mass and principal moments as derived quantities: the mass interval covers 0.75 kg,
+// and the delta-method standard errors equal the ones computed here by hand (mass = e^(2 alpha):
+// se(mass) = 2 mass se(alpha); com x = t1: se = se(t1)) and through PhysicalInertialCovariance
+// from the covariance of all 10 variables (relative 1e-6); result.yaml and result.h5 keep them
+// (round trip)
+TEST(KindsRecoveryTest, PayloadInertialDerivedMassInterval) {
+  ModelPtr m = LoadModel(kModels + "/pid_tendon.xml");
+  const std::vector<Truth> truth = {
+      {"alpha", Spec("body_inertial", "lower", 0), 0.5 * std::log(0.75)},
+      {"t1", Spec("body_inertial", "lower", 7), 0.14}};
+  Problem problem;
+  problem.AddModel("arm", *m);
+  problem.AddParameter(FitParameter("alpha", truth[0].spec, 0.5 * std::log(0.6)).Bounds(-3, 3));
+  problem.AddParameter(FitParameter("t1", truth[1].spec, 0.12).Bounds(-1, 1));
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> n(0, 1);
+  const double sigma[3] = {0.001, 0.001, 0.01};
+  for (int s = 0; s < 2; ++s) {
+    const RowMatrix u = Excitation(*m, 1500, 1.0, 40 + s);
+    InitialState x0;
+    RowMatrix y = Measure(*m, truth, x0, u, 0, 0);
+    for (int k = 0; k < y.rows(); ++k) {
+      for (int c = 0; c < 3; ++c) y(k, c) += sigma[c] * n(rng);
+    }
+    problem.AddSequence(FitSequence("seq" + std::to_string(s), "arm", x0, u, y));
+  }
+  FitOptions opt;
+  opt.sensor_weights = {
+      {"q_shoulder", 1 / sigma[0]}, {"q_elbow", 1 / sigma[1]}, {"v_shoulder", 1 / sigma[2]}};
+  opt.sensors_with_sigma = {"q_shoulder", "q_elbow", "v_shoulder"};
+  const FitResult r = problem.Fit(opt);
+  Print(r);
+  ASSERT_EQ(r.outcome, FitStatus::kConverged) << r.termination;
+  ASSERT_EQ(r.derived.size(), 7u);
+  for (const DerivedQuantity& d : r.derived) {
+    std::printf("[ measured ]   %-18s %.9g +- %.3g [%.6g, %.6g] %s (%s)\n", d.name.c_str(), d.value,
+                d.std_error, d.ci95_low, d.ci95_high, d.unit.c_str(), d.derived_from.c_str());
+  }
+  const ParameterEstimate& alpha = Estimate(r, "alpha");
+  const ParameterEstimate& t1 = Estimate(r, "t1");
+  const DerivedQuantity& mass = r.derived[0];
+  const DerivedQuantity& com_x = r.derived[1];
+  EXPECT_EQ(mass.name, "lower.mass");
+  EXPECT_EQ(com_x.name, "lower.com[0]");
+  EXPECT_EQ(mass.unit, "kg");
+  // the mass interval covers the truth
+  EXPECT_LE(mass.ci95_low, 0.75);
+  EXPECT_GE(mass.ci95_high, 0.75);
+  EXPECT_NEAR(mass.value, std::exp(2 * alpha.value), 1e-12);
+  // the delta method by hand: mass = e^(2 alpha), com x = t1
+  EXPECT_NEAR(mass.std_error / (2 * mass.value * alpha.std_error), 1.0, 1e-6);
+  EXPECT_NEAR(com_x.std_error / t1.std_error, 1.0, 1e-6);
+  EXPECT_NEAR(com_x.value, t1.value, 1e-12);
+  // the full 7 x 7 propagation from the 10 variables' covariance (zero where not fitted)
+  double theta[kInertialVariables];
+  ASSERT_TRUE(ToLogCholesky(BodyInertialOf(*m, mj_name2id(m.get(), mjOBJ_BODY, "lower")), theta));
+  theta[0] = alpha.value;
+  theta[7] = t1.value;
+  double c10[kInertialVariables * kInertialVariables] = {}, c7[49];
+  const int ia[2] = {0, 7};
+  for (int i = 0; i < 2; ++i) {
+    for (int j = 0; j < 2; ++j)
+      c10[ia[i] * kInertialVariables + ia[j]] = r.uncertainty.covariance(i, j);
+  }
+  PhysicalInertialCovariance(theta, c10, c7);
+  for (int k = 0; k < kInertialPhysical; ++k) {
+    const double se = std::sqrt(c7[k * kInertialPhysical + k]);
+    EXPECT_NEAR(r.derived[k].std_error, se, 1e-9 * std::max(se, 1e-12)) << r.derived[k].name;
+  }
+
+  // result.yaml round trip
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
+                                    ("mjsysid_kinds_derived_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  io::FitResultFile file;
+  static_cast<FitResult&>(file) = r;
+  file.name = "derived";
+  file.status = FitStatusName(r.outcome);
+  file.intervals_valid = true;
+  io::WriteResultYaml((dir / "result.yaml").string(), file);
+  io::WriteResultH5((dir / "result.h5").string(), file);
+  const io::FitResultFile back = io::ReadResult(dir.string());
+  // result.h5 carries them too: one without /derived does not match this result.yaml
+  io::FitResultFile without = file;
+  without.derived.clear();
+  io::WriteResultH5((dir / "result.h5").string(), without);
+  EXPECT_THROW(io::ReadResult(dir.string()), io::ResultError);
+  std::filesystem::remove_all(dir);
+  ASSERT_EQ(back.derived.size(), r.derived.size());
+  for (size_t k = 0; k < r.derived.size(); ++k) {
+    const DerivedQuantity& a = r.derived[k];
+    const DerivedQuantity& b = back.derived[k];
+    EXPECT_EQ(b.name, a.name);
+    EXPECT_EQ(b.unit, a.unit);
+    EXPECT_EQ(b.derived_from, a.derived_from);
+    EXPECT_DOUBLE_EQ(b.value, a.value);
+    EXPECT_DOUBLE_EQ(b.std_error, a.std_error);
+    EXPECT_DOUBLE_EQ(b.ci95_low, a.ci95_low);
+    EXPECT_DOUBLE_EQ(b.ci95_high, a.ci95_high);
+  }
+}
+
+// One kind's recovery case: a model, its true values, the start and bounds of each (log transform
+// where positive), the excitation amplitude, and the noise (per sensor, in sensor order) of the
+// noisy variant.
+struct KindCase {
+  std::string model;
+  std::vector<Truth> truth;
+  std::vector<double> start, lower, upper;
+  double amplitude = 1, offset = 0;
+  std::vector<std::pair<std::string, double>> sigma;  // sensor name, noise level
+};
+
+// fits the case from one 1500-step sequence (seed), noise-free or with its noise (weighted by it)
+FitResult FitCase(const KindCase& c, bool noisy, int seed) {
+  ModelPtr m = LoadModel(kModels + "/" + c.model);
+  Problem problem;
+  problem.AddModel("m", *m);
+  for (size_t i = 0; i < c.truth.size(); ++i) {
+    FitParameter p(c.truth[i].name, c.truth[i].spec, c.start[i]);
+    p.Bounds(c.lower[i], c.upper[i]);
+    if (c.lower[i] > 0) p.Log();
+    problem.AddParameter(p);
+  }
+  const RowMatrix u = Excitation(*m, 1500, c.amplitude, seed, c.offset);
+  InitialState x0;
+  RowMatrix y = Measure(*m, c.truth, x0, u, 0, 0);
+  FitOptions opt;
+  if (noisy) {
+    std::mt19937_64 rng(seed);
+    std::normal_distribution<double> n(0, 1);
+    for (const auto& [sensor, sigma] : c.sigma) {
+      const int id = mj_name2id(m.get(), mjOBJ_SENSOR, sensor.c_str());
+      const int col = m->sensor_adr[id];
+      for (int k = 0; k < y.rows(); ++k) y(k, col) += sigma * n(rng);
+      opt.sensor_weights[sensor] = 1 / sigma;
+      opt.sensors_with_sigma.push_back(sensor);
+    }
+  }
+  problem.AddSequence(FitSequence("seq0", "m", x0, u, y));
+  const FitResult r = problem.Fit(opt);
+  Print(r);
+  return r;
+}
+
+// noise-free: every value within relative 1e-6 of the truth
+void ExpectNoiseFreeRecovery(const KindCase& c) {
+  const FitResult r = FitCase(c, false, 50);
+  EXPECT_TRUE(r.converged) << r.termination;
+  for (const Truth& t : c.truth) {
+    EXPECT_NEAR(Estimate(r, t.name).value / t.value, 1.0, 1e-6) << t.name;
+  }
+}
+
+// noisy: status converged (intervals valid), residual variance that of the noise, and the truth
+// inside every 95% interval
+void ExpectNoisyRecovery(const KindCase& c) {
+  const FitResult r = FitCase(c, true, 51);
+  EXPECT_EQ(r.outcome, FitStatus::kConverged) << FitStatusName(r.outcome) << ": " << r.termination;
+  EXPECT_NEAR(r.uncertainty.residual_variance, 1.0, 0.15);
+  for (const Truth& t : c.truth) {
+    const ParameterEstimate& e = Estimate(r, t.name);
+    EXPECT_GT(e.std_error, 0) << t.name;
+    EXPECT_LE(e.ci95_low, t.value) << t.name;
+    EXPECT_GE(e.ci95_high, t.value) << t.name;
+  }
+}
+
+// a voltage-driven DC motor (models/dcmotor.xml, inductance 0.02 H, cogging on): the motor
+// constant and winding resistance from the link's angle and rate under +-6 V multi-sine voltages.
+// Truth: motorconst 0.045 N m/A, resistance 1.7 ohm; start: the model's 0.05, 1.5. Noise: 1 mrad,
+// 10 mrad/s.
+KindCase DcMotorCase() {
+  KindCase c;
+  c.model = "dcmotor.xml";
+  c.truth = {{"motorconst", Spec("dcmotor_motorconst", "motor"), 0.045},
+             {"resistance", Spec("dcmotor_resistance", "motor"), 1.7}};
+  c.start = {0.05, 1.5};
+  c.lower = {1e-3, 0.1};
+  c.upper = {1.0, 20.0};
+  c.amplitude = 6;
+  c.sigma = {{"angle", 0.001}, {"rate", 0.01}};
+  return c;
+}
+
+TEST(KindsRecoveryTest, DcMotorNoiseFree) { ExpectNoiseFreeRecovery(DcMotorCase()); }
+TEST(KindsRecoveryTest, DcMotorNoisyTruthInsideIntervals) { ExpectNoisyRecovery(DcMotorCase()); }
+
+// a native sensor delay with linear interpolation (models/servo_delay.xml: the angle read through
+// a 5-sample history) with the servo's kp. Truth: angle delay 4.5 ms, kp 25; start: the model's
+// 3 ms, 20. Noise: 1 mrad on the angle, 10 mrad/s on the rate.
+KindCase SensorDelayCase() {
+  KindCase c;
+  c.model = "servo_delay.xml";
+  c.truth = {{"delay", Spec("sensor_delay", "angle"), 0.0045},
+             {"kp", Spec("actuator_kp", "servo"), 25}};
+  c.start = {0.003, 20};
+  c.lower = {0.0, 1.0};
+  c.upper = {0.008, 200.0};
+  c.amplitude = 0.8;
+  c.sigma = {{"angle", 0.001}, {"rate", 0.01}};
+  return c;
+}
+
+TEST(KindsRecoveryTest, SensorDelayNoiseFree) { ExpectNoiseFreeRecovery(SensorDelayCase()); }
+TEST(KindsRecoveryTest, SensorDelayNoisyTruthInsideIntervals) {
+  ExpectNoisyRecovery(SensorDelayCase());
+}
+
+// contact friction and softness (models/box_slide.xml: a box pushed to and fro along the floor):
+// the box's sliding friction and its solref time constant (the contact uses the mean of the box's
+// and the floor's) from x, x rate and height. The cost is rugged: the soft contact switches on
+// and off as the box hovers at the contact threshold and stick-slip switches the friction regime
+// (tests/sysid/problem_test.cc, BoxOnFloorFrictionAndMass). Keeping the contact in the set by a
+// margin and gap (1 cm, 5 mm, elliptic cone) and the box sliding does not make it smooth: measured
+// with MuJoCo's Python bindings, |rollout difference| / parameter step grows 78x from a step of
+// 1e-4 to 1e-6 in the time constant and 12x from 1e-3 to 1e-4 in friction (a smooth rollout
+// keeps it constant); the box still lifts off at 2-3 m/s. So no 1e-6 recovery is asked; the test
+// asks for an honest status: from noisy data (sigma 1 mm, 10 mm/s, 0.1 mm; truth friction 0.4,
+// time constant 0.015 s; start 0.5, 0.02) the fit lands far from the time constant (measured:
+// 0.064) and must not call its intervals valid; the interval check must say why.
+TEST(KindsRecoveryTest, ContactFrictionSoftnessRuggedHonestStatus) {
+  KindCase c;
+  c.model = "box_slide.xml";
+  c.truth = {{"mu", Spec("geom_friction", "box", 0), 0.4},
+             {"timeconst", Spec("geom_solref", "box", 0), 0.015}};
+  c.start = {0.5, 0.02};
+  c.lower = {0.05, 0.004};
+  c.upper = {2.0, 0.2};
+  c.amplitude = 14;
+  c.offset = 3;
+  c.sigma = {{"x", 0.001}, {"xdot", 0.01}, {"z", 1e-4}};
+  const FitResult r = FitCase(c, true, 52);
+  std::printf("[ measured ] status %s, intervals %s\n", FitStatusName(r.outcome),
+              r.intervals_valid ? "valid" : "not valid");
+  for (const std::string& w : r.warnings) std::printf("[ measured ]   warning: %s\n", w.c_str());
+  EXPECT_EQ(r.intervals_valid, r.outcome == FitStatus::kConverged);
+  bool inside = true;
+  for (const Truth& t : c.truth) {
+    const ParameterEstimate& e = Estimate(r, t.name);
+    inside = inside && e.ci95_low <= t.value && t.value <= e.ci95_high;
+  }
+  EXPECT_TRUE(inside || !r.intervals_valid) << "intervals called valid that miss the truth";
+  EXPECT_FALSE(r.intervals_valid);
+  bool rugged_warning = false;
+  for (const std::string& w : r.warnings) {
+    rugged_warning = rugged_warning || w.find("the cost is not smooth") != std::string::npos;
+  }
+  EXPECT_TRUE(rugged_warning);
 }
 
 }  // namespace

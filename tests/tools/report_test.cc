@@ -275,6 +275,31 @@ TEST_F(ReportTest, LongSequencesAreDecimatedAndManyColumnsTiled) {
   EXPECT_LT(fs::file_size(Path("report.html")), 3u << 20);
 }
 
+// the derived quantities (body_inertial: mass, com, principal moments) get their own table
+// below the parameters, with unit, interval and where they come from; a result without any has none
+TEST_F(ReportTest, DerivedQuantitiesGetATable) {
+  io::FitResultFile r = Result(50);
+  EXPECT_EQ(WriteReport(r, Dir(), nullptr), 4);
+  EXPECT_EQ(ReadBytes(Path("report.html")).find("Derived quantities"), std::string::npos);
+  DerivedQuantity d;
+  d.name = "link7.mass";
+  d.unit = "kg";
+  d.value = 1.25;
+  d.std_error = 0.01;
+  d.ci95_low = 1.23;
+  d.ci95_high = 1.27;
+  d.derived_from = "body_inertial (payload_alpha) by the delta method";
+  r.derived.push_back(d);
+  EXPECT_EQ(WriteReport(r, Dir(), nullptr), 4);
+  const std::string html = ReadBytes(Path("report.html"));
+  const size_t table = html.find("<h3>Derived quantities</h3>");
+  ASSERT_NE(table, std::string::npos);
+  EXPECT_LT(html.find("<h2>Parameters</h2>"), table);
+  EXPECT_NE(html.find("<td>link7.mass</td><td>kg</td>", table), std::string::npos);
+  EXPECT_NE(html.find("body_inertial (payload_alpha) by the delta method", table),
+            std::string::npos);
+}
+
 TEST_F(ReportTest, EmptyResultsStillMakeAPage) {
   io::FitResultFile r;
   r.name = "nothing";

@@ -139,6 +139,21 @@ void ParameterSection(std::ostringstream& h, const FitResultFile& r) {
     }
     h << "</table>\n";
   }
+  // quantities derived from the estimate (body_inertial: mass, centre of mass, principal moments)
+  if (!r.derived.empty()) {
+    h << "<h3>Derived quantities</h3>\n<table class=\"derived\">\n<tr><th>quantity</th>"
+         "<th>unit</th><th>value</th><th>std</th><th>95% CI</th><th>truth</th><th>from</th>"
+         "</tr>\n";
+    for (const DerivedQuantity& d : r.derived) {
+      h << "<tr><td>" << HtmlEscape(d.name) << "</td><td>" << HtmlEscape(d.unit)
+        << "</td><td class=\"n\"><b>" << HtmlNum(d.value) << "</b></td><td class=\"n\">"
+        << HtmlNum(d.std_error, 3) << "</td><td class=\"n\">[" << HtmlNum(d.ci95_low) << ", "
+        << HtmlNum(d.ci95_high) << "]</td><td class=\"n\">"
+        << (d.truth ? HtmlNum(*d.truth) : "&ndash;") << "</td><td>" << HtmlEscape(d.derived_from)
+        << "</td></tr>\n";
+    }
+    h << "</table>\n";
+  }
   h << "<h3>Unidentifiable combinations</h3>\n";
   if (r.uncertainty.unidentifiable.empty()) {
     h << "<p class=\"muted\">none: the data determine every parameter</p>\n";

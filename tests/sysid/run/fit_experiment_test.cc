@@ -106,11 +106,29 @@ TEST(FitExperimentTest, EveryShippedExperimentRecoversItsTruth) {
         EXPECT_LT(std::abs(p.value - t), std::abs(p.initial - t)) << p.name;
       }
     }
+    // derived quantities (body_inertial: mass, com, principal moments) with a truth: as the
+    // parameters under "ci" (servo_arm7's payload mass, 1.1 kg)
+    for (const DerivedQuantity& d : out.file.derived) {
+      if (!d.truth) continue;
+      std::printf(
+          "[ measured ]   %-22s derived  estimate %-12.6g truth %-8.4g 95%% CI [%.6g, %.6g]\n",
+          d.name.c_str(), d.value, *d.truth, d.ci95_low, d.ci95_high);
+      if (expect.rule == "ci") {
+        EXPECT_LE(std::abs(d.value - *d.truth), 4 * d.std_error) << d.name;
+      }
+    }
+    if (name == "servo_arm7") {
+      ASSERT_FALSE(out.file.derived.empty());
+      EXPECT_EQ(out.file.derived[0].name, "link7.mass");
+      ASSERT_TRUE(out.file.derived[0].truth.has_value());
+      EXPECT_NEAR(*out.file.derived[0].truth, std::exp(2 * 0.0477), 1e-12);
+    }
     EXPECT_LT(out.file.final_cost, out.file.initial_cost);
 
     // what a user loads afterwards: both files, the identified model, the report
     const io::FitResultFile back = io::ReadResult(opt.out_dir);
     EXPECT_EQ(back.parameters.size(), out.file.parameters.size());
+    EXPECT_EQ(back.derived.size(), out.file.derived.size());
     EXPECT_EQ(back.status, out.file.status);
     for (const auto& [model, file] : back.identified_models) {
       EXPECT_TRUE(fs::exists(opt.out_dir + "/" + file)) << file;

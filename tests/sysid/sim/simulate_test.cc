@@ -19,6 +19,7 @@
 #include "mjsysid/version.h"
 #include "sysid/io/experiment.h"
 #include "sysid/io/log.h"
+#include "sysid/problem.h"
 #include "tests/temp_dir_test.h"
 
 namespace mjsysid::sim {
@@ -164,6 +165,79 @@ TEST_F(SimulateTest, ResultIsIndependentOfThreadsAndReproducibleFromTheSeed) {
   EXPECT_FALSE(a.sequences[0].ctrl == c.sequences[0].ctrl);
   // seed 6's first sequence is seed 5's second: seeds are seed + sequence index
   EXPECT_TRUE(a.sequences[1].ctrl == c.sequences[0].ctrl);
+}
+
+// ---------------------------------------------------------------------------------------------
+// logged as a robot logs (simulate.sample_rate, jitter, drop)
+
+// the pendulum experiment at 150 Hz, stamps jittered by up to 1 ms, 2 % of the rows dropped: the
+// instants are off the 2 ms grid, within the jitter of a 150 Hz clock, the drops counted; and a
+// fit at the truth reads the noise-free log with zero residual (cost < 1e-20) while the model's
+// values do not (cost > 1e-3)
+TEST_F(SimulateTest, RobotLogIsOffGridAndExactAtTheTruth) {
+  io::ExperimentConfig cfg =
+      Parse(std::string(kPendulum) + "  sample_rate: 150\n  jitter: 0.001\n  drop: 0.02\n");
+  const io::Log log = SimulateExperiment(cfg);
+  const std::string path = (dir_ / "robot.h5").string();
+  io::WriteLog(path, log);
+  const io::Log back = io::ReadLog(path);
+  ModelPtr m = LoadModel(kModels + "/pendulum.xml");
+  io::ValidateLogAgainstModel(back, *m, path);
+  EXPECT_EQ(back.attributes.at("sample_rate"), "150");
+  const double dt = m->opt.timestep, period = 1.0 / 150;
+  // 400 steps: instants up to 0.798 s, 120 of them at 150 Hz, 2 dropped
+  const int nominal = static_cast<int>(std::floor((399 * dt - 0.001) / period)) + 1;
+  for (const io::Sequence& seq : back.sequences) {
+    const Eigen::Index T = seq.time.size();
+    EXPECT_EQ(T, nominal - static_cast<int>(std::round(0.02 * nominal))) << seq.name;
+    EXPECT_EQ(seq.time[0], 0.0);
+    EXPECT_LE(seq.time[T - 1], 399 * dt);
+    int off_grid = 0;
+    for (Eigen::Index k = 1; k < T; ++k) {
+      // each instant within the jitter of a tick of the 150 Hz clock
+      const double tick = std::round(seq.time[k] / period) * period;
+      EXPECT_LE(std::abs(seq.time[k] - tick), 0.001 + 1e-12) << seq.name << " row " << k;
+      EXPECT_GT(seq.time[k], seq.time[k - 1]);
+      const double steps = seq.time[k] / dt;
+      off_grid += std::abs(steps - std::round(steps)) > 0.01 ? 1 : 0;
+      EXPECT_EQ(seq.ctrl.rows(), T);
+      EXPECT_EQ(seq.qpos.rows(), T);
+    }
+    EXPECT_GT(off_grid, T / 2) << seq.name;
+  }
+  // the fit's view of the log: exact at the truth
+  const auto cost_at = [&](double damping, double mass, double friction) {
+    Problem problem;
+    problem.AddModel("m", *m);
+    problem.AddParameter(FitParameter("damping", cfg.parameters[0].target, damping));
+    problem.AddParameter(FitParameter("bob_mass", cfg.parameters[1].target, mass));
+    problem.AddParameter(FitParameter("friction", cfg.parameters[2].target, friction));
+    for (const io::Sequence& seq : back.sequences) {
+      InitialState x0;
+      x0.qpos = seq.qpos.row(0).transpose();
+      x0.qvel = seq.qvel.row(0).transpose();
+      FitSequence fs(seq.name, "m", x0, seq.ctrl, seq.sensordata);
+      fs.time = seq.time;
+      problem.AddSequence(fs);
+    }
+    FitOptions o;
+    o.max_iterations = 1;
+    o.threads = 1;
+    return problem.Fit(o).initial_cost;
+  };
+  EXPECT_LT(cost_at(0.11, 1.3, 0.01), 1e-20);
+  EXPECT_GT(cost_at(0.05, 1.0, 0.01), 1e-3);
+}
+
+// jitter and drop need a sample rate; jitter stays below half a period, drop below one half
+TEST_F(SimulateTest, RobotLogOptionsAreChecked) {
+  const std::string base(kPendulum);
+  EXPECT_THROW(Parse(base + "  jitter: 0.001\n"), io::ConfigError);
+  EXPECT_THROW(Parse(base + "  drop: 0.1\n"), io::ConfigError);
+  EXPECT_THROW(Parse(base + "  sample_rate: 0\n"), io::ConfigError);
+  EXPECT_THROW(Parse(base + "  sample_rate: 100\n  jitter: 0.005\n"), io::ConfigError);
+  EXPECT_THROW(Parse(base + "  sample_rate: 100\n  drop: 0.5\n"), io::ConfigError);
+  EXPECT_NO_THROW(Parse(base + "  sample_rate: 100\n  jitter: 0.004\n  drop: 0.1\n"));
 }
 
 // ---------------------------------------------------------------------------------------------
