@@ -285,6 +285,24 @@ const std::vector<JacobianCase> kCases = {
      0.0,
      "box_floor_softness",
      1000},
+    // tendon springs with a dead band: the lower end of one, the upper end of the other
+    {"tendon_deadband.xml",
+     {Spec("tendon_lengthspring", "coupling", 1), Spec("tendon_lengthspring", "elbow_band", 2),
+      Spec("tendon_stiffness", "coupling")},
+     1.0,
+     0.0,
+     0.4,
+     "tendon_deadband",
+     {}},
+    // native sensor delays on a three-dimensional sensor and a second delayed sensor
+    {"sensor_delay3.xml",
+     {Spec("sensor_delay", "tip_pos"), Spec("sensor_delay", "rate"),
+      Spec("joint_damping", "hinge")},
+     1.0,
+     0.0,
+     0.5,
+     "sensor_delay3",
+     {}},
 };
 
 INSTANTIATE_TEST_SUITE_P(Models, JacobianTest,
@@ -295,6 +313,43 @@ INSTANTIATE_TEST_SUITE_P(Models, JacobianTest,
                            return std::get<0>(p).name + "_T" + std::to_string(std::get<1>(p)) +
                                   (std::get<2>(p) ? "_x0" : "");
                          });
+
+// LuGre friction of a DC motor (a bristle state): the five entries' columns of the one-step
+// modes (central) against whole-rollout central differences, starting near the Stribeck velocity
+// so that every entry acts. Its own tolerance: the one-step linearisations part from the
+// rollout's differences by 5.2e-6 (directional) and 2.9e-6 (matrix) column-scaled after 200
+// steps (1.1e-7 after 10), above the smooth models' 2e-6; 2e-5 leaves 3x headroom and still
+// fails on a column scaled by 1.001 (error 1e-3), dropped (1) or of flipped sign (2).
+TEST(SimulatorTest, DcMotorLugreColumnsAgreeWithWholeRolloutDifferences) {
+  ModelPtr m = LoadModel(kModels + "/dcmotor_lugre.xml");
+  std::vector<ParameterSpec> params;
+  for (int i = 0; i < 5; ++i) params.push_back(Spec("dcmotor_lugre", "motor", i));
+  Simulator sim(*m, params);
+  constexpr double kLugreTol = 2e-5;
+  for (int T : {10, 200}) {
+    SequenceInput seq;
+    seq.x0 = sim.ReferenceState();
+    seq.x0.qvel.setConstant(0.05);
+    seq.ctrl = SineControls(sim.model(), T, 3.0, 0.0);
+    const Trajectory nominal = sim.Rollout(seq);
+    JacobianOptions ref_opt;
+    ref_opt.mode = JacobianMode::kWholeRollout;
+    ref_opt.central = true;
+    const Sensitivity ref = sim.Jacobians(seq, nominal, ref_opt);
+    for (JacobianMode mode : {JacobianMode::kDirectional, JacobianMode::kMatrix}) {
+      JacobianOptions opt;
+      opt.mode = mode;
+      opt.central = true;
+      const Sensitivity s = sim.Jacobians(seq, nominal, opt);
+      const double ey = ColumnScaledError(s.DyDp, ref.DyDp);
+      const double ex = ColumnScaledError(s.DxDp, ref.DxDp);
+      std::printf("[ measured ] dcmotor_lugre T=%-3d %-11s err(dy)=%.2e err(dx)=%.2e tol=%.0e\n", T,
+                  JacobianModeName(mode), ey, ex, kLugreTol);
+      EXPECT_LE(ey, kLugreTol) << JacobianModeName(mode) << " T=" << T;
+      EXPECT_LE(ex, kLugreTol) << JacobianModeName(mode) << " T=" << T;
+    }
+  }
+}
 
 // ---------------------------------------------------------------------------------------------
 // closed-form oracle: spring-mass-damper on a slide joint under MuJoCo's Euler integrator, which
