@@ -347,6 +347,57 @@ TEST(KindsRecoveryTest, SensorDelayNoisyTruthInsideIntervals) {
   ExpectNoisyRecovery(SensorDelayCase());
 }
 
+// contact softness where the cost is smooth (models/sphere_press.xml: a sphere on a vertical
+// slide resting on a plane, pressed by a force of three sines, 1.1, 5 and 9 Hz, 2 N each, that
+// stays below its 9.81 N weight): the sphere's solref time constant and damping ratio (the
+// contact uses the mean of the sphere's and the floor's 0.02, 1) from its height and rate. The
+// contact persists: one contact at every step, with the truth and with the start. Truth: 0.03 s,
+// 0.8; start: 30% above, 0.039 s, 1.04. Noise-free, relative error <= 1e-6.
+TEST(KindsRecoveryTest, ContactSoftnessPersistentContactNoiseFree) {
+  ModelPtr m = LoadModel(kModels + "/sphere_press.xml");
+  const std::vector<Truth> truth = {{"timeconst", Spec("geom_solref", "sphere", 0), 0.03},
+                                    {"dampratio", Spec("geom_solref", "sphere", 1), 0.8}};
+  const double start[2] = {0.039, 1.04};
+  const int T = 1500;
+  RowMatrix u(T, 1);
+  for (int k = 0; k < T; ++k) {
+    const double t = k * m->opt.timestep;
+    u(k, 0) = 2 * std::sin(2 * M_PI * 1.1 * t) + 2 * std::sin(2 * M_PI * 5 * t + 1) +
+              2 * std::sin(2 * M_PI * 9 * t + 2);
+  }
+  // persistent contact: exactly one contact at every step, at the truth and at the start
+  const int sphere = mj_name2id(m.get(), mjOBJ_GEOM, "sphere");
+  const auto steps_with_one_contact = [&](double timeconst, double dampratio) {
+    ModelPtr probe = CopyModel(*m);
+    probe->geom_solref[mjNREF * sphere] = timeconst;
+    probe->geom_solref[mjNREF * sphere + 1] = dampratio;
+    DataPtr d = MakeData(*probe);
+    int count = 0;
+    for (int k = 0; k < T; ++k) {
+      d->ctrl[0] = u(k, 0);
+      mj_step(probe.get(), d.get());
+      count += d->ncon == 1;
+    }
+    return count;
+  };
+  EXPECT_EQ(steps_with_one_contact(truth[0].value, truth[1].value), T) << "truth";
+  EXPECT_EQ(steps_with_one_contact(start[0], start[1]), T) << "start";
+  Problem problem;
+  problem.AddModel("ball", *m);
+  problem.AddParameter(FitParameter("timeconst", truth[0].spec, start[0]).Bounds(0.005, 0.2).Log());
+  problem.AddParameter(FitParameter("dampratio", truth[1].spec, start[1]).Bounds(0.1, 5).Log());
+  InitialState x0;
+  problem.AddSequence(FitSequence("seq0", "ball", x0, u, Measure(*m, truth, x0, u, 0, 0)));
+  const FitResult r = problem.Fit(FitOptions());
+  Print(r);
+  EXPECT_TRUE(r.converged) << r.termination;
+  for (const Truth& t : truth) {
+    std::printf("[ measured ]   %s relative error %.2e\n", t.name.c_str(),
+                Estimate(r, t.name).value / t.value - 1);
+    EXPECT_NEAR(Estimate(r, t.name).value / t.value, 1.0, 1e-6) << t.name;
+  }
+}
+
 // contact friction and softness (models/box_slide.xml: a box pushed to and fro along the floor):
 // the box's sliding friction and its solref time constant (the contact uses the mean of the box's
 // and the floor's) from x, x rate and height. The cost is rugged: the soft contact switches on
