@@ -512,6 +512,20 @@ TEST(KindsRecoveryTest, DcMotorLugreNoiseFree) {
   ExpectNoiseFreeRecovery(c);
 }
 
+// a velocity servo's kv (models/pid_tendon.xml, elbow_vel: the kind writes both its gain and its
+// bias) under multi-sine velocity targets, with the pid's kv on the shoulder. Truth: elbow kv 2.6,
+// pid kv 3.9; start: the model's 2, 3 (23 % off each). Noise-free, relative <= 1e-6.
+TEST(KindsRecoveryTest, VelocityServoKvNoiseFree) {
+  KindCase c;
+  c.model = "pid_tendon.xml";
+  c.truth = {{"kv_elbow", Spec("actuator_kv", "elbow_vel"), 2.6},
+             {"kv_shoulder", Spec("actuator_kv", "shoulder_pid"), 3.9}};
+  c.start = {2.0, 3.0};
+  c.lower = {0.01, 0.01};
+  c.upper = {50.0, 50.0};
+  ExpectNoiseFreeRecovery(c);
+}
+
 // a press force of three sines (1.1, 5 and 9 Hz, 2 N each; below the sphere's 9.81 N weight)
 RowMatrix PressForce(const mjModel& m, int T) {
   RowMatrix u(T, 1);
