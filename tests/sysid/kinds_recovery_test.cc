@@ -580,6 +580,19 @@ TEST(KindsRecoveryTest, GeomSolimpPersistentContactNoiseFree) {
   ExpectPersistentContactRecovery(c);
 }
 
+// the sphere's solimp width (index 2; the contact uses the mean of the sphere's and the floor's
+// 1 mm): the penetration spans 0.3-1.2 mm, so the impedance rises from dmin to dmax inside the
+// data. Truth: 1.3 mm; start: 1 mm (23 % off). Noise-free, relative <= 1e-6.
+TEST(KindsRecoveryTest, GeomSolimpWidthPersistentContactNoiseFree) {
+  KindCase c;
+  c.model = "sphere_press.xml";
+  c.truth = {{"width", Spec("geom_solimp", "sphere", 2), 0.0013}};
+  c.start = {0.001};
+  c.lower = {1e-4};
+  c.upper = {0.01};
+  ExpectPersistentContactRecovery(c);
+}
+
 // an explicit <pair>'s solref and solimp dmax (models/sphere_press_pair.xml; the pair's values
 // are the contact's, unmixed). Truth: time constant 0.022 s, damping ratio 0.6, dmax 0.72; start:
 // the model's 0.03, 0.8, 0.95 (36 %, 33 %, 32 % off). Noise-free, relative <= 1e-6.
