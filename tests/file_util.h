@@ -1,5 +1,8 @@
-// Files in tests: read and write whole files, and a snapshot of a folder to compare before/after.
+// Files in tests: read and write whole files, a snapshot of a folder to compare before/after, and
+// fresh folders whose names cannot collide between test processes running at the same time.
 #pragma once
+
+#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
@@ -27,6 +30,16 @@ inline std::map<std::string, std::string> Snapshot(const std::string& dir) {
     }
   }
   return files;
+}
+
+// a fresh empty folder temp/mjsysid_<name>_<pid> (the pid keeps two checkouts or two ctest runs
+// testing at once apart); the caller removes it
+inline std::string FreshTempDir(const std::string& name) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
+                                    ("mjsysid_" + name + "_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir.string();
 }
 
 }  // namespace mjsysid::test

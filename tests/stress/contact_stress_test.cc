@@ -17,6 +17,7 @@
 #include "sysid/io/log.h"
 #include "sysid/run/fit_experiment.h"
 #include "sysid/sim/simulate.h"
+#include "tests/file_util.h"
 #include "tests/stress/stress_util.h"
 
 namespace mjsysid {
@@ -205,9 +206,7 @@ INSTANTIATE_TEST_SUITE_P(Cases, ContactStressTest, ::testing::ValuesIn(Cases()),
 // Then the fit (from the experiment's start 0.4, 1.5) must say so: not converged, a non-zero exit
 // code, intervals not valid, and the warning that the cost is not smooth at the intervals' scale.
 TEST(BoxFloorContact, JacobianExactCostJumpsFitSaysSo) {
-  const fs::path dir = fs::temp_directory_path() / "mjsysid_contact_box_floor";
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const fs::path dir = test::FreshTempDir("contact_box_floor");
   io::ExperimentConfig cfg =
       io::LoadExperiment(std::string(MJSYSID_EXPERIMENTS_DIR) + "/box_floor.yaml");
   const std::string log = (dir / "log.h5").string();

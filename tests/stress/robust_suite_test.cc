@@ -35,6 +35,7 @@
 #include "sysid/io/result.h"
 #include "sysid/run/fit_experiment.h"
 #include "sysid/sim/simulate.h"
+#include "tests/file_util.h"
 
 namespace mjsysid {
 namespace {
@@ -71,12 +72,7 @@ int SegmentStepsOverride() {
 }
 
 // a fresh folder per case
-std::string TempDir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("mjsysid_robust_" + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir.string();
-}
+std::string TempDir(const std::string& name) { return test::FreshTempDir("robust_" + name); }
 
 double Truth(const io::ExperimentConfig& cfg, const std::string& name) {
   for (const io::NamedValue& t : cfg.simulate.truth) {

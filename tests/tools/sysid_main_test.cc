@@ -8,6 +8,8 @@
 #include <fstream>
 #include <string>
 
+#include "tests/file_util.h"
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -28,12 +30,7 @@ CliRun Sysid(const std::string& args) {
   return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
 }
 
-std::string TempDir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("mjsysid_cli_" + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir.string();
-}
+std::string TempDir(const std::string& name) { return mjsysid::test::FreshTempDir("cli_" + name); }
 
 const std::string kExperiments = MJSYSID_EXPERIMENTS_DIR;
 const std::string kModels = MJSYSID_MODELS_DIR;

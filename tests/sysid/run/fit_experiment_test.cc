@@ -14,6 +14,7 @@
 #include "core/simulator.h"
 #include "sysid/io/log.h"
 #include "sysid/sim/simulate.h"
+#include "tests/file_util.h"
 #include "tools/report/report.h"
 
 namespace mjsysid::run {
@@ -23,12 +24,7 @@ namespace fs = std::filesystem;
 const std::string kExperiments = MJSYSID_EXPERIMENTS_DIR;
 
 // a fresh folder per test
-std::string TempDir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("mjsysid_run_" + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir.string();
-}
+std::string TempDir(const std::string& name) { return test::FreshTempDir("run_" + name); }
 
 // the experiment with its log in dir, simulated
 io::ExperimentConfig Simulated(const std::string& name, const std::string& dir) {

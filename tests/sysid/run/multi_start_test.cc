@@ -12,6 +12,7 @@
 #include "sysid/io/log.h"
 #include "sysid/run/output_folder.h"
 #include "sysid/sim/simulate.h"
+#include "tests/file_util.h"
 #include "tests/fit_test_util.h"
 
 namespace mjsysid::run {
@@ -20,12 +21,7 @@ namespace {
 namespace fs = std::filesystem;
 const std::string kExperiments = MJSYSID_EXPERIMENTS_DIR;
 
-std::string TempDir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("mjsysid_multi_start_" + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir.string();
-}
+std::string TempDir(const std::string& name) { return test::FreshTempDir("multi_start_" + name); }
 
 // the experiment text parsed as if in experiments/, its log simulated into dir
 io::ExperimentConfig Simulated(const std::string& yaml, const std::string& dir) {

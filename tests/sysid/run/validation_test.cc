@@ -26,12 +26,7 @@ namespace {
 namespace fs = std::filesystem;
 const std::string kExperiments = MJSYSID_EXPERIMENTS_DIR;
 
-std::string TempDir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("mjsysid_validation_" + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir.string();
-}
+std::string TempDir(const std::string& name) { return test::FreshTempDir("validation_" + name); }
 
 // the pendulum experiment with its log simulated into dir
 io::ExperimentConfig Pendulum(const std::string& dir) {
