@@ -8,7 +8,6 @@
 #include <stdexcept>
 
 #include "core/field_mjcf.h"
-#include "core/inertia_cholesky.h"
 #include "core/mujoco_env.h"
 #include "core/text.h"
 
@@ -230,24 +229,6 @@ std::string IdentifiedModelXml(const std::string& model_path,
       warnings->push_back("identified model: '" + check[i].label() + "' reads " +
                           FormatG17(read[i]) + " instead of " + FormatG17(values[i]));
     }
-  }
-  // a body written as fullinertia (body_inertial) compiles to the same tensor in the compiler's
-  // own axis order and roundoff: its principal moments and axes are compared as that tensor
-  // (relative 1e-9 of its largest entry) and, when it agrees, taken from the fitted model
-  for (int i = 0; i < params.size() && SameSizes(*back, *identified); ++i) {
-    if (params[i].kind() != ParameterKind::kBodyInertial) continue;
-    const int b = params[i].id();
-    double fitted[6], written[6];
-    FullInertia(BodyInertialOf(*identified, b), fitted);
-    FullInertia(BodyInertialOf(*back, b), written);
-    double scale = 0, worst = 0;
-    for (int k = 0; k < 6; ++k) {
-      scale = std::max(scale, std::abs(fitted[k]));
-      worst = std::max(worst, std::abs(fitted[k] - written[k]));
-    }
-    if (!(worst <= 1e-9 * scale)) continue;  // reported below as differing arrays
-    for (int k = 0; k < 3; ++k) back->body_inertia[3 * b + k] = identified->body_inertia[3 * b + k];
-    for (int k = 0; k < 4; ++k) back->body_iquat[4 * b + k] = identified->body_iquat[4 * b + k];
   }
   if (all_written) {
     const std::string differ = SameSizes(*back, *identified)

@@ -39,16 +39,6 @@ void SetBodyInertial(mjModel* m, int b, const BodyInertial& inertial) {
   for (int k = 0; k < 4; ++k) m->body_iquat[4 * b + k] = inertial.quat[k];
 }
 
-void FullInertia(const BodyInertial& inertial, double full[6]) {
-  const Matrix3 ic = InertiaInBodyFrame(inertial);
-  full[0] = ic(0, 0);
-  full[1] = ic(1, 1);
-  full[2] = ic(2, 2);
-  full[3] = ic(0, 1);
-  full[4] = ic(0, 2);
-  full[5] = ic(1, 2);
-}
-
 bool ToLogCholesky(const BodyInertial& inertial, double theta[kInertialVariables]) {
   if (!(inertial.mass > 0)) return false;
   // second moment about the centre of mass per unit mass: A = (tr(I_c)/2 1 - I_c) / m

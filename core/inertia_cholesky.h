@@ -39,10 +39,6 @@ BodyInertial BodyInertialOf(const mjModel& m, int b);
 // writes body b of m (body_mass, body_ipos, body_inertia, body_iquat); mj_setConst must follow
 void SetBodyInertial(mjModel* m, int b, const BodyInertial& inertial);
 
-// The inertia tensor about the centre of mass in the body frame, R diag(inertia) R^T with R the
-// rotation of quat, in MJCF's `fullinertia` order: ixx, iyy, izz, ixy, ixz, iyz (kg m^2).
-void FullInertia(const BodyInertial& inertial, double full[6]);
-
 // The variables of a body. Returns false (theta untouched) when the body is not strictly
 // physically consistent: mass <= 0, or a principal moment pair whose sum does not exceed the
 // third (a point mass, a rod or a flat plate with zero thickness has no log-Cholesky variables).

@@ -33,24 +33,6 @@ bool WriteInertial(mjsElement* element, const mjModel& m, int id, int /*index*/,
   return true;
 }
 
-// body_inertial: an explicit inertial clause with the identified mass, centre of mass and full
-// inertia tensor about it (`fullinertia`, in the body frame), as the kind is parametrized; the
-// compiler eigen-decomposes it again with its own roundoff and axis order, which changes the
-// compiled arrays' order but not the body (docs/numerics.md: rollouts within 1e-13)
-bool WriteFullInertial(mjsElement* element, const mjModel& m, int id, int /*index*/,
-                       double /*value*/) {
-  mjsBody* b = mjs_asBody(element);
-  const BodyInertial inertial = BodyInertialOf(m, id);
-  b->explicitinertial = 1;
-  b->mass = inertial.mass;
-  for (int k = 0; k < 3; ++k) b->ipos[k] = inertial.com[k];
-  FullInertia(inertial, b->fullinertia);
-  b->iquat[0] = 1;  // the frame comes from the tensor
-  for (int k = 1; k < 4; ++k) b->iquat[k] = 0;
-  b->ialt.type = mjORIENTATION_QUAT;
-  return true;
-}
-
 // joints: the joint's one attribute (mjsJoint has no per-dof values; [0] is the linear term)
 bool WriteJointDamping(mjsElement* element, const mjModel&, int, int, double value) {
   mjs_asJoint(element)->damping[0] = value;
@@ -265,11 +247,8 @@ const std::vector<ParameterKindInfo> kKinds = {
      "(`docs/numerics.md`)",
      "1 (alpha = ln sqrt(m / kg), d = ln(L / m)), m (s, t)",
      "`body_mass`, `body_ipos`, `body_inertia`, `body_iquat` (the full inertia, eigen-decomposed)",
-     mjSTAGE_NONE, true,
-     "explicit `<inertial>`: the identified mass, pos and fullinertia (about the centre of mass, "
-     "in "
-     "the body frame)",
-     WriteFullInertial},
+     mjSTAGE_NONE, true, "as `body_mass` (the full inertia as principal moments and quat)",
+     WriteInertial},
     {ParameterKind::kActuatorDelay, "actuator_delay", mjOBJ_ACTUATOR, 1,
      "one value per actuator (needs a history buffer, nsample > 0, and interp=\"linear\")", "s",
      "`actuator_delay`", mjSTAGE_VEL, false, "`delay` of the actuator", WriteActuatorDelay},
