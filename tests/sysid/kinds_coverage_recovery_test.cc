@@ -169,6 +169,24 @@ TEST(KindsCoverageTest, DcMotorLugreBristlesCoarseEncoderHonestStatus) {
   EXPECT_FALSE(r.intervals_valid);
 }
 
+// the noisy variant of kinds_recovery_test.cc's LuGre case: Coulomb friction and Stribeck
+// velocity (index 2, 4) with the motor constant, under +-2 V (at +-6 V the link runs far above
+// the Stribeck velocity: the noisy fit put it on its lower bound, measured). Truth: 0.026 N m,
+// 0.13 rad/s, 0.045 N m/A; start: the model's 0.02, 0.1, 0.05. Noise: 1 mrad, 10 mrad/s.
+TEST(KindsCoverageTest, DcMotorLugreCoulombStribeckNoisyTruthInsideIntervals) {
+  KindCase c;
+  c.model = "dcmotor_lugre.xml";
+  c.truth = {{"coulomb", Spec("dcmotor_lugre", "motor", 2), 0.026},
+             {"stribeck", Spec("dcmotor_lugre", "motor", 4), 0.13},
+             {"motorconst", Spec("dcmotor_motorconst", "motor"), 0.045}};
+  c.start = {0.02, 0.1, 0.05};
+  c.lower = {1e-4, 1e-3, 1e-3};
+  c.upper = {1.0, 10.0, 1.0};
+  c.amplitude = 2;
+  c.sigma = {{"angle", 0.001}, {"rate", 0.01}};
+  ExpectNoisyRecovery(c);
+}
+
 // ---------------------------------------------------------------------------------------------
 // contact softness on the pressed sphere (one contact at every step: kinds_recovery_test.cc)
 
@@ -212,6 +230,44 @@ TEST(KindsCoverageTest, GeomSolimpCurvePressedNoiseFree) {
 }
 TEST(KindsCoverageTest, GeomSolimpCurvePressedNoisyTruthInsideIntervals) {
   ExpectNoisyRecovery(SolimpCurveCase());
+}
+
+// the sphere's solimp dmax and width together (index 1, 2). Truth: 0.7, 1.3 mm; start: 0.9,
+// 1 mm. Noise-free, relative <= 1e-6; noisy: 10 um on the height, 1 mm/s on the rate.
+KindCase GeomDmaxWidthCase() {
+  KindCase c;
+  c.model = "sphere_press.xml";
+  c.truth = {{"dmax", Spec("geom_solimp", "sphere", 1), 0.7},
+             {"width", Spec("geom_solimp", "sphere", 2), 0.0013}};
+  c.start = {0.9, 0.001};
+  c.lower = {0.1, 1e-4};
+  c.upper = {0.999, 0.01};
+  c.controls = Press;
+  c.sigma = {{"height", 1e-5}, {"rate", 1e-3}};
+  return c;
+}
+
+TEST(KindsCoverageTest, GeomSolimpDmaxWidthPressedNoiseFree) {
+  ExpectNoiseFreeRecovery(GeomDmaxWidthCase());
+}
+TEST(KindsCoverageTest, GeomSolimpDmaxWidthPressedNoisyTruthInsideIntervals) {
+  ExpectNoisyRecovery(GeomDmaxWidthCase());
+}
+
+// the noisy variant of kinds_recovery_test.cc's pair case: the pair's solref and solimp dmax.
+// Truth: 0.022 s, 0.6, 0.72; start: the model's 0.03, 0.8, 0.95. Noise as above.
+TEST(KindsCoverageTest, PairSolrefDmaxPressedNoisyTruthInsideIntervals) {
+  KindCase c;
+  c.model = "sphere_press_pair.xml";
+  c.truth = {{"timeconst", Spec("pair_solref", "press", 0), 0.022},
+             {"dampratio", Spec("pair_solref", "press", 1), 0.6},
+             {"dmax", Spec("pair_solimp", "press", 1), 0.72}};
+  c.start = {0.03, 0.8, 0.95};
+  c.lower = {0.005, 0.1, 0.1};
+  c.upper = {0.2, 5.0, 0.999};
+  c.controls = Press;
+  c.sigma = {{"height", 1e-5}, {"rate", 1e-3}};
+  ExpectNoisyRecovery(c);
 }
 
 // an explicit pair's solimp dmin, midpoint and power (models/sphere_press_pair.xml; the pair's
