@@ -155,9 +155,9 @@ TEST(KindsCoverageTest, DcMotorLugreBristlesStaticNoisyTruthInsideIntervals) {
   ExpectNoisyRecovery(LugreCase());
 }
 
-// the same from a ten times coarser encoder (1 mrad, 10 mrad/s): the bristle stiffness's interval
-// grows to +-43 % (measured), where the cost is no longer quadratic over it, and the fit says so:
-// its status is not converged and its intervals are not called valid
+// the same from a ten times coarser encoder (1 mrad, 10 mrad/s): the bristle stiffness's standard
+// error grows to 43 % (measured), where the cost is no longer quadratic over it, and the fit says
+// so: its status is not converged and its intervals are not called valid
 TEST(KindsCoverageTest, DcMotorLugreBristlesCoarseEncoderHonestStatus) {
   KindCase c = LugreCase();
   c.sigma = {{"angle", 1e-3}, {"rate", 1e-2}};
@@ -322,10 +322,10 @@ TEST(KindsCoverageTest, PairWidthSolrefPressedNoisyTruthInsideIntervals) {
 // a pair's sliding friction (models/sphere_slide_pair.xml: a sphere on three slides, pushed along x
 // and y by +-5 N multi-sines about 4 N, so that it slides): sliding lifts the sphere off the floor
 // (measured with MuJoCo's Python bindings: up to 6 mm, contact in 311 of 1500 steps, and
-// |rollout difference| / step of the tangent coefficients growing 10x from a step of 1e-2 to 1e-4,
-// as for the sliding box, docs/numerics.md), so the cost is rugged and no 1e-6 recovery is asked;
-// the test asks for an honest status from noisy data (truth 0.3, 0.35; start 0.4, 0.45; noise
-// 1 mm, 10 mm/s): intervals not called valid, or valid and covering the truth.
+// |rollout difference| / step of the tangent coefficients jumping by 10-100x between steps of
+// 1e-2, 1e-3 and 1e-4, as for the sliding box, docs/numerics.md), so the cost is rugged and no 1e-6
+// recovery is asked; the test asks for an honest status from noisy data (truth 0.3, 0.35; start
+// 0.4, 0.45; noise 1 mm, 10 mm/s): intervals not called valid, or valid and covering the truth.
 TEST(KindsCoverageTest, PairSlidingFrictionHonestStatus) {
   KindCase c;
   c.model = "sphere_slide_pair.xml";
