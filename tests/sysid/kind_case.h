@@ -82,8 +82,9 @@ inline FitResult FitCase(const KindCase& c, bool noisy, int seed, bool print = t
     std::normal_distribution<double> n(0, 1);
     for (const auto& [sensor, sigma] : c.sigma) {
       const int id = mj_name2id(m.get(), mjOBJ_SENSOR, sensor.c_str());
-      const int col = m->sensor_adr[id];
-      for (int k = 0; k < y.rows(); ++k) y(k, col) += sigma * n(rng);
+      for (int col = m->sensor_adr[id]; col < m->sensor_adr[id] + m->sensor_dim[id]; ++col) {
+        for (int k = 0; k < y.rows(); ++k) y(k, col) += sigma * n(rng);
+      }
       opt.sensor_weights[sensor] = 1 / sigma;
       opt.sensors_with_sigma.push_back(sensor);
     }

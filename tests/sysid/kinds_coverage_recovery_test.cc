@@ -351,6 +351,63 @@ TEST(KindsCoverageTest, PairSlidingFrictionHonestStatus) {
   EXPECT_FALSE(r.intervals_valid);
 }
 
+// a pair's torsional and rolling friction (models/ball_roll_pair.xml: a free ball, condim 6,
+// pushed by 0.2-0.8 N along x and y and twisted by 0.02-0.08 N m, multi-sines about a positive
+// offset, so that it rolls and spins away without stopping). Truth 0.005, 0.0025, 0.0025; start
+// the model's 0.004, 0.002, 0.002 (20 % off). Noise: 0.1 mm, 1 mm/s, 10 mrad/s on every axis.
+// The rollout is smooth only down to about 1e-4 relative in them: the soft contact lifts the
+// rolling ball off now and then (a probe with MuJoCo's Python bindings, these amplitudes and other
+// phases: contact in 1437 of 1500 steps).
+KindCase BallRollCase() {
+  KindCase c;
+  c.model = "ball_roll_pair.xml";
+  c.truth = {{"torsional", Spec("pair_friction", "roll", 2), 0.005},
+             {"rolling1", Spec("pair_friction", "roll", 3), 0.0025},
+             {"rolling2", Spec("pair_friction", "roll", 4), 0.0025}};
+  c.start = {0.004, 0.002, 0.002};
+  c.lower = {1e-5, 1e-5, 1e-5};
+  c.upper = {0.1, 0.1, 0.1};
+  c.amplitude = 0.3;
+  c.offset = 0.5;
+  c.sigma = {{"pos", 1e-4}, {"vel", 1e-3}, {"angvel", 1e-2}};
+  return c;
+}
+
+// noise-free: the fit stops at cost 0.14 (from 2.4e4) with every value within 9.3e-5 relative of
+// the truth (measured), not 1e-6: tolerance 1e-3
+TEST(KindsCoverageTest, PairTorsionalRollingFrictionNoiseFreeTo1e3) {
+  const KindCase c = BallRollCase();
+  const FitResult r = FitCase(c, false, 50);
+  EXPECT_TRUE(r.converged) << r.termination;
+  for (const test::Truth& t : c.truth) {
+    EXPECT_NEAR(Estimate(r, t.name).value / t.value, 1.0, 1e-3) << t.name;
+  }
+}
+
+// noisy, over 8 seeds (1-3 s a fit): measured, 5 fits converged with valid intervals that all
+// cover the truth (within 1.8 standard errors), 3 said why not (model_mismatch twice, one of them
+// stuck 300 standard errors away; jacobian_unreliable once, the not-smooth warning). Asked: every
+// fit with valid intervals covers the truth, and at least half of the fits have them.
+TEST(KindsCoverageTest, PairTorsionalRollingFrictionNoisyHonestOverSeeds) {
+  const KindCase c = BallRollCase();
+  int valid = 0;
+  for (int seed = 100; seed < 108; ++seed) {
+    const FitResult r = FitCase(c, true, seed, false);
+    EXPECT_EQ(r.intervals_valid, r.outcome == FitStatus::kConverged) << seed;
+    valid += r.intervals_valid;
+    std::printf("[ measured ] seed %d: %s, intervals %s", seed, FitStatusName(r.outcome),
+                r.intervals_valid ? "valid" : "not valid");
+    for (const test::Truth& t : c.truth) {
+      const ParameterEstimate& e = Estimate(r, t.name);
+      const bool inside = e.ci95_low <= t.value && t.value <= e.ci95_high;
+      std::printf(", %s %.2g sd", t.name.c_str(), (e.value - t.value) / e.std_error);
+      EXPECT_TRUE(inside || !r.intervals_valid) << t.name << " seed " << seed;
+    }
+    std::printf("\n");
+  }
+  EXPECT_GE(valid, 4);
+}
+
 // ---------------------------------------------------------------------------------------------
 // body_inertial: all 10 variables of a tilted payload (models/payload_gimbal.xml) under +-1
 // multi-sine motor commands on its slide and three hinges
