@@ -256,6 +256,11 @@ KindCase DcMotorCase() {
 
 TEST(KindsRecoveryTest, DcMotorNoiseFree) { ExpectNoiseFreeRecovery(DcMotorCase()); }
 TEST(KindsRecoveryTest, DcMotorNoisyTruthInsideIntervals) { ExpectNoisyRecovery(DcMotorCase()); }
+// calibration over 20 seeds (0.1 s a fit): a calibrated 95% interval covers in 16 or fewer of 20
+// fits with probability 1.6 %, and pools below 0.9 of 40 with 1.5 %
+TEST(KindsRecoveryTest, DcMotorNoisyIntervalsCalibrated) {
+  test::ExpectCalibratedIntervals(DcMotorCase(), 200, 20, 0.9, 16);
+}
 
 // a native sensor delay with linear interpolation (models/servo_delay.xml: the angle read through
 // a 5-sample history) with the servo's kp. Truth: angle delay 4.5 ms, kp 25; start: the model's
@@ -276,6 +281,10 @@ KindCase SensorDelayCase() {
 TEST(KindsRecoveryTest, SensorDelayNoiseFree) { ExpectNoiseFreeRecovery(SensorDelayCase()); }
 TEST(KindsRecoveryTest, SensorDelayNoisyTruthInsideIntervals) {
   ExpectNoisyRecovery(SensorDelayCase());
+}
+// calibration over 20 seeds, thresholds as for the DC motor
+TEST(KindsRecoveryTest, SensorDelayNoisyIntervalsCalibrated) {
+  test::ExpectCalibratedIntervals(SensorDelayCase(), 200, 20, 0.9, 16);
 }
 
 // contact softness where the cost is smooth (models/sphere_press.xml: a sphere on a vertical
