@@ -306,8 +306,8 @@ const std::vector<KindCase> kCases = {
     KindCase{Spec("dcmotor_cogging", "dc", 0), 0.04, {{"cog_a", "0.04"}}},
     KindCase{Spec("dcmotor_lugre", "dc", 0), 150, {{"lugre0", "150"}}},
     // every further index with its own meaning (the coverage table in docs/numerics.md); the
-    // pair's torsional entry acts because the pair has condim 6 (its rolling entries and the
-    // dead band's upper end do not reach this scene: tests/core/parameters_test.cc)
+    // pair's torsional entry acts because the pair has condim 6 (its rolling entries do not reach
+    // this scene: tests/core/parameters_test.cc; the dead band's upper end: below)
     KindCase{Spec("geom_solref", "box", 1), 0.7, {{"box_dampratio", "0.7"}}},
     KindCase{Spec("geom_solimp", "box", 0), 0.8, {{"box_solimp0", "0.8"}}},
     KindCase{Spec("geom_solimp", "box", 2), 0.003, {{"box_solimp2", "0.003"}}},
@@ -341,6 +341,24 @@ TEST(IdentifiedKindCoverage, EveryKindHasACase) {
     for (const KindCase& c : kCases) covered = covered || c.spec.kind == k.name;
     EXPECT_TRUE(covered) << k.name;
   }
+}
+
+// the upper end of a tendon spring's dead band (tendon_lengthspring index 2): the base band
+// [-0.1, -0.05] lies below most of the hinge's swing, so moving its upper end to 0.05 acts (the
+// template's one-value spring at 0.1 is above the swing, where the upper end has no effect)
+TEST_F(IdentifiedModelTest, TendonDeadBandUpperEndMatchesXmlEditedByHand) {
+  const std::string path = ModelFile({{"tendon_l", "-0.1 -0.05"}});
+  const ParameterSpec spec = Spec("tendon_lengthspring", "spring", 2);
+  std::vector<std::string> warnings;
+  const std::string xml = IdentifiedModelXml(path, {spec}, {0.05}, &warnings);
+  EXPECT_TRUE(warnings.empty()) << warnings.front();
+  ModelPtr by_hand = LoadModelFromString(Xml({{"tendon_l", "-0.1 0.05"}}));
+  ModelPtr identified = LoadModelFromString(xml);
+  EXPECT_EQ(Parameter::Resolve(*identified, spec).Read(*identified), 0.05);
+  EXPECT_EQ(DifferingArrays(*identified, *by_hand, 1e-12), "");
+  const std::vector<double> traj_hand = Rollout(*by_hand);
+  EXPECT_GT(test::MaxAbsDiff(Rollout(*LoadModel(path)), traj_hand), 1e-9) << "no effect";
+  EXPECT_LE(test::MaxAbsDiff(Rollout(*identified), traj_hand), 1e-12);
 }
 
 // body_inertial: a log-Cholesky variable of the payload written into MJCF compiles to the model
