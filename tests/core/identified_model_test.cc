@@ -57,8 +57,8 @@ const char* kTemplate = R"(
     <body name="box" pos="0 2 {box_z}">
       <joint name="free" type="free" damping="{free_damping}"/>
       <geom name="box" type="box" size=".1 .1 .1" mass="1" condim="4"
-            friction="{box_mu} {box_torsion} 0.0001" solref="{box_timeconst} 1"
-            solimp="0.9 {box_solimp1} 0.001 0.5 2"/>
+            friction="{box_mu} {box_torsion} 0.0001" solref="{box_timeconst} {box_dampratio}"
+            solimp="{box_solimp0} {box_solimp1} {box_solimp2} {box_solimp3} {box_solimp4}"/>
       <geom name="foot" type="sphere" size="0.1" mass="0.1" pos="{foot_pos}" contype="0"
             conaffinity="0"/>
       <site name="push"/>
@@ -70,8 +70,10 @@ const char* kTemplate = R"(
     </body>
   </worldbody>
   <contact>
-    <pair name="foot_floor" geom1="floor" geom2="foot" condim="3" friction="{pair_mu} 0.7 0.005 0.0001 0.0001"
-          solref="{pair_timeconst} 1" solimp="0.9 {pair_solimp1} 0.001 0.5 2"/>
+    <pair name="foot_floor" geom1="floor" geom2="foot" condim="6"
+          friction="{pair_mu} {pair_mu2} {pair_torsion} 0.0001 0.0001"
+          solref="{pair_timeconst} {pair_dampratio}"
+          solimp="{pair_solimp0} {pair_solimp1} {pair_solimp2} {pair_solimp3} {pair_solimp4}"/>
   </contact>
   <tendon>
     <fixed name="spring" stiffness="{tendon_k}" damping="{tendon_d}" frictionloss="{tendon_f}"
@@ -89,7 +91,8 @@ const char* kTemplate = R"(
     <velocity name="vservo" joint="hinge" kv="{vkv}"/>
     <pid name="pid" joint="slide" kp="{pid_kp}" ki="{pid_ki}" kv="{pid_kv}"/>
     <dcmotor name="dc" joint="slide" motorconst="{dc_k}" resistance="{dc_r}" inductance="{dc_l}"
-             cogging="{cog_a} 6 0.2" lugre="{lugre0} 0.3 0.02 0.03 0.1"/>
+             cogging="{cog_a} {cog_p} {cog_ph}"
+             lugre="{lugre0} {lugre1} {lugre2} {lugre3} {lugre4}"/>
   </actuator>
   <sensor>
     <jointpos name="slide_pos" joint="slide" delay="{sensor_delay}" nsample="5" interp="linear"/>
@@ -121,10 +124,22 @@ const std::map<std::string, std::string> kDefaults = {
     {"foot_pos", "0 0 0"},
     {"box_z", "0.1"},
     {"box_timeconst", "0.02"},
+    {"box_dampratio", "1"},
+    {"box_solimp0", "0.9"},
     {"box_solimp1", "0.95"},
+    {"box_solimp2", "0.001"},
+    {"box_solimp3", "0.5"},
+    {"box_solimp4", "2"},
     {"pair_mu", "0.7"},
     {"pair_timeconst", "0.02"},
+    {"pair_mu2", "0.7"},
+    {"pair_torsion", "0.005"},
+    {"pair_dampratio", "1"},
+    {"pair_solimp0", "0.9"},
     {"pair_solimp1", "0.95"},
+    {"pair_solimp2", "0.001"},
+    {"pair_solimp3", "0.5"},
+    {"pair_solimp4", "2"},
     {"tendon_k", "0.5"},
     {"tendon_d", "0.1"},
     {"tendon_f", "0.01"},
@@ -141,7 +156,13 @@ const std::map<std::string, std::string> kDefaults = {
     {"dc_r", "2"},
     {"dc_l", "0.004"},
     {"cog_a", "0.02"},
+    {"cog_p", "6"},
+    {"cog_ph", "0.2"},
     {"lugre0", "100"},
+    {"lugre1", "0.3"},
+    {"lugre2", "0.02"},
+    {"lugre3", "0.03"},
+    {"lugre4", "0.1"},
     {"pl_com", "0.05 0.02 -0.2"},
     {"pl_mass", "0.8"},
     {"pl_inertia", "0.01 0.012 0.006 0.001 0 0.0005"}};
@@ -283,7 +304,28 @@ const std::vector<KindCase> kCases = {
     KindCase{Spec("dcmotor_resistance", "dc"), 2.5, {{"dc_r", "2.5"}}},
     KindCase{Spec("dcmotor_inductance", "dc"), 0.006, {{"dc_l", "0.006"}}},
     KindCase{Spec("dcmotor_cogging", "dc", 0), 0.04, {{"cog_a", "0.04"}}},
-    KindCase{Spec("dcmotor_lugre", "dc", 0), 150, {{"lugre0", "150"}}}};
+    KindCase{Spec("dcmotor_lugre", "dc", 0), 150, {{"lugre0", "150"}}},
+    // every further index with its own meaning (the coverage table in docs/numerics.md); the
+    // pair's torsional entry acts because the pair has condim 6 (its rolling entries do not reach
+    // this scene: tests/core/parameters_test.cc; the dead band's upper end: below)
+    KindCase{Spec("geom_solref", "box", 1), 0.7, {{"box_dampratio", "0.7"}}},
+    KindCase{Spec("geom_solimp", "box", 0), 0.8, {{"box_solimp0", "0.8"}}},
+    KindCase{Spec("geom_solimp", "box", 2), 0.003, {{"box_solimp2", "0.003"}}},
+    KindCase{Spec("geom_solimp", "box", 3), 0.3, {{"box_solimp3", "0.3"}}},
+    KindCase{Spec("geom_solimp", "box", 4), 3, {{"box_solimp4", "3"}}},
+    KindCase{Spec("pair_solref", "foot_floor", 1), 0.7, {{"pair_dampratio", "0.7"}}},
+    KindCase{Spec("pair_solimp", "foot_floor", 0), 0.8, {{"pair_solimp0", "0.8"}}},
+    KindCase{Spec("pair_solimp", "foot_floor", 2), 0.003, {{"pair_solimp2", "0.003"}}},
+    KindCase{Spec("pair_solimp", "foot_floor", 3), 0.3, {{"pair_solimp3", "0.3"}}},
+    KindCase{Spec("pair_solimp", "foot_floor", 4), 3, {{"pair_solimp4", "3"}}},
+    KindCase{Spec("pair_friction", "foot_floor", 1), 0.4, {{"pair_mu2", "0.4"}}},
+    KindCase{Spec("pair_friction", "foot_floor", 2), 0.05, {{"pair_torsion", "0.05"}}},
+    KindCase{Spec("dcmotor_cogging", "dc", 1), 7, {{"cog_p", "7"}}},
+    KindCase{Spec("dcmotor_cogging", "dc", 2), 0.5, {{"cog_ph", "0.5"}}},
+    KindCase{Spec("dcmotor_lugre", "dc", 1), 0.5, {{"lugre1", "0.5"}}},
+    KindCase{Spec("dcmotor_lugre", "dc", 2), 0.03, {{"lugre2", "0.03"}}},
+    KindCase{Spec("dcmotor_lugre", "dc", 3), 0.045, {{"lugre3", "0.045"}}},
+    KindCase{Spec("dcmotor_lugre", "dc", 4), 0.2, {{"lugre4", "0.2"}}}};
 
 INSTANTIATE_TEST_SUITE_P(EveryKind, IdentifiedKindTest, ::testing::ValuesIn(kCases),
                          [](const ::testing::TestParamInfo<KindCase>& param_info) {
@@ -301,6 +343,24 @@ TEST(IdentifiedKindCoverage, EveryKindHasACase) {
   }
 }
 
+// the upper end of a tendon spring's dead band (tendon_lengthspring index 2): the base band
+// [-0.1, -0.05] lies below most of the hinge's swing, so moving its upper end to 0.05 acts (the
+// template's one-value spring at 0.1 is above the swing, where the upper end has no effect)
+TEST_F(IdentifiedModelTest, TendonDeadBandUpperEndMatchesXmlEditedByHand) {
+  const std::string path = ModelFile({{"tendon_l", "-0.1 -0.05"}});
+  const ParameterSpec spec = Spec("tendon_lengthspring", "spring", 2);
+  std::vector<std::string> warnings;
+  const std::string xml = IdentifiedModelXml(path, {spec}, {0.05}, &warnings);
+  EXPECT_TRUE(warnings.empty()) << warnings.front();
+  ModelPtr by_hand = LoadModelFromString(Xml({{"tendon_l", "-0.1 0.05"}}));
+  ModelPtr identified = LoadModelFromString(xml);
+  EXPECT_EQ(Parameter::Resolve(*identified, spec).Read(*identified), 0.05);
+  EXPECT_EQ(DifferingArrays(*identified, *by_hand, 1e-12), "");
+  const std::vector<double> traj_hand = Rollout(*by_hand);
+  EXPECT_GT(test::MaxAbsDiff(Rollout(*LoadModel(path)), traj_hand), 1e-9) << "no effect";
+  EXPECT_LE(test::MaxAbsDiff(Rollout(*identified), traj_hand), 1e-12);
+}
+
 // body_inertial: a log-Cholesky variable of the payload written into MJCF compiles to the model
 // whose full inertia is written by hand (tests/core/inertial_by_hand.h) from the same variables
 TEST_F(IdentifiedModelTest, BodyInertialMatchesFullInertiaByHand) {
@@ -309,7 +369,7 @@ TEST_F(IdentifiedModelTest, BodyInertialMatchesFullInertiaByHand) {
   const std::string path = ModelFile({{"pl_mass", base_text.mass},
                                       {"pl_com", base_text.pos},
                                       {"pl_inertia", base_text.fullinertia}});
-  for (int i : {0, 2, 5, 9}) {
+  for (int i = 0; i < 10; ++i) {
     SCOPED_TRACE("variable " + std::to_string(i));
     double edited[10];
     std::copy(theta, theta + 10, edited);

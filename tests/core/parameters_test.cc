@@ -246,8 +246,8 @@ const char* kRobotTemplate = R"(
     </body>
   </worldbody>
   <contact>
-    <pair name="puck_floor" geom1="floor" geom2="puck" condim="3"
-          friction="{pair_mu} {pair_mu2} 0.005 0.0001 0.0001" solref="{pair_tc} 1"
+    <pair name="puck_floor" geom1="floor" geom2="puck" condim="{pair_condim}"
+          friction="{pair_mu} {pair_mu2} 0.005 {pair_roll1} {pair_roll2}" solref="{pair_tc} 1"
           solimp="{pair_dmin} 0.95 0.001 0.5 2"/>
   </contact>
   <tendon>
@@ -279,6 +279,9 @@ const std::map<std::string, std::string> kRobotDefaults = {
     {"box_dmax", "0.95"},
     {"pair_mu", "0.7"},
     {"pair_mu2", "0.7"},
+    {"pair_condim", "3"},
+    {"pair_roll1", "0.0001"},
+    {"pair_roll2", "0.0001"},
     {"pair_tc", "0.02"},
     {"pair_dmin", "0.9"},
     {"tendon_k", "2"},
@@ -386,11 +389,38 @@ INSTANTIATE_TEST_SUITE_P(
         RobotCase{Spec("dcmotor_cogging", "dc", 2), {{"cog_ph", "0.5"}}, 0.5},
         RobotCase{Spec("dcmotor_lugre", "dc", 0), {{"lugre0", "150"}}, 150},
         RobotCase{Spec("dcmotor_lugre", "dc", 2), {{"lugre2", "0.03"}}, 0.03},
-        RobotCase{Spec("dcmotor_lugre", "dc", 4), {{"lugre4", "0.2"}}, 0.2}),
+        RobotCase{Spec("dcmotor_lugre", "dc", 4), {{"lugre4", "0.2"}}, 0.2},
+        // the dead band's upper end (the elbow swings past it)
+        RobotCase{Spec("tendon_lengthspring", "elbow_spring", 2), {{"tendon_l", "0.1 0.3"}}, 0.3}),
     [](const ::testing::TestParamInfo<RobotCase>& param_info) {
       return param_info.param.spec.kind + "_" + param_info.param.spec.object + "_" +
              std::to_string(param_info.param.spec.index);
     });
+
+// the puck pair's rolling friction (index 3, 4), which acts with condim 6 only: the base and the
+// hand-edited model both get condim 6; tolerances as above (the rolling puck does not spin: its
+// torsional entry is tested in tests/core/identified_model_test.cc, where the box spins)
+TEST(RobotWriterTest, PairRollingFrictionMatchesCompiledXml) {
+  const std::map<std::string, std::string> condim6 = {{"pair_condim", "6"}};
+  ModelPtr base = LoadModelFromString(RobotXml(condim6));
+  const std::vector<double> traj_base = RobotRollout(*base);
+  const std::pair<const char*, double> edits[2] = {{"pair_roll1", 0.003}, {"pair_roll2", 0.002}};
+  for (int index = 3; index < 5; ++index) {
+    const auto& [key, value] = edits[index - 3];
+    SCOPED_TRACE(key);
+    std::map<std::string, std::string> by_hand = condim6;
+    by_hand[key] = FormatG17(value);
+    ModelPtr edited_xml = LoadModelFromString(RobotXml(by_hand));
+    ModelPtr written = CopyModel(*base);
+    ParameterSet params(*written, {Spec("pair_friction", "puck_floor", index)});
+    DataPtr scratch = MakeData(*written);
+    params.Write(written.get(), scratch.get(), &value);
+    EXPECT_EQ(params[0].Read(*edited_xml), value) << "the template edit is this value";
+    const std::vector<double> traj_xml = RobotRollout(*edited_xml);
+    EXPECT_GT(test::MaxAbsDiff(traj_base, traj_xml), 1e-6) << "the edit has no effect";
+    EXPECT_LE(test::MaxAbsDiff(RobotRollout(*written), traj_xml), 1e-12);
+  }
+}
 
 // the arm's inertial attributes of log-Cholesky variables (tests/core/inertial_by_hand.h)
 std::map<std::string, std::string> InertialByHand(const double theta[10]) {

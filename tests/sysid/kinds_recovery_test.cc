@@ -16,6 +16,7 @@
 #include "sysid/io/result.h"
 #include "sysid/problem.h"
 #include "tests/fit_test_util.h"
+#include "tests/sysid/kind_case.h"
 #include "tests/test_util.h"
 
 namespace mjsysid {
@@ -25,19 +26,15 @@ const std::string kModels = MJSYSID_MODELS_DIR;
 
 using test::Estimate;
 using test::Excitation;
+using test::ExpectNoiseFreeRecovery;
+using test::ExpectNoisyRecovery;
+using test::FitCase;
+using test::KindCase;
 using test::Measure;
+using test::PressForce;
+using test::Print;
 using test::Spec;
 using test::Truth;
-
-void Print(const FitResult& r) {
-  std::printf("[ measured ] cost %.3e -> %.3e in %d iterations (%s), %.2f s, jacobian %s\n",
-              r.initial_cost, r.final_cost, r.iterations,
-              r.converged ? "converged" : "NOT converged", r.seconds, r.jacobian_mode.c_str());
-  for (const auto& p : r.parameters) {
-    std::printf("[ measured ]   %-10s %.9g (from %.4g) +- %.3g [%.6g, %.6g]\n", p.name.c_str(),
-                p.value, p.initial, p.std_error, p.ci95_low, p.ci95_high);
-  }
-}
 
 // a pid's kp and ki, a tendon's stiffness and damping, and the lower link's mass and centre of
 // mass x (body_inertial alpha, t1). Truth: kp 35, ki 12, stiffness 4, damping 0.3, alpha
@@ -240,72 +237,6 @@ TEST(KindsRecoveryTest, PayloadInertialDerivedMassInterval) {
   }
 }
 
-// One kind's recovery case: a model, its true values, the start and bounds of each (log transform
-// where positive), the excitation amplitude, and the noise (per sensor, in sensor order) of the
-// noisy variant.
-struct KindCase {
-  std::string model;
-  std::vector<Truth> truth;
-  std::vector<double> start, lower, upper;
-  double amplitude = 1, offset = 0;
-  std::vector<std::pair<std::string, double>> sigma;  // sensor name, noise level
-};
-
-// fits the case from one 1500-step sequence (seed), noise-free or with its noise (weighted by it)
-FitResult FitCase(const KindCase& c, bool noisy, int seed) {
-  ModelPtr m = LoadModel(kModels + "/" + c.model);
-  Problem problem;
-  problem.AddModel("m", *m);
-  for (size_t i = 0; i < c.truth.size(); ++i) {
-    FitParameter p(c.truth[i].name, c.truth[i].spec, c.start[i]);
-    p.Bounds(c.lower[i], c.upper[i]);
-    if (c.lower[i] > 0) p.Log();
-    problem.AddParameter(p);
-  }
-  const RowMatrix u = Excitation(*m, 1500, c.amplitude, seed, c.offset);
-  InitialState x0;
-  RowMatrix y = Measure(*m, c.truth, x0, u, 0, 0);
-  FitOptions opt;
-  if (noisy) {
-    std::mt19937_64 rng(seed);
-    std::normal_distribution<double> n(0, 1);
-    for (const auto& [sensor, sigma] : c.sigma) {
-      const int id = mj_name2id(m.get(), mjOBJ_SENSOR, sensor.c_str());
-      const int col = m->sensor_adr[id];
-      for (int k = 0; k < y.rows(); ++k) y(k, col) += sigma * n(rng);
-      opt.sensor_weights[sensor] = 1 / sigma;
-      opt.sensors_with_sigma.push_back(sensor);
-    }
-  }
-  problem.AddSequence(FitSequence("seq0", "m", x0, u, y));
-  const FitResult r = problem.Fit(opt);
-  Print(r);
-  return r;
-}
-
-// noise-free: every value within relative 1e-6 of the truth
-void ExpectNoiseFreeRecovery(const KindCase& c) {
-  const FitResult r = FitCase(c, false, 50);
-  EXPECT_TRUE(r.converged) << r.termination;
-  for (const Truth& t : c.truth) {
-    EXPECT_NEAR(Estimate(r, t.name).value / t.value, 1.0, 1e-6) << t.name;
-  }
-}
-
-// noisy: status converged (intervals valid), residual variance that of the noise, and the truth
-// inside every 95% interval
-void ExpectNoisyRecovery(const KindCase& c) {
-  const FitResult r = FitCase(c, true, 51);
-  EXPECT_EQ(r.outcome, FitStatus::kConverged) << FitStatusName(r.outcome) << ": " << r.termination;
-  EXPECT_NEAR(r.uncertainty.residual_variance, 1.0, 0.15);
-  for (const Truth& t : c.truth) {
-    const ParameterEstimate& e = Estimate(r, t.name);
-    EXPECT_GT(e.std_error, 0) << t.name;
-    EXPECT_LE(e.ci95_low, t.value) << t.name;
-    EXPECT_GE(e.ci95_high, t.value) << t.name;
-  }
-}
-
 // a voltage-driven DC motor (models/dcmotor.xml, inductance 0.02 H, cogging on): the motor
 // constant and winding resistance from the link's angle and rate under +-6 V multi-sine voltages.
 // Truth: motorconst 0.045 N m/A, resistance 1.7 ohm; start: the model's 0.05, 1.5. Noise: 1 mrad,
@@ -325,6 +256,11 @@ KindCase DcMotorCase() {
 
 TEST(KindsRecoveryTest, DcMotorNoiseFree) { ExpectNoiseFreeRecovery(DcMotorCase()); }
 TEST(KindsRecoveryTest, DcMotorNoisyTruthInsideIntervals) { ExpectNoisyRecovery(DcMotorCase()); }
+// calibration over 20 seeds (0.1 s a fit): a calibrated 95% interval covers in 16 or fewer of 20
+// fits with probability 1.6 %, and pools below 0.9 of 40 with 1.5 %
+TEST(KindsRecoveryTest, DcMotorNoisyIntervalsCalibrated) {
+  test::ExpectCalibratedIntervals(DcMotorCase(), 200, 20, 0.9, 16);
+}
 
 // a native sensor delay with linear interpolation (models/servo_delay.xml: the angle read through
 // a 5-sample history) with the servo's kp. Truth: angle delay 4.5 ms, kp 25; start: the model's
@@ -345,6 +281,10 @@ KindCase SensorDelayCase() {
 TEST(KindsRecoveryTest, SensorDelayNoiseFree) { ExpectNoiseFreeRecovery(SensorDelayCase()); }
 TEST(KindsRecoveryTest, SensorDelayNoisyTruthInsideIntervals) {
   ExpectNoisyRecovery(SensorDelayCase());
+}
+// calibration over 20 seeds, thresholds as for the DC motor
+TEST(KindsRecoveryTest, SensorDelayNoisyIntervalsCalibrated) {
+  test::ExpectCalibratedIntervals(SensorDelayCase(), 200, 20, 0.9, 16);
 }
 
 // contact softness where the cost is smooth (models/sphere_press.xml: a sphere on a vertical
@@ -524,17 +464,6 @@ TEST(KindsRecoveryTest, VelocityServoKvNoiseFree) {
   c.lower = {0.01, 0.01};
   c.upper = {50.0, 50.0};
   ExpectNoiseFreeRecovery(c);
-}
-
-// a press force of three sines (1.1, 5 and 9 Hz, 2 N each; below the sphere's 9.81 N weight)
-RowMatrix PressForce(const mjModel& m, int T) {
-  RowMatrix u(T, 1);
-  for (int k = 0; k < T; ++k) {
-    const double t = k * m.opt.timestep;
-    u(k, 0) = 2 * std::sin(2 * M_PI * 1.1 * t) + 2 * std::sin(2 * M_PI * 5 * t + 1) +
-              2 * std::sin(2 * M_PI * 9 * t + 2);
-  }
-  return u;
 }
 
 // noise-free recovery of contact softness on the pressed sphere (models/sphere_press*.xml: the

@@ -100,6 +100,10 @@ struct ModelCase {
   std::string tendon[2];                                // empty: no tendon kinds
   std::string servo[2];          // position/velocity servos or pids: the servo gain kinds
   std::string inertial_body[2];  // bodies with a strictly consistent inertial: body_inertial
+  std::string dcmotor[2];        // <dcmotor>s with an inductance: the dcmotor kinds
+  std::string pair[2];           // explicit contact pairs: the pair kinds
+  std::string pid[2];            // pid actuators: actuator_ki
+  std::string delayed_actuator[2], delayed_sensor[2];  // linear history buffers: the delay kinds
 };
 
 ModelCase CaseFor(const std::string& name, const mjModel& m, bool quick) {
@@ -156,6 +160,26 @@ ModelCase CaseFor(const std::string& name, const mjModel& m, bool quick) {
                                                         m.actuator_biasprm[mjNBIAS * i + 1] != 0);
       },
       c.servo);
+  pick(
+      mjOBJ_ACTUATOR, static_cast<int>(m.nactuator),
+      [&](int i) {
+        return m.actuator_gaintype[i] == mjGAIN_DCMOTOR && m.actuator_dynprm[mjNDYN * i] > 0;
+      },
+      c.dcmotor);
+  pick(
+      mjOBJ_PAIR, static_cast<int>(m.npair), [&](int) { return true; }, c.pair);
+  pick(
+      mjOBJ_ACTUATOR, static_cast<int>(m.nactuator),
+      [&](int i) { return m.actuator_gaintype[i] == mjGAIN_PID; }, c.pid);
+  // delays: a history buffer with linear interpolation (the delay kinds' requirement)
+  pick(
+      mjOBJ_ACTUATOR, static_cast<int>(m.nactuator),
+      [&](int i) { return m.actuator_historyadr[i] >= 0 && m.actuator_history[2 * i + 1] == 1; },
+      c.delayed_actuator);
+  pick(
+      mjOBJ_SENSOR, static_cast<int>(m.nsensor),
+      [&](int i) { return m.sensor_historyadr[i] >= 0 && m.sensor_history[2 * i + 1] == 1; },
+      c.delayed_sensor);
   return c;
 }
 
@@ -191,6 +215,18 @@ std::vector<KindCase> KindsFor(const ModelCase& c) {
   add("actuator_kp", c.servo, 0);
   add("actuator_kv", c.servo, 0);
   add("body_inertial", c.inertial_body, 2);  // d2
+  add("tendon_lengthspring", c.tendon, 0);
+  add("actuator_ki", c.pid, 0);
+  add("pair_solref", c.pair, 0);
+  add("pair_solimp", c.pair, 1);
+  add("pair_friction", c.pair, 0);
+  add("dcmotor_motorconst", c.dcmotor, 0);
+  add("dcmotor_resistance", c.dcmotor, 0);
+  add("dcmotor_inductance", c.dcmotor, 0);
+  add("dcmotor_cogging", c.dcmotor, 0);
+  add("dcmotor_lugre", c.dcmotor, 2);  // Coulomb friction
+  add("actuator_delay", c.delayed_actuator, 0);
+  add("sensor_delay", c.delayed_sensor, 0);
   return kinds;
 }
 
@@ -410,13 +446,16 @@ std::vector<Row> BenchModel(const std::string& name, const std::string& path,
         return row.cost;
       };
       Summary sum{kc.kind, stage, 0, 0, 0, 0, 0, 0};
+      const bool history = sim1.model().nhistory > 0;
 
       for (bool central : {false, true}) {
         const char* diff = central ? "central" : "forward";
         JacobianOptions opt;
         opt.central = central;
-        // directional and whole rollout: one column, one warmup call
+        // directional and whole rollout: one column, one warmup call (a model with history
+        // buffers has whole-rollout Jacobians only: docs/numerics.md, native delays)
         for (JacobianMode mode : {JacobianMode::kDirectional, JacobianMode::kWholeRollout}) {
+          if (history && mode != JacobianMode::kWholeRollout) continue;
           opt.mode = mode;
           auto jac = [&] { sim1.Jacobians(seqs, nom1, opt, &sens); };
           jac();
@@ -429,6 +468,7 @@ std::vector<Row> BenchModel(const std::string& name, const std::string& path,
                                    sim1.JacobianCostPerStep(mode, opt, contacts));
           if (!central && mode == JacobianMode::kDirectional) sum.directional = cost;
         }
+        if (history) continue;
         // matrix: 1 and 2 parameters, interleaved, and the median of the paired differences;
         // the difference is small next to the shared mjd_transitionFD, so more pairs while cheap
         opt.mode = JacobianMode::kMatrix;
@@ -452,6 +492,7 @@ std::vector<Row> BenchModel(const std::string& name, const std::string& path,
           sum.matrix_est = est1, sum.marginal_est = est2 - est1;
         }
       }
+      if (history) continue;  // no matrix mode: no crossover
       // the perturbed step of matrix mode alone (forward differences: one per parameter)
       SkipStep skip(sim1, nom1[0]);
       std::vector<double> tr, ts;
@@ -469,7 +510,7 @@ std::vector<Row> BenchModel(const std::string& name, const std::string& path,
   // what kAuto picks (counts only), and where matrix mode starts to win (forward differences):
   // directional costs d per column, matrix b + c per column with b its cost without parameter
   // columns and c the skip step, so matrix wins for np > b / (d - c) parameters of one kind
-  if (!mc.body[0].empty()) {
+  if (!mc.body[0].empty() && m->nhistory == 0) {
     Simulator sim(*m, {{"body_mass", mc.body[0], "", 0, ""}}, settings.sim);
     // kAuto as Simulator::Jacobians decides it: with the contact share of the trajectories
     std::vector<Trajectory> nom, scratch;
