@@ -719,6 +719,7 @@ int RunFitSharded(const FitArgs& args) {
       problem.DistributeResiduals(&shards);
     });
   } catch (const mpi::RankError& e) {
+    shards.Abandon(e.what());
     throw InputError(e.what());
   } catch (const std::exception& e) {
     shards.Abandon(e.what());

@@ -224,13 +224,13 @@ bool AgreeReady(bool ok, const std::string& message, std::string* failure) {
 void CheckShardable(FitOptions* options) {
   if (options->segment_steps < 0) options->segment_steps = 0;  // auto: single shooting
   if (options->segment_steps > 0) {
-    throw std::invalid_argument(
+    throw RankError(
         "multiple_shooting: segment_steps " + std::to_string(options->segment_steps) +
         ": a fit sharded across MPI ranks is single shooting only (docs/cluster.md); set "
         "segment_steps: 0 or auto, or run on one rank");
   }
   if (options->estimate_initial_state) {
-    throw std::invalid_argument(
+    throw RankError(
         "initial_state: estimate: a fit sharded across MPI ranks cannot estimate initial states "
         "yet (docs/cluster.md); give the logged states, or run on one rank");
   }

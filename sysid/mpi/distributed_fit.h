@@ -59,7 +59,8 @@ int Size();     // 1 without MPI
 // "rank R on HOST"
 std::string RankName(int rank);
 
-// A rank's bad input, or a rank that was not ready: the message names the rank and its host
+// Bad input for a sharded fit: a rank that was not ready (the message names the rank and its
+// host), or what is not sharded (CheckShardable)
 class RankError : public std::invalid_argument {
  public:
   using std::invalid_argument::invalid_argument;
@@ -69,7 +70,7 @@ class RankError : public std::invalid_argument {
 // *failure = the message of the lowest failing rank, prefixed with RankName
 bool AgreeReady(bool ok, const std::string& message, std::string* failure);
 
-// single shooting (auto becomes 0); throws std::invalid_argument for multiple shooting or
+// single shooting (auto becomes 0); throws RankError (bad input, exit 2) for multiple shooting or
 // estimated initial states, naming the experiment key
 void CheckShardable(FitOptions* options);
 

@@ -136,8 +136,28 @@ TEST_F(MpiFitTest, RefusesWhatIsNotShardedAndBadInput) {
   EXPECT_EQ(ms.code, 2) << ms.output;
   EXPECT_NE(ms.output.find("single shooting only"), std::string::npos) << ms.output;
   EXPECT_FALSE(fs::exists(Path("ms")));
+  // a log only rank 1 cannot read (its node lacks the file: rank 1 reads the experiment from a
+  // folder without logs/, by mpirun's MPMD form "-n 1 A : -n 1 B"): found before the fit, rank 0
+  // reports it naming rank 1 and its host, exit 2
+  test::WriteFile(exp_, Experiment(300));
+  ASSERT_EQ(Shell(kSysid + " simulate " + exp_).code, 0);
+  fs::create_directories(Path("node1"));
+  test::WriteFile(Path("node1/exp.yaml"), Experiment(300));
+  const std::string mpmd = std::string(MJSYSID_MPIEXEC) +
+                           " --allow-run-as-root --oversubscribe --mca pml ob1 --mca btl tcp,self"
+                           " --mca btl_tcp_if_include lo -n 1 " +
+                           kSysid + " fit " + exp_ + " --out " + Path("one") + " --quiet : -n 1 " +
+                           kSysid + " fit " + Path("node1/exp.yaml") + " --out " + Path("one") +
+                           " --quiet";
+  const Ended one = Shell(mpmd);
+  EXPECT_EQ(one.code, 2) << one.output;
+  char host[256] = {0};
+  gethostname(host, sizeof(host) - 1);
+  EXPECT_NE(one.output.find(std::string("rank 1 on host ") + host), std::string::npos)
+      << one.output;
+  EXPECT_NE(one.output.find("node1/logs/pendulum.h5"), std::string::npos) << one.output;
+  EXPECT_FALSE(fs::exists(Path("one")));
   // a log no rank can read: the message once (rank 0 reports), exit 2
-  test::WriteFile(exp_, Experiment(300) + "");
   fs::remove(Path("logs/pendulum.h5"));
   const Ended bad =
       Shell(Mpirun(2) + kSysid + " fit " + exp_ + " --out " + Path("bad") + " --quiet");
