@@ -84,7 +84,7 @@ void SensorsAtSamples(const RowMatrix& sensors, const SampleGrid& grid, int k0, 
 }
 
 // The residual variance of u over m residual rows instead of the rows of the Jacobian it came
-// from: a compressed Jacobian (sysid/mpi/: one thin-QR block per rank) has the same J^T J and
+// from: a compressed Jacobian (sysid/mpi/: the thin-QR triangle of all rows) has the same J^T J and
 // cost as the full one but fewer rows, which changes only dof and s^2 = 2 cost / dof
 void UseResidualRows(long long m, double cost, bool scaled, Uncertainty* u) {
   const long long dof = m - u->rank;

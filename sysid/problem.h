@@ -117,8 +117,8 @@ class Problem {
   std::unique_ptr<Impl> impl_;
 };
 
-// Segment residuals evaluated elsewhere (sysid/mpi/: sharded across MPI ranks, each rank's block
-// compressed to its thin QR). When set (Problem::DistributeResiduals), Problem::Fit adds no
+// Segment residuals evaluated elsewhere (sysid/mpi/: sharded across MPI ranks, each segment's
+// block compressed to a thin-QR triangle). When set (Problem::DistributeResiduals), Fit adds no
 // SegmentCost / StateCost blocks: it asks AddResidualBlocks for the blocks that replace them (on
 // the z and m parameter blocks only), uses Callback() as the Ceres EvaluationCallback, and reports
 // NumResiduals() (the rows of the uncompressed residual vector, for the residual variance and the

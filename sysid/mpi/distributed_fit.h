@@ -5,7 +5,7 @@
 // (AgreeReady) before any evaluation, so bad input on any rank (a log it cannot read) ends the run
 // on every rank before the fit, with that rank's message naming it and its host. Rank 0 runs
 // Ceres through the ordinary Problem::Fit with a ShardedResiduals (sysid/problem.h's
-// ResidualShards): one residual block per rank. The other ranks loop in ServeFit.
+// ResidualShards): one residual block for all segments. The other ranks loop in ServeFit.
 //
 // One evaluation (ShardedResiduals::PrepareForEvaluation, Ceres' EvaluationCallback): rank 0
 // broadcasts [command, jacobians?, z (np), m (nm)] (n = np + nm values after the header); every

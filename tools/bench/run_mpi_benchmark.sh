@@ -6,11 +6,14 @@
 # iteration 0's, over the iterations), speed-up against 1 x 1, rank 0's bytes sent and received
 # per iteration and its share of time inside MPI calls (MJSYSID_MPI_STATS), then the
 # extrapolation to 8, 64 and 512 ranks for 1,000 sequences x 10,000 steps with its assumptions.
-# usage: tools/bench/run_mpi_benchmark.sh [sysid binary]  (default: the release preset's, built)
+# Each configuration runs `repeats` times (default 3), interleaved; the fastest run is shown.
+# usage: tools/bench/run_mpi_benchmark.sh [sysid binary [repeats]]  (default: the release preset's
+# sysid, built)
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 cd "$root"
 sysid="${1:-}"
+repeats="${2:-3}"
 if [[ -z "$sysid" ]]; then
   cmake --preset release -G Ninja >/dev/null
   cmake --build --preset release -j 2 --target sysid >/dev/null
@@ -29,15 +32,23 @@ grep -q "sequences: 32" "$work/arm7_32.yaml" && grep -q "steps: 300" "$work/arm7
 mpi=(mpirun --allow-run-as-root --oversubscribe --mca pml ob1 --mca btl tcp,self
      --mca btl_tcp_if_include lo -x MJSYSID_MPI_STATS=1)
 echo "load before: $(uptime)"
-"$sysid" fit "$work/arm7_32.yaml" --out "$work/out_r1t1" --threads 1 >/dev/null 2>"$work/r1t1.err"
-"${mpi[@]}" -n 2 "$sysid" fit "$work/arm7_32.yaml" --out "$work/out_r2t1" --threads 1 \
-  >/dev/null 2>"$work/r2t1.err"
-"$sysid" fit "$work/arm7_32.yaml" --out "$work/out_r1t2" --threads 2 >/dev/null 2>"$work/r1t2.err"
+# each configuration `repeats` times, interleaved; the table keeps the fastest (least disturbed by
+# other load on a shared machine)
+for ((i = 0; i < repeats; ++i)); do
+  "$sysid" fit "$work/arm7_32.yaml" --out "$work/out" --threads 1 --force >/dev/null \
+    2>"$work/r1t1.$i.err"
+  "${mpi[@]}" -n 2 "$sysid" fit "$work/arm7_32.yaml" --out "$work/out" --threads 1 --force \
+    >/dev/null 2>"$work/r2t1.$i.err"
+  "$sysid" fit "$work/arm7_32.yaml" --out "$work/out" --threads 2 --force >/dev/null \
+    2>"$work/r1t2.$i.err"
+done
 echo "load after:  $(uptime)"
-python3 - "$work" <<'PY'
+python3 - "$work" "$repeats" <<'PY'
 import math, re, sys
-work = sys.argv[1]
+work, repeats = sys.argv[1], int(sys.argv[2])
 def parse(name):
+    return min((parse_one(f"{name}.{i}") for i in range(repeats)), key=lambda p: p[1])
+def parse_one(name):
     text = open(f"{work}/{name}.err").read()
     iters = [(int(m.group(1)), float(m.group(2)))
              for m in re.finditer(r"^iter\s+(\d+).*?([\d.]+) s$", text, re.M)]
