@@ -51,6 +51,7 @@
 #include "tools/report/report.h"
 #ifdef MJSYSID_WITH_MPI
 #include "sysid/mpi/distributed_fit.h"
+#include "sysid/mpi/sharded_rollout.h"
 #endif
 
 namespace {
@@ -286,7 +287,14 @@ int RunSimulate(const SimulateArgs& args) {
   std::vector<std::string> inputs = {args.experiment};
   for (const mjsysid::io::ModelSpec& spec : config.models) inputs.push_back(spec.path);
   mjsysid::run::CheckOutputFile(out, inputs, "--out");
+#ifdef MJSYSID_WITH_MPI
+  // under mpirun: the rollouts sharded across the ranks, the log written by rank 0 alone
+  if (mjsysid::mpi::Size() > 1) settings.rollout = mjsysid::mpi::ShardedRollout;
+#endif
   const mjsysid::io::Log log = mjsysid::sim::SimulateExperiment(config, settings);
+#ifdef MJSYSID_WITH_MPI
+  if (mjsysid::mpi::Rank() > 0) return kExitOk;
+#endif
   PrepareLogOutput(out, inputs, args.force);
   mjsysid::io::WriteLog(out, log);
 
@@ -1074,9 +1082,11 @@ int main(int argc, char** argv) {
   for (const Command& c : commands) {
     if (!*c.app) continue;
 #ifdef MJSYSID_WITH_MPI
-    // under mpirun only `fit` is sharded: every other subcommand runs on rank 0 alone (one
-    // writer of its outputs)
-    if (mjsysid::mpi::Rank() > 0 && c.app->get_name() != "fit") return kExitOk;
+    // under mpirun `fit` and `simulate` are sharded: every other subcommand runs on rank 0 alone
+    // (one writer of its outputs)
+    if (mjsysid::mpi::Rank() > 0 && c.app->get_name() != "fit" && c.app->get_name() != "simulate") {
+      return kExitOk;
+    }
 #endif
     const int code = RunGuarded(c.app->get_name(), c.run);
 #ifndef __SANITIZE_ADDRESS__

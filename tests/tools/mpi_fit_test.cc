@@ -2,7 +2,8 @@
 // sharded fit gives the estimates and iteration count of the fit on one rank with 1, 2 and 4 ranks
 // and 1 or 2 threads; bad input and what is not sharded end the run with exit 2 and the message;
 // a worker killed mid-fit ends the run naming the rank and host, its last checkpoint stays and
-// `--resume` continues it to the uninterrupted estimate. Label `mpi` (docs/cluster.md).
+// `--resume` continues it to the uninterrupted estimate; `sysid simulate` shards its rollouts.
+// Label `mpi` (docs/cluster.md).
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/wait.h>
@@ -18,6 +19,7 @@
 #include <thread>
 #include <vector>
 
+#include "sysid/io/log.h"
 #include "sysid/io/result.h"
 #include "tests/file_util.h"
 #include "tests/temp_dir_test.h"
@@ -149,6 +151,26 @@ TEST_F(MpiFitTest, RobustLossIsSharded) {
     EXPECT_NEAR(got[2].parameters[i].value, v, 1e-12 * std::abs(v));
     EXPECT_NEAR(got[0].parameters[i].value, v, 1e-6 * se);
   }
+}
+
+// `sysid simulate` under mpirun shards the rollouts (3 ranks, 4 sequences: shares of 1, 1 and 2)
+// and rank 0 writes: every dataset equals the log of one process, bit for bit
+TEST_F(MpiFitTest, SimulateIsShardedAndEqual) {
+  Write(400);
+  const Ended sharded = Shell(Mpirun(3) + kSysid + " simulate " + exp_ + " --out " + Path("s.h5"));
+  ASSERT_EQ(sharded.code, 0) << sharded.output;
+  const io::Log want = io::ReadLog(Path("logs/pendulum.h5")), got = io::ReadLog(Path("s.h5"));
+  ASSERT_EQ(got.sequences.size(), want.sequences.size());
+  for (size_t i = 0; i < want.sequences.size(); ++i) {
+    SCOPED_TRACE(want.sequences[i].name);
+    EXPECT_EQ(got.sequences[i].name, want.sequences[i].name);
+    EXPECT_TRUE(got.sequences[i].sensordata == want.sequences[i].sensordata);
+    EXPECT_TRUE(got.sequences[i].qpos == want.sequences[i].qpos);
+    EXPECT_TRUE(got.sequences[i].qvel == want.sequences[i].qvel);
+    EXPECT_TRUE(got.sequences[i].ctrl == want.sequences[i].ctrl);
+  }
+  // one writer: the summary printed once
+  EXPECT_EQ(sharded.output.find("wrote"), sharded.output.rfind("wrote")) << sharded.output;
 }
 
 // what a sharded fit cannot do yet, and bad input, end the run on every rank with exit 2 and one
