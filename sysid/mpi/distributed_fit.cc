@@ -4,6 +4,7 @@
 
 #include <mpi.h>
 
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -30,6 +31,9 @@ double Seconds(std::chrono::steady_clock::time_point since) {
 
 // the buffers of one rank's evaluation, reused
 struct Share {
+  // per owned segment: its sensor cost (all blocks) and fitted-state cost (z only; or nullptr),
+  // built at the first evaluation
+  std::vector<std::array<std::unique_ptr<ceres::CostFunction>, 2>> costs;
   CompressedBlock block;
   std::vector<Eigen::MatrixXd> blocks;  // per owned segment, with Jacobians
   std::vector<double> sums;             // per owned segment: sum r^2
@@ -58,13 +62,16 @@ void EvaluateShare(Problem::Impl* impl, int first, int last, bool jacobians, Sha
   std::vector<const double*> params;
   if (np) params.push_back(I.z.data());
   if (nm) params.push_back(I.m.data());
+  share->costs.resize(std::max(last - first, 0));
   share->sums.assign(std::max(last - first, 0), 0.0);
   share->blocks.resize(std::max(last - first, 0));
   for (int s = first; s < last && ok; ++s) {
     // the sensor rows (all blocks) and the fitted-state rows (z only)
-    std::unique_ptr<ceres::CostFunction> costs[2] = {
-        std::make_unique<SegmentCost>(impl, s),
-        I.segments[s].state_rows ? std::make_unique<StateCost>(impl, s) : nullptr};
+    auto& costs = share->costs[s - first];
+    if (!costs[0]) {
+      costs[0] = std::make_unique<SegmentCost>(impl, s);
+      if (I.segments[s].state_rows) costs[1] = std::make_unique<StateCost>(impl, s);
+    }
     share->block.Reset(n);
     for (const auto& cost : costs) {
       if (!cost || cost->num_residuals() == 0 || !ok) continue;
