@@ -785,7 +785,9 @@ Command AddFit(CLI::App* app) {
                   "checkpoint.yaml after every successful iteration), which replaces DIR once "
                   "complete. Ctrl-C, SIGTERM or SIGHUP stops after the current iteration and "
                   "writes the results of the last good iterate; a second one exits at once and "
-                  "leaves DIR as it was. Exit code 1 when the fit did not converge.\n") +
+                  "leaves DIR as it was. Exit code 1 when the fit did not converge. Under "
+                  "`mpirun -n N` (or srun) the sequences are sharded across the ranks and rank 0 "
+                  "writes (docs/cluster.md).\n") +
       kExitCodesFooter);
   return {sub, [args] { return RunFit(*args); }};
 }
