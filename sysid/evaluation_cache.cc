@@ -174,7 +174,7 @@ void EvaluationCache::Prefetch(const double* z, const std::vector<const double*>
     std::vector<int> segs;
     std::vector<const double*> x0s;
     for (int s = 0; s < static_cast<int>(segments_->size()); ++s) {
-      if ((*segments_)[s].model != mo) continue;
+      if ((*segments_)[s].model != mo || x0[s] == nullptr) continue;
       segs.push_back(s);
       x0s.push_back(x0[s]);
     }

@@ -100,6 +100,7 @@ class EvaluationCache {
 
   // Brings every segment to z and x0[segment] (with Jacobians if asked for), batched per model:
   // one Rollout call for the segments whose key changed, one Jacobians call per kind of segment.
+  // A nullptr x0[segment] leaves that segment out (a distributed worker's share, sysid/mpi/).
   void Prefetch(const double* z, const std::vector<const double*>& x0, bool jacobians);
 
   // Stores a rollout computed elsewhere at z and x0 (Problem::Prepare's rollouts at the initial

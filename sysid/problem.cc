@@ -83,6 +83,24 @@ void SensorsAtSamples(const RowMatrix& sensors, const SampleGrid& grid, int k0, 
   }
 }
 
+// The residual variance of u over m residual rows instead of the rows of the Jacobian it came
+// from: a compressed Jacobian (sysid/mpi/: the thin-QR triangle of all rows) has the same J^T J and
+// cost as the full one but fewer rows, which changes only dof and s^2 = 2 cost / dof
+void UseResidualRows(long long m, double cost, bool scaled, Uncertainty* u) {
+  const long long dof = m - u->rank;
+  const double s2 =
+      dof > 0 ? 2.0 * cost / static_cast<double>(dof) : std::numeric_limits<double>::quiet_NaN();
+  if (scaled && u->residual_variance > 0 && std::isfinite(s2)) {
+    const double ratio = s2 / u->residual_variance;
+    u->covariance *= ratio;
+    for (Eigen::Index j = 0; j < u->std_error.size(); ++j) {
+      if (std::isfinite(u->std_error[j])) u->std_error[j] *= std::sqrt(ratio);
+    }
+  }
+  u->dof = static_cast<int>(dof);
+  u->residual_variance = s2;
+}
+
 }  // namespace
 
 // -----------------------------------------------------------------------------------------------
@@ -111,6 +129,14 @@ void Problem::AddParameter(const FitParameter& p) {
 void Problem::AddMeasurement(const FitMeasurement& me) { impl_->measurements.push_back(me); }
 
 void Problem::AddSequence(const FitSequence& s) { impl_->sequences.push_back(s); }
+
+void Problem::DistributeResiduals(ResidualShards* shards) { impl_->shards = shards; }
+
+Problem::Impl* Problem::PrepareOnly(const FitOptions& options) {
+  Prepared prepared;
+  Prepare(options, &prepared);
+  return impl_.get();
+}
 
 void Problem::Prepare(const FitOptions& options, Prepared* out) {
   Impl& I = *impl_;
@@ -486,7 +512,7 @@ FitResult Problem::Fit(const FitOptions& options) {
   ceres::Problem::Options po;
   po.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   PrefetchCallback prefetch(&I);
-  po.evaluation_callback = &prefetch;
+  po.evaluation_callback = I.shards ? I.shards->Callback() : &prefetch;
   ceres::Problem problem(po);
   if (np) {
     problem.AddParameterBlock(I.z.data(), np);
@@ -510,7 +536,14 @@ FitResult Problem::Fit(const FitOptions& options) {
       }
     }
   }
-  for (size_t s = 0; s < I.segments.size(); ++s) {
+  // segment residuals evaluated elsewhere (sysid/mpi/): their blocks replace the segments'
+  if (I.shards) {
+    std::vector<double*> blocks;
+    if (np) blocks.push_back(I.z.data());
+    if (!I.m.empty()) blocks.push_back(I.m.data());
+    I.shards->AddResidualBlocks(&I, &problem, blocks);
+  }
+  for (size_t s = 0; s < I.segments.size() && !I.shards; ++s) {
     const Segment& seg = I.segments[s];
     const Impl::Model& mo = I.models[seg.model];
     std::vector<double*> blocks;
@@ -601,7 +634,11 @@ FitResult Problem::Fit(const FitOptions& options) {
   result.iterations = static_cast<int>(summary.iterations.size()) - 1;
   result.converged = summary.termination_type == ceres::CONVERGENCE && !result.interrupted;
   result.termination = summary.message;
-  result.num_residuals = summary.num_residuals;
+  // sharded (sysid/mpi/): the uncompressed rows, with the priors'
+  int prior_rows = 0;
+  for (const FitParameter& p : I.params) prior_rows += p.has_prior ? 1 : 0;
+  result.num_residuals =
+      I.shards ? static_cast<int>(I.shards->NumResiduals()) + prior_rows : summary.num_residuals;
   if (summary.termination_type == ceres::FAILURE) {
     result.warnings.push_back("Ceres failed: " + summary.message);
   }
@@ -689,6 +726,10 @@ FitResult Problem::Fit(const FitOptions& options) {
         all_names.push_back("x0[" + std::to_string(c - nvar) + "]");
       }
       result.uncertainty = AnalyzeUncertainty(J, cost, all_names, values, fixed, uo);
+      if (I.shards) {
+        UseResidualRows(result.num_residuals, cost, uo.scale_by_residual_variance,
+                        &result.uncertainty);
+      }
     }
     // keep the parameter block of the covariance
     Eigen::MatrixXd cov = result.uncertainty.covariance.topLeftCorner(nvar, nvar);

@@ -53,7 +53,14 @@
 #include "sysid/types.h"
 #include "sysid/uncertainty.h"
 
+namespace ceres {
+class Problem;
+class EvaluationCallback;
+}  // namespace ceres
+
 namespace mjsysid {
+
+class ResidualShards;  // below
 
 // result of Problem::CheckJacobians
 struct JacobianCheck {
@@ -84,7 +91,14 @@ class Problem {
   // rollouts). Returns the worst relative error per variable. Throws like Fit on bad input.
   JacobianCheck CheckJacobians(const FitOptions& options);
 
+  // Fit with the segment residuals evaluated by shards (borrowed; nullptr: here, as usual); see
+  // ResidualShards. Single shooting without estimated initial states only (the caller checks).
+  void DistributeResiduals(ResidualShards* shards);
   struct Impl;  // the state behind the API (sysid/problem_impl.h, for the cost functions)
+  // Validates and prepares the fit as Fit does, without solving, and returns the prepared state
+  // (owned by this Problem): for a worker that evaluates a share of the segments (sysid/mpi/).
+  // Throws like Fit on bad input.
+  Impl* PrepareOnly(const FitOptions& options);
 
  private:
   struct Prepared {
@@ -101,6 +115,24 @@ class Problem {
   void Prepare(const FitOptions& options, Prepared* out);
 
   std::unique_ptr<Impl> impl_;
+};
+
+// Segment residuals evaluated elsewhere (sysid/mpi/: sharded across MPI ranks, each segment's
+// block compressed to a thin-QR triangle). When set (Problem::DistributeResiduals), Fit adds no
+// SegmentCost / StateCost blocks: it asks AddResidualBlocks for the blocks that replace them (on
+// the z and m parameter blocks only), uses Callback() as the Ceres EvaluationCallback, and reports
+// NumResiduals() (the rows of the uncompressed residual vector, for the residual variance and the
+// chi-square) instead of the rows Ceres sees. The uncertainty then comes from the compressed
+// Jacobian, whose normal matrix J^T J and cost equal the full one's.
+class ResidualShards {
+ public:
+  virtual ~ResidualShards() = default;
+  // called once by Fit after Prepare with its prepared state; blocks: z (np) if the fit has
+  // parameters, then m
+  virtual void AddResidualBlocks(Problem::Impl* impl, ceres::Problem* problem,
+                                 const std::vector<double*>& blocks) = 0;
+  virtual ceres::EvaluationCallback* Callback() = 0;
+  virtual long long NumResiduals() const = 0;
 };
 
 }  // namespace mjsysid

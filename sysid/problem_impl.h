@@ -46,6 +46,7 @@ struct Problem::Impl {
   std::vector<FitParameter> params;
   std::vector<FitMeasurement> measurements;
   std::vector<FitSequence> sequences;
+  ResidualShards* shards = nullptr;  // segment residuals evaluated elsewhere (sysid/mpi/)
 
   // the prepared fit (Prepare)
   FitOptions options;

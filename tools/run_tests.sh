@@ -31,7 +31,7 @@ step "build (RelWithDebInfo, warnings as errors)"
 cmake --preset default -G Ninja >/dev/null
 cmake --build --preset default -j "$jobs"
 
-step "tests (labels unit, recovery, stress, browser; 'long' is excluded: see README)"
+step "tests (labels unit, recovery, stress, browser, mpi; 'long' is excluded: see README)"
 ctest --preset default -j "$jobs" -LE long
 
 step "install into a temporary prefix; tests/consumer built against it with find_package(mjsysid)"

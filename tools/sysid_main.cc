@@ -49,6 +49,10 @@
 #include "sysid/run/resume.h"
 #include "sysid/sim/simulate.h"
 #include "tools/report/report.h"
+#ifdef MJSYSID_WITH_MPI
+#include "sysid/mpi/distributed_fit.h"
+#include "sysid/mpi/sharded_rollout.h"
+#endif
 
 namespace {
 
@@ -283,7 +287,14 @@ int RunSimulate(const SimulateArgs& args) {
   std::vector<std::string> inputs = {args.experiment};
   for (const mjsysid::io::ModelSpec& spec : config.models) inputs.push_back(spec.path);
   mjsysid::run::CheckOutputFile(out, inputs, "--out");
+#ifdef MJSYSID_WITH_MPI
+  // under mpirun: the rollouts sharded across the ranks, the log written by rank 0 alone
+  if (mjsysid::mpi::Size() > 1) settings.rollout = mjsysid::mpi::ShardedRollout;
+#endif
   const mjsysid::io::Log log = mjsysid::sim::SimulateExperiment(config, settings);
+#ifdef MJSYSID_WITH_MPI
+  if (mjsysid::mpi::Rank() > 0) return kExitOk;
+#endif
   PrepareLogOutput(out, inputs, args.force);
   mjsysid::io::WriteLog(out, log);
 
@@ -630,9 +641,9 @@ void PrintEstimates(const mjsysid::io::FitResultFile& f) {
   std::fflush(stdout);
 }
 
-int RunFit(const FitArgs& args) {
+// the experiment file of `sysid fit`: --resume DIR: the checkpoint's unless given
+std::string ExperimentOf(const FitArgs& args) {
   namespace io = mjsysid::io;
-  // --resume DIR: the folder is DIR; the experiment is the checkpoint's unless given
   std::string experiment = args.experiment;
   if (!args.resume.empty()) {
     if (!args.out.empty() && !mjsysid::run::SamePath(args.out, args.resume)) {
@@ -651,8 +662,16 @@ int RunFit(const FitArgs& args) {
   } else if (experiment.empty()) {
     throw InputError("the experiment file is required (sysid fit EXP.yaml), except with --resume");
   }
-  const io::ExperimentConfig config = io::LoadExperiment(experiment);
+  return experiment;
+}
+
+// on_problem: set by the MPI-sharded fit (RunFitSharded), else empty
+int RunFitHere(const FitArgs& args,
+               const std::function<void(mjsysid::Problem&, mjsysid::FitOptions*)>& on_problem) {
+  namespace io = mjsysid::io;
+  const io::ExperimentConfig config = io::LoadExperiment(ExperimentOf(args));
   mjsysid::run::FitRunOptions options;
+  options.on_problem = on_problem;
   options.out_dir = args.resume.empty() ? args.out : args.resume;
   options.resume = !args.resume.empty();
   options.threads = args.threads;
@@ -675,6 +694,65 @@ int RunFit(const FitArgs& args) {
   if (out.file.interrupted)
     std::fprintf(stderr, "sysid fit: interrupted: results of the last good iterate written\n");
   return out.exit_code;
+}
+
+#ifdef MJSYSID_WITH_MPI
+// `mpirun -n N sysid fit` (sysid/mpi/distributed_fit.h): rank 0 fits and writes, the other ranks
+// evaluate their share of the sequences; every rank reads and checks the input first, and rank 0
+// reports the first rank's failure (exit 2)
+int RunFitSharded(const FitArgs& args) {
+  namespace mpi = mjsysid::mpi;
+  auto check_starts = [&args](const mjsysid::io::ExperimentConfig& config) {
+    if ((args.starts >= 1 ? args.starts : config.starts) > 1) {
+      throw InputError("solver.starts / --starts above 1 with MPI: a sharded fit is one start");
+    }
+  };
+  if (mpi::Rank() > 0) {
+    std::string failure;
+    std::optional<mjsysid::io::ExperimentConfig> config;
+    try {
+      config = mjsysid::io::LoadExperiment(ExperimentOf(args));
+      check_starts(*config);
+    } catch (const std::exception& e) {
+      failure = e.what();
+    }
+    return mpi::ServeFit(config ? &*config : nullptr, args.threads, failure);
+  }
+  mpi::ShardedResiduals shards;
+  int code = 0;
+  try {
+    check_starts(mjsysid::io::LoadExperiment(ExperimentOf(args)));
+    code = RunFitHere(args, [&](mjsysid::Problem& problem, mjsysid::FitOptions* options) {
+      mpi::CheckShardable(options);
+      problem.DistributeResiduals(&shards);
+    });
+  } catch (const mpi::RankError& e) {
+    shards.Abandon(e.what());
+    throw InputError(e.what());
+  } catch (const std::exception& e) {
+    shards.Abandon(e.what());
+    throw;
+  }
+  shards.Finish();
+  if (std::getenv("MJSYSID_MPI_STATS")) {
+    // traffic and time of the evaluations (tools/bench/mpi_bench.sh reads this line)
+    const mpi::ShardStats& st = shards.stats();
+    std::fprintf(stderr,
+                 "mpi stats: ranks %d evaluations %lld jacobian_evaluations %lld bytes %lld "
+                 "seconds_mpi %.6f seconds_own_share %.6f\n",
+                 mpi::Size(), st.evaluations, st.jacobian_evaluations, st.bytes, st.seconds_mpi,
+                 st.seconds_own_share);
+  }
+  return code;
+}
+#endif
+
+int RunFit(const FitArgs& args) {
+#ifdef MJSYSID_WITH_MPI
+  // under a launcher even with one rank: the same arithmetic (one tree) with any rank count
+  if (mjsysid::mpi::Active()) return RunFitSharded(args);
+#endif
+  return RunFitHere(args, {});
 }
 
 Command AddFit(CLI::App* app) {
@@ -707,7 +785,9 @@ Command AddFit(CLI::App* app) {
                   "checkpoint.yaml after every successful iteration), which replaces DIR once "
                   "complete. Ctrl-C, SIGTERM or SIGHUP stops after the current iteration and "
                   "writes the results of the last good iterate; a second one exits at once and "
-                  "leaves DIR as it was. Exit code 1 when the fit did not converge.\n") +
+                  "leaves DIR as it was. Exit code 1 when the fit did not converge. Under "
+                  "`mpirun -n N` (or srun) the sequences are sharded across the ranks and rank 0 "
+                  "writes (docs/cluster.md).\n") +
       kExitCodesFooter);
   return {sub, [args] { return RunFit(*args); }};
 }
@@ -949,6 +1029,11 @@ int RunGuarded(const std::string& name, const std::function<int()>& run) {
 
 int main(int argc, char** argv) {
   mjsysid::InstallMujocoHandlers();
+#ifdef MJSYSID_WITH_MPI
+  // only when started by an MPI launcher (mpirun, srun); ended by std::atexit at exit
+  mjsysid::mpi::Initialize(&argc, &argv);
+  std::atexit(mjsysid::mpi::Finalize);
+#endif
   CLI::App app{
       "mjsysid: system identification for MuJoCo models.\n"
       "Run `sysid SUBCOMMAND --help` for the arguments of a subcommand."};
@@ -998,6 +1083,13 @@ int main(int argc, char** argv) {
   }
   for (const Command& c : commands) {
     if (!*c.app) continue;
+#ifdef MJSYSID_WITH_MPI
+    // under mpirun `fit` and `simulate` are sharded: every other subcommand runs on rank 0 alone
+    // (one writer of its outputs)
+    if (mjsysid::mpi::Rank() > 0 && c.app->get_name() != "fit" && c.app->get_name() != "simulate") {
+      return kExitOk;
+    }
+#endif
     const int code = RunGuarded(c.app->get_name(), c.run);
 #ifndef __SANITIZE_ADDRESS__
     // HDF5 1.10 crashes in its exit handler (SIGSEGV in H5F__close_cb) when a write failed (full
@@ -1005,6 +1097,9 @@ int main(int argc, char** argv) {
     // flushed, without the libraries' exit handlers (measured: exit 139 instead of 1 or 2).
     // Sanitizer builds keep them, for LeakSanitizer.
     if (code != kExitOk) {
+#ifdef MJSYSID_WITH_MPI
+      mjsysid::mpi::Finalize();  // the other ranks left the fit: MPI ends cleanly
+#endif
       std::fflush(nullptr);
       std::_Exit(code);
     }

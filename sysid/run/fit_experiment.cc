@@ -543,6 +543,7 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
       static_cast<FitResult&>(file) =
           FitFromStarts(bp, options, starts, start_seed, /*progress=*/true);
     } else {
+      if (ro.on_problem) ro.on_problem(*bp.problem, &options);
       static_cast<FitResult&>(file) = bp.problem->Fit(options);
     }
   } catch (const SimulationError& e) {

@@ -76,6 +76,9 @@ struct FitRunOptions {
   // multi-start (sysid/run/multi_start.h): < 1 / < 0: the config's solver.starts / solver.seed
   int starts = 0;
   long long seed = -1;
+  // called with the built problem and its options just before a single-start fit (sysid/mpi/:
+  // the residuals sharded across MPI ranks, the options it supports)
+  std::function<void(Problem&, FitOptions*)> on_problem;
 };
 
 struct FitRunOutcome {

@@ -218,7 +218,11 @@ io::Log SimulateExperiment(const io::ExperimentConfig& config, const SimulateSet
       positions[s] = grid.position;
     }
     std::vector<Trajectory> traj;
-    sim.Rollout(inputs, &traj);
+    if (settings.rollout) {
+      settings.rollout(sim, inputs, &traj);
+    } else {
+      sim.Rollout(inputs, &traj);
+    }
 
     // one log sequence per rollout
     std::vector<std::string> actuator_names;

@@ -44,10 +44,12 @@
 #include <mujoco/mujoco.h>
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
 #include "core/parameters.h"
+#include "core/simulator.h"
 #include "sysid/io/experiment.h"
 #include "sysid/io/log.h"
 
@@ -60,6 +62,11 @@ inline constexpr std::uint64_t kSampleStream = 0x74696d65;  // "time"
 
 struct SimulateSettings {
   int threads = 0;  // simulator workers; <= 0: all cores
+  // the rollouts of one model's sequences (empty: sim.Rollout); `sysid simulate` under mpirun
+  // shards them across the ranks (sysid/mpi/sharded_rollout.h)
+  std::function<void(Simulator& sim, const std::vector<SequenceInput>& inputs,
+                     std::vector<Trajectory>* out)>
+      rollout;
 };
 
 // simulates the experiment's `simulate` block; see the contract above

@@ -1,0 +1,424 @@
+// A fit sharded across MPI ranks (sysid/mpi/distributed_fit.h): the session, the agreement before
+// the fit, rank 0's residual blocks and the workers' loop.
+#include "sysid/mpi/distributed_fit.h"
+
+#include <mpi.h>
+
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <map>
+
+#include "sysid/cost_functions.h"
+#include "sysid/run/fit_experiment.h"
+#include "sysid/state_residuals.h"
+
+namespace mjsysid::mpi {
+namespace {
+
+constexpr double kEvaluate = 1, kFinish = 0;  // commands (first double of the broadcast)
+constexpr int kHeader = 2;                    // doubles before the values
+
+bool g_initialized = false, g_finalized = false;
+
+double Seconds(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+}
+
+}  // namespace
+
+// the buffers of one rank's evaluation, reused
+struct Share {
+  // per owned segment: its sensor cost (all blocks) and fitted-state cost (z only; or nullptr),
+  // built at the first evaluation
+  std::vector<std::array<std::unique_ptr<ceres::CostFunction>, 2>> costs;
+  CompressedBlock block;
+  std::vector<Eigen::MatrixXd> blocks;  // per owned segment, with Jacobians
+  std::vector<double> sums;             // per owned segment: sum r^2
+  RowMatrix J, Jz, Jm;
+  Eigen::VectorXd r;
+};
+
+namespace {
+
+// One rank's share at the variables in impl (z, m): its segments [first, last) simulated
+// (batched), their sensor and state residuals evaluated and, with Jacobians, compressed one
+// segment at a time; then the values of the maximal tree nodes of its range (shards.h). out:
+// [ok, warned segment (-1: none), number of nodes, then per node: lo, hi and its value (sum r^2,
+// or R_aug column-major with Jacobians)].
+void EvaluateShare(Problem::Impl* impl, int first, int last, bool jacobians, Share* share,
+                   std::vector<double>* out) {
+  Problem::Impl& I = *impl;
+  const int np = static_cast<int>(I.z.size()), nm = static_cast<int>(I.m.size());
+  const int n = np + nm, size = static_cast<int>(I.segments.size());
+  // the owned segments at the new point, in the simulators' batches
+  std::vector<const double*> x0(I.segments.size(), nullptr);
+  for (int s = first; s < last; ++s) x0[s] = I.X0(s);
+  I.cache->Prefetch(np ? I.z.data() : nullptr, x0, jacobians);
+  bool ok = true;
+  int warned = -1;
+  std::vector<const double*> params;
+  if (np) params.push_back(I.z.data());
+  if (nm) params.push_back(I.m.data());
+  share->costs.resize(std::max(last - first, 0));
+  share->sums.assign(std::max(last - first, 0), 0.0);
+  share->blocks.resize(std::max(last - first, 0));
+  for (int s = first; s < last && ok; ++s) {
+    // the sensor rows (all blocks) and the fitted-state rows (z only)
+    auto& costs = share->costs[s - first];
+    if (!costs[0]) {
+      costs[0] = std::make_unique<SegmentCost>(impl, s);
+      if (I.segments[s].state_rows) costs[1] = std::make_unique<StateCost>(impl, s);
+    }
+    share->block.Reset(n);
+    for (const auto& cost : costs) {
+      if (!cost || cost->num_residuals() == 0 || !ok) continue;
+      const int rows = cost->num_residuals();
+      const int nblocks = static_cast<int>(cost->parameter_block_sizes().size());
+      share->r.resize(rows);
+      share->Jz.resize(rows, np);
+      share->Jm.resize(rows, nm);
+      double* jac[2] = {np ? share->Jz.data() : share->Jm.data(), share->Jm.data()};
+      ok = cost->Evaluate(params.data(), share->r.data(), jacobians ? jac : nullptr) &&
+           share->r.allFinite();
+      if (!ok) break;
+      share->sums[s - first] += share->r.squaredNorm();
+      if (jacobians) {
+        share->J.resize(rows, n);
+        if (np) share->J.leftCols(np) = share->Jz;
+        if (nm && nblocks > (np ? 1 : 0)) {
+          share->J.rightCols(nm) = share->Jm;
+        } else if (nm) {
+          share->J.rightCols(nm).setZero();  // state rows do not depend on the measurement terms
+        }
+        share->block.Add(share->J, share->r);
+      }
+    }
+    if (jacobians) share->blocks[s - first] = share->block.Augmented();
+    if (warned < 0 && I.jacobian_warnings.count(s)) warned = s;
+  }
+  out->assign({ok ? 1.0 : 0.0, static_cast<double>(warned), 0.0});
+  if (!ok) return;
+  // the maximal tree nodes inside [first, last), each reduced from its leaves
+  const std::vector<std::pair<int, int>> nodes = CanonicalNodes(first, last, size);
+  (*out)[2] = static_cast<double>(nodes.size());
+  for (const auto& [lo, hi] : nodes) {
+    out->push_back(lo);
+    out->push_back(hi);
+    if (jacobians) {
+      const Eigen::MatrixXd R = ReduceTree<Eigen::MatrixXd>(
+          lo, hi, [&](int a, int b) { return b - a == 1 ? &share->blocks[a - first] : nullptr; },
+          MergeBlocks);
+      out->insert(out->end(), R.data(), R.data() + R.size());
+    } else {
+      out->push_back(ReduceTree<double>(
+          lo, hi, [&](int a, int b) { return b - a == 1 ? &share->sums[a - first] : nullptr; },
+          [](double a, double b) { return a + b; }));
+    }
+  }
+}
+
+// The one residual block of the segments on rank 0: the root of the tree, n + 1 rows on the
+// blocks z, m (shards.h)
+class TreeCost : public ceres::CostFunction {
+ public:
+  TreeCost(const ShardedResiduals* shards, int np, int nm) : shards_(shards) {
+    set_num_residuals(np + nm + 1);
+    if (np) mutable_parameter_block_sizes()->push_back(np);
+    if (nm) mutable_parameter_block_sizes()->push_back(nm);
+  }
+
+  bool Evaluate(double const* const* /*parameters*/, double* residuals,
+                double** jacobians) const override {
+    const ShardedResiduals::Root& g = shards_->root();
+    const int n = shards_->n();
+    if (!g.ok) return false;
+    if (jacobians && !g.jacobians) {
+      std::fprintf(stderr, "sysid: broken invariant: Jacobians asked without the callback\n");
+      std::abort();
+    }
+    if (!g.jacobians) {
+      // residuals only: any vector of norm |r| gives the exact cost
+      for (int i = 0; i < n; ++i) residuals[i] = 0;
+      residuals[n] = std::sqrt(g.sum_squares);
+      return true;
+    }
+    for (int i = 0; i <= n; ++i) residuals[i] = g.r_aug(i, n);
+    if (jacobians) {
+      // row-major blocks: z columns, then m columns
+      for (int b = 0, c0 = 0; b < static_cast<int>(parameter_block_sizes().size()); ++b) {
+        const int w = parameter_block_sizes()[b];
+        if (jacobians[b]) {
+          for (int i = 0; i <= n; ++i) {
+            for (int c = 0; c < w; ++c) jacobians[b][i * w + c] = g.r_aug(i, c0 + c);
+          }
+        }
+        c0 += w;
+      }
+    }
+    return true;
+  }
+
+ private:
+  const ShardedResiduals* shards_;
+};
+
+}  // namespace
+
+// -----------------------------------------------------------------------------------------------
+// session
+
+void Initialize(int* argc, char*** argv) {
+  if (g_initialized) return;
+  if (!std::getenv("OMPI_COMM_WORLD_SIZE") && !std::getenv("PMI_SIZE") &&
+      !std::getenv("PMIX_RANK")) {
+    return;  // not started by an MPI launcher
+  }
+  int provided = 0;
+  MPI_Init_thread(argc, argv, MPI_THREAD_FUNNELED, &provided);
+  g_initialized = true;
+}
+
+void Finalize() {
+  if (!g_initialized || g_finalized) return;
+  g_finalized = true;
+  MPI_Finalize();
+}
+
+bool Active() { return g_initialized && !g_finalized; }
+
+int Rank() {
+  int rank = 0;
+  if (g_initialized && !g_finalized) MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+  return rank;
+}
+
+int Size() {
+  int size = 1;
+  if (g_initialized && !g_finalized) MPI_Comm_size(MPI_COMM_WORLD, &size);
+  return size;
+}
+
+std::string RankName(int rank) {
+  // the host of `rank`: each rank knows its own; gathered once here (a collective call)
+  char name[MPI_MAX_PROCESSOR_NAME] = {0};
+  int len = 0;
+  MPI_Get_processor_name(name, &len);
+  std::vector<char> all(static_cast<size_t>(Size()) * MPI_MAX_PROCESSOR_NAME);
+  MPI_Allgather(name, MPI_MAX_PROCESSOR_NAME, MPI_CHAR, all.data(), MPI_MAX_PROCESSOR_NAME,
+                MPI_CHAR, MPI_COMM_WORLD);
+  return "rank " + std::to_string(rank) + " on host " +
+         std::string(all.data() + static_cast<size_t>(rank) * MPI_MAX_PROCESSOR_NAME);
+}
+
+bool AgreeReady(bool ok, const std::string& message, std::string* failure) {
+  // the lowest failing rank (size: none), then its message from it
+  const int size = Size(), rank = Rank();
+  int mine = ok ? size : rank, first = size;
+  MPI_Allreduce(&mine, &first, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD);
+  if (first == size) return true;
+  const std::string who = RankName(first);
+  int len = rank == first ? static_cast<int>(message.size()) : 0;
+  MPI_Bcast(&len, 1, MPI_INT, first, MPI_COMM_WORLD);
+  std::string text = rank == first ? message : std::string(len, ' ');
+  MPI_Bcast(text.data(), len, MPI_CHAR, first, MPI_COMM_WORLD);
+  if (failure) *failure = who + ": " + text;
+  return false;
+}
+
+void CheckShardable(FitOptions* options) {
+  if (options->segment_steps < 0) options->segment_steps = 0;  // auto: single shooting
+  if (options->segment_steps > 0) {
+    throw RankError(
+        "multiple_shooting: segment_steps " + std::to_string(options->segment_steps) +
+        ": a fit sharded across MPI ranks is single shooting only (docs/cluster.md); set "
+        "segment_steps: 0 or auto, or run on one rank");
+  }
+  if (options->estimate_initial_state) {
+    throw RankError(
+        "initial_state: estimate: a fit sharded across MPI ranks cannot estimate initial states "
+        "yet (docs/cluster.md); give the logged states, or run on one rank");
+  }
+}
+
+std::vector<int> SegmentRanges(const Problem::Impl& impl, int ranks) {
+  std::vector<double> cost;
+  for (const Segment& seg : impl.segments) {
+    const int columns = impl.models[seg.model].sim->parameters().size() + 1;  // + the rollout
+    cost.push_back(static_cast<double>(seg.T) * columns);
+  }
+  return ShardRanges(cost, ranks);
+}
+
+// -----------------------------------------------------------------------------------------------
+// rank 0
+
+ShardedResiduals::ShardedResiduals() : share_(std::make_unique<Share>()) {}
+ShardedResiduals::~ShardedResiduals() = default;
+
+void ShardedResiduals::AddResidualBlocks(Problem::Impl* impl, ceres::Problem* problem,
+                                         const std::vector<double*>& blocks) {
+  std::string failure;
+  agreed_ = true;
+  if (!AgreeReady(true, "", &failure)) {
+    done_ = true;
+    throw RankError(failure);
+  }
+  impl_ = impl;
+  const int np = static_cast<int>(impl->z.size()), nm = static_cast<int>(impl->m.size());
+  n_ = np + nm;
+  ranges_ = SegmentRanges(*impl, Size());
+  rows_ = 0;
+  for (size_t s = 0; s < impl->segments.size(); ++s) {
+    rows_ += SegmentCost(impl, static_cast<int>(s)).num_residuals();
+    if (impl->segments[s].state_rows) {
+      rows_ += StateCost(impl, static_cast<int>(s)).num_residuals();
+    }
+  }
+  problem->AddResidualBlock(new TreeCost(this, np, nm), nullptr, blocks);
+}
+
+void ShardedResiduals::PrepareForEvaluation(bool evaluate_jacobians,
+                                            bool /*new_evaluation_point*/) {
+  Problem::Impl& I = *impl_;
+  const int size = Size(), segments = static_cast<int>(I.segments.size());
+  // the command and the values, from the parameter blocks Ceres has updated
+  auto t0 = std::chrono::steady_clock::now();
+  command_.assign({kEvaluate, evaluate_jacobians ? 1.0 : 0.0});
+  command_.insert(command_.end(), I.z.begin(), I.z.end());
+  command_.insert(command_.end(), I.m.begin(), I.m.end());
+  MPI_Bcast(command_.data(), static_cast<int>(command_.size()), MPI_DOUBLE, 0, MPI_COMM_WORLD);
+  stats_.seconds_mpi += Seconds(t0);
+  // rank 0's own share
+  t0 = std::chrono::steady_clock::now();
+  EvaluateShare(impl_, ranges_[0], ranges_[1], evaluate_jacobians, share_.get(), &send_);
+  stats_.seconds_own_share += Seconds(t0);
+  // every rank's tree nodes (their sizes first)
+  t0 = std::chrono::steady_clock::now();
+  int count = static_cast<int>(send_.size());
+  counts_.assign(size, 0);
+  MPI_Gather(&count, 1, MPI_INT, counts_.data(), 1, MPI_INT, 0, MPI_COMM_WORLD);
+  displs_.assign(size, 0);
+  for (int r = 1; r < size; ++r) displs_[r] = displs_[r - 1] + counts_[r - 1];
+  receive_.resize(static_cast<size_t>(displs_[size - 1] + counts_[size - 1]));
+  MPI_Gatherv(send_.data(), count, MPI_DOUBLE, receive_.data(), counts_.data(), displs_.data(),
+              MPI_DOUBLE, 0, MPI_COMM_WORLD);
+  stats_.seconds_mpi += Seconds(t0);
+  stats_.evaluations += 1;
+  stats_.jacobian_evaluations += evaluate_jacobians ? 1 : 0;
+  stats_.bytes += static_cast<long long>(size - 1) *
+                  static_cast<long long>(sizeof(double) * command_.size() + sizeof(int));
+  for (int r = 1; r < size; ++r) stats_.bytes += sizeof(double) * counts_[r];
+  // the root from the nodes of every rank (the same bits with any number of ranks)
+  root_.ok = true;
+  root_.jacobians = evaluate_jacobians;
+  const int width = evaluate_jacobians ? (n_ + 1) * (n_ + 1) : 1;
+  std::map<std::pair<int, int>, const double*> nodes;
+  for (int r = 0; r < size; ++r) {
+    const double* in = receive_.data() + displs_[r];
+    if (in[0] != 1.0) {
+      root_.ok = false;
+      I.NoteRejection("the simulation of a sequence of rank " + std::to_string(r) +
+                      " failed or was not finite at the trial point");
+      continue;
+    }
+    const int warned = static_cast<int>(in[1]);
+    if (warned >= 0 && r > 0) {
+      I.NoteJacobianWarning(
+          warned, "the core flagged this sequence's Jacobian on rank " + std::to_string(r));
+    }
+    const double* node = in + 3;
+    for (int k = 0; k < static_cast<int>(in[2]); ++k, node += 2 + width) {
+      nodes[{static_cast<int>(node[0]), static_cast<int>(node[1])}] = node + 2;
+    }
+  }
+  if (!root_.ok || segments == 0) return;
+  if (evaluate_jacobians) {
+    std::map<std::pair<int, int>, Eigen::MatrixXd> values;
+    for (const auto& [key, data] : nodes) {
+      values[key] = Eigen::Map<const Eigen::MatrixXd>(data, n_ + 1, n_ + 1);
+    }
+    root_.r_aug = ReduceTree<Eigen::MatrixXd>(
+        0, segments,
+        [&](int lo, int hi) {
+          const auto it = values.find({lo, hi});
+          return it == values.end() ? nullptr : &it->second;
+        },
+        MergeBlocks);
+  } else {
+    root_.sum_squares = ReduceTree<double>(
+        0, segments,
+        [&](int lo, int hi) {
+          const auto it = nodes.find({lo, hi});
+          return it == nodes.end() ? nullptr : it->second;
+        },
+        [](double a, double b) { return a + b; });
+  }
+}
+
+void ShardedResiduals::Finish() {
+  if (done_) return;
+  done_ = true;
+  if (!agreed_) {
+    std::string failure;
+    agreed_ = true;
+    AgreeReady(false, "rank 0 stopped before the fit", &failure);
+    return;
+  }
+  command_.assign(kHeader + n_, 0.0);
+  command_[0] = kFinish;
+  MPI_Bcast(command_.data(), static_cast<int>(command_.size()), MPI_DOUBLE, 0, MPI_COMM_WORLD);
+}
+
+void ShardedResiduals::Abandon(const std::string& message) {
+  if (done_) return;
+  if (agreed_) return Finish();
+  done_ = true;
+  agreed_ = true;
+  std::string failure;
+  AgreeReady(false, message, &failure);
+}
+
+// -----------------------------------------------------------------------------------------------
+// workers
+
+int ServeFit(const io::ExperimentConfig* config, int threads, const std::string& failure) {
+  // the same problem as rank 0's, prepared (bad input is found here, on every rank)
+  std::string error = failure;
+  run::BuiltProblem bp;
+  Problem::Impl* impl = nullptr;
+  if (config && error.empty()) {
+    try {
+      bp = run::BuildProblem(*config, threads);
+      FitOptions options = bp.options;
+      CheckShardable(&options);
+      options.verbose = false;
+      impl = bp.problem->PrepareOnly(options);
+    } catch (const std::exception& e) {
+      error = e.what();
+    }
+  }
+  if (!AgreeReady(error.empty(), error, nullptr)) return 0;  // rank 0 reports it
+  const int rank = Rank(), n = static_cast<int>(impl->z.size() + impl->m.size());
+  const std::vector<int> ranges = SegmentRanges(*impl, Size());
+  std::vector<double> command(kHeader + n), send;
+  Share share;
+  // evaluate at every point rank 0 sends, until it finishes
+  for (;;) {
+    MPI_Bcast(command.data(), kHeader + n, MPI_DOUBLE, 0, MPI_COMM_WORLD);
+    if (command[0] == kFinish) break;
+    std::copy(command.begin() + kHeader, command.begin() + kHeader + impl->z.size(),
+              impl->z.begin());
+    std::copy(command.begin() + kHeader + impl->z.size(), command.end(), impl->m.begin());
+    EvaluateShare(impl, ranges[rank], ranges[rank + 1], command[1] == 1.0, &share, &send);
+    int count = static_cast<int>(send.size());
+    MPI_Gather(&count, 1, MPI_INT, nullptr, 0, MPI_INT, 0, MPI_COMM_WORLD);
+    MPI_Gatherv(send.data(), count, MPI_DOUBLE, nullptr, nullptr, nullptr, MPI_DOUBLE, 0,
+                MPI_COMM_WORLD);
+  }
+  return 0;
+}
+
+}  // namespace mjsysid::mpi

@@ -1,0 +1,140 @@
+// `mpirun -n N sysid fit EXP.yaml`: a fit whose sequences are sharded across MPI ranks.
+//
+// Roles. Every rank reads and validates the experiment and its logs (run::BuildProblem) and
+// prepares the fit (Problem::PrepareOnly); then all ranks agree that every one of them is ready
+// (AgreeReady) before any evaluation, so bad input on any rank (a log it cannot read) ends the run
+// on every rank before the fit, with that rank's message naming it and its host. Rank 0 runs
+// Ceres through the ordinary Problem::Fit with a ShardedResiduals (sysid/problem.h's
+// ResidualShards): one residual block for all segments. The other ranks loop in ServeFit.
+//
+// One evaluation (ShardedResiduals::PrepareForEvaluation, Ceres' EvaluationCallback): rank 0
+// broadcasts [command, jacobians?, z (np), m (nm)] (n = np + nm values after the header); every
+// rank simulates its contiguous range of segments (its simulator threads in parallel,
+// EvaluationCache::Prefetch of its share), compresses each segment (residuals only: its sum r^2;
+// Jacobians: the (n + 1) x (n + 1) thin-QR block of sysid/mpi/shards.h) and reduces them to the
+// maximal nodes of the fixed tree over the segments inside its range (at most 2 log2(range)
+// nodes), which rank 0 gathers (MPI_Gatherv) and reduces to the root: one Ceres residual block of
+// n + 1 rows with the exact cost, gradient and Gauss-Newton matrix of all the residuals. Rank 0's
+// memory and traffic per evaluation are O(ranks x log(S / ranks) x n^2), independent of the
+// number of samples; it never holds the Jacobian of another rank's segments. The tree makes the
+// root bitwise the same for any rank and thread count, hence the same estimates and iterations.
+//
+// What is sharded: single shooting without estimated initial states (the segments are whole
+// sequences; their states would have to be eliminated on the owning rank). CheckShardable turns
+// `segment_steps: auto` into single shooting and refuses the rest with a message.
+//
+// Faults. A rank that dies (killed, crashed) ends the job through the MPI runtime (mpirun names
+// the rank, its PID and host); rank 0's checkpoint after every successful iteration is written
+// atomically (sysid/run), so the last complete one stays on disk for `sysid fit --resume`. A
+// simulation that fails at a trial point on any rank rejects that point (the trust region
+// shrinks), as in a fit on one machine.
+//
+// Threads: MPI is called from the thread that called MPI_Init only (MPI_THREAD_FUNNELED): Ceres
+// runs with one thread and calls the EvaluationCallback there.
+#pragma once
+
+#include <ceres/ceres.h>
+
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "sysid/io/experiment.h"
+#include "sysid/mpi/shards.h"
+#include "sysid/problem.h"
+#include "sysid/problem_impl.h"
+
+namespace mjsysid::mpi {
+
+// Initialises MPI (MPI_THREAD_FUNNELED) when the process was started by an MPI launcher (mpirun,
+// mpiexec, srun: OMPI_COMM_WORLD_SIZE, PMI_SIZE or PMIX_RANK set), else leaves it alone so that a
+// plain `sysid` run does not start an MPI runtime. Idempotent. Finalize ends it (once; safe when
+// never initialised).
+void Initialize(int* argc, char*** argv);
+void Finalize();
+bool Active();  // Initialize started MPI (the process runs under a launcher) and not finalised
+int Rank();     // 0 without MPI
+int Size();     // 1 without MPI
+// "rank R on HOST"
+std::string RankName(int rank);
+
+// Bad input for a sharded fit: a rank that was not ready (the message names the rank and its
+// host), or what is not sharded (CheckShardable)
+class RankError : public std::invalid_argument {
+ public:
+  using std::invalid_argument::invalid_argument;
+};
+
+// every rank once, before the first evaluation: true when every rank is ready (ok); else false and
+// *failure = the message of the lowest failing rank, prefixed with RankName
+bool AgreeReady(bool ok, const std::string& message, std::string* failure);
+
+// single shooting (auto becomes 0); throws RankError (bad input, exit 2) for multiple shooting or
+// estimated initial states, naming the experiment key
+void CheckShardable(FitOptions* options);
+
+// the contiguous segment ranges of a prepared fit's ranks (ShardRanges: ranks + 1 entries), by
+// simulation steps x Jacobian columns
+std::vector<int> SegmentRanges(const Problem::Impl& impl, int ranks);
+
+struct Share;  // the buffers of one rank's evaluation (distributed_fit.cc)
+
+// traffic and time of the evaluations so far, as seen by rank 0
+struct ShardStats {
+  long long evaluations = 0, jacobian_evaluations = 0;
+  long long bytes = 0;           // sent and received by rank 0 (broadcast x (ranks - 1) + gather)
+  double seconds_mpi = 0;        // rank 0 inside MPI_Bcast / MPI_Gather (includes waiting)
+  double seconds_own_share = 0;  // rank 0 simulating and compressing its own share
+};
+
+// rank 0: the residual blocks of every rank (see above)
+class ShardedResiduals : public ResidualShards, public ceres::EvaluationCallback {
+ public:
+  ShardedResiduals();
+  ~ShardedResiduals() override;
+
+  // ResidualShards: agrees with the other ranks that every one is ready (throws RankError when one
+  // is not), then adds the one block of every segment
+  void AddResidualBlocks(Problem::Impl* impl, ceres::Problem* problem,
+                         const std::vector<double*>& blocks) override;
+  ceres::EvaluationCallback* Callback() override { return this; }
+  long long NumResiduals() const override { return rows_; }
+  // EvaluationCallback: every rank at the current values
+  void PrepareForEvaluation(bool evaluate_jacobians, bool new_evaluation_point) override;
+
+  // after the fit: the workers leave ServeFit. Abandon instead when the fit never started
+  // (rank 0 failed before AddResidualBlocks): the workers learn the failure and leave. Each at
+  // most once, in any order; the second call does nothing.
+  void Finish();
+  void Abandon(const std::string& message);
+  const ShardStats& stats() const { return stats_; }
+
+  // the root of the last evaluation (the residual block's values)
+  struct Root {
+    bool ok = false;  // every rank evaluated its share
+    bool jacobians = false;
+    double sum_squares = 0;  // residuals only
+    Eigen::MatrixXd r_aug;   // (n + 1) x (n + 1) with Jacobians
+  };
+  const Root& root() const { return root_; }
+  int n() const { return n_; }
+
+ private:
+  Problem::Impl* impl_ = nullptr;
+  int n_ = 0;
+  long long rows_ = 0;
+  bool agreed_ = false, done_ = false;
+  Root root_;
+  std::vector<int> ranges_, counts_, displs_;
+  std::vector<double> command_, send_, receive_;
+  std::unique_ptr<Share> share_;
+  ShardStats stats_;
+};
+
+// a worker rank (rank > 0): builds the problem of config (nullptr: this rank already failed with
+// `failure`), agrees on readiness, then evaluates its share of the segments until rank 0
+// finishes. Returns the process exit code: 0 (rank 0 reports every failure).
+int ServeFit(const io::ExperimentConfig* config, int threads, const std::string& failure);
+
+}  // namespace mjsysid::mpi

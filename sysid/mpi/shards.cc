@@ -1,0 +1,76 @@
+// The sharding and the compressed residual blocks of sysid/mpi/shards.h.
+#include "sysid/mpi/shards.h"
+
+#include <Eigen/QR>
+#include <algorithm>
+#include <numeric>
+
+namespace mjsysid::mpi {
+
+std::vector<int> ShardRanges(const std::vector<double>& cost, int ranks) {
+  // each segment to the rank whose share of the total holds the middle of its cost
+  const int size = static_cast<int>(cost.size());
+  ranks = std::max(ranks, 1);
+  double total = 0;
+  for (double c : cost) total += c;
+  std::vector<int> first(ranks + 1, size);
+  first[0] = 0;
+  double before = 0;
+  int rank = 0;
+  for (int s = 0; s < size; ++s) {
+    const double middle = total > 0 ? (before + 0.5 * cost[s]) / total : (s + 0.5) / size;
+    const int r = std::min(ranks - 1, static_cast<int>(middle * ranks));
+    while (rank < r) first[++rank] = s;
+    before += cost[s];
+  }
+  while (rank < ranks) first[++rank] = size;
+  return first;
+}
+
+namespace {
+void Collect(int lo, int hi, int first, int last, std::vector<std::pair<int, int>>* out) {
+  if (hi <= first || lo >= last || lo >= hi) return;  // disjoint or empty
+  if (first <= lo && hi <= last) {
+    out->emplace_back(lo, hi);
+    return;
+  }
+  const int mid = (lo + hi) / 2;
+  Collect(lo, mid, first, last, out);
+  Collect(mid, hi, first, last, out);
+}
+}  // namespace
+
+std::vector<std::pair<int, int>> CanonicalNodes(int first, int last, int size) {
+  std::vector<std::pair<int, int>> out;
+  Collect(0, size, first, last, &out);
+  return out;
+}
+
+Eigen::MatrixXd MergeBlocks(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
+  Eigen::MatrixXd stacked(a.rows() + b.rows(), a.cols());
+  stacked << a, b;
+  const Eigen::HouseholderQR<Eigen::Ref<Eigen::MatrixXd>> qr(stacked);
+  return qr.matrixQR().topRows(a.cols()).triangularView<Eigen::Upper>();
+}
+
+CompressedBlock::CompressedBlock(int n) { Reset(n); }
+
+void CompressedBlock::Reset(int n) {
+  n_ = n;
+  r_aug_ = Eigen::MatrixXd::Zero(n + 1, n + 1);
+}
+
+void CompressedBlock::Add(const Eigen::Ref<const RowMatrix>& J,
+                          const Eigen::Ref<const Eigen::VectorXd>& r) {
+  // [R_aug; J r] -> the R of its thin QR, which keeps [J r]^T [J r] of every row added
+  const Eigen::Index rows = J.rows();
+  if (rows == 0) return;
+  stacked_.resize(n_ + 1 + rows, n_ + 1);
+  stacked_.topRows(n_ + 1) = r_aug_;
+  stacked_.bottomLeftCorner(rows, n_) = J;
+  stacked_.bottomRightCorner(rows, 1) = r;
+  const Eigen::HouseholderQR<Eigen::Ref<Eigen::MatrixXd>> qr(stacked_);
+  r_aug_ = qr.matrixQR().topRows(n_ + 1).triangularView<Eigen::Upper>();
+}
+
+}  // namespace mjsysid::mpi

@@ -1,0 +1,283 @@
+// `mpirun -n N sysid fit` through the real launcher (OpenMPI, TCP forced, --oversubscribe): the
+// sharded fit gives the estimates and iteration count of the fit on one rank with 1, 2 and 4 ranks
+// and 1 or 2 threads; bad input and what is not sharded end the run with exit 2 and the message;
+// a worker killed mid-fit ends the run naming the rank and host, its last checkpoint stays and
+// `--resume` continues it to the uninterrupted estimate; `sysid simulate` shards its rollouts.
+// Label `mpi` (docs/cluster.md).
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "sysid/io/log.h"
+#include "sysid/io/result.h"
+#include "tests/file_util.h"
+#include "tests/temp_dir_test.h"
+
+namespace mjsysid {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Ended {
+  int code = -1;
+  std::string output;  // stdout and stderr
+};
+
+Ended Shell(const std::string& cmd) {
+  FILE* pipe = popen((cmd + " 2>&1").c_str(), "r");
+  std::string out;
+  char buf[4096];
+  while (size_t n = fread(buf, 1, sizeof(buf), pipe)) out.append(buf, n);
+  const int status = pclose(pipe);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+}
+
+// mpirun with N ranks, the network path forced (TCP over loopback, no shared memory), as root,
+// more ranks than cores; `marker` is exported to every rank (to find a rank's process)
+std::string Mpirun(int ranks, const std::string& marker = "none") {
+  return std::string(MJSYSID_MPIEXEC) +
+         " --allow-run-as-root --oversubscribe --mca pml ob1 --mca btl tcp,self"
+         " --mca btl_tcp_if_include lo -x MJSYSID_TEST_MARKER=" +
+         marker + " -n " + std::to_string(ranks) + " ";
+}
+
+const std::string kSysid = MJSYSID_SYSID_BIN;
+
+// the pendulum of experiments/pendulum.yaml with 4 sequences of 1500 steps (truth damping 0.08,
+// friction loss 0.03, bob mass 1.2; start 0.2, 0.01, 0.8; noise 1e-3 rad, 1e-2 rad/s, seed 1)
+// extra: top-level keys; solver: more solver keys ("loss: {...}, ")
+std::string Experiment(int steps, const std::string& extra = "", const std::string& solver = "") {
+  return std::string("name: pendulum_mpi\nmodel: ") + MJSYSID_MODELS_DIR +
+         "/pendulum.xml\n"
+         "data: logs/pendulum.h5\nsensor_time: pre\n"
+         "sensors:\n  - {name: angle, sigma: 0.001}\n  - {name: rate, sigma: 0.01}\n"
+         "parameters:\n"
+         "  - {name: damping, target: joint_damping, object: hinge, initial: 0.2, bounds: "
+         "[1.0e-4, 5.0], transform: log}\n"
+         "  - {name: frictionloss, target: joint_frictionloss, object: hinge, initial: 0.01, "
+         "bounds: [1.0e-4, 2.0], transform: log}\n"
+         "  - {name: bob_mass, target: body_mass, object: bob, initial: 0.8, bounds: [0.05, "
+         "10.0], transform: log}\n"
+         "solver: {" +
+         solver + "max_iterations: 50, jacobian: auto, threads: 1, verbose: false}\n" + extra +
+         "simulate:\n  truth: {damping: 0.08, frictionloss: 0.03, bob_mass: 1.2}\n"
+         "  sequences: 4\n  steps: " +
+         std::to_string(steps) +
+         "\n  seed: 1\n"
+         "  excitation: {type: sines, amplitude: 2.0, frequencies: [0.3, 0.8, 1.7, 3.1]}\n"
+         "  noise: {angle: 0.001, rate: 0.01}\n  initial_state: {qpos: [0.3], qvel: [0.0]}\n";
+}
+
+class MpiFitTest : public test::TempDirTest {
+ protected:
+  void Write(int steps, const std::string& extra = "", const std::string& solver = "") {
+    exp_ = Path("exp.yaml");
+    test::WriteFile(exp_, Experiment(steps, extra, solver));
+    const Ended sim = Shell(kSysid + " simulate " + exp_);
+    ASSERT_EQ(sim.code, 0) << sim.output;
+  }
+  std::string exp_;
+};
+
+// truth: the fit under mpirun with 1 rank and 1 thread; 2 and 4 ranks and 1 or 2 threads must give
+// every estimate to 1e-12 relative (measured: bitwise equal, the tree of sysid/mpi/shards.h), the
+// same iterations, intervals and status. The fit without MPI (one full Jacobian, Ceres' own QR)
+// differs by rounding only: measured 9e-11 relative, here within 1e-6 standard errors.
+TEST_F(MpiFitTest, SameEstimatesWithAnyRanksAndThreads) {
+  Write(1500);
+  const Ended ref =
+      Shell(Mpirun(1) + kSysid + " fit " + exp_ + " --out " + Path("ref") + " --quiet --threads 1");
+  ASSERT_EQ(ref.code, 0) << ref.output;
+  const io::FitResultFile want = io::ReadResult(Path("ref"));
+  ASSERT_GE(want.iterations, 3);
+  const Ended plain = Shell(kSysid + " fit " + exp_ + " --out " + Path("plain") + " --quiet");
+  ASSERT_EQ(plain.code, 0) << plain.output;
+  const io::FitResultFile here = io::ReadResult(Path("plain"));
+  ASSERT_EQ(here.parameters.size(), want.parameters.size());
+  EXPECT_EQ(here.num_residuals, want.num_residuals);
+  for (size_t i = 0; i < want.parameters.size(); ++i) {
+    EXPECT_NEAR(here.parameters[i].value, want.parameters[i].value,
+                1e-6 * want.parameters[i].std_error);
+    EXPECT_NEAR(here.parameters[i].std_error, want.parameters[i].std_error,
+                1e-6 * want.parameters[i].std_error);
+  }
+  for (const auto& [ranks, threads] : {std::pair{1, 2}, {2, 1}, {2, 2}, {4, 1}}) {
+    SCOPED_TRACE(std::to_string(ranks) + " ranks x " + std::to_string(threads) + " threads");
+    const std::string out = Path("r" + std::to_string(ranks) + "t" + std::to_string(threads));
+    const Ended run = Shell(Mpirun(ranks) + kSysid + " fit " + exp_ + " --out " + out +
+                            " --quiet --threads " + std::to_string(threads));
+    ASSERT_EQ(run.code, 0) << run.output;
+    const io::FitResultFile got = io::ReadResult(out);
+    EXPECT_EQ(got.iterations, want.iterations);
+    EXPECT_EQ(got.num_residuals, want.num_residuals);
+    EXPECT_EQ(got.status, want.status);
+    ASSERT_EQ(got.parameters.size(), want.parameters.size());
+    for (size_t i = 0; i < want.parameters.size(); ++i) {
+      SCOPED_TRACE(want.parameters[i].name);
+      const double v = want.parameters[i].value, se = want.parameters[i].std_error;
+      EXPECT_NEAR(got.parameters[i].value, v, 1e-12 * std::abs(v));
+      EXPECT_NEAR(got.parameters[i].std_error, se, 1e-12 * se);
+    }
+  }
+}
+
+// a robust loss (Huber, scale 2) acts on each residual before the compression: 2 ranks give the
+// bits of 1 rank (1e-12 relative), and the fit without MPI to rounding (measured 1.5e-11
+// relative; here 1e-6 standard errors)
+TEST_F(MpiFitTest, RobustLossIsSharded) {
+  Write(600, "", "loss: {type: huber, scale: 2.0}, ");
+  std::vector<io::FitResultFile> got;
+  for (const std::string& launcher : {std::string(), Mpirun(1), Mpirun(2)}) {
+    const std::string out = Path("huber" + std::to_string(got.size()));
+    const Ended run = Shell(launcher + kSysid + " fit " + exp_ + " --out " + out + " --quiet");
+    ASSERT_EQ(run.code, 0) << run.output;
+    got.push_back(io::ReadResult(out));
+    EXPECT_EQ(got.back().solver.at("loss"), "huber");
+  }
+  EXPECT_EQ(got[2].iterations, got[1].iterations);
+  for (size_t i = 0; i < got[0].parameters.size(); ++i) {
+    const double v = got[1].parameters[i].value, se = got[1].parameters[i].std_error;
+    EXPECT_NEAR(got[2].parameters[i].value, v, 1e-12 * std::abs(v));
+    EXPECT_NEAR(got[0].parameters[i].value, v, 1e-6 * se);
+  }
+}
+
+// `sysid simulate` under mpirun shards the rollouts (3 ranks, 4 sequences: shares of 1, 1 and 2)
+// and rank 0 writes: every dataset equals the log of one process, bit for bit
+TEST_F(MpiFitTest, SimulateIsShardedAndEqual) {
+  Write(400);
+  const Ended sharded = Shell(Mpirun(3) + kSysid + " simulate " + exp_ + " --out " + Path("s.h5"));
+  ASSERT_EQ(sharded.code, 0) << sharded.output;
+  const io::Log want = io::ReadLog(Path("logs/pendulum.h5")), got = io::ReadLog(Path("s.h5"));
+  ASSERT_EQ(got.sequences.size(), want.sequences.size());
+  for (size_t i = 0; i < want.sequences.size(); ++i) {
+    SCOPED_TRACE(want.sequences[i].name);
+    EXPECT_EQ(got.sequences[i].name, want.sequences[i].name);
+    EXPECT_TRUE(got.sequences[i].sensordata == want.sequences[i].sensordata);
+    EXPECT_TRUE(got.sequences[i].qpos == want.sequences[i].qpos);
+    EXPECT_TRUE(got.sequences[i].qvel == want.sequences[i].qvel);
+    EXPECT_TRUE(got.sequences[i].ctrl == want.sequences[i].ctrl);
+  }
+  // one writer: the summary printed once
+  EXPECT_EQ(sharded.output.find("wrote"), sharded.output.rfind("wrote")) << sharded.output;
+}
+
+// what a sharded fit cannot do yet, and bad input, end the run on every rank with exit 2 and one
+// message; no result folder is written
+TEST_F(MpiFitTest, RefusesWhatIsNotShardedAndBadInput) {
+  Write(300, "multiple_shooting: {segment_steps: 100}\n");
+  const Ended ms = Shell(Mpirun(2) + kSysid + " fit " + exp_ + " --out " + Path("ms") + " --quiet");
+  EXPECT_EQ(ms.code, 2) << ms.output;
+  EXPECT_NE(ms.output.find("single shooting only"), std::string::npos) << ms.output;
+  EXPECT_FALSE(fs::exists(Path("ms")));
+  // a log only rank 1 cannot read (its node lacks the file: rank 1 reads the experiment from a
+  // folder without logs/, by mpirun's MPMD form "-n 1 A : -n 1 B"): found before the fit, rank 0
+  // reports it naming rank 1 and its host, exit 2
+  test::WriteFile(exp_, Experiment(300));
+  ASSERT_EQ(Shell(kSysid + " simulate " + exp_).code, 0);
+  fs::create_directories(Path("node1"));
+  test::WriteFile(Path("node1/exp.yaml"), Experiment(300));
+  const std::string mpmd = std::string(MJSYSID_MPIEXEC) +
+                           " --allow-run-as-root --oversubscribe --mca pml ob1 --mca btl tcp,self"
+                           " --mca btl_tcp_if_include lo -n 1 " +
+                           kSysid + " fit " + exp_ + " --out " + Path("one") + " --quiet : -n 1 " +
+                           kSysid + " fit " + Path("node1/exp.yaml") + " --out " + Path("one") +
+                           " --quiet";
+  const Ended one = Shell(mpmd);
+  EXPECT_EQ(one.code, 2) << one.output;
+  char host[256] = {0};
+  gethostname(host, sizeof(host) - 1);
+  EXPECT_NE(one.output.find(std::string("rank 1 on host ") + host), std::string::npos)
+      << one.output;
+  EXPECT_NE(one.output.find("node1/logs/pendulum.h5"), std::string::npos) << one.output;
+  EXPECT_FALSE(fs::exists(Path("one")));
+  // a log no rank can read: the message once (rank 0 reports), exit 2
+  fs::remove(Path("logs/pendulum.h5"));
+  const Ended bad =
+      Shell(Mpirun(2) + kSysid + " fit " + exp_ + " --out " + Path("bad") + " --quiet");
+  EXPECT_EQ(bad.code, 2) << bad.output;
+  EXPECT_NE(bad.output.find("pendulum.h5"), std::string::npos) << bad.output;
+  EXPECT_FALSE(fs::exists(Path("bad")));
+}
+
+// the pid of the process of `rank` started with marker (its environment: OMPI_COMM_WORLD_RANK)
+int FindRank(const std::string& marker, int rank) {
+  for (const auto& e : fs::directory_iterator("/proc")) {
+    const std::string name = e.path().filename().string();
+    if (name.find_first_not_of("0123456789") != std::string::npos) continue;
+    std::ifstream env(e.path() / "environ");
+    std::stringstream ss;
+    ss << env.rdbuf();
+    const std::string s = ss.str();
+    if (s.find("MJSYSID_TEST_MARKER=" + marker + '\0') != std::string::npos &&
+        s.find("OMPI_COMM_WORLD_RANK=" + std::to_string(rank) + '\0') != std::string::npos) {
+      return std::stoi(name);
+    }
+  }
+  return -1;
+}
+
+// rank 1 of 2 killed (SIGKILL) after the checkpoint of iteration 2: the run ends with an error
+// naming rank 1 and the host, the checkpoint stays, and `--resume` (2 ranks again) ends at the
+// uninterrupted estimate to 1e-3 standard errors (as tests/tools/sysid_outputs_test.cc: Ceres'
+// trust region restarts at the checkpoint)
+TEST_F(MpiFitTest, KilledRankEndsTheRunAndResumeContinues) {
+  Write(3000);
+  const Ended full = Shell(Mpirun(2) + kSysid + " fit " + exp_ + " --out " + Path("full") +
+                           " --quiet --threads 1");
+  ASSERT_EQ(full.code, 0) << full.output;
+  const io::FitResultFile want = io::ReadResult(Path("full"));
+  ASSERT_GE(want.iterations, 4);
+  const std::string out = Path("part"), cp = out + ".partial/checkpoint.yaml";
+  const std::string marker = "kill" + std::to_string(getpid());
+  const std::string log = Path("killed.log");
+  const pid_t pid = fork();
+  if (pid == 0) {
+    const std::string cmd = Mpirun(2, marker) + kSysid + " fit " + exp_ + " --out " + out +
+                            " --quiet --threads 1 >" + log + " 2>&1";
+    execl("/bin/sh", "sh", "-c", cmd.c_str(), nullptr);
+    _exit(127);
+  }
+  for (int i = 0; i < 600000 && test::ReadFile(cp).find("\niterations: 2\n") == std::string::npos;
+       ++i) {
+    std::this_thread::sleep_for(std::chrono::microseconds(100));
+  }
+  ASSERT_NE(test::ReadFile(cp).find("\niterations: 2\n"), std::string::npos);
+  const int worker = FindRank(marker, 1);
+  ASSERT_GT(worker, 0);
+  ASSERT_EQ(kill(worker, SIGKILL), 0);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  const std::string said = test::ReadFile(log);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) != 0) << said;
+  char host[256] = {0};
+  gethostname(host, sizeof(host) - 1);
+  EXPECT_NE(said.find("rank 1"), std::string::npos) << said;
+  EXPECT_NE(said.find(host), std::string::npos) << said;
+  EXPECT_FALSE(fs::exists(out + "/result.yaml"));
+  ASSERT_TRUE(fs::exists(cp));
+  const Ended resumed = Shell(Mpirun(2) + kSysid + " fit --resume " + out + " --quiet --threads 1");
+  ASSERT_EQ(resumed.code, 0) << resumed.output;
+  const io::FitResultFile got = io::ReadResult(out);
+  EXPECT_EQ(got.status, "converged");
+  EXPECT_GE(got.iterations, 2);
+  for (size_t i = 0; i < want.parameters.size(); ++i) {
+    SCOPED_TRACE(want.parameters[i].name);
+    EXPECT_NEAR(got.parameters[i].value, want.parameters[i].value,
+                1e-3 * want.parameters[i].std_error);
+  }
+}
+
+}  // namespace
+}  // namespace mjsysid
