@@ -651,8 +651,13 @@ FitResult Problem::Fit(const FitOptions& options) {
   double cost = 0;
   ceres::CRSMatrix crs;
   std::vector<double> residuals;
+  // the core's Jacobian warnings of this evaluation alone: the Jacobian the intervals come from
+  std::map<int, std::string> solve_warnings;
+  std::swap(solve_warnings, I.jacobian_warnings);
   const bool evaluated =
       !interrupted_now() && problem.Evaluate(eo, &cost, &residuals, nullptr, &crs);
+  const bool jacobian_warned_at_estimate = evaluated && !I.jacobian_warnings.empty();
+  I.jacobian_warnings.insert(solve_warnings.begin(), solve_warnings.end());
   for (auto& mo : I.models) mo.sim->SetCancelFlag(nullptr);
   if (interrupted_now()) {
     result.interrupted = true;
@@ -880,7 +885,8 @@ FitResult Problem::Fit(const FitOptions& options) {
   for (size_t i = 1; i < summary.iterations.size(); ++i) {
     accepted_steps += summary.iterations[i].step_is_successful ? 1 : 0;
   }
-  DecideFitStatus(options, accepted_steps, !I.jacobian_warnings.empty(), &result, cost_not_local);
+  DecideFitStatus(options, accepted_steps, !I.jacobian_warnings.empty(), &result, cost_not_local,
+                  jacobian_warned_at_estimate);
   for (const auto& mo : I.models) result.simulation_steps += mo.sim->StepCount();
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
