@@ -406,6 +406,7 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
   out->segment_steps = horizon.steps;
   out->segment_reason = horizon.reason;
   out->probe_rate = horizon.rate;
+  out->probe_growth = horizon.growth;
   I.stop_on_jacobian_warning = options.segment_steps < 0 && horizon.steps == 0;
   std::string start_source;
   for (size_t q = 0; q < I.sequences.size(); ++q) {
@@ -889,6 +890,34 @@ FitResult Problem::Fit(const FitOptions& options) {
                   jacobian_warned_at_estimate);
   for (const auto& mo : I.models) result.simulation_steps += mo.sim->StepCount();
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+  // auto: single shooting that did not converge on a system whose probe grew well beyond linear
+  // is refitted in multiple shooting (sysid/multiple_shooting.h, SegmentStepsAfterFailure); the
+  // refit is the result when it converges, else this one stays, saying so
+  if (options.segment_steps < 0 && prepared.segment_steps == 0 && !result.converged &&
+      !result.interrupted) {
+    int shortest = std::numeric_limits<int>::max();
+    for (const SampleGrid& g : I.grids) shortest = std::min(shortest, g.steps);
+    std::string reason;
+    FitOptions segmented = options;
+    segmented.segment_steps =
+        SegmentStepsAfterFailure(prepared.probe_growth, prepared.probe_rate, shortest, &reason);
+    if (segmented.segment_steps > 0) {
+      FitResult refit = Fit(segmented);
+      if (refit.outcome == FitStatus::kConverged) {
+        const size_t from = refit.segment_reason.find("segment states");
+        refit.segment_reason =
+            reason + (from == std::string::npos ? "" : "; " + refit.segment_reason.substr(from));
+        refit.seconds += result.seconds;
+        refit.simulation_steps += result.simulation_steps;
+        refit.trace.insert(refit.trace.begin(), result.trace.begin(), result.trace.end());
+        return refit;
+      }
+      result.warnings.push_back("auto: " + reason + " were tried and ended " +
+                                FitStatusName(refit.outcome) + "; the single-shooting fit stays");
+      result.seconds += refit.seconds;
+    }
+  }
   return result;
 }
 
