@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "core/text.h"
+#include "sysid/contact_channels.h"
 #include "sysid/cost_functions.h"
 #include "sysid/derived_inertials.h"
 #include "sysid/evaluation_cache.h"
@@ -374,6 +375,16 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
     std::vector<Trajectory> trs;
     mo.sim->Rollout(ins, &trs);
     for (size_t i = 0; i < which.size(); ++i) initial[which[i]] = trs[i];
+    // fitted sensors that jump at contact events (sysid/contact_channels.h)
+    std::vector<std::string> fitted;
+    for (int q : which) {
+      for (const std::string& name : I.fitted[q]) {
+        if (std::find(fitted.begin(), fitted.end(), name) == fitted.end()) fitted.push_back(name);
+      }
+    }
+    for (std::string& w : DiscontinuousChannelWarnings(mo.sim->model(), fitted, trs)) {
+      I.prepare_warnings.push_back((I.models.size() > 1 ? "model '" + mo.name + "': " : "") + w);
+    }
     if (mo.sim->parameters().size() == 0) continue;
     JacobianOptions jo = options.jacobian;
     jo.zero_column_is_error = false;
