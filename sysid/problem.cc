@@ -927,6 +927,7 @@ FitResult Problem::Fit(const FitOptions& options) {
       result.warnings.push_back("auto: " + reason + " were tried and ended " +
                                 FitStatusName(refit.outcome) + "; the single-shooting fit stays");
       result.seconds += refit.seconds;
+      result.simulation_steps += refit.simulation_steps;
     }
   }
   return result;
