@@ -41,7 +41,7 @@ double Chi2RatioLimit(double dof) {
 }  // namespace
 
 void DecideFitStatus(const FitOptions& options, int accepted_steps, bool jacobian_warned,
-                     FitResult* result, bool cost_not_local) {
+                     FitResult* result, bool cost_not_local, bool jacobian_warned_at_estimate) {
   FitResult& r = *result;
 
   // did the estimate leave its start: an accepted step that changed some estimated value
@@ -146,6 +146,16 @@ void DecideFitStatus(const FitOptions& options, int accepted_steps, bool jacobia
     r.outcome = FitStatus::kNotConverged;
   } else if (mismatch) {
     r.outcome = FitStatus::kModelMismatch;
+  } else if (jacobian_warned_at_estimate) {
+    // converged on a Jacobian the core says is not local: the step was a guess, the intervals too
+    // (measured: a chaotic 5000-step single-shooting fit without sigmas stopped 44 % off the truth
+    // with the cost 12 % down and intervals 2e-5 wide, tests/sysid/status_test.cc)
+    r.outcome = FitStatus::kJacobianUnreliable;
+    r.warnings.push_back(
+        "Jacobian unreliable at the estimate: the core's finite differences are not local there "
+        "(h*|S| > 1e-2 at the estimate), so the estimate may be no minimum and its "
+        "intervals are not valid; shorten the horizon (multiple_shooting: auto or segment_steps) "
+        "or start closer");
   } else if (cost_not_local) {
     // converged on a cost that jumps within the intervals (the warning says where)
     r.outcome = FitStatus::kJacobianUnreliable;

@@ -16,8 +16,11 @@
 //   the estimate, overall or per sensor (its share of m - p), above both the chi-square quantile
 //   at a one-sided false-alarm rate of 1e-6 and 2. The raw weighted residuals are tested (a
 //   robust loss declares outliers, it does not make a wrong model explain the data).
-// - jacobian_unreliable also when the fit would be converged but cost_not_local: the cost at the
-//   estimate +- one standard error is not what the Jacobian predicts (sysid/interval_check.h).
+// - jacobian_unreliable also when the fit would be converged but the core flagged the Jacobian at
+//   the estimate itself (jacobian_warned_at_estimate: h*|S| past kSensitivityGrowthLimit, the
+//   finite differences there are not local, so neither are intervals built from them), or
+//   cost_not_local: the cost at the estimate +- one standard error is not what the Jacobian
+//   predicts (sysid/interval_check.h). Both need no sigmas.
 // - converged otherwise; intervals_valid only then (and when the uncertainty step ran).
 #pragma once
 
@@ -27,8 +30,11 @@ namespace mjsysid {
 
 // accepted_steps: the solve's successful iterations; jacobian_warned: the core flagged some
 // segment's Jacobian as not reliable during the solve; cost_not_local: CheckIntervalScale found
-// the cost at the estimate +- one standard error far from the Jacobian's quadratic model
+// the cost at the estimate +- one standard error far from the Jacobian's quadratic model;
+// jacobian_warned_at_estimate: the core flagged the Jacobian evaluated at the estimate (the one the
+// intervals come from)
 void DecideFitStatus(const FitOptions& options, int accepted_steps, bool jacobian_warned,
-                     FitResult* result, bool cost_not_local = false);
+                     FitResult* result, bool cost_not_local = false,
+                     bool jacobian_warned_at_estimate = false);
 
 }  // namespace mjsysid

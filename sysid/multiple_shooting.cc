@@ -133,6 +133,7 @@ HorizonChoice ChooseHorizon(Problem::Impl& I, const std::vector<Trajectory>& ini
       if (e > kExponentialGrowth || p > kSensitivityGrowthLimit) break;
     }
   }
+  out.growth = worst_e;
   if (first < 0) {
     out.reason = "single shooting: sensitivity bounded (growth beyond linear x" +
                  FormatDigits(worst_e, 3) + " <= " + FormatDigits(kExponentialGrowth, 3) + ")";
@@ -167,6 +168,22 @@ int SegmentStepsAfterWarning(const std::string& warning, double rate, std::strin
             FormatDigits(kSensitivityGrowthLimit, 2) + " from step " + std::to_string(kstar) +
             ", probe rate " + FormatDigits(rate, 3) + " per step): segments of " +
             std::to_string(len) + " steps";
+  return len;
+}
+
+// Auto, third stage (see the header): measured on the chaotic double pendulum released at (2.0,
+// -1.0) rad from masses (1.2, 0.6) (tests/stress/horizon_stress_test.cc, "moderate_start2"): the
+// probe reads x82 beyond linear (below x100), the core never flags a Jacobian, and single shooting
+// stops unconverged after 50 iterations; the refit's segments start on the data (SegmentStart).
+int SegmentStepsAfterFailure(double growth, double rate, int shortest_steps, std::string* reason) {
+  if (!(growth > kRefitGrowth) || !(rate > 0)) return 0;
+  const int len =
+      std::max(static_cast<int>(std::ceil(std::log(kSegmentGrowth) / rate)), kMinSegmentSteps);
+  if (2 * len > shortest_steps) return 0;
+  *reason = "multiple shooting: single shooting did not converge and the probe grew x" +
+            FormatDigits(growth, 3) + " beyond linear (> " + FormatDigits(kRefitGrowth, 3) +
+            ", rate " + FormatDigits(rate, 3) + " per step): segments of " + std::to_string(len) +
+            " steps";
   return len;
 }
 

@@ -20,7 +20,8 @@ namespace mjsysid {
 struct HorizonChoice {
   int steps = 0;  // per segment; 0 = single shooting
   std::string reason;
-  double rate = 0;  // lambda of the probe (largest ln(E_k) / k), per step
+  double rate = 0;    // lambda of the probe (largest ln(E_k) / k), per step
+  double growth = 0;  // the probe's largest growth beyond linear E (1 when bounded)
 };
 
 // FitOptions::segment_steps >= 0: as set. Auto (-1): a probe per sequence at the current
@@ -34,6 +35,15 @@ HorizonChoice ChooseHorizon(Problem::Impl& I, const std::vector<Trajectory>& ini
 // the segment length min(k*/2, ln 2 / rate), at least 10, and the reason; 0 when the warning
 // names no step.
 int SegmentStepsAfterWarning(const std::string& warning, double rate, std::string* reason);
+
+// Auto, third stage: a single-shooting fit (auto chose it) whose optimiser did not converge, on a
+// system whose probe grew beyond linear by more than kRefitGrowth (growth: HorizonChoice::growth;
+// stable and dissipative systems read 1-2.4), is refitted in multiple shooting with ln(2) / rate
+// steps per segment (at least 10). Returns that length and the reason, or 0 (no refit) when the
+// growth is below kRefitGrowth or the segments would not be shorter than half of the shortest
+// sequence (shortest_steps).
+constexpr double kRefitGrowth = 10;
+int SegmentStepsAfterFailure(double growth, double rate, int shortest_steps, std::string* reason);
 
 // x (nphys) = the initial state of sequence q's segment at sample k0 > 0: logged states
 // (FitSequence::states), else jointpos/jointvel sensors, else rollout.states.row(k0); act from

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "core/text.h"
+#include "sysid/contact_channels.h"
 #include "sysid/cost_functions.h"
 #include "sysid/derived_inertials.h"
 #include "sysid/evaluation_cache.h"
@@ -400,6 +401,16 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
     std::vector<Trajectory> trs;
     mo.sim->Rollout(ins, &trs);
     for (size_t i = 0; i < which.size(); ++i) initial[which[i]] = trs[i];
+    // fitted sensors that jump at contact events (sysid/contact_channels.h)
+    std::vector<std::string> fitted;
+    for (int q : which) {
+      for (const std::string& name : I.fitted[q]) {
+        if (std::find(fitted.begin(), fitted.end(), name) == fitted.end()) fitted.push_back(name);
+      }
+    }
+    for (std::string& w : DiscontinuousChannelWarnings(mo.sim->model(), fitted, trs)) {
+      I.prepare_warnings.push_back((I.models.size() > 1 ? "model '" + mo.name + "': " : "") + w);
+    }
     if (mo.sim->parameters().size() == 0) continue;
     JacobianOptions jo = options.jacobian;
     jo.zero_column_is_error = false;
@@ -432,6 +443,7 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
   out->segment_steps = horizon.steps;
   out->segment_reason = horizon.reason;
   out->probe_rate = horizon.rate;
+  out->probe_growth = horizon.growth;
   I.stop_on_jacobian_warning = options.segment_steps < 0 && horizon.steps == 0;
   std::string start_source;
   for (size_t q = 0; q < I.sequences.size(); ++q) {
@@ -688,8 +700,13 @@ FitResult Problem::Fit(const FitOptions& options) {
   double cost = 0;
   ceres::CRSMatrix crs;
   std::vector<double> residuals;
+  // the core's Jacobian warnings of this evaluation alone: the Jacobian the intervals come from
+  std::map<int, std::string> solve_warnings;
+  std::swap(solve_warnings, I.jacobian_warnings);
   const bool evaluated =
       !interrupted_now() && problem.Evaluate(eo, &cost, &residuals, nullptr, &crs);
+  const bool jacobian_warned_at_estimate = evaluated && !I.jacobian_warnings.empty();
+  I.jacobian_warnings.insert(solve_warnings.begin(), solve_warnings.end());
   for (auto& mo : I.models) mo.sim->SetCancelFlag(nullptr);
   if (interrupted_now()) {
     result.interrupted = true;
@@ -921,9 +938,39 @@ FitResult Problem::Fit(const FitOptions& options) {
   for (size_t i = 1; i < summary.iterations.size(); ++i) {
     accepted_steps += summary.iterations[i].step_is_successful ? 1 : 0;
   }
-  DecideFitStatus(options, accepted_steps, !I.jacobian_warnings.empty(), &result, cost_not_local);
+  DecideFitStatus(options, accepted_steps, !I.jacobian_warnings.empty(), &result, cost_not_local,
+                  jacobian_warned_at_estimate);
   for (const auto& mo : I.models) result.simulation_steps += mo.sim->StepCount();
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+  // auto: single shooting that did not converge on a system whose probe grew well beyond linear
+  // is refitted in multiple shooting (sysid/multiple_shooting.h, SegmentStepsAfterFailure); the
+  // refit is the result when it converges, else this one stays, saying so
+  if (options.segment_steps < 0 && prepared.segment_steps == 0 && !result.converged &&
+      !result.interrupted) {
+    int shortest = std::numeric_limits<int>::max();
+    for (const SampleGrid& g : I.grids) shortest = std::min(shortest, g.steps);
+    std::string reason;
+    FitOptions segmented = options;
+    segmented.segment_steps =
+        SegmentStepsAfterFailure(prepared.probe_growth, prepared.probe_rate, shortest, &reason);
+    if (segmented.segment_steps > 0) {
+      FitResult refit = Fit(segmented);
+      if (refit.outcome == FitStatus::kConverged) {
+        const size_t from = refit.segment_reason.find("segment states");
+        refit.segment_reason =
+            reason + (from == std::string::npos ? "" : "; " + refit.segment_reason.substr(from));
+        refit.seconds += result.seconds;
+        refit.simulation_steps += result.simulation_steps;
+        refit.trace.insert(refit.trace.begin(), result.trace.begin(), result.trace.end());
+        return refit;
+      }
+      result.warnings.push_back("auto: " + reason + " were tried and ended " +
+                                FitStatusName(refit.outcome) + "; the single-shooting fit stays");
+      result.seconds += refit.seconds;
+      result.simulation_steps += refit.simulation_steps;
+    }
+  }
   return result;
 }
 

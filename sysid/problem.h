@@ -110,6 +110,7 @@ class Problem {
     int segment_steps = 0;       // multiple shooting as chosen (0: single shooting)
     std::string segment_reason;  // why (FitResult::segment_reason)
     double probe_rate = 0;       // growth rate per step of the auto probe
+    double probe_growth = 0;     // its largest growth beyond linear (HorizonChoice::growth)
   };
   // validates the inputs, builds the simulators, variables and segments
   void Prepare(const FitOptions& options, Prepared* out);

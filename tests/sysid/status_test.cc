@@ -165,6 +165,52 @@ TEST(FitStatusTest, ChaoticLongHorizonIsNotConverged) {
   EXPECT_NE(run::ExitCodeOf(r.outcome), 0);
 }
 
+// bench_multiple_shooting's chaotic case (tools/bench/ms_bench.cc): the double pendulum released
+// at (2.0, -1.0) rad under a 0.5 Nm multi-sine, 5000 steps, truth link masses (1.0, 0.8), noise
+// 1e-3 on every channel, weights 1/1e-3 but NO sigmas (no chi-square test), start (1.4, 0.5),
+// single shooting. Measured: it stops ~44 % off the truth; before the fix it said `converged`.
+// The status must not be converged, the intervals not valid, the exit code non-zero.
+TEST(FitStatusTest, ChaoticSingleShootingWithoutSigmasIsNotConverged) {
+  ModelPtr m = LoadModel(kModels + "/double_pendulum.xml");
+  const int T = 5000;
+  RowMatrix u(T, m->nu);
+  const double freqs[3] = {0.4, 1.1, 2.3}, phase[3] = {0.3, 2.1, 4.4};
+  for (int k = 0; k < T; ++k) {
+    double v = 0;
+    for (int f = 0; f < 3; ++f) v += std::sin(2 * M_PI * freqs[f] * k * m->opt.timestep + phase[f]);
+    u(k, 0) = 0.5 * v / 3;
+  }
+  const std::vector<Truth> truth = {{"m1", Spec("body_mass", "link1"), 1.0},
+                                    {"m2", Spec("body_mass", "link2"), 0.8}};
+  InitialState x0;
+  x0.qpos = Eigen::Vector2d(2.0, -1.0);
+  x0.qvel = Eigen::Vector2d(0, 0);
+  constexpr double kSigma = 1e-3;
+  const RowMatrix y = Measure(*m, truth, x0, u, kSigma, 3);
+  Problem problem;
+  problem.AddModel("dp", *m);
+  problem.AddParameter(FitParameter("m1", truth[0].spec, 1.4).Bounds(0.05, 20).Log());
+  problem.AddParameter(FitParameter("m2", truth[1].spec, 0.5).Bounds(0.05, 20).Log());
+  problem.AddSequence(FitSequence("seq0", "dp", x0, u, y));
+  FitOptions opt;
+  for (int i = 0; i < m->nsensor; ++i) {
+    opt.sensor_weights[mj_id2name(m.get(), mjOBJ_SENSOR, i)] = 1.0 / kSigma;
+  }
+  opt.segment_steps = 0;  // single shooting (auto splits this horizon and recovers)
+  opt.threads = 2;
+  opt.max_iterations = 50;
+  const FitResult r = problem.Fit(opt);
+  Print("chaotic 5000 steps, single shooting, no sigmas", r);
+  const double err = std::max(std::abs(Estimate(r, "m1").value - 1.0),
+                              std::abs(Estimate(r, "m2").value / 0.8 - 1.0));
+  std::printf("[ measured ] chaotic no sigmas: worst relative error %.3g\n", err);
+  EXPECT_GT(err, 0.1);  // the case: single shooting does not recover
+  EXPECT_EQ(r.outcome, FitStatus::kJacobianUnreliable);
+  EXPECT_TRUE(HasWarning(r, "Jacobian unreliable at the estimate"));
+  EXPECT_FALSE(r.intervals_valid);
+  EXPECT_NE(run::ExitCodeOf(r.outcome), 0);
+}
+
 // truth mass 1.0, noise-free, a start on a bound is a warning. From 2.0 on the upper bound 2.0
 // (log transform) the fit leaves it and recovers (relative 1e-6, converged). From 0.5 on the lower
 // bound 0.5 (no transform) the gradient there points out of the bounds (measured: Ceres stops at

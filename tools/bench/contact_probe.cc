@@ -13,6 +13,13 @@
 // - with --scan N --span S: the cost at p_j (1 + d) for N points d in [-S, S] per parameter
 //   (a 1-D cut through the truth or the point), and the roughness of that cut: the largest
 //   |second difference| over the points against what a quadratic through the ends predicts.
+// - with --segments N: every rollout restarts from the log's qpos/qvel every N steps (the cost of
+//   multiple shooting with its segment states on the data; 0: whole sequences);
+// - with --line K: the cost per fitted sensor at K points along the straight line from the start
+//   (t = 0) to the truth (t = 1): sum(r^2)/m of that sensor at both ends, and its ruggedness
+//   along the line, the total variation of its cost over its net fall |c(0) - c(1)| (1: it falls
+//   monotonically towards the truth; >> 1: it jumps up and down on the way).
+// A missing log is simulated from the experiment's `simulate:` block (--write-log).
 // MuJoCo options of the model can be changed for the probe: --tolerance (the solver tolerance the
 // core uses, default 1e-10), --fixed-iterations, --iterations, --noslip, --elliptic, --integrator.
 #include <mujoco/mujoco.h>
@@ -22,6 +29,8 @@
 #include <cmath>
 #include <cstdio>
 #include <exception>
+#include <filesystem>
+#include <map>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -29,33 +38,81 @@
 #include "core/mujoco_env.h"
 #include "core/simulator.h"
 #include "sysid/io/experiment.h"
+#include "sysid/io/log.h"
 #include "sysid/run/fit_experiment.h"
+#include "sysid/sim/simulate.h"
 
 namespace mjsysid {
 namespace {
 
-// one fitted sensor column of one sequence: where it sits in sensordata and its weight
+// one fitted sensor column of one sequence: where it sits in sensordata, its weight and sensor
 struct Column {
   int col = 0;
   double weight = 1;
+  int sensor = 0;  // index into Probe::sensor_names()
 };
 
 // the fit's residuals (weighted, no robust loss) of every sequence at given parameter values
 class Probe {
  public:
-  Probe(const run::BuiltProblem& built, const mjModel& m, const SimulatorOptions& so)
+  // segment_steps > 0: each sequence cut into pieces of that many steps, each started from the
+  // log's qpos/qvel at its first sample (the log on the simulation grid, as `simulate` writes it)
+  Probe(const run::BuiltProblem& built, const mjModel& m, const SimulatorOptions& so,
+        int segment_steps)
       : sim_(m, Specs(built), so) {
     for (const FitSequence& s : built.sequences) {
-      inputs_.push_back(SequenceInput{s.x0, s.ctrl});
-      measured_.push_back(s.measured);
       std::vector<Column> cols;
       for (const std::string& name : s.sensors) {
         const int id = mj_name2id(&m, mjOBJ_SENSOR, name.c_str());
         const auto w = built.options.sensor_weights.find(name);
         const double weight = w != built.options.sensor_weights.end() ? w->second : 1.0;
-        for (int i = 0; i < m.sensor_dim[id]; ++i) cols.push_back({m.sensor_adr[id] + i, weight});
+        const auto at = std::find(sensor_names_.begin(), sensor_names_.end(), name);
+        const int index = static_cast<int>(at - sensor_names_.begin());
+        if (at == sensor_names_.end()) sensor_names_.push_back(name);
+        for (int i = 0; i < m.sensor_dim[id]; ++i) {
+          cols.push_back({m.sensor_adr[id] + i, weight, index});
+        }
       }
-      columns_.push_back(cols);
+      const int T = static_cast<int>(s.ctrl.rows());
+      const int len = segment_steps > 0 ? segment_steps : T;
+      for (int k0 = 0; k0 < T; k0 += len) {
+        const int n = std::min(len, T - k0);
+        InitialState x0 = s.x0;
+        if (k0 > 0) {
+          if (s.qpos.rows() <= k0 || s.qvel.rows() <= k0) {
+            throw std::invalid_argument("--segments needs the log's qpos and qvel");
+          }
+          x0.qpos = s.qpos.row(k0).transpose();
+          x0.qvel = s.qvel.row(k0).transpose();
+          x0.time = s.x0.time + k0 * m.opt.timestep;
+        }
+        inputs_.push_back(SequenceInput{x0, s.ctrl.middleRows(k0, n)});
+        measured_.push_back(s.measured.middleRows(k0, n));
+        columns_.push_back(cols);
+      }
+    }
+  }
+
+  const std::vector<std::string>& sensor_names() const { return sensor_names_; }
+
+  // 0.5 sum(r^2) and the number of rows per fitted sensor (sensor_names order) at p
+  void CostPerSensor(const Eigen::VectorXd& p, std::vector<double>* cost,
+                     std::vector<long long>* rows) {
+    std::vector<Trajectory> trajectories;
+    sim_.SetParameters(p);
+    sim_.Rollout(inputs_, &trajectories);
+    cost->assign(sensor_names_.size(), 0.0);
+    rows->assign(sensor_names_.size(), 0);
+    for (size_t s = 0; s < inputs_.size(); ++s) {
+      const Trajectory& t = trajectories[s];
+      for (int k = 0; k < t.T; ++k) {
+        for (const Column& c : columns_[s]) {
+          const double r = c.weight * (t.sensors(k, c.col) - measured_[s](k, c.col));
+          if (!std::isfinite(r)) continue;
+          (*cost)[c.sensor] += 0.5 * r * r;
+          ++(*rows)[c.sensor];
+        }
+      }
     }
   }
 
@@ -117,6 +174,7 @@ class Probe {
   }
 
   Simulator sim_;
+  std::vector<std::string> sensor_names_;
   std::vector<SequenceInput> inputs_;
   std::vector<RowMatrix> measured_;
   std::vector<std::vector<Column>> columns_;
@@ -143,7 +201,8 @@ int Main(int argc, char** argv) {
   CLI::App app{"probe a contact-rich experiment: cost cuts and Jacobians"};
   std::string exp_path, at = "truth";
   bool jacobians = false, fixed = false, elliptic = false;
-  int scan = 0, iterations = -1, noslip = -1;
+  int scan = 0, iterations = -1, noslip = -1, segments = 0, line = 0;
+  bool write_log = false;
   double span = 1e-3, tolerance = 1e-10;
   std::string integrator;
   app.add_option("experiment", exp_path, "EXP.yaml")->required();
@@ -157,9 +216,19 @@ int Main(int argc, char** argv) {
   app.add_option("--noslip", noslip, "opt.noslip_iterations");
   app.add_flag("--elliptic", elliptic, "elliptic friction cones");
   app.add_option("--integrator", integrator, "euler | implicitfast | rk4 | implicit");
+  app.add_option("--segments", segments, "restart rollouts from the log's states every N steps");
+  app.add_option("--line", line, "points of the per-sensor cost from the start to the truth");
+  app.add_flag("--write-log", write_log, "simulate the experiment's log when it is missing");
   CLI11_PARSE(app, argc, argv);
 
   const io::ExperimentConfig cfg = io::LoadExperiment(exp_path);
+  for (const io::DataFile& d : cfg.data) {
+    if (write_log && !std::filesystem::exists(d.path)) {
+      std::filesystem::create_directories(std::filesystem::path(d.path).parent_path());
+      io::WriteLog(d.path, sim::SimulateExperiment(cfg));
+      std::printf("wrote %s (simulated from the truth)\n", d.path.c_str());
+    }
+  }
   run::BuiltProblem built = run::BuildProblem(cfg, 1);
   if (built.models.size() != 1) throw std::invalid_argument("one model only");
   mjModel& m = *built.models[0];
@@ -174,7 +243,7 @@ int Main(int argc, char** argv) {
   so.threads = 2;
   so.solver_tolerance = tolerance;
   so.fixed_solver_iterations = fixed;
-  Probe probe(built, m, so);
+  Probe probe(built, m, so, segments);
 
   // the point: the truth, the start, or given values
   const int np = static_cast<int>(built.parameters.size());
@@ -250,6 +319,37 @@ int Main(int argc, char** argv) {
         std::printf("\n");
       }
       for (const std::string& w : warnings) std::printf("    warning: %s\n", w.c_str());
+    }
+  }
+
+  // the cost per sensor along the line from the start (t = 0) to the truth (t = 1)
+  if (line > 1) {
+    Eigen::VectorXd start(np), truth(np);
+    for (int j = 0; j < np; ++j) {
+      start[j] = truth[j] = built.parameters[j].initial;
+      for (const io::NamedValue& v : cfg.simulate.truth)
+        if (v.name == built.parameters[j].name) truth[j] = v.value;
+    }
+    const size_t ns = probe.sensor_names().size();
+    std::vector<std::vector<double>> c(ns, std::vector<double>(line));
+    std::vector<long long> rows;
+    std::vector<double> cost;
+    for (int i = 0; i < line; ++i) {
+      const double t = static_cast<double>(i) / (line - 1);
+      probe.CostPerSensor(start + t * (truth - start), &cost, &rows);
+      for (size_t k = 0; k < ns; ++k) c[k][i] = cost[k];
+    }
+    std::printf(
+        "  line start -> truth, %d points, segments %d (sensor: sum(r^2)/m at start, at "
+        "truth; total variation / net fall):\n",
+        line, segments);
+    for (size_t k = 0; k < ns; ++k) {
+      double tv = 0;
+      for (int i = 1; i < line; ++i) tv += std::abs(c[k][i] - c[k][i - 1]);
+      const double fall = std::abs(c[k][0] - c[k][line - 1]);
+      const double m_rows = static_cast<double>(std::max(rows[k], 1LL));
+      std::printf("    %-18s %11.4g %11.4g %9.3g\n", probe.sensor_names()[k].c_str(),
+                  2 * c[k][0] / m_rows, 2 * c[k][line - 1] / m_rows, fall > 0 ? tv / fall : 0.0);
     }
   }
 
