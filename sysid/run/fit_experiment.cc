@@ -263,7 +263,8 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
         if (s.act.rows() > 0) fs_.x0.act = s.act.row(0).transpose();
         fs_.x0.time = s.time[0];
         // a logged initial state with NaN (not measured) cells: needed as logged unless the initial
-        // state is estimated, which then starts them from the model's reference state
+        // state is estimated (set, or a window's), which then starts them from the model's
+        // reference state
         for (auto [name, x, reference] : {std::tuple<const char*, Eigen::VectorXd*, const mjtNum*>{
                                               "qpos", &fs_.x0.qpos, m.qpos0},
                                           {"qvel", &fs_.x0.qvel, nullptr},
@@ -271,7 +272,7 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
           if (x->size() == 0 || !x->array().isNaN().any()) continue;
           Eigen::Index c = 0;
           while (!std::isnan((*x)[c])) ++c;
-          if (!cfg.options.estimate_initial_state) {
+          if (!cfg.options.estimate_initial_state && !windowed) {
             throw io::LogError(
                 where + "/" + name + ": row 0 (t = " + FormatDigits(s.time[0], 9) +
                 " s, the fit's initial state) is not measured (NaN in column " + std::to_string(c) +
@@ -281,8 +282,11 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
           for (Eigen::Index i = 0; i < x->size(); ++i) {
             if (std::isnan((*x)[i])) (*x)[i] = reference ? reference[i] : 0.0;
           }
-          out.warnings.push_back(where + "/" + name +
-                                 ": row 0 has NaN (not measured): the estimated initial state "
+          // a window starting at a NaN row: its state is estimated, as a window without states
+          if (windowed) out.estimate_initial_state = true;
+          out.warnings.push_back(where + "/" + name + ": row 0" +
+                                 (windowed ? " of the window" : "") +
+                                 " has NaN (not measured): the estimated initial state "
                                  "starts there from the model's reference state");
         }
         if (windowed && s.qpos.rows() == 0) {
