@@ -158,6 +158,7 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
     d.lower = cd.term.lower;
     d.upper = cd.term.upper;
     out.problem->AddControlDelay(d);
+    out.control_delays.push_back(d);
   }
 
   // sequences from the logs
