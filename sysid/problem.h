@@ -29,9 +29,11 @@
 // (seconds, AddControlDelay; appended to the measurement terms' block) as themselves; initial
 // states of sequences or segments as full physics vectors on a StateManifold (quaternion-correct).
 //
-// Jacobians come from the core (analytic to Ceres, no Ceres numeric differentiation):
-// residual-only evaluations run only the nominal rollout. An evaluation whose simulation warns or
-// is not finite returns false, so the trust region shrinks instead of the fit failing.
+// Jacobians come from the core (analytic to Ceres, no Ceres numeric differentiation), except a
+// fitted control delay's column: a central difference of two whole rollouts with the controls
+// held again (sysid/cost_functions.h); residual-only evaluations run only the nominal rollout. An
+// evaluation whose simulation warns or is not finite returns false, so the trust region shrinks
+// instead of the fit failing.
 //
 // Errors: bad input (unknown names, shapes, NaN in data, a parameter that has no effect on the
 // data, infeasible bounds) throws std::invalid_argument or ParameterError before Ceres starts.
