@@ -266,7 +266,6 @@ void SegmentCost::ControlDelayColumns(const double* zv, const double* mv, const 
     in.x0.act = Eigen::Map<const Eigen::VectorXd>(x0 + dims.nq + dims.nv, dims.na);
     in.x0.time = seg.k0 * dt;  // as the evaluation cache's rollouts
   }
-  RowMatrix held;
   std::vector<Trajectory> trs;
   std::vector<double> plus(nr), minus(nr);
   std::vector<int> done;
@@ -275,8 +274,7 @@ void SegmentCost::ControlDelayColumns(const double* zv, const double* mv, const 
     done.push_back(v);
     for (int side = 0; side < 2; ++side) {
       HoldControls(grid, sq.ctrl, sq.ctrl_hold, I.ControlDelays(seg.seq, mv, v, side ? -h : h), dt,
-                   &held);
-      ins[side].ctrl = held.middleRows(seg.k0, steps);
+                   &ins[side].ctrl, seg.k0, steps);
     }
     sim.Rollout(ins, &trs);  // throws on a divergent rollout: the trial point is rejected
     Residuals(trs[0], mv, xn, plus.data());

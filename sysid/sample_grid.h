@@ -73,12 +73,14 @@ SampleGrid BuildSampleGrid(const Eigen::VectorXd& time, int T, double x0_time,
                            const std::vector<ControlHold>& hold, const std::vector<double>& delay,
                            double dt, const std::string& where);
 
-// The controls of every step of grid g (g.steps x nu, into *out, resized) held from the logged
-// controls `ctrl` (Tc x nu, at g.ctrl_position) by the rule above with per-actuator hold and
-// delay (seconds; empty: zero-order hold, no delay). Piecewise linear in each delay (zero-order
-// hold); a negative delay shifts the controls earlier (used by a fitted delay's finite
-// differences at its lower bound). Allocates only when *out changes shape.
+// The controls of steps [first, first + count) of grid g (count < 0: through the last step;
+// count x nu into *out, resized, row 0 = step first) held from the logged controls `ctrl` (Tc x
+// nu, at g.ctrl_position) by the rule above with per-actuator hold and delay (seconds; empty:
+// zero-order hold, no delay). Piecewise linear in each delay (zero-order hold); a negative delay
+// shifts the controls earlier (used by a fitted delay's finite differences at its lower bound).
+// Allocates only when *out changes shape (and a scratch list of the valid controls).
 void HoldControls(const SampleGrid& g, const RowMatrix& ctrl, const std::vector<ControlHold>& hold,
-                  const std::vector<double>& delay, double dt, RowMatrix* out);
+                  const std::vector<double>& delay, double dt, RowMatrix* out, int first = 0,
+                  int count = -1);
 
 }  // namespace mjsysid
