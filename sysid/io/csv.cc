@@ -465,14 +465,18 @@ Sequence ImportCsvFiles(const std::vector<std::string>& paths, const mjModel& m,
     seq.ctrl.resize(T, 0);
   }
   // sensors in model order, each at its file's times
+  auto sensor_name = [&](int s) {  // "" for an unnamed sensor (no column can hold it)
+    const char* name = mj_id2name(&m, mjOBJ_SENSOR, s);
+    return std::string(name ? name : "");
+  };
   int width = 0;
   for (int s = 0; s < m.nsensor; ++s) {
-    if (sensor_file.count(mj_id2name(&m, mjOBJ_SENSOR, s))) width += m.sensor_dim[s];
+    if (sensor_file.count(sensor_name(s))) width += m.sensor_dim[s];
   }
   seq.sensordata = RowMatrix::Constant(T, width, std::numeric_limits<double>::quiet_NaN());
   int offset = 0;
   for (int s = 0; s < m.nsensor; ++s) {
-    const std::string name = mj_id2name(&m, mjOBJ_SENSOR, s);
+    const std::string name = sensor_name(s);
     const auto it = sensor_file.find(name);
     if (it == sensor_file.end()) continue;
     const Sequence& p = parts[it->second];
