@@ -71,6 +71,8 @@ bool SegmentCost::EvaluateOrThrow(double const* const* parameters, double* resid
   const int xb = seg.block >= 0 ? b - 1 : -1;
   const double* xn = seg.next >= 0 ? parameters[b++] : nullptr;
   const int nb = seg.next >= 0 ? b - 1 : -1;
+  // the controls at the fitted control delays in mv (a no-op when unchanged)
+  if (mv) I.SyncControlDelays(seg.seq, mv);
 
   // rollout (and Jacobians only when asked for), from the cache when Prefetch or an earlier
   // evaluation at this point computed them; a failed one is rejected in Evaluate
@@ -198,10 +200,87 @@ bool SegmentCost::EvaluateOrThrow(double const* const* parameters, double* resid
       }
     }
   }
+  // fitted control delays: whole-rollout central differences
+  if (want && mb >= 0 && jacobians[mb] && I.HasControlDelay(seg.seq)) {
+    ControlDelayColumns(zv, mv, x0, xn, jacobians[mb]);
+  }
   for (int i = 0; i < num_residuals(); ++i) {
     if (!std::isfinite(residuals[i])) return false;
   }
   return true;
+}
+
+void SegmentCost::Residuals(const Trajectory& tr, const double* mv, const double* xn,
+                            double* out) const {
+  const Problem::Impl& I = *impl_;
+  const Segment& seg = I.segments[segment_];
+  const FitSequence& sq = I.sequences[seg.seq];
+  const Simulator& sim = *I.models[seg.model].sim;
+  const double dt = sim.model().opt.timestep;
+  // sensor rows: measured cells in sample-major order, as EvaluateOrThrow
+  int first = 0, count = 0;
+  I.SamplesOf(segment_, &first, &count);
+  const std::vector<double>& position = I.grids[seg.seq].position;
+  int row = 0;
+  for (int k = first; k < first + count; ++k) {
+    for (const Channel& ch : I.channels[seg.seq]) {
+      const double measured = sq.measured(k, ch.column);
+      if (std::isnan(measured)) continue;
+      const MeasurementTerms terms =
+          ch.measurement >= 0 ? I.Terms(ch.measurement, mv) : MeasurementTerms();
+      const DelayedSample at(position[k] - seg.k0, tr.T, terms.delay, dt);
+      out[row++] =
+          EvaluateSensorResidual(at, {tr.sensors.data() + ch.column, tr.sensors.cols()}, measured,
+                                 ch.weight, terms, I.options.loss, I.options.loss_scale)
+              .value;
+    }
+  }
+  // continuity rows
+  if (seg.next >= 0) {
+    const int nx = sim.dims().nx;
+    TangentDifference(sim.model(), xn, tr.states.row(seg.T).data(), 1.0, out + row);
+    for (int i = 0; i < nx; ++i) out[row + i] *= I.options.continuity_weight;
+  }
+}
+
+// per fitted delay driving this sequence: its controls held again at delay +- h, both rollouts in
+// one batch from the segment's x_0 at the current parameters, the residuals differenced
+void SegmentCost::ControlDelayColumns(const double* zv, const double* mv, const double* x0,
+                                      const double* xn, double* jm) const {
+  Problem::Impl& I = *impl_;
+  const Segment& seg = I.segments[segment_];
+  const FitSequence& sq = I.sequences[seg.seq];
+  Problem::Impl::Model& mo = I.models[seg.model];
+  Simulator& sim = *mo.sim;
+  const StateDims& dims = sim.dims();
+  const double dt = sim.model().opt.timestep;
+  const SampleGrid& grid = I.grids[seg.seq];
+  const int steps = grid.SimulatedSteps(seg.k0, seg.T);
+  const int nm = static_cast<int>(I.m.size()), nr = num_residuals();
+  const double h = kControlDelayStep * dt;
+  if (zv) ApplyVariables(I.params, mo.global, zv, &sim);
+  std::vector<SequenceInput> ins(2);
+  for (SequenceInput& in : ins) {
+    in.x0.qpos = Eigen::Map<const Eigen::VectorXd>(x0, dims.nq);
+    in.x0.qvel = Eigen::Map<const Eigen::VectorXd>(x0 + dims.nq, dims.nv);
+    in.x0.act = Eigen::Map<const Eigen::VectorXd>(x0 + dims.nq + dims.nv, dims.na);
+    in.x0.time = seg.k0 * dt;  // as the evaluation cache's rollouts
+  }
+  std::vector<Trajectory> trs;
+  std::vector<double> plus(nr), minus(nr);
+  std::vector<int> done;
+  for (const int v : I.ctrl_delay_var[seg.seq]) {
+    if (v < 0 || std::find(done.begin(), done.end(), v) != done.end()) continue;
+    done.push_back(v);
+    for (int side = 0; side < 2; ++side) {
+      HoldControls(grid, sq.ctrl, sq.ctrl_hold, I.ControlDelays(seg.seq, mv, v, side ? -h : h), dt,
+                   &ins[side].ctrl, seg.k0, steps);
+    }
+    sim.Rollout(ins, &trs);  // throws on a divergent rollout: the trial point is rejected
+    Residuals(trs[0], mv, xn, plus.data());
+    Residuals(trs[1], mv, xn, minus.data());
+    for (int r = 0; r < nr; ++r) jm[r * nm + v] = (plus[r] - minus[r]) / (2 * h);
+  }
 }
 
 // -----------------------------------------------------------------------------------------------
@@ -235,6 +314,7 @@ bool PriorCost::Evaluate(double const* const* parameters, double* residuals,
 void PrefetchCallback::PrepareForEvaluation(bool evaluate_jacobians,
                                             bool /*new_evaluation_point*/) {
   Problem::Impl& I = *impl_;
+  if (!I.m.empty()) I.SyncControlDelays(I.m.data());  // the controls at the fitted delays
   std::vector<const double*> x0(I.segments.size());
   for (size_t s = 0; s < I.segments.size(); ++s) x0[s] = I.X0(static_cast<int>(s));
   I.cache->Prefetch(I.z.empty() ? nullptr : I.z.data(), x0, evaluate_jacobians);

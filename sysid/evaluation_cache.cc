@@ -50,11 +50,16 @@ void EvaluationCache::CheckThread(const char* where) const {
   std::abort();
 }
 
-// [z, x_0]; z only when the fit has parameters
+// [z, x_0, control delays]; z only when the fit has parameters; the delays its grid's controls
+// were held with (SampleGrid::delay: a fitted control delay changes the controls)
 std::vector<double> EvaluationCache::KeyOf(int segment, const double* z, const double* x0) const {
   const Model& mo = models_[(*segments_)[segment].model];
   std::vector<double> key(z, z + (z ? parameters_->size() : 0));
   key.insert(key.end(), x0, x0 + mo.sim->dims().nphys);
+  if (grids_) {
+    const std::vector<double>& delay = (*grids_)[(*segments_)[segment].seq].delay;
+    key.insert(key.end(), delay.begin(), delay.end());
+  }
   return key;
 }
 

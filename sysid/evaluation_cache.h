@@ -4,12 +4,13 @@
 // What is cached. One Entry per Segment (a sequence, or in multiple shooting a piece of one),
 // keyed by the values it was simulated at: key = [z (np: the optimiser's parameter variables, the
 // whole vector, absent when the fit has none), x_0 (nphys: the segment's initial physics vector
-// [qpos, qvel, act])]. An Entry holds the Trajectory (core/simulator.h: T + 1 states, T sensor
-// rows, row-major) and, once asked for, its Sensitivity: ncol = the model's simulator parameters
-// (ParameterSet order, physical units) followed, when the segment's x_0 is a variable
-// (Segment::block >= 0), by its nx tangent directions; DyDp is T*ns x ncol, DxDp ((T+1)*nx x ncol,
-// tangent space) is filled only for segments with a continuity residual (Segment::next >= 0) or
-// fitted states (Segment::state_rows).
+// [qpos, qvel, act]), with grids the delays (nu, s) its sequence's controls were held with
+// (SampleGrid::delay; a fitted control delay changes them, Problem::Impl::SyncControlDelays)]. An
+// Entry holds the Trajectory (core/simulator.h: T + 1 states, T sensor rows, row-major) and, once
+// asked for, its Sensitivity: ncol = the model's simulator parameters (ParameterSet order, physical
+// units) followed, when the segment's x_0 is a variable (Segment::block >= 0), by its nx tangent
+// directions; DyDp is T*ns x ncol, DxDp ((T+1)*nx x ncol, tangent space) is filled only for
+// segments with a continuity residual (Segment::next >= 0) or fitted states (Segment::state_rows).
 //
 // Reuse. Ceres evaluates the residuals at a trial point and, when it accepts the step, the
 // Jacobians at the same point: the rollout is reused and only the Jacobians are added. Before

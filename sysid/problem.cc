@@ -105,6 +105,32 @@ void UseResidualRows(long long m, double cost, bool scaled, Uncertainty* u) {
 }  // namespace
 
 // -----------------------------------------------------------------------------------------------
+// fitted control delays
+
+std::vector<double> Problem::Impl::ControlDelays(int q, const double* mv, int shifted,
+                                                 double shift) const {
+  const FitSequence& sq = sequences[q];
+  const std::vector<int>& var = ctrl_delay_var[q];
+  std::vector<double> delay = sq.ctrl_delay;
+  delay.resize(var.size(), 0.0);
+  for (size_t i = 0; i < var.size(); ++i) {
+    if (var[i] >= 0) delay[i] = mv[var[i]] + (var[i] == shifted ? shift : 0.0);
+  }
+  return delay;
+}
+
+void Problem::Impl::SyncControlDelays(int q, const double* mv) {
+  if (mv == nullptr || !HasControlDelay(q)) return;
+  SampleGrid& grid = grids[q];
+  const std::vector<double> delay = ControlDelays(q, mv);
+  if (delay == grid.delay) return;
+  const FitSequence& sq = sequences[q];
+  const double dt = models[ModelIndex(sq.model)].sim->model().opt.timestep;
+  HoldControls(grid, sq.ctrl, sq.ctrl_hold, delay, dt, &grid.ctrl);
+  grid.delay = delay;
+}
+
+// -----------------------------------------------------------------------------------------------
 // building
 
 Problem::Problem() : impl_(std::make_unique<Impl>()) { InstallMujocoHandlers(); }
@@ -137,6 +163,15 @@ Problem::Impl* Problem::PrepareOnly(const FitOptions& options) {
   Prepared prepared;
   Prepare(options, &prepared);
   return impl_.get();
+}
+
+void Problem::AddControlDelay(const FitControlDelay& delay) {
+  for (const FitControlDelay& d : impl_->control_delays) {
+    if (d.actuator == delay.actuator) {
+      throw std::invalid_argument("control delay '" + delay.Name() + "' added twice");
+    }
+  }
+  impl_->control_delays.push_back(delay);
 }
 
 void Problem::Prepare(const FitOptions& options, Prepared* out) {
@@ -228,6 +263,25 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
     add(me.bias, &I.term_index[i].bias, "bias");
   }
 
+  // fitted control delays, appended to the m block (seconds, >= 0)
+  I.control_delay_index.clear();
+  for (const FitControlDelay& cd : I.control_delays) {
+    const std::string where = "control delay '" + cd.Name() + "': ";
+    if (!std::isfinite(cd.initial)) throw std::invalid_argument(where + "initial value not finite");
+    if (!(cd.lower >= 0)) throw std::invalid_argument(where + "lower bound must be >= 0 (seconds)");
+    if (!(cd.lower < cd.upper)) throw std::invalid_argument(where + "lower bound >= upper bound");
+    if (cd.initial < cd.lower || cd.initial > cd.upper) {
+      throw std::invalid_argument(where + "initial value " + FormatDigits(cd.initial, 6) +
+                                  " outside its bounds");
+    }
+    I.control_delay_index.push_back(static_cast<int>(I.m.size()));
+    I.m.push_back(cd.initial);
+    mbounds.emplace_back(cd.lower, cd.upper);
+    out->minitial.push_back(cd.initial);
+    names.push_back(cd.Name());
+  }
+  std::vector<bool> delay_used(I.control_delays.size(), false);
+
   // sequences: shapes, channels, missing samples, the simulation grid
   I.channels.assign(I.sequences.size(), {});
   I.fitted.assign(I.sequences.size(), {});
@@ -236,6 +290,7 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
   I.missing.assign(I.sequences.size(), {});
   I.state_channels.assign(I.sequences.size(), {});
   I.state_missing.assign(I.sequences.size(), {});
+  I.ctrl_delay_var.assign(I.sequences.size(), {});
   I.prepare_warnings.clear();
   for (size_t q = 0; q < I.sequences.size(); ++q) {
     FitSequence& sq = I.sequences[q];
@@ -351,8 +406,24 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
                                    " NaN control value(s) held from the last valid " +
                                    "one (rows " + held + (held_rows > 5 ? ", ..." : "") + ")");
     }
+    // the fitted control delay each actuator follows (its own, else the shared one), if any
+    I.ctrl_delay_var[q].assign(d.nu, -1);
+    for (int i = 0; i < d.nu; ++i) {
+      const char* actuator = mj_id2name(&m, mjOBJ_ACTUATOR, i);
+      int shared = -1, own = -1;
+      for (size_t c = 0; c < I.control_delays.size(); ++c) {
+        const std::string& name = I.control_delays[c].actuator;
+        if (name.empty()) shared = static_cast<int>(c);
+        if (!name.empty() && actuator && name == actuator) own = static_cast<int>(c);
+      }
+      const int c = own >= 0 ? own : shared;
+      if (c < 0) continue;
+      I.ctrl_delay_var[q][i] = I.control_delay_index[c];
+      delay_used[c] = true;
+    }
     I.grids[q] = BuildSampleGrid(sq.time, T, sq.x0.time, sq.ctrl, sq.ctrl_time, sq.ctrl_hold,
-                                 sq.ctrl_delay, m.opt.timestep, where);
+                                 I.m.empty() ? sq.ctrl_delay : I.ControlDelays(q, I.m.data()),
+                                 m.opt.timestep, where);
     // the given initial state as a physics vector
     InitialState x0 = sq.x0;
     if (x0.qpos.size() == 0) x0.qpos = Eigen::Map<const Eigen::VectorXd>(m.qpos0, d.nq);
@@ -371,6 +442,21 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
       I.state_channels[q] = BuildStateChannels(m, options.states, "model '" + mo.name + "': ");
       I.state_missing[q] = CheckLoggedStates(m, I.state_channels[q], T, where, &sq);
     }
+  }
+  for (size_t c = 0; c < I.control_delays.size(); ++c) {
+    const FitControlDelay& cd = I.control_delays[c];
+    if (!delay_used[c]) {
+      throw std::invalid_argument(
+          "control delay '" + cd.Name() + "': " +
+          (cd.actuator.empty()
+               ? std::string("no sequence's model has an actuator")
+               : "no sequence's model has an actuator named '" + cd.actuator + "'"));
+    }
+  }
+  if (!I.control_delays.empty() && options.states.any()) {
+    throw std::invalid_argument(
+        "a fitted control delay with fitted states (FitOptions::states) is not supported yet: "
+        "give the delay, or fit the sensors alone");
   }
   for (const FitMeasurement& me : I.measurements) {
     bool found = false;
@@ -823,6 +909,9 @@ FitResult Problem::Fit(const FitOptions& options) {
   for (const std::string& line : result.uncertainty.unidentifiable) {
     result.warnings.push_back("unidentifiable: " + line);
   }
+
+  // the controls at the fitted delays (the interval check above evaluated others)
+  if (!I.m.empty()) I.SyncControlDelays(I.m.data());
 
   // simulated signals before and after, per sequence (segment-wise in multiple shooting); in
   // multiple shooting also the largest continuity gap at the estimate: segments that do not join

@@ -25,12 +25,15 @@
 // the parameters' covariance with the states eliminated (AnalyzeUncertaintyReduced).
 //
 // Variables. Physical parameters are optimised as z = p, log p or p / scale, with bounds mapped
-// accordingly; measurement terms (delay in seconds, gain, bias) as themselves; initial states of
-// sequences or segments as full physics vectors on a StateManifold (quaternion-correct).
+// accordingly; measurement terms (delay in seconds, gain, bias) and fitted control delays
+// (seconds, AddControlDelay; appended to the measurement terms' block) as themselves; initial
+// states of sequences or segments as full physics vectors on a StateManifold (quaternion-correct).
 //
-// Jacobians come from the core (analytic to Ceres, no Ceres numeric differentiation):
-// residual-only evaluations run only the nominal rollout. An evaluation whose simulation warns or
-// is not finite returns false, so the trust region shrinks instead of the fit failing.
+// Jacobians come from the core (analytic to Ceres, no Ceres numeric differentiation), except a
+// fitted control delay's column: a central difference of two whole rollouts with the controls
+// held again (sysid/cost_functions.h); residual-only evaluations run only the nominal rollout. An
+// evaluation whose simulation warns or is not finite returns false, so the trust region shrinks
+// instead of the fit failing.
 //
 // Errors: bad input (unknown names, shapes, NaN in data, a parameter that has no effect on the
 // data, infeasible bounds) throws std::invalid_argument or ParameterError before Ceres starts.
@@ -82,6 +85,9 @@ class Problem {
   void AddParameter(const FitParameter& parameter);
   void AddMeasurement(const FitMeasurement& measurement);
   void AddSequence(const FitSequence& sequence);
+  // a fitted control transport delay (types.h FitControlDelay); its variable follows the
+  // measurement terms in FitResult::parameters
+  void AddControlDelay(const FitControlDelay& delay);
 
   // runs the fit; throws std::invalid_argument / ParameterError on bad input
   FitResult Fit(const FitOptions& options);
@@ -102,9 +108,9 @@ class Problem {
 
  private:
   struct Prepared {
-    std::vector<Trajectory> initial;                 // rollouts at the initial values
-    std::vector<std::string> names;                  // parameters, then measurement terms
-    std::vector<std::pair<double, double>> mbounds;  // bounds of the measurement terms
+    std::vector<Trajectory> initial;  // rollouts at the initial values
+    std::vector<std::string> names;   // parameters, measurement terms, then control delays
+    std::vector<std::pair<double, double>> mbounds;  // bounds of the m block (terms, delays)
     std::vector<double> minitial;                    // their initial values
     std::string jacobian_mode;
     int segment_steps = 0;       // multiple shooting as chosen (0: single shooting)

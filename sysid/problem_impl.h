@@ -5,7 +5,8 @@
 //
 // Variables, as Ceres sees them (parameter blocks, in this order): z (np: one per FitParameter,
 // FitParameter::ToVariable of its physical value), m (the fitted measurement terms, in
-// FitMeasurement order: delay, gain, bias of each), then the state blocks (physics vectors
+// FitMeasurement order: delay, gain, bias of each; then the fitted control delays, seconds, in
+// AddControlDelay order), then the state blocks (physics vectors
 // [qpos, qvel, act] of the free initial states, one per sequence with estimate_initial_state and
 // one per multiple-shooting segment after the first).
 //
@@ -46,6 +47,7 @@ struct Problem::Impl {
   std::vector<FitParameter> params;
   std::vector<FitMeasurement> measurements;
   std::vector<FitSequence> sequences;
+  std::vector<FitControlDelay> control_delays;
   ResidualShards* shards = nullptr;  // segment residuals evaluated elsewhere (sysid/mpi/)
 
   // the prepared fit (Prepare)
@@ -53,6 +55,10 @@ struct Problem::Impl {
   std::vector<std::vector<Channel>> channels;    // per sequence: its fitted sensor columns
   std::vector<std::vector<std::string>> fitted;  // per sequence: the fitted sensors, in order
   std::vector<TermIndex> term_index;             // per measurement: its terms in m
+  std::vector<int> control_delay_index;          // per control delay: its index in m
+  // per sequence, per actuator: the index in m of the fitted delay it follows, or -1 (its
+  // FitSequence::ctrl_delay)
+  std::vector<std::vector<int>> ctrl_delay_var;
   std::vector<Segment> segments;
   std::vector<double> z;                      // transformed physical parameters
   std::vector<double> m;                      // fitted measurement terms
@@ -144,6 +150,25 @@ struct Problem::Impl {
       for (const Channel& ch : channels[seg.seq]) rows += std::isnan(y(k, ch.column)) ? 0 : 1;
     }
     return rows;
+  }
+
+  // whether sequence q has an actuator with a fitted control delay
+  bool HasControlDelay(int q) const {
+    for (int v : ctrl_delay_var[q]) {
+      if (v >= 0) return true;
+    }
+    return false;
+  }
+  // the per-actuator delays (s) of sequence q at the m block mv (its fitted delays, the others
+  // as given), each fitted one shifted by `shift` when it is m[shifted]
+  std::vector<double> ControlDelays(int q, const double* mv, int shifted = -1,
+                                    double shift = 0) const;
+  // Holds sequence q's controls on its grid again (sysid/sample_grid.h HoldControls) when the
+  // fitted delays in mv differ from those its controls were held with; the evaluation cache keys
+  // its rollouts by them (SampleGrid::delay), so changed controls are simulated anew
+  void SyncControlDelays(int q, const double* mv);
+  void SyncControlDelays(const double* mv) {
+    for (size_t q = 0; q < sequences.size(); ++q) SyncControlDelays(static_cast<int>(q), mv);
   }
 
   // x_0 of a segment in the current variables (its state block, or the sequence's given x0)

@@ -59,13 +59,24 @@ SampleGrid BuildSampleGrid(const Eigen::VectorXd& time, int T, double x0_time,
   // steps: through the last sample's step, or the step after it when it lies between two
   g.steps = T ? static_cast<int>(std::ceil(g.position[T - 1])) + 1 : 0;
 
-  // controls: positions of the logged ones (shifted by each actuator's delay), then held
+  // controls: positions of the logged ones, then held (shifted by each actuator's delay)
   const Eigen::Index nu = ctrl.cols(), Tc = ctrl.rows();
-  std::vector<double> cpos(Tc);
+  g.ctrl_position.resize(Tc);
   for (Eigen::Index j = 0; j < Tc; ++j) {
-    cpos[j] = ctrl_time.size() ? Position(ctrl_time[j], t0, dt) : g.position[j];
+    g.ctrl_position[j] = ctrl_time.size() ? Position(ctrl_time[j], t0, dt) : g.position[j];
   }
-  g.ctrl.resize(g.steps, nu);
+  g.delay = delay.empty() ? std::vector<double>(nu, 0.0) : delay;
+  HoldControls(g, ctrl, hold, g.delay, dt, &g.ctrl);
+  return g;
+}
+
+void HoldControls(const SampleGrid& g, const RowMatrix& ctrl, const std::vector<ControlHold>& hold,
+                  const std::vector<double>& delay, double dt, RowMatrix* out, int first,
+                  int count) {
+  const Eigen::Index nu = ctrl.cols(), Tc = ctrl.rows();
+  const std::vector<double>& cpos = g.ctrl_position;
+  const int last = count < 0 ? g.steps : first + count;  // one past the last step held
+  out->resize(last - first, nu);
   std::vector<Eigen::Index> valid;
   for (Eigen::Index i = 0; i < nu; ++i) {
     const double shift = delay.empty() ? 0.0 : delay[i] / dt;
@@ -78,11 +89,11 @@ SampleGrid BuildSampleGrid(const Eigen::VectorXd& time, int T, double x0_time,
     const Eigen::Index nv = static_cast<Eigen::Index>(valid.size());
     // v: the last valid control at or before step n (delayed positions), -1 before the first
     Eigen::Index v = -1;
-    for (int n = 0; n < g.steps; ++n) {
+    for (int n = first; n < last; ++n) {
       const double at = n - shift;
       while (v + 1 < nv && cpos[valid[v + 1]] <= at + SampleGrid::kOnGridTolerance) ++v;
       if (nv == 0) {
-        g.ctrl(n, i) = 0;  // Problem::Prepare rejects a control with no valid value before
+        (*out)(n - first, i) = 0;  // Problem::Prepare rejects a control with no valid value before
       } else if (!linear) {
         // zero-order hold: the average of the held command over the step [at, at + 1], i.e.
         // the command in force at its start weighted by the fraction of the step until the next
@@ -97,19 +108,18 @@ SampleGrid BuildSampleGrid(const Eigen::VectorXd& time, int T, double x0_time,
           done = f;
           cur = ctrl(valid[w], i);
         }
-        g.ctrl(n, i) = done == 0 ? cur : sum + cur * (1 - done);
+        (*out)(n - first, i) = done == 0 ? cur : sum + cur * (1 - done);
       } else if (v < 0) {
-        g.ctrl(n, i) = ctrl(valid[0], i);
+        (*out)(n - first, i) = ctrl(valid[0], i);
       } else if (v + 1 >= nv || cpos[valid[v]] >= at) {
-        g.ctrl(n, i) = ctrl(valid[v], i);
+        (*out)(n - first, i) = ctrl(valid[v], i);
       } else {
         const Eigen::Index j0 = valid[v], j1 = valid[v + 1];
         const double a = (at - cpos[j0]) / (cpos[j1] - cpos[j0]);
-        g.ctrl(n, i) = (1 - a) * ctrl(j0, i) + a * ctrl(j1, i);
+        (*out)(n - first, i) = (1 - a) * ctrl(j0, i) + a * ctrl(j1, i);
       }
     }
   }
-  return g;
 }
 
 }  // namespace mjsysid

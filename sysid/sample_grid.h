@@ -50,6 +50,11 @@ struct SampleGrid {
   RowMatrix ctrl;                // N x nu: the control of each step
   std::vector<double> position;  // T: position of each measured sample, in steps, ascending
   bool on_grid = true;           // every position a whole number
+  // the logged controls' positions in steps (Tc, before any delay) and the per-actuator delays
+  // (nu, seconds) `ctrl` was held with: HoldControls holds them again at other delays (a fitted
+  // control delay), and the evaluation cache keys its rollouts by `delay`
+  std::vector<double> ctrl_position;
+  std::vector<double> delay;
 
   // the measured samples [*first, *first + *count) read by the segment of steps [k0, k0 + T)
   void SamplesOf(int k0, int T, int* first, int* count) const;
@@ -67,5 +72,15 @@ SampleGrid BuildSampleGrid(const Eigen::VectorXd& time, int T, double x0_time,
                            const RowMatrix& ctrl, const Eigen::VectorXd& ctrl_time,
                            const std::vector<ControlHold>& hold, const std::vector<double>& delay,
                            double dt, const std::string& where);
+
+// The controls of steps [first, first + count) of grid g (count < 0: through the last step;
+// count x nu into *out, resized, row 0 = step first) held from the logged controls `ctrl` (Tc x
+// nu, at g.ctrl_position) by the rule above with per-actuator hold and delay (seconds; empty:
+// zero-order hold, no delay). Piecewise linear in each delay (zero-order hold); a negative delay
+// shifts the controls earlier (used by a fitted delay's finite differences at its lower bound).
+// Allocates only when *out changes shape (and a scratch list of the valid controls).
+void HoldControls(const SampleGrid& g, const RowMatrix& ctrl, const std::vector<ControlHold>& hold,
+                  const std::vector<double>& delay, double dt, RowMatrix* out, int first = 0,
+                  int count = -1);
 
 }  // namespace mjsysid

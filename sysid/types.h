@@ -125,6 +125,23 @@ enum class ControlHold { kZeroOrder, kLinear };
 // "zoh", "linear" (the YAML spelling)
 const char* ControlHoldName(ControlHold hold);
 
+// A transport delay of the logged controls fitted as a variable (sysid/sample_grid.h: the
+// controls are shifted by it before the hold): one actuator's (actuator named) or shared by every
+// actuator not given its own (actuator ""), in every sequence whose model has the actuator; it
+// replaces FitSequence::ctrl_delay for those actuators. Seconds, lower >= 0. Estimated like a
+// parameter, named "controls.delay" (shared) or "controls.delay.<actuator>"; its Jacobian column
+// is a central difference of whole rollouts (sysid/cost_functions.h).
+struct FitControlDelay {
+  std::string actuator;  // "" = every actuator without its own
+  double initial = 0;
+  double lower = 0;
+  double upper = std::numeric_limits<double>::infinity();
+  // "controls.delay" or "controls.delay.<actuator>" (FitResult::parameters)
+  std::string Name() const {
+    return actuator.empty() ? "controls.delay" : "controls.delay." + actuator;
+  }
+};
+
 // One recorded sequence of one model. Its measured samples come at `time` (any rate, jitter,
 // gaps: the simulation runs on the model's timestep from time[0] and each sample is compared with
 // the simulation interpolated at its own time, sysid/sample_grid.h); NaN in measured means "not

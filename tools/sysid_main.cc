@@ -948,21 +948,47 @@ int RunImport(const ImportArgs& args) {
   log.sensor_time = args.sensor_time;
   log.attributes["generator"] = std::string("mjsysid ") + MJSYSID_VERSION + " import";
   log.attributes["model"] = fs::absolute(args.model).string();
-  for (const std::string& path : args.csv) {
-    log.sequences.push_back(io::ImportCsv(path, *m, fs::path(path).stem().string()));
+  // each argument one sequence: a file, or [NAME=]A.csv+B.csv+... (one sequence from several
+  // files at their own rates, io::ImportCsvFiles; named NAME, else after the first file)
+  std::vector<std::string> files;
+  for (const std::string& arg : args.csv) {
+    std::error_code ec;
+    std::string name, list = arg;
+    std::vector<std::string> paths;
+    if (fs::exists(arg, ec)) {
+      paths = {arg};
+    } else {
+      const size_t eq = arg.find('=');
+      if (eq != std::string::npos) {
+        name = arg.substr(0, eq);
+        list = arg.substr(eq + 1);
+      }
+      for (size_t at = 0;;) {
+        const size_t plus = list.find('+', at);
+        paths.push_back(list.substr(at, plus == std::string::npos ? plus : plus - at));
+        if (plus == std::string::npos) break;
+        at = plus + 1;
+      }
+    }
+    if (name.empty()) name = fs::path(paths[0]).stem().string();
+    log.sequences.push_back(io::ImportCsvFiles(paths, *m, name));
+    files.insert(files.end(), paths.begin(), paths.end());
   }
   std::vector<std::string> warnings;
   io::ValidateLogAgainstModel(log, *m, args.out, &warnings);
   for (const std::string& w : warnings)
     std::fprintf(stderr, "sysid import: warning: %s\n", w.c_str());
   std::vector<std::string> inputs = {args.model};
-  inputs.insert(inputs.end(), args.csv.begin(), args.csv.end());
+  inputs.insert(inputs.end(), files.begin(), files.end());
   PrepareLogOutput(args.out, inputs, args.force);
   io::WriteLog(args.out, log);
   std::printf("imported %zu sequence(s) into %s\n", log.sequences.size(), args.out.c_str());
   for (const io::Sequence& s : log.sequences) {
-    std::printf("  %-16s %6zu samples, sensors: %s\n", s.name.c_str(),
+    std::printf("  %-16s %6zu samples, sensors: %s", s.name.c_str(),
                 static_cast<size_t>(s.time.size()), Join(s.sensor_names).c_str());
+    if (s.ctrl_time.size())
+      std::printf("; controls at their own %zu times", static_cast<size_t>(s.ctrl_time.size()));
+    std::printf("\n");
   }
   return kExitOk;
 }
@@ -975,7 +1001,9 @@ Command AddImport(CLI::App* app) {
       "`fit` reads");
   sub->add_option("model", args->model, "MJCF model the logs were recorded on")->required();
   sub->add_option("csv", args->csv,
-                  "CSV files, ROS bags or MCAP files, one sequence each (named after the file)")
+                  "CSV files, ROS bags or MCAP files, one sequence each (named after the file); "
+                  "[NAME=]A.csv+B.csv+...: one sequence from several CSV files, each with its "
+                  "own time column (controls in one, sensors at their own rates)")
       ->required();
   sub->add_option("--out", args->out, "HDF5 log to write (atomically)")->required();
   sub->add_option("--sensor-time", args->sensor_time,

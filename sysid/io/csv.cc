@@ -1,5 +1,6 @@
 #include "sysid/io/csv.h"
 
+#include <algorithm>
 #include <cctype>
 #include <cerrno>
 #include <charconv>
@@ -173,9 +174,22 @@ void CheckEncoding(std::ifstream& in, const std::string& file) {
   }
 }
 
+// One file: ImportCsv's reading. part: one of several files of a sequence (ImportCsvFiles): the
+// actuator columns are all there or none (*has_ctrl says which; ctrl is then T x 0)
+Sequence ReadCsv(const std::string& path, const mjModel& m, const std::string& sequence_name,
+                 bool part, bool* has_ctrl);
+
 }  // namespace
 
 Sequence ImportCsv(const std::string& path, const mjModel& m, const std::string& sequence_name) {
+  bool has_ctrl = false;
+  return ReadCsv(path, m, sequence_name, false, &has_ctrl);
+}
+
+namespace {
+
+Sequence ReadCsv(const std::string& path, const mjModel& m, const std::string& sequence_name,
+                 bool part, bool* has_ctrl) {
   const std::string& file = path;
   if (sequence_name.empty() || sequence_name == "." ||
       sequence_name.find('/') != std::string::npos) {
@@ -266,7 +280,10 @@ Sequence ImportCsv(const std::string& path, const mjModel& m, const std::string&
     }
   }
   if (time_col < 0) Fail(header_where, "missing column 'time' (seconds)");
-  for (int i = 0; i < nu; ++i) {
+  int ctrl_given = 0;
+  for (int col : ctrl_col) ctrl_given += col >= 0 ? 1 : 0;
+  *has_ctrl = ctrl_given > 0 || !part;
+  for (int i = 0; i < nu && *has_ctrl; ++i) {
     if (ctrl_col[i] >= 0) continue;
     const char* n = mj_id2name(&m, mjOBJ_ACTUATOR, i);
     Fail(header_where, n ? "missing actuator column " + Quote(n) +
@@ -346,8 +363,8 @@ Sequence ImportCsv(const std::string& path, const mjModel& m, const std::string&
                std::to_string(row_lines[k - 1]) + " (time must be strictly increasing)");
     }
   }
-  seq.ctrl.resize(samples, nu);
-  for (int i = 0; i < nu; ++i) {
+  seq.ctrl.resize(samples, *has_ctrl ? nu : 0);
+  for (int i = 0; i < nu && *has_ctrl; ++i) {
     seq.actuator_names.push_back(mj_id2name(&m, mjOBJ_ACTUATOR, i));
     for (Eigen::Index k = 0; k < samples; ++k) seq.ctrl(k, i) = at(k, ctrl_col[i]);
   }
@@ -376,6 +393,104 @@ Sequence ImportCsv(const std::string& path, const mjModel& m, const std::string&
         (*mat)(k, static_cast<Eigen::Index>(j)) = at(k, cols[j]);
       }
     }
+  }
+  return seq;
+}
+
+}  // namespace
+
+// Several files of one sequence: the controls from the one file with actuator columns (their
+// times become ctrl_time), every sensor from the one file that has it; the sample times are the
+// union of the times of the files with sensors (equal times merged), each sensor NaN (not
+// measured) at the times its file has no row
+Sequence ImportCsvFiles(const std::vector<std::string>& paths, const mjModel& m,
+                        const std::string& sequence_name) {
+  if (paths.size() == 1) return ImportCsv(paths[0], m, sequence_name);
+  std::vector<Sequence> parts;
+  int ctrl_part = -1;
+  std::map<std::string, size_t> sensor_file;  // sensor -> the part holding it
+  for (size_t f = 0; f < paths.size(); ++f) {
+    bool has_ctrl = false;
+    parts.push_back(ReadCsv(paths[f], m, sequence_name, true, &has_ctrl));
+    const Sequence& p = parts.back();
+    if (has_ctrl && m.nu > 0) {
+      if (ctrl_part >= 0) {
+        Fail(paths[f], "has actuator columns, and so has " + paths[ctrl_part] +
+                           ": the controls of a sequence come from one file");
+      }
+      ctrl_part = static_cast<int>(f);
+    }
+    if (p.qpos.size() || p.qvel.size() || p.act.size()) {
+      Fail(paths[f],
+           "has state columns (qpos, qvel, act): a sequence of several files cannot "
+           "hold states (a state needs a value at every sample time); import the "
+           "states' file alone");
+    }
+    for (const std::string& name : p.sensor_names) {
+      const auto [it, added] = sensor_file.emplace(name, f);
+      if (!added) {
+        Fail(paths[f], "sensor " + Quote(name) + " is in " + paths[it->second] +
+                           " too: each sensor comes from one file");
+      }
+    }
+  }
+  if (ctrl_part < 0 && m.nu > 0) {
+    Fail(paths[0], "none of the " + std::to_string(paths.size()) + " files of sequence " +
+                       Quote(sequence_name) +
+                       " has the actuator columns (one file must hold every actuator's control)");
+  }
+  if (sensor_file.empty()) {
+    Fail(paths[0],
+         "none of the files of sequence " + Quote(sequence_name) + " has a sensor column");
+  }
+
+  // sample times: the union of the times of the files with sensors
+  std::vector<double> times;
+  for (const Sequence& p : parts) {
+    if (p.sensor_names.empty()) continue;
+    times.insert(times.end(), p.time.data(), p.time.data() + p.time.size());
+  }
+  std::sort(times.begin(), times.end());
+  times.erase(std::unique(times.begin(), times.end()), times.end());
+  const auto T = static_cast<Eigen::Index>(times.size());
+
+  Sequence seq;
+  seq.name = sequence_name;
+  seq.time = Eigen::Map<const Eigen::VectorXd>(times.data(), T);
+  if (ctrl_part >= 0) {
+    seq.ctrl = parts[ctrl_part].ctrl;
+    seq.ctrl_time = parts[ctrl_part].time;
+    seq.actuator_names = parts[ctrl_part].actuator_names;
+  } else {
+    seq.ctrl.resize(T, 0);
+  }
+  // sensors in model order, each at its file's times
+  auto sensor_name = [&](int s) {  // "" for an unnamed sensor (no column can hold it)
+    const char* name = mj_id2name(&m, mjOBJ_SENSOR, s);
+    return std::string(name ? name : "");
+  };
+  int width = 0;
+  for (int s = 0; s < m.nsensor; ++s) {
+    if (sensor_file.count(sensor_name(s))) width += m.sensor_dim[s];
+  }
+  seq.sensordata = RowMatrix::Constant(T, width, std::numeric_limits<double>::quiet_NaN());
+  int offset = 0;
+  for (int s = 0; s < m.nsensor; ++s) {
+    const std::string name = sensor_name(s);
+    const auto it = sensor_file.find(name);
+    if (it == sensor_file.end()) continue;
+    const Sequence& p = parts[it->second];
+    int col = 0;  // the sensor's first column in its file's sensordata
+    for (size_t i = 0; p.sensor_names[i] != name; ++i) col += p.sensor_dims[i];
+    Eigen::Index k = 0;
+    for (Eigen::Index r = 0; r < p.time.size(); ++r) {
+      while (times[k] < p.time[r]) ++k;  // p's times are a subset of `times`
+      for (int j = 0; j < m.sensor_dim[s]; ++j)
+        seq.sensordata(k, offset + j) = p.sensordata(r, col + j);
+    }
+    seq.sensor_names.push_back(name);
+    seq.sensor_dims.push_back(m.sensor_dim[s]);
+    offset += m.sensor_dim[s];
   }
   return seq;
 }

@@ -33,6 +33,7 @@
 #include <mujoco/mujoco.h>
 
 #include <string>
+#include <vector>
 
 #include "sysid/io/log.h"
 
@@ -40,5 +41,19 @@ namespace mjsysid::io {
 
 // Reads the CSV file at `path` as one sequence named `sequence_name` for model `m`.
 Sequence ImportCsv(const std::string& path, const mjModel& m, const std::string& sequence_name);
+
+// Reads several CSV files (each as above, with its own `time` column: its own rate) as one
+// sequence: e.g. the controls at 50 Hz in one file and sensors at their own rates in others.
+// - Exactly one file holds the actuator columns (all of them; the others none): its times become
+//   Sequence::ctrl_time and its controls Sequence::ctrl (Tc x nu). It may hold sensors too.
+// - Each sensor comes from one file. The sequence's sample times are the union of the times of
+//   the files with sensor columns (sorted, equal times merged); each sensor is NaN (not measured,
+//   masked out of the fit) at the times its file has no row, as are its empty cells.
+// - State columns (qpos, qvel, act) are an error here (a state needs a value at every sample
+//   time). One path: ImportCsv.
+// - Failure: LogError naming the file: two files with actuator columns, none with them (nu > 0),
+//   a sensor in two files, no sensor at all, states; and every error of ImportCsv.
+Sequence ImportCsvFiles(const std::vector<std::string>& paths, const mjModel& m,
+                        const std::string& sequence_name);
 
 }  // namespace mjsysid::io

@@ -39,6 +39,7 @@ class Parser : public YamlReader {
   ParameterSpec ParseParameter(const Field& f, const ExperimentConfig& c) const;
   MeasurementSpec ParseMeasurement(const Field& f, const ExperimentConfig& c) const;
   void ParseTerm(const Field& f, bool is_delay, FitMeasurement::Term* term, Marks* marks) const;
+  void ParseControls(const Field& f, ExperimentConfig* c) const;
   void ParseSolver(const Field& f, ExperimentConfig* c) const;
   void ParseStates(const Field& f, ExperimentConfig* c) const;
   void ParseSimulate(const Field& f, const ExperimentConfig& c, SimulateOptions* s) const;
@@ -155,10 +156,15 @@ ExperimentConfig Parser::Parse(const YAML::Node& root) {
     }
   }
 
+  if (r.Has("controls")) ParseControls(r.Get("controls"), &c);
+
   // something must be fitted
   bool fits_measurement = false;
   for (const MeasurementSpec& ms : c.measurement) {
     fits_measurement |= ms.delay.fit || ms.gain.fit || ms.bias.fit;
+  }
+  for (const ExperimentConfig::ControlDelaySpec& cd : c.control_delays) {
+    fits_measurement |= cd.term.fit;
   }
   if (c.parameters.empty() && !fits_measurement) {
     Fail(r.Has("parameters") ? r.Get("parameters").mark : c.marks.self, "no parameters to identify",
@@ -187,12 +193,6 @@ ExperimentConfig Parser::Parse(const YAML::Node& root) {
     if (s.Has("continuity_weight")) {
       c.options.continuity_weight = Positive(s.Get("continuity_weight"));
     }
-  }
-  if (r.Has("controls")) {
-    const MapReader s(*this, r.Get("controls"), {"hold", "delay"});
-    if (s.Has("hold"))
-      c.control_hold = static_cast<ControlHold>(Enum(s.Get("hold"), kControlHolds));
-    if (s.Has("delay")) c.control_delay = NonNegative(s.Get("delay"));
   }
   if (r.Has("states")) ParseStates(r.Get("states"), &c);
   c.options.verbose = true;  // a file's default; `solver: {verbose: false}` turns it off
@@ -459,6 +459,72 @@ void Parser::ParseTerm(const Field& f, bool is_delay, FitMeasurement::Term* term
              FormatNumber(term->lower) + ", " + FormatNumber(term->upper) + "]",
          is_delay ? "delays are in seconds, >= 0" : "widen the bounds or change initial");
   }
+}
+
+// controls: {hold: zoh|linear | {<actuator>: zoh|linear}, delay: s | {initial, fit, bounds} |
+// {<actuator>: s | {initial, fit, bounds}}}; a map with any of initial/fit/bounds is one delay
+// for every actuator, any other map names actuators (checked against the model later)
+void Parser::ParseControls(const Field& f, ExperimentConfig* c) const {
+  const MapReader s(*this, f, {"hold", "delay"});
+  // the entries of an actuator-keyed map, in file order, each name once
+  auto by_actuator = [&](const Field& m, auto&& each) {
+    std::vector<std::string> seen;
+    for (auto it = m.node.begin(); it != m.node.end(); ++it) {
+      const Mark key_mark = At(it->first, m.mark);
+      const std::string name = it->first.IsScalar() ? it->first.Scalar() : "";
+      if (name.empty()) Fail(key_mark, m.path + ": expected actuator names as keys");
+      if (std::find(seen.begin(), seen.end(), name) != seen.end()) {
+        Fail(key_mark, m.path + ": actuator " + Quote(name) + " given twice");
+      }
+      seen.push_back(name);
+      each(name, key_mark, Field{it->second, At(it->second, key_mark), m.path + "." + name});
+    }
+  };
+  if (s.Has("hold")) {
+    const Field fh = s.Get("hold");
+    if (fh.node.IsMap()) {
+      by_actuator(fh, [&](const std::string& name, const Mark& key, const Field& value) {
+        c->control_holds.emplace_back(name, static_cast<ControlHold>(Enum(value, kControlHolds)));
+        c->control_hold_marks.push_back(key);
+      });
+    } else {
+      c->control_hold = static_cast<ControlHold>(Enum(fh, kControlHolds));
+    }
+  }
+  if (!s.Has("delay")) return;
+  const Field fd = s.Get("delay");
+  if (!fd.node.IsMap()) {
+    c->control_delay = NonNegative(fd);
+    return;
+  }
+  // one term: a number (given) or {initial, fit, bounds}
+  auto term = [&](const Field& value, ExperimentConfig::ControlDelaySpec* spec) {
+    if (value.node.IsMap()) {
+      ParseTerm(value, true, &spec->term, &spec->marks);
+    } else {
+      spec->term.initial = NonNegative(value);
+    }
+  };
+  const bool shared =
+      fd.node["initial"].IsDefined() || fd.node["fit"].IsDefined() || fd.node["bounds"].IsDefined();
+  if (shared) {
+    ExperimentConfig::ControlDelaySpec spec;
+    spec.mark = fd.mark;
+    term(fd, &spec);
+    if (!spec.term.fit) {
+      c->control_delay = spec.term.initial;  // given: the plain shared delay
+      return;
+    }
+    c->control_delays.push_back(std::move(spec));
+    return;
+  }
+  by_actuator(fd, [&](const std::string& name, const Mark& key, const Field& value) {
+    ExperimentConfig::ControlDelaySpec spec;
+    spec.actuator = name;
+    spec.mark = key;
+    term(value, &spec);
+    c->control_delays.push_back(std::move(spec));
+  });
 }
 
 MeasurementSpec Parser::ParseMeasurement(const Field& f, const ExperimentConfig& c) const {

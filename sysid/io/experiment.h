@@ -168,6 +168,19 @@ struct ExperimentConfig {
   // the `states` block (logged states fitted as data, in options.states): keys "qpos", "qvel",
   // "act", "<part>.sigma" and "<part>.joints[i]" / "act.actuators[i]"
   Marks states_marks;
+  // `controls` per actuator (docs/experiment-schema.md): `hold: {<actuator>: zoh|linear}` (the
+  // actuators not named keep control_hold) and the delays given or fitted: `delay: {initial,
+  // fit, bounds}` (actuator "" = every actuator) or `delay: {<actuator>: s | {initial, fit,
+  // bounds}}` (the actuators not named: no delay). A given shared delay is control_delay alone.
+  struct ControlDelaySpec {
+    std::string actuator;  // "" = every actuator
+    FitMeasurement::Term term{0.0, false, 0.0, std::numeric_limits<double>::infinity()};  // s
+    Mark mark;    // the actuator's key (or the delay's value when shared)
+    Marks marks;  // of its initial, fit, bounds keys
+  };
+  std::vector<std::pair<std::string, ControlHold>> control_holds;
+  std::vector<Mark> control_hold_marks;  // the actuator keys of control_holds
+  std::vector<ControlDelaySpec> control_delays;
 
   // nullptr when absent
   const ParameterSpec* FindParameter(const std::string& name) const;

@@ -82,6 +82,22 @@ void ValidateExperimentAgainstModel(const ExperimentConfig& config, const mjMode
     CheckSensor(m, ms.sensor, ms.marks.Of("sensor"), label);
   }
 
+  // controls: the actuators given their own hold or delay
+  auto require_actuator = [&](const std::string& key, const std::string& name, const Mark& mark) {
+    if (mj_name2id(&m, mjOBJ_ACTUATOR, name.c_str()) >= 0) return;
+    throw ConfigError(mark, key + ": no actuator named " + Quote(name) + " in " + label,
+                      NamesHint(name, ObjectNames(m, mjOBJ_ACTUATOR, m.nu), "actuator names"));
+  };
+  for (size_t k = 0; k < config.control_holds.size(); ++k) {
+    const std::string& name = config.control_holds[k].first;
+    require_actuator("controls.hold." + name, name, config.control_hold_marks[k]);
+  }
+  for (const ExperimentConfig::ControlDelaySpec& cd : config.control_delays) {
+    if (!cd.actuator.empty()) {
+      require_actuator("controls.delay." + cd.actuator, cd.actuator, cd.mark);
+    }
+  }
+
   // simulate: noise sensors, excitation actuators, initial state sizes
   const SimulateOptions& sim = config.simulate;
   for (const NamedValue& n : sim.noise) CheckSensor(m, n.name, n.mark, label);

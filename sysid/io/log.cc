@@ -236,14 +236,14 @@ void CheckSequence(const Sequence& seq, const std::string& file) {
              std::to_string(seq.sensordata.cols()) + " columns");
   }
 
-  // values: finite, except NaN in ctrl and sensordata (not measured: a sensor value is masked out
-  // of the fit, a control held from the last valid one)
+  // values: finite, except NaN in ctrl, sensordata and the states (not measured: a sensor or
+  // state value is masked out of the fit, a control held from the last valid one)
   const std::tuple<const char*, const RowMatrix*, bool> mats[] = {
       {"ctrl", &seq.ctrl, true},
       {"sensordata", &seq.sensordata, true},
-      {"qpos", &seq.qpos, false},
-      {"qvel", &seq.qvel, false},
-      {"act", &seq.act, false}};
+      {"qpos", &seq.qpos, true},
+      {"qvel", &seq.qvel, true},
+      {"act", &seq.act, true}};
   for (const auto& [name, mat, nan_allowed] : mats) {
     CheckFinite(mat->data(), mat->rows(), mat->cols(), file, gpath + "/" + name, nan_allowed);
   }

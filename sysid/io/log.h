@@ -33,7 +33,7 @@
 //     sensordata           float64 (T, ns)       NaN: not measured (masked out of the fit);
 //                                                attribute names: string (nsensor), sensor names;
 //                                                attribute dims: int32 (nsensor), columns each
-//     qpos, qvel, act      float64 (T, nq|nv|na) optional
+//     qpos, qvel, act      float64 (T, nq|nv|na) optional; NaN: not measured
 //     ctrl_time            float64 (Tc)          optional: the controls' own times (their own rate,
 //                                                seconds); ctrl is then (Tc, nu). Without it ctrl
 //                                                has one row per `time`
@@ -114,9 +114,10 @@ void WriteLog(const std::string& path, const Log& log);
 // ("the HDF5 library crashed reading the file", "did not finish ... in N s", "killed (out of
 // memory?)"). The child's address space may grow by max(1 GiB, 64 x the file size).
 // Checks: the format attributes; every required dataset present with rank 1 (time) or 2 (others)
-// and T rows; names/dims counts matching the columns; no Inf anywhere and no NaN except in ctrl
-// and sensordata, where NaN means "not measured" (a sensor cell is masked out of the fit and
-// counted, a control is held from the last valid value: docs/real-logs.md); time strictly
+// and T rows; names/dims counts matching the columns; no Inf anywhere and no NaN except in ctrl,
+// sensordata and qpos/qvel/act, where NaN means "not measured" (a sensor or state cell is masked
+// out of the fit and counted, a control is held from the last valid value, a state row with NaN
+// does not start a segment or window: docs/real-logs.md); time strictly
 // increasing; no unknown datasets in a sequence group and no objects other than groups at the
 // root. Sequences come back in the order they were written.
 Log ReadLog(const std::string& path);

@@ -149,6 +149,17 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
     out.problem->AddMeasurement(me);
     out.measurements.push_back(me);
   }
+  // fitted control delays (experiment `controls.delay` with fit: true)
+  for (const io::ExperimentConfig::ControlDelaySpec& cd : cfg.control_delays) {
+    if (!cd.term.fit) continue;
+    FitControlDelay d;
+    d.actuator = cd.actuator;
+    d.initial = cd.term.initial;
+    d.lower = cd.term.lower;
+    d.upper = cd.term.upper;
+    out.problem->AddControlDelay(d);
+    out.control_delays.push_back(d);
+  }
 
   // sequences from the logs
   if (cfg.data.empty()) {
@@ -252,6 +263,33 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
         if (s.qvel.rows() > 0) fs_.x0.qvel = s.qvel.row(0).transpose();
         if (s.act.rows() > 0) fs_.x0.act = s.act.row(0).transpose();
         fs_.x0.time = s.time[0];
+        // a logged initial state with NaN (not measured) cells: needed as logged unless the initial
+        // state is estimated (set, or a window's), which then starts them from the model's
+        // reference state
+        for (auto [name, x, reference] : {std::tuple<const char*, Eigen::VectorXd*, const mjtNum*>{
+                                              "qpos", &fs_.x0.qpos, m.qpos0},
+                                          {"qvel", &fs_.x0.qvel, nullptr},
+                                          {"act", &fs_.x0.act, nullptr}}) {
+          if (x->size() == 0 || !x->array().isNaN().any()) continue;
+          Eigen::Index c = 0;
+          while (!std::isnan((*x)[c])) ++c;
+          if (!cfg.options.estimate_initial_state && !windowed) {
+            throw io::LogError(
+                where + "/" + name + ": row 0 (t = " + FormatDigits(s.time[0], 9) +
+                " s, the fit's initial state) is not measured (NaN in column " + std::to_string(c) +
+                "): log it, set initial_state: {estimate: true}, or fit a window (sequences: "
+                "[{name, start}]) that starts where the state is logged");
+          }
+          for (Eigen::Index i = 0; i < x->size(); ++i) {
+            if (std::isnan((*x)[i])) (*x)[i] = reference ? reference[i] : 0.0;
+          }
+          // a window starting at a NaN row: its state is estimated, as a window without states
+          if (windowed) out.estimate_initial_state = true;
+          out.warnings.push_back(where + "/" + name + ": row 0" +
+                                 (windowed ? " of the window" : "") +
+                                 " has NaN (not measured): the estimated initial state "
+                                 "starts there from the model's reference state");
+        }
         if (windowed && s.qpos.rows() == 0) {
           // a window starts mid-motion: without a logged state there, the state is estimated
           out.estimate_initial_state = true;
@@ -283,6 +321,15 @@ BuiltProblem BuildProblem(const io::ExperimentConfig& cfg, int threads) {
         // controls: the experiment's hold rule and transport delay for every actuator
         fs_.ctrl_hold.assign(m.nu, cfg.control_hold);
         fs_.ctrl_delay.assign(m.nu, cfg.control_delay);
+        // per actuator: its own hold, its own given delay (a fitted one is the Problem's)
+        for (const auto& [actuator, hold] : cfg.control_holds) {
+          const int id = mj_name2id(&m, mjOBJ_ACTUATOR, actuator.c_str());
+          if (id >= 0) fs_.ctrl_hold[id] = hold;
+        }
+        for (const io::ExperimentConfig::ControlDelaySpec& cd : cfg.control_delays) {
+          const int id = mj_name2id(&m, mjOBJ_ACTUATOR, cd.actuator.c_str());
+          if (!cd.term.fit && id >= 0) fs_.ctrl_delay[id] = cd.term.initial;
+        }
         if (per_model_held_out[mi][si]) {
           out.validation.push_back(fs_);  // simulated after the fit, never fitted
           continue;
@@ -384,6 +431,9 @@ std::vector<std::string> FittedNames(const io::ExperimentConfig& cfg) {
     if (me.delay.fit) names.push_back(me.sensor + ".delay");
     if (me.gain.fit) names.push_back(me.sensor + ".gain");
     if (me.bias.fit) names.push_back(me.sensor + ".bias");
+  }
+  for (const io::ExperimentConfig::ControlDelaySpec& cd : cfg.control_delays) {
+    if (cd.term.fit) names.push_back(FitControlDelay{cd.actuator}.Name());
   }
   return names;
 }
@@ -489,6 +539,9 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
       if (t->fit) first_initial.push_back(t->initial);
     }
   }
+  for (const io::ExperimentConfig::ControlDelaySpec& cd : run_cfg.control_delays) {
+    if (cd.term.fit) first_initial.push_back(cd.term.initial);
+  }
   if (base) {
     for (size_t i = 0; i < first_initial.size(); ++i)
       first_initial[i] = base->parameters[i].initial;
@@ -561,12 +614,27 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   // fit metrics per channel of every fitted sequence; the held-out sequences simulated at the
   // start and at the estimate (never fitted), with theirs
   for (SequenceResult& sr : file.sequences) sr.channel_fits = ChannelFits(sr);
-  for (const FitSequence& sq : bp.validation) {
+  for (FitSequence sq : bp.validation) {
     const size_t mi = static_cast<size_t>(
         std::find(bp.model_names.begin(), bp.model_names.end(), sq.model) - bp.model_names.begin());
-    file.validation.push_back(SimulateHeldOut(*bp.models[mi], bp.parameters, bp.measurements,
-                                              file.parameters, sq, options.threads,
-                                              &file.warnings));
+    // fitted control delays: the held-out sequence's controls at the estimated delays (at the
+    // start and at the estimate alike); the shared one first, an actuator's own over it
+    const mjModel& vm = *bp.models[mi];
+    for (const bool own : {false, true}) {
+      for (const io::ExperimentConfig::ControlDelaySpec& cd : cfg.control_delays) {
+        if (!cd.term.fit || cd.actuator.empty() == own) continue;
+        const int id = mj_name2id(&vm, mjOBJ_ACTUATOR, cd.actuator.c_str());
+        if (own && id < 0) continue;
+        for (const ParameterEstimate& e : file.parameters) {
+          if (e.name != FitControlDelay{cd.actuator}.Name()) continue;
+          for (int i = 0; i < vm.nu; ++i) {
+            if (!own || i == id) sq.ctrl_delay[i] = e.value;
+          }
+        }
+      }
+    }
+    file.validation.push_back(SimulateHeldOut(vm, bp.parameters, bp.measurements, file.parameters,
+                                              sq, options.threads, &file.warnings));
   }
 
   // results: the fit as it came, the truth where known, the run's warnings first

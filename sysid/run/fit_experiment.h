@@ -56,6 +56,8 @@ struct BuiltProblem {
   // a window (`sequences: [{name, start, end}]`) without a logged state at its start: the
   // initial states are estimated (options.estimate_initial_state)
   bool estimate_initial_state = false;
+  // the fitted control delays added to the problem (experiment `controls.delay`), in order
+  std::vector<FitControlDelay> control_delays;
 };
 
 // threads < 0: the config's solver.threads

@@ -83,13 +83,14 @@ FitResult FitFromStarts(const BuiltProblem& bp, const FitOptions& options, int n
   const auto wall = std::chrono::steady_clock::now();
   const RowMatrix starts = SpreadStarts(bp.parameters, n, seed);
 
-  // the measurement terms keep their experiment values at every start
+  // the measurement terms and control delays keep their experiment values at every start
   std::vector<double> term_starts;
   for (const FitMeasurement& me : bp.measurements) {
     for (const FitMeasurement::Term* t : {&me.delay, &me.gain, &me.bias}) {
       if (t->fit) term_starts.push_back(t->initial);
     }
   }
+  for (const FitControlDelay& d : bp.control_delays) term_starts.push_back(d.initial);
 
   // min(n, threads) fits at a time, the simulator threads divided among them
   const int threads = std::max(1, options.threads);
@@ -130,6 +131,7 @@ FitResult FitFromStarts(const BuiltProblem& bp, const FitOptions& options, int n
           problem.AddParameter(p);
         }
         for (const FitMeasurement& me : bp.measurements) problem.AddMeasurement(me);
+        for (const FitControlDelay& d : bp.control_delays) problem.AddControlDelay(d);
         for (const FitSequence& s : bp.sequences) problem.AddSequence(s);
         FitResult& r = fits[static_cast<size_t>(k)];
         r = problem.Fit(per_fit);

@@ -58,6 +58,9 @@ io::ExperimentConfig ResumedConfig(const io::ExperimentConfig& cfg,
       if (t->fit) t->initial = checkpoint.parameters[k++].value;
     }
   }
+  for (io::ExperimentConfig::ControlDelaySpec& cd : out.control_delays) {
+    if (cd.term.fit) cd.term.initial = checkpoint.parameters[k++].value;
+  }
   out.options.max_iterations = std::max(1, cfg.options.max_iterations - checkpoint.iterations);
   return out;
 }

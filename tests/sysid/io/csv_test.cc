@@ -69,6 +69,36 @@ void ExpectMentions(const std::string& message, std::initializer_list<std::strin
 // ---------------------------------------------------------------------------------------------
 // happy paths
 
+// Several files of one sequence (ImportCsvFiles): the controls file (with `angle` too) at its
+// times, `rate` at its own; sample times the union of both files' times (0, 0.01, 0.02 and
+// 0.015, 0.025 merged), each sensor NaN where its file has no row, the controls at their times
+TEST_F(CsvTest, SeveralFilesMergeOntoTheUnionOfTheirTimes) {
+  const std::string controls = Write("c.csv", "time,torque,angle\n0,1,0.1\n0.01,2,\n0.02,3,0.3\n");
+  const std::string rates = Write("r.csv", "time,rate\n0.01,5\n0.015,6\n0.025,7\n");
+  const Sequence s = ImportCsvFiles({controls, rates}, *pendulum_, "run");
+  ASSERT_EQ(s.time.size(), 5);
+  EXPECT_EQ(s.time[3], 0.02);
+  EXPECT_EQ(s.ctrl_time.size(), 3);
+  EXPECT_EQ(s.ctrl(2, 0), 3.0);
+  ASSERT_EQ(s.sensor_names, (std::vector<std::string>{"angle", "rate"}));
+  // angle: 0.1 at 0, NaN at 0.01 (empty cell), 0.015, 0.025; rate: 5 at 0.01, 6 at 0.015
+  EXPECT_EQ(s.sensordata(0, 0), 0.1);
+  EXPECT_TRUE(std::isnan(s.sensordata(1, 0)));
+  EXPECT_EQ(s.sensordata(1, 1), 5.0);
+  EXPECT_EQ(s.sensordata(2, 1), 6.0);
+  EXPECT_TRUE(std::isnan(s.sensordata(3, 1)));
+  EXPECT_EQ(s.sensordata(3, 0), 0.3);
+  EXPECT_EQ(s.sensordata.array().isNaN().count(), 5);
+  // states in a file of several: an error naming the file
+  const std::string states = Write("q.csv", "time,rate,qpos[0]\n0,1,0\n0.01,1,0\n");
+  try {
+    ImportCsvFiles({controls, states}, *pendulum_, "run");
+    ADD_FAILURE() << "expected LogError";
+  } catch (const LogError& e) {
+    ExpectMentions(e.what(), {states, "state columns"});
+  }
+}
+
 TEST_F(CsvTest, PendulumColumnsInAnyOrder) {
   // shuffled columns, spaces, a quoted header, CRLF, a blank line, a byte order mark
   const std::string path = Write("p.csv",

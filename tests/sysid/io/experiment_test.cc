@@ -460,6 +460,53 @@ TEST_F(ExperimentTest, ControlsHoldAndDelay) {
   ExpectError(base + "controls: {delay: -0.01}\n", 4, 19, "-0.01");
 }
 
+// `controls` per actuator and fitted: the shared delay as {initial, fit, bounds} (fit: false is
+// the plain given delay), actuator-keyed holds and delays (numbers or terms); a fitted delay alone
+// is something to fit
+TEST_F(ExperimentTest, ControlsPerActuatorAndFittedDelay) {
+  const std::string base =
+      "model: pendulum.xml\nparameters:\n"
+      "  - {name: m, target: body_mass, object: bob, initial: 1}\n";
+  const ExperimentConfig shared = LoadExperiment(Write(
+      "exp.yaml", base + "controls: {delay: {initial: 0.01, fit: true, bounds: [0, 0.05]}}\n"));
+  ASSERT_EQ(shared.control_delays.size(), 1u);
+  EXPECT_EQ(shared.control_delays[0].actuator, "");
+  EXPECT_TRUE(shared.control_delays[0].term.fit);
+  EXPECT_EQ(shared.control_delays[0].term.initial, 0.01);
+  EXPECT_EQ(shared.control_delays[0].term.lower, 0.0);
+  EXPECT_EQ(shared.control_delays[0].term.upper, 0.05);
+  const ExperimentConfig given =
+      LoadExperiment(Write("exp.yaml", base + "controls: {delay: {initial: 0.02}}\n"));
+  EXPECT_TRUE(given.control_delays.empty());
+  EXPECT_EQ(given.control_delay, 0.02);
+  const ExperimentConfig per = LoadExperiment(
+      Write("exp.yaml", base + "controls:\n"
+                               "  hold: {torque: linear}\n"
+                               "  delay: {torque: {initial: 0.01, fit: true}, other: 0.003}\n"));
+  ASSERT_EQ(per.control_holds.size(), 1u);
+  EXPECT_EQ(per.control_holds[0].first, "torque");
+  EXPECT_EQ(per.control_holds[0].second, ControlHold::kLinear);
+  EXPECT_EQ(per.control_hold, ControlHold::kZeroOrder);
+  EXPECT_EQ(per.control_hold_marks[0].line, 5);
+  ASSERT_EQ(per.control_delays.size(), 2u);
+  EXPECT_EQ(per.control_delays[0].actuator, "torque");
+  EXPECT_TRUE(per.control_delays[0].term.fit);
+  EXPECT_EQ(per.control_delays[1].actuator, "other");
+  EXPECT_FALSE(per.control_delays[1].term.fit);
+  EXPECT_EQ(per.control_delays[1].term.initial, 0.003);
+  EXPECT_EQ(per.control_delays[1].mark.line, 6);
+  // only the delay fitted
+  const ExperimentConfig alone = LoadExperiment(
+      Write("exp.yaml", "model: pendulum.xml\ncontrols: {delay: {initial: 0.01, fit: true}}\n"));
+  EXPECT_TRUE(alone.parameters.empty());
+  ExpectError(base + "controls: {delay: {initial: 0.01, fit: true, bounds: [-1, 1]}}\n", 4, 54,
+              "cannot be negative", "seconds");
+  ExpectError(base + "controls: {delay: {torque: {initial: -0.01, fit: true}}}\n", 4, 38,
+              "outside bounds", "seconds");
+  ExpectError(base + "controls: {hold: {torque: foh}}\n", 4, 27, "foh", "zoh");
+  ExpectError(base + "controls: {delay: {torque: 1, torque: 2}}\n", 4, 31, "given twice", "");
+}
+
 // a sequence entry may fit a window of the sequence: {name, start, end} in seconds
 TEST_F(ExperimentTest, SequenceWindows) {
   const std::string base =

@@ -518,10 +518,12 @@ class LogReadErrorTest : public LogTest {
   std::string path_;
 };
 
-TEST_F(LogReadErrorTest, NanNamesDatasetRowAndColumn) {
-  // NaN is allowed in ctrl and sensordata only (not measured: docs/real-logs.md)
+TEST_F(LogReadErrorTest, NanStateIsNotMeasuredInfNamesDatasetRowAndColumn) {
+  // NaN is allowed in ctrl, sensordata and the states (not measured: docs/real-logs.md); Inf not
   SetElement(path_, "/run1/qpos", 3, 0, std::numeric_limits<double>::quiet_NaN());
-  ExpectMentions(ReadError(), {path_, "/run1/qpos", "row 3", "column 0", "nan"});
+  EXPECT_TRUE(std::isnan(ReadLog(path_).sequences[0].qpos(3, 0)));
+  SetElement(path_, "/run1/qpos", 3, 0, std::numeric_limits<double>::infinity());
+  ExpectMentions(ReadError(), {path_, "/run1/qpos", "row 3", "column 0", "inf"});
 }
 
 TEST_F(LogReadErrorTest, InfControlIsAnError) {

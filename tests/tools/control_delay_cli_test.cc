@@ -1,0 +1,176 @@
+// A fitted control transport delay through the real command line (issue 14, docs/real-logs.md):
+// a pendulum log whose commands come from a 50 Hz controller and reach the motor 13 ms late,
+// fitted with `controls: {delay: {initial, fit: true, bounds}}` next to the hinge damping; and
+// bad `controls` specs exiting 2 naming file, line and key; a hold per actuator applied.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+
+#include "core/mujoco_env.h"
+#include "sysid/io/log.h"
+#include "sysid/sample_grid.h"
+#include "tests/cli_util.h"
+#include "tests/file_util.h"
+#include "tests/test_util.h"
+
+namespace mjsysid {
+namespace {
+
+namespace fs = std::filesystem;
+using test::Sysid;
+
+const std::string kModels = MJSYSID_MODELS_DIR;
+
+// the number after "value: " following `key` in result.yaml text (NaN when absent)
+double ValueAfter(const std::string& text, const std::string& key) {
+  const size_t at = text.find(key);
+  if (at == std::string::npos) return std::nan("");
+  const size_t v = text.find("value: ", at);
+  return v == std::string::npos ? std::nan("") : std::stod(text.substr(v + 7));
+}
+
+class ControlDelayCliTest : public ::testing::Test {
+ protected:
+  // truth: hinge damping 0.12 (the model says 0.05), from the reference state; a multi-sine
+  // commanded at 50 Hz (every 10th step of 2 ms), held, reaching the motor 13 ms (6.5 steps)
+  // late: the steps' controls are the fit's own zero-order hold (sysid/sample_grid.h) of the
+  // commands at that delay; 1500 steps, sensors at every step, noise 1e-3 (seed 5)
+  void SetUp() override {
+    dir_ =
+        (fs::temp_directory_path() / ("mjsysid_ctrl_delay_" + std::to_string(getpid()))).string();
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    ModelPtr m = LoadModel(kModels + "/pendulum.xml");
+    const double dt = m->opt.timestep;
+    const int T = 1500;
+    const RowMatrix smooth = test::Excitation(*m, T, 2.0, 4);
+    io::Sequence s;
+    s.name = "run1";
+    s.actuator_names = {"torque"};
+    s.ctrl_time.resize(T / 10);
+    s.ctrl.resize(T / 10, 1);
+    for (int j = 0; j < T / 10; ++j) {
+      s.ctrl_time[j] = (10 * j) * dt;
+      s.ctrl(j, 0) = smooth(10 * j, 0);
+    }
+    s.time.resize(T);
+    for (int k = 0; k < T; ++k) s.time[k] = k * dt;
+    const SampleGrid grid =
+        BuildSampleGrid(s.time, T, 0.0, s.ctrl, s.ctrl_time, {}, {0.013}, dt, "");
+    const RowMatrix y = test::Measure(*m, {{"damping", test::Spec("joint_damping", "hinge"), 0.12}},
+                                      InitialState(), grid.ctrl.topRows(T), 1e-3, 5);
+    s.sensor_names = {"angle", "rate"};
+    s.sensor_dims = {1, 1};
+    s.sensordata = y;
+    io::Log log;
+    log.sequences.push_back(s);
+    log_ = dir_ + "/robot.h5";
+    io::WriteLog(log_, log);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  // fits the hinge damping from 0.05 with sigmas equal to the noise, and the `controls` block
+  std::string Experiment(const std::string& controls) {
+    const std::string path = dir_ + "/fit.yaml";
+    test::WriteFile(path, "model: " + kModels + "/pendulum.xml\ndata: " + log_ +
+                              "\nsensors:\n"
+                              "  - {name: angle, sigma: 1.0e-3}\n"
+                              "  - {name: rate, sigma: 1.0e-3}\n"
+                              "parameters:\n"
+                              "  - {name: damping, target: joint_damping, object: hinge, "
+                              "initial: 0.05, bounds: [0.001, 10], transform: log}\n"
+                              "controls:\n" +
+                              controls);
+    return path;
+  }
+
+  std::string dir_, log_;
+};
+
+// truth 13 ms, start 5 ms, bounds [0, 50 ms]: exit 0, converged, the delay within one model step
+// (2 ms) of its truth and the damping within 1 %, both in result.yaml and the CLI summary
+TEST_F(ControlDelayCliTest, FitsTheSharedDelay) {
+  const std::string exp = Experiment("  delay: {initial: 0.005, fit: true, bounds: [0, 0.05]}\n");
+  const test::CliRun fit = Sysid("fit " + exp + " --out " + dir_ + "/out");
+  ASSERT_EQ(fit.code, 0) << fit.output;
+  EXPECT_NE(fit.output.find("controls.delay"), std::string::npos) << fit.output;
+  const std::string result = test::ReadFile(dir_ + "/out/result.yaml");
+  const double delay = ValueAfter(result, "name: controls.delay");
+  const double damping = ValueAfter(result, "name: damping");
+  std::printf("[ measured ] controls.delay %.6g s (truth 0.013), damping %.6g (truth 0.12)\n",
+              delay, damping);
+  EXPECT_NEAR(delay, 0.013, 0.002);
+  EXPECT_NEAR(damping, 0.12, 0.0012);
+  EXPECT_NE(result.find("status: converged"), std::string::npos) << result;
+}
+
+// per actuator, the pendulum's one actuator named: the same estimate under its own name
+TEST_F(ControlDelayCliTest, FitsAnActuatorsOwnDelay) {
+  const std::string exp = Experiment(
+      "  hold: {torque: zoh}\n"
+      "  delay: {torque: {initial: 0.005, fit: true, bounds: [0, 0.05]}}\n");
+  const test::CliRun fit = Sysid("fit " + exp + " --out " + dir_ + "/out --quiet");
+  ASSERT_EQ(fit.code, 0) << fit.output;
+  const double delay =
+      ValueAfter(test::ReadFile(dir_ + "/out/result.yaml"), "name: controls.delay.torque");
+  EXPECT_NEAR(delay, 0.013, 0.002);
+}
+
+// the hold per actuator reaches the fit: with the delay given (13 ms), `hold: {torque: zoh}`
+// recovers the damping within 0.5 % (exit 0), `hold: {torque: linear}` (the 50 Hz commands
+// interpolated instead of held) does not, and its residuals exceed the noise (model_mismatch)
+TEST_F(ControlDelayCliTest, HoldPerActuatorIsApplied) {
+  double estimate[2];
+  for (int linear = 0; linear < 2; ++linear) {
+    const std::string exp =
+        Experiment(std::string("  hold: {torque: ") + (linear ? "linear" : "zoh") +
+                   "}\n  delay: {torque: 0.013}\n");
+    const test::CliRun fit =
+        Sysid("fit " + exp + " --out " + dir_ + "/out" + std::to_string(linear) + " --quiet");
+    // linear: the residuals far above the noise (sigmas given): model_mismatch, exit 3
+    ASSERT_EQ(fit.code, linear ? 3 : 0) << fit.output;
+    estimate[linear] = ValueAfter(
+        test::ReadFile(dir_ + "/out" + std::to_string(linear) + "/result.yaml"), "name: damping");
+  }
+  std::printf("[ measured ] damping: zoh %.6g, linear %.6g (truth 0.12)\n", estimate[0],
+              estimate[1]);
+  EXPECT_NEAR(estimate[0], 0.12, 0.0006);
+  EXPECT_GT(std::abs(estimate[1] - 0.12), 0.0012);
+}
+
+// bad specs: exit 2 naming the file, the line and the key
+TEST_F(ControlDelayCliTest, BadSpecsExitTwoNamingFileLineAndKey) {
+  struct Bad {
+    std::string controls;
+    std::string line;  // fit.yaml:<line>
+    std::string message;
+  };
+  const Bad bad[] = {
+      {"  delay: {initial: 0.01, fit: true, bounds: [-0.01, 0.05]}\n",
+       "fit.yaml:9:", "controls.delay.bounds: a delay cannot be negative"},
+      {"  delay: {motor: {initial: 0.01, fit: true}}\n",
+       "fit.yaml:9:", "controls.delay.motor: no actuator named 'motor'"},
+      {"  hold: {motor: linear}\n",
+       "fit.yaml:9:", "controls.hold.motor: no actuator named 'motor'"},
+      {"  delay: {initial: 0.07, fit: true, bounds: [0, 0.05]}\n",
+       "fit.yaml:9:", "controls.delay.initial: 0.07 is outside bounds"},
+      {"  delay: {torque: -0.01}\n", "fit.yaml:9:", "controls.delay.torque"},
+  };
+  for (const Bad& b : bad) {
+    SCOPED_TRACE(b.controls);
+    for (const std::string& command : {"check --no-jacobians " + Experiment(b.controls),
+                                       "fit " + Experiment(b.controls) + " --out " + dir_ + "/x"}) {
+      const test::CliRun run = Sysid(command);
+      EXPECT_EQ(run.code, 2) << run.output;
+      EXPECT_NE(run.output.find(b.line), std::string::npos) << run.output;
+      EXPECT_NE(run.output.find(b.message), std::string::npos) << run.output;
+    }
+  }
+}
+
+}  // namespace
+}  // namespace mjsysid
