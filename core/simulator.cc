@@ -87,6 +87,18 @@ const char* JacobianModeName(JacobianMode mode) {
   return "?";
 }
 
+void RestoreStep(const mjModel& m, const StateDims& dims, const Trajectory& tr, int k,
+                 const double* ctrl, mjData* d) {
+  SetPhysics(m, d, tr.states.row(k).data());
+  SetStepState(m, dims, d, tr.step.row(k).data());
+  mju_copy(d->ctrl, ctrl, dims.nu);
+}
+
+void RestoreInputs(const mjModel& m, const StateDims& dims, const Trajectory& tr, mjData* d) {
+  if (dims.ninput == 0) return;
+  CallMujoco([&] { mj_setState(&m, d, tr.inputs.data(), static_cast<int>(dims.input_sig)); });
+}
+
 // per-worker scratch, allocated once and reused (no allocation in the step loops)
 struct Simulator::Worker {
   DataPtr data;
@@ -248,16 +260,16 @@ void Simulator::CheckStep(const mjData& d, double t, int seq_index, int step,
 }
 
 void Simulator::RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq, int seq_index,
-                           RowMatrix* states, RowMatrix* sensors, RowMatrix* full,
+                           RowMatrix* states, RowMatrix* sensors, RowMatrix* step,
                            std::vector<int>* ncon, SolverStats* solver) const {
   mjData* d = w.data.get();
   const int T = static_cast<int>(seq.ctrl.rows());
   const bool want_sensors = options_.sensors && sensors && dims_.ns > 0;
-  // step the model, recording x_k (and the full state) before and y_k after each step
+  // step the model, recording x_k (and the step state) before and y_k after each step
   for (int k = 0; k < T; ++k) {
     CheckCancel();
     mju_copy(d->ctrl, seq.ctrl.row(k).data(), dims_.nu);
-    if (full) GetFullState(m, d, full->row(k).data());
+    if (step) GetStepState(*m, dims_, *d, step->row(k).data());
     GetPhysics(*m, *d, states->row(k).data());
     const double t = d->time;
     StepSkip(m, d, mjSTAGE_NONE, !options_.sensors);
@@ -268,7 +280,7 @@ void Simulator::RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq
     if (ncon) (*ncon)[k] = d->ncon;
   }
   GetPhysics(*m, *d, states->row(T).data());
-  if (full) GetFullState(m, d, full->row(T).data());
+  if (step) GetStepState(*m, dims_, *d, step->row(T).data());
   if (!states->row(T).allFinite()) {
     throw SimulationError(
         "simulation: sequence " + std::to_string(seq_index) + ": non-finite final state", seq_index,
@@ -285,7 +297,8 @@ void Simulator::Rollout(const std::vector<SequenceInput>& sequences, std::vector
     tr.T = static_cast<int>(sequences[i].ctrl.rows());
     tr.states.resize(tr.T + 1, dims_.nphys);
     tr.sensors.resize(tr.T, options_.sensors ? dims_.ns : 0);
-    tr.full.resize(tr.T + 1, dims_.nfull);
+    tr.step.resize(tr.T + 1, dims_.nstep);
+    tr.inputs.resize(dims_.ninput);
     tr.ncon.assign(tr.T, 0);
     tr.solver = SolverStats();
   }
@@ -293,8 +306,14 @@ void Simulator::Rollout(const std::vector<SequenceInput>& sequences, std::vector
     Worker& w = *workers_[worker];
     Trajectory& tr = (*out)[i];
     OnWorker(w, [&] {
-      SetInitialState(w.data.get(), sequences[i].x0);
-      RolloutOne(w, model_.get(), sequences[i], i, &tr.states, &tr.sensors, &tr.full, &tr.ncon,
+      mjData* d = w.data.get();
+      SetInitialState(d, sequences[i].x0);
+      if (dims_.ninput) {
+        CallMujoco([&] {
+          mj_getState(model_.get(), d, tr.inputs.data(), static_cast<int>(dims_.input_sig));
+        });
+      }
+      RolloutOne(w, model_.get(), sequences[i], i, &tr.states, &tr.sensors, &tr.step, &tr.ncon,
                  &tr.solver);
     });
   });
@@ -373,9 +392,10 @@ JacobianMode Simulator::ChooseJacobianMode(const JacobianOptions& opt,
   return JacobianMode::kDirectional;
 }
 
-void Simulator::DirectionalColumn(Worker& w, int seq_index, const Trajectory& nom,
-                                  const JacobianOptions& opt, int col, const Eigen::VectorXd& steps,
-                                  Sensitivity* out, TaskReport* report) const {
+void Simulator::DirectionalColumn(Worker& w, const RowMatrix& ctrl, int seq_index,
+                                  const Trajectory& nom, const JacobianOptions& opt, int col,
+                                  const Eigen::VectorXd& steps, Sensitivity* out,
+                                  TaskReport* report) const {
   const int np = params_.size(), nx = dims_.nx, ns = options_.sensors ? dims_.ns : 0;
   const int T = nom.T;
   mjData* d = w.data.get();
@@ -396,17 +416,18 @@ void Simulator::DirectionalColumn(Worker& w, int seq_index, const Trajectory& no
   if (!is_param) w.s[col - np] = 1.0;
   if (opt.state_jacobians) out->DxDp.block(0, col, nx, 1) = w.s;
   ClearSimulationWarnings(d);
+  RestoreInputs(*model_, dims_, nom, d);
   double max_growth = 0;
   int growth_step = -1;
 
   // one perturbed step from the nominal x_k moved along sign*h*S_k, parameter at p + sign*h:
   // leaves the one-sided difference quotients of x_{k+1} and y_k in dx, dy
   auto side = [&](mjModel* m, double sign, int k, Eigen::VectorXd& dx, Eigen::VectorXd& dy) {
-    SetFullState(m, d, nom.full.row(k).data());
+    RestoreStep(*m, dims_, nom, k, ctrl.row(k).data(), d);
     TangentPerturb(*m, d, w.s.data(), sign * h);
     StepSkip(m, d, mjSTAGE_NONE, !options_.sensors);
     ++w.steps;
-    CheckStep(*d, nom.full(k, 0), seq_index, k, "perturbed step");  // full state: time first
+    CheckStep(*d, nom.step(k, 0), seq_index, k, "perturbed step");  // step state: time first
     CountSolve(*m, *d, &report->solver);
     GetPhysics(*m, *d, w.xp.data());
     TangentDifference(*model_, nom.states.row(k + 1).data(), w.xp.data(), sign / h, dx.data());
@@ -489,9 +510,9 @@ void Simulator::WholeRolloutColumn(Worker& w, const SequenceInput& seq, int seq_
   }
 }
 
-void Simulator::MatrixJacobian(int seq_index, const Trajectory& nom, const JacobianOptions& opt,
-                               const Eigen::VectorXd& steps, Sensitivity* out,
-                               SolverStats* solver) {
+void Simulator::MatrixJacobian(const RowMatrix& ctrl, int seq_index, const Trajectory& nom,
+                               const JacobianOptions& opt, const Eigen::VectorXd& steps,
+                               Sensitivity* out, SolverStats* solver) {
   const int np = params_.size(), nx = dims_.nx, ns = options_.sensors ? dims_.ns : 0;
   const int ncol = out->ncol, T = nom.T;
   const int chunk = std::min(T, 64 * pool_.size());
@@ -533,8 +554,10 @@ void Simulator::MatrixJacobian(int seq_index, const Trajectory& nom, const Jacob
         mjData* d = w.data.get();
         CheckCancel();
         const int k = k0 + kk;
-        const double* full = nom.full.row(k).data();
+        const double t = nom.step(k, 0);
+        const double* u = ctrl.row(k).data();
         ClearSimulationWarnings(d);
+        RestoreInputs(*model_, dims_, nom, d);
         chunk_kinks[kk] = 0;
         chunk_solver[kk] = SolverStats();
 
@@ -543,11 +566,11 @@ void Simulator::MatrixJacobian(int seq_index, const Trajectory& nom, const Jacob
         double* Ak = A.data() + static_cast<size_t>(kk) * nx * nx;
         double* Ck = ns ? C.data() + static_cast<size_t>(kk) * ns * nx : nullptr;
         CallMujoco([&] {
-          mj_setState(model_.get(), d, full, kFullStateSig);
+          RestoreStep(*model_, dims_, nom, k, u, d);
           mjd_transitionFD(model_.get(), d, opt.state_step, 0, Ak, nullptr, Ck, nullptr);
         });
         w.steps += 1 + nx;
-        CheckStep(*d, full[0], seq_index, k, "mjd_transitionFD");
+        CheckStep(*d, t, seq_index, k, "mjd_transitionFD");
         // forward differences are checked too where the contact set may change near x_k
         const bool contact_near = nom.ncon[k] > 0 ||
                                   (k + 1 < T && nom.ncon[k + 1] != nom.ncon[k]) ||
@@ -556,11 +579,11 @@ void Simulator::MatrixJacobian(int seq_index, const Trajectory& nom, const Jacob
           double* Abk = Ab.data() + static_cast<size_t>(kk) * nx * nx;
           double* Cbk = ns ? Cb.data() + static_cast<size_t>(kk) * ns * nx : nullptr;
           CallMujoco([&] {
-            mj_setState(model_.get(), d, full, kFullStateSig);
+            RestoreStep(*model_, dims_, nom, k, u, d);
             mjd_transitionFD(model_.get(), d, -opt.state_step, 0, Abk, nullptr, Cbk, nullptr);
           });
           w.steps += 1 + nx;
-          CheckStep(*d, full[0], seq_index, k, "mjd_transitionFD");
+          CheckStep(*d, t, seq_index, k, "mjd_transitionFD");
           Eigen::Map<RowMatrix> Af(Ak, nx, nx), Abm(Abk, nx, nx);
           Eigen::Map<RowMatrix> Cf(Ck, ns, nx), Cbm(Cbk, ns, nx);
           for (int c = 0; c < nx; ++c) {
@@ -575,16 +598,16 @@ void Simulator::MatrixJacobian(int seq_index, const Trajectory& nom, const Jacob
         // parameter columns: base pass at x_k with the nominal model, then one step per parameter
         // that skips the stages before the one the parameter enters
         CallMujoco([&] {
-          mj_setState(model_.get(), d, full, kFullStateSig);
+          RestoreStep(*model_, dims_, nom, k, u, d);
           mj_forward(model_.get(), d);
         });
         ++w.steps;
         auto side = [&](mjModel* m, int skip, double sign, double h, Eigen::VectorXd& dx,
                         Eigen::VectorXd& dy) {
-          SetFullState(m, d, full);
+          RestoreStep(*m, dims_, nom, k, u, d);
           StepSkip(m, d, skip, !options_.sensors);
           ++w.steps;
-          CheckStep(*d, full[0], seq_index, k, "perturbed step");
+          CheckStep(*d, t, seq_index, k, "perturbed step");
           CountSolve(*m, *d, &chunk_solver[kk]);
           GetPhysics(*model_, *d, w.xp.data());
           TangentDifference(*model_, nom.states.row(k + 1).data(), w.xp.data(), sign / h,
@@ -688,7 +711,8 @@ void Simulator::Jacobians(const std::vector<SequenceInput>& sequences,
   out->assign(sequences.size(), Sensitivity());
   for (size_t i = 0; i < sequences.size(); ++i) {
     const Trajectory& tr = nominal[i];
-    if (tr.T != sequences[i].ctrl.rows() || tr.full.rows() != tr.T + 1) {
+    if (tr.T != sequences[i].ctrl.rows() || tr.step.rows() != tr.T + 1 ||
+        tr.inputs.size() != dims_.ninput) {
       throw std::invalid_argument("Jacobians: nominal trajectory " + std::to_string(i) +
                                   " does not match its sequence (call Rollout first)");
     }
@@ -731,7 +755,8 @@ void Simulator::Jacobians(const std::vector<SequenceInput>& sequences,
       });
     }
     for (size_t i = 0; i < sequences.size(); ++i) {
-      MatrixJacobian(static_cast<int>(i), nominal[i], opt, steps, &(*out)[i], &perturbed[i]);
+      MatrixJacobian(sequences[i].ctrl, static_cast<int>(i), nominal[i], opt, steps, &(*out)[i],
+                     &perturbed[i]);
     }
   } else {
     ColumnJacobians(sequences, nominal, opt, mode, steps, out, &perturbed);
@@ -790,7 +815,8 @@ void Simulator::ColumnJacobians(const std::vector<SequenceInput>& sequences,
     Worker& w = *workers_[worker];
     OnWorker(w, [&] {
       if (mode == JacobianMode::kDirectional) {
-        DirectionalColumn(w, i, nominal[i], opt, col, steps, &(*out)[i], &reports[task]);
+        DirectionalColumn(w, sequences[i].ctrl, i, nominal[i], opt, col, steps, &(*out)[i],
+                          &reports[task]);
       } else {
         WholeRolloutColumn(w, sequences[i], i, nominal[i], opt, col, steps, &(*out)[i],
                            &reports[task]);

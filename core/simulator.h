@@ -108,13 +108,24 @@ struct SequenceInput {
 };
 
 struct Trajectory {
-  int T = 0;              // samples
-  RowMatrix states;       // (T+1) x (nq+nv+na): x_0 .. x_T
-  RowMatrix sensors;      // T x nsensordata: y_0 .. y_{T-1} (0 columns when sensors are off)
-  RowMatrix full;         // (T+1) x nfull: full state (kFullStateSig) before step k, with u_k set
-  std::vector<int> ncon;  // T: contacts found in step k (at x_k), to detect contact-set changes
-  SolverStats solver;     // constraint solves of the T steps
+  int T = 0;               // samples
+  RowMatrix states;        // (T+1) x (nq+nv+na): x_0 .. x_T
+  RowMatrix sensors;       // T x nsensordata: y_0 .. y_{T-1} (0 columns when sensors are off)
+  RowMatrix step;          // (T+1) x nstep: step state (core/state.h) before step k: time, ...
+  Eigen::VectorXd inputs;  // ninput: the inputs held during the rollout (kInputSig)
+  std::vector<int> ncon;   // T: contacts found in step k (at x_k), to detect contact-set changes
+  SolverStats solver;      // constraint solves of the T steps
 };
+
+// Writes into d what step k of tr reads (0 <= k < tr.T): the physics vector x_k, the step state
+// and the controls ctrl (nu, u_k), so that a step of m from d repeats step k (with m's
+// parameters). The inputs are not written: d must hold tr.inputs already (RestoreInputs; mj_step
+// never changes them). Copies only: no allocation, no MuJoCo error for a model of tr's sizes.
+void RestoreStep(const mjModel& m, const StateDims& dims, const Trajectory& tr, int k,
+                 const double* ctrl, mjData* d);
+
+// writes tr.inputs into d (once before restoring steps of tr)
+void RestoreInputs(const mjModel& m, const StateDims& dims, const Trajectory& tr, mjData* d);
 
 // the share of time steps of these trajectories with contacts, or a change of the contact count
 // at the next step (where forward matrix mode differences both sides)
@@ -228,16 +239,17 @@ class Simulator {
   void OnWorker(Worker& w, Task&& task) const;
   void SetInitialState(mjData* d, const InitialState& x0) const;
   void RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq, int seq_index,
-                  RowMatrix* states, RowMatrix* sensors, RowMatrix* full, std::vector<int>* ncon,
+                  RowMatrix* states, RowMatrix* sensors, RowMatrix* step, std::vector<int>* ncon,
                   SolverStats* solver) const;
-  void DirectionalColumn(Worker& w, int seq_index, const Trajectory& nom,
+  void DirectionalColumn(Worker& w, const RowMatrix& ctrl, int seq_index, const Trajectory& nom,
                          const JacobianOptions& opt, int col, const Eigen::VectorXd& steps,
                          Sensitivity* out, TaskReport* report) const;
   void WholeRolloutColumn(Worker& w, const SequenceInput& seq, int seq_index, const Trajectory& nom,
                           const JacobianOptions& opt, int col, const Eigen::VectorXd& steps,
                           Sensitivity* out, TaskReport* report) const;
-  void MatrixJacobian(int seq_index, const Trajectory& nom, const JacobianOptions& opt,
-                      const Eigen::VectorXd& steps, Sensitivity* out, SolverStats* solver);
+  void MatrixJacobian(const RowMatrix& ctrl, int seq_index, const Trajectory& nom,
+                      const JacobianOptions& opt, const Eigen::VectorXd& steps, Sensitivity* out,
+                      SolverStats* solver);
   void ColumnJacobians(const std::vector<SequenceInput>& sequences,
                        const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
                        JacobianMode mode, const Eigen::VectorXd& steps,
