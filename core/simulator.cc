@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
+#include <thread>
 
 #include "core/text.h"
 
@@ -58,6 +59,22 @@ bool CombineSides(const X& fx, const X& bx, const Y& fy, const Y& by, bool centr
     out_y = fy;
   }
   return kink;
+}
+
+// Pipelined columns (Simulator::RolloutAndJacobians): a rollout publishes how many state rows it
+// has recorded; kRolloutFailed when it threw
+constexpr int kRolloutFailed = -1;
+
+// waits until the rollout behind ready has recorded `rows` state rows (and everything of the steps
+// before them); false when the rollout failed (its exception is the one ParallelFor rethrows)
+bool WaitForRows(const std::atomic<int>* ready, int rows) {
+  if (!ready) return true;
+  for (;;) {
+    const int r = ready->load(std::memory_order_acquire);
+    if (r == kRolloutFailed) return false;
+    if (r >= rows) return true;
+    std::this_thread::yield();
+  }
 }
 
 }  // namespace
@@ -261,7 +278,8 @@ void Simulator::CheckStep(const mjData& d, double t, int seq_index, int step,
 
 void Simulator::RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq, int seq_index,
                            RowMatrix* states, RowMatrix* sensors, RowMatrix* step,
-                           std::vector<int>* ncon, SolverStats* solver) const {
+                           std::vector<int>* ncon, SolverStats* solver,
+                           std::atomic<int>* progress) const {
   mjData* d = w.data.get();
   const int T = static_cast<int>(seq.ctrl.rows());
   const bool want_sensors = options_.sensors && sensors && dims_.ns > 0;
@@ -271,6 +289,8 @@ void Simulator::RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq
     mju_copy(d->ctrl, seq.ctrl.row(k).data(), dims_.nu);
     if (step) GetStepState(*m, dims_, *d, step->row(k).data());
     GetPhysics(*m, *d, states->row(k).data());
+    // rows 0..k recorded, with the sensors and contacts of the steps before
+    if (progress) progress->store(k + 1, std::memory_order_release);
     const double t = d->time;
     StepSkip(m, d, mjSTAGE_NONE, !options_.sensors);
     ++w.steps;
@@ -281,6 +301,7 @@ void Simulator::RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq
   }
   GetPhysics(*m, *d, states->row(T).data());
   if (step) GetStepState(*m, dims_, *d, step->row(T).data());
+  if (progress) progress->store(T + 1, std::memory_order_release);
   if (!states->row(T).allFinite()) {
     throw SimulationError(
         "simulation: sequence " + std::to_string(seq_index) + ": non-finite final state", seq_index,
@@ -288,10 +309,10 @@ void Simulator::RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq
   }
 }
 
-void Simulator::Rollout(const std::vector<SequenceInput>& sequences, std::vector<Trajectory>* out) {
+void Simulator::SizeTrajectories(const std::vector<SequenceInput>& sequences,
+                                 std::vector<Trajectory>* out) const {
   CheckInputs(sequences);
   out->resize(sequences.size());
-  // size outputs up front, then fill them in parallel across sequences
   for (size_t i = 0; i < sequences.size(); ++i) {
     Trajectory& tr = (*out)[i];
     tr.T = static_cast<int>(sequences[i].ctrl.rows());
@@ -302,20 +323,33 @@ void Simulator::Rollout(const std::vector<SequenceInput>& sequences, std::vector
     tr.ncon.assign(tr.T, 0);
     tr.solver = SolverStats();
   }
-  pool_.ParallelFor(static_cast<int>(sequences.size()), [&](int worker, int i) {
-    Worker& w = *workers_[worker];
-    Trajectory& tr = (*out)[i];
-    OnWorker(w, [&] {
+}
+
+void Simulator::RolloutTask(Worker& w, const SequenceInput& seq, int seq_index, Trajectory* tr,
+                            std::atomic<int>* progress) const {
+  OnWorker(w, [&] {
+    try {
       mjData* d = w.data.get();
-      SetInitialState(d, sequences[i].x0);
+      SetInitialState(d, seq.x0);
       if (dims_.ninput) {
         CallMujoco([&] {
-          mj_getState(model_.get(), d, tr.inputs.data(), static_cast<int>(dims_.input_sig));
+          mj_getState(model_.get(), d, tr->inputs.data(), static_cast<int>(dims_.input_sig));
         });
       }
-      RolloutOne(w, model_.get(), sequences[i], i, &tr.states, &tr.sensors, &tr.step, &tr.ncon,
-                 &tr.solver);
-    });
+      RolloutOne(w, model_.get(), seq, seq_index, &tr->states, &tr->sensors, &tr->step, &tr->ncon,
+                 &tr->solver, progress);
+    } catch (...) {
+      if (progress) progress->store(kRolloutFailed, std::memory_order_release);
+      throw;
+    }
+  });
+}
+
+void Simulator::Rollout(const std::vector<SequenceInput>& sequences, std::vector<Trajectory>* out) {
+  // size outputs up front, then fill them in parallel across sequences
+  SizeTrajectories(sequences, out);
+  pool_.ParallelFor(static_cast<int>(sequences.size()), [&](int worker, int i) {
+    RolloutTask(*workers_[worker], sequences[i], i, &(*out)[i], nullptr);
   });
 }
 
@@ -395,7 +429,7 @@ JacobianMode Simulator::ChooseJacobianMode(const JacobianOptions& opt,
 void Simulator::DirectionalColumn(Worker& w, const RowMatrix& ctrl, int seq_index,
                                   const Trajectory& nom, const JacobianOptions& opt, int col,
                                   const Eigen::VectorXd& steps, Sensitivity* out,
-                                  TaskReport* report) const {
+                                  TaskReport* report, const std::atomic<int>* ready) const {
   const int np = params_.size(), nx = dims_.nx, ns = options_.sensors ? dims_.ns : 0;
   const int T = nom.T;
   mjData* d = w.data.get();
@@ -416,6 +450,8 @@ void Simulator::DirectionalColumn(Worker& w, const RowMatrix& ctrl, int seq_inde
   if (!is_param) w.s[col - np] = 1.0;
   if (opt.state_jacobians) out->DxDp.block(0, col, nx, 1) = w.s;
   ClearSimulationWarnings(d);
+  // a pipelined column follows its rollout: the inputs first, then step k once x_{k+1} is there
+  if (!WaitForRows(ready, 1)) return;
   RestoreInputs(*model_, dims_, nom, d);
   double max_growth = 0;
   int growth_step = -1;
@@ -437,6 +473,7 @@ void Simulator::DirectionalColumn(Worker& w, const RowMatrix& ctrl, int seq_inde
 
   for (int k = 0; k < T; ++k) {
     CheckCancel();
+    if (!WaitForRows(ready, k + 2)) return;
     // forward side; the backward side too for central differences or a contact-set change
     const int ncon = side(w.plus.get(), 1.0, k, w.s_next, w.yp);
     if (opt.central || ncon != nom.ncon[k]) {
@@ -679,6 +716,29 @@ void Simulator::MatrixJacobian(const RowMatrix& ctrl, int seq_index, const Traje
 void Simulator::Jacobians(const std::vector<SequenceInput>& sequences,
                           const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
                           std::vector<Sensitivity>* out) {
+  JacobiansImpl(sequences, nominal, opt, out, nullptr);
+}
+
+void Simulator::RolloutAndJacobians(const std::vector<SequenceInput>& sequences,
+                                    const JacobianOptions& opt, std::vector<Trajectory>* nominal,
+                                    std::vector<Sensitivity>* out) {
+  // pipelined only where it can change something and the mode does not depend on the contacts
+  // the rollouts will find (ChooseJacobianMode at either end of the contact share)
+  const int ncol = params_.size() + (opt.initial_state ? dims_.nx : 0);
+  const JacobianMode mode = ChooseJacobianMode(opt, 0.0);
+  if (pool_.size() == 1 || ncol == 0 || mode != JacobianMode::kDirectional ||
+      ChooseJacobianMode(opt, 1.0) != mode || model_->nhistory > 0) {
+    Rollout(sequences, nominal);
+    Jacobians(sequences, *nominal, opt, out);
+    return;
+  }
+  SizeTrajectories(sequences, nominal);
+  JacobiansImpl(sequences, *nominal, opt, out, nominal);
+}
+
+void Simulator::JacobiansImpl(const std::vector<SequenceInput>& sequences,
+                              const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
+                              std::vector<Sensitivity>* out, std::vector<Trajectory>* rollouts) {
   CheckInputs(sequences);
   if (nominal.size() != sequences.size()) {
     throw std::invalid_argument("Jacobians: " + std::to_string(sequences.size()) +
@@ -687,7 +747,8 @@ void Simulator::Jacobians(const std::vector<SequenceInput>& sequences,
   }
   const int np = params_.size(), nx = dims_.nx, ns = options_.sensors ? dims_.ns : 0;
   const int ncol = np + (opt.initial_state ? nx : 0);
-  const JacobianMode mode = ChooseJacobianMode(opt, ContactFraction(nominal));
+  // pipelined: the rollouts are still to come, and the mode is the same for any contact share
+  const JacobianMode mode = ChooseJacobianMode(opt, rollouts ? 0.0 : ContactFraction(nominal));
   if (mode == JacobianMode::kMatrix &&
       (model_->opt.integrator == mjINT_RK4 || model_->nhistory > 0)) {
     throw std::invalid_argument(
@@ -759,7 +820,7 @@ void Simulator::Jacobians(const std::vector<SequenceInput>& sequences,
                      &perturbed[i]);
     }
   } else {
-    ColumnJacobians(sequences, nominal, opt, mode, steps, out, &perturbed);
+    ColumnJacobians(sequences, nominal, opt, mode, steps, out, &perturbed, rollouts);
   }
   for (size_t i = 0; i < sequences.size(); ++i) {
     for (std::string& w : SolverWarnings(*model_, nominal[i].solver, perturbed[i])) {
@@ -790,7 +851,8 @@ void Simulator::CheckZeroColumns(const std::vector<Sensitivity>& out) const {
 void Simulator::ColumnJacobians(const std::vector<SequenceInput>& sequences,
                                 const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
                                 JacobianMode mode, const Eigen::VectorXd& steps,
-                                std::vector<Sensitivity>* out, std::vector<SolverStats>* solver) {
+                                std::vector<Sensitivity>* out, std::vector<SolverStats>* solver,
+                                std::vector<Trajectory>* rollouts) {
   const int ncol = (*out)[0].ncol, ns = options_.sensors ? dims_.ns : 0;
 
   // directional and whole-rollout: one task per (sequence, column)
@@ -810,13 +872,22 @@ void Simulator::ColumnJacobians(const std::vector<SequenceInput>& sequences,
   // each task writes its own column and its own report slot, so no two tasks share an output
   const int nseq = static_cast<int>(sequences.size());
   std::vector<TaskReport> reports(static_cast<size_t>(nseq) * ncol);
-  pool_.ParallelFor(nseq * ncol, [&](int worker, int task) {
-    const int i = task / ncol, col = task % ncol;
+  // pipelined (rollouts given, directional mode only): the rollouts are the first tasks, so every
+  // column is handed out after its rollout started on another worker, and follows it step by step
+  const int nroll = rollouts ? nseq : 0;
+  std::unique_ptr<std::atomic<int>[]> ready(new std::atomic<int>[nroll]);
+  for (int i = 0; i < nroll; ++i) ready[i].store(0);
+  pool_.ParallelFor(nroll + nseq * ncol, [&](int worker, int t) {
     Worker& w = *workers_[worker];
+    if (t < nroll) {
+      RolloutTask(w, sequences[t], t, &(*rollouts)[t], &ready[t]);
+      return;
+    }
+    const int task = t - nroll, i = task / ncol, col = task % ncol;
     OnWorker(w, [&] {
       if (mode == JacobianMode::kDirectional) {
         DirectionalColumn(w, sequences[i].ctrl, i, nominal[i], opt, col, steps, &(*out)[i],
-                          &reports[task]);
+                          &reports[task], rollouts ? &ready[i] : nullptr);
       } else {
         WholeRolloutColumn(w, sequences[i], i, nominal[i], opt, col, steps, &(*out)[i],
                            &reports[task]);

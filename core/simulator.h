@@ -198,6 +198,14 @@ class Simulator {
   Sensitivity Jacobians(const SequenceInput& sequence, const Trajectory& nominal,
                         const JacobianOptions& options);
 
+  // Rollout and then Jacobians, with the same results bit for bit, in one parallel pass where
+  // that is faster: with more than one thread in directional mode (whatever the contacts), the
+  // columns of a sequence start while its rollout runs and follow it step by step, so that a
+  // single sequence's rollout no longer waits alone. Failure as Rollout and Jacobians.
+  void RolloutAndJacobians(const std::vector<SequenceInput>& sequences,
+                           const JacobianOptions& options, std::vector<Trajectory>* nominal,
+                           std::vector<Sensitivity>* out);
+
   // the mode kAuto resolves to for these options (deterministic: counts only). contact_fraction:
   // the share of time steps with contacts near (there forward matrix mode differences both
   // sides); < 0: 1 if the model can have contacts, else 0. Jacobians() passes the share measured
@@ -240,10 +248,21 @@ class Simulator {
   void SetInitialState(mjData* d, const InitialState& x0) const;
   void RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq, int seq_index,
                   RowMatrix* states, RowMatrix* sensors, RowMatrix* step, std::vector<int>* ncon,
-                  SolverStats* solver) const;
+                  SolverStats* solver, std::atomic<int>* progress = nullptr) const;
+  // checks the inputs and sizes the trajectories of Rollout
+  void SizeTrajectories(const std::vector<SequenceInput>& sequences,
+                        std::vector<Trajectory>* out) const;
+  // one rollout task; progress (optional): state rows recorded, kRolloutFailed when it throws
+  void RolloutTask(Worker& w, const SequenceInput& seq, int seq_index, Trajectory* tr,
+                   std::atomic<int>* progress) const;
+  // Jacobians; rollouts (sized, not simulated yet) are simulated in the same pass when given
+  void JacobiansImpl(const std::vector<SequenceInput>& sequences,
+                     const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
+                     std::vector<Sensitivity>* out, std::vector<Trajectory>* rollouts);
   void DirectionalColumn(Worker& w, const RowMatrix& ctrl, int seq_index, const Trajectory& nom,
                          const JacobianOptions& opt, int col, const Eigen::VectorXd& steps,
-                         Sensitivity* out, TaskReport* report) const;
+                         Sensitivity* out, TaskReport* report,
+                         const std::atomic<int>* ready = nullptr) const;
   void WholeRolloutColumn(Worker& w, const SequenceInput& seq, int seq_index, const Trajectory& nom,
                           const JacobianOptions& opt, int col, const Eigen::VectorXd& steps,
                           Sensitivity* out, TaskReport* report) const;
@@ -253,7 +272,8 @@ class Simulator {
   void ColumnJacobians(const std::vector<SequenceInput>& sequences,
                        const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
                        JacobianMode mode, const Eigen::VectorXd& steps,
-                       std::vector<Sensitivity>* out, std::vector<SolverStats>* solver);
+                       std::vector<Sensitivity>* out, std::vector<SolverStats>* solver,
+                       std::vector<Trajectory>* rollouts = nullptr);
   void CheckZeroColumns(const std::vector<Sensitivity>& out) const;
   // throws Cancelled when the cancel flag is set
   void CheckCancel() const;
