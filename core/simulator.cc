@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <exception>
 #include <stdexcept>
 #include <thread>
 
@@ -877,23 +878,38 @@ void Simulator::ColumnJacobians(const std::vector<SequenceInput>& sequences,
   const int nroll = rollouts ? nseq : 0;
   std::unique_ptr<std::atomic<int>[]> ready(new std::atomic<int>[nroll]);
   for (int i = 0; i < nroll; ++i) ready[i].store(0);
-  pool_.ParallelFor(nroll + nseq * ncol, [&](int worker, int t) {
-    Worker& w = *workers_[worker];
-    if (t < nroll) {
-      RolloutTask(w, sequences[t], t, &(*rollouts)[t], &ready[t]);
-      return;
-    }
-    const int task = t - nroll, i = task / ncol, col = task % ncol;
-    OnWorker(w, [&] {
-      if (mode == JacobianMode::kDirectional) {
-        DirectionalColumn(w, sequences[i].ctrl, i, nominal[i], opt, col, steps, &(*out)[i],
-                          &reports[task], rollouts ? &ready[i] : nullptr);
-      } else {
-        WholeRolloutColumn(w, sequences[i], i, nominal[i], opt, col, steps, &(*out)[i],
-                           &reports[task]);
+  std::vector<std::exception_ptr> rollout_error(nroll);
+  try {
+    pool_.ParallelFor(nroll + nseq * ncol, [&](int worker, int t) {
+      Worker& w = *workers_[worker];
+      if (t < nroll) {
+        try {
+          RolloutTask(w, sequences[t], t, &(*rollouts)[t], &ready[t]);
+        } catch (...) {
+          rollout_error[t] = std::current_exception();
+          throw;
+        }
+        return;
       }
+      const int task = t - nroll, i = task / ncol, col = task % ncol;
+      OnWorker(w, [&] {
+        if (mode == JacobianMode::kDirectional) {
+          DirectionalColumn(w, sequences[i].ctrl, i, nominal[i], opt, col, steps, &(*out)[i],
+                            &reports[task], rollouts ? &ready[i] : nullptr);
+        } else {
+          WholeRolloutColumn(w, sequences[i], i, nominal[i], opt, col, steps, &(*out)[i],
+                             &reports[task]);
+        }
+      });
     });
-  });
+  } catch (...) {
+    // a failed rollout is reported as Rollout would (every rollout ran: they are the first tasks),
+    // before a perturbed step that failed next to it
+    for (const std::exception_ptr& e : rollout_error) {
+      if (e) std::rethrow_exception(e);
+    }
+    throw;
+  }
   for (int task = 0; task < nseq * ncol; ++task) {
     Sensitivity& s = (*out)[task / ncol];
     const TaskReport& r = reports[task];

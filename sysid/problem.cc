@@ -372,14 +372,18 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
     }
     if (ins.empty()) continue;
     std::vector<Trajectory> trs;
-    mo.sim->Rollout(ins, &trs);
-    for (size_t i = 0; i < which.size(); ++i) initial[which[i]] = trs[i];
-    if (mo.sim->parameters().size() == 0) continue;
+    if (mo.sim->parameters().size() == 0) {
+      mo.sim->Rollout(ins, &trs);
+      for (size_t i = 0; i < which.size(); ++i) initial[which[i]] = std::move(trs[i]);
+      continue;
+    }
     JacobianOptions jo = options.jacobian;
     jo.zero_column_is_error = false;
     jo.state_jacobians = true;
     std::vector<Sensitivity> sens;
-    mo.sim->Jacobians(ins, trs, jo, &sens);
+    // the columns follow the rollouts (core/simulator.h), instead of waiting for the last one
+    mo.sim->RolloutAndJacobians(ins, jo, &trs, &sens);
+    for (size_t i = 0; i < which.size(); ++i) initial[which[i]] = std::move(trs[i]);
     for (const Sensitivity& s : sens) {
       for (int j = 0; j < mo.sim->parameters().size(); ++j) {
         if (!s.DxDp.col(j).isZero(0) || (s.DyDp.rows() && !s.DyDp.col(j).isZero(0))) {
