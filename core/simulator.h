@@ -13,7 +13,8 @@
 // selected parameters (in ParameterSet order) followed, if requested, by the nx tangent directions
 // of x_0. Three ways to compute them, equal up to finite-difference error (tested):
 // - kDirectional: one perturbed step per column per time step, from the stored nominal state moved
-//   along h*S_k with the parameter at p+h. Cost ~ T*ncol steps; parallel over columns.
+//   along h*S_k with the parameter at p+h. Cost ~ T*ncol steps; parallel over columns, which
+//   RolloutAndJacobians starts behind their rollouts (each step once x_{k+1} is recorded).
 // - kMatrix: A_k, C_k from mjd_transitionFD and F_k, G_k by one perturbed step per parameter that
 //   skips the pipeline stages the parameter cannot affect; then the chain. Parallel over time
 //   steps.
