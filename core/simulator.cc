@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <exception>
 #include <stdexcept>
+#include <thread>
 
 #include "core/text.h"
 
@@ -60,6 +62,22 @@ bool CombineSides(const X& fx, const X& bx, const Y& fy, const Y& by, bool centr
   return kink;
 }
 
+// Pipelined columns (Simulator::RolloutAndJacobians): a rollout publishes how many state rows it
+// has recorded; kRolloutFailed when it threw
+constexpr int kRolloutFailed = -1;
+
+// waits until the rollout behind ready has recorded `rows` state rows (and everything of the steps
+// before them); false when the rollout failed (its exception is the one ParallelFor rethrows)
+bool WaitForRows(const std::atomic<int>* ready, int rows) {
+  if (!ready) return true;
+  for (;;) {
+    const int r = ready->load(std::memory_order_acquire);
+    if (r == kRolloutFailed) return false;
+    if (r >= rows) return true;
+    std::this_thread::yield();
+  }
+}
+
 }  // namespace
 
 double ContactFraction(const std::vector<Trajectory>& trajectories) {
@@ -85,6 +103,18 @@ const char* JacobianModeName(JacobianMode mode) {
       return "whole_rollout";
   }
   return "?";
+}
+
+void RestoreStep(const mjModel& m, const StateDims& dims, const Trajectory& tr, int k,
+                 const double* ctrl, mjData* d) {
+  SetPhysics(m, d, tr.states.row(k).data());
+  SetStepState(m, dims, d, tr.step.row(k).data());
+  mju_copy(d->ctrl, ctrl, dims.nu);
+}
+
+void RestoreInputs(const mjModel& m, const StateDims& dims, const Trajectory& tr, mjData* d) {
+  if (dims.ninput == 0) return;
+  CallMujoco([&] { mj_setState(&m, d, tr.inputs.data(), static_cast<int>(dims.input_sig)); });
 }
 
 // per-worker scratch, allocated once and reused (no allocation in the step loops)
@@ -248,17 +278,20 @@ void Simulator::CheckStep(const mjData& d, double t, int seq_index, int step,
 }
 
 void Simulator::RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq, int seq_index,
-                           RowMatrix* states, RowMatrix* sensors, RowMatrix* full,
-                           std::vector<int>* ncon, SolverStats* solver) const {
+                           RowMatrix* states, RowMatrix* sensors, RowMatrix* step,
+                           std::vector<int>* ncon, SolverStats* solver,
+                           std::atomic<int>* progress) const {
   mjData* d = w.data.get();
   const int T = static_cast<int>(seq.ctrl.rows());
   const bool want_sensors = options_.sensors && sensors && dims_.ns > 0;
-  // step the model, recording x_k (and the full state) before and y_k after each step
+  // step the model, recording x_k (and the step state) before and y_k after each step
   for (int k = 0; k < T; ++k) {
     CheckCancel();
     mju_copy(d->ctrl, seq.ctrl.row(k).data(), dims_.nu);
-    if (full) GetFullState(m, d, full->row(k).data());
+    if (step) GetStepState(*m, dims_, *d, step->row(k).data());
     GetPhysics(*m, *d, states->row(k).data());
+    // rows 0..k recorded, with the sensors and contacts of the steps before
+    if (progress) progress->store(k + 1, std::memory_order_release);
     const double t = d->time;
     StepSkip(m, d, mjSTAGE_NONE, !options_.sensors);
     ++w.steps;
@@ -268,7 +301,8 @@ void Simulator::RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq
     if (ncon) (*ncon)[k] = d->ncon;
   }
   GetPhysics(*m, *d, states->row(T).data());
-  if (full) GetFullState(m, d, full->row(T).data());
+  if (step) GetStepState(*m, dims_, *d, step->row(T).data());
+  if (progress) progress->store(T + 1, std::memory_order_release);
   if (!states->row(T).allFinite()) {
     throw SimulationError(
         "simulation: sequence " + std::to_string(seq_index) + ": non-finite final state", seq_index,
@@ -276,27 +310,47 @@ void Simulator::RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq
   }
 }
 
-void Simulator::Rollout(const std::vector<SequenceInput>& sequences, std::vector<Trajectory>* out) {
+void Simulator::SizeTrajectories(const std::vector<SequenceInput>& sequences,
+                                 std::vector<Trajectory>* out) const {
   CheckInputs(sequences);
   out->resize(sequences.size());
-  // size outputs up front, then fill them in parallel across sequences
   for (size_t i = 0; i < sequences.size(); ++i) {
     Trajectory& tr = (*out)[i];
     tr.T = static_cast<int>(sequences[i].ctrl.rows());
     tr.states.resize(tr.T + 1, dims_.nphys);
     tr.sensors.resize(tr.T, options_.sensors ? dims_.ns : 0);
-    tr.full.resize(tr.T + 1, dims_.nfull);
+    tr.step.resize(tr.T + 1, dims_.nstep);
+    tr.inputs.resize(dims_.ninput);
     tr.ncon.assign(tr.T, 0);
     tr.solver = SolverStats();
   }
+}
+
+void Simulator::RolloutTask(Worker& w, const SequenceInput& seq, int seq_index, Trajectory* tr,
+                            std::atomic<int>* progress) const {
+  OnWorker(w, [&] {
+    try {
+      mjData* d = w.data.get();
+      SetInitialState(d, seq.x0);
+      if (dims_.ninput) {
+        CallMujoco([&] {
+          mj_getState(model_.get(), d, tr->inputs.data(), static_cast<int>(dims_.input_sig));
+        });
+      }
+      RolloutOne(w, model_.get(), seq, seq_index, &tr->states, &tr->sensors, &tr->step, &tr->ncon,
+                 &tr->solver, progress);
+    } catch (...) {
+      if (progress) progress->store(kRolloutFailed, std::memory_order_release);
+      throw;
+    }
+  });
+}
+
+void Simulator::Rollout(const std::vector<SequenceInput>& sequences, std::vector<Trajectory>* out) {
+  // size outputs up front, then fill them in parallel across sequences
+  SizeTrajectories(sequences, out);
   pool_.ParallelFor(static_cast<int>(sequences.size()), [&](int worker, int i) {
-    Worker& w = *workers_[worker];
-    Trajectory& tr = (*out)[i];
-    OnWorker(w, [&] {
-      SetInitialState(w.data.get(), sequences[i].x0);
-      RolloutOne(w, model_.get(), sequences[i], i, &tr.states, &tr.sensors, &tr.full, &tr.ncon,
-                 &tr.solver);
-    });
+    RolloutTask(*workers_[worker], sequences[i], i, &(*out)[i], nullptr);
   });
 }
 
@@ -373,9 +427,10 @@ JacobianMode Simulator::ChooseJacobianMode(const JacobianOptions& opt,
   return JacobianMode::kDirectional;
 }
 
-void Simulator::DirectionalColumn(Worker& w, int seq_index, const Trajectory& nom,
-                                  const JacobianOptions& opt, int col, const Eigen::VectorXd& steps,
-                                  Sensitivity* out, TaskReport* report) const {
+void Simulator::DirectionalColumn(Worker& w, const RowMatrix& ctrl, int seq_index,
+                                  const Trajectory& nom, const JacobianOptions& opt, int col,
+                                  const Eigen::VectorXd& steps, Sensitivity* out,
+                                  TaskReport* report, const std::atomic<int>* ready) const {
   const int np = params_.size(), nx = dims_.nx, ns = options_.sensors ? dims_.ns : 0;
   const int T = nom.T;
   mjData* d = w.data.get();
@@ -396,17 +451,20 @@ void Simulator::DirectionalColumn(Worker& w, int seq_index, const Trajectory& no
   if (!is_param) w.s[col - np] = 1.0;
   if (opt.state_jacobians) out->DxDp.block(0, col, nx, 1) = w.s;
   ClearSimulationWarnings(d);
+  // a pipelined column follows its rollout: the inputs first, then step k once x_{k+1} is there
+  if (!WaitForRows(ready, 1)) return;
+  RestoreInputs(*model_, dims_, nom, d);
   double max_growth = 0;
   int growth_step = -1;
 
   // one perturbed step from the nominal x_k moved along sign*h*S_k, parameter at p + sign*h:
   // leaves the one-sided difference quotients of x_{k+1} and y_k in dx, dy
   auto side = [&](mjModel* m, double sign, int k, Eigen::VectorXd& dx, Eigen::VectorXd& dy) {
-    SetFullState(m, d, nom.full.row(k).data());
+    RestoreStep(*m, dims_, nom, k, ctrl.row(k).data(), d);
     TangentPerturb(*m, d, w.s.data(), sign * h);
     StepSkip(m, d, mjSTAGE_NONE, !options_.sensors);
     ++w.steps;
-    CheckStep(*d, nom.full(k, 0), seq_index, k, "perturbed step");  // full state: time first
+    CheckStep(*d, nom.step(k, 0), seq_index, k, "perturbed step");  // step state: time first
     CountSolve(*m, *d, &report->solver);
     GetPhysics(*m, *d, w.xp.data());
     TangentDifference(*model_, nom.states.row(k + 1).data(), w.xp.data(), sign / h, dx.data());
@@ -416,6 +474,7 @@ void Simulator::DirectionalColumn(Worker& w, int seq_index, const Trajectory& no
 
   for (int k = 0; k < T; ++k) {
     CheckCancel();
+    if (!WaitForRows(ready, k + 2)) return;
     // forward side; the backward side too for central differences or a contact-set change
     const int ncon = side(w.plus.get(), 1.0, k, w.s_next, w.yp);
     if (opt.central || ncon != nom.ncon[k]) {
@@ -489,9 +548,9 @@ void Simulator::WholeRolloutColumn(Worker& w, const SequenceInput& seq, int seq_
   }
 }
 
-void Simulator::MatrixJacobian(int seq_index, const Trajectory& nom, const JacobianOptions& opt,
-                               const Eigen::VectorXd& steps, Sensitivity* out,
-                               SolverStats* solver) {
+void Simulator::MatrixJacobian(const RowMatrix& ctrl, int seq_index, const Trajectory& nom,
+                               const JacobianOptions& opt, const Eigen::VectorXd& steps,
+                               Sensitivity* out, SolverStats* solver) {
   const int np = params_.size(), nx = dims_.nx, ns = options_.sensors ? dims_.ns : 0;
   const int ncol = out->ncol, T = nom.T;
   const int chunk = std::min(T, 64 * pool_.size());
@@ -533,8 +592,10 @@ void Simulator::MatrixJacobian(int seq_index, const Trajectory& nom, const Jacob
         mjData* d = w.data.get();
         CheckCancel();
         const int k = k0 + kk;
-        const double* full = nom.full.row(k).data();
+        const double t = nom.step(k, 0);
+        const double* u = ctrl.row(k).data();
         ClearSimulationWarnings(d);
+        RestoreInputs(*model_, dims_, nom, d);
         chunk_kinks[kk] = 0;
         chunk_solver[kk] = SolverStats();
 
@@ -543,11 +604,11 @@ void Simulator::MatrixJacobian(int seq_index, const Trajectory& nom, const Jacob
         double* Ak = A.data() + static_cast<size_t>(kk) * nx * nx;
         double* Ck = ns ? C.data() + static_cast<size_t>(kk) * ns * nx : nullptr;
         CallMujoco([&] {
-          mj_setState(model_.get(), d, full, kFullStateSig);
+          RestoreStep(*model_, dims_, nom, k, u, d);
           mjd_transitionFD(model_.get(), d, opt.state_step, 0, Ak, nullptr, Ck, nullptr);
         });
         w.steps += 1 + nx;
-        CheckStep(*d, full[0], seq_index, k, "mjd_transitionFD");
+        CheckStep(*d, t, seq_index, k, "mjd_transitionFD");
         // forward differences are checked too where the contact set may change near x_k
         const bool contact_near = nom.ncon[k] > 0 ||
                                   (k + 1 < T && nom.ncon[k + 1] != nom.ncon[k]) ||
@@ -556,11 +617,11 @@ void Simulator::MatrixJacobian(int seq_index, const Trajectory& nom, const Jacob
           double* Abk = Ab.data() + static_cast<size_t>(kk) * nx * nx;
           double* Cbk = ns ? Cb.data() + static_cast<size_t>(kk) * ns * nx : nullptr;
           CallMujoco([&] {
-            mj_setState(model_.get(), d, full, kFullStateSig);
+            RestoreStep(*model_, dims_, nom, k, u, d);
             mjd_transitionFD(model_.get(), d, -opt.state_step, 0, Abk, nullptr, Cbk, nullptr);
           });
           w.steps += 1 + nx;
-          CheckStep(*d, full[0], seq_index, k, "mjd_transitionFD");
+          CheckStep(*d, t, seq_index, k, "mjd_transitionFD");
           Eigen::Map<RowMatrix> Af(Ak, nx, nx), Abm(Abk, nx, nx);
           Eigen::Map<RowMatrix> Cf(Ck, ns, nx), Cbm(Cbk, ns, nx);
           for (int c = 0; c < nx; ++c) {
@@ -575,16 +636,16 @@ void Simulator::MatrixJacobian(int seq_index, const Trajectory& nom, const Jacob
         // parameter columns: base pass at x_k with the nominal model, then one step per parameter
         // that skips the stages before the one the parameter enters
         CallMujoco([&] {
-          mj_setState(model_.get(), d, full, kFullStateSig);
+          RestoreStep(*model_, dims_, nom, k, u, d);
           mj_forward(model_.get(), d);
         });
         ++w.steps;
         auto side = [&](mjModel* m, int skip, double sign, double h, Eigen::VectorXd& dx,
                         Eigen::VectorXd& dy) {
-          SetFullState(m, d, full);
+          RestoreStep(*m, dims_, nom, k, u, d);
           StepSkip(m, d, skip, !options_.sensors);
           ++w.steps;
-          CheckStep(*d, full[0], seq_index, k, "perturbed step");
+          CheckStep(*d, t, seq_index, k, "perturbed step");
           CountSolve(*m, *d, &chunk_solver[kk]);
           GetPhysics(*model_, *d, w.xp.data());
           TangentDifference(*model_, nom.states.row(k + 1).data(), w.xp.data(), sign / h,
@@ -656,6 +717,29 @@ void Simulator::MatrixJacobian(int seq_index, const Trajectory& nom, const Jacob
 void Simulator::Jacobians(const std::vector<SequenceInput>& sequences,
                           const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
                           std::vector<Sensitivity>* out) {
+  JacobiansImpl(sequences, nominal, opt, out, nullptr);
+}
+
+void Simulator::RolloutAndJacobians(const std::vector<SequenceInput>& sequences,
+                                    const JacobianOptions& opt, std::vector<Trajectory>* nominal,
+                                    std::vector<Sensitivity>* out) {
+  // pipelined only where it can change something and the mode does not depend on the contacts
+  // the rollouts will find (ChooseJacobianMode at either end of the contact share)
+  const int ncol = params_.size() + (opt.initial_state ? dims_.nx : 0);
+  const JacobianMode mode = ChooseJacobianMode(opt, 0.0);
+  if (pool_.size() == 1 || ncol == 0 || mode != JacobianMode::kDirectional ||
+      ChooseJacobianMode(opt, 1.0) != mode || model_->nhistory > 0) {
+    Rollout(sequences, nominal);
+    Jacobians(sequences, *nominal, opt, out);
+    return;
+  }
+  SizeTrajectories(sequences, nominal);
+  JacobiansImpl(sequences, *nominal, opt, out, nominal);
+}
+
+void Simulator::JacobiansImpl(const std::vector<SequenceInput>& sequences,
+                              const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
+                              std::vector<Sensitivity>* out, std::vector<Trajectory>* rollouts) {
   CheckInputs(sequences);
   if (nominal.size() != sequences.size()) {
     throw std::invalid_argument("Jacobians: " + std::to_string(sequences.size()) +
@@ -664,7 +748,8 @@ void Simulator::Jacobians(const std::vector<SequenceInput>& sequences,
   }
   const int np = params_.size(), nx = dims_.nx, ns = options_.sensors ? dims_.ns : 0;
   const int ncol = np + (opt.initial_state ? nx : 0);
-  const JacobianMode mode = ChooseJacobianMode(opt, ContactFraction(nominal));
+  // pipelined: the rollouts are still to come, and the mode is the same for any contact share
+  const JacobianMode mode = ChooseJacobianMode(opt, rollouts ? 0.0 : ContactFraction(nominal));
   if (mode == JacobianMode::kMatrix &&
       (model_->opt.integrator == mjINT_RK4 || model_->nhistory > 0)) {
     throw std::invalid_argument(
@@ -688,7 +773,8 @@ void Simulator::Jacobians(const std::vector<SequenceInput>& sequences,
   out->assign(sequences.size(), Sensitivity());
   for (size_t i = 0; i < sequences.size(); ++i) {
     const Trajectory& tr = nominal[i];
-    if (tr.T != sequences[i].ctrl.rows() || tr.full.rows() != tr.T + 1) {
+    if (tr.T != sequences[i].ctrl.rows() || tr.step.rows() != tr.T + 1 ||
+        tr.inputs.size() != dims_.ninput) {
       throw std::invalid_argument("Jacobians: nominal trajectory " + std::to_string(i) +
                                   " does not match its sequence (call Rollout first)");
     }
@@ -731,10 +817,11 @@ void Simulator::Jacobians(const std::vector<SequenceInput>& sequences,
       });
     }
     for (size_t i = 0; i < sequences.size(); ++i) {
-      MatrixJacobian(static_cast<int>(i), nominal[i], opt, steps, &(*out)[i], &perturbed[i]);
+      MatrixJacobian(sequences[i].ctrl, static_cast<int>(i), nominal[i], opt, steps, &(*out)[i],
+                     &perturbed[i]);
     }
   } else {
-    ColumnJacobians(sequences, nominal, opt, mode, steps, out, &perturbed);
+    ColumnJacobians(sequences, nominal, opt, mode, steps, out, &perturbed, rollouts);
   }
   for (size_t i = 0; i < sequences.size(); ++i) {
     for (std::string& w : SolverWarnings(*model_, nominal[i].solver, perturbed[i])) {
@@ -765,7 +852,8 @@ void Simulator::CheckZeroColumns(const std::vector<Sensitivity>& out) const {
 void Simulator::ColumnJacobians(const std::vector<SequenceInput>& sequences,
                                 const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
                                 JacobianMode mode, const Eigen::VectorXd& steps,
-                                std::vector<Sensitivity>* out, std::vector<SolverStats>* solver) {
+                                std::vector<Sensitivity>* out, std::vector<SolverStats>* solver,
+                                std::vector<Trajectory>* rollouts) {
   const int ncol = (*out)[0].ncol, ns = options_.sensors ? dims_.ns : 0;
 
   // directional and whole-rollout: one task per (sequence, column)
@@ -785,18 +873,43 @@ void Simulator::ColumnJacobians(const std::vector<SequenceInput>& sequences,
   // each task writes its own column and its own report slot, so no two tasks share an output
   const int nseq = static_cast<int>(sequences.size());
   std::vector<TaskReport> reports(static_cast<size_t>(nseq) * ncol);
-  pool_.ParallelFor(nseq * ncol, [&](int worker, int task) {
-    const int i = task / ncol, col = task % ncol;
-    Worker& w = *workers_[worker];
-    OnWorker(w, [&] {
-      if (mode == JacobianMode::kDirectional) {
-        DirectionalColumn(w, i, nominal[i], opt, col, steps, &(*out)[i], &reports[task]);
-      } else {
-        WholeRolloutColumn(w, sequences[i], i, nominal[i], opt, col, steps, &(*out)[i],
-                           &reports[task]);
+  // pipelined (rollouts given, directional mode only): the rollouts are the first tasks, so every
+  // column is handed out after its rollout started on another worker, and follows it step by step
+  const int nroll = rollouts ? nseq : 0;
+  std::unique_ptr<std::atomic<int>[]> ready(new std::atomic<int>[nroll]);
+  for (int i = 0; i < nroll; ++i) ready[i].store(0);
+  std::vector<std::exception_ptr> rollout_error(nroll);
+  try {
+    pool_.ParallelFor(nroll + nseq * ncol, [&](int worker, int t) {
+      Worker& w = *workers_[worker];
+      if (t < nroll) {
+        try {
+          RolloutTask(w, sequences[t], t, &(*rollouts)[t], &ready[t]);
+        } catch (...) {
+          rollout_error[t] = std::current_exception();
+          throw;
+        }
+        return;
       }
+      const int task = t - nroll, i = task / ncol, col = task % ncol;
+      OnWorker(w, [&] {
+        if (mode == JacobianMode::kDirectional) {
+          DirectionalColumn(w, sequences[i].ctrl, i, nominal[i], opt, col, steps, &(*out)[i],
+                            &reports[task], rollouts ? &ready[i] : nullptr);
+        } else {
+          WholeRolloutColumn(w, sequences[i], i, nominal[i], opt, col, steps, &(*out)[i],
+                             &reports[task]);
+        }
+      });
     });
-  });
+  } catch (...) {
+    // a failed rollout is reported as Rollout would (every rollout ran: they are the first tasks),
+    // before a perturbed step that failed next to it
+    for (const std::exception_ptr& e : rollout_error) {
+      if (e) std::rethrow_exception(e);
+    }
+    throw;
+  }
   for (int task = 0; task < nseq * ncol; ++task) {
     Sensitivity& s = (*out)[task / ncol];
     const TaskReport& r = reports[task];

@@ -13,7 +13,8 @@
 // selected parameters (in ParameterSet order) followed, if requested, by the nx tangent directions
 // of x_0. Three ways to compute them, equal up to finite-difference error (tested):
 // - kDirectional: one perturbed step per column per time step, from the stored nominal state moved
-//   along h*S_k with the parameter at p+h. Cost ~ T*ncol steps; parallel over columns.
+//   along h*S_k with the parameter at p+h. Cost ~ T*ncol steps; parallel over columns, which
+//   RolloutAndJacobians starts behind their rollouts (each step once x_{k+1} is recorded).
 // - kMatrix: A_k, C_k from mjd_transitionFD and F_k, G_k by one perturbed step per parameter that
 //   skips the pipeline stages the parameter cannot affect; then the chain. Parallel over time
 //   steps.
@@ -108,13 +109,24 @@ struct SequenceInput {
 };
 
 struct Trajectory {
-  int T = 0;              // samples
-  RowMatrix states;       // (T+1) x (nq+nv+na): x_0 .. x_T
-  RowMatrix sensors;      // T x nsensordata: y_0 .. y_{T-1} (0 columns when sensors are off)
-  RowMatrix full;         // (T+1) x nfull: full state (kFullStateSig) before step k, with u_k set
-  std::vector<int> ncon;  // T: contacts found in step k (at x_k), to detect contact-set changes
-  SolverStats solver;     // constraint solves of the T steps
+  int T = 0;               // samples
+  RowMatrix states;        // (T+1) x (nq+nv+na): x_0 .. x_T
+  RowMatrix sensors;       // T x nsensordata: y_0 .. y_{T-1} (0 columns when sensors are off)
+  RowMatrix step;          // (T+1) x nstep: step state (core/state.h) before step k: time, ...
+  Eigen::VectorXd inputs;  // ninput: the inputs held during the rollout (kInputSig)
+  std::vector<int> ncon;   // T: contacts found in step k (at x_k), to detect contact-set changes
+  SolverStats solver;      // constraint solves of the T steps
 };
+
+// Writes into d what step k of tr reads (0 <= k < tr.T): the physics vector x_k, the step state
+// and the controls ctrl (nu, u_k), so that a step of m from d repeats step k (with m's
+// parameters). The inputs are not written: d must hold tr.inputs already (RestoreInputs; mj_step
+// never changes them). Copies only: no allocation, no MuJoCo error for a model of tr's sizes.
+void RestoreStep(const mjModel& m, const StateDims& dims, const Trajectory& tr, int k,
+                 const double* ctrl, mjData* d);
+
+// writes tr.inputs into d (once before restoring steps of tr)
+void RestoreInputs(const mjModel& m, const StateDims& dims, const Trajectory& tr, mjData* d);
 
 // the share of time steps of these trajectories with contacts, or a change of the contact count
 // at the next step (where forward matrix mode differences both sides)
@@ -187,6 +199,14 @@ class Simulator {
   Sensitivity Jacobians(const SequenceInput& sequence, const Trajectory& nominal,
                         const JacobianOptions& options);
 
+  // Rollout and then Jacobians, with the same results bit for bit, in one parallel pass where
+  // that is faster: with more than one thread in directional mode (whatever the contacts), the
+  // columns of a sequence start while its rollout runs and follow it step by step, so that a
+  // single sequence's rollout no longer waits alone. Failure as Rollout and Jacobians.
+  void RolloutAndJacobians(const std::vector<SequenceInput>& sequences,
+                           const JacobianOptions& options, std::vector<Trajectory>* nominal,
+                           std::vector<Sensitivity>* out);
+
   // the mode kAuto resolves to for these options (deterministic: counts only). contact_fraction:
   // the share of time steps with contacts near (there forward matrix mode differences both
   // sides); < 0: 1 if the model can have contacts, else 0. Jacobians() passes the share measured
@@ -228,20 +248,33 @@ class Simulator {
   void OnWorker(Worker& w, Task&& task) const;
   void SetInitialState(mjData* d, const InitialState& x0) const;
   void RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq, int seq_index,
-                  RowMatrix* states, RowMatrix* sensors, RowMatrix* full, std::vector<int>* ncon,
-                  SolverStats* solver) const;
-  void DirectionalColumn(Worker& w, int seq_index, const Trajectory& nom,
+                  RowMatrix* states, RowMatrix* sensors, RowMatrix* step, std::vector<int>* ncon,
+                  SolverStats* solver, std::atomic<int>* progress = nullptr) const;
+  // checks the inputs and sizes the trajectories of Rollout
+  void SizeTrajectories(const std::vector<SequenceInput>& sequences,
+                        std::vector<Trajectory>* out) const;
+  // one rollout task; progress (optional): state rows recorded, kRolloutFailed when it throws
+  void RolloutTask(Worker& w, const SequenceInput& seq, int seq_index, Trajectory* tr,
+                   std::atomic<int>* progress) const;
+  // Jacobians; rollouts (sized, not simulated yet) are simulated in the same pass when given
+  void JacobiansImpl(const std::vector<SequenceInput>& sequences,
+                     const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
+                     std::vector<Sensitivity>* out, std::vector<Trajectory>* rollouts);
+  void DirectionalColumn(Worker& w, const RowMatrix& ctrl, int seq_index, const Trajectory& nom,
                          const JacobianOptions& opt, int col, const Eigen::VectorXd& steps,
-                         Sensitivity* out, TaskReport* report) const;
+                         Sensitivity* out, TaskReport* report,
+                         const std::atomic<int>* ready = nullptr) const;
   void WholeRolloutColumn(Worker& w, const SequenceInput& seq, int seq_index, const Trajectory& nom,
                           const JacobianOptions& opt, int col, const Eigen::VectorXd& steps,
                           Sensitivity* out, TaskReport* report) const;
-  void MatrixJacobian(int seq_index, const Trajectory& nom, const JacobianOptions& opt,
-                      const Eigen::VectorXd& steps, Sensitivity* out, SolverStats* solver);
+  void MatrixJacobian(const RowMatrix& ctrl, int seq_index, const Trajectory& nom,
+                      const JacobianOptions& opt, const Eigen::VectorXd& steps, Sensitivity* out,
+                      SolverStats* solver);
   void ColumnJacobians(const std::vector<SequenceInput>& sequences,
                        const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
                        JacobianMode mode, const Eigen::VectorXd& steps,
-                       std::vector<Sensitivity>* out, std::vector<SolverStats>* solver);
+                       std::vector<Sensitivity>* out, std::vector<SolverStats>* solver,
+                       std::vector<Trajectory>* rollouts = nullptr);
   void CheckZeroColumns(const std::vector<Sensitivity>& out) const;
   // throws Cancelled when the cancel flag is set
   void CheckCancel() const;

@@ -8,9 +8,10 @@ namespace mjsysid {
 
 namespace {
 
-int FullStateSize(const mjModel& m) {
+int StateSize(const mjModel& m, unsigned int sig) {
+  if (sig == 0) return 0;
   int size = 0;
-  CallMujoco([&] { size = mj_stateSize(&m, kFullStateSig); });
+  CallMujoco([&] { size = mj_stateSize(&m, static_cast<int>(sig)); });
   return size;
 }
 
@@ -24,7 +25,11 @@ StateDims::StateDims(const mjModel& m)
       ns(static_cast<int>(m.nsensordata)),
       nphys(nq + nv + na),
       nx(2 * nv + na),
-      nfull(FullStateSize(m)) {}
+      nfull(StateSize(m, kFullStateSig)),
+      step_extra_sig(m.nplugin > 0 ? kStepExtraSig | kInputSig : kStepExtraSig),
+      input_sig(m.nplugin > 0 ? 0 : kInputSig),
+      nstep(1 + nv + StateSize(m, step_extra_sig)),
+      ninput(StateSize(m, input_sig)) {}
 
 void GetPhysics(const mjModel& m, const mjData& d, double* x) {
   mju_copy(x, d.qpos, static_cast<int>(m.nq));
@@ -44,6 +49,25 @@ void GetFullState(const mjModel* m, const mjData* d, double* state) {
 
 void SetFullState(const mjModel* m, mjData* d, const double* state) {
   CallMujoco([=] { mj_setState(m, d, state, kFullStateSig); });
+}
+
+void GetStepState(const mjModel& m, const StateDims& dims, const mjData& d, double* step) {
+  step[0] = d.time;
+  mju_copy(step + 1, d.qacc_warmstart, dims.nv);
+  // the extras only where the model has them (mj_getState walks every state element)
+  if (dims.nstep > 1 + dims.nv) {
+    CallMujoco(
+        [&] { mj_getState(&m, &d, step + 1 + dims.nv, static_cast<int>(dims.step_extra_sig)); });
+  }
+}
+
+void SetStepState(const mjModel& m, const StateDims& dims, mjData* d, const double* step) {
+  d->time = step[0];
+  mju_copy(d->qacc_warmstart, step + 1, dims.nv);
+  if (dims.nstep > 1 + dims.nv) {
+    CallMujoco(
+        [&] { mj_setState(&m, d, step + 1 + dims.nv, static_cast<int>(dims.step_extra_sig)); });
+  }
 }
 
 void TangentDifference(const mjModel& m, const double* x1, const double* x2, double inv_scale,

@@ -20,17 +20,32 @@ namespace mjsysid {
 // row-major dense matrix: row k of a trajectory is sample k (and Ceres wants row-major Jacobians)
 using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
-// the state signature saved for every recorded step
+// everything a step reads (mjSTATE_INTEGRATION): saved and restored whole by GetFullState
 constexpr unsigned int kFullStateSig = mjSTATE_INTEGRATION;
+
+// What a step reads splits in four (together exactly kFullStateSig; tested):
+// - the physics vector [qpos, qvel, act] (GetPhysics);
+// - the controls u_k (mjSTATE_CTRL), the caller's input;
+// - the step state: time, qacc_warmstart and, where the model has them, history buffers, plugin
+//   and plastic state: what a step changes besides the physics vector (GetStepState);
+// - the inputs held during a rollout: applied forces, equality activation, mocap poses and user
+//   data (kInputSig), which mj_step never writes. A model with plugins (which may write them)
+//   records them in the step state instead, and StateDims::input_sig is 0.
+constexpr unsigned int kStepExtraSig = mjSTATE_HISTORY | mjSTATE_PLUGIN | mjSTATE_PLASTIC;
+constexpr unsigned int kInputSig = mjSTATE_USER & ~static_cast<unsigned int>(mjSTATE_CTRL);
 
 // sizes of one model's state spaces
 struct StateDims {
   explicit StateDims(const mjModel& m);
   int nq, nv, na, nu;
-  int ns;     // nsensordata
-  int nphys;  // nq + nv + na: physics vector
-  int nx;     // 2 nv + na: tangent vector
-  int nfull;  // mj_stateSize(m, kFullStateSig)
+  int ns;                       // nsensordata
+  int nphys;                    // nq + nv + na: physics vector
+  int nx;                       // 2 nv + na: tangent vector
+  int nfull;                    // mj_stateSize(m, kFullStateSig)
+  unsigned int step_extra_sig;  // kStepExtraSig, with kInputSig added for a model with plugins
+  unsigned int input_sig;       // kInputSig, or 0 for a model with plugins
+  int nstep;                    // 1 + nv + mj_stateSize(m, step_extra_sig): the step state
+  int ninput;                   // mj_stateSize(m, input_sig)
 };
 
 // reads the physics vector [qpos, qvel, act] of d into x (length nphys)
@@ -44,6 +59,13 @@ void GetFullState(const mjModel* m, const mjData* d, double* state);
 
 // writes the full state (kFullStateSig, length StateDims::nfull) into d
 void SetFullState(const mjModel* m, mjData* d, const double* state);
+
+// reads the step state [time, qacc_warmstart (nv), extras (step_extra_sig)] of d into step
+// (length StateDims::nstep)
+void GetStepState(const mjModel& m, const StateDims& dims, const mjData& d, double* step);
+
+// writes the step state (length StateDims::nstep) into d
+void SetStepState(const mjModel& m, const StateDims& dims, mjData* d, const double* step);
 
 // dx = (x2 (-) x1) * inv_scale in tangent space; x1, x2 physics vectors, dx of length nx
 void TangentDifference(const mjModel& m, const double* x1, const double* x2, double inv_scale,

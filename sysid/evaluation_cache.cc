@@ -195,6 +195,10 @@ void EvaluationCache::Seed(int segment, const double* z, const double* x0, Traje
   c.key = KeyOf(segment, z, x0);
   c.tr = std::move(tr);
   c.s = std::move(s);
+  // state rows only where a continuity or state residual reads them (the caller's Jacobian had
+  // them for its own checks): (T+1) nx ncol numbers per segment not kept
+  const Segment& seg = (*segments_)[segment];
+  if (seg.next < 0 && !seg.state_rows) c.s.DxDp = RowMatrix();
   const int np = models_[(*segments_)[segment].model].sim->parameters().size();
   c.has_jacobians = c.s.ncol == np && c.s.ncol > 0;
 }

@@ -106,6 +106,7 @@ class EvaluationCache {
 
   // Stores a rollout computed elsewhere at z and x0 (Problem::Prepare's rollouts at the initial
   // values) with its Jacobians when s holds every parameter column (segments without x_0 columns).
+  // DxDp is dropped unless the segment reads it (continuity or fitted states).
   void Seed(int segment, const double* z, const double* x0, Trajectory tr, Sensitivity s);
 
  private:

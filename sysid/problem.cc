@@ -485,8 +485,17 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
     }
     if (ins.empty()) continue;
     std::vector<Trajectory> trs;
-    mo.sim->Rollout(ins, &trs);
-    for (size_t i = 0; i < which.size(); ++i) initial[which[i]] = trs[i];
+    JacobianOptions jo = options.jacobian;
+    jo.zero_column_is_error = false;
+    jo.state_jacobians = true;
+    std::vector<Sensitivity> sens;
+    const bool fitted_here = mo.sim->parameters().size() > 0;
+    if (fitted_here) {
+      // the columns follow the rollouts (core/simulator.h), instead of waiting for the last one
+      mo.sim->RolloutAndJacobians(ins, jo, &trs, &sens);
+    } else {
+      mo.sim->Rollout(ins, &trs);
+    }
     // fitted sensors that jump at contact events (sysid/contact_channels.h)
     std::vector<std::string> fitted;
     for (int q : which) {
@@ -497,12 +506,8 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
     for (std::string& w : DiscontinuousChannelWarnings(mo.sim->model(), fitted, trs)) {
       I.prepare_warnings.push_back((I.models.size() > 1 ? "model '" + mo.name + "': " : "") + w);
     }
-    if (mo.sim->parameters().size() == 0) continue;
-    JacobianOptions jo = options.jacobian;
-    jo.zero_column_is_error = false;
-    jo.state_jacobians = true;
-    std::vector<Sensitivity> sens;
-    mo.sim->Jacobians(ins, trs, jo, &sens);
+    for (size_t i = 0; i < which.size(); ++i) initial[which[i]] = std::move(trs[i]);
+    if (!fitted_here) continue;
     for (const Sensitivity& s : sens) {
       for (int j = 0; j < mo.sim->parameters().size(); ++j) {
         if (!s.DxDp.col(j).isZero(0) || (s.DyDp.rows() && !s.DyDp.col(j).isZero(0))) {

@@ -591,6 +591,86 @@ TEST(SimulatorTest, ResultsAreBitIdenticalForAnyThreadCount) {
   }
 }
 
+// RolloutAndJacobians (columns pipelined behind their rollouts at 2 and 3 threads) gives what
+// Rollout then Jacobians give at 1 thread, bit for bit: one and three sequences, parameter and
+// initial-state columns, a model in contact (box_floor: the mode may not depend on the contacts)
+TEST(SimulatorTest, PipelinedColumnsEqualRolloutThenJacobiansBitForBit) {
+  struct Case {
+    const char* model;
+    std::vector<ParameterSpec> params;
+    int nseq;
+  };
+  const std::vector<Case> cases = {
+      {"arm5.xml", {Spec("joint_armature", "j2"), Spec("body_mass", "link3")}, 1},
+      {"arm5.xml", {Spec("joint_damping", "j4")}, 3},
+      {"box_floor.xml", {Spec("geom_friction", "box")}, 2}};
+  for (const Case& c : cases) {
+    ModelPtr model = LoadModel(kModels + "/" + c.model);
+    std::vector<SequenceInput> seqs(c.nseq);
+    for (int i = 0; i < c.nseq; ++i) seqs[i].ctrl = SineControls(*model, 150 + 40 * i, 0.6);
+    JacobianOptions opt;
+    opt.mode = JacobianMode::kDirectional;
+    opt.initial_state = true;
+    Simulator serial(*model, c.params);
+    std::vector<Trajectory> tr1;
+    std::vector<Sensitivity> s1;
+    serial.Rollout(seqs, &tr1);
+    serial.Jacobians(seqs, tr1, opt, &s1);
+    for (int threads : {2, 3}) {
+      SimulatorOptions so;
+      so.threads = threads;
+      Simulator sim(*model, c.params, so);
+      std::vector<Trajectory> tr;
+      std::vector<Sensitivity> s;
+      sim.RolloutAndJacobians(seqs, opt, &tr, &s);
+      ASSERT_EQ(tr.size(), tr1.size());
+      for (int i = 0; i < c.nseq; ++i) {
+        const std::string where = std::string(c.model) + " seq " + std::to_string(i);
+        EXPECT_TRUE(tr[i].states == tr1[i].states) << where;
+        EXPECT_TRUE(tr[i].sensors == tr1[i].sensors) << where;
+        EXPECT_TRUE(tr[i].step == tr1[i].step) << where;
+        EXPECT_TRUE(tr[i].ncon == tr1[i].ncon) << where;
+        EXPECT_TRUE(s[i].DyDp == s1[i].DyDp) << where;
+        EXPECT_TRUE(s[i].DxDp == s1[i].DxDp) << where;
+        EXPECT_EQ(s[i].kinks, s1[i].kinks) << where;
+        EXPECT_EQ(s[i].warnings, s1[i].warnings) << where;
+      }
+    }
+  }
+}
+
+// a pipelined rollout that diverges is the SimulationError of Rollout (its columns stop instead of
+// waiting), and the simulator then gives the results of a fresh one
+TEST(SimulatorTest, PipelinedDivergenceIsASimulationErrorAndTheSimulatorStaysUsable) {
+  ModelPtr model = LoadModel(kModels + "/pendulum.xml");
+  model->actuator_ctrllimited[0] = 0;
+  const std::vector<ParameterSpec> params = {Spec("joint_damping", "hinge")};
+  SimulatorOptions so;
+  so.threads = 2;
+  Simulator sim(*model, params, so);
+  JacobianOptions opt;
+  opt.mode = JacobianMode::kDirectional;
+  RowMatrix bad = RowMatrix::Zero(300, 1);
+  bad.bottomRows(100).setConstant(1e200);  // from step 200 on
+  std::vector<Trajectory> tr;
+  std::vector<Sensitivity> s;
+  try {
+    sim.RolloutAndJacobians({SequenceInput{sim.ReferenceState(), bad}}, opt, &tr, &s);
+    FAIL() << "expected SimulationError";
+  } catch (const SimulationError& e) {
+    EXPECT_EQ(e.step(), 200) << e.what();
+  }
+  const std::vector<SequenceInput> good = {{sim.ReferenceState(), SineControls(*model, 200, 0.5)}};
+  sim.RolloutAndJacobians(good, opt, &tr, &s);
+  Simulator fresh(*model, params);
+  std::vector<Trajectory> tr1;
+  std::vector<Sensitivity> s1;
+  fresh.Rollout(good, &tr1);
+  fresh.Jacobians(good, tr1, opt, &s1);
+  EXPECT_TRUE(tr[0].states == tr1[0].states);
+  EXPECT_TRUE(s[0].DyDp == s1[0].DyDp);
+}
+
 // ---------------------------------------------------------------------------------------------
 // skip what the scene does not need
 

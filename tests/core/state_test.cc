@@ -83,6 +83,55 @@ TEST(StepSkipTest, SkipAfterForwardEqualsFullStep) {
   for (int i = 0; i < m->nv; ++i) EXPECT_EQ(a->qvel[i], b->qvel[i]) << i;
 }
 
+// the four parts of what a step reads (physics, controls, step state, inputs) are exactly the
+// full state, with no element twice, on models with and without activations and history buffers
+TEST(StateSplitTest, PartsCoverTheFullStateOnce) {
+  for (const char* name : {"pendulum.xml", "box_floor.xml", "dcmotor.xml", "servo_delay.xml"}) {
+    ModelPtr m = LoadModel(kModels + "/" + name);
+    const StateDims dims(*m);
+    const unsigned int physics = mjSTATE_QPOS | mjSTATE_QVEL | mjSTATE_ACT;
+    const unsigned int step = mjSTATE_TIME | mjSTATE_WARMSTART | dims.step_extra_sig;
+    EXPECT_EQ(physics | mjSTATE_CTRL | step | dims.input_sig, kFullStateSig) << name;
+    EXPECT_EQ(physics & step, 0u) << name;
+    EXPECT_EQ(step & dims.input_sig, 0u) << name;
+    EXPECT_EQ((step | dims.input_sig) & mjSTATE_CTRL, 0u) << name;
+    EXPECT_EQ(dims.nphys + dims.nu + dims.nstep + dims.ninput, dims.nfull) << name;
+  }
+}
+
+// restoring physics, step state, controls and inputs into another mjData repeats the step bit for
+// bit (contacts, warm start, history buffers of a delayed servo)
+TEST(StateSplitTest, RestoredStepRepeatsTheStepBitForBit) {
+  for (const char* name : {"box_floor.xml", "servo_delay.xml", "arm7.xml"}) {
+    ModelPtr m = LoadModel(kModels + "/" + name);
+    const StateDims dims(*m);
+    DataPtr a = MakeData(*m), b = MakeData(*m);
+    for (int k = 0; k < 300; ++k) {
+      SineControls(*m, a.get(), k);
+      mj_step(m.get(), a.get());
+    }
+    SineControls(*m, a.get(), 300);
+    std::vector<double> x(dims.nphys), step(dims.nstep), inputs(dims.ninput);
+    GetPhysics(*m, *a, x.data());
+    GetStepState(*m, dims, *a, step.data());
+    if (dims.ninput) mj_getState(m.get(), a.get(), inputs.data(), dims.input_sig);
+    // b: another history, then the restore
+    for (int k = 0; k < 7; ++k) mj_step(m.get(), b.get());
+    if (dims.ninput) mj_setState(m.get(), b.get(), inputs.data(), dims.input_sig);
+    SetPhysics(*m, b.get(), x.data());
+    SetStepState(*m, dims, b.get(), step.data());
+    mju_copy(b->ctrl, a->ctrl, dims.nu);
+    mj_step(m.get(), a.get());
+    mj_step(m.get(), b.get());
+    for (int i = 0; i < m->nq; ++i) ASSERT_EQ(a->qpos[i], b->qpos[i]) << name << " " << i;
+    for (int i = 0; i < m->nv; ++i) ASSERT_EQ(a->qvel[i], b->qvel[i]) << name << " " << i;
+    for (int i = 0; i < m->na; ++i) ASSERT_EQ(a->act[i], b->act[i]) << name << " " << i;
+    for (int i = 0; i < m->nsensordata; ++i) {
+      ASSERT_EQ(a->sensordata[i], b->sensordata[i]) << name << " " << i;
+    }
+  }
+}
+
 // perturbing along a tangent direction and differencing recovers the direction, on quaternions
 TEST(TangentTest, PerturbThenDifferenceRoundTrips) {
   ModelPtr m = LoadModel(kModels + "/box_floor.xml");  // free joint: nq = 7, nv = 6

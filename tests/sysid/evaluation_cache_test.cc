@@ -153,6 +153,26 @@ TEST_F(EvaluationCacheTest, SeededEntryIsUsed) {
   EXPECT_TRUE(e.tr.sensors == tr.sensors);
 }
 
+// a seeded entry keeps the state rows (DxDp) only where a residual reads them: segment 2 (single
+// shooting, no fitted states) drops them and keeps DyDp bit for bit; segment 0 (continuity) keeps
+// both
+TEST_F(EvaluationCacheTest, SeededEntryKeepsStateRowsOnlyWhereRead) {
+  const Sensitivity s2 = DirectJacobians(2, x0_, z_[0], false, true);
+  ASSERT_EQ(s2.DxDp.rows(), 201 * 2);
+  cache_->Seed(2, z_.data(), x0_.data(), Direct(2, x0_, z_[0]), s2);
+  const EvaluationCache::Entry& e2 = cache_->Evaluate(2, z_.data(), x0_.data(), true);
+  EXPECT_TRUE(e2.has_jacobians);
+  EXPECT_EQ(e2.s.DxDp.size(), 0);
+  EXPECT_TRUE(e2.s.DyDp == s2.DyDp);
+
+  const Sensitivity s0 = DirectJacobians(0, x0_, z_[0], false, true);
+  cache_->Seed(0, z_.data(), x0_.data(), Direct(0, x0_, z_[0]), s0);
+  const EvaluationCache::Entry& e0 = cache_->Evaluate(0, z_.data(), x0_.data(), true);
+  EXPECT_TRUE(e0.s.DxDp == s0.DxDp);
+  EXPECT_TRUE(e0.s.DyDp == s0.DyDp);
+  EXPECT_EQ(sim_->StepCount(), 0);
+}
+
 // a divergent point is an entry that failed with the core's message, not an exception
 TEST_F(EvaluationCacheTest, DivergenceIsRecorded) {
   const std::vector<double> wild = {0.3, 1e300};

@@ -305,13 +305,14 @@ double StepSeconds(const mjModel& m, const SequenceInput& seq, int repeats,
 }
 
 // the perturbed step of matrix mode for parameter 0 of a Simulator: after a full mj_forward at
-// x_k with the nominal model, mj_setState and StepSkip from the parameter's stage with the
+// x_k with the nominal model, RestoreStep and StepSkip from the parameter's stage with the
 // perturbed model. Once() times two loops over the trajectory, with and without the perturbed
 // step, and returns the difference, so that no clock is read inside the loop.
 class SkipStep {
  public:
-  SkipStep(const Simulator& sim, const Trajectory& nom)
-      : m_(sim.model()), nom_(nom), plus_(CopyModel(m_)), d_(MakeData(m_)) {
+  SkipStep(const Simulator& sim, const Trajectory& nom, const RowMatrix& ctrl)
+      : m_(sim.model()), dims_(m_), nom_(nom), ctrl_(ctrl), plus_(CopyModel(m_)), d_(MakeData(m_)) {
+    RestoreInputs(m_, dims_, nom_, d_.get());
     const double p = sim.GetParameters()[0];
     const double h = sim.ParameterSteps(JacobianOptions())[0];
     sim.parameters().WriteOne(plus_.get(), d_.get(), 0, p + h);
@@ -328,11 +329,10 @@ class SkipStep {
   double Loop(bool perturbed) {
     const double t0 = Now();
     for (int k = 0; k < nom_.T; ++k) {
-      const double* full = nom_.full.row(k).data();
-      mj_setState(&m_, d_.get(), full, kFullStateSig);
+      RestoreStep(m_, dims_, nom_, k, ctrl_.row(k).data(), d_.get());
       mj_forward(&m_, d_.get());
       if (perturbed) {
-        mj_setState(plus_.get(), d_.get(), full, kFullStateSig);
+        RestoreStep(*plus_, dims_, nom_, k, ctrl_.row(k).data(), d_.get());
         StepSkip(plus_.get(), d_.get(), stage_, false);
       }
     }
@@ -340,7 +340,9 @@ class SkipStep {
   }
 
   const mjModel& m_;
+  const StateDims dims_;
   const Trajectory& nom_;
+  const RowMatrix& ctrl_;
   ModelPtr plus_;
   DataPtr d_;
   int stage_ = mjSTAGE_NONE;
@@ -494,7 +496,7 @@ std::vector<Row> BenchModel(const std::string& name, const std::string& path,
       }
       if (history) continue;  // no matrix mode: no crossover
       // the perturbed step of matrix mode alone (forward differences: one per parameter)
-      SkipStep skip(sim1, nom1[0]);
+      SkipStep skip(sim1, nom1[0], seqs[0].ctrl);
       std::vector<double> tr, ts;
       for (int r = 0; r < settings.repeats; ++r) {
         tr.push_back(rollout());
