@@ -31,6 +31,7 @@
 #include "sysid/residual_model.h"
 #include "sysid/state_manifold.h"
 #include "sysid/state_residuals.h"
+#include "sysid/variable_manifold.h"
 
 namespace mjsysid {
 namespace {
@@ -487,9 +488,20 @@ FitResult Problem::Fit(const FitOptions& options) {
   po.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   PrefetchCallback prefetch(&I);
   po.evaluation_callback = &prefetch;
+  // log variables of kinds that enter the dynamics linearly take the relative step
+  // (sysid/variable_manifold.h) where the nominal rollouts are smooth (no contact: with contacts
+  // the residuals are not near-linear in p either); the manifold is declared before the problem,
+  // which does not own it
+  const bool smooth = ContactFraction(initial) == 0;
+  std::vector<bool> relative;
+  for (const FitParameter& p : I.params) relative.push_back(smooth && RelativeStep(p));
+  VariableManifold variable_manifold(std::move(relative));
   ceres::Problem problem(po);
   if (np) {
     problem.AddParameterBlock(I.z.data(), np);
+    if (variable_manifold.any_relative()) {
+      problem.SetManifold(I.z.data(), &variable_manifold);
+    }
     for (int g = 0; g < np; ++g) {
       const FitParameter& p = I.params[g];
       const double zl = I.ToZ(g, p.lower), zu = I.ToZ(g, p.upper);
