@@ -314,8 +314,9 @@ Row FitNumDiff(const Case& c, int max_iterations) {
   so.gradient_tolerance = b.options.gradient_tolerance;
   so.parameter_tolerance = b.options.parameter_tolerance;
   so.logging_type = ceres::SILENT;
-  so.max_num_line_search_step_size_iterations = 0;  // as sysid/problem.cc: no projected line
-                                                    // search (its gradient evaluations)
+  // no projected line search along bounded steps (its gradient evaluations: one Jacobian per
+  // trial length); sysid/problem.cc keeps it with quadratic interpolation (cost values only)
+  so.max_num_line_search_step_size_iterations = 0;
   ceres::Solver::Summary summary;
   ceres::Solve(so, &problem, &summary);
   row.wall_s = Seconds(t0);
@@ -572,6 +573,7 @@ int Main(int argc, char** argv) {
   std::string methods_arg = "ours,oracle,numdiff,peer";
   std::string out_dir = "results/bench", peer_dir, experiments = MJSYSID_EXPERIMENTS_DIR;
   std::vector<std::string> caps;
+  std::string ours_arg;
   app.add_option("--cases", cases_arg, "comma-separated experiment names")->capture_default_str();
   app.add_option("--methods", methods_arg, "comma-separated: ours, oracle, numdiff, peer")
       ->capture_default_str();
@@ -579,6 +581,9 @@ int Main(int argc, char** argv) {
   app.add_option("--peer-dir", peer_dir, "folder of the peer driver's results (<case>-<n>t/)");
   app.add_option("--experiments", experiments, "folder of the experiment files")
       ->capture_default_str();
+  app.add_option("--ours", ours_arg,
+                 "comma-separated configurations of ours to run, e.g. "
+                 "directional/forward/1,matrix/central/2 (default: all eight)");
   app.add_option("--max-iterations", caps, "per-case iteration cap, e.g. humanoid=10");
   CLI11_PARSE(app, argc, argv);
   std::string command;
@@ -598,6 +603,7 @@ int Main(int argc, char** argv) {
     cap[c.substr(0, eq)] = static_cast<int>(n);
   }
   const std::vector<std::string> cases = Split(cases_arg), methods = Split(methods_arg);
+  const std::vector<std::string> ours = Split(ours_arg);
   auto want = [&](const char* m) {
     return std::find(methods.begin(), methods.end(), m) != methods.end();
   };
@@ -636,6 +642,9 @@ int Main(int argc, char** argv) {
           for (int threads : {1, 2}) {
             const std::string m =
                 std::string("ours/") + JacobianModeName(mode) + (central ? "/central" : "/forward");
+            const std::string config = m.substr(5) + "/" + std::to_string(threads);
+            if (!ours.empty() && std::find(ours.begin(), ours.end(), config) == ours.end())
+              continue;
             add(FitOurs(c, m, mode, central, threads, max_it));
           }
         }
