@@ -23,6 +23,7 @@
 #include "core/text.h"
 #include "sysid/cost_functions.h"
 #include "sysid/derived_inertials.h"
+#include "sysid/equation_error.h"
 #include "sysid/evaluation_cache.h"
 #include "sysid/fit_status.h"
 #include "sysid/interval_check.h"
@@ -112,6 +113,42 @@ void Problem::AddParameter(const FitParameter& p) {
 void Problem::AddMeasurement(const FitMeasurement& me) { impl_->measurements.push_back(me); }
 
 void Problem::AddSequence(const FitSequence& s) { impl_->sequences.push_back(s); }
+
+// initial: auto (FitParameter::initial_auto): the equation-error start of each model's `auto`
+// parameters from its sequences' logged qpos and qvel (sysid/equation_error.h); a parameter that
+// cannot be solved starts at its model's value. The marks are cleared, so that a refit (auto
+// multiple shooting) starts from the same values. Returns one line per model, for the warnings.
+static std::vector<std::string> SolveAutoStarts(Problem::Impl& I) {
+  std::vector<std::string> notes;
+  std::vector<bool> done(I.params.size(), false);
+  for (const Problem::Impl::Model& mo : I.models) {
+    std::vector<FitParameter> params;
+    std::vector<int> global, which;
+    for (size_t g = 0; g < I.params.size(); ++g) {
+      if (!I.params[g].AppliesTo(mo.name)) continue;
+      if (I.params[g].initial_auto && !done[g]) which.push_back(static_cast<int>(params.size()));
+      global.push_back(static_cast<int>(g));
+      params.push_back(I.params[g]);
+    }
+    if (which.empty()) continue;
+    std::vector<const FitSequence*> sequences;
+    for (const FitSequence& s : I.sequences) {
+      if (s.model == mo.name) sequences.push_back(&s);
+    }
+    const EquationErrorStart start = SolveEquationError(*mo.model, params, which, sequences);
+    std::string kept;
+    for (int i : which) {
+      FitParameter& p = I.params[global[i]];
+      p.initial = start.values[i];
+      done[global[i]] = true;
+      if (!start.solved[i]) kept += (kept.empty() ? "" : ", ") + p.name;
+    }
+    notes.push_back("initial: auto (model '" + mo.name + "'): " + start.note +
+                    (kept.empty() ? "" : "; at the model's value: " + kept));
+  }
+  for (FitParameter& p : I.params) p.initial_auto = false;
+  return notes;
+}
 
 void Problem::Prepare(const FitOptions& options, Prepared* out) {
   Impl& I = *impl_;
@@ -461,6 +498,7 @@ FitResult Problem::Fit(const FitOptions& options) {
   Impl& I = *impl_;
   const auto start = std::chrono::steady_clock::now();
   FitResult result;
+  const std::vector<std::string> start_notes = SolveAutoStarts(I);
   Prepared prepared;
   Prepare(options, &prepared);
   const int np = static_cast<int>(I.params.size());
@@ -472,6 +510,7 @@ FitResult Problem::Fit(const FitOptions& options) {
   result.segment_reason = prepared.segment_reason;
 
   result.warnings = I.prepare_warnings;
+  result.warnings.insert(result.warnings.end(), start_notes.begin(), start_notes.end());
   // a start on a bound: the first step may leave the bound at once or never (a projected
   // gradient pointing outwards)
   for (const FitParameter& p : I.params) {

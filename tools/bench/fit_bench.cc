@@ -163,12 +163,15 @@ void MeasureStep(Case* c) {
 }
 
 // ours and the whole-rollout oracle: the product's own fit with one Jacobian setting
+// auto_start: every parameter `initial: auto` (the equation-error start, sysid/equation_error.h)
 Row FitOurs(const Case& c, const std::string& method, JacobianMode mode, bool central, int threads,
-            int max_iterations) {
+            int max_iterations, bool auto_start = false) {
   Row row;
   row.method = method;
   row.threads = threads;
-  run::BuiltProblem b = run::BuildProblem(c.config, threads);
+  io::ExperimentConfig config = c.config;
+  for (io::ParameterSpec& p : config.parameters) p.initial_auto = p.initial_auto || auto_start;
+  run::BuiltProblem b = run::BuildProblem(config, threads);
   FitOptions o = b.options;
   o.jacobian.mode = mode;
   o.jacobian.central = central;
@@ -185,6 +188,9 @@ Row FitOurs(const Case& c, const std::string& method, JacobianMode mode, bool ce
     row.initial_cost = r.initial_cost;
     row.final_cost = r.final_cost;
     row.status = r.converged ? "converged" : "stopped";
+    for (const std::string& w : r.warnings) {
+      if (w.rfind("initial: auto", 0) == 0) row.note += (row.note.empty() ? "" : "; ") + w;
+    }
     for (size_t i = 0; i < b.parameters.size(); ++i) {
       row.estimates.emplace_back(r.parameters[i].name, r.parameters[i].value);
     }
@@ -709,13 +715,14 @@ int Main(int argc, char** argv) {
   CLI::App app{"bench_fit: run time against parameter error of whole fits, per method"};
   std::string cases_arg =
       "spring_mass,pendulum,double_pendulum,cartpole,arm5,box_floor,humanoid,arm7";
-  std::string methods_arg = "ours,oracle,numdiff,peer";
+  std::string methods_arg = "ours,auto,oracle,numdiff,peer";
   std::string out_dir = "results/bench", peer_dir, experiments = MJSYSID_EXPERIMENTS_DIR;
   std::vector<std::string> caps;
   std::string ours_arg;
   double idle_wait = 30;
   app.add_option("--cases", cases_arg, "comma-separated experiment names")->capture_default_str();
-  app.add_option("--methods", methods_arg, "comma-separated: ours, oracle, numdiff, peer")
+  app.add_option("--methods", methods_arg,
+                 "comma-separated: ours, auto (ours from initial: auto), oracle, numdiff, peer")
       ->capture_default_str();
   app.add_option("--out", out_dir, "output folder")->capture_default_str();
   app.add_option("--peer-dir", peer_dir, "folder of the peer driver's results (<case>-<n>t/)");
@@ -810,6 +817,13 @@ int Main(int argc, char** argv) {
           }
         }
       }
+    }
+    if (want("auto")) {
+      // the equation-error start: every parameter `initial: auto`, directional forward, 1 thread
+      add(measure(1, [&] {
+        return FitOurs(c, "ours/directional/forward+auto", JacobianMode::kDirectional, false, 1,
+                       max_it, true);
+      }));
     }
     if (want("oracle")) {
       add(measure(2, [&] {
