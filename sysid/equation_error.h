@@ -35,8 +35,9 @@ struct EquationErrorStart {
 // params: the fit's parameters (values p0 = initial, or the model's value where the initial is
 // not finite); which: the indices to solve (others stay fixed at p0); sequences: the logged
 // sequences of this model. Samples are thinned to at most max_samples. Solves nothing (note says
-// why) when no sequence has qpos and qvel, a parameter's kind is not linear, or the regressor is
-// rank deficient. Throws MuJoCo errors (core/mujoco_env.h) only for a broken model.
+// why) when no sequence has qpos and qvel, no parameter's kind is linear, a logged sample has
+// contacts (their inverse forces are not linear in p and amplify the noise of qacc), or the
+// regressor is rank deficient. Throws MuJoCo errors (core/mujoco_env.h) only for a broken model.
 EquationErrorStart SolveEquationError(const mjModel& model, const std::vector<FitParameter>& params,
                                       const std::vector<int>& which,
                                       const std::vector<const FitSequence*>& sequences,

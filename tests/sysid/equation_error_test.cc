@@ -88,7 +88,8 @@ TEST(EquationErrorTest, PendulumFromAutoRecoversWithFewerIterations) {
 }
 
 // without logged qpos/qvel nothing is solved and the note says why; a kind that does not enter
-// the inverse dynamics linearly (geom friction) is not solved either
+// the inverse dynamics linearly (geom friction) is not solved either, nor anything where the
+// logged motion has contacts
 TEST(EquationErrorTest, NothingSolvedWithoutStatesOrForNonlinearKinds) {
   InstallMujocoHandlers();
   ModelPtr m = LoadModel(kModels + "/pendulum.xml");
@@ -108,6 +109,22 @@ TEST(EquationErrorTest, NothingSolvedWithoutStatesOrForNonlinearKinds) {
   const EquationErrorStart nonlinear = SolveEquationError(*box, {friction}, {0}, {});
   EXPECT_FALSE(nonlinear.solved[0]);
   EXPECT_NE(nonlinear.note.find("linearly"), std::string::npos) << nonlinear.note;
+  // the box resting on the floor (qpos0: centre 0.1 m up, half size 0.1 m; at rest): contacts in
+  // every sample, so its mass is not solved
+  FitParameter mass("mass", ParameterSpec{"body_mass", "box", "", 0, ""}, 1.5);
+  FitSequence rest;
+  rest.model = "box_floor";
+  rest.x0.qpos = Eigen::Map<const Eigen::VectorXd>(box->qpos0, box->nq);
+  rest.x0.qvel = Eigen::VectorXd::Zero(box->nv);
+  rest.ctrl = RowMatrix::Zero(40, box->nu);
+  rest.measured = RowMatrix::Zero(40, box->nsensordata);
+  rest.qpos = RowMatrix(40, box->nq);
+  for (int k = 0; k < 40; ++k) rest.qpos.row(k) = rest.x0.qpos.transpose();
+  rest.qvel = RowMatrix::Zero(40, box->nv);
+  const EquationErrorStart contact = SolveEquationError(*box, {mass}, {0}, {&rest});
+  EXPECT_FALSE(contact.solved[0]);
+  EXPECT_EQ(contact.values[0], 1.5);
+  EXPECT_NE(contact.note.find("contacts (30 of 30 samples)"), std::string::npos) << contact.note;
 }
 
 }  // namespace
