@@ -24,6 +24,7 @@
 #include "sysid/contact_channels.h"
 #include "sysid/cost_functions.h"
 #include "sysid/derived_inertials.h"
+#include "sysid/equation_error.h"
 #include "sysid/evaluation_cache.h"
 #include "sysid/fit_status.h"
 #include "sysid/interval_check.h"
@@ -32,6 +33,7 @@
 #include "sysid/residual_model.h"
 #include "sysid/state_manifold.h"
 #include "sysid/state_residuals.h"
+#include "sysid/variable_manifold.h"
 
 namespace mjsysid {
 namespace {
@@ -172,6 +174,42 @@ void Problem::AddControlDelay(const FitControlDelay& delay) {
     }
   }
   impl_->control_delays.push_back(delay);
+}
+
+// initial: auto (FitParameter::initial_auto): the equation-error start of each model's `auto`
+// parameters from its sequences' logged qpos and qvel (sysid/equation_error.h); a parameter that
+// cannot be solved starts at its model's value. The marks are cleared, so that a refit (auto
+// multiple shooting) starts from the same values. Returns one line per model, for the warnings.
+static std::vector<std::string> SolveAutoStarts(Problem::Impl& I) {
+  std::vector<std::string> notes;
+  std::vector<bool> done(I.params.size(), false);
+  for (const Problem::Impl::Model& mo : I.models) {
+    std::vector<FitParameter> params;
+    std::vector<int> global, which;
+    for (size_t g = 0; g < I.params.size(); ++g) {
+      if (!I.params[g].AppliesTo(mo.name)) continue;
+      if (I.params[g].initial_auto && !done[g]) which.push_back(static_cast<int>(params.size()));
+      global.push_back(static_cast<int>(g));
+      params.push_back(I.params[g]);
+    }
+    if (which.empty()) continue;
+    std::vector<const FitSequence*> sequences;
+    for (const FitSequence& s : I.sequences) {
+      if (s.model == mo.name) sequences.push_back(&s);
+    }
+    const EquationErrorStart start = SolveEquationError(*mo.model, params, which, sequences);
+    std::string kept;
+    for (int i : which) {
+      FitParameter& p = I.params[global[i]];
+      p.initial = start.values[i];
+      done[global[i]] = true;
+      if (!start.solved[i]) kept += (kept.empty() ? "" : ", ") + p.name;
+    }
+    notes.push_back("initial: auto (model '" + mo.name + "'): " + start.note +
+                    (kept.empty() ? "" : "; at the model's value: " + kept));
+  }
+  for (FitParameter& p : I.params) p.initial_auto = false;
+  return notes;
 }
 
 void Problem::Prepare(const FitOptions& options, Prepared* out) {
@@ -589,6 +627,7 @@ FitResult Problem::Fit(const FitOptions& options) {
   Impl& I = *impl_;
   const auto start = std::chrono::steady_clock::now();
   FitResult result;
+  const std::vector<std::string> start_notes = SolveAutoStarts(I);
   Prepared prepared;
   Prepare(options, &prepared);
   const int np = static_cast<int>(I.params.size());
@@ -600,6 +639,7 @@ FitResult Problem::Fit(const FitOptions& options) {
   result.segment_reason = prepared.segment_reason;
 
   result.warnings = I.prepare_warnings;
+  result.warnings.insert(result.warnings.end(), start_notes.begin(), start_notes.end());
   // a start on a bound: the first step may leave the bound at once or never (a projected
   // gradient pointing outwards)
   for (const FitParameter& p : I.params) {
@@ -616,9 +656,20 @@ FitResult Problem::Fit(const FitOptions& options) {
   po.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   PrefetchCallback prefetch(&I);
   po.evaluation_callback = I.shards ? I.shards->Callback() : &prefetch;
+  // log variables of kinds that enter the dynamics linearly take the relative step
+  // (sysid/variable_manifold.h) where the nominal rollouts are smooth (no contact: with contacts
+  // the residuals are not near-linear in p either); the manifold is declared before the problem,
+  // which does not own it
+  const bool smooth = ContactFraction(initial) == 0;
+  std::vector<bool> relative;
+  for (const FitParameter& p : I.params) relative.push_back(smooth && RelativeStep(p));
+  VariableManifold variable_manifold(std::move(relative));
   ceres::Problem problem(po);
   if (np) {
     problem.AddParameterBlock(I.z.data(), np);
+    if (variable_manifold.any_relative()) {
+      problem.SetManifold(I.z.data(), &variable_manifold);
+    }
     for (int g = 0; g < np; ++g) {
       const FitParameter& p = I.params[g];
       const double zl = I.ToZ(g, p.lower), zu = I.ToZ(g, p.upper);

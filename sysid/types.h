@@ -102,6 +102,10 @@ struct FitParameter {
   bool has_prior = false;
   double prior_mean = 0, prior_sigma = 1;  // Gaussian prior residual (p - mean) / sigma
   std::vector<std::string> models;         // models it applies to; empty = all
+  // `initial: auto`: Problem::Fit starts it at the equation-error estimate from the logged qpos
+  // and qvel (sysid/equation_error.h; kinds that enter the inverse dynamics linearly), else at
+  // the model's value; `initial` is ignored (NaN from the experiment file) and then set
+  bool initial_auto = false;
 };
 
 // measurement terms of one sensor: measured = gain * simulated(t - delay) + bias

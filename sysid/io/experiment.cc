@@ -377,12 +377,14 @@ ParameterSpec Parser::ParseParameter(const Field& f, const ExperimentConfig& c) 
   }
 
   // value, bounds, transform
-  r.Require("initial", "the starting value of the fit");
+  r.Require("initial", "the starting value of the fit, or auto");
   const Field fi = r.Get("initial");
-  p.initial = Finite(fi);
+  // `auto`: the equation-error start (sysid/equation_error.h), decided by the fit; NaN until then
+  p.initial_auto = fi.node.IsScalar() && fi.node.Scalar() == "auto";
+  p.initial = p.initial_auto ? std::numeric_limits<double>::quiet_NaN() : Finite(fi);
   if (r.Has("bounds")) {
     Bounds(r.Get("bounds"), &p.lower, &p.upper);
-    if (p.initial < p.lower || p.initial > p.upper) {
+    if (!p.initial_auto && (p.initial < p.lower || p.initial > p.upper)) {
       Fail(fi.mark,
            fi.path + ": " + FormatNumber(p.initial) + " is outside bounds [" +
                FormatNumber(p.lower) + ", " + FormatNumber(p.upper) + "]",
@@ -398,7 +400,7 @@ ParameterSpec Parser::ParseParameter(const Field& f, const ExperimentConfig& c) 
       Fail(ft.mark, ft.path + ": log needs a lower bound > 0, got " + FormatNumber(p.lower),
            "raise the lower bound above 0, or use transform: none or scale");
     }
-    if (!(p.initial > 0)) {
+    if (!p.initial_auto && !(p.initial > 0)) {
       Fail(ft.mark, ft.path + ": log needs initial > 0, got " + FormatNumber(p.initial),
            "use transform: none or scale for parameters that can be <= 0");
     }

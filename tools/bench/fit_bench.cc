@@ -33,11 +33,13 @@
 #include <ctime>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 #include <thread>
+#include <tuple>
 #include <vector>
 
 #include "core/mujoco_env.h"
@@ -75,6 +77,11 @@ struct Row {
   double t_step_us = NAN;    // nominal step time of the case
   double floor_ratio = NAN;  // (wall / iteration) / ((1 + np) * samples * t_step / threads)
   std::vector<std::pair<std::string, double>> estimates;
+  // the load just before the row (MachineLoad): cores kept busy by other processes over one
+  // second, the 1-minute load average, and whether the row ran idle (others <= 0.5 core per
+  // thread of the row)
+  double others_cores = NAN, load1 = NAN;
+  bool idle = true;
 };
 
 // the case: experiment, truth, data
@@ -156,12 +163,15 @@ void MeasureStep(Case* c) {
 }
 
 // ours and the whole-rollout oracle: the product's own fit with one Jacobian setting
+// auto_start: every parameter `initial: auto` (the equation-error start, sysid/equation_error.h)
 Row FitOurs(const Case& c, const std::string& method, JacobianMode mode, bool central, int threads,
-            int max_iterations) {
+            int max_iterations, bool auto_start = false) {
   Row row;
   row.method = method;
   row.threads = threads;
-  run::BuiltProblem b = run::BuildProblem(c.config, threads);
+  io::ExperimentConfig config = c.config;
+  for (io::ParameterSpec& p : config.parameters) p.initial_auto = p.initial_auto || auto_start;
+  run::BuiltProblem b = run::BuildProblem(config, threads);
   FitOptions o = b.options;
   o.jacobian.mode = mode;
   o.jacobian.central = central;
@@ -178,6 +188,9 @@ Row FitOurs(const Case& c, const std::string& method, JacobianMode mode, bool ce
     row.initial_cost = r.initial_cost;
     row.final_cost = r.final_cost;
     row.status = r.converged ? "converged" : "stopped";
+    for (const std::string& w : r.warnings) {
+      if (w.rfind("initial: auto", 0) == 0) row.note += (row.note.empty() ? "" : "; ") + w;
+    }
     for (size_t i = 0; i < b.parameters.size(); ++i) {
       row.estimates.emplace_back(r.parameters[i].name, r.parameters[i].value);
     }
@@ -314,8 +327,9 @@ Row FitNumDiff(const Case& c, int max_iterations) {
   so.gradient_tolerance = b.options.gradient_tolerance;
   so.parameter_tolerance = b.options.parameter_tolerance;
   so.logging_type = ceres::SILENT;
-  so.max_num_line_search_step_size_iterations = 0;  // as sysid/problem.cc: no projected line
-                                                    // search (its gradient evaluations)
+  // no projected line search along bounded steps (its gradient evaluations: one Jacobian per
+  // trial length); sysid/problem.cc keeps it with quadratic interpolation (cost values only)
+  so.max_num_line_search_step_size_iterations = 0;
   ceres::Solver::Summary summary;
   ceres::Solve(so, &problem, &summary);
   row.wall_s = Seconds(t0);
@@ -380,6 +394,10 @@ Row PeerRow(const Case& c, const std::string& dir, int threads, const std::strin
     if (params == t.end() || !params->is_object() || !params->contains(p.name)) continue;
     if (JsonNumber(params->at(p.name), "estimate", &v)) row.estimates.emplace_back(p.name, v);
   }
+  // the load before the peer's run, as run_fit_benchmarks.sh measured it: "<others> <load1> <idle>"
+  std::ifstream load(dir + "/load.txt");
+  int idle = 1;
+  if (load >> row.others_cores >> row.load1 >> idle) row.idle = idle != 0;
   row.np = static_cast<int>(c.config.parameters.size());
   row.status = "done";
   row.note = "stops on its own tolerances";
@@ -396,6 +414,54 @@ std::string Num(double v, const char* fmt = "%.6g") {
   return buf;
 }
 
+// ---------------------------------------------------------------------------------------------
+// the load before each row
+
+// the jiffies of all cpus: {busy, total} from the first line of /proc/stat
+std::pair<double, double> CpuJiffies() {
+  std::ifstream in("/proc/stat");
+  std::string cpu;
+  in >> cpu;
+  double v[8] = {0, 0, 0, 0, 0, 0, 0, 0}, total = 0;
+  for (double& x : v) {
+    in >> x;
+    total += x;
+  }
+  return {total - v[3] - v[4], total};  // idle and iowait are not busy
+}
+
+// the cores other processes kept busy over `seconds` (this program sleeps meanwhile) and the
+// 1-minute load average (/proc/loadavg; it also counts this program's previous row for a minute,
+// which is why the decision uses the first number)
+std::pair<double, double> MachineLoad(double seconds) {
+  const auto [busy0, total0] = CpuJiffies();
+  std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
+  const auto [busy1, total1] = CpuJiffies();
+  const double cores = std::thread::hardware_concurrency();
+  const double others = total1 > total0 ? cores * (busy1 - busy0) / (total1 - total0) : NAN;
+  double load1 = NAN;
+  std::ifstream("/proc/loadavg") >> load1;
+  return {others, load1};
+}
+
+// before a row of `threads` threads: waits up to wait_s seconds for the machine to be idle for it
+// (other processes using <= 0.5 core per thread of the row) and records the load in the row;
+// not idle after the wait: the row says so in its note and runs anyway
+void WaitForIdle(int threads, double wait_s, Row* row) {
+  const auto t0 = Clock::now();
+  do {
+    std::tie(row->others_cores, row->load1) = MachineLoad(1.0);
+    row->idle = row->others_cores <= 0.5 * threads;
+  } while (!row->idle && Seconds(t0) < wait_s);
+}
+
+// the row's load note ("" when idle)
+std::string LoadNote(const Row& r) {
+  if (r.idle) return "";
+  return "not idle: others used " + Num(r.others_cores, "%.2f") + " cores, load average " +
+         Num(r.load1, "%.2f");
+}
+
 void PrintRow(const Row& r) {
   std::printf("%-16s %-28s %2d %-10s %9s %5d %12lld %11s %11s %10s %8s  %s\n", r.case_name.c_str(),
               r.method.c_str(), r.threads, r.status.c_str(), Num(r.wall_s, "%.3f").c_str(),
@@ -405,10 +471,66 @@ void PrintRow(const Row& r) {
   std::fflush(stdout);
 }
 
+// Per case and thread count: our fastest row against the fastest peer row (Ceres numeric diff,
+// mujoco.sysid in either parametrization) at the same number of threads, and our iterations
+// against the peer's fewest (any row). speedup = peer wall / our wall (> 1: ours is faster).
+struct Ratio {
+  std::string case_name;
+  int threads = 1;
+  const Row* ours = nullptr;
+  const Row* peer = nullptr;
+  int peer_fewest_iterations = 0;  // 0: no peer row finished
+  double speedup = NAN;
+};
+
+bool Finished(const Row& r) { return std::isfinite(r.wall_s) && r.iterations > 0; }
+bool IsOurs(const Row& r) { return r.method.rfind("ours/", 0) == 0; }
+bool IsPeer(const Row& r) {
+  return r.method.rfind("ceres-numdiff", 0) == 0 || r.method.rfind("mujoco.sysid", 0) == 0;
+}
+
+std::vector<Ratio> Ratios(const std::vector<std::string>& cases, const std::vector<Row>& rows) {
+  std::vector<Ratio> out;
+  for (const std::string& name : cases) {
+    int fewest = 0;
+    for (const Row& r : rows) {
+      if (r.case_name == name && IsPeer(r) && Finished(r)) {
+        fewest = fewest ? std::min(fewest, r.iterations) : r.iterations;
+      }
+    }
+    for (int threads : {1, 2}) {
+      Ratio q;
+      q.case_name = name;
+      q.threads = threads;
+      q.peer_fewest_iterations = fewest;
+      for (const Row& r : rows) {
+        if (r.case_name != name || r.threads != threads || !Finished(r)) continue;
+        if (IsOurs(r) && (!q.ours || r.wall_s < q.ours->wall_s)) q.ours = &r;
+        if (IsPeer(r) && (!q.peer || r.wall_s < q.peer->wall_s)) q.peer = &r;
+      }
+      if (q.ours && q.peer) q.speedup = q.peer->wall_s / q.ours->wall_s;
+      if (q.ours) out.push_back(q);
+    }
+  }
+  return out;
+}
+
+std::string RatioLine(const Ratio& q, const char* sep) {
+  std::ostringstream f;
+  f << q.case_name << sep << q.threads << sep << q.ours->method << sep
+    << Num(q.ours->wall_s, "%.3f") << sep << q.ours->iterations << sep
+    << (q.peer ? q.peer->method : std::string("n/a")) << sep
+    << (q.peer ? Num(q.peer->wall_s, "%.3f") : "") << sep << Num(q.speedup, "%.2f") << sep
+    << (q.peer_fewest_iterations ? std::to_string(q.peer_fewest_iterations) : "") << sep
+    << (q.ours->idle && (!q.peer || q.peer->idle) ? "" : "not idle");
+  return f.str();
+}
+
 void WriteCsv(const std::string& path, const std::vector<Row>& rows) {
   std::ostringstream f;
   f << "case,method,threads,status,wall_s,iterations,sim_steps,np,sequences,samples,t_step_us,"
-       "floor_ratio,initial_cost,final_cost,max_rel_error,rms_rel_error,note\n";
+       "floor_ratio,initial_cost,final_cost,max_rel_error,rms_rel_error,note,others_cores,load1,"
+       "idle\n";
   for (const Row& r : rows) {
     std::string note = r.note;
     std::replace(note.begin(), note.end(), ',', ';');
@@ -417,13 +539,16 @@ void WriteCsv(const std::string& path, const std::vector<Row>& rows) {
       << Num(r.wall_s) << ',' << r.iterations << ',' << r.steps << ',' << r.np << ',' << r.sequences
       << ',' << r.samples << ',' << Num(r.t_step_us) << ',' << Num(r.floor_ratio) << ','
       << Num(r.initial_cost, "%.10g") << ',' << Num(r.final_cost, "%.10g") << ','
-      << Num(r.max_rel_error) << ',' << Num(r.rms_rel_error) << ',' << note << '\n';
+      << Num(r.max_rel_error) << ',' << Num(r.rms_rel_error) << ',' << note << ','
+      << Num(r.others_cores, "%.3f") << ',' << Num(r.load1, "%.2f") << ',' << (r.idle ? 1 : 0)
+      << '\n';
   }
   io::WriteFileAtomically(path, f.str());
 }
 
 // the table as Markdown (BENCHMARKS.md is made from it)
-void WriteMarkdown(const std::string& path, const std::vector<Row>& rows) {
+void WriteMarkdown(const std::string& path, const std::vector<Row>& rows,
+                   const std::vector<Ratio>& ratios) {
   std::ostringstream f;
   f << "| case | method | threads | status | wall [s] | iterations | sim steps | final cost | "
        "max rel. error | time/iteration / floor | note |\n"
@@ -434,6 +559,11 @@ void WriteMarkdown(const std::string& path, const std::vector<Row>& rows) {
       << Num(r.final_cost, "%.6g") << " | " << Num(r.max_rel_error, "%.2e") << " | "
       << Num(r.floor_ratio, "%.2f") << " | " << r.note << " |\n";
   }
+  f << "\nOurs against the best peer at equal threads (speed-up = peer wall / our wall):\n\n"
+    << "| case | threads | ours (fastest) | wall [s] | iterations | best peer | wall [s] | "
+       "speed-up | peer's fewest iterations | load |\n"
+    << "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n";
+  for (const Ratio& q : ratios) f << "| " << RatioLine(q, " | ") << " |\n";
   io::WriteFileAtomically(path, f.str());
 }
 
@@ -447,7 +577,8 @@ std::string Machine() {
 }
 
 // the rows with the machine, versions and command; non-finite numbers as null
-void WriteJson(const std::string& path, const std::vector<Row>& rows, const std::string& command) {
+void WriteJson(const std::string& path, const std::vector<Row>& rows,
+               const std::vector<Ratio>& ratios, const std::string& command) {
   char date[32];
   const std::time_t now = std::time(nullptr);
   std::strftime(date, sizeof(date), "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&now));
@@ -482,7 +613,22 @@ void WriteJson(const std::string& path, const std::vector<Row>& rows, const std:
                          {"max_rel_error", r.max_rel_error},
                          {"rms_rel_error", r.rms_rel_error},
                          {"note", r.note},
+                         {"others_cores", r.others_cores},
+                         {"load1", r.load1},
+                         {"idle", r.idle},
                          {"estimates", estimates}});
+  }
+  j["ratios"] = nlohmann::ordered_json::array();
+  for (const Ratio& q : ratios) {
+    j["ratios"].push_back({{"case", q.case_name},
+                           {"threads", q.threads},
+                           {"ours", q.ours->method},
+                           {"ours_wall_s", q.ours->wall_s},
+                           {"ours_iterations", q.ours->iterations},
+                           {"peer", q.peer ? q.peer->method : ""},
+                           {"peer_wall_s", q.peer ? q.peer->wall_s : NAN},
+                           {"speedup", q.speedup},
+                           {"peer_fewest_iterations", q.peer_fewest_iterations}});
   }
   io::WriteFileAtomically(path, j.dump(2) + "\n");
 }
@@ -569,15 +715,26 @@ int Main(int argc, char** argv) {
   CLI::App app{"bench_fit: run time against parameter error of whole fits, per method"};
   std::string cases_arg =
       "spring_mass,pendulum,double_pendulum,cartpole,arm5,box_floor,humanoid,arm7";
-  std::string methods_arg = "ours,oracle,numdiff,peer";
+  std::string methods_arg = "ours,auto,oracle,numdiff,peer";
   std::string out_dir = "results/bench", peer_dir, experiments = MJSYSID_EXPERIMENTS_DIR;
   std::vector<std::string> caps;
+  std::string ours_arg;
+  double idle_wait = 30;
   app.add_option("--cases", cases_arg, "comma-separated experiment names")->capture_default_str();
-  app.add_option("--methods", methods_arg, "comma-separated: ours, oracle, numdiff, peer")
+  app.add_option("--methods", methods_arg,
+                 "comma-separated: ours, auto (ours from initial: auto), oracle, numdiff, peer")
       ->capture_default_str();
   app.add_option("--out", out_dir, "output folder")->capture_default_str();
   app.add_option("--peer-dir", peer_dir, "folder of the peer driver's results (<case>-<n>t/)");
   app.add_option("--experiments", experiments, "folder of the experiment files")
+      ->capture_default_str();
+  app.add_option("--ours", ours_arg,
+                 "comma-separated configurations of ours to run, e.g. "
+                 "directional/forward/1,matrix/central/2 (default: all eight)");
+  app.add_option("--idle-wait", idle_wait,
+                 "seconds to wait before each row for other processes to leave the cores it "
+                 "needs (<= 0.5 busy core per thread of the row); rows that still are not idle say "
+                 "so in their note")
       ->capture_default_str();
   app.add_option("--max-iterations", caps, "per-case iteration cap, e.g. humanoid=10");
   CLI11_PARSE(app, argc, argv);
@@ -598,6 +755,7 @@ int Main(int argc, char** argv) {
     cap[c.substr(0, eq)] = static_cast<int>(n);
   }
   const std::vector<std::string> cases = Split(cases_arg), methods = Split(methods_arg);
+  const std::vector<std::string> ours = Split(ours_arg);
   auto want = [&](const char* m) {
     return std::find(methods.begin(), methods.end(), m) != methods.end();
   };
@@ -613,13 +771,29 @@ int Main(int argc, char** argv) {
     Case c;
     try {
       c = LoadCase(experiments, name);
+      Row load;
+      WaitForIdle(1, idle_wait, &load);
+      if (!load.idle)
+        std::printf("%s: step time measured %s\n", name.c_str(), LoadNote(load).c_str());
       MeasureStep(&c);
     } catch (const std::exception& e) {
       std::fprintf(stderr, "bench_fit: case %s: %s\n", name.c_str(), e.what());
       return 2;
     }
     const int max_it = cap.count(name) ? cap[name] : 0;
+    // a row measured here: the load checked (and waited for) first
+    auto measure = [&](int threads, const std::function<Row()>& fit) {
+      Row before;
+      WaitForIdle(threads, idle_wait, &before);
+      Row r = fit();
+      r.others_cores = before.others_cores;
+      r.load1 = before.load1;
+      r.idle = before.idle;
+      return r;
+    };
     auto add = [&](Row r) {
+      const std::string load = LoadNote(r);
+      if (!load.empty()) r.note += (r.note.empty() ? "" : "; ") + load;
       r.case_name = name;
       r.sequences = c.sequences;
       r.samples = c.samples;
@@ -636,15 +810,27 @@ int Main(int argc, char** argv) {
           for (int threads : {1, 2}) {
             const std::string m =
                 std::string("ours/") + JacobianModeName(mode) + (central ? "/central" : "/forward");
-            add(FitOurs(c, m, mode, central, threads, max_it));
+            const std::string config = m.substr(5) + "/" + std::to_string(threads);
+            if (!ours.empty() && std::find(ours.begin(), ours.end(), config) == ours.end())
+              continue;
+            add(measure(threads, [&] { return FitOurs(c, m, mode, central, threads, max_it); }));
           }
         }
       }
     }
-    if (want("oracle")) {
-      add(FitOurs(c, "oracle/whole/forward", JacobianMode::kWholeRollout, false, 2, max_it));
+    if (want("auto")) {
+      // the equation-error start: every parameter `initial: auto`, directional forward, 1 thread
+      add(measure(1, [&] {
+        return FitOurs(c, "ours/directional/forward+auto", JacobianMode::kDirectional, false, 1,
+                       max_it, true);
+      }));
     }
-    if (want("numdiff")) add(FitNumDiff(c, max_it));
+    if (want("oracle")) {
+      add(measure(2, [&] {
+        return FitOurs(c, "oracle/whole/forward", JacobianMode::kWholeRollout, false, 2, max_it);
+      }));
+    }
+    if (want("numdiff")) add(measure(1, [&] { return FitNumDiff(c, max_it); }));
     if (want("peer")) {
       for (int threads : {1, 2}) {
         add(PeerRow(c, peer_dir + "/" + name + "-" + std::to_string(threads) + "t", threads,
@@ -653,8 +839,14 @@ int Main(int argc, char** argv) {
       add(PeerRow(c, peer_dir + "/" + name + "-phys-2t", 2, "mujoco.sysid/physical"));
     }
   }
-  WriteJson(out_dir + "/fit_bench.json", rows, command);
-  WriteMarkdown(out_dir + "/fit_bench.md", rows);
+  const std::vector<Ratio> ratios = Ratios(cases, rows);
+  std::printf(
+      "\nours against the best peer at equal threads (speed-up = peer wall / our wall)\n"
+      "case,threads,ours,wall_s,iterations,peer,peer_wall_s,speedup,peer_fewest_iterations,"
+      "load\n");
+  for (const Ratio& q : ratios) std::printf("%s\n", RatioLine(q, ",").c_str());
+  WriteMarkdown(out_dir + "/fit_bench.md", rows, ratios);
+  WriteJson(out_dir + "/fit_bench.json", rows, ratios, command);
   WriteSvg(out_dir + "/error_vs_time.svg", cases, rows);
   std::printf("wrote %s/{fit_bench.csv, fit_bench.json, fit_bench.md, error_vs_time.svg}\n",
               out_dir.c_str());

@@ -6,7 +6,14 @@
 # every one of our methods and the Ceres numeric-diff baseline and merges the peer's rows into
 # one table (stdout, OUT/fit_bench.csv, OUT/fit_bench.json, OUT/error_vs_time.svg).
 #
+# Every row runs on an idle machine where it can: before each row (peer runs here, ours in
+# bench_fit) it waits up to --idle-wait seconds (default 30) until other processes use at most
+# 0.5 core per thread of the row (busy time of /proc/stat over one second; the 1-minute load
+# average is recorded too but counts the previous row for a minute), and a row that still is not
+# idle says so in its note ("not idle: others used 1.20 cores, load average 2.31").
+#
 # usage: tools/bench/run_fit_benchmarks.sh [--out DIR] [--cases a,b,...] [--columns]
+#                                          [--idle-wait S]
 #   --columns  also run bench_jacobian_cost (cost of one Jacobian column per parameter kind, with
 #              and without stage skipping; ~3 min) into OUT/jacobian_cost.csv
 # Defaults: OUT=results/bench, every shipped experiment; the humanoid is capped at 5 iterations.
@@ -16,12 +23,14 @@ cd "$root"
 out=results/bench
 cases=spring_mass,pendulum,double_pendulum,cartpole,arm5,box_floor,humanoid,arm7
 columns=0
+idle_wait=30
 while (($#)); do
   case "$1" in
     --out) out="$2"; shift 2 ;;
     --cases) cases="$2"; shift 2 ;;
     --columns) columns=1; shift ;;
-    -h|--help) sed -n '2,12p' "$0"; exit 0 ;;
+    --idle-wait) idle_wait="$2"; shift 2 ;;
+    -h|--help) sed -n '2,19p' "$0"; exit 0 ;;
     *) echo "run_fit_benchmarks.sh: unknown argument '$1' (see --help)" >&2; exit 2 ;;
   esac
 done
@@ -32,6 +41,26 @@ cap_of() {
 }
 
 step() { printf '\n== %s\n' "$*"; }
+
+# the load before a run of $1 threads, as bench_fit measures it: waits up to $idle_wait s for other
+# processes to use <= 0.5 core per thread (busy jiffies of /proc/stat over 1 s: user nice system
+# irq softirq steal), then prints "<others' cores> <1-minute load average> <1: idle, 0: not>"
+machine_load() {
+  local threads="$1" start=$SECONDS s0 s1 line
+  while :; do
+    s0="$(head -1 /proc/stat)"
+    sleep 1
+    s1="$(head -1 /proc/stat)"
+    line="$(awk -v a="$s0" -v b="$s1" -v n="$(nproc)" -v t="$threads" \
+      -v l="$(cut -d' ' -f1 /proc/loadavg)" 'BEGIN {
+        split(a, x); split(b, y); busy = 0; total = 0
+        for (i = 2; i <= 9; i++) { d = y[i] - x[i]; total += d; if (i != 5 && i != 6) busy += d }
+        o = total > 0 ? n * busy / total : 0
+        printf "%.3f %s %d", o, l, (o <= 0.5 * t) }')"
+    if [[ "${line##* }" == 1 ]] || ((SECONDS - start >= idle_wait)); then break; fi
+  done
+  echo "$line"
+}
 step "dependencies (with the benchmark peer)"
 tools/bootstrap.sh --bench
 step "build (release preset)"
@@ -60,6 +89,7 @@ for c in ${cases//,/ }; do
     dir="$out/peer/$c-$run"
     rm -rf "$dir"
     mkdir -p "$dir"
+    machine_load "$t" >"$dir/load.txt"
     set +e
     .venv/bin/python tools/peer/mujoco_sysid_fit.py "experiments/$c.yaml" \
       "experiments/logs/$c.h5" --out "$dir" --threads "$t" --strict $transform \
@@ -82,7 +112,8 @@ done
 step "bench_fit (ours, oracle, Ceres numeric diff; peer rows merged)"
 cap_args=()
 for c in "${caps[@]}"; do cap_args+=(--max-iterations "$c"); done
-"$bin/bench_fit" --cases "$cases" --out "$out" --peer-dir "$out/peer" "${cap_args[@]}"
+"$bin/bench_fit" --cases "$cases" --out "$out" --peer-dir "$out/peer" --idle-wait "$idle_wait" \
+  "${cap_args[@]}"
 
 if ((columns)); then
   step "bench_jacobian_cost (one Jacobian column per parameter kind and mode)"
