@@ -1,7 +1,8 @@
 // `mpirun -n N sysid fit` through the real launcher (OpenMPI, TCP forced, --oversubscribe): the
 // sharded fit gives the estimates and iteration count of the fit on one rank with 1, 2 and 4 ranks
 // and 1 or 2 threads; bad input and what is not sharded end the run with exit 2 and the message;
-// a worker killed mid-fit ends the run naming the rank and host, its last checkpoint stays and
+// a parameter without effect on the data is found across the ranks' shares of the start; a worker
+// killed mid-fit ends the run naming the rank and host, its last checkpoint stays and
 // `--resume` continues it to the uninterrupted estimate; `sysid simulate` shards its rollouts.
 // Label `mpi` (docs/cluster.md).
 #include <gtest/gtest.h>
@@ -92,8 +93,9 @@ class MpiFitTest : public test::TempDirTest {
 
 // truth: the fit under mpirun with 1 rank and 1 thread; 2 and 4 ranks and 1 or 2 threads must give
 // every estimate to 1e-12 relative (measured: bitwise equal, the tree of sysid/mpi/shards.h), the
-// same iterations, intervals and status. The fit without MPI (one full Jacobian, Ceres' own QR)
-// differs by rounding only: measured 9e-11 relative, here within 1e-6 standard errors.
+// same iterations, intervals and status, and the same initial signals of every sequence. The fit
+// without MPI (one full Jacobian, Ceres' own QR) differs by rounding only: measured 9e-11 relative,
+// here within 1e-6 standard errors.
 TEST_F(MpiFitTest, SameEstimatesWithAnyRanksAndThreads) {
   Write(1500);
   const Ended ref =
@@ -128,6 +130,13 @@ TEST_F(MpiFitTest, SameEstimatesWithAnyRanksAndThreads) {
       const double v = want.parameters[i].value, se = want.parameters[i].std_error;
       EXPECT_NEAR(got.parameters[i].value, v, 1e-12 * std::abs(v));
       EXPECT_NEAR(got.parameters[i].std_error, se, 1e-12 * se);
+    }
+    // the start is sharded: rank 0 rolled out the other ranks' sequences at the initial values
+    // for the result only; the same bits as the one rank that simulated all of them
+    ASSERT_EQ(got.sequences.size(), want.sequences.size());
+    for (size_t q = 0; q < want.sequences.size(); ++q) {
+      EXPECT_TRUE(got.sequences[q].simulated_initial == want.sequences[q].simulated_initial)
+          << want.sequences[q].name;
     }
   }
 }
@@ -209,6 +218,30 @@ TEST_F(MpiFitTest, RefusesWhatIsNotShardedAndBadInput) {
   EXPECT_EQ(bad.code, 2) << bad.output;
   EXPECT_NE(bad.output.find("pendulum.h5"), std::string::npos) << bad.output;
   EXPECT_FALSE(fs::exists(Path("bad")));
+}
+
+// a parameter without effect on any sequence (the bob's sliding friction: the pendulum touches
+// nothing, so its Jacobian column is exactly zero). Each rank simulates only its own sequences at
+// the start; the ranks combine what they saw before the fit, so 1 and 2 ranks alike end with exit
+// 2, the message printed once (rank 0), no result folder
+TEST_F(MpiFitTest, NoEffectIsFoundAcrossRanks) {
+  Write(300);
+  std::string text = Experiment(300);
+  const std::string key = "parameters:\n";
+  text.insert(text.find(key) + key.size(),
+              "  - {name: bob_friction, target: geom_friction, object: bob, index: 0, initial: "
+              "1.0, bounds: [0.1, 2.0]}\n");
+  test::WriteFile(exp_, text);
+  for (int ranks : {1, 2}) {
+    SCOPED_TRACE(std::to_string(ranks) + " ranks");
+    const std::string out = Path("none" + std::to_string(ranks));
+    const Ended run = Shell(Mpirun(ranks) + kSysid + " fit " + exp_ + " --out " + out + " --quiet");
+    EXPECT_EQ(run.code, 2) << run.output;
+    const std::string message = "parameter 'bob_friction' has no effect";
+    EXPECT_NE(run.output.find(message), std::string::npos) << run.output;
+    EXPECT_EQ(run.output.find(message), run.output.rfind(message)) << run.output;
+    EXPECT_FALSE(fs::exists(out));
+  }
 }
 
 // the pid of the process of `rank` started with marker (its environment: OMPI_COMM_WORLD_RANK)
