@@ -220,10 +220,10 @@ TEST_F(MpiFitTest, RefusesWhatIsNotShardedAndBadInput) {
   EXPECT_FALSE(fs::exists(Path("bad")));
 }
 
-// a parameter without effect on any sequence (the bob's sliding friction: the pendulum touches
-// nothing, so its Jacobian column is exactly zero). Each rank simulates only its own sequences at
-// the start; the ranks combine what they saw before the fit, so 1 and 2 ranks alike end with exit
-// 2, the message printed once (rank 0), no result folder
+// Each rank simulates only its own sequences at the start; the ranks combine what they saw before
+// the fit. A parameter without effect on any sequence (the bob's sliding friction: the pendulum
+// touches nothing, so its Jacobian column is exactly zero): 1 and 2 ranks alike end with exit 2,
+// the message printed once (rank 0), no result folder
 TEST_F(MpiFitTest, NoEffectIsFoundAcrossRanks) {
   Write(300);
   std::string text = Experiment(300);
@@ -242,6 +242,37 @@ TEST_F(MpiFitTest, NoEffectIsFoundAcrossRanks) {
     EXPECT_EQ(run.output.find(message), run.output.rfind(message)) << run.output;
     EXPECT_FALSE(fs::exists(out));
   }
+  // a parameter that moves only rank 1's sequences: the motor's gear, with rank 0's two sequences
+  // undriven (simulated with amplitude 0: the gear's column is exactly zero there). Rank 0 alone
+  // would call it without effect; the ranks' logical or says it moves the data, so the 2-rank fit
+  // is not refused (exit 2 is bad input; measured: exit 4, the status jacobian_unreliable of this
+  // stick-slip fit, gear 1.11 +- 0.46 for truth 1) and gives the gear an interval
+  std::string still = Experiment(300);
+  still.replace(still.find("amplitude: 2.0"), 14, "amplitude: 0.0");
+  still.replace(still.find("logs/pendulum.h5"), 16, "logs/still.h5");
+  test::WriteFile(Path("still.yaml"), still);
+  const Ended sim = Shell(kSysid + " simulate " + Path("still.yaml"));
+  ASSERT_EQ(sim.code, 0) << sim.output;
+  io::Log log = io::ReadLog(Path("logs/pendulum.h5"));
+  const io::Log undriven = io::ReadLog(Path("logs/still.h5"));
+  ASSERT_EQ(log.sequences.size(), 4u);
+  for (int q : {0, 1}) log.sequences[q] = undriven.sequences[q];
+  ASSERT_EQ(log.sequences[0].ctrl.norm(), 0.0);
+  io::WriteLog(Path("logs/pendulum.h5"), log);
+  text = Experiment(300);
+  text.insert(text.find(key) + key.size(),
+              "  - {name: gear, target: actuator_gear, object: torque, initial: 1.3, bounds: "
+              "[0.5, 2.0]}\n");
+  test::WriteFile(exp_, text);
+  const Ended run = Shell(Mpirun(2) + kSysid + " fit " + exp_ + " --out " + Path("gear") +
+                          " --quiet --threads 1");
+  EXPECT_NE(run.code, 2) << run.output;
+  EXPECT_EQ(run.output.find("has no effect"), std::string::npos) << run.output;
+  const io::FitResultFile got = io::ReadResult(Path("gear"));
+  ASSERT_EQ(got.parameters.size(), 4u);
+  EXPECT_EQ(got.parameters[0].name, "gear");
+  EXPECT_GT(got.parameters[0].std_error, 0.0) << "the gear has an interval";
+  EXPECT_TRUE(std::isfinite(got.parameters[0].std_error));
 }
 
 // the pid of the process of `rank` started with marker (its environment: OMPI_COMM_WORLD_RANK)
