@@ -14,6 +14,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <limits>
 #include <map>
 #include <memory>
@@ -489,6 +490,10 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
       seg.T = std::min(len, T - k0);
       seg.state_rows = !I.state_channels[q].empty();
       const bool free = k0 > 0 || options.estimate_initial_state;
+      if (free && initial[q].states.rows() == 0) {
+        std::fprintf(stderr, "sysid: broken invariant: a sharded start with a free state\n");
+        std::abort();  // ShardStart is single shooting without estimated initial states
+      }
       if (free) {
         seg.block = static_cast<int>(I.states.size());
         std::vector<double> x;

@@ -104,7 +104,9 @@ class Problem {
   // grids are built; empty: all), and does not itself check that every parameter moves the data:
   // it leaves Impl::moves (per parameter: some owned sequence sees it) for the caller to combine
   // over all shards and pass to CheckParametersMove (sysid/problem_impl.h). Fit rolls out the
-  // other sequences at the initial values for the result only (rollouts, no Jacobians).
+  // other sequences at the initial values for the result only (rollouts, no Jacobians). Single
+  // shooting without estimated initial states only (segment starts come from the rollouts of the
+  // sequence; Prepare aborts on a free state of a sequence it did not simulate).
   void ShardStart(std::function<std::vector<bool>(const Impl&)> owned);
 
  private:
