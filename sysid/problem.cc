@@ -14,6 +14,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <limits>
 #include <map>
 #include <memory>
@@ -43,6 +44,29 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // multiple shooting: a continuity gap (tangent space: m, rad, m/s, rad/s) above this at the
 // estimate is reported as segments that do not join
 constexpr double kContinuityGapWarning = 1e-3;
+
+// A sharded start (Problem::ShardStart) simulated only the owned sequences at the initial values:
+// the others' rollouts there (no Jacobians), for the result's initial signals. Leaves the
+// simulators at the initial parameters.
+void RolloutUnowned(Problem::Impl* impl, std::vector<Trajectory>* initial) {
+  Problem::Impl& I = *impl;
+  std::vector<double> z0(I.params.size());
+  for (size_t g = 0; g < z0.size(); ++g) z0[g] = I.ToZ(static_cast<int>(g), I.params[g].initial);
+  for (auto& mo : I.models) {
+    std::vector<SequenceInput> ins;
+    std::vector<int> which;
+    for (size_t q = 0; q < I.sequences.size(); ++q) {
+      if (I.sequences[q].model != mo.name || (*initial)[q].states.rows() > 0) continue;
+      ins.push_back({I.sequences[q].x0, I.grids[q].ctrl});
+      which.push_back(static_cast<int>(q));
+    }
+    if (ins.empty()) continue;
+    ApplyVariables(I.params, mo.global, z0.data(), mo.sim.get());
+    std::vector<Trajectory> trs;
+    mo.sim->Rollout(ins, &trs);
+    for (size_t i = 0; i < which.size(); ++i) (*initial)[which[i]] = std::move(trs[i]);
+  }
+}
 
 // Reduces the sequence's matrices (T x nsensordata, the model's layout) to the columns of the
 // fitted sensors, in the order given, and fills their names, dimensions and the sample times.
@@ -159,7 +183,27 @@ void Problem::AddMeasurement(const FitMeasurement& me) { impl_->measurements.pus
 
 void Problem::AddSequence(const FitSequence& s) { impl_->sequences.push_back(s); }
 
-void Problem::DistributeResiduals(ResidualShards* shards) { impl_->shards = shards; }
+void Problem::DistributeResiduals(ResidualShards* shards) {
+  impl_->shards = shards;
+  if (shards) {
+    ShardStart([shards](const Impl& impl) { return shards->OwnedSequences(impl); });
+  }
+}
+
+void Problem::ShardStart(std::function<std::vector<bool>(const Impl&)> owned) {
+  impl_->owned_sequences = std::move(owned);
+}
+
+void CheckParametersMove(const Problem::Impl& I, const std::vector<bool>& moves) {
+  for (size_t g = 0; g < I.params.size(); ++g) {
+    if (g >= moves.size() || !moves[g]) {
+      throw ParameterError("parameter '" + I.params[g].name +
+                           "' has no effect on the simulated states or sensors of any sequence "
+                           "(its Jacobian column is exactly zero): remove it or add data that "
+                           "excites it");
+    }
+  }
+}
 
 Problem::Impl* Problem::PrepareOnly(const FitOptions& options) {
   Prepared prepared;
@@ -508,16 +552,21 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
     }
   }
 
-  // initial rollouts at the initial parameters; the Jacobian there must see every parameter
+  // initial rollouts at the initial parameters (of the owned sequences: a sharded start); the
+  // Jacobian there must see every parameter
   initial.assign(I.sequences.size(), Trajectory());
   std::vector<Sensitivity> initial_sensitivity(I.sequences.size());  // parameter columns
   std::vector<bool> moves(np, false);
+  const std::vector<bool> owned = I.owned_sequences ? I.owned_sequences(I) : std::vector<bool>();
+  // a share without sequences of a model still names the mode
+  if (I.owned_sequences) out->jacobian_mode = JacobianModeName(options.jacobian.mode);
   for (auto& mo : I.models) {
     ApplyVariables(I.params, mo.global, I.z.data(), mo.sim.get());
     std::vector<SequenceInput> ins;
     std::vector<int> which;
     for (size_t q = 0; q < I.sequences.size(); ++q) {
       if (I.sequences[q].model != mo.name) continue;
+      if (!owned.empty() && !owned[q]) continue;
       ins.push_back({I.sequences[q].x0, I.grids[q].ctrl});
       which.push_back(static_cast<int>(q));
     }
@@ -556,14 +605,9 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
     out->jacobian_mode = JacobianModeName(sens.empty() ? jo.mode : sens[0].mode);
     for (size_t i = 0; i < which.size(); ++i) initial_sensitivity[which[i]] = std::move(sens[i]);
   }
-  for (int g = 0; g < np; ++g) {
-    if (!moves[g]) {
-      throw ParameterError("parameter '" + I.params[g].name +
-                           "' has no effect on the simulated states or sensors of any sequence "
-                           "(its Jacobian column is exactly zero): remove it or add data that "
-                           "excites it");
-    }
-  }
+  // a sharded start leaves the check to its caller, with moves combined over every shard
+  I.moves = moves;
+  if (!I.owned_sequences) CheckParametersMove(I, moves);
 
   // segments (multiple shooting) and state blocks
   I.segments.clear();
@@ -587,6 +631,10 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
       seg.T = std::min(len, T - k0);
       seg.state_rows = !I.state_channels[q].empty();
       const bool free = k0 > 0 || options.estimate_initial_state;
+      if (free && initial[q].states.rows() == 0) {
+        std::fprintf(stderr, "sysid: broken invariant: a sharded start with a free state\n");
+        std::abort();  // ShardStart is single shooting without estimated initial states
+      }
       if (free) {
         seg.block = static_cast<int>(I.states.size());
         std::vector<double> x;
@@ -973,6 +1021,7 @@ FitResult Problem::Fit(const FitOptions& options) {
   // multiple shooting also the largest continuity gap at the estimate: segments that do not join
   // describe no single trajectory (a chaotic fit stuck far from the data), which the user must
   // be told (docs/stress.md)
+  RolloutUnowned(&I, &prepared.initial);
   double worst_gap = 0;
   std::string worst_gap_where;
   for (size_t q = 0; q < I.sequences.size(); ++q) {

@@ -105,6 +105,15 @@ class Problem {
   // (owned by this Problem): for a worker that evaluates a share of the segments (sysid/mpi/).
   // Throws like Fit on bad input.
   Impl* PrepareOnly(const FitOptions& options);
+  // A sharded start (sysid/mpi/): Prepare rolls out and differentiates at the initial values only
+  // the sequences owned(impl) marks (one bool per sequence, called once the simulators and sample
+  // grids are built; empty: all), and does not itself check that every parameter moves the data:
+  // it leaves Impl::moves (per parameter: some owned sequence sees it) for the caller to combine
+  // over all shards and pass to CheckParametersMove (sysid/problem_impl.h). Fit rolls out the
+  // other sequences at the initial values for the result only (rollouts, no Jacobians). Single
+  // shooting without estimated initial states only (segment starts come from the rollouts of the
+  // sequence; Prepare aborts on a free state of a sequence it did not simulate).
+  void ShardStart(std::function<std::vector<bool>(const Impl&)> owned);
 
  private:
   struct Prepared {
@@ -140,6 +149,9 @@ class ResidualShards {
                                  const std::vector<double*>& blocks) = 0;
   virtual ceres::EvaluationCallback* Callback() = 0;
   virtual long long NumResiduals() const = 0;
+  // the sequences whose start this process simulates (Problem::ShardStart; empty: all). Called by
+  // Prepare; the caller of Fit then owns the check of Impl::moves (AddResidualBlocks' place).
+  virtual std::vector<bool> OwnedSequences(const Problem::Impl& /*impl*/) const { return {}; }
 };
 
 }  // namespace mjsysid

@@ -16,6 +16,7 @@
 #pragma once
 
 #include <cmath>
+#include <functional>
 #include <map>
 #include <memory>
 #include <stdexcept>
@@ -171,11 +172,21 @@ struct Problem::Impl {
     for (size_t q = 0; q < sequences.size(); ++q) SyncControlDelays(static_cast<int>(q), mv);
   }
 
+  // a sharded start (Problem::ShardStart): the sequences Prepare simulates at the initial values
+  // (empty function or result: all), and per parameter whether their Jacobian moves the data
+  std::function<std::vector<bool>(const Impl&)> owned_sequences;
+  std::vector<bool> moves;
+
   // x_0 of a segment in the current variables (its state block, or the sequence's given x0)
   const double* X0(int segment) const {
     const Segment& seg = segments[segment];
     return seg.block >= 0 ? states[seg.block].data() : fixed_x0[seg.seq].data();
   }
 };
+
+// throws ParameterError naming the first parameter g with !moves[g] (its Jacobian column is zero
+// in every sequence at the initial values): what Prepare checks, or the caller of a sharded start
+// with moves combined over every shard
+void CheckParametersMove(const Problem::Impl& I, const std::vector<bool>& moves);
 
 }  // namespace mjsysid

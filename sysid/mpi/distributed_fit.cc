@@ -243,13 +243,42 @@ void CheckShardable(FitOptions* options) {
   }
 }
 
-std::vector<int> SegmentRanges(const Problem::Impl& impl, int ranks) {
+void AgreeMoves(const Problem::Impl& impl) {
+  // or over the ranks (max of 0/1)
+  std::vector<int> mine(impl.params.size(), 0), all(impl.params.size(), 0);
+  for (size_t g = 0; g < mine.size() && g < impl.moves.size(); ++g) mine[g] = impl.moves[g];
+  MPI_Allreduce(mine.data(), all.data(), static_cast<int>(mine.size()), MPI_INT, MPI_MAX,
+                MPI_COMM_WORLD);
+  CheckParametersMove(impl, std::vector<bool>(all.begin(), all.end()));
+}
+
+std::vector<int> SequenceRanges(const Problem::Impl& impl, int ranks) {
   std::vector<double> cost;
-  for (const Segment& seg : impl.segments) {
-    const int columns = impl.models[seg.model].sim->parameters().size() + 1;  // + the rollout
-    cost.push_back(static_cast<double>(seg.T) * columns);
+  for (size_t q = 0; q < impl.sequences.size(); ++q) {
+    const Problem::Impl::Model& mo = impl.models[impl.ModelIndex(impl.sequences[q].model)];
+    const int columns = mo.sim->parameters().size() + 1;  // + the rollout
+    cost.push_back(static_cast<double>(impl.grids[q].steps) * columns);
   }
   return ShardRanges(cost, ranks);
+}
+
+std::vector<bool> OwnedSequences(const Problem::Impl& impl, int rank, int ranks) {
+  const std::vector<int> ranges = SequenceRanges(impl, ranks);
+  std::vector<bool> owned(impl.sequences.size(), false);
+  for (int q = ranges[rank]; q < ranges[rank + 1]; ++q) owned[q] = true;
+  return owned;
+}
+
+std::vector<int> SegmentRanges(const Problem::Impl& impl, int ranks) {
+  // the first segment of each rank's first sequence (segments are in sequence order)
+  const std::vector<int> sequences = SequenceRanges(impl, ranks);
+  std::vector<int> ranges;
+  int s = 0;
+  for (int q : sequences) {
+    while (s < static_cast<int>(impl.segments.size()) && impl.segments[s].seq < q) ++s;
+    ranges.push_back(s);
+  }
+  return ranges;
 }
 
 // -----------------------------------------------------------------------------------------------
@@ -258,6 +287,10 @@ std::vector<int> SegmentRanges(const Problem::Impl& impl, int ranks) {
 ShardedResiduals::ShardedResiduals() : share_(std::make_unique<Share>()) {}
 ShardedResiduals::~ShardedResiduals() = default;
 
+std::vector<bool> ShardedResiduals::OwnedSequences(const Problem::Impl& impl) const {
+  return mpi::OwnedSequences(impl, Rank(), Size());
+}
+
 void ShardedResiduals::AddResidualBlocks(Problem::Impl* impl, ceres::Problem* problem,
                                          const std::vector<double*>& blocks) {
   std::string failure;
@@ -265,6 +298,13 @@ void ShardedResiduals::AddResidualBlocks(Problem::Impl* impl, ceres::Problem* pr
   if (!AgreeReady(true, "", &failure)) {
     done_ = true;
     throw RankError(failure);
+  }
+  // the checks over every rank's sequences: a failure ends every rank here (ParameterError)
+  try {
+    AgreeMoves(*impl);
+  } catch (...) {
+    done_ = true;
+    throw;
   }
   impl_ = impl;
   const int np = static_cast<int>(impl->z.size()), nm = static_cast<int>(impl->m.size());
@@ -395,12 +435,21 @@ int ServeFit(const io::ExperimentConfig* config, int threads, const std::string&
       FitOptions options = bp.options;
       CheckShardable(&options);
       options.verbose = false;
+      // a sharded start: this rank's sequences only
+      const int rank = Rank(), ranks = Size();
+      bp.problem->ShardStart(
+          [rank, ranks](const Problem::Impl& I) { return OwnedSequences(I, rank, ranks); });
       impl = bp.problem->PrepareOnly(options);
     } catch (const std::exception& e) {
       error = e.what();
     }
   }
   if (!AgreeReady(error.empty(), error, nullptr)) return 0;  // rank 0 reports it
+  try {
+    AgreeMoves(*impl);
+  } catch (const std::exception&) {
+    return 0;  // the same failure on rank 0, which reports it
+  }
   const int rank = Rank(), n = static_cast<int>(impl->z.size() + impl->m.size());
   const std::vector<int> ranges = SegmentRanges(*impl, Size());
   std::vector<double> command(kHeader + n), send;

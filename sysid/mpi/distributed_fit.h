@@ -1,9 +1,13 @@
 // `mpirun -n N sysid fit EXP.yaml`: a fit whose sequences are sharded across MPI ranks.
 //
 // Roles. Every rank reads and validates the experiment and its logs (run::BuildProblem) and
-// prepares the fit (Problem::PrepareOnly); then all ranks agree that every one of them is ready
+// prepares the fit (Problem::PrepareOnly) with a sharded start (Problem::ShardStart): the initial
+// rollouts and Jacobians of its own sequences only, so the start costs one whole-data Jacobian
+// spread over the ranks, not one per rank. Then all ranks agree that every one of them is ready
 // (AgreeReady) before any evaluation, so bad input on any rank (a log it cannot read) ends the run
-// on every rank before the fit, with that rank's message naming it and its host. Rank 0 runs
+// on every rank before the fit, with that rank's message naming it and its host; and they combine
+// the checks that need every sequence (AgreeMoves: a parameter without effect on all the data),
+// which then fail on every rank with the same message. Rank 0 runs
 // Ceres through the ordinary Problem::Fit with a ShardedResiduals (sysid/problem.h's
 // ResidualShards): one residual block for all segments. The other ranks loop in ServeFit.
 //
@@ -74,8 +78,19 @@ bool AgreeReady(bool ok, const std::string& message, std::string* failure);
 // estimated initial states, naming the experiment key
 void CheckShardable(FitOptions* options);
 
-// the contiguous segment ranges of a prepared fit's ranks (ShardRanges: ranks + 1 entries), by
-// simulation steps x Jacobian columns
+// every rank, once, after AgreeReady succeeded: combines Problem::Impl::moves over the ranks (a
+// parameter moves the data when it moves the sequences of some rank: a logical or) and throws
+// ParameterError, the same on every rank, for a parameter that moves none (CheckParametersMove)
+void AgreeMoves(const Problem::Impl& impl);
+
+// the contiguous sequence ranges of the ranks (ShardRanges: ranks + 1 entries), by simulation
+// steps x Jacobian columns; needs the simulators and sample grids only (a sharded start's
+// Problem::ShardStart calls it before the initial rollouts)
+std::vector<int> SequenceRanges(const Problem::Impl& impl, int ranks);
+// the sequences of `rank` (SequenceRanges), one bool per sequence
+std::vector<bool> OwnedSequences(const Problem::Impl& impl, int rank, int ranks);
+// the contiguous segment ranges of a prepared fit's ranks: the segments of SequenceRanges' whole
+// sequences (ranks + 1 entries)
 std::vector<int> SegmentRanges(const Problem::Impl& impl, int ranks);
 
 struct Share;  // the buffers of one rank's evaluation (distributed_fit.cc)
@@ -100,6 +115,8 @@ class ShardedResiduals : public ResidualShards, public ceres::EvaluationCallback
                          const std::vector<double*>& blocks) override;
   ceres::EvaluationCallback* Callback() override { return this; }
   long long NumResiduals() const override { return rows_; }
+  // rank 0's share of the start (OwnedSequences)
+  std::vector<bool> OwnedSequences(const Problem::Impl& impl) const override;
   // EvaluationCallback: every rank at the current values
   void PrepareForEvaluation(bool evaluate_jacobians, bool new_evaluation_point) override;
 

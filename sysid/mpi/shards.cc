@@ -73,4 +73,21 @@ void CompressedBlock::Add(const Eigen::Ref<const RowMatrix>& J,
   r_aug_ = qr.matrixQR().topRows(n_ + 1).triangularView<Eigen::Upper>();
 }
 
+EliminatedBlock EliminateStates(const Eigen::MatrixXd& r_aug, int k) {
+  // the blocks of the triangle with the state columns first (shards.h)
+  const int n = static_cast<int>(r_aug.cols()) - k - 1;
+  EliminatedBlock out;
+  out.reduced = r_aug.bottomRightCorner(n + 1, n + 1);
+  out.R_xx = r_aug.topLeftCorner(k, k);
+  out.R_xp = r_aug.block(0, k, k, n);
+  out.q_x = r_aug.block(0, k + n, k, 1);
+  return out;
+}
+
+Eigen::VectorXd EliminatedBlock::StateStep(const Eigen::Ref<const Eigen::VectorXd>& dp) const {
+  // back-substitution: R_xx dx = -(R_xp dp + q_x)
+  const Eigen::VectorXd rhs = -(R_xp * dp + q_x);
+  return R_xx.triangularView<Eigen::Upper>().solve(rhs);
+}
+
 }  // namespace mjsysid::mpi

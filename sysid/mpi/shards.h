@@ -64,4 +64,25 @@ class CompressedBlock {
   Eigen::MatrixXd stacked_;  // [R_aug; J r], reused between Add calls
 };
 
+// Eliminating a sequence's own states (multiple shooting sharded by whole sequences; a building
+// block, not wired into the distributed fit yet: docs/cluster.md). With the k state columns of the
+// sequence's segments first, the (k + n + 1)^2 R_aug of [J_x J_p r] (a CompressedBlock of width
+// k + n) is [R_xx R_xp q_x; 0 R_pp q_p; 0 0 rho]. Its bottom-right (n + 1) x (n + 1) corner
+// [R_pp q_p; 0 rho] is the Schur complement in QR form: R_pp^T R_pp = J_p^T J_p - J_p^T J_x
+// (J_x^T J_x)^-1 J_x^T J_p, and |q_p|^2 + rho^2 = min over dx of |J_x dx + r|^2, the variable
+// projection's reduced system at fixed p (exact when the states sit at their optimum for p,
+// q_x = 0). It merges along the tree like any block. The states follow a parameter step dp by
+// back-substitution: dx = -R_xx^-1 (R_xp dp + q_x), which with dp from the reduced system is the
+// Gauss-Newton step of the full system. R_xx must be nonsingular (every state column seen).
+struct EliminatedBlock {
+  Eigen::MatrixXd reduced;  // (n + 1) x (n + 1): [R_pp q_p; 0 rho], upper triangular
+  Eigen::MatrixXd R_xx;     // k x k, upper triangular
+  Eigen::MatrixXd R_xp;     // k x n
+  Eigen::VectorXd q_x;      // k
+  // the states' step for the parameters' step dp (n): k values
+  Eigen::VectorXd StateStep(const Eigen::Ref<const Eigen::VectorXd>& dp) const;
+};
+// r_aug: the (k + n + 1)^2 R_aug of a CompressedBlock whose first k columns are the states
+EliminatedBlock EliminateStates(const Eigen::MatrixXd& r_aug, int k);
+
 }  // namespace mjsysid::mpi

@@ -3,7 +3,9 @@
 # experiment (21 parameters, 14 sensors) with 32 sequences of 300 steps, simulated once, then
 # fitted with 1 rank x 1 thread, 2 ranks x 1 thread (mpirun, TCP over loopback forced) and 1 rank x
 # 2 threads. Prints time per iteration (from the progress lines: last iteration's time minus
-# iteration 0's, over the iterations), speed-up against 1 x 1, rank 0's bytes sent and received
+# iteration 0's, over the iterations), the start (iteration 0's time: Prepare's sharded rollouts
+# and Jacobians at the initial values and the first evaluation), speed-up against 1 x 1, rank 0's
+# bytes sent and received
 # per iteration and its share of time inside MPI calls (MJSYSID_MPI_STATS), then the
 # extrapolation to 8, 64 and 512 ranks for 1,000 sequences x 10,000 steps with its assumptions.
 # Each configuration runs `repeats` times (default 3), interleaved; the fastest run is shown.
@@ -56,24 +58,26 @@ def parse_one(name):
     per_iter = (iters[-1][1] - iters[0][1]) / n
     stats = re.search(r"mpi stats: ranks (\d+) evaluations (\d+) jacobian_evaluations (\d+) "
                       r"bytes (\d+) seconds_mpi ([\d.]+) seconds_own_share ([\d.]+)", text)
-    return n, per_iter, stats, iters[-1][1]
+    return n, per_iter, stats, iters[-1][1], iters[0][1]
 rows = [("1 rank x 1 thread", "r1t1"), ("2 ranks x 1 thread", "r2t1"),
         ("1 rank x 2 threads", "r1t2")]
 base = parse("r1t1")
-print(f"\n| run | iterations | s / iteration | speed-up | bytes / iteration | time in MPI |")
-print("| --- | --- | --- | --- | --- | --- |")
+print(f"\n| run | iterations | s / iteration | speed-up | start s | bytes / iteration "
+      f"| time in MPI |")
+print("| --- | --- | --- | --- | --- | --- | --- |")
 for label, name in rows:
-    n, t, st, total = parse(name)
+    n, t, st, total, start = parse(name)
     if st:
         bytes_it = int(st.group(4)) / n
         mpi_share = float(st.group(5)) / total
         comm = f"{bytes_it:,.0f}", f"{100 * mpi_share:.1f} %"
     else:
         comm = "0", "-"
-    print(f"| {label} | {n} | {t:.4f} | {base[1] / t:.2f}x | {comm[0]} | {comm[1]} |")
+    print(f"| {label} | {n} | {t:.4f} | {base[1] / t:.2f}x | {start:.2f} | {comm[0]} "
+          f"| {comm[1]} |")
 # extrapolation (assumptions printed with the table)
-n, t1, _, _ = base
-n2, _, st2, _ = parse("r2t1")
+n, t1 = base[0], base[1]
+n2, st2 = parse("r2t1")[0], parse("r2t1")[2]
 evals_per_iter = int(st2.group(2)) / n2
 worker_bytes_per_iter = int(st2.group(4)) / n2  # one worker (2 ranks): broadcast + gather
 nvar = 21

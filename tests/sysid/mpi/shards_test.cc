@@ -1,6 +1,7 @@
 // The compressed residual blocks and the sharding of sysid/mpi/shards.h, without MPI: a block
 // built piece by piece keeps the exact cost, gradient and Gauss-Newton matrix of its rows; the
-// ranges are contiguous and balanced; the tree gives the same bits for any split into ranks.
+// ranges are contiguous and balanced; the tree gives the same bits for any split into ranks; a
+// block with the states first gives their Schur complement and back-substitution.
 #include "sysid/mpi/shards.h"
 
 #include <gtest/gtest.h>
@@ -50,6 +51,45 @@ TEST(CompressedBlockTest, KeepsCostGradientAndNormalMatrix) {
   for (int i = 0; i <= n; ++i) {
     for (int c = 0; c < i; ++c) EXPECT_EQ(R(i, c), 0.0);
   }
+}
+
+// truth: 60 random rows, k = 4 state columns first, n = 3 parameter columns, random r. The
+// eliminated block must give the Schur complement J_p^T J_p - J_p^T J_x (J_x^T J_x)^-1 J_x^T J_p,
+// the cost left after the best state step at fixed p, and, with the reduced system's parameter
+// step and StateStep, the full Gauss-Newton step (all to 1e-10 relative)
+TEST(EliminateStatesTest, SchurComplementAndBackSubstitution) {
+  std::mt19937 rng(11);
+  std::normal_distribution<double> normal;
+  const int k = 4, n = 3, rows = 60;
+  RowMatrix J(rows, k + n);
+  Eigen::VectorXd r(rows);
+  for (int i = 0; i < rows; ++i) {
+    r[i] = normal(rng);
+    for (int c = 0; c < k + n; ++c) J(i, c) = normal(rng) * (1 + 0.5 * c);
+  }
+  CompressedBlock block(k + n);
+  block.Add(J.topRows(25), r.head(25));
+  block.Add(J.bottomRows(rows - 25), r.tail(rows - 25));
+  const EliminatedBlock e = EliminateStates(block.Augmented(), k);
+  ASSERT_EQ(e.reduced.rows(), n + 1);
+  ASSERT_EQ(e.reduced.cols(), n + 1);
+  const Eigen::MatrixXd Jx = J.leftCols(k), Jp = J.rightCols(n);
+  const Eigen::MatrixXd Hxx = Jx.transpose() * Jx;
+  const Eigen::MatrixXd schur =
+      Jp.transpose() * Jp - Jp.transpose() * Jx * Hxx.ldlt().solve(Jx.transpose() * Jp);
+  const Eigen::MatrixXd Rpp = e.reduced.topLeftCorner(n, n);
+  EXPECT_LT((Rpp.transpose() * Rpp - schur).norm(), 1e-10 * schur.norm());
+  // the cost at the best state step for dp = 0
+  const Eigen::VectorXd dx0 = -Hxx.ldlt().solve(Jx.transpose() * r);
+  EXPECT_NEAR(e.reduced.col(n).squaredNorm(), (Jx * dx0 + r).squaredNorm(),
+              1e-10 * r.squaredNorm());
+  // the full Gauss-Newton step from the reduced system and the back-substitution
+  const Eigen::MatrixXd H = J.transpose() * J;
+  const Eigen::VectorXd full = -H.ldlt().solve(J.transpose() * r);
+  const Eigen::VectorXd dp =
+      -Rpp.triangularView<Eigen::Upper>().solve(Eigen::VectorXd(e.reduced.col(n).head(n)));
+  EXPECT_LT((dp - full.tail(n)).norm(), 1e-10 * full.norm());
+  EXPECT_LT((e.StateStep(dp) - full.head(k)).norm(), 1e-10 * full.norm());
 }
 
 // a block with no rows: zero cost, zero matrix
