@@ -163,6 +163,20 @@ void DecideFitStatus(const FitOptions& options, int accepted_steps, bool jacobia
     r.outcome = FitStatus::kConverged;
   }
   r.intervals_valid = r.outcome == FitStatus::kConverged && r.uncertainty.std_error.size() > 0;
+
+  // a parameter stopped on a bound has no interval, and the others' are conditional on it being
+  // fixed there: too narrow when the data pull it past the bound (measured: a noisy LuGre fit with
+  // the Stribeck velocity on its lower bound left the Coulomb level 3 standard errors off)
+  std::string on_bound;
+  for (const ParameterEstimate& e : r.parameters) {
+    if (e.at_lower || e.at_upper) on_bound += (on_bound.empty() ? "" : ", ") + e.name;
+  }
+  if (r.intervals_valid && !on_bound.empty()) {
+    r.intervals_valid = false;
+    r.warnings.push_back("intervals not valid: they are conditional on " + on_bound +
+                         " fixed on a bound; widen the bounds or fix that parameter to its "
+                         "known value");
+  }
 }
 
 }  // namespace mjsysid

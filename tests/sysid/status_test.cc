@@ -246,6 +246,30 @@ TEST(FitStatusTest, StartOnABoundIsAWarningAndAStuckStartDidNotMove) {
   EXPECT_EQ(run::ExitCodeOf(low.outcome), 4);
 }
 
+// data with damping 0.2 and friction loss 0.3; the fit has both (starts 0.4 and 0.1) but the
+// friction loss's upper bound is 0.2, below its truth: it stops on that bound, and the damping's
+// interval, conditional on the friction loss fixed there, is not valid (the data pull the friction
+// past the bound and the damping absorbs it: measured 0.307 +- 0.0007 for 0.2)
+TEST(FitStatusTest, AParameterStoppedOnABoundInvalidatesTheIntervals) {
+  const Truth damping{"damping", Spec("joint_damping", "hinge"), 0.2};
+  const Truth friction{"friction", Spec("joint_frictionloss", "hinge"), 0.3};
+  const PendulumData data({damping, friction});
+  Problem problem;
+  problem.AddModel("pendulum", *data.m);
+  problem.AddParameter(FitParameter("damping", damping.spec, 0.4).Bounds(1e-4, 10).Log());
+  problem.AddParameter(FitParameter("friction", friction.spec, 0.1).Bounds(1e-3, 0.2).Log());
+  problem.AddSequence(FitSequence("seq0", "pendulum", data.x0, data.u, data.y));
+  FitOptions weights_only = data.Options();
+  weights_only.sensors_with_sigma.clear();  // no chi-square test: the bound rule alone
+  const FitResult r = problem.Fit(weights_only);
+  Print("friction stopped on its upper bound", r);
+  EXPECT_TRUE(Estimate(r, "friction").at_upper);
+  const ParameterEstimate& d = Estimate(r, "damping");
+  EXPECT_GT(std::abs(d.value - damping.value), 4 * d.std_error) << "the case the rule is for";
+  EXPECT_FALSE(r.intervals_valid);
+  EXPECT_TRUE(HasWarning(r, "conditional on friction fixed on a bound"));
+}
+
 // every status: its name reads back to it, its exit code (docs/cli.md), and result.yaml keeps it
 // with the intervals flag
 TEST(FitStatusTest, NamesExitCodesAndResultFile) {
