@@ -15,6 +15,7 @@
 
 #include "core/mujoco_env.h"
 #include "sysid/io/log.h"
+#include "tests/cli_util.h"
 #include "tests/file_util.h"
 #include "tests/test_util.h"
 
@@ -25,20 +26,8 @@ namespace fs = std::filesystem;
 
 const std::string kModels = MJSYSID_MODELS_DIR;
 
-struct CliRun {
-  int code;
-  std::string output;  // stdout and stderr
-};
-
-CliRun Sysid(const std::string& args) {
-  const std::string cmd = std::string(MJSYSID_SYSID_BIN) + " " + args + " 2>&1";
-  FILE* pipe = popen(cmd.c_str(), "r");
-  std::string out;
-  char buf[4096];
-  while (size_t n = fread(buf, 1, sizeof(buf), pipe)) out.append(buf, n);
-  const int status = pclose(pipe);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
-}
+using test::CliRun;
+using test::Sysid;
 
 // writes float64 dataset `name` (rows x cols; 1-D when cols == 0) into `path`, making groups
 void AddDataset(const std::string& path, const std::string& name, const double* values,

@@ -13,6 +13,7 @@
 #include "core/simulator.h"
 #include "sysid/io/log.h"
 #include "sysid/io/result.h"
+#include "tests/cli_util.h"
 #include "tests/file_util.h"
 #include "tests/test_util.h"
 
@@ -40,20 +41,8 @@ const char* kChain = R"(<mujoco model="chain">
 </mujoco>
 )";
 
-struct CliRun {
-  int code;
-  std::string output;  // stdout and stderr
-};
-
-CliRun Sysid(const std::string& args) {
-  const std::string cmd = std::string(MJSYSID_SYSID_BIN) + " " + args + " 2>&1";
-  FILE* pipe = popen(cmd.c_str(), "r");
-  std::string out;
-  char buf[4096];
-  while (size_t n = fread(buf, 1, sizeof(buf), pipe)) out.append(buf, n);
-  const int status = pclose(pipe);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
-}
+using test::CliRun;
+using test::Sysid;
 
 class StatesCliTest : public ::testing::Test {
  protected:

@@ -8,27 +8,15 @@
 #include <fstream>
 #include <string>
 
+#include "tests/cli_util.h"
 #include "tests/file_util.h"
 
 namespace {
 
 namespace fs = std::filesystem;
 
-struct CliRun {
-  int code;
-  std::string output;  // stdout and stderr
-};
-
-// runs `sysid ARGS` and returns its exit code and output
-CliRun Sysid(const std::string& args) {
-  const std::string cmd = std::string(MJSYSID_SYSID_BIN) + " " + args + " 2>&1";
-  FILE* pipe = popen(cmd.c_str(), "r");
-  std::string out;
-  char buf[4096];
-  while (size_t n = fread(buf, 1, sizeof(buf), pipe)) out.append(buf, n);
-  const int status = pclose(pipe);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
-}
+using mjsysid::test::CliRun;
+using mjsysid::test::Sysid;
 
 std::string TempDir(const std::string& name) { return mjsysid::test::FreshTempDir("cli_" + name); }
 
