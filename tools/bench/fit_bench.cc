@@ -187,7 +187,8 @@ Row FitOurs(const Case& c, const std::string& method, JacobianMode mode, bool ce
     row.steps = r.simulation_steps;
     row.initial_cost = r.initial_cost;
     row.final_cost = r.final_cost;
-    row.status = r.converged ? "converged" : "stopped";
+    // the status a user of `sysid fit` sees (docs/cli.md), not only the optimizer's flag
+    row.status = FitStatusName(r.outcome);
     for (const std::string& w : r.warnings) {
       if (w.rfind("initial: auto", 0) == 0) row.note += (row.note.empty() ? "" : "; ") + w;
     }

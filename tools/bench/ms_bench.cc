@@ -72,7 +72,7 @@ void Row(const std::string& name, int threads, const FitResult& r, double floor_
          const std::string& note) {
   std::printf(
       "| %s | %d | %s | %.3f | %d | %.4f | %s | %.2e | %s |\n", name.c_str(), threads,
-      r.converged ? "converged" : "stopped", r.seconds, r.iterations,
+      FitStatusName(r.outcome), r.seconds, r.iterations,
       r.iterations > 0 ? r.seconds / r.iterations : NAN,
       floor_s > 0 ? std::to_string(r.seconds / r.iterations / floor_s).substr(0, 5).c_str() : "",
       err, note.c_str());
