@@ -49,9 +49,7 @@ class BadInputTest : public ::testing::Test {
   // a good log, a previous fit's result folder and a previous log, shared by every case
   static void SetUpTestSuite() {
     // one folder per process: ctest runs each case as its own process, in parallel
-    dir_ = (fs::temp_directory_path() / ("mjsysid_bad_input_" + std::to_string(getpid()))).string();
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
+    dir_ = mjsysid::test::FreshTempDir("bad_input");
     good_log_ = dir_ + "/good.h5";
     WriteFile(dir_ + "/good.yaml", Experiment(good_log_));
     CliRun r = Sysid("simulate " + dir_ + "/good.yaml --out " + good_log_);

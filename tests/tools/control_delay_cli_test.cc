@@ -40,10 +40,7 @@ class ControlDelayCliTest : public ::testing::Test {
   // late: the steps' controls are the fit's own zero-order hold (sysid/sample_grid.h) of the
   // commands at that delay; 1500 steps, sensors at every step, noise 1e-3 (seed 5)
   void SetUp() override {
-    dir_ =
-        (fs::temp_directory_path() / ("mjsysid_ctrl_delay_" + std::to_string(getpid()))).string();
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
+    dir_ = test::FreshTempDir("ctrl_delay");
     ModelPtr m = LoadModel(kModels + "/pendulum.xml");
     const double dt = m->opt.timestep;
     const int T = 1500;

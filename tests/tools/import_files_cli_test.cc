@@ -31,10 +31,7 @@ class ImportFilesCliTest : public ::testing::Test {
   // for 10 steps (a 50 Hz controller), 1500 steps of 2 ms, noise 1e-3 (seed 5); angle every 5th
   // step (100 Hz, every 37th of its rows empty), rate every 2nd (250 Hz), controls every 10th
   void SetUp() override {
-    dir_ =
-        (fs::temp_directory_path() / ("mjsysid_import_files_" + std::to_string(getpid()))).string();
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
+    dir_ = test::FreshTempDir("import_files");
     ModelPtr m = LoadModel(kModels + "/pendulum.xml");
     const double dt = m->opt.timestep;
     const int T = 1500;

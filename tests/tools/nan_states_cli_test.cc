@@ -33,10 +33,7 @@ class NanStatesCliTest : public ::testing::Test {
   // 2 ms, every step logged: sensors with noise 1e-3 (seed 5), qpos and qvel exact except NaN in
   // qpos at every 50th row from row 25 (20 cells) and in qvel at rows 100..104 (5 cells)
   void SetUp() override {
-    dir_ =
-        (fs::temp_directory_path() / ("mjsysid_nan_states_" + std::to_string(getpid()))).string();
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
+    dir_ = test::FreshTempDir("nan_states");
     ModelPtr m = LoadModel(kModels + "/pendulum.xml");
     const double dt = m->opt.timestep;
     const int T = 1000;

@@ -56,9 +56,7 @@ class OwnTimesCliTest : public ::testing::Test {
   // 1e-3 on both sensors (seed 5). angle kept at every 5th step (100 Hz), rate at every 2nd
   // (250 Hz), the controls at every 10th (50 Hz).
   void SetUp() override {
-    dir_ = (fs::temp_directory_path() / ("mjsysid_own_times_" + std::to_string(getpid()))).string();
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
+    dir_ = test::FreshTempDir("own_times");
     ModelPtr m = LoadModel(kModels + "/pendulum.xml");
     const double dt = m->opt.timestep;
     const int T = 1500;

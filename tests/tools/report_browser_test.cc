@@ -206,11 +206,7 @@ class ReportBrowserTest : public ::testing::Test {
  protected:
   // one fit and report for all tests
   static void SetUpTestSuite() {
-    dir_ =
-        (fs::temp_directory_path() / ("mjsysid_report_browser_test_" + std::to_string(::getpid())))
-            .string();
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
+    dir_ = test::FreshTempDir("report_browser_test");
 
     // the shipped experiment, its model found from the temporary folder
     std::string yaml = ReadFile(std::string(MJSYSID_EXPERIMENTS_DIR) + "/pendulum.yaml");

@@ -49,10 +49,7 @@ class StatesCliTest : public ::testing::Test {
   // the model file and a log of 800 samples at 500 Hz with truth damping 0.35 on hinge1 (the
   // model says 0.2), states only: qpos with noise 1e-3 rad, qvel with 1e-2 rad/s (seed 11)
   void SetUp() override {
-    dir_ =
-        (fs::temp_directory_path() / ("mjsysid_states_cli_" + std::to_string(getpid()))).string();
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
+    dir_ = test::FreshTempDir("states_cli");
     test::WriteFile(dir_ + "/chain.xml", kChain);
     ModelPtr m = LoadModelFromString(kChain);
     const int T = 800;

@@ -82,9 +82,7 @@ class SysidOutputsTest : public ::testing::Test {
  protected:
   void SetUp() override {
     // one folder per process: ctest runs each case as its own process, in parallel
-    dir_ = (fs::temp_directory_path() / ("mjsysid_outputs_" + std::to_string(getpid()))).string();
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
+    dir_ = mjsysid::test::FreshTempDir("outputs");
     exp_ = dir_ + "/exp.yaml";
     WriteFile(exp_, Experiment(200, 20));
     ASSERT_EQ(Run("simulate " + exp_).code, 0);
