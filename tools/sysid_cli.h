@@ -1,0 +1,72 @@
+// The pieces shared by the subcommands of the sysid command line (tools/sysid_main.cc): exit
+// codes, the bad-input error, a registered subcommand, text helpers and option validators.
+// Each subcommand file (tools/sysid_<subcommand>.cc) defines one AddX(app) declared below.
+#pragma once
+
+#include <mujoco/mujoco.h>
+
+#include <CLI/CLI.hpp>
+#include <chrono>
+#include <functional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace mjsysid::cli {
+
+constexpr int kExitOk = 0;
+constexpr int kExitFailed = 1;
+constexpr int kExitBadInput = 2;
+
+const char* const kExitCodesFooter =
+    "Exit codes: 0 success, 1 the run failed (simulation or MuJoCo error), 2 bad input (command "
+    "line, experiment file, model, parameters or data files); `fit` writes its results and exits "
+    "1 not_converged or interrupted, 3 model_mismatch, 4 jacobian_unreliable or did_not_move.";
+
+// a bad input found by the command line itself (exit code 2)
+class InputError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// a registered subcommand: its CLI11 app and what runs it
+struct Command {
+  CLI::App* app;
+  std::function<int()> run;
+};
+
+// seconds since start
+double Seconds(std::chrono::steady_clock::time_point start);
+
+// the items joined with sep
+std::string Join(const std::vector<std::string>& items, const char* sep = ", ");
+
+// printf into a string
+__attribute__((format(printf, 2, 3))) void Appendf(std::string* out, const char* format, ...);
+
+// a number written with %.17g, shown with 6 digits
+std::string Short(const std::string& exact);
+
+// a short description of a model's sizes
+std::string ModelSizes(const mjModel& m);
+
+// an option value that must be a whole number >= min (CLI11's own range checks print the
+// largest double in full: 309 digits)
+CLI::Validator WholeNumberAtLeast(long long min);
+
+// an option value that must be a finite number
+CLI::Validator FiniteNumber();
+
+// An HDF5 log output `out` (of --out): not one of `inputs`, and unless `force` either absent or
+// an mjsysid log (a file ReadLog accepts); its folder created. Throws OutputError (exit 2).
+void PrepareLogOutput(const std::string& out, const std::vector<std::string>& inputs, bool force);
+
+// the subcommands: each declares its arguments on `app` and returns what runs it
+Command AddSimulate(CLI::App* app);  // tools/sysid_simulate.cc
+Command AddFit(CLI::App* app);       // tools/sysid_fit.cc
+Command AddReport(CLI::App* app);    // tools/sysid_report.cc
+Command AddImport(CLI::App* app);    // tools/sysid_import.cc
+Command AddCheck(CLI::App* app);     // tools/sysid_check.cc
+Command AddRollout(CLI::App* app);   // tools/sysid_rollout.cc
+
+}  // namespace mjsysid::cli

@@ -1,0 +1,305 @@
+// sysid fit EXP.yaml --out DIR: fit the experiment's parameters and print the estimates; under
+// mpirun the sequences are sharded across the ranks (RunFitSharded).
+#include <atomic>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <exception>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "sysid/io/experiment.h"
+#include "sysid/metrics.h"
+#include "sysid/run/fit_experiment.h"
+#include "sysid/run/output_folder.h"
+#include "sysid/run/resume.h"
+#include "tools/sysid_cli.h"
+#ifdef MJSYSID_WITH_MPI
+#include "sysid/mpi/distributed_fit.h"
+#endif
+
+namespace mjsysid::cli {
+namespace {
+
+std::atomic<bool> g_interrupted{false};
+constexpr int kStopSignals[] = {SIGINT, SIGTERM, SIGHUP};
+
+// first SIGINT, SIGTERM or SIGHUP: stop after the current iteration and write the results; the
+// next one has the default action (the process ends at once; the previous result stays)
+extern "C" void OnInterrupt(int) {
+  g_interrupted.store(true);
+  for (int s : kStopSignals) std::signal(s, SIG_DFL);
+}
+
+// installs (true) or removes (false) OnInterrupt for the stop signals
+void CatchStopSignals(bool on) {
+  for (int s : kStopSignals) std::signal(s, on ? OnInterrupt : SIG_DFL);
+}
+
+struct FitArgs {
+  std::string experiment;
+  std::string out;
+  int threads = -1;
+  bool quiet = false;
+  bool force = false;
+  std::string resume;   // --resume DIR
+  int starts = 0;       // --starts N (0: solver.starts)
+  long long seed = -1;  // --seed S (< 0: solver.seed)
+};
+
+std::string Flags(const mjsysid::ParameterEstimate& p) {
+  std::vector<std::string> f;
+  if (p.at_lower) f.push_back("at lower bound");
+  if (p.at_upper) f.push_back("at upper bound");
+  if (!p.identifiable) f.push_back("UNIDENTIFIABLE");
+  return Join(f);
+}
+
+// a % fit for a table cell ("-" for NaN: a constant channel or a failed simulation)
+std::string Percent(double x) {
+  if (!std::isfinite(x)) return "-";
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.1f", x);
+  return buf;
+}
+
+// per sequence the worst and the median channel's % fit (sysid/metrics.h), at the start and at the
+// estimate; fitted sequences first, then the held-out ones (`validation:`)
+void PrintFitQuality(const mjsysid::io::FitResultFile& f) {
+  if (f.sequences.empty() && f.validation.empty()) return;
+  std::printf(
+      "  %% fit per channel, start -> estimate (100 = exact, 0 = no better than the mean)\n");
+  std::printf("  %-24s %-10s %8s  %-22s %s\n", "sequence", "role", "channels", "worst", "median");
+  for (const std::vector<mjsysid::SequenceResult>* list : {&f.sequences, &f.validation}) {
+    for (const mjsysid::SequenceResult& s : *list) {
+      const mjsysid::FitSummary a = mjsysid::SummarizeFits(s.channel_fits, true);
+      const mjsysid::FitSummary b = mjsysid::SummarizeFits(s.channel_fits, false);
+      std::printf("  %-24s %-10s %8zu  %6s -> %-12s %6s -> %s\n", s.name.c_str(),
+                  list == &f.sequences ? "fit" : "validation", s.channel_fits.size(),
+                  Percent(a.worst).c_str(), Percent(b.worst).c_str(), Percent(a.median).c_str(),
+                  Percent(b.median).c_str());
+    }
+  }
+}
+
+// multi-start: per estimated value the range over the starts, and how many starts ended where
+void PrintStarts(const mjsysid::io::FitResultFile& f) {
+  if (f.starts.size() < 2) return;
+  int honest = 0, failed = 0;
+  for (const mjsysid::StartResult& s : f.starts) {
+    failed += s.error.empty() || s.status == mjsysid::FitStatus::kInterrupted ? 0 : 1;
+    honest += s.error.empty() && (s.status == mjsysid::FitStatus::kConverged ||
+                                  s.status == mjsysid::FitStatus::kModelMismatch)
+                  ? 1
+                  : 0;
+  }
+  int stopped = 0;
+  for (const mjsysid::StartResult& s : f.starts) {
+    stopped += s.status == mjsysid::FitStatus::kInterrupted ? 1 : 0;
+  }
+  std::printf(
+      "  %zu starts (%d converged, %d failed, %d interrupted); the result is start %d's (lowest "
+      "cost)\n",
+      f.starts.size(), honest, failed, stopped, f.best_start);
+  std::printf("  %-24s %14s %14s %12s\n", "spread over the starts", "min", "max", "(max-min)/|v|");
+  for (const mjsysid::ParameterSpread& s : f.start_spread) {
+    std::printf("  %-24s %14.6g %14.6g %12.3g\n", s.name.c_str(), s.min, s.max, s.relative);
+  }
+}
+
+// prints the estimates against the start (and the truth, for simulated data)
+void PrintEstimates(const mjsysid::io::FitResultFile& f) {
+  std::printf("%s: %s after %d iterations (%s), cost %.6g -> %.6g, %.2f s\n", f.name.c_str(),
+              f.status.c_str(), f.iterations, f.termination.c_str(), f.initial_cost, f.final_cost,
+              f.seconds);
+  if (!f.segment_reason.empty()) std::printf("  %s\n", f.segment_reason.c_str());
+  std::printf("  %-24s %14s %14s %14s %12s  %-29s %s\n", "parameter", "initial", "estimate",
+              "truth", "std", "95% interval", "flags");
+  for (const mjsysid::ParameterEstimate& p : f.parameters) {
+    char truth[32] = "-", ci[64];
+    if (p.truth) std::snprintf(truth, sizeof(truth), "%.6g", *p.truth);
+    std::snprintf(ci, sizeof(ci), "[%.6g, %.6g]", p.ci95_low, p.ci95_high);
+    std::printf("  %-24s %14.6g %14.8g %14s %12.3g  %-29s %s\n", p.name.c_str(), p.initial, p.value,
+                truth, p.std_error, ci, Flags(p).c_str());
+  }
+  // quantities derived from the estimate (body_inertial: mass, centre of mass, principal moments)
+  if (!f.derived.empty()) {
+    std::printf("  %-24s %14s %14s %14s %12s  %-29s %s\n", "derived", "unit", "value", "truth",
+                "std", "95% interval", "from");
+  }
+  for (const mjsysid::DerivedQuantity& d : f.derived) {
+    char truth[32] = "-", ci[64];
+    if (d.truth) std::snprintf(truth, sizeof(truth), "%.6g", *d.truth);
+    std::snprintf(ci, sizeof(ci), "[%.6g, %.6g]", d.ci95_low, d.ci95_high);
+    std::printf("  %-24s %14s %14.8g %14s %12.3g  %-29s %s\n", d.name.c_str(), d.unit.c_str(),
+                d.value, truth, d.std_error, ci, d.derived_from.c_str());
+  }
+  for (const std::string& u : f.uncertainty.unidentifiable)
+    std::printf("  unidentifiable: %s\n", u.c_str());
+  if (!f.intervals_valid) {
+    std::printf("  intervals NOT VALID: the status is %s, not converged (see the warnings)\n",
+                f.status.c_str());
+  }
+  PrintFitQuality(f);
+  PrintStarts(f);
+  std::fflush(stdout);
+}
+
+// the experiment file of `sysid fit`: --resume DIR: the checkpoint's unless given
+std::string ExperimentOf(const FitArgs& args) {
+  namespace io = mjsysid::io;
+  std::string experiment = args.experiment;
+  if (!args.resume.empty()) {
+    if (!args.out.empty() && !mjsysid::run::SamePath(args.out, args.resume)) {
+      throw InputError("--out " + args.out + " and --resume " + args.resume +
+                       " differ: a resumed fit writes into the folder it resumes");
+    }
+    if (experiment.empty()) {
+      const std::optional<io::FitResultFile> cp = mjsysid::run::FindCheckpoint(args.resume);
+      if (!cp) {
+        throw InputError("--resume " + args.resume + ": nothing to resume: no checkpoint " +
+                         mjsysid::run::StagingFolder(args.resume) +
+                         "/checkpoint.yaml and no interrupted result in the folder");
+      }
+      experiment = cp->experiment;
+    }
+  } else if (experiment.empty()) {
+    throw InputError("the experiment file is required (sysid fit EXP.yaml), except with --resume");
+  }
+  return experiment;
+}
+
+// on_problem: set by the MPI-sharded fit (RunFitSharded), else empty
+int RunFitHere(const FitArgs& args,
+               const std::function<void(mjsysid::Problem&, mjsysid::FitOptions*)>& on_problem) {
+  namespace io = mjsysid::io;
+  const io::ExperimentConfig config = io::LoadExperiment(ExperimentOf(args));
+  mjsysid::run::FitRunOptions options;
+  options.on_problem = on_problem;
+  options.out_dir = args.resume.empty() ? args.out : args.resume;
+  options.resume = !args.resume.empty();
+  options.threads = args.threads;
+  options.verbose = !args.quiet;
+  options.interrupt = &g_interrupted;
+  options.force = args.force;
+  options.on_estimates = PrintEstimates;
+  options.starts = args.starts;
+  options.seed = args.seed;
+  CatchStopSignals(true);
+  const mjsysid::run::FitRunOutcome out = mjsysid::run::RunFit(config, options);
+  CatchStopSignals(false);
+  const io::FitResultFile& f = out.file;
+  // the data's warnings were printed before the fit (FitRunOutcome::printed_warnings)
+  for (size_t i = static_cast<size_t>(out.printed_warnings); i < f.warnings.size(); ++i)
+    std::fprintf(stderr, "sysid fit: warning: %s\n", f.warnings[i].c_str());
+  std::printf("  wrote %s/{result.yaml, result.h5", out.out_dir.c_str());
+  for (const auto& [model, file] : f.identified_models) std::printf(", %s", file.c_str());
+  std::printf("} (run %s)\n", f.run_id.c_str());
+  if (out.file.interrupted)
+    std::fprintf(stderr, "sysid fit: interrupted: results of the last good iterate written\n");
+  return out.exit_code;
+}
+
+#ifdef MJSYSID_WITH_MPI
+// `mpirun -n N sysid fit` (sysid/mpi/distributed_fit.h): rank 0 fits and writes, the other ranks
+// evaluate their share of the sequences; every rank reads and checks the input first, and rank 0
+// reports the first rank's failure (exit 2)
+int RunFitSharded(const FitArgs& args) {
+  namespace mpi = mjsysid::mpi;
+  auto check_starts = [&args](const mjsysid::io::ExperimentConfig& config) {
+    if ((args.starts >= 1 ? args.starts : config.starts) > 1) {
+      throw InputError("solver.starts / --starts above 1 with MPI: a sharded fit is one start");
+    }
+  };
+  if (mpi::Rank() > 0) {
+    std::string failure;
+    std::optional<mjsysid::io::ExperimentConfig> config;
+    try {
+      config = mjsysid::io::LoadExperiment(ExperimentOf(args));
+      check_starts(*config);
+    } catch (const std::exception& e) {
+      failure = e.what();
+    }
+    return mpi::ServeFit(config ? &*config : nullptr, args.threads, failure);
+  }
+  mpi::ShardedResiduals shards;
+  int code = 0;
+  try {
+    check_starts(mjsysid::io::LoadExperiment(ExperimentOf(args)));
+    code = RunFitHere(args, [&](mjsysid::Problem& problem, mjsysid::FitOptions* options) {
+      mpi::CheckShardable(options);
+      problem.DistributeResiduals(&shards);
+    });
+  } catch (const mpi::RankError& e) {
+    shards.Abandon(e.what());
+    throw InputError(e.what());
+  } catch (const std::exception& e) {
+    shards.Abandon(e.what());
+    throw;
+  }
+  shards.Finish();
+  if (std::getenv("MJSYSID_MPI_STATS")) {
+    // traffic and time of the evaluations (tools/bench/mpi_bench.sh reads this line)
+    const mpi::ShardStats& st = shards.stats();
+    std::fprintf(stderr,
+                 "mpi stats: ranks %d evaluations %lld jacobian_evaluations %lld bytes %lld "
+                 "seconds_mpi %.6f seconds_own_share %.6f\n",
+                 mpi::Size(), st.evaluations, st.jacobian_evaluations, st.bytes, st.seconds_mpi,
+                 st.seconds_own_share);
+  }
+  return code;
+}
+#endif
+
+int RunFit(const FitArgs& args) {
+#ifdef MJSYSID_WITH_MPI
+  // under a launcher even with one rank: the same arithmetic (one tree) with any rank count
+  if (mjsysid::mpi::Active()) return RunFitSharded(args);
+#endif
+  return RunFitHere(args, {});
+}
+
+}  // namespace
+
+Command AddFit(CLI::App* app) {
+  auto args = std::make_shared<FitArgs>();
+  CLI::App* sub = app->add_subcommand(
+      "fit", "Fit the experiment's parameters to its data files (Ceres, analytic Jacobians)");
+  sub->add_option("experiment", args->experiment,
+                  "YAML experiment file (with --resume: default the checkpoint's)");
+  sub->add_option("--out", args->out,
+                  "output folder (default: the experiment's `output`, results/<name>)");
+  sub->add_option("--threads", args->threads, "simulation threads (default: solver.threads)")
+      ->check(WholeNumberAtLeast(0));
+  sub->add_flag("--quiet", args->quiet, "no progress line per iteration");
+  sub->add_flag("--force", args->force,
+                "replace an existing --out folder that is not an mjsysid result folder (its files "
+                "are deleted)");
+  sub->add_option("--starts", args->starts,
+                  "fit from N starts spread in the bounds, in parallel; keep the best, report the "
+                  "spread and flag local minima (default: solver.starts, 1)")
+      ->check(WholeNumberAtLeast(1));
+  sub->add_option("--seed", args->seed, "seed of the spread starts (default: solver.seed, 0)")
+      ->check(WholeNumberAtLeast(0));
+  sub->add_option("--resume", args->resume,
+                  "continue the fit of DIR from its checkpoint (DIR.partial/checkpoint.yaml of a "
+                  "killed run, or DIR's interrupted result); writes into DIR");
+  sub->footer(
+      std::string("Writes DIR/result.yaml (values, std, 95% intervals, flags, costs, versions), "
+                  "DIR/result.h5 (trace, Jacobian, covariance, signals) and "
+                  "DIR/<model>_identified.xml, all with one run id, into DIR.partial (with "
+                  "checkpoint.yaml after every successful iteration), which replaces DIR once "
+                  "complete. Ctrl-C, SIGTERM or SIGHUP stops after the current iteration and "
+                  "writes the results of the last good iterate; a second one exits at once and "
+                  "leaves DIR as it was. Exit code 1 when the fit did not converge. Under "
+                  "`mpirun -n N` (or srun) the sequences are sharded across the ranks and rank 0 "
+                  "writes (docs/cluster.md).\n") +
+      kExitCodesFooter);
+  return {sub, [args] { return RunFit(*args); }};
+}
+
+}  // namespace mjsysid::cli
