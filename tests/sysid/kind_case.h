@@ -61,17 +61,23 @@ struct KindCase {
   int steps = 1500;
 };
 
+// adds the case's parameters to problem: start, bounds, log transform where the lower bound is
+// positive
+inline void AddCaseParameters(const KindCase& c, Problem* problem) {
+  for (size_t i = 0; i < c.truth.size(); ++i) {
+    FitParameter p(c.truth[i].name, c.truth[i].spec, c.start[i]);
+    p.Bounds(c.lower[i], c.upper[i]);
+    if (c.lower[i] > 0) p.Log();
+    problem->AddParameter(p);
+  }
+}
+
 // fits the case from one sequence (seed), noise-free or with its noise (weighted by it)
 inline FitResult FitCase(const KindCase& c, bool noisy, int seed, bool print = true) {
   ModelPtr m = LoadModel(KindModels() + "/" + c.model);
   Problem problem;
   problem.AddModel("m", *m);
-  for (size_t i = 0; i < c.truth.size(); ++i) {
-    FitParameter p(c.truth[i].name, c.truth[i].spec, c.start[i]);
-    p.Bounds(c.lower[i], c.upper[i]);
-    if (c.lower[i] > 0) p.Log();
-    problem.AddParameter(p);
-  }
+  AddCaseParameters(c, &problem);
   const RowMatrix u = c.controls ? c.controls(*m, c.steps, seed)
                                  : Excitation(*m, c.steps, c.amplitude, seed, c.offset);
   InitialState x0;

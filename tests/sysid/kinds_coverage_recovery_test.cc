@@ -15,6 +15,7 @@
 #include "core/identified_model.h"
 #include "core/simulator.h"
 #include "tests/sysid/kind_case.h"
+#include "tests/sysid/kind_cases.h"
 
 namespace mjsysid {
 namespace {
@@ -29,75 +30,33 @@ using test::Spec;
 // ---------------------------------------------------------------------------------------------
 // servo gains and tendons
 
-// a pid's kp and ki and the coupling tendon's stiffness and damping (models/pid_tendon.xml) under
-// the pid's and the velocity servo's multi-sine targets. Truth: kp 35, ki 12, stiffness 4, damping
-// 0.3; start: the model's 40, 10, 3, 0.2. Noise: 1 mrad on each angle, 10 mrad/s on the rate.
-KindCase PidTendonCase() {
-  KindCase c;
-  c.model = "pid_tendon.xml";
-  c.truth = {{"kp", Spec("actuator_kp", "shoulder_pid"), 35},
-             {"ki", Spec("actuator_ki", "shoulder_pid"), 12},
-             {"k", Spec("tendon_stiffness", "coupling"), 4},
-             {"b", Spec("tendon_damping", "coupling"), 0.3}};
-  c.start = {40, 10, 3, 0.2};
-  c.lower = {1, 0.1, 0.01, 1e-3};
-  c.upper = {200, 100, 100, 10};
-  c.sigma = {{"q_shoulder", 0.001}, {"q_elbow", 0.001}, {"v_shoulder", 0.01}};
-  return c;
-}
-
+// a pid's kp and ki and the coupling tendon's stiffness and damping (test::PidTendonCase: truth
+// kp 35, ki 12, stiffness 4, damping 0.3; start the model's 40, 10, 3, 0.2; noise 1 mrad on each
+// angle, 10 mrad/s on the rate)
 TEST(KindsCoverageTest, PidGainsTendonNoisyTruthInsideIntervals) {
-  ExpectNoisyRecovery(PidTendonCase());
+  ExpectNoisyRecovery(test::PidTendonCase());
 }
 
-// a velocity servo's kv and the pid's kv (models/pid_tendon.xml). Truth: elbow kv 2.6, pid kv
-// 3.9; start: the model's 2, 3. Noise: 1 mrad on each angle, 10 mrad/s on the rate.
+// a velocity servo's kv and the pid's kv (test::VelocityServoKvCase: truth 2.6, 3.9; start the
+// model's 2, 3; noise 1 mrad on each angle, 10 mrad/s on the rate)
 TEST(KindsCoverageTest, VelocityServoKvNoisyTruthInsideIntervals) {
-  KindCase c;
-  c.model = "pid_tendon.xml";
-  c.truth = {{"kv_elbow", Spec("actuator_kv", "elbow_vel"), 2.6},
-             {"kv_shoulder", Spec("actuator_kv", "shoulder_pid"), 3.9}};
-  c.start = {2.0, 3.0};
-  c.lower = {0.01, 0.01};
-  c.upper = {50.0, 50.0};
-  c.sigma = {{"q_shoulder", 0.001}, {"q_elbow", 0.001}, {"v_shoulder", 0.01}};
-  ExpectNoisyRecovery(c);
+  ExpectNoisyRecovery(test::VelocityServoKvCase());
 }
 
-// the ends of the coupling tendon's dead band (models/tendon_deadband.xml) under +-1 N m
-// multi-sine torques. Truth: [0.125, 0.38]; start: the model's [0.1, 0.3]. Noise: 1 mrad on each
-// angle, 0.5 mm on the tendon length.
+// the ends of the coupling tendon's dead band (test::TendonDeadBandCase: truth [0.125, 0.38];
+// start the model's [0.1, 0.3]; noise 1 mrad on each angle, 0.5 mm on the tendon length)
 TEST(KindsCoverageTest, TendonDeadBandEndsNoisyTruthInsideIntervals) {
-  KindCase c;
-  c.model = "tendon_deadband.xml";
-  c.truth = {{"lower_end", Spec("tendon_lengthspring", "coupling", 1), 0.125},
-             {"upper_end", Spec("tendon_lengthspring", "coupling", 2), 0.38}};
-  c.start = {0.1, 0.3};
-  c.lower = {-1.0, -1.0};
-  c.upper = {1.0, 1.0};
-  c.sigma = {{"q_shoulder", 0.001}, {"q_elbow", 0.001}, {"l_coupling", 0.0005}};
-  ExpectNoisyRecovery(c);
+  ExpectNoisyRecovery(test::TendonDeadBandCase());
 }
 
 // ---------------------------------------------------------------------------------------------
 // DC motor: inductance, cogging (amplitude, periods per revolution, phase), LuGre
 
-// the DC motor's inductance and cogging amplitude and phase with its motor constant
-// (models/dcmotor.xml) under +-6 V multi-sine voltages. Truth: 0.026 H, 0.0026 N m, 0.26 rad,
-// 0.045 N m/A; start: the model's 0.02, 0.002, 0.2, 0.05. Noise: 1 mrad, 10 mrad/s.
+// the DC motor's inductance and cogging amplitude and phase with its motor constant under +-6 V
+// (test::DcMotorInductanceCoggingCase: truth 0.026 H, 0.0026 N m, 0.26 rad, 0.045 N m/A; start
+// the model's 0.02, 0.002, 0.2, 0.05; noise 1 mrad, 10 mrad/s)
 TEST(KindsCoverageTest, DcMotorInductanceCoggingNoisyTruthInsideIntervals) {
-  KindCase c;
-  c.model = "dcmotor.xml";
-  c.truth = {{"inductance", Spec("dcmotor_inductance", "motor"), 0.026},
-             {"cog_amp", Spec("dcmotor_cogging", "motor", 0), 0.0026},
-             {"cog_phase", Spec("dcmotor_cogging", "motor", 2), 0.26},
-             {"motorconst", Spec("dcmotor_motorconst", "motor"), 0.045}};
-  c.start = {0.02, 0.002, 0.2, 0.05};
-  c.lower = {1e-3, 1e-4, 0.01, 1e-3};
-  c.upper = {0.5, 0.1, 3.0, 1.0};
-  c.amplitude = 6;
-  c.sigma = {{"angle", 0.001}, {"rate", 0.01}};
-  ExpectNoisyRecovery(c);
+  ExpectNoisyRecovery(test::DcMotorInductanceCoggingCase());
 }
 
 // the cogging's periods per revolution (index 1) with its amplitude and phase: a frequency in the
@@ -170,41 +129,26 @@ TEST(KindsCoverageTest, DcMotorLugreBristlesCoarseEncoderHonestStatus) {
 }
 
 // the noisy variant of kinds_recovery_test.cc's LuGre case: Coulomb friction and Stribeck
-// velocity (index 2, 4) with the motor constant, under +-2 V (at +-6 V the link runs far above
-// the Stribeck velocity: the noisy fit put it on its lower bound, measured). Truth: 0.026 N m,
-// 0.13 rad/s, 0.045 N m/A; start: the model's 0.02, 0.1, 0.05. Noise: 1 mrad, 10 mrad/s.
+// velocity (index 2, 4) with the motor constant (test::LugreCoulombStribeckCase: truth 0.026 N m,
+// 0.13 rad/s, 0.045 N m/A; start the model's 0.02, 0.1, 0.05; noise 1 mrad, 10 mrad/s), under
+// +-2 V instead of its +-6 V (at +-6 V the link runs far above the Stribeck velocity: the noisy
+// fit put it on its lower bound, measured).
 TEST(KindsCoverageTest, DcMotorLugreCoulombStribeckNoisyTruthInsideIntervals) {
-  KindCase c;
-  c.model = "dcmotor_lugre.xml";
-  c.truth = {{"coulomb", Spec("dcmotor_lugre", "motor", 2), 0.026},
-             {"stribeck", Spec("dcmotor_lugre", "motor", 4), 0.13},
-             {"motorconst", Spec("dcmotor_motorconst", "motor"), 0.045}};
-  c.start = {0.02, 0.1, 0.05};
-  c.lower = {1e-4, 1e-3, 1e-3};
-  c.upper = {1.0, 10.0, 1.0};
+  KindCase c = test::LugreCoulombStribeckCase();
   c.amplitude = 2;
-  c.sigma = {{"angle", 0.001}, {"rate", 0.01}};
   ExpectNoisyRecovery(c);
 }
 
 // ---------------------------------------------------------------------------------------------
 // contact softness on the pressed sphere (one contact at every step: kinds_recovery_test.cc)
 
-RowMatrix Press(const mjModel& m, int T, int /*seed*/) { return test::PressForce(m, T); }
+using test::PressControls;
 
-// the sphere's solref (time constant, damping ratio) from its height and rate. Truth: 0.03 s,
-// 0.8; start: 0.039 s, 1.04. Noise: 10 um on the height, 1 mm/s on the rate.
+// the sphere's solref (time constant, damping ratio) from its height and rate
+// (test::GeomSolrefCase: truth 0.03 s, 0.8; start 0.039 s, 1.04; noise 10 um on the height,
+// 1 mm/s on the rate)
 TEST(KindsCoverageTest, GeomSolrefPressedNoisyTruthInsideIntervals) {
-  KindCase c;
-  c.model = "sphere_press.xml";
-  c.truth = {{"timeconst", Spec("geom_solref", "sphere", 0), 0.03},
-             {"dampratio", Spec("geom_solref", "sphere", 1), 0.8}};
-  c.start = {0.039, 1.04};
-  c.lower = {0.005, 0.1};
-  c.upper = {0.2, 5.0};
-  c.controls = Press;
-  c.sigma = {{"height", 1e-5}, {"rate", 1e-3}};
-  ExpectNoisyRecovery(c);
+  ExpectNoisyRecovery(test::GeomSolrefCase());
 }
 
 // the sphere's solimp dmin, midpoint and power (index 0, 3, 4; the contact uses the mean of the
@@ -220,7 +164,7 @@ KindCase SolimpCurveCase() {
   c.start = {0.9, 0.5, 2.0};
   c.lower = {0.1, 0.05, 1.0};
   c.upper = {0.99, 0.95, 10.0};
-  c.controls = Press;
+  c.controls = PressControls;
   c.sigma = {{"height", 1e-5}, {"rate", 1e-3}};
   return c;
 }
@@ -232,19 +176,11 @@ TEST(KindsCoverageTest, GeomSolimpCurvePressedNoisyTruthInsideIntervals) {
   ExpectNoisyRecovery(SolimpCurveCase());
 }
 
-// the sphere's solimp dmax and width together (index 1, 2). Truth: 0.7, 1.3 mm; start: 0.9,
-// 1 mm. Noise-free, relative <= 1e-6; noisy: 10 um on the height, 1 mm/s on the rate.
+// the sphere's solimp dmax and width together (index 1, 2; test::GeomSolimpDmaxCase and
+// test::GeomSolimpWidthCase). Truth: 0.7, 1.3 mm; start: 0.9, 1 mm. Noise-free, relative <= 1e-6;
+// noisy: 10 um on the height, 1 mm/s on the rate.
 KindCase GeomDmaxWidthCase() {
-  KindCase c;
-  c.model = "sphere_press.xml";
-  c.truth = {{"dmax", Spec("geom_solimp", "sphere", 1), 0.7},
-             {"width", Spec("geom_solimp", "sphere", 2), 0.0013}};
-  c.start = {0.9, 0.001};
-  c.lower = {0.1, 1e-4};
-  c.upper = {0.999, 0.01};
-  c.controls = Press;
-  c.sigma = {{"height", 1e-5}, {"rate", 1e-3}};
-  return c;
+  return test::WithParametersOf(test::GeomSolimpDmaxCase(), test::GeomSolimpWidthCase());
 }
 
 TEST(KindsCoverageTest, GeomSolimpDmaxWidthPressedNoiseFree) {
@@ -254,20 +190,11 @@ TEST(KindsCoverageTest, GeomSolimpDmaxWidthPressedNoisyTruthInsideIntervals) {
   ExpectNoisyRecovery(GeomDmaxWidthCase());
 }
 
-// the noisy variant of kinds_recovery_test.cc's pair case: the pair's solref and solimp dmax.
-// Truth: 0.022 s, 0.6, 0.72; start: the model's 0.03, 0.8, 0.95. Noise as above.
+// the noisy variant of kinds_recovery_test.cc's pair case: the pair's solref and solimp dmax
+// (test::PairSolrefDmaxCase: truth 0.022 s, 0.6, 0.72; start the model's 0.03, 0.8, 0.95; noise
+// as above)
 TEST(KindsCoverageTest, PairSolrefDmaxPressedNoisyTruthInsideIntervals) {
-  KindCase c;
-  c.model = "sphere_press_pair.xml";
-  c.truth = {{"timeconst", Spec("pair_solref", "press", 0), 0.022},
-             {"dampratio", Spec("pair_solref", "press", 1), 0.6},
-             {"dmax", Spec("pair_solimp", "press", 1), 0.72}};
-  c.start = {0.03, 0.8, 0.95};
-  c.lower = {0.005, 0.1, 0.1};
-  c.upper = {0.2, 5.0, 0.999};
-  c.controls = Press;
-  c.sigma = {{"height", 1e-5}, {"rate", 1e-3}};
-  ExpectNoisyRecovery(c);
+  ExpectNoisyRecovery(test::PairSolrefDmaxCase());
 }
 
 // an explicit pair's solimp dmin, midpoint and power (models/sphere_press_pair.xml; the pair's
@@ -284,7 +211,7 @@ KindCase PairSolimpCurveCase() {
   c.start = {0.9, 0.5, 2.0};
   c.lower = {0.1, 0.05, 1.0};
   c.upper = {0.999, 0.95, 10.0};
-  c.controls = Press;
+  c.controls = PressControls;
   c.sigma = {{"height", 1e-5}, {"rate", 1e-3}};
   return c;
 }
@@ -307,7 +234,7 @@ KindCase PairWidthSolrefCase() {
   c.start = {0.001, 0.03, 0.8};
   c.lower = {1e-4, 0.005, 0.1};
   c.upper = {0.01, 0.2, 5.0};
-  c.controls = Press;
+  c.controls = PressControls;
   c.sigma = {{"height", 1e-5}, {"rate", 1e-3}};
   return c;
 }

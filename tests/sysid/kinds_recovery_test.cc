@@ -17,6 +17,7 @@
 #include "sysid/problem.h"
 #include "tests/fit_test_util.h"
 #include "tests/sysid/kind_case.h"
+#include "tests/sysid/kind_cases.h"
 #include "tests/test_util.h"
 
 namespace mjsysid {
@@ -36,25 +37,20 @@ using test::Print;
 using test::Spec;
 using test::Truth;
 
-// a pid's kp and ki, a tendon's stiffness and damping, and the lower link's mass and centre of
-// mass x (body_inertial alpha, t1). Truth: kp 35, ki 12, stiffness 4, damping 0.3, alpha
-// ln sqrt(0.75), t1 0.14; start: the model's 40, 10, 3, 0.2, ln sqrt(0.6), 0.12. Noise-free,
-// relative error <= 1e-6 (absolute for alpha and t1)
+// a pid's kp and ki, a tendon's stiffness and damping (test::PidTendonCase: truth kp 35, ki 12,
+// stiffness 4, damping 0.3; start: the model's 40, 10, 3, 0.2), and the lower link's mass and
+// centre of mass x (body_inertial alpha, t1: truth ln sqrt(0.75), 0.14; start: the model's
+// ln sqrt(0.6), 0.12), from two sequences. Noise-free, relative error <= 1e-6 (absolute for alpha
+// and t1)
 TEST(KindsRecoveryTest, PidTendonInertialNoiseFree) {
-  ModelPtr m = LoadModel(kModels + "/pid_tendon.xml");
-  const std::vector<Truth> truth = {
-      {"kp", Spec("actuator_kp", "shoulder_pid"), 35},
-      {"ki", Spec("actuator_ki", "shoulder_pid"), 12},
-      {"k", Spec("tendon_stiffness", "coupling"), 4},
-      {"b", Spec("tendon_damping", "coupling"), 0.3},
-      {"alpha", Spec("body_inertial", "lower", 0), 0.5 * std::log(0.75)},
-      {"t1", Spec("body_inertial", "lower", 7), 0.14}};
+  const KindCase pid = test::PidTendonCase();
+  ModelPtr m = LoadModel(kModels + "/" + pid.model);
+  std::vector<Truth> truth = pid.truth;
+  truth.push_back({"alpha", Spec("body_inertial", "lower", 0), 0.5 * std::log(0.75)});
+  truth.push_back({"t1", Spec("body_inertial", "lower", 7), 0.14});
   Problem problem;
   problem.AddModel("arm", *m);
-  problem.AddParameter(FitParameter("kp", truth[0].spec, 40).Bounds(1, 200).Log());
-  problem.AddParameter(FitParameter("ki", truth[1].spec, 10).Bounds(0.1, 100).Log());
-  problem.AddParameter(FitParameter("k", truth[2].spec, 3).Bounds(0.01, 100).Log());
-  problem.AddParameter(FitParameter("b", truth[3].spec, 0.2).Bounds(1e-3, 10).Log());
+  test::AddCaseParameters(pid, &problem);
   problem.AddParameter(FitParameter("alpha", truth[4].spec, 0.5 * std::log(0.6)).Bounds(-3, 3));
   problem.AddParameter(FitParameter("t1", truth[5].spec, 0.12).Bounds(-1, 1));
   for (int s = 0; s < 2; ++s) {
@@ -72,19 +68,30 @@ TEST(KindsRecoveryTest, PidTendonInertialNoiseFree) {
   }
 }
 
-// a position servo's kp, kv and native actuator delay (whole-rollout Jacobians). Truth: kp 25,
-// kv 1.5, delay 11.5 ms; start: the model's 20, 1, 9 ms. Noise-free, relative error <= 1e-6
+// a position servo's kp, kv and native actuator delay (models/servo_delay.xml) under +-0.8 rad
+// multi-sine targets. Truth: kp 25, kv 1.5, delay 11.5 ms; start: the model's 20, 1, 9 ms.
+KindCase ServoDelayCase() {
+  KindCase c;
+  c.model = "servo_delay.xml";
+  c.truth = {{"kp", Spec("actuator_kp", "servo"), 25},
+             {"kv", Spec("actuator_kv", "servo"), 1.5},
+             {"delay", Spec("actuator_delay", "servo"), 0.0115}};
+  c.start = {20, 1, 0.009};
+  c.lower = {1, 0.01, 0};
+  c.upper = {200, 20, 0.018};
+  c.amplitude = 0.8;
+  return c;
+}
+
+// the servo case (whole-rollout Jacobians). Noise-free, relative error <= 1e-6
 TEST(KindsRecoveryTest, ServoGainsAndDelayNoiseFree) {
-  ModelPtr m = LoadModel(kModels + "/servo_delay.xml");
-  const std::vector<Truth> truth = {{"kp", Spec("actuator_kp", "servo"), 25},
-                                    {"kv", Spec("actuator_kv", "servo"), 1.5},
-                                    {"delay", Spec("actuator_delay", "servo"), 0.0115}};
+  const KindCase c = ServoDelayCase();
+  ModelPtr m = LoadModel(kModels + "/" + c.model);
+  const std::vector<Truth>& truth = c.truth;
   Problem problem;
   problem.AddModel("servo", *m);
-  problem.AddParameter(FitParameter("kp", truth[0].spec, 20).Bounds(1, 200).Log());
-  problem.AddParameter(FitParameter("kv", truth[1].spec, 1).Bounds(0.01, 20).Log());
-  problem.AddParameter(FitParameter("delay", truth[2].spec, 0.009).Bounds(0, 0.018));
-  const RowMatrix u = Excitation(*m, 1500, 0.8, 30);
+  test::AddCaseParameters(c, &problem);
+  const RowMatrix u = Excitation(*m, 1500, c.amplitude, 30);
   InitialState x0;
   problem.AddSequence(FitSequence("seq0", "servo", x0, u, Measure(*m, truth, x0, u, 0, 0)));
   const FitResult r = problem.Fit(FitOptions());
@@ -99,16 +106,13 @@ TEST(KindsRecoveryTest, ServoGainsAndDelayNoiseFree) {
 // the same servo from noisy angle and rate (sigma 2 mrad and 20 mrad/s, weighted by them): the
 // truth lies inside every 95% interval, and the residual variance is that of the noise
 TEST(KindsRecoveryTest, ServoGainsAndDelayNoisyTruthInsideIntervals) {
-  ModelPtr m = LoadModel(kModels + "/servo_delay.xml");
-  const std::vector<Truth> truth = {{"kp", Spec("actuator_kp", "servo"), 25},
-                                    {"kv", Spec("actuator_kv", "servo"), 1.5},
-                                    {"delay", Spec("actuator_delay", "servo"), 0.0115}};
+  const KindCase c = ServoDelayCase();
+  ModelPtr m = LoadModel(kModels + "/" + c.model);
+  const std::vector<Truth>& truth = c.truth;
   Problem problem;
   problem.AddModel("servo", *m);
-  problem.AddParameter(FitParameter("kp", truth[0].spec, 20).Bounds(1, 200).Log());
-  problem.AddParameter(FitParameter("kv", truth[1].spec, 1).Bounds(0.01, 20).Log());
-  problem.AddParameter(FitParameter("delay", truth[2].spec, 0.009).Bounds(0, 0.018));
-  const RowMatrix u = Excitation(*m, 1500, 0.8, 31);
+  test::AddCaseParameters(c, &problem);
+  const RowMatrix u = Excitation(*m, 1500, c.amplitude, 31);
   InitialState x0;
   RowMatrix y = Measure(*m, truth, x0, u, 0, 0);
   std::mt19937_64 rng(11);
@@ -289,22 +293,17 @@ TEST(KindsRecoveryTest, SensorDelayNoisyIntervalsCalibrated) {
 
 // contact softness where the cost is smooth (models/sphere_press.xml: a sphere on a vertical
 // slide resting on a plane, pressed by a force of three sines, 1.1, 5 and 9 Hz, 2 N each, that
-// stays below its 9.81 N weight): the sphere's solref time constant and damping ratio (the
-// contact uses the mean of the sphere's and the floor's 0.02, 1) from its height and rate. The
-// contact persists: one contact at every step, with the truth and with the start. Truth: 0.03 s,
-// 0.8; start: 30% above, 0.039 s, 1.04. Noise-free, relative error <= 1e-6.
+// stays below its 9.81 N weight): the sphere's solref time constant and damping ratio
+// (test::GeomSolrefCase: truth 0.03 s, 0.8; start: 30% above, 0.039 s, 1.04) from its height and
+// rate. The contact persists: one contact at every step, with the truth and with the start.
+// Noise-free, relative error <= 1e-6.
 TEST(KindsRecoveryTest, ContactSoftnessPersistentContactNoiseFree) {
-  ModelPtr m = LoadModel(kModels + "/sphere_press.xml");
-  const std::vector<Truth> truth = {{"timeconst", Spec("geom_solref", "sphere", 0), 0.03},
-                                    {"dampratio", Spec("geom_solref", "sphere", 1), 0.8}};
-  const double start[2] = {0.039, 1.04};
+  const KindCase c = test::GeomSolrefCase();
+  ModelPtr m = LoadModel(kModels + "/" + c.model);
+  const std::vector<Truth>& truth = c.truth;
+  const std::vector<double>& start = c.start;
   const int T = 1500;
-  RowMatrix u(T, 1);
-  for (int k = 0; k < T; ++k) {
-    const double t = k * m->opt.timestep;
-    u(k, 0) = 2 * std::sin(2 * M_PI * 1.1 * t) + 2 * std::sin(2 * M_PI * 5 * t + 1) +
-              2 * std::sin(2 * M_PI * 9 * t + 2);
-  }
+  const RowMatrix u = PressForce(*m, T);
   // persistent contact: exactly one contact at every step, at the truth and at the start
   const int sphere = mj_name2id(m.get(), mjOBJ_GEOM, "sphere");
   const auto steps_with_one_contact = [&](double timeconst, double dampratio) {
@@ -324,8 +323,7 @@ TEST(KindsRecoveryTest, ContactSoftnessPersistentContactNoiseFree) {
   EXPECT_EQ(steps_with_one_contact(start[0], start[1]), T) << "start";
   Problem problem;
   problem.AddModel("ball", *m);
-  problem.AddParameter(FitParameter("timeconst", truth[0].spec, start[0]).Bounds(0.005, 0.2).Log());
-  problem.AddParameter(FitParameter("dampratio", truth[1].spec, start[1]).Bounds(0.1, 5).Log());
+  test::AddCaseParameters(c, &problem);
   InitialState x0;
   problem.AddSequence(FitSequence("seq0", "ball", x0, u, Measure(*m, truth, x0, u, 0, 0)));
   const FitResult r = problem.Fit(FitOptions());
@@ -403,67 +401,30 @@ TEST(KindsRecoveryTest, TendonFrictionLossLengthSpringNoisyTruthInsideIntervals)
   ExpectNoisyRecovery(TendonFrictionSpringCase());
 }
 
-// the ends of a tendon spring's dead band (models/tendon_deadband.xml, the coupling tendon,
-// tendon_lengthspring index 1 and 2) under +-1 N m multi-sine motor torques. Truth: band
-// [0.125, 0.38]; start: the model's [0.1, 0.3] (20 %, 21 % off). Noise-free, relative <= 1e-6.
+// the ends of a tendon spring's dead band (test::TendonDeadBandCase: truth [0.125, 0.38], start
+// the model's [0.1, 0.3]). Noise-free, relative <= 1e-6.
 TEST(KindsRecoveryTest, TendonDeadBandEndsNoiseFree) {
-  KindCase c;
-  c.model = "tendon_deadband.xml";
-  c.truth = {{"lower_end", Spec("tendon_lengthspring", "coupling", 1), 0.125},
-             {"upper_end", Spec("tendon_lengthspring", "coupling", 2), 0.38}};
-  c.start = {0.1, 0.3};
-  c.lower = {-1.0, -1.0};
-  c.upper = {1.0, 1.0};
-  ExpectNoiseFreeRecovery(c);
+  ExpectNoiseFreeRecovery(test::TendonDeadBandCase());
 }
 
-// the DC motor's inductance and cogging amplitude and phase (models/dcmotor.xml) with its motor
-// constant, under +-6 V multi-sine voltages. Truth: inductance 0.026 H, cogging amplitude
-// 0.0026 N m, phase 0.26 rad, motorconst 0.045; start: the model's 0.02, 0.002, 0.2, 0.05 (23 %,
-// 23 %, 23 %, 11 % off). Noise-free, relative <= 1e-6.
+// the DC motor's inductance and cogging amplitude and phase with its motor constant
+// (test::DcMotorInductanceCoggingCase: truth 0.026 H, 0.0026 N m, 0.26 rad, 0.045 N m/A; start
+// the model's 0.02, 0.002, 0.2, 0.05). Noise-free, relative <= 1e-6.
 TEST(KindsRecoveryTest, DcMotorInductanceCoggingNoiseFree) {
-  KindCase c;
-  c.model = "dcmotor.xml";
-  c.truth = {{"inductance", Spec("dcmotor_inductance", "motor"), 0.026},
-             {"cog_amp", Spec("dcmotor_cogging", "motor", 0), 0.0026},
-             {"cog_phase", Spec("dcmotor_cogging", "motor", 2), 0.26},
-             {"motorconst", Spec("dcmotor_motorconst", "motor"), 0.045}};
-  c.start = {0.02, 0.002, 0.2, 0.05};
-  c.lower = {1e-3, 1e-4, 0.01, 1e-3};
-  c.upper = {0.5, 0.1, 3.0, 1.0};
-  c.amplitude = 6;
-  ExpectNoiseFreeRecovery(c);
+  ExpectNoiseFreeRecovery(test::DcMotorInductanceCoggingCase());
 }
 
-// the DC motor's LuGre friction (models/dcmotor_lugre.xml): Coulomb friction and Stribeck
-// velocity (dcmotor_lugre index 2 and 4) with the motor constant, under +-6 V multi-sine
-// voltages. Truth: Coulomb 0.026 N m, Stribeck velocity 0.13 rad/s, motorconst 0.045; start: the
-// model's 0.02, 0.1, 0.05 (23 %, 23 %, 11 % off). Noise-free, relative <= 1e-6.
+// the DC motor's LuGre Coulomb friction and Stribeck velocity with its motor constant under +-6 V
+// (test::LugreCoulombStribeckCase: truth 0.026 N m, 0.13 rad/s, 0.045 N m/A; start the model's
+// 0.02, 0.1, 0.05). Noise-free, relative <= 1e-6.
 TEST(KindsRecoveryTest, DcMotorLugreNoiseFree) {
-  KindCase c;
-  c.model = "dcmotor_lugre.xml";
-  c.truth = {{"coulomb", Spec("dcmotor_lugre", "motor", 2), 0.026},
-             {"stribeck", Spec("dcmotor_lugre", "motor", 4), 0.13},
-             {"motorconst", Spec("dcmotor_motorconst", "motor"), 0.045}};
-  c.start = {0.02, 0.1, 0.05};
-  c.lower = {1e-4, 1e-3, 1e-3};
-  c.upper = {1.0, 10.0, 1.0};
-  c.amplitude = 6;
-  ExpectNoiseFreeRecovery(c);
+  ExpectNoiseFreeRecovery(test::LugreCoulombStribeckCase());
 }
 
-// a velocity servo's kv (models/pid_tendon.xml, elbow_vel: the kind writes both its gain and its
-// bias) under multi-sine velocity targets, with the pid's kv on the shoulder. Truth: elbow kv 2.6,
-// pid kv 3.9; start: the model's 2, 3 (23 % off each). Noise-free, relative <= 1e-6.
+// a velocity servo's kv with the pid's kv (test::VelocityServoKvCase: truth elbow kv 2.6, pid kv
+// 3.9; start the model's 2, 3). Noise-free, relative <= 1e-6.
 TEST(KindsRecoveryTest, VelocityServoKvNoiseFree) {
-  KindCase c;
-  c.model = "pid_tendon.xml";
-  c.truth = {{"kv_elbow", Spec("actuator_kv", "elbow_vel"), 2.6},
-             {"kv_shoulder", Spec("actuator_kv", "shoulder_pid"), 3.9}};
-  c.start = {2.0, 3.0};
-  c.lower = {0.01, 0.01};
-  c.upper = {50.0, 50.0};
-  ExpectNoiseFreeRecovery(c);
+  ExpectNoiseFreeRecovery(test::VelocityServoKvCase());
 }
 
 // noise-free recovery of contact softness on the pressed sphere (models/sphere_press*.xml: the
@@ -480,11 +441,7 @@ void ExpectPersistentContactRecovery(const KindCase& c) {
   EXPECT_LT(Measure(*m, start, x0, u, 0, 0).col(height).maxCoeff(), 0.001) << "start";
   Problem problem;
   problem.AddModel("ball", *m);
-  for (size_t i = 0; i < c.truth.size(); ++i) {
-    problem.AddParameter(FitParameter(c.truth[i].name, c.truth[i].spec, c.start[i])
-                             .Bounds(c.lower[i], c.upper[i])
-                             .Log());
-  }
+  test::AddCaseParameters(c, &problem);  // every lower bound is positive: log transforms
   problem.AddSequence(FitSequence("seq0", "ball", x0, u, Measure(*m, c.truth, x0, u, 0, 0)));
   const FitResult r = problem.Fit(FitOptions());
   Print(r);
@@ -494,47 +451,25 @@ void ExpectPersistentContactRecovery(const KindCase& c) {
   }
 }
 
-// the sphere's solimp dmax (index 1; the contact uses the mean of the sphere's and the floor's
-// 0.95): it scales the impedance, so the stiffness, at every penetration; measured with MuJoCo's
-// Python bindings, the penetration spans 0.3-1.2 mm around the 1 mm width, so width and midpoint
-// reach the data too, but are not fitted here. Truth: 0.7; start: 0.9 (29 % off). Noise-free,
-// relative <= 1e-6.
+// the sphere's solimp dmax (test::GeomSolimpDmaxCase: truth 0.7, start 0.9): it scales the
+// impedance, so the stiffness, at every penetration; measured with MuJoCo's Python bindings, the
+// penetration spans 0.3-1.2 mm around the 1 mm width, so width and midpoint reach the data too,
+// but are not fitted here. Noise-free, relative <= 1e-6.
 TEST(KindsRecoveryTest, GeomSolimpPersistentContactNoiseFree) {
-  KindCase c;
-  c.model = "sphere_press.xml";
-  c.truth = {{"dmax", Spec("geom_solimp", "sphere", 1), 0.7}};
-  c.start = {0.9};
-  c.lower = {0.1};
-  c.upper = {0.999};
-  ExpectPersistentContactRecovery(c);
+  ExpectPersistentContactRecovery(test::GeomSolimpDmaxCase());
 }
 
-// the sphere's solimp width (index 2; the contact uses the mean of the sphere's and the floor's
-// 1 mm): the penetration spans 0.3-1.2 mm, so the impedance rises from dmin to dmax inside the
-// data. Truth: 1.3 mm; start: 1 mm (23 % off). Noise-free, relative <= 1e-6.
+// the sphere's solimp width (test::GeomSolimpWidthCase: truth 1.3 mm, start 1 mm): the
+// penetration spans 0.3-1.2 mm, so the impedance rises from dmin to dmax inside the data.
+// Noise-free, relative <= 1e-6.
 TEST(KindsRecoveryTest, GeomSolimpWidthPersistentContactNoiseFree) {
-  KindCase c;
-  c.model = "sphere_press.xml";
-  c.truth = {{"width", Spec("geom_solimp", "sphere", 2), 0.0013}};
-  c.start = {0.001};
-  c.lower = {1e-4};
-  c.upper = {0.01};
-  ExpectPersistentContactRecovery(c);
+  ExpectPersistentContactRecovery(test::GeomSolimpWidthCase());
 }
 
-// an explicit <pair>'s solref and solimp dmax (models/sphere_press_pair.xml; the pair's values
-// are the contact's, unmixed). Truth: time constant 0.022 s, damping ratio 0.6, dmax 0.72; start:
-// the model's 0.03, 0.8, 0.95 (36 %, 33 %, 32 % off). Noise-free, relative <= 1e-6.
+// an explicit <pair>'s solref and solimp dmax (test::PairSolrefDmaxCase: truth 0.022 s, 0.6,
+// 0.72; start the model's 0.03, 0.8, 0.95). Noise-free, relative <= 1e-6.
 TEST(KindsRecoveryTest, PairSolrefSolimpPersistentContactNoiseFree) {
-  KindCase c;
-  c.model = "sphere_press_pair.xml";
-  c.truth = {{"timeconst", Spec("pair_solref", "press", 0), 0.022},
-             {"dampratio", Spec("pair_solref", "press", 1), 0.6},
-             {"dmax", Spec("pair_solimp", "press", 1), 0.72}};
-  c.start = {0.03, 0.8, 0.95};
-  c.lower = {0.005, 0.1, 0.1};
-  c.upper = {0.2, 5.0, 0.999};
-  ExpectPersistentContactRecovery(c);
+  ExpectPersistentContactRecovery(test::PairSolrefDmaxCase());
 }
 
 }  // namespace
