@@ -15,6 +15,7 @@
 #include "sysid/sample_grid.h"
 #include "tests/cli_util.h"
 #include "tests/file_util.h"
+#include "tests/log_builder.h"
 #include "tests/test_util.h"
 
 namespace mjsysid {
@@ -22,8 +23,6 @@ namespace {
 
 namespace fs = std::filesystem;
 using test::Sysid;
-
-const std::string kModels = MJSYSID_MODELS_DIR;
 
 // the number after "value: " following `key` in result.yaml text (NaN when absent)
 double ValueAfter(const std::string& text, const std::string& key) {
@@ -41,25 +40,18 @@ class ControlDelayCliTest : public ::testing::Test {
   // commands at that delay; 1500 steps, sensors at every step, noise 1e-3 (seed 5)
   void SetUp() override {
     dir_ = test::FreshTempDir("ctrl_delay");
-    ModelPtr m = LoadModel(kModels + "/pendulum.xml");
+    ModelPtr m = LoadModel(test::PendulumModelPath());
     const double dt = m->opt.timestep;
     const int T = 1500;
-    const RowMatrix smooth = test::Excitation(*m, T, 2.0, 4);
     io::Sequence s;
     s.name = "run1";
     s.actuator_names = {"torque"};
-    s.ctrl_time.resize(T / 10);
-    s.ctrl.resize(T / 10, 1);
-    for (int j = 0; j < T / 10; ++j) {
-      s.ctrl_time[j] = (10 * j) * dt;
-      s.ctrl(j, 0) = smooth(10 * j, 0);
-    }
+    test::SetControlsEvery(test::PendulumTorque(*m, T), dt, 10, &s);
     s.time.resize(T);
     for (int k = 0; k < T; ++k) s.time[k] = k * dt;
     const SampleGrid grid =
         BuildSampleGrid(s.time, T, 0.0, s.ctrl, s.ctrl_time, {}, {0.013}, dt, "");
-    const RowMatrix y = test::Measure(*m, {{"damping", test::Spec("joint_damping", "hinge"), 0.12}},
-                                      InitialState(), grid.ctrl.topRows(T), 1e-3, 5);
+    const RowMatrix y = test::MeasurePendulum(*m, InitialState(), grid.ctrl.topRows(T));
     s.sensor_names = {"angle", "rate"};
     s.sensor_dims = {1, 1};
     s.sensordata = y;
@@ -73,15 +65,7 @@ class ControlDelayCliTest : public ::testing::Test {
   // fits the hinge damping from 0.05 with sigmas equal to the noise, and the `controls` block
   std::string Experiment(const std::string& controls) {
     const std::string path = dir_ + "/fit.yaml";
-    test::WriteFile(path, "model: " + kModels + "/pendulum.xml\ndata: " + log_ +
-                              "\nsensors:\n"
-                              "  - {name: angle, sigma: 1.0e-3}\n"
-                              "  - {name: rate, sigma: 1.0e-3}\n"
-                              "parameters:\n"
-                              "  - {name: damping, target: joint_damping, object: hinge, "
-                              "initial: 0.05, bounds: [0.001, 10], transform: log}\n"
-                              "controls:\n" +
-                              controls);
+    test::WriteFile(path, test::PendulumDampingYaml(log_) + "controls:\n" + controls);
     return path;
   }
 

@@ -15,6 +15,7 @@
 #include "sysid/io/log.h"
 #include "tests/cli_util.h"
 #include "tests/file_util.h"
+#include "tests/log_builder.h"
 #include "tests/test_util.h"
 
 namespace mjsysid {
@@ -23,8 +24,6 @@ namespace {
 namespace fs = std::filesystem;
 using test::Sysid;
 
-const std::string kModels = MJSYSID_MODELS_DIR;
-
 class ImportFilesCliTest : public ::testing::Test {
  protected:
   // truth: hinge damping 0.12 (the model says 0.05), from the reference state, a multi-sine held
@@ -32,16 +31,13 @@ class ImportFilesCliTest : public ::testing::Test {
   // step (100 Hz, every 37th of its rows empty), rate every 2nd (250 Hz), controls every 10th
   void SetUp() override {
     dir_ = test::FreshTempDir("import_files");
-    ModelPtr m = LoadModel(kModels + "/pendulum.xml");
+    ModelPtr m = LoadModel(test::PendulumModelPath());
     const double dt = m->opt.timestep;
     const int T = 1500;
-    const RowMatrix smooth = test::Excitation(*m, T, 2.0, 4);
-    RowMatrix u(T, 1);
-    for (int k = 0; k < T; ++k) u(k, 0) = smooth(k / 10 * 10, 0);
-    const RowMatrix y = test::Measure(*m, {{"damping", test::Spec("joint_damping", "hinge"), 0.12}},
-                                      InitialState(), u, 1e-3, 5);
-    const int angle = m->sensor_adr[mj_name2id(m.get(), mjOBJ_SENSOR, "angle")];
-    const int rate = m->sensor_adr[mj_name2id(m.get(), mjOBJ_SENSOR, "rate")];
+    const RowMatrix u = test::PendulumTorque(*m, T, 10);
+    const RowMatrix y = test::MeasurePendulum(*m, InitialState(), u);
+    const int angle = test::SensorColumn(*m, "angle");
+    const int rate = test::SensorColumn(*m, "rate");
     auto row = [](double t, const std::string& v) {
       char buf[64];
       std::snprintf(buf, sizeof(buf), "%.6f,", t);
@@ -73,7 +69,7 @@ class ImportFilesCliTest : public ::testing::Test {
 TEST_F(ImportFilesCliTest, ImportsOneSequenceFromFilesAtTheirOwnRates) {
   const std::string log = dir_ + "/robot.h5";
   const test::CliRun run =
-      Sysid("import " + kModels + "/pendulum.xml run1=" + dir_ + "/controls.csv+" + dir_ +
+      Sysid("import " + test::PendulumModelPath() + " run1=" + dir_ + "/controls.csv+" + dir_ +
             "/angle.csv+" + dir_ + "/rate.csv --out " + log);
   ASSERT_EQ(run.code, 0) << run.output;
   const io::Log read = io::ReadLog(log);
@@ -88,13 +84,7 @@ TEST_F(ImportFilesCliTest, ImportsOneSequenceFromFilesAtTheirOwnRates) {
   EXPECT_EQ(s.sensordata.col(1).array().isNaN().count(), 150);
 
   const std::string exp = dir_ + "/fit.yaml";
-  test::WriteFile(exp, "model: " + kModels + "/pendulum.xml\ndata: " + log +
-                           "\nsensors:\n"
-                           "  - {name: angle, sigma: 1.0e-3}\n"
-                           "  - {name: rate, sigma: 1.0e-3}\n"
-                           "parameters:\n"
-                           "  - {name: damping, target: joint_damping, object: hinge, "
-                           "initial: 0.05, bounds: [0.001, 10], transform: log}\n");
+  test::WriteFile(exp, test::PendulumDampingYaml(log));
   const test::CliRun fit = Sysid("fit " + exp + " --out " + dir_ + "/out --quiet");
   ASSERT_EQ(fit.code, 0) << fit.output;
   const std::string result = test::ReadFile(dir_ + "/out/result.yaml");
@@ -108,16 +98,16 @@ TEST_F(ImportFilesCliTest, ImportsOneSequenceFromFilesAtTheirOwnRates) {
 // controls in two files, a sensor in two files: exit 2 naming the file
 TEST_F(ImportFilesCliTest, AmbiguousFilesExitTwoNamingTheFile) {
   test::WriteFile(dir_ + "/more.csv", "time,torque,rate\n0,1,0.5\n0.1,1,0.5\n");
-  const test::CliRun two = Sysid("import " + kModels + "/pendulum.xml " + dir_ + "/controls.csv+" +
-                                 dir_ + "/more.csv --out " + dir_ + "/x.h5");
+  const test::CliRun two = Sysid("import " + test::PendulumModelPath() + " " + dir_ +
+                                 "/controls.csv+" + dir_ + "/more.csv --out " + dir_ + "/x.h5");
   EXPECT_EQ(two.code, 2) << two.output;
   EXPECT_NE(two.output.find(dir_ + "/more.csv: has actuator columns, and so has"),
             std::string::npos)
       << two.output;
   test::WriteFile(dir_ + "/rate2.csv", "time,rate\n0,0.5\n0.1,0.5\n");
   const test::CliRun twice =
-      Sysid("import " + kModels + "/pendulum.xml " + dir_ + "/controls.csv+" + dir_ + "/rate.csv+" +
-            dir_ + "/rate2.csv --out " + dir_ + "/x.h5");
+      Sysid("import " + test::PendulumModelPath() + " " + dir_ + "/controls.csv+" + dir_ +
+            "/rate.csv+" + dir_ + "/rate2.csv --out " + dir_ + "/x.h5");
   EXPECT_EQ(twice.code, 2) << twice.output;
   EXPECT_NE(twice.output.find("sensor 'rate' is in"), std::string::npos) << twice.output;
 }

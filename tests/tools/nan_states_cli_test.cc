@@ -16,6 +16,7 @@
 #include "sysid/io/log.h"
 #include "tests/cli_util.h"
 #include "tests/file_util.h"
+#include "tests/log_builder.h"
 #include "tests/test_util.h"
 
 namespace mjsysid {
@@ -24,7 +25,6 @@ namespace {
 namespace fs = std::filesystem;
 using test::Sysid;
 
-const std::string kModels = MJSYSID_MODELS_DIR;
 const double kNan = std::numeric_limits<double>::quiet_NaN();
 
 class NanStatesCliTest : public ::testing::Test {
@@ -34,16 +34,15 @@ class NanStatesCliTest : public ::testing::Test {
   // qpos at every 50th row from row 25 (20 cells) and in qvel at rows 100..104 (5 cells)
   void SetUp() override {
     dir_ = test::FreshTempDir("nan_states");
-    ModelPtr m = LoadModel(kModels + "/pendulum.xml");
+    ModelPtr m = LoadModel(test::PendulumModelPath());
     const double dt = m->opt.timestep;
     const int T = 1000;
-    const RowMatrix u = test::Excitation(*m, T, 2.0, 4);
+    const RowMatrix u = test::PendulumTorque(*m, T);
     InitialState x0;
     x0.qpos = Eigen::VectorXd::Constant(1, 0.3);
     x0.qvel = Eigen::VectorXd::Zero(1);
-    const std::vector<test::Truth> truth = {
-        {"damping", test::Spec("joint_damping", "hinge"), 0.12}};
-    const RowMatrix y = test::Measure(*m, truth, x0, u, 1e-3, 5);
+    const std::vector<test::Truth> truth = test::PendulumTruth();
+    const RowMatrix y = test::MeasurePendulum(*m, x0, u);
     Simulator sim(*m, {truth[0].spec});
     sim.SetParameters(Eigen::VectorXd::Constant(1, 0.12));
     const Trajectory tr = sim.Rollout(SequenceInput{x0, u});
@@ -67,14 +66,7 @@ class NanStatesCliTest : public ::testing::Test {
     log.sequences.push_back(s);
     io::WriteLog(dir_ + "/log.h5", log);
     const std::string path = dir_ + "/fit.yaml";
-    test::WriteFile(path, "model: " + kModels + "/pendulum.xml\ndata: " + dir_ +
-                              "/log.h5\n"
-                              "sensors:\n"
-                              "  - {name: angle, sigma: 1.0e-3}\n"
-                              "  - {name: rate, sigma: 1.0e-3}\n"
-                              "parameters:\n"
-                              "  - {name: damping, target: joint_damping, object: hinge, "
-                              "initial: 0.05, bounds: [0.001, 10], transform: log}\n"
+    test::WriteFile(path, test::PendulumDampingYaml(dir_ + "/log.h5") +
                               "states:\n  qpos: {sigma: 1.0e-3}\n  qvel: {sigma: 1.0e-2}\n" +
                               extra);
     return path;

@@ -17,14 +17,13 @@
 #include "sysid/io/log.h"
 #include "tests/cli_util.h"
 #include "tests/file_util.h"
+#include "tests/log_builder.h"
 #include "tests/test_util.h"
 
 namespace mjsysid {
 namespace {
 
 namespace fs = std::filesystem;
-
-const std::string kModels = MJSYSID_MODELS_DIR;
 
 using test::CliRun;
 using test::Sysid;
@@ -57,17 +56,13 @@ class OwnTimesCliTest : public ::testing::Test {
   // (250 Hz), the controls at every 10th (50 Hz).
   void SetUp() override {
     dir_ = test::FreshTempDir("own_times");
-    ModelPtr m = LoadModel(kModels + "/pendulum.xml");
+    ModelPtr m = LoadModel(test::PendulumModelPath());
     const double dt = m->opt.timestep;
     const int T = 1500;
-    const RowMatrix smooth = test::Excitation(*m, T, 2.0, 4);
-    RowMatrix u(T, 1);
-    for (int k = 0; k < T; ++k) u(k, 0) = smooth(k / 10 * 10, 0);
-    InitialState x0;
-    const RowMatrix y = test::Measure(*m, {{"damping", test::Spec("joint_damping", "hinge"), 0.12}},
-                                      x0, u, 1e-3, 5);
-    const int angle = m->sensor_adr[mj_name2id(m.get(), mjOBJ_SENSOR, "angle")];
-    const int rate = m->sensor_adr[mj_name2id(m.get(), mjOBJ_SENSOR, "rate")];
+    const RowMatrix u = test::PendulumTorque(*m, T, 10);
+    const RowMatrix y = test::MeasurePendulum(*m, InitialState(), u);
+    const int angle = test::SensorColumn(*m, "angle");
+    const int rate = test::SensorColumn(*m, "rate");
     io::Sequence s;
     s.name = "run1";
     s.actuator_names = {"torque"};
@@ -79,12 +74,7 @@ class OwnTimesCliTest : public ::testing::Test {
       s.time[j] = (5 * j) * dt;
       s.sensordata(j, 0) = y(5 * j, angle);
     }
-    s.ctrl_time.resize(T / 10);
-    s.ctrl.resize(T / 10, 1);
-    for (int j = 0; j < T / 10; ++j) {
-      s.ctrl_time[j] = (10 * j) * dt;
-      s.ctrl(j, 0) = u(10 * j, 0);
-    }
+    test::SetControlsEvery(u, dt, 10, &s);
     io::Log log;
     log.sequences.push_back(s);
     log_ = dir_ + "/robot.h5";
@@ -103,13 +93,7 @@ class OwnTimesCliTest : public ::testing::Test {
   // fits the hinge damping from 0.05 with sigmas equal to the noise
   std::string Experiment(const std::string& data) {
     const std::string path = dir_ + "/fit.yaml";
-    test::WriteFile(path, "model: " + kModels + "/pendulum.xml\ndata: " + data +
-                              "\nsensors:\n"
-                              "  - {name: angle, sigma: 1.0e-3}\n"
-                              "  - {name: rate, sigma: 1.0e-3}\n"
-                              "parameters:\n"
-                              "  - {name: damping, target: joint_damping, object: hinge, "
-                              "initial: 0.05, bounds: [0.001, 10], transform: log}\n");
+    test::WriteFile(path, test::PendulumDampingYaml(data));
     return path;
   }
 
