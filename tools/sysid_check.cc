@@ -12,6 +12,7 @@
 #include "sysid/io/experiment.h"
 #include "sysid/io/log.h"
 #include "sysid/run/fit_experiment.h"
+#include "sysid/types.h"
 #include "tools/sysid_cli.h"
 
 namespace mjsysid::cli {
@@ -47,6 +48,14 @@ int RunCheck(const CheckArgs& args) {
     const mjsysid::ParameterSpec& t = p.target;
     params.push_back(p.name + " (" + t.kind + " " + (t.object.empty() ? t.field : t.object) +
                      (t.index ? "[" + std::to_string(t.index) + "]" : "") + ")");
+  }
+  // the fitted control delays (`controls: {delay: {..., fit: true}}`) are fitted values too
+  for (const io::ExperimentConfig::ControlDelaySpec& cd : config.control_delays) {
+    if (!cd.term.fit) continue;
+    mjsysid::FitControlDelay delay;
+    delay.actuator = cd.actuator;
+    params.push_back(delay.Name() + " (control delay " +
+                     (cd.actuator.empty() ? "of every actuator" : cd.actuator) + ")");
   }
   Appendf(&summary, "  parameters %s\n", params.empty() ? "none" : Join(params).c_str());
   std::vector<std::string> sensors;

@@ -123,6 +123,27 @@ TEST_F(ControlDelayCliTest, HoldPerActuatorIsApplied) {
   EXPECT_GT(std::abs(estimate[1] - 0.12), 0.0012);
 }
 
+// `sysid check` lists the fitted control delays with the parameters: the shared one, one per
+// actuator; a given (not fitted) delay is not a fitted value and is not listed
+TEST_F(ControlDelayCliTest, CheckListsFittedDelaysWithTheParameters) {
+  const std::string prefix = "  parameters damping (joint_damping hinge)";
+  const struct {
+    std::string controls, line;
+  } cases[] = {
+      {"  delay: {initial: 0.005, fit: true, bounds: [0, 0.05]}\n",
+       prefix + ", controls.delay (control delay of every actuator)\n"},
+      {"  delay: {torque: {initial: 0.005, fit: true, bounds: [0, 0.05]}}\n",
+       prefix + ", controls.delay.torque (control delay torque)\n"},
+      {"  delay: {torque: 0.013}\n", prefix + "\n"},
+  };
+  for (const auto& c : cases) {
+    SCOPED_TRACE(c.controls);
+    const test::CliRun check = Sysid("check --no-jacobians " + Experiment(c.controls));
+    EXPECT_EQ(check.code, 0) << check.output;
+    EXPECT_NE(check.output.find(c.line), std::string::npos) << check.output;
+  }
+}
+
 // bad specs: exit 2 naming the file, the line and the key
 TEST_F(ControlDelayCliTest, BadSpecsExitTwoNamingFileLineAndKey) {
   struct Bad {
