@@ -717,8 +717,11 @@ FitResult Problem::Fit(const FitOptions& options) {
   return result;
 }
 
+const std::vector<FitParameter>& Problem::parameters() const { return impl_->params; }
+
 JacobianCheck Problem::CheckJacobians(const FitOptions& options) {
   Impl& I = *impl_;
+  SolveAutoStarts(I);  // `initial: auto`: checked at the start the fit would take
   Prepared prepared;
   Prepare(options, &prepared);
   const int np = static_cast<int>(I.params.size());

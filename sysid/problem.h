@@ -97,6 +97,11 @@ class Problem {
   // rollouts). Returns the worst relative error per variable. Throws like Fit on bad input.
   JacobianCheck CheckJacobians(const FitOptions& options);
 
+  // The parameters as added, in order. An `initial: auto` start (FitParameter::initial_auto,
+  // initial NaN) is solved by Fit and CheckJacobians before anything is simulated: from then on
+  // its entry holds the solved start value and initial_auto is false.
+  const std::vector<FitParameter>& parameters() const;
+
   // Fit with the segment residuals evaluated by shards (borrowed; nullptr: here, as usual); see
   // ResidualShards. Single shooting without estimated initial states only (the caller checks).
   void DistributeResiduals(ResidualShards* shards);

@@ -111,8 +111,8 @@ int RunCheck(const CheckArgs& args) {
       check = built.problem->CheckJacobians(built.options);
     } catch (const mjsysid::SimulationError& e) {
       throw mjsysid::SimulationError(
-          std::string(e.what()) + "; " + mjsysid::run::AtInitialValues(config), e.sequence(),
-          e.step());
+          std::string(e.what()) + "; " + mjsysid::run::AtInitialValues(config, built.problem.get()),
+          e.sequence(), e.step());
     }
     Appendf(&summary,
             "  jacobians  core (%s differences) vs ceres::GradientChecker, "

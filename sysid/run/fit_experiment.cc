@@ -416,10 +416,14 @@ std::vector<std::string> InputsOf(const io::ExperimentConfig& cfg) {
   return inputs;
 }
 
-std::string AtInitialValues(const io::ExperimentConfig& cfg) {
+std::string AtInitialValues(const io::ExperimentConfig& cfg, const Problem* problem) {
   std::string out;
-  for (const io::ParameterSpec& p : cfg.parameters) {
-    out += (out.empty() ? "" : ", ") + p.name + " = " + FormatDigits(p.initial, 6);
+  for (size_t i = 0; i < cfg.parameters.size(); ++i) {
+    const FitParameter& p = problem && i < problem->parameters().size()
+                                ? problem->parameters()[i]
+                                : static_cast<const FitParameter&>(cfg.parameters[i]);
+    out += (out.empty() ? "" : ", ") + p.name + " = " +
+           (p.initial_auto ? std::string("auto") : FormatDigits(p.initial, 6));
   }
   return "at the initial values " + out + " (" + cfg.source_file + ")";
 }
@@ -551,6 +555,10 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   if (base) progress = *base;
   options.on_iteration = [&](const IterationInfo& it) {
     if (base && it.iteration == 0) return;  // the checkpoint it starts from
+    // `initial: auto`: the start values the fit solved (NaN in the config)
+    for (size_t i = 0; i < bp.parameters.size(); ++i) {
+      if (std::isnan(first_initial[i])) first_initial[i] = bp.problem->parameters()[i].initial;
+    }
     IterationInfo entry = it;
     entry.iteration += base ? base->iterations : 0;
     entry.seconds += base ? base->seconds : 0;
@@ -601,8 +609,9 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
     }
   } catch (const SimulationError& e) {
     // trial points that fail are rejected: this is the start
-    throw SimulationError(std::string(e.what()) + "; " + AtInitialValues(run_cfg), e.sequence(),
-                          e.step());
+    throw SimulationError(std::string(e.what()) + "; " +
+                              AtInitialValues(run_cfg, starts > 1 ? nullptr : bp.problem.get()),
+                          e.sequence(), e.step());
   }
   if (base) {
     AppendToCheckpoint(*base, &file);

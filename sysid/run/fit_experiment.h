@@ -101,8 +101,10 @@ FitRunOutcome RunFit(const io::ExperimentConfig& config, const FitRunOptions& op
 // the files a fit reads: the experiment, its models and its data logs
 std::vector<std::string> InputsOf(const io::ExperimentConfig& config);
 
-// "at the initial values NAME = VALUE, ... (EXP.yaml)", for a simulation that fails at the start
-std::string AtInitialValues(const io::ExperimentConfig& config);
+// "at the initial values NAME = VALUE, ... (EXP.yaml)", for a simulation that fails at the start:
+// the values of problem->parameters() (the solved `initial: auto` starts, once solved) when given,
+// else the config's; an `initial: auto` start not solved yet reads "NAME = auto"
+std::string AtInitialValues(const io::ExperimentConfig& config, const Problem* problem = nullptr);
 
 // the names of the fitted values in FitResult order: the parameters, then the measurement terms
 // (SENSOR.delay, SENSOR.gain, SENSOR.bias)

@@ -52,7 +52,10 @@ io::ExperimentConfig ResumedConfig(const io::ExperimentConfig& cfg,
   // start values: the checkpoint's, in FitResult order
   io::ExperimentConfig out = cfg;
   size_t k = 0;
-  for (io::ParameterSpec& p : out.parameters) p.initial = checkpoint.parameters[k++].value;
+  for (io::ParameterSpec& p : out.parameters) {
+    p.initial = checkpoint.parameters[k++].value;
+    p.initial_auto = false;  // an `initial: auto` start was solved by the run that checkpointed
+  }
   for (io::MeasurementSpec& me : out.measurement) {
     for (FitMeasurement::Term* t : {&me.delay, &me.gain, &me.bias}) {
       if (t->fit) t->initial = checkpoint.parameters[k++].value;
