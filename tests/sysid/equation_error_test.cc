@@ -21,6 +21,7 @@
 #include "sysid/run/fit_experiment.h"
 #include "sysid/run/resume.h"
 #include "sysid/sim/simulate.h"
+#include "tests/file_util.h"
 #include "tests/fit_test_util.h"
 
 namespace mjsysid {
@@ -138,10 +139,7 @@ TEST(EquationErrorTest, NothingSolvedWithoutStatesOrForNonlinearKinds) {
 // check runs there (core vs Ceres within 1e-4; measured 9.3e-7; it failed on the NaN start before)
 TEST(EquationErrorTest, AutoStartsReadAutoUntilSolvedThenTheirValues) {
   InstallMujocoHandlers();
-  const fs::path dir =
-      fs::temp_directory_path() / ("equation_error_at_" + std::to_string(getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const fs::path dir = test::FreshTempDir("equation_error_at");
   const io::ExperimentConfig cfg = io::LoadExperiment(AutoPendulum(dir));
   const std::string unsolved = "damping = auto, frictionloss = auto, bob_mass = auto";
   EXPECT_NE(run::AtInitialValues(cfg).find(unsolved), std::string::npos)
@@ -168,10 +166,7 @@ TEST(EquationErrorTest, AutoStartsReadAutoUntilSolvedThenTheirValues) {
 // (ResumedConfig), not at a new equation-error start
 TEST(EquationErrorTest, AutoStartsInCheckpointsAndResumedConfig) {
   InstallMujocoHandlers();
-  const fs::path dir =
-      fs::temp_directory_path() / ("equation_error_cp_" + std::to_string(getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const fs::path dir = test::FreshTempDir("equation_error_cp");
   const io::ExperimentConfig cfg = io::LoadExperiment(AutoPendulum(dir));
   run::FitRunOptions o;
   o.out_dir = (dir / "out").string();
