@@ -157,6 +157,22 @@ TEST(ReducedModelTest, BoxOnFloorSwitchesOffTheFarGeomOnly) {
   EXPECT_EQ(sim.model().opt.disableflags, m->opt.disableflags);
 }
 
+// the shipped box_floor (box sliding on the floor, pushed by up to 25 N): islands off (one tree),
+// the box-floor pair on; rollouts and Jacobians the same at the experiment's start values
+TEST(ReducedModelTest, BoxFloorKeepsItsContactAndSwitchesOffIslands) {
+  ModelPtr m = LoadModel(kModels + "/box_floor.xml");
+  const RowMatrix u = test::Excitation(*m, 600, 25.0, 3);
+  const ModelReduction r = Analyze(*m, Nominal(*m, {u}));
+  EXPECT_EQ(r.disable, mjDSBL_ISLAND);
+  EXPECT_EQ(r.candidate_pairs, 1);
+  EXPECT_EQ(r.pairs_off, 0);
+  const std::vector<ParameterSpec> specs = {test::Spec("geom_friction", "box"),
+                                            test::Spec("body_mass", "box")};
+  for (JacobianMode mode : {JacobianMode::kDirectional, JacobianMode::kMatrix}) {
+    EXPECT_EQ(ExpectSameAsFull(*m, specs, r, u, mode), 0);
+  }
+}
+
 // the arm analysed on small swings (0.5 N m: all four pairs far, collision off as a whole), then
 // driven by -20 N m into the post: the guard trips, and the call is simulated again with the full
 // model: the same numbers as the full model (which has contacts there: without the guard the
