@@ -15,9 +15,11 @@
 #include <cstdio>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "sysid/io/experiment.h"
 #include "sysid/io/log.h"
+#include "sysid/io/result.h"
 #include "sysid/run/fit_experiment.h"
 #include "sysid/sim/simulate.h"
 #include "tests/file_util.h"
@@ -81,6 +83,43 @@ TEST_P(ReducedFitTest, SameEstimateBitForBit) {
   EXPECT_EQ(full.final_cost, reduced.final_cost);
   EXPECT_EQ(full.simulation_steps, reduced.simulation_steps);
   EXPECT_EQ(full.outcome, reduced.outcome);
+  std::filesystem::remove_all(dir);
+}
+
+// `solver.reduce_model: false` reaches the fit, and a run's result.yaml records the reduction and
+// reads it back (pendulum as shipped, 3 iterations, written by RunFit into a fresh folder)
+TEST(ReducedFitFilesTest, SwitchAndRecordRoundTrip) {
+  const std::string dir = test::FreshTempDir("reduced_files");
+  const std::string path = std::string(MJSYSID_EXPERIMENTS_DIR) + "/pendulum.yaml";
+  std::string text = test::ReadFile(path);
+  const std::string solver = "solver:\n";
+  ASSERT_NE(text.find(solver), std::string::npos);
+  EXPECT_TRUE(io::ParseExperiment(text, path).options.reduce_model);
+  text.replace(text.find(solver), solver.size(), solver + "  reduce_model: false\n");
+  EXPECT_FALSE(io::ParseExperiment(text, path).options.reduce_model);
+
+  io::ExperimentConfig cfg = io::LoadExperiment(path);
+  cfg.simulate.sequences = 1;
+  cfg.simulate.steps = 400;
+  const std::string log = dir + "/log.h5";
+  cfg.data = {io::DataFile{log, {}}};
+  io::WriteLog(log, sim::SimulateExperiment(cfg, sim::SimulateSettings{}));
+  cfg.options.max_iterations = 3;
+  run::FitRunOptions opt;
+  opt.out_dir = dir + "/out";
+  opt.verbose = false;
+  opt.threads = 1;
+  run::RunFit(cfg, opt);
+  const io::FitResultFile back = io::ReadResult(opt.out_dir);
+  EXPECT_TRUE(back.reduction.recorded);
+  EXPECT_TRUE(back.reduction.used);
+  EXPECT_EQ(back.reduction.disabled, (std::vector<std::string>{"contact", "island"}));
+  EXPECT_EQ(back.reduction.collision_pairs, 0);
+  EXPECT_EQ(back.reduction.guard_trips, 0);
+  EXPECT_NE(test::ReadFile(opt.out_dir + "/result.yaml")
+                .find("reduced: {used: true, collision_pairs: 0, collision_pairs_off: 0, "
+                      "geoms_off: 0, disabled: [contact, island], guard_trips: 0}"),
+            std::string::npos);
   std::filesystem::remove_all(dir);
 }
 
