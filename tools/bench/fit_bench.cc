@@ -9,7 +9,7 @@
 //   or matrix, forward or central differences, 1 or 2 simulator threads;
 // - oracle/whole/forward/2t: Problem::Fit with whole-rollout finite differences (kWholeRollout);
 // - full-model/directional/forward/<threads>t: ours without the reduced model
-//   (solver.reduce_model: false, core/reduced_model.h), method `full` (not in the default list):
+//   (solver.reduce_model: false, core/reduced_model.h), method `full` (issue 15 item 6):
 //   the same estimate bit for bit, so only the time differs from ours/directional/forward;
 // - ceres-numdiff/forward/1t: what a C++ user writes by hand: ceres::DynamicNumericDiffCostFunction
 //   around a plain mj_step loop over every sequence (one residual block, Ceres' default relative
@@ -721,7 +721,7 @@ int Main(int argc, char** argv) {
   CLI::App app{"bench_fit: run time against parameter error of whole fits, per method"};
   std::string cases_arg =
       "spring_mass,pendulum,double_pendulum,cartpole,arm5,box_floor,humanoid,arm7";
-  std::string methods_arg = "ours,auto,oracle,numdiff,peer";
+  std::string methods_arg = "ours,auto,full,oracle,numdiff,peer";
   std::string out_dir = "results/bench", peer_dir, experiments = MJSYSID_EXPERIMENTS_DIR;
   std::vector<std::string> caps;
   std::string ours_arg;
