@@ -80,10 +80,14 @@ ModelReduction Analyze(const mjModel& m, const std::vector<Trajectory>& trs) {
 }
 
 // rollouts and Jacobians (mode) of a full and a reduced simulator of m with parameters specs,
-// compared bit for bit, on controls ctrl; returns the reduced simulator's guard trips
+// compared bit for bit, on controls ctrl, with `threads` workers (2: the directional columns run
+// behind the rollout, RolloutAndJacobians); returns the reduced simulator's guard trips
 int ExpectSameAsFull(const mjModel& m, const std::vector<ParameterSpec>& specs,
-                     const ModelReduction& r, const RowMatrix& ctrl, JacobianMode mode) {
-  Simulator full(m, specs), reduced(m, specs);
+                     const ModelReduction& r, const RowMatrix& ctrl, JacobianMode mode,
+                     int threads = 1) {
+  SimulatorOptions so;
+  so.threads = threads;
+  Simulator full(m, specs, so), reduced(m, specs, so);
   reduced.SetReduction(r);
   EXPECT_EQ(reduced.ContactsPossible(), full.ContactsPossible());
   const SequenceInput in{full.ReferenceState(), ctrl};
@@ -197,6 +201,8 @@ TEST(ReducedModelTest, GuardTripsWhenAnArmSwingsIntoThePost) {
   EXPECT_GT(*std::max_element(t_full.ncon.begin(), t_full.ncon.end()), 0);
   EXPECT_GT((t_off.states - t_full.states).cwiseAbs().maxCoeff(), 0.1);
   EXPECT_EQ(ExpectSameAsFull(*m, specs, r, turn, JacobianMode::kDirectional), 1);
+  EXPECT_EQ(ExpectSameAsFull(*m, specs, r, turn, JacobianMode::kDirectional, 2), 1);
+  EXPECT_EQ(ExpectSameAsFull(*m, specs, r, turn, JacobianMode::kMatrix, 2), 1);
   Simulator sim(*m, specs);
   sim.SetReduction(r);
   EXPECT_TRUE(sim.reduced());
