@@ -172,6 +172,40 @@ Simulator::Simulator(const mjModel& m, const std::vector<ParameterSpec>& params,
 
 Simulator::~Simulator() = default;
 
+void Simulator::SetReduction(const ModelReduction& r) {
+  if (reduced_) RevertReduction(reduction_, model_.get());
+  reduced_ = false;
+  contacts_possible_full_ = ContactsPossible();
+  ApplyReduction(r, model_.get());
+  reduction_ = r;
+  reduced_ = !r.Empty();
+}
+
+template <class Call>
+void Simulator::Guarded(Call&& call) {
+  guard_tripped_.store(false, std::memory_order_relaxed);
+  // a trip: the reduced model may have missed a contact; the full model simulates the call again
+  auto drop = [&] {
+    RevertReduction(reduction_, model_.get());
+    reduced_ = false;
+    ++reduction_trips_;
+    guard_tripped_.store(false, std::memory_order_relaxed);
+  };
+  try {
+    call();
+  } catch (const Cancelled&) {
+    throw;
+  } catch (...) {
+    if (!guard_tripped_.load(std::memory_order_relaxed)) throw;
+    drop();
+    call();
+    return;
+  }
+  if (!guard_tripped_.load(std::memory_order_relaxed)) return;
+  drop();
+  call();
+}
+
 long long Simulator::StepCount() const {
   long long n = 0;
   for (const auto& w : workers_) n += w->steps;
@@ -297,6 +331,10 @@ void Simulator::RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq
     ++w.steps;
     CheckStep(*d, t, seq_index, k, "simulation");
     CountSolve(*m, *d, solver);
+    // the reduced model's guard: the pairs switched off stay away (core/reduced_model.h)
+    if (reduced_ && !ReductionGuardClear(reduction_, *m, *d)) {
+      guard_tripped_.store(true, std::memory_order_relaxed);
+    }
     if (want_sensors) mju_copy(sensors->row(k).data(), d->sensordata, dims_.ns);
     if (ncon) (*ncon)[k] = d->ncon;
   }
@@ -348,9 +386,11 @@ void Simulator::RolloutTask(Worker& w, const SequenceInput& seq, int seq_index, 
 
 void Simulator::Rollout(const std::vector<SequenceInput>& sequences, std::vector<Trajectory>* out) {
   // size outputs up front, then fill them in parallel across sequences
-  SizeTrajectories(sequences, out);
-  pool_.ParallelFor(static_cast<int>(sequences.size()), [&](int worker, int i) {
-    RolloutTask(*workers_[worker], sequences[i], i, &(*out)[i], nullptr);
+  Guarded([&] {
+    SizeTrajectories(sequences, out);
+    pool_.ParallelFor(static_cast<int>(sequences.size()), [&](int worker, int i) {
+      RolloutTask(*workers_[worker], sequences[i], i, &(*out)[i], nullptr);
+    });
   });
 }
 
@@ -404,7 +444,8 @@ double Simulator::JacobianCostPerStep(JacobianMode mode, const JacobianOptions& 
 }
 
 bool Simulator::ContactsPossible() const {
-  // contacts need collisions enabled and two geoms that may collide
+  // contacts need collisions enabled and two geoms that may collide (in the full model)
+  if (reduced_) return contacts_possible_full_;
   if (model_->opt.disableflags & mjDSBL_CONTACT) return false;
   int colliding = 0;
   for (int g = 0; g < model_->ngeom; ++g) {
@@ -717,7 +758,7 @@ void Simulator::MatrixJacobian(const RowMatrix& ctrl, int seq_index, const Traje
 void Simulator::Jacobians(const std::vector<SequenceInput>& sequences,
                           const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
                           std::vector<Sensitivity>* out) {
-  JacobiansImpl(sequences, nominal, opt, out, nullptr);
+  Guarded([&] { JacobiansImpl(sequences, nominal, opt, out, nullptr); });
 }
 
 void Simulator::RolloutAndJacobians(const std::vector<SequenceInput>& sequences,
@@ -733,8 +774,10 @@ void Simulator::RolloutAndJacobians(const std::vector<SequenceInput>& sequences,
     Jacobians(sequences, *nominal, opt, out);
     return;
   }
-  SizeTrajectories(sequences, nominal);
-  JacobiansImpl(sequences, *nominal, opt, out, nominal);
+  Guarded([&] {
+    SizeTrajectories(sequences, nominal);
+    JacobiansImpl(sequences, *nominal, opt, out, nominal);
+  });
 }
 
 void Simulator::JacobiansImpl(const std::vector<SequenceInput>& sequences,

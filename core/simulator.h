@@ -59,6 +59,7 @@
 
 #include "core/mujoco_env.h"
 #include "core/parameters.h"
+#include "core/reduced_model.h"
 #include "core/solver_stats.h"
 #include "core/state.h"
 #include "core/thread_pool.h"
@@ -236,6 +237,20 @@ class Simulator {
   long long StepCount() const;
   void ResetStepCount();
 
+  // The reduced model (core/reduced_model.h): switches r off in the private model (r from
+  // AnalyzeReduction on this simulator's model and its nominal rollouts). Rollout, Jacobians and
+  // RolloutAndJacobians then check the guard after every nominal step; when it trips (a pair
+  // switched off came near), the reduction is dropped for good (the private model is the full one
+  // again) and the call is simulated again, so every result equals the full model's bit for bit.
+  // ContactsPossible answers for the full model throughout.
+  void SetReduction(const ModelReduction& r);
+  // the reduction SetReduction got (empty before), and whether it is switched off now (false
+  // after a trip)
+  const ModelReduction& reduction() const { return reduction_; }
+  bool reduced() const { return reduced_; }
+  // calls that the guard made simulate again with the full model (0 or 1)
+  int ReductionTrips() const { return reduction_trips_; }
+
  private:
   struct Worker;
   struct TaskReport;
@@ -276,6 +291,10 @@ class Simulator {
                        std::vector<Sensitivity>* out, std::vector<SolverStats>* solver,
                        std::vector<Trajectory>* rollouts = nullptr);
   void CheckZeroColumns(const std::vector<Sensitivity>& out) const;
+  // runs call(); when the reduction's guard tripped during it, drops the reduction and runs it
+  // again
+  template <class Call>
+  void Guarded(Call&& call);
   // throws Cancelled when the cancel flag is set
   void CheckCancel() const;
   // throws SimulationError when the step just taken warned; t: the time at the start of the step
@@ -289,6 +308,11 @@ class Simulator {
   const std::atomic<bool>* cancel_ = nullptr;
   DataPtr scratch_;  // for mj_setConst on model_
   std::vector<std::unique_ptr<Worker>> workers_;
+  ModelReduction reduction_;                        // given to SetReduction
+  bool reduced_ = false;                            // reduction_ is switched off in model_
+  bool contacts_possible_full_ = false;             // ContactsPossible of the full model
+  int reduction_trips_ = 0;                         // see ReductionTrips
+  mutable std::atomic<bool> guard_tripped_{false};  // set by RolloutOne when the guard trips
 };
 
 }  // namespace mjsysid

@@ -129,6 +129,26 @@ void UseResidualRows(long long m, double cost, bool scaled, Uncertainty* u) {
   u->residual_variance = s2;
 }
 
+// what the reduced models switched off, summed over the models (FitResult::reduction)
+void RecordReduction(const Problem::Impl& I, const FitOptions& options, FitResult* result) {
+  FitResult::Reduction& r = result->reduction;
+  r = FitResult::Reduction();
+  r.recorded = true;
+  r.used = options.reduce_model;
+  for (const auto& mo : I.models) {
+    const ModelReduction& mr = mo.sim->reduction();
+    r.collision_pairs += mr.candidate_pairs;
+    r.collision_pairs_off += mr.pairs_off;
+    r.geoms_off += static_cast<int>(mr.geoms_off.size());
+    r.guard_trips += mo.sim->ReductionTrips();
+    for (const std::string& name : DisabledNames(mr.disable)) {
+      if (std::find(r.disabled.begin(), r.disabled.end(), name) == r.disabled.end()) {
+        r.disabled.push_back(name);
+      }
+    }
+  }
+}
+
 }  // namespace
 
 // -----------------------------------------------------------------------------------------------
@@ -684,6 +704,7 @@ FitResult Problem::Fit(const FitOptions& options) {
   DecideFitStatus(options, accepted_steps, !I.jacobian_warnings.empty(), &result, cost_not_local,
                   jacobian_warned_at_estimate);
   for (const auto& mo : I.models) result.simulation_steps += mo.sim->StepCount();
+  RecordReduction(I, options, &result);
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
   // auto: single shooting that did not converge on a system whose probe grew well beyond linear

@@ -77,6 +77,22 @@ void CheckParametersMove(const Problem::Impl& I, const std::vector<bool>& moves)
   }
 }
 
+// Switches off in each model's simulator what its nominal rollouts (initial, by sequence) show
+// can never change a simulated number (core/reduced_model.h); the simulators guard it.
+static void ReduceModels(Problem::Impl* I, const std::vector<Trajectory>& initial) {
+  for (auto& mo : I->models) {
+    std::vector<const RowMatrix*> states;
+    std::vector<const Eigen::VectorXd*> inputs;
+    for (size_t q = 0; q < I->sequences.size(); ++q) {
+      if (I->sequences[q].model != mo.name || initial[q].T == 0) continue;
+      states.push_back(&initial[q].states);
+      inputs.push_back(&initial[q].inputs);
+    }
+    if (states.empty()) continue;
+    mo.sim->SetReduction(AnalyzeReduction(mo.sim->model(), mo.sim->dims(), states, inputs));
+  }
+}
+
 void Problem::Prepare(const FitOptions& options, Prepared* out) {
   Impl& I = *impl_;
   I.cache.reset();  // it borrows the simulators rebuilt below
@@ -426,6 +442,9 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
     out->jacobian_mode = JacobianModeName(sens.empty() ? jo.mode : sens[0].mode);
     for (size_t i = 0; i < which.size(); ++i) initial_sensitivity[which[i]] = std::move(sens[i]);
   }
+  // the reduced model: what the initial rollouts show can never matter is switched off
+  if (options.reduce_model) ReduceModels(&I, initial);
+
   // a sharded start leaves the check to its caller, with moves combined over every shard
   I.moves = moves;
   if (!I.owned_sequences) CheckParametersMove(I, moves);

@@ -98,4 +98,15 @@ SequenceResult WithStateColumns(const SequenceResult& s) {
   return out;
 }
 
+std::string ReductionText(const FitResult::Reduction& r) {
+  if (!r.used) return "off (solver.reduce_model: false)";
+  std::string s = "collision pairs off " + std::to_string(r.collision_pairs_off) + " of " +
+                  std::to_string(r.collision_pairs) + ", geoms off " + std::to_string(r.geoms_off) +
+                  ", disabled [";
+  for (size_t i = 0; i < r.disabled.size(); ++i) s += (i ? ", " : "") + r.disabled[i];
+  s += "], guard trips " + std::to_string(r.guard_trips);
+  if (r.guard_trips > 0) s += " (the full model was used from the first trip on)";
+  return s;
+}
+
 }  // namespace mjsysid

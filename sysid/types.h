@@ -230,6 +230,9 @@ struct FitOptions {
   std::function<void(const IterationInfo&)> on_iteration;  // e.g. checkpoint the iterate
   const std::atomic<bool>* interrupt = nullptr;  // set to stop after the current iteration
   FitStates states;                              // logged states fitted as data (none by default)
+  // fit on a reduced copy of each model (core/reduced_model.h): island discovery and collision
+  // pairs that never come near switched off, guarded; the estimate is the same bit for bit
+  bool reduce_model = true;
 };
 
 // one estimated variable: a physical parameter or a measurement term ("<sensor>.delay", ...)
@@ -354,6 +357,22 @@ struct FitResult {
   // through body_inertial its mass, centre of mass and principal moments, with delta-method
   // intervals; empty when nothing is derived
   std::vector<DerivedQuantity> derived;
+  // the reduced model (FitOptions::reduce_model, core/reduced_model.h), summed over the models:
+  // whether it was used, candidate collision pairs and those switched off, geoms switched off,
+  // the MuJoCo features switched off (e.g. "island", "contact"), and the calls the guard made
+  // simulate again with the full model (then the reduction was dropped for the rest of the fit)
+  struct Reduction {
+    bool recorded = false;  // false: a result written before the reduced model (nothing known)
+    bool used = false;
+    int collision_pairs = 0, collision_pairs_off = 0, geoms_off = 0;
+    std::vector<std::string> disabled;
+    int guard_trips = 0;
+  };
+  Reduction reduction;
 };
+
+// one line for a user, e.g. "collision pairs off 3 of 4, geoms off 2, disabled [island], guard
+// trips 0", or "off (solver.reduce_model: false)"
+std::string ReductionText(const FitResult::Reduction& r);
 
 }  // namespace mjsysid

@@ -117,6 +117,9 @@ void PrintEstimates(const mjsysid::io::FitResultFile& f) {
               f.status.c_str(), f.iterations, f.termination.c_str(), f.initial_cost, f.final_cost,
               f.seconds);
   if (!f.segment_reason.empty()) std::printf("  %s\n", f.segment_reason.c_str());
+  if (f.reduction.recorded) {
+    std::printf("  reduced model: %s\n", mjsysid::ReductionText(f.reduction).c_str());
+  }
   std::printf("  %-24s %14s %14s %14s %12s  %-29s %s\n", "parameter", "initial", "estimate",
               "truth", "std", "95% interval", "flags");
   for (const mjsysid::ParameterEstimate& p : f.parameters) {

@@ -602,10 +602,10 @@ void Parser::ParseStates(const Field& f, ExperimentConfig* c) const {
 }
 
 void Parser::ParseSolver(const Field& f, ExperimentConfig* c) const {
-  const MapReader r(
-      *this, f,
-      {"max_iterations", "function_tolerance", "gradient_tolerance", "parameter_tolerance",
-       "jacobian", "differences", "relative_step", "threads", "loss", "verbose", "starts", "seed"});
+  const MapReader r(*this, f,
+                    {"max_iterations", "function_tolerance", "gradient_tolerance",
+                     "parameter_tolerance", "jacobian", "differences", "relative_step", "threads",
+                     "loss", "verbose", "starts", "seed", "reduce_model"});
   c->solver_marks = r.marks();
   FitOptions* o = &c->options;
   const long long kIntMax = std::numeric_limits<int>::max();
@@ -629,6 +629,8 @@ void Parser::ParseSolver(const Field& f, ExperimentConfig* c) const {
     if (l.Has("scale")) o->loss_scale = Positive(l.Get("scale"));
   }
   if (r.Has("verbose")) o->verbose = Bool(r.Get("verbose"));
+  // the reduced model (core/reduced_model.h)
+  if (r.Has("reduce_model")) o->reduce_model = Bool(r.Get("reduce_model"));
   // multi-start (sysid/run/multi_start.h)
   if (r.Has("starts")) c->starts = static_cast<int>(Integer(r.Get("starts"), 1, 10000));
   if (r.Has("seed")) {

@@ -308,6 +308,18 @@ std::string EmitYaml(const FitResultFile& r) {
     out << YAML::EndSeq;
     out << YAML::EndMap;
   }
+  // the reduced model (FitOptions::reduce_model, core/reduced_model.h)
+  const FitResult::Reduction& red = r.reduction;
+  if (red.recorded) {
+    out << YAML::Key << "reduced" << YAML::Value << YAML::Flow << YAML::BeginMap;
+    out << YAML::Key << "used" << YAML::Value << red.used;
+    out << YAML::Key << "collision_pairs" << YAML::Value << red.collision_pairs;
+    out << YAML::Key << "collision_pairs_off" << YAML::Value << red.collision_pairs_off;
+    out << YAML::Key << "geoms_off" << YAML::Value << red.geoms_off;
+    out << YAML::Key << "disabled" << YAML::Value << YAML::Flow << red.disabled;
+    out << YAML::Key << "guard_trips" << YAML::Value << red.guard_trips;
+    out << YAML::EndMap;
+  }
   out << YAML::EndMap;
   if (!out.good()) throw ResultError("cannot format result.yaml: " + out.GetLastError());
   return std::string(out.c_str()) + "\n";
@@ -637,6 +649,24 @@ void ReadYaml(const std::string& path, FitResultFile* r) {
   r->identified_models =
       y.TextMap(y.Get(root, "identified_models", "identified_models"), "identified_models");
   if (root["starts"]) ReadStarts(y, root["starts"], r);
+  // the reduced model (optional: results before it have none)
+  if (const YAML::Node red = root["reduced"]) {
+    FitResult::Reduction& o = r->reduction;
+    o.recorded = true;
+    o.used = y.Text(y.Get(red, "used", "reduced.used"), "reduced.used") == "true";
+    const std::pair<const char*, int*> counts[] = {{"collision_pairs", &o.collision_pairs},
+                                                   {"collision_pairs_off", &o.collision_pairs_off},
+                                                   {"geoms_off", &o.geoms_off},
+                                                   {"guard_trips", &o.guard_trips}};
+    for (const auto& [key, value] : counts) {
+      const std::string at = std::string("reduced.") + key;
+      *value = y.Int(y.Get(red, key, at), at);
+    }
+    const YAML::Node disabled = y.Get(red, "disabled", "reduced.disabled");
+    for (size_t i = 0; i < disabled.size(); ++i) {
+      o.disabled.push_back(y.Text(disabled[i], "reduced.disabled"));
+    }
+  }
   CheckParameters(*r, path);
 }
 

@@ -17,7 +17,9 @@
 //     [...], initial_cost, final_cost, status, iterations, error?}], spread: [{name, min, max,
 //     relative}]}; values in the order of `parameters`; read back), derived (only when the fit
 //     derived quantities, sysid/derived_inertials.h: [{name, unit, value, std, ci95: [lo, hi],
-//     derived_from, truth?}]; read back)
+//     derived_from, truth?}]; read back), reduced (the reduced model, core/reduced_model.h:
+//     {used, collision_pairs, collision_pairs_off, geoms_off, disabled: [island, contact],
+//     guard_trips}; optional when read)
 //   std and ci95 bounds that are infinite are written as .inf / -.inf; flags are any of
 //   at_lower_bound, at_upper_bound, unidentifiable.
 // - result.h5 layout: root attributes format = "mjsysid-result", format_version = 1, status,

@@ -8,6 +8,9 @@
 // - ours/<mode>/<differences>/<threads>t: Problem::Fit with the core Jacobians, mode directional
 //   or matrix, forward or central differences, 1 or 2 simulator threads;
 // - oracle/whole/forward/2t: Problem::Fit with whole-rollout finite differences (kWholeRollout);
+// - full-model/directional/forward/<threads>t: ours without the reduced model
+//   (solver.reduce_model: false, core/reduced_model.h), method `full` (issue 15 item 6):
+//   the same estimate bit for bit, so only the time differs from ours/directional/forward;
 // - ceres-numdiff/forward/1t: what a C++ user writes by hand: ceres::DynamicNumericDiffCostFunction
 //   around a plain mj_step loop over every sequence (one residual block, Ceres' default relative
 //   step), same residual, bounds, log transforms and solver settings as ours;
@@ -164,8 +167,9 @@ void MeasureStep(Case* c) {
 
 // ours and the whole-rollout oracle: the product's own fit with one Jacobian setting
 // auto_start: every parameter `initial: auto` (the equation-error start, sysid/equation_error.h)
+// reduce: the reduced model (FitOptions::reduce_model)
 Row FitOurs(const Case& c, const std::string& method, JacobianMode mode, bool central, int threads,
-            int max_iterations, bool auto_start = false) {
+            int max_iterations, bool auto_start = false, bool reduce = true) {
   Row row;
   row.method = method;
   row.threads = threads;
@@ -178,6 +182,7 @@ Row FitOurs(const Case& c, const std::string& method, JacobianMode mode, bool ce
   o.threads = threads;
   o.verbose = false;
   o.on_iteration = nullptr;
+  o.reduce_model = reduce;
   if (max_iterations > 0) o.max_iterations = max_iterations;
   row.np = static_cast<int>(b.parameters.size());
   try {
@@ -716,14 +721,15 @@ int Main(int argc, char** argv) {
   CLI::App app{"bench_fit: run time against parameter error of whole fits, per method"};
   std::string cases_arg =
       "spring_mass,pendulum,double_pendulum,cartpole,arm5,box_floor,humanoid,arm7";
-  std::string methods_arg = "ours,auto,oracle,numdiff,peer";
+  std::string methods_arg = "ours,auto,full,oracle,numdiff,peer";
   std::string out_dir = "results/bench", peer_dir, experiments = MJSYSID_EXPERIMENTS_DIR;
   std::vector<std::string> caps;
   std::string ours_arg;
   double idle_wait = 30;
   app.add_option("--cases", cases_arg, "comma-separated experiment names")->capture_default_str();
   app.add_option("--methods", methods_arg,
-                 "comma-separated: ours, auto (ours from initial: auto), oracle, numdiff, peer")
+                 "comma-separated: ours, auto (ours from initial: auto), oracle, numdiff, peer, "
+                 "full (ours directional forward without the reduced model, 1 and 2 threads)")
       ->capture_default_str();
   app.add_option("--out", out_dir, "output folder")->capture_default_str();
   app.add_option("--peer-dir", peer_dir, "folder of the peer driver's results (<case>-<n>t/)");
@@ -825,6 +831,15 @@ int Main(int argc, char** argv) {
         return FitOurs(c, "ours/directional/forward+auto", JacobianMode::kDirectional, false, 1,
                        max_it, true);
       }));
+    }
+    if (want("full")) {
+      // the reduced model's share: ours directional forward on the model as given
+      for (int threads : {1, 2}) {
+        add(measure(threads, [&] {
+          return FitOurs(c, "full-model/directional/forward", JacobianMode::kDirectional, false,
+                         threads, max_it, false, false);
+        }));
+      }
     }
     if (want("oracle")) {
       add(measure(2, [&] {

@@ -109,7 +109,7 @@ for c in ${cases//,/ }; do
   done
 done
 
-step "bench_fit (ours, oracle, Ceres numeric diff; peer rows merged)"
+step "bench_fit (ours, ours without the reduced model, oracle, Ceres numeric diff; peer rows merged)"
 cap_args=()
 for c in "${caps[@]}"; do cap_args+=(--max-iterations "$c"); done
 "$bin/bench_fit" --cases "$cases" --out "$out" --peer-dir "$out/peer" --idle-wait "$idle_wait" \
