@@ -47,6 +47,7 @@
 #include "core/simulator.h"
 #include "core/state.h"
 #include "mjsysid/version.h"
+#include "sysid/fit_ledger.h"
 #include "sysid/io/atomic_file.h"
 #include "sysid/io/experiment.h"
 #include "sysid/io/log.h"
@@ -82,6 +83,10 @@ struct Row {
   // thread of the row)
   double others_cores = NAN, load1 = NAN;
   bool idle = true;
+  // ours: the fit's ledger (sysid/fit_ledger.h) and the seconds of run::BuildProblem before it
+  // (model loading, log reading, not part of wall_s)
+  std::vector<LedgerRow> ledger;
+  double build_s = NAN;
 };
 
 // the case: experiment, truth, data
@@ -171,7 +176,9 @@ Row FitOurs(const Case& c, const std::string& method, JacobianMode mode, bool ce
   row.threads = threads;
   io::ExperimentConfig config = c.config;
   for (io::ParameterSpec& p : config.parameters) p.initial_auto = p.initial_auto || auto_start;
+  const auto built = Clock::now();
   run::BuiltProblem b = run::BuildProblem(config, threads);
+  row.build_s = Seconds(built);
   FitOptions o = b.options;
   o.jacobian.mode = mode;
   o.jacobian.central = central;
@@ -185,6 +192,7 @@ Row FitOurs(const Case& c, const std::string& method, JacobianMode mode, bool ce
     row.wall_s = r.seconds;
     row.iterations = r.iterations;
     row.steps = r.simulation_steps;
+    row.ledger = r.ledger;
     row.initial_cost = r.initial_cost;
     row.final_cost = r.final_cost;
     // the status a user of `sysid fit` sees (docs/cli.md), not only the optimizer's flag
@@ -738,6 +746,10 @@ int Main(int argc, char** argv) {
                  "so in their note")
       ->capture_default_str();
   app.add_option("--max-iterations", caps, "per-case iteration cap, e.g. humanoid=10");
+  bool print_ledger = false;
+  app.add_flag(
+      "--ledger", print_ledger,
+      "print under each row of ours its fit's steps and time by phase (sysid/fit_ledger.h)");
   CLI11_PARSE(app, argc, argv);
   std::string command;
   for (int i = 0; i < argc; ++i) command += (i ? " " : "") + std::string(argv[i]);
@@ -802,6 +814,10 @@ int Main(int argc, char** argv) {
       Errors(c, &r);
       Floor(c, &r);
       PrintRow(r);
+      if (print_ledger && !r.ledger.empty()) {
+        std::printf("  ledger (model loading and log reading before the fit: %.4f s):\n%s",
+                    r.build_s, FormatLedger(r.ledger, r.samples).c_str());
+      }
       rows.push_back(std::move(r));
       WriteCsv(out_dir + "/fit_bench.csv", rows);  // each row on disk as soon as it exists
     };
