@@ -707,14 +707,6 @@ FitResult Problem::Fit(const FitOptions& options) {
   for (const auto& mo : I.models) result.simulation_steps += mo.sim->StepCount();
   result.ledger = ledger.Finish();
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  if (options.verbose) {
-    long long sum_t = 0;
-    for (const SampleGrid& g : I.grids) sum_t += g.steps;
-    std::fprintf(stderr,
-                 "ledger of the fit (steps and time by phase; x sum T = rollouts of every "
-                 "sequence):\n%s",
-                 FormatLedger(result.ledger, sum_t).c_str());
-  }
 
   // auto: single shooting that did not converge on a system whose probe grew well beyond linear
   // is refitted in multiple shooting (sysid/multiple_shooting.h, SegmentStepsAfterFailure); the

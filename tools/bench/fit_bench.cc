@@ -87,7 +87,13 @@ struct Row {
   // (model loading, log reading, not part of wall_s)
   std::vector<LedgerRow> ledger;
   double build_s = NAN;
+  // CPU seconds of the whole process (all threads) during the fit: less sensitive than wall time
+  // to other processes on the machine (printed with --ledger)
+  double cpu_s = NAN;
 };
+
+// the process's CPU time (all threads), seconds
+double ProcessCpuSeconds() { return static_cast<double>(std::clock()) / CLOCKS_PER_SEC; }
 
 // the case: experiment, truth, data
 struct Case {
@@ -188,7 +194,9 @@ Row FitOurs(const Case& c, const std::string& method, JacobianMode mode, bool ce
   if (max_iterations > 0) o.max_iterations = max_iterations;
   row.np = static_cast<int>(b.parameters.size());
   try {
+    const double cpu0 = ProcessCpuSeconds();
     const FitResult r = b.problem->Fit(o);
+    row.cpu_s = ProcessCpuSeconds() - cpu0;
     row.wall_s = r.seconds;
     row.iterations = r.iterations;
     row.steps = r.simulation_steps;
@@ -312,6 +320,7 @@ Row FitNumDiff(const Case& c, int max_iterations) {
     return row;
   }
   const auto t0 = Clock::now();
+  const double cpu0 = ProcessCpuSeconds();
   auto* functor = new WholeRolloutResidual(b, b.options);
   auto* cost = new ceres::DynamicNumericDiffCostFunction<WholeRolloutResidual, ceres::FORWARD>(
       functor, ceres::TAKE_OWNERSHIP);
@@ -342,6 +351,7 @@ Row FitNumDiff(const Case& c, int max_iterations) {
   ceres::Solver::Summary summary;
   ceres::Solve(so, &problem, &summary);
   row.wall_s = Seconds(t0);
+  row.cpu_s = ProcessCpuSeconds() - cpu0;
   row.iterations = static_cast<int>(summary.iterations.size()) - 1;
   row.steps = functor->steps();
   row.initial_cost = summary.initial_cost;
@@ -814,6 +824,9 @@ int Main(int argc, char** argv) {
       Errors(c, &r);
       Floor(c, &r);
       PrintRow(r);
+      if (print_ledger && std::isfinite(r.cpu_s)) {
+        std::printf("  process CPU time during the fit: %.4f s\n", r.cpu_s);
+      }
       if (print_ledger && !r.ledger.empty()) {
         std::printf("  ledger (model loading and log reading before the fit: %.4f s):\n%s",
                     r.build_s, FormatLedger(r.ledger, r.samples).c_str());
