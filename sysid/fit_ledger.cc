@@ -15,6 +15,8 @@ FitLedger::FitLedger(std::function<long long()> steps)
 void FitLedger::Charge() {
   const auto now = std::chrono::steady_clock::now();
   const long long steps = steps_();
+  // a counter below its last reading restarted (Prepare built new simulators): counts from 0
+  if (steps < last_steps_) last_steps_ = 0;
   if (!current_.empty()) {
     for (LedgerRow& row : rows_) {
       if (row.phase != current_) continue;

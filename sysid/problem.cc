@@ -727,6 +727,9 @@ FitResult Problem::Fit(const FitOptions& options) {
             reason + (from == std::string::npos ? "" : "; " + refit.segment_reason.substr(from));
         refit.seconds += result.seconds;
         refit.simulation_steps += result.simulation_steps;
+        // the ledger adds up to simulation_steps: the single-shooting fit's rows first
+        for (LedgerRow& row : result.ledger) row.phase = "single-shooting fit: " + row.phase;
+        refit.ledger.insert(refit.ledger.begin(), result.ledger.begin(), result.ledger.end());
         refit.trace.insert(refit.trace.begin(), result.trace.begin(), result.trace.end());
         return refit;
       }
@@ -734,6 +737,8 @@ FitResult Problem::Fit(const FitOptions& options) {
                                 FitStatusName(refit.outcome) + "; the single-shooting fit stays");
       result.seconds += refit.seconds;
       result.simulation_steps += refit.simulation_steps;
+      for (LedgerRow& row : refit.ledger) row.phase = "multiple-shooting refit: " + row.phase;
+      result.ledger.insert(result.ledger.end(), refit.ledger.begin(), refit.ledger.end());
     }
   }
   return result;

@@ -28,7 +28,7 @@ TEST(FitLedgerTest, ChargesStepsToTheCurrentPhase) {
   ledger.Enter("b");
   steps += 3;
   ledger.Enter("a");
-  steps += 1;
+  steps = 1;  // the counter restarted (new simulators): 1 step since, charged to "a"
   const std::vector<LedgerRow> rows = ledger.Finish();
   ASSERT_EQ(rows.size(), 2u);
   EXPECT_EQ(rows[0].phase, "a");
@@ -86,6 +86,15 @@ TEST(FitLedgerTest, SpringMassFitLedgerAddsUpAndTheEstimateCostsNoSteps) {
   EXPECT_EQ(by_phase[kPhaseSignals].steps, 0);   // the final signals, from the cache
   // the interval check: the cost at +-1 std of each of the 2 parameters, one rollout each
   EXPECT_EQ(by_phase[kPhaseIntervalCheck].steps, 4000);
+  // fitted again (new simulators, step counts from 0): the same ledger, no negative row
+  const FitResult again = problem.Fit(o);
+  long long again_steps = 0;
+  for (const LedgerRow& row : again.ledger) {
+    EXPECT_GE(row.steps, 0) << row.phase;
+    again_steps += row.steps;
+  }
+  EXPECT_EQ(again_steps, again.simulation_steps);
+  EXPECT_EQ(again.simulation_steps, r.simulation_steps);
 }
 
 }  // namespace
