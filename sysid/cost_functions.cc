@@ -317,7 +317,10 @@ void PrefetchCallback::PrepareForEvaluation(bool evaluate_jacobians,
   if (!I.m.empty()) I.SyncControlDelays(I.m.data());  // the controls at the fitted delays
   std::vector<const double*> x0(I.segments.size());
   for (size_t s = 0; s < I.segments.size(); ++s) x0[s] = I.X0(static_cast<int>(s));
+  const bool charge = I.ledger && I.ledger->solving;
+  if (charge) I.ledger->Enter(evaluate_jacobians ? kPhaseJacobians : kPhaseTrials);
   I.cache->Prefetch(I.z.empty() ? nullptr : I.z.data(), x0, evaluate_jacobians);
+  if (charge) I.ledger->Enter(kPhaseSolver);
 }
 
 // the iterate in physical units; progress line, trace, checkpoint callback, interruption

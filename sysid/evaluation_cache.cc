@@ -27,6 +27,7 @@ EvaluationCache::EvaluationCache(std::vector<Model> models,
       segments_(segments),
       jacobian_(jacobian),
       entries_(segments->size()),
+      kept_(segments->size()),
       owner_(std::this_thread::get_id()) {}
 
 EvaluationCache::EvaluationCache(std::vector<Model> models,
@@ -94,6 +95,15 @@ void EvaluationCache::Simulate(int mo, const std::vector<int>& segs, const doubl
     Entry& c = entries_[segs[i]];
     std::vector<double> key = KeyOf(segs[i], z, x0s[i]);
     if (key == c.key) continue;
+    // the last point with Jacobians (the iterate) waits aside while trial points are simulated;
+    // asked for again (the evaluation at the estimate after the solve), it is not simulated anew
+    Entry& kept = kept_[segs[i]];
+    if (!kept.key.empty() && key == kept.key) {
+      c = std::move(kept);
+      kept = Entry();
+      continue;
+    }
+    if (c.has_jacobians) kept = std::move(c);
     c = Entry();
     c.key = std::move(key);
     roll.push_back(segs[i]);
@@ -129,6 +139,7 @@ void EvaluationCache::Simulate(int mo, const std::vector<int>& segs, const doubl
       const Segment& seg = (*segments_)[segs[i]];
       if (c.failed || c.has_jacobians || c.jacobians_failed) continue;
       if ((seg.block >= 0) != with_x0 || (seg.next >= 0 || seg.state_rows) != with_states) continue;
+      kept_[segs[i]] = Entry();  // one Jacobian per segment in memory: the new one replaces it
       jac.push_back(segs[i]);
       jins.push_back(InputOf(segs[i], x0s[i]));
       nominal.push_back(std::move(c.tr));
@@ -192,6 +203,7 @@ void EvaluationCache::Seed(int segment, const double* z, const double* x0, Traje
   CheckThread("Seed");
   Entry& c = entries_[segment];
   c = Entry();
+  kept_[segment] = Entry();
   c.key = KeyOf(segment, z, x0);
   c.tr = std::move(tr);
   c.s = std::move(s);

@@ -13,7 +13,10 @@
 // segments with a continuity residual (Segment::next >= 0) or fitted states (Segment::state_rows).
 //
 // Reuse. Ceres evaluates the residuals at a trial point and, when it accepts the step, the
-// Jacobians at the same point: the rollout is reused and only the Jacobians are added. Before
+// Jacobians at the same point: the rollout is reused and only the Jacobians are added. The
+// entry with Jacobians that a trial point replaces is kept aside until the next Jacobians, so
+// that the evaluation at the estimate after the solve (the last iterate, whose Jacobians the LM
+// computed) simulates nothing. Before
 // each evaluation Prefetch() (Ceres' EvaluationCallback, sysid/cost_functions.h) simulates every
 // segment of a model whose key changed in one batch, so the simulator runs the segments (and
 // their Jacobian columns) in parallel instead of one after another; Evaluate() then finds them.
@@ -126,7 +129,11 @@ class EvaluationCache {
   const std::vector<SampleGrid>* grids_ = nullptr;  // borrowed; nullptr: sequences' ctrl
   JacobianOptions jacobian_;
   std::vector<Entry> entries_;  // one per segment
-  std::thread::id owner_;       // the constructing thread
+  // per segment: the entry with Jacobians that a trial point replaced in entries_ (empty key:
+  // none), given back without simulation when its point is asked for again; dropped when the
+  // segment's next Jacobians are computed, so one Jacobian per segment is held
+  std::vector<Entry> kept_;
+  std::thread::id owner_;  // the constructing thread
 };
 
 }  // namespace mjsysid

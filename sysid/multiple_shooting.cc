@@ -88,6 +88,45 @@ constexpr int kMinSegmentSteps = 10;
 // high-energy chaotic double pendulum did not recover, tests/stress/horizon_stress_test.cc)
 constexpr double kSegmentGrowth = 2;
 
+// The probe of ChooseHorizon: every sequence from its x0 with every qvel raised by h (*h_out[q]),
+// on the simulation grid's controls, at the current parameters. Simulated in one batch per model
+// (in parallel across sequences, as the fit's rollouts); a batch that throws is simulated again
+// one sequence at a time, and a probe that still throws stays empty (T = 0: it decides nothing).
+static std::vector<Trajectory> ProbeRollouts(Problem::Impl& I, std::vector<double>* h_out) {
+  std::vector<Trajectory> probes(I.sequences.size());
+  h_out->assign(I.sequences.size(), 0.0);
+  for (size_t mi = 0; mi < I.models.size(); ++mi) {
+    Simulator& sim = *I.models[mi].sim;
+    std::vector<SequenceInput> ins;
+    std::vector<size_t> which;
+    for (size_t q = 0; q < I.sequences.size(); ++q) {
+      const FitSequence& sq = I.sequences[q];
+      if (I.ModelIndex(sq.model) != static_cast<int>(mi)) continue;
+      SequenceInput in{sq.x0, I.grids[q].ctrl};  // the controls on the simulation grid
+      if (in.x0.qvel.size() != sim.model().nv) in.x0.qvel = Eigen::VectorXd::Zero(sim.model().nv);
+      (*h_out)[q] = kProbeStep * (1 + in.x0.qvel.lpNorm<Eigen::Infinity>());
+      in.x0.qvel.array() += (*h_out)[q];
+      ins.push_back(std::move(in));
+      which.push_back(q);
+    }
+    if (ins.empty()) continue;
+    std::vector<Trajectory> trs;
+    try {
+      sim.Rollout(ins, &trs);
+      for (size_t i = 0; i < which.size(); ++i) probes[which[i]] = std::move(trs[i]);
+    } catch (const std::exception&) {
+      for (size_t i = 0; i < which.size(); ++i) {
+        try {
+          probes[which[i]] = sim.Rollout(ins[i]);
+        } catch (const std::exception&) {
+          // a probe that diverges decides nothing; the fit reports its own failures
+        }
+      }
+    }
+  }
+  return probes;
+}
+
 HorizonChoice ChooseHorizon(Problem::Impl& I, const std::vector<Trajectory>& initial,
                             const FitOptions& options) {
   HorizonChoice out;
@@ -101,21 +140,16 @@ HorizonChoice ChooseHorizon(Problem::Impl& I, const std::vector<Trajectory>& ini
   double worst_e = 0, rate = 0;  // largest E; lambda of the earliest crossing
   int first = -1;                // the earliest k*
   std::string where;             // its sequence
+  std::vector<double> hs;
+  const std::vector<Trajectory> probes = ProbeRollouts(I, &hs);
   for (size_t q = 0; q < I.sequences.size(); ++q) {
     const FitSequence& sq = I.sequences[q];
-    Simulator& sim = *I.models[I.ModelIndex(sq.model)].sim;
+    const Simulator& sim = *I.models[I.ModelIndex(sq.model)].sim;
     const mjModel& m = sim.model();
     const StateDims& d = sim.dims();
-    SequenceInput in{sq.x0, I.grids[q].ctrl};  // the controls on the simulation grid
-    if (in.x0.qvel.size() != m.nv) in.x0.qvel = Eigen::VectorXd::Zero(m.nv);
-    const double h = kProbeStep * (1 + in.x0.qvel.lpNorm<Eigen::Infinity>());
-    in.x0.qvel.array() += h;
-    Trajectory probe;
-    try {
-      probe = sim.Rollout(in);
-    } catch (const std::exception&) {
-      continue;  // a probe that diverges decides nothing; the fit reports its own failures
-    }
+    const double h = hs[q];
+    const Trajectory& probe = probes[q];
+    if (probe.states.rows() == 0) continue;  // diverged: decides nothing
     const Trajectory& nominal = initial[q];
     Eigen::VectorXd diff(d.nx);
     for (int k = 0; k <= nominal.T; ++k) {

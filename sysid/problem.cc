@@ -28,6 +28,7 @@
 #include "sysid/derived_inertials.h"
 #include "sysid/equation_error.h"
 #include "sysid/evaluation_cache.h"
+#include "sysid/fit_ledger.h"
 #include "sysid/fit_status.h"
 #include "sysid/interval_check.h"
 #include "sysid/multiple_shooting.h"
@@ -244,9 +245,23 @@ FitResult Problem::Fit(const FitOptions& options) {
   Impl& I = *impl_;
   const auto start = std::chrono::steady_clock::now();
   FitResult result;
+  // the ledger of steps and time by phase (sysid/fit_ledger.h); the simulators exist after Prepare
+  FitLedger ledger([&I] {
+    long long steps = 0;
+    for (const Impl::Model& mo : I.models) steps += mo.sim ? mo.sim->StepCount() : 0;
+    return steps;
+  });
+  I.ledger = &ledger;
+  struct Unborrow {
+    Impl* impl;
+    ~Unborrow() { impl->ledger = nullptr; }
+  } unborrow{&I};
+  ledger.Enter(kPhaseAutoStart);
   const std::vector<std::string> start_notes = SolveAutoStarts(I);
+  ledger.Enter(kPhasePrepare);
   Prepared prepared;
   Prepare(options, &prepared);
+  ledger.Enter(kPhaseSetup);
   const int np = static_cast<int>(I.params.size());
   const std::vector<Trajectory>& initial = prepared.initial;
   const std::vector<std::string>& names = prepared.names;
@@ -377,7 +392,9 @@ FitResult Problem::Fit(const FitOptions& options) {
   ceres::Solver::Summary summary;
   I.rejected_evaluations = 0;
   I.jacobian_warnings.clear();
+  ledger.solving = true;
   ceres::Solve(so_ceres, &problem, &summary);
+  ledger.solving = false;
 
   // auto: single shooting whose Jacobian stopped being local is refitted in multiple shooting
   if (I.stop_on_jacobian_warning && !I.jacobian_warnings.empty() && !result.interrupted) {
@@ -462,8 +479,10 @@ FitResult Problem::Fit(const FitOptions& options) {
   // the core's Jacobian warnings of this evaluation alone: the Jacobian the intervals come from
   std::map<int, std::string> solve_warnings;
   std::swap(solve_warnings, I.jacobian_warnings);
+  ledger.Enter(kPhaseEstimate);
   const bool evaluated =
       !interrupted_now() && problem.Evaluate(eo, &cost, &residuals, nullptr, &crs);
+  ledger.Enter(kPhaseCovariance);
   const bool jacobian_warned_at_estimate = evaluated && !I.jacobian_warnings.empty();
   I.jacobian_warnings.insert(solve_warnings.begin(), solve_warnings.end());
   for (auto& mo : I.models) mo.sim->SetCancelFlag(nullptr);
@@ -523,6 +542,7 @@ FitResult Problem::Fit(const FitOptions& options) {
     result.jacobian = A;
     // the intervals' quadratic model against the cost one standard error away: contacts can make
     // the cost jump far inside an interval (sysid/interval_check.h)
+    ledger.Enter(kPhaseIntervalCheck);
     const IntervalCheck ic =
         CheckIntervalScale(Eigen::Map<const Eigen::VectorXd>(residuals.data(), crs.num_rows),
                            result.jacobian, se, names, [&](int v, double delta, double* c) {
@@ -551,6 +571,7 @@ FitResult Problem::Fit(const FitOptions& options) {
     result.warnings.push_back("the residuals could not be evaluated at the estimate");
   }
 
+  ledger.Enter(kPhaseSignals);
   // the physical quantities of bodies fitted through body_inertial (mass, centre of mass,
   // principal moments) with delta-method intervals from the parameters' covariance
   {
@@ -705,6 +726,7 @@ FitResult Problem::Fit(const FitOptions& options) {
                   jacobian_warned_at_estimate);
   for (const auto& mo : I.models) result.simulation_steps += mo.sim->StepCount();
   RecordReduction(I, options, &result);
+  result.ledger = ledger.Finish();
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
   // auto: single shooting that did not converge on a system whose probe grew well beyond linear
@@ -726,6 +748,9 @@ FitResult Problem::Fit(const FitOptions& options) {
             reason + (from == std::string::npos ? "" : "; " + refit.segment_reason.substr(from));
         refit.seconds += result.seconds;
         refit.simulation_steps += result.simulation_steps;
+        // the ledger adds up to simulation_steps: the single-shooting fit's rows first
+        for (LedgerRow& row : result.ledger) row.phase = "single-shooting fit: " + row.phase;
+        refit.ledger.insert(refit.ledger.begin(), result.ledger.begin(), result.ledger.end());
         refit.trace.insert(refit.trace.begin(), result.trace.begin(), result.trace.end());
         return refit;
       }
@@ -733,6 +758,8 @@ FitResult Problem::Fit(const FitOptions& options) {
                                 FitStatusName(refit.outcome) + "; the single-shooting fit stays");
       result.seconds += refit.seconds;
       result.simulation_steps += refit.simulation_steps;
+      for (LedgerRow& row : refit.ledger) row.phase = "multiple-shooting refit: " + row.phase;
+      result.ledger.insert(result.ledger.end(), refit.ledger.begin(), refit.ledger.end());
     }
   }
   return result;

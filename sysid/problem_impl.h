@@ -25,6 +25,7 @@
 
 #include "core/simulator.h"
 #include "sysid/evaluation_cache.h"
+#include "sysid/fit_ledger.h"
 #include "sysid/problem.h"
 #include "sysid/residual_model.h"
 #include "sysid/sample_grid.h"
@@ -182,6 +183,9 @@ struct Problem::Impl {
     const Segment& seg = segments[segment];
     return seg.block >= 0 ? states[seg.block].data() : fixed_x0[seg.seq].data();
   }
+  // the running fit's ledger (Fit's own, borrowed; nullptr outside Fit): the evaluation callback
+  // charges the solve's simulation to it
+  FitLedger* ledger = nullptr;
 };
 
 // throws ParameterError naming the first parameter g with !moves[g] (its Jacobian column is zero

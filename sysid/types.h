@@ -318,6 +318,15 @@ struct DerivedQuantity {
   std::optional<double> truth;  // the true value when known (synthetic data), for reports
 };
 
+// one phase of a fit in its ledger (sysid/fit_ledger.h): how often it was entered, the simulator
+// step calls (Simulator::StepCount) and the wall seconds spent in it
+struct LedgerRow {
+  std::string phase;
+  int entries = 0;
+  long long steps = 0;
+  double seconds = 0;
+};
+
 struct FitResult {
   std::vector<ParameterEstimate> parameters;  // physical parameters, then measurement terms
   double initial_cost = 0, final_cost = 0;    // 0.5 |r|^2
@@ -369,6 +378,8 @@ struct FitResult {
     int guard_trips = 0;
   };
   Reduction reduction;
+  // the fit's steps and seconds by phase (sysid/fit_ledger.h); rows add up to simulation_steps
+  std::vector<LedgerRow> ledger;
 };
 
 // one line for a user, e.g. "collision pairs off 3 of 4, geoms off 2, disabled [island], guard

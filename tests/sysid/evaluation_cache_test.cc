@@ -120,6 +120,28 @@ TEST_F(EvaluationCacheTest, NewKeyIsSimulated) {
   EXPECT_TRUE(f.tr.sensors == Direct(2, x0b, z2[0]).sensors);
 }
 
+// the iterate (an entry with Jacobians) survives trial points: asked for again after two trials
+// (the evaluation at the estimate after the solve) it costs no step and is the same; the next
+// Jacobians elsewhere drop it (one Jacobian per segment), so it is then simulated anew
+TEST_F(EvaluationCacheTest, IterateWithJacobiansSurvivesTrialPoints) {
+  const RowMatrix dydp = cache_->Evaluate(2, z_.data(), x0_.data(), true).s.DyDp;
+  const std::vector<double> trial1 = {std::log(0.2)}, trial2 = {std::log(0.1)};
+  cache_->Evaluate(2, trial1.data(), x0_.data(), false);
+  cache_->Evaluate(2, trial2.data(), x0_.data(), false);
+  const long long steps = sim_->StepCount();
+  const EvaluationCache::Entry& back = cache_->Evaluate(2, z_.data(), x0_.data(), true);
+  EXPECT_EQ(sim_->StepCount(), steps);
+  ASSERT_TRUE(back.has_jacobians) << back.error;
+  EXPECT_TRUE(back.s.DyDp == dydp);
+  EXPECT_TRUE(back.tr.sensors == Direct(2, x0_, z_[0]).sensors);
+  // Jacobians at a trial point replace the kept iterate: z_ is simulated again (one rollout)
+  cache_->Evaluate(2, trial1.data(), x0_.data(), true);
+  const long long after_trial = sim_->StepCount();
+  cache_->Evaluate(2, trial2.data(), x0_.data(), false);
+  cache_->Evaluate(2, z_.data(), x0_.data(), false);
+  EXPECT_EQ(sim_->StepCount(), after_trial + 400);
+}
+
 // one batch brings every segment to the point, with the Jacobian columns and rows each needs
 TEST_F(EvaluationCacheTest, PrefetchThenEvaluateSimulatesNothing) {
   const std::vector<const double*> x0 = {x0_.data(), x0_1_.data(), x0_.data()};

@@ -50,6 +50,7 @@
 #include "core/simulator.h"
 #include "core/state.h"
 #include "mjsysid/version.h"
+#include "sysid/fit_ledger.h"
 #include "sysid/io/atomic_file.h"
 #include "sysid/io/experiment.h"
 #include "sysid/io/log.h"
@@ -85,7 +86,17 @@ struct Row {
   // thread of the row)
   double others_cores = NAN, load1 = NAN;
   bool idle = true;
+  // ours: the fit's ledger (sysid/fit_ledger.h) and the seconds of run::BuildProblem before it
+  // (model loading, log reading, not part of wall_s)
+  std::vector<LedgerRow> ledger;
+  double build_s = NAN;
+  // CPU seconds of the whole process (all threads) during the fit: less sensitive than wall time
+  // to other processes on the machine (printed with --ledger)
+  double cpu_s = NAN;
 };
+
+// the process's CPU time (all threads), seconds
+double ProcessCpuSeconds() { return static_cast<double>(std::clock()) / CLOCKS_PER_SEC; }
 
 // the case: experiment, truth, data
 struct Case {
@@ -175,7 +186,9 @@ Row FitOurs(const Case& c, const std::string& method, JacobianMode mode, bool ce
   row.threads = threads;
   io::ExperimentConfig config = c.config;
   for (io::ParameterSpec& p : config.parameters) p.initial_auto = p.initial_auto || auto_start;
+  const auto built = Clock::now();
   run::BuiltProblem b = run::BuildProblem(config, threads);
+  row.build_s = Seconds(built);
   FitOptions o = b.options;
   o.jacobian.mode = mode;
   o.jacobian.central = central;
@@ -186,10 +199,13 @@ Row FitOurs(const Case& c, const std::string& method, JacobianMode mode, bool ce
   if (max_iterations > 0) o.max_iterations = max_iterations;
   row.np = static_cast<int>(b.parameters.size());
   try {
+    const double cpu0 = ProcessCpuSeconds();
     const FitResult r = b.problem->Fit(o);
+    row.cpu_s = ProcessCpuSeconds() - cpu0;
     row.wall_s = r.seconds;
     row.iterations = r.iterations;
     row.steps = r.simulation_steps;
+    row.ledger = r.ledger;
     row.initial_cost = r.initial_cost;
     row.final_cost = r.final_cost;
     // the status a user of `sysid fit` sees (docs/cli.md), not only the optimizer's flag
@@ -309,6 +325,7 @@ Row FitNumDiff(const Case& c, int max_iterations) {
     return row;
   }
   const auto t0 = Clock::now();
+  const double cpu0 = ProcessCpuSeconds();
   auto* functor = new WholeRolloutResidual(b, b.options);
   auto* cost = new ceres::DynamicNumericDiffCostFunction<WholeRolloutResidual, ceres::FORWARD>(
       functor, ceres::TAKE_OWNERSHIP);
@@ -339,6 +356,7 @@ Row FitNumDiff(const Case& c, int max_iterations) {
   ceres::Solver::Summary summary;
   ceres::Solve(so, &problem, &summary);
   row.wall_s = Seconds(t0);
+  row.cpu_s = ProcessCpuSeconds() - cpu0;
   row.iterations = static_cast<int>(summary.iterations.size()) - 1;
   row.steps = functor->steps();
   row.initial_cost = summary.initial_cost;
@@ -744,6 +762,10 @@ int Main(int argc, char** argv) {
                  "so in their note")
       ->capture_default_str();
   app.add_option("--max-iterations", caps, "per-case iteration cap, e.g. humanoid=10");
+  bool print_ledger = false;
+  app.add_flag(
+      "--ledger", print_ledger,
+      "print under each row of ours its fit's steps and time by phase (sysid/fit_ledger.h)");
   CLI11_PARSE(app, argc, argv);
   std::string command;
   for (int i = 0; i < argc; ++i) command += (i ? " " : "") + std::string(argv[i]);
@@ -808,6 +830,13 @@ int Main(int argc, char** argv) {
       Errors(c, &r);
       Floor(c, &r);
       PrintRow(r);
+      if (print_ledger && std::isfinite(r.cpu_s)) {
+        std::printf("  process CPU time during the fit: %.4f s\n", r.cpu_s);
+      }
+      if (print_ledger && !r.ledger.empty()) {
+        std::printf("  ledger (model loading and log reading before the fit: %.4f s):\n%s",
+                    r.build_s, FormatLedger(r.ledger, r.samples).c_str());
+      }
       rows.push_back(std::move(r));
       WriteCsv(out_dir + "/fit_bench.csv", rows);  // each row on disk as soon as it exists
     };

@@ -1,0 +1,72 @@
+// The steps and time of a fit by phase: see sysid/fit_ledger.h.
+#include "sysid/fit_ledger.h"
+
+#include <cstdio>
+#include <utility>
+
+namespace mjsysid {
+
+FitLedger::FitLedger(std::function<long long()> steps)
+    : steps_(std::move(steps)), last_time_(std::chrono::steady_clock::now()) {
+  last_steps_ = steps_();
+}
+
+// what happened since the last charge goes to the current phase (nothing before the first Enter)
+void FitLedger::Charge() {
+  const auto now = std::chrono::steady_clock::now();
+  const long long steps = steps_();
+  // a counter below its last reading restarted (Prepare built new simulators): counts from 0
+  if (steps < last_steps_) last_steps_ = 0;
+  if (!current_.empty()) {
+    for (LedgerRow& row : rows_) {
+      if (row.phase != current_) continue;
+      row.steps += steps - last_steps_;
+      row.seconds += std::chrono::duration<double>(now - last_time_).count();
+      break;
+    }
+  }
+  last_steps_ = steps;
+  last_time_ = now;
+}
+
+void FitLedger::Enter(const std::string& phase) {
+  Charge();
+  current_ = phase;
+  for (LedgerRow& row : rows_) {
+    if (row.phase == phase) {
+      ++row.entries;
+      return;
+    }
+  }
+  rows_.push_back({phase, 1, 0, 0.0});
+}
+
+std::vector<LedgerRow> FitLedger::Finish() {
+  Charge();
+  return rows_;
+}
+
+std::string FormatLedger(const std::vector<LedgerRow>& rows, long long sum_t) {
+  long long steps = 0;
+  double seconds = 0;
+  for (const LedgerRow& row : rows) {
+    steps += row.steps;
+    seconds += row.seconds;
+  }
+  std::string out;
+  char line[256];
+  std::snprintf(line, sizeof(line), "%-44s %7s %10s %8s %9s %6s\n", "phase", "entries", "steps",
+                "x sum T", "seconds", "time");
+  out += line;
+  auto add = [&](const std::string& phase, long long entries, long long st, double s) {
+    std::snprintf(line, sizeof(line), "%-44s %7lld %10lld %8.2f %9.4f %5.1f%%\n", phase.c_str(),
+                  entries, st, sum_t > 0 ? static_cast<double>(st) / sum_t : 0.0, s,
+                  seconds > 0 ? 100.0 * s / seconds : 0.0);
+    out += line;
+  };
+  for (const LedgerRow& row : rows) add(row.phase, row.entries, row.steps, row.seconds);
+  add("total", 0, steps, seconds);
+  return out;
+}
+
+}  // namespace mjsysid

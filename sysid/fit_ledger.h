@@ -1,0 +1,73 @@
+// FitLedger: where the simulated steps and the wall time of one fit go, phase by phase (issue 15:
+// the distance of a fit's time per iteration from the simulation floor (1 + np) * sum T * t_step).
+//
+// A fit moves through phases (the equation-error start, the input checks, the solve's Jacobians
+// and trial rollouts, the uncertainty, the interval check, the final signals, ...). Enter(phase)
+// charges the steps and seconds since the previous Enter to the previous phase and counts one
+// entry of the new one, so the rows always add up to the whole fit: sum of LedgerRow::steps =
+// FitResult::simulation_steps, sum of seconds = the fit's wall time up to Finish(). A phase
+// entered twice (e.g. the solve's Jacobians once per iteration) accumulates in one row, in the
+// order of first entry.
+//
+// Steps come from a counter the caller supplies (the sum of Simulator::StepCount over the fit's
+// simulators, which may not exist yet when the ledger starts: then it returns 0); it grows, except
+// that a reading below the last one means the counter restarted from 0 (Problem::Prepare builds
+// new simulators when a Problem is fitted again: a refit, another start). Time is
+// std::chrono::steady_clock. Not thread-safe: the fit's own thread only (as the evaluation cache,
+// sysid/evaluation_cache.h).
+#pragma once
+
+#include <chrono>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "sysid/types.h"
+
+namespace mjsysid {
+
+// The phases of Problem::Fit, in the order a fit meets them (one definition for the fit, the
+// evaluation callback and the benchmark)
+inline constexpr const char* kPhaseAutoStart = "equation-error start (initial: auto)";
+inline constexpr const char* kPhasePrepare = "input checks: initial rollouts + Jacobians";
+inline constexpr const char* kPhaseSetup = "setup: Ceres problem";
+inline constexpr const char* kPhaseJacobians = "solve: Jacobians";
+inline constexpr const char* kPhaseTrials = "solve: trial rollouts (steps, line search)";
+inline constexpr const char* kPhaseSolver = "solve: residuals, Ceres linear algebra";
+inline constexpr const char* kPhaseEstimate = "uncertainty: evaluation at the estimate";
+inline constexpr const char* kPhaseCovariance = "uncertainty: covariance";
+inline constexpr const char* kPhaseIntervalCheck = "interval check (cost at +-1 std)";
+inline constexpr const char* kPhaseSignals = "final signals, derived, status";
+
+class FitLedger {
+ public:
+  // steps: the total step count of the fit so far (non-decreasing)
+  explicit FitLedger(std::function<long long()> steps);
+
+  // charges what happened since the last Enter to the phase then current; phase becomes current
+  void Enter(const std::string& phase);
+  // the phase entered last ("" before the first Enter)
+  const std::string& current() const { return current_; }
+  // charges the current phase and returns every row (order of first entry)
+  std::vector<LedgerRow> Finish();
+
+  // Inside the solve the evaluation callback enters "solve: Jacobians" or "solve: trial rollouts"
+  // and, after simulating, "solve: residuals, Ceres"; outside the solve (the evaluation at the
+  // estimate, the interval check) the evaluations belong to the phase the caller entered.
+  bool solving = false;
+
+ private:
+  void Charge();
+
+  std::function<long long()> steps_;
+  std::vector<LedgerRow> rows_;
+  std::string current_;
+  long long last_steps_ = 0;
+  std::chrono::steady_clock::time_point last_time_;
+};
+
+// The ledger as a table, one line per phase: entries, steps, steps / (sum T) ("rollouts"), seconds
+// and share of the time; sum_t: the fit's simulated samples per rollout of every sequence
+std::string FormatLedger(const std::vector<LedgerRow>& rows, long long sum_t);
+
+}  // namespace mjsysid

@@ -1,0 +1,101 @@
+// The ledger of a fit (sysid/fit_ledger.h) on a real spring-mass fit: its rows add up to the fit's
+// simulation steps, every phase of the fit is in it, and the evaluation at the estimate after the
+// solve simulates nothing (the evaluation cache keeps the last iterate's rollout and Jacobians,
+// sysid/evaluation_cache.h); a hand-driven ledger charges steps and time to the phase entered.
+#include "sysid/fit_ledger.h"
+
+#include <gtest/gtest.h>
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include "core/mujoco_env.h"
+#include "sysid/problem.h"
+#include "tests/fit_test_util.h"
+#include "tests/test_util.h"
+
+namespace mjsysid {
+namespace {
+
+const std::string kModels = MJSYSID_MODELS_DIR;
+
+TEST(FitLedgerTest, ChargesStepsToTheCurrentPhase) {
+  long long steps = 5;  // before the first phase: charged to nothing
+  FitLedger ledger([&steps] { return steps; });
+  ledger.Enter("a");
+  steps += 10;
+  ledger.Enter("b");
+  steps += 3;
+  ledger.Enter("a");
+  steps = 1;  // the counter restarted (new simulators): 1 step since, charged to "a"
+  const std::vector<LedgerRow> rows = ledger.Finish();
+  ASSERT_EQ(rows.size(), 2u);
+  EXPECT_EQ(rows[0].phase, "a");
+  EXPECT_EQ(rows[0].entries, 2);
+  EXPECT_EQ(rows[0].steps, 11);
+  EXPECT_EQ(rows[1].phase, "b");
+  EXPECT_EQ(rows[1].entries, 1);
+  EXPECT_EQ(rows[1].steps, 3);
+  EXPECT_GE(rows[0].seconds, 0.0);
+  const std::string table = FormatLedger(rows, 2);
+  EXPECT_NE(table.find("total"), std::string::npos);
+}
+
+// truth mass 1.0, damping 0.3, start 2.0 / 0.1 (log), sensor noise sigma 1e-3 (seed 3), 1000
+// samples, 1 thread: the estimate within 1e-3 relative, the ledger adds up to the step count
+// exactly
+TEST(FitLedgerTest, SpringMassFitLedgerAddsUpAndTheEstimateCostsNoSteps) {
+  ModelPtr m = LoadModel(kModels + "/spring_mass.xml");
+  const RowMatrix u = test::Excitation(*m, 1000, 2.0, 1);
+  InitialState x0;
+  const std::vector<test::Truth> truth = {{"mass", test::Spec("body_mass", "mass"), 1.0},
+                                          {"damping", test::Spec("joint_damping", "slide"), 0.3}};
+  const RowMatrix y = test::Measure(*m, truth, x0, u, 1e-3, 3);
+  Problem problem;
+  problem.AddModel("spring", *m);
+  problem.AddParameter(
+      FitParameter("mass", test::Spec("body_mass", "mass"), 2.0).Bounds(0.01, 100).Log());
+  problem.AddParameter(
+      FitParameter("damping", test::Spec("joint_damping", "slide"), 0.1).Bounds(1e-3, 10).Log());
+  problem.AddSequence(FitSequence("seq0", "spring", x0, u, y));
+  FitOptions o;
+  o.threads = 1;
+  const FitResult r = problem.Fit(o);
+  ASSERT_TRUE(r.converged) << r.termination;
+  EXPECT_NEAR(test::Estimate(r, "mass").value, 1.0, 1e-3);
+  EXPECT_NEAR(test::Estimate(r, "damping").value, 0.3, 3e-4);
+  long long steps = 0;
+  std::map<std::string, LedgerRow> by_phase;
+  for (const LedgerRow& row : r.ledger) {
+    steps += row.steps;
+    by_phase[row.phase] = row;
+  }
+  EXPECT_EQ(steps, r.simulation_steps);
+  for (const char* phase : {kPhasePrepare, kPhaseJacobians, kPhaseTrials, kPhaseSolver,
+                            kPhaseEstimate, kPhaseIntervalCheck, kPhaseSignals}) {
+    EXPECT_EQ(by_phase.count(phase), 1u) << phase;
+  }
+  // the input checks: one rollout and two directional columns of 1000 steps (the horizon probe
+  // adds its own); their Jacobian is the solve's first, so the solve's Jacobians cost only
+  // columns at accepted points: 2 x 1000 steps each
+  EXPECT_GE(by_phase[kPhasePrepare].steps, 3000);
+  EXPECT_EQ(by_phase[kPhaseJacobians].steps % 2000, 0);
+  EXPECT_EQ(by_phase[kPhaseTrials].steps % 1000, 0);
+  EXPECT_EQ(by_phase[kPhaseEstimate].steps, 0);  // the last iterate, from the cache
+  EXPECT_EQ(by_phase[kPhaseSignals].steps, 0);   // the final signals, from the cache
+  // the interval check: the cost at +-1 std of each of the 2 parameters, one rollout each
+  EXPECT_EQ(by_phase[kPhaseIntervalCheck].steps, 4000);
+  // fitted again (new simulators, step counts from 0): the same ledger, no negative row
+  const FitResult again = problem.Fit(o);
+  long long again_steps = 0;
+  for (const LedgerRow& row : again.ledger) {
+    EXPECT_GE(row.steps, 0) << row.phase;
+    again_steps += row.steps;
+  }
+  EXPECT_EQ(again_steps, again.simulation_steps);
+  EXPECT_EQ(again.simulation_steps, r.simulation_steps);
+}
+
+}  // namespace
+}  // namespace mjsysid
