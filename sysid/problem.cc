@@ -33,6 +33,7 @@
 #include "sysid/interval_check.h"
 #include "sysid/multiple_shooting.h"
 #include "sysid/problem_impl.h"
+#include "sysid/progress.h"
 #include "sysid/residual_model.h"
 #include "sysid/state_manifold.h"
 #include "sysid/state_residuals.h"
@@ -207,6 +208,7 @@ FitResult Problem::Fit(const FitOptions& options) {
   Impl& I = *impl_;
   const auto start = std::chrono::steady_clock::now();
   FitResult result;
+  I.fit_start = start;
   const std::vector<std::string> start_notes = SolveAutoStarts(I);
   Prepared prepared;
   Prepare(options, &prepared);
@@ -431,6 +433,9 @@ FitResult Problem::Fit(const FitOptions& options) {
   // the core's Jacobian warnings of this evaluation alone: the Jacobian the intervals come from
   std::map<int, std::string> solve_warnings;
   std::swap(solve_warnings, I.jacobian_warnings);
+  if (options.verbose && !interrupted_now()) {
+    PrintFitProgress("unc", "Jacobian at the estimate (uncertainty)", I.fit_start);
+  }
   const bool evaluated =
       !interrupted_now() && (multiple ? problem.Evaluate(eo, &cost, &residuals, nullptr, &crs)
                                       : EvaluateTriangle(problem, &triangle));
@@ -510,6 +515,7 @@ FitResult Problem::Fit(const FitOptions& options) {
     // the intervals' quadratic model against the cost one standard error away: contacts can make
     // the cost jump far inside an interval (sysid/interval_check.h); the triangle's rows give the
     // same model 0.5 |r + J_v d|^2 as the residual rows
+    if (options.verbose) PrintFitProgress("unc", "interval check", I.fit_start);
     const IntervalCheck ic = CheckIntervalScale(
         r_aug.col(nvar), r_aug.leftCols(nvar), se, names, [&](int v, double delta, double* c) {
           const ParameterEstimate& e = result.parameters[v];

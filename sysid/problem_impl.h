@@ -15,6 +15,7 @@
 // called the cache.
 #pragma once
 
+#include <chrono>
 #include <cmath>
 #include <functional>
 #include <map>
@@ -176,6 +177,9 @@ struct Problem::Impl {
   // (empty function or result: all), and per parameter whether their Jacobian moves the data
   std::function<std::vector<bool>(const Impl&)> owned_sequences;
   std::vector<bool> moves;
+
+  // when Fit began (the progress lines' clock, sysid/progress.h)
+  std::chrono::steady_clock::time_point fit_start = std::chrono::steady_clock::now();
 
   // x_0 of a segment in the current variables (its state block, or the sequence's given x0)
   const double* X0(int segment) const {
