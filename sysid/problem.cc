@@ -318,7 +318,7 @@ FitResult Problem::Fit(const FitOptions& options) {
   so_ceres.minimizer_type = ceres::TRUST_REGION;
   so_ceres.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
   int tangent = np + static_cast<int>(I.m.size());
-  for (const auto& st : I.states) tangent += static_cast<int>(st.size());
+  for (size_t b = 0; b < I.states.size(); ++b) tangent += static_cast<int>(I.states[b].size());
   ChooseLinearSolver(I, tangent, &so_ceres);
   so_ceres.max_num_iterations = options.max_iterations;
   so_ceres.function_tolerance = options.function_tolerance;
