@@ -27,12 +27,14 @@
 #include "sysid/cost_functions.h"
 #include "sysid/derived_inertials.h"
 #include "sysid/equation_error.h"
+#include "sysid/estimate_jacobian.h"
 #include "sysid/evaluation_cache.h"
 #include "sysid/fit_ledger.h"
 #include "sysid/fit_status.h"
 #include "sysid/interval_check.h"
 #include "sysid/multiple_shooting.h"
 #include "sysid/problem_impl.h"
+#include "sysid/progress.h"
 #include "sysid/residual_model.h"
 #include "sysid/state_manifold.h"
 #include "sysid/state_residuals.h"
@@ -110,24 +112,6 @@ void SensorsAtSamples(const RowMatrix& sensors, const SampleGrid& grid, int k0, 
       (*out)(k, c) = at.Value({sensors.data() + c, sensors.cols()});
     }
   }
-}
-
-// The residual variance of u over m residual rows instead of the rows of the Jacobian it came
-// from: a compressed Jacobian (sysid/mpi/: the thin-QR triangle of all rows) has the same J^T J and
-// cost as the full one but fewer rows, which changes only dof and s^2 = 2 cost / dof
-void UseResidualRows(long long m, double cost, bool scaled, Uncertainty* u) {
-  const long long dof = m - u->rank;
-  const double s2 =
-      dof > 0 ? 2.0 * cost / static_cast<double>(dof) : std::numeric_limits<double>::quiet_NaN();
-  if (scaled && u->residual_variance > 0 && std::isfinite(s2)) {
-    const double ratio = s2 / u->residual_variance;
-    u->covariance *= ratio;
-    for (Eigen::Index j = 0; j < u->std_error.size(); ++j) {
-      if (std::isfinite(u->std_error[j])) u->std_error[j] *= std::sqrt(ratio);
-    }
-  }
-  u->dof = static_cast<int>(dof);
-  u->residual_variance = s2;
 }
 
 // what the reduced models switched off, summed over the models (FitResult::reduction)
@@ -257,6 +241,7 @@ FitResult Problem::Fit(const FitOptions& options) {
     ~Unborrow() { impl->ledger = nullptr; }
   } unborrow{&I};
   ledger.Enter(kPhaseAutoStart);
+  I.fit_start = start;
   const std::vector<std::string> start_notes = SolveAutoStarts(I);
   ledger.Enter(kPhasePrepare);
   Prepared prepared;
@@ -368,7 +353,7 @@ FitResult Problem::Fit(const FitOptions& options) {
   so_ceres.minimizer_type = ceres::TRUST_REGION;
   so_ceres.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
   int tangent = np + static_cast<int>(I.m.size());
-  for (const auto& st : I.states) tangent += static_cast<int>(st.size());
+  for (size_t b = 0; b < I.states.size(); ++b) tangent += static_cast<int>(I.states[b].size());
   ChooseLinearSolver(I, tangent, &so_ceres);
   so_ceres.max_num_iterations = options.max_iterations;
   so_ceres.function_tolerance = options.function_tolerance;
@@ -473,15 +458,25 @@ FitResult Problem::Fit(const FitOptions& options) {
   for (auto& mo : I.models) mo.sim->SetCancelFlag(options.interrupt);
   ceres::Problem::EvaluateOptions eo;
   eo.num_threads = 1;  // as the solve
+  bool multiple = false;
+  for (const Segment& seg : I.segments) multiple = multiple || seg.next >= 0;
+  // single shooting: the Jacobian only as the thin-QR triangle of [J r], block by block
+  // (sysid/estimate_jacobian.h); multiple shooting: the whole sparse Jacobian, whose state columns
+  // are eliminated below
   double cost = 0;
   ceres::CRSMatrix crs;
   std::vector<double> residuals;
+  EstimateTriangle triangle;
   // the core's Jacobian warnings of this evaluation alone: the Jacobian the intervals come from
   std::map<int, std::string> solve_warnings;
   std::swap(solve_warnings, I.jacobian_warnings);
+  if (options.verbose && !interrupted_now()) {
+    PrintFitProgress("unc", "Jacobian at the estimate (uncertainty)", I.fit_start);
+  }
   ledger.Enter(kPhaseEstimate);
   const bool evaluated =
-      !interrupted_now() && problem.Evaluate(eo, &cost, &residuals, nullptr, &crs);
+      !interrupted_now() && (multiple ? problem.Evaluate(eo, &cost, &residuals, nullptr, &crs)
+                                      : EvaluateTriangle(problem, &triangle));
   ledger.Enter(kPhaseCovariance);
   const bool jacobian_warned_at_estimate = evaluated && !I.jacobian_warnings.empty();
   I.jacobian_warnings.insert(solve_warnings.begin(), solve_warnings.end());
@@ -494,13 +489,8 @@ FitResult Problem::Fit(const FitOptions& options) {
     // parameters first (as Ceres ordered the blocks: z, m, states); those stopped on a bound are
     // not estimated. Multiple shooting: the state columns are eliminated (Schur complement,
     // AnalyzeUncertaintyReduced) instead of entering a dense analysis of every segment state.
-    RowMatrix A;
-    Eigen::SparseMatrix<double> B;
-    SplitJacobian(crs, nvar, &A, &B);
-    for (int g = 0; g < np; ++g) A.col(g) /= I.DpDz(g, I.z[g]);
-    bool multiple = false;
-    for (const Segment& seg : I.segments) multiple = multiple || seg.next >= 0;
-    Eigen::VectorXd values = Eigen::VectorXd::Zero(multiple ? nvar : crs.num_cols);
+    const int ncols = multiple ? crs.num_cols : triangle.n;
+    Eigen::VectorXd values = Eigen::VectorXd::Zero(multiple ? nvar : ncols);
     std::vector<bool> fixed(values.size(), false);
     std::vector<std::string> all_names = names;
     for (int v = 0; v < nvar; ++v) {
@@ -512,19 +502,39 @@ FitResult Problem::Fit(const FitOptions& options) {
     UncertaintyOptions uo = options.uncertainty;
     const double h = options.jacobian.relative_step;
     uo.jacobian_accuracy = std::max(uo.jacobian_accuracy, options.jacobian.central ? h * h : h);
+    // r_aug: the triangle [R q; 0 rho] of [J_p r] over the parameter columns J_p (physical
+    // units), for the result's jacobian and the interval check
+    Eigen::MatrixXd r_aug;
     if (multiple) {
+      RowMatrix A;
+      Eigen::SparseMatrix<double> B;
+      SplitJacobian(crs, nvar, &A, &B);
+      for (int g = 0; g < np; ++g) A.col(g) /= I.DpDz(g, I.z[g]);
       result.uncertainty = AnalyzeUncertaintyReduced(A, B, cost, all_names, values, fixed, uo);
+      RowTriangle tri(nvar + 1);
+      RowMatrix rows(std::min<Eigen::Index>(A.rows(), RowTriangle::kChunkRows), nvar + 1);
+      for (Eigen::Index first = 0; first < A.rows(); first += rows.rows()) {
+        const Eigen::Index count = std::min<Eigen::Index>(rows.rows(), A.rows() - first);
+        rows.topLeftCorner(count, nvar) = A.middleRows(first, count);
+        rows.topRightCorner(count, 1) =
+            Eigen::Map<const Eigen::VectorXd>(residuals.data() + first, count);
+        tri.Add(rows.topRows(count));
+      }
+      r_aug = tri.R();
     } else {
-      RowMatrix J(crs.num_rows, crs.num_cols);
-      J << A, Eigen::MatrixXd(B);
-      for (int c = nvar; c < crs.num_cols; ++c) {
-        all_names.push_back("x0[" + std::to_string(c - nvar) + "]");
-      }
-      result.uncertainty = AnalyzeUncertainty(J, cost, all_names, values, fixed, uo);
-      if (I.shards) {
-        UseResidualRows(result.num_residuals, cost, uo.scale_by_residual_variance,
-                        &result.uncertainty);
-      }
+      // the physical units of the parameter columns: a column scaling of J is one of R
+      const int n = triangle.n;
+      for (int g = 0; g < np; ++g) triangle.r_aug.col(g) /= I.DpDz(g, I.z[g]);
+      for (int c = nvar; c < n; ++c) all_names.push_back("x0[" + std::to_string(c - nvar) + "]");
+      cost = triangle.cost;
+      result.uncertainty = AnalyzeUncertaintyCompressed(
+          triangle.r_aug.leftCols(n), result.num_residuals, cost, all_names, values, fixed, uo);
+      // [J_p r]'s triangle: the parameter columns come first, so R's leading block is J_p's
+      RowTriangle tri(nvar + 1);
+      RowMatrix rows(triangle.r_aug.rows(), nvar + 1);
+      rows << triangle.r_aug.leftCols(nvar), triangle.r_aug.col(n);
+      tri.Add(rows);
+      r_aug = tri.R();
     }
     // keep the parameter block of the covariance
     Eigen::MatrixXd cov = result.uncertainty.covariance.topLeftCorner(nvar, nvar);
@@ -539,26 +549,28 @@ FitResult Problem::Fit(const FitOptions& options) {
       e.ci95_low = e.value - kZ95 * e.std_error;
       e.ci95_high = e.value + kZ95 * e.std_error;
     }
-    result.jacobian = A;
+    // the result keeps J_p as its triangle R (R^T R = J_p^T J_p), not the per-sample rows
+    result.jacobian = r_aug.topLeftCorner(std::min<Eigen::Index>(r_aug.rows(), nvar), nvar);
     // the intervals' quadratic model against the cost one standard error away: contacts can make
-    // the cost jump far inside an interval (sysid/interval_check.h)
+    // the cost jump far inside an interval (sysid/interval_check.h); the triangle's rows give the
+    // same model 0.5 |r + J_v d|^2 as the residual rows
     ledger.Enter(kPhaseIntervalCheck);
-    const IntervalCheck ic =
-        CheckIntervalScale(Eigen::Map<const Eigen::VectorXd>(residuals.data(), crs.num_rows),
-                           result.jacobian, se, names, [&](int v, double delta, double* c) {
-                             const ParameterEstimate& e = result.parameters[v];
-                             const double value = e.value + delta;
-                             const double lo = v < np ? I.params[v].lower : mbounds[v - np].first;
-                             const double hi = v < np ? I.params[v].upper : mbounds[v - np].second;
-                             if (e.at_lower || e.at_upper || value < lo || value > hi) return false;
-                             double* slot = v < np ? &I.z[v] : &I.m[v - np];
-                             const double saved = *slot;
-                             *slot = v < np ? I.params[v].ToVariable(value) : value;
-                             const bool ok = std::isfinite(*slot) &&
-                                             problem.Evaluate(eo, c, nullptr, nullptr, nullptr);
-                             *slot = saved;
-                             return ok;
-                           });
+    if (options.verbose) PrintFitProgress("unc", "interval check", I.fit_start);
+    const IntervalCheck ic = CheckIntervalScale(
+        r_aug.col(nvar), r_aug.leftCols(nvar), se, names, [&](int v, double delta, double* c) {
+          const ParameterEstimate& e = result.parameters[v];
+          const double value = e.value + delta;
+          const double lo = v < np ? I.params[v].lower : mbounds[v - np].first;
+          const double hi = v < np ? I.params[v].upper : mbounds[v - np].second;
+          if (e.at_lower || e.at_upper || value < lo || value > hi) return false;
+          double* slot = v < np ? &I.z[v] : &I.m[v - np];
+          const double saved = *slot;
+          *slot = v < np ? I.params[v].ToVariable(value) : value;
+          const bool ok =
+              std::isfinite(*slot) && problem.Evaluate(eo, c, nullptr, nullptr, nullptr);
+          *slot = saved;
+          return ok;
+        });
     if (!ic.local) {
       cost_not_local = true;
       result.warnings.push_back(

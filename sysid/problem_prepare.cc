@@ -30,6 +30,7 @@
 #include "sysid/multiple_shooting.h"
 #include "sysid/problem.h"
 #include "sysid/problem_impl.h"
+#include "sysid/progress.h"
 #include "sysid/residual_model.h"
 #include "sysid/state_manifold.h"
 #include "sysid/state_residuals.h"
@@ -408,6 +409,17 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
       which.push_back(static_cast<int>(q));
     }
     if (ins.empty()) continue;
+    if (options.verbose) {
+      long long steps = 0;
+      for (const SequenceInput& in : ins) steps += static_cast<long long>(in.ctrl.rows());
+      PrintFitProgress(
+          "start",
+          (mo.sim->parameters().size() == 0 ? "rollout of " : "rollout and Jacobian of ") +
+              std::to_string(ins.size()) + " sequence" + (ins.size() > 1 ? "s" : "") + ", " +
+              std::to_string(steps) + " steps" +
+              (I.models.size() > 1 ? " (model " + mo.name + ")" : ""),
+          I.fit_start);
+    }
     std::vector<Trajectory> trs;
     JacobianOptions jo = options.jacobian;
     jo.zero_column_is_error = false;

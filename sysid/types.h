@@ -343,7 +343,10 @@ struct FitResult {
   std::string termination;  // why the optimiser stopped
   int num_residuals = 0;
   Uncertainty uncertainty;  // over FitResult::parameters (order as there)
-  RowMatrix jacobian;       // dr/dp at the estimate (physical units), num_residuals x np
+  // dr/dp at the estimate (physical units) as its thin-QR triangle R: min(num_residuals, np) x
+  // np, upper triangular, R^T R = J^T J (the per-sample rows are not kept: sysid/uncertainty.h
+  // RowTriangle)
+  RowMatrix jacobian;
   std::vector<IterationInfo> trace;
   std::vector<SequenceResult> sequences;
   std::vector<std::string> warnings;

@@ -8,8 +8,21 @@
 #include <cstdio>
 #include <limits>
 #include <stdexcept>
+#include <string>
 
 namespace mjsysid {
+namespace {
+
+// standard errors from the covariance: 0 for fixed, +inf for unidentifiable variables
+void SetStdErrors(const std::vector<bool>& fixed, Uncertainty* u) {
+  for (Eigen::Index j = 0; j < u->std_error.size(); ++j) {
+    u->std_error[j] = fixed[j]             ? 0.0
+                      : u->identifiable[j] ? std::sqrt(std::max(u->covariance(j, j), 0.0))
+                                           : std::numeric_limits<double>::infinity();
+  }
+}
+
+}  // namespace
 
 Uncertainty AnalyzeUncertainty(const RowMatrix& J, double cost,
                                const std::vector<std::string>& names, const Eigen::VectorXd& values,
@@ -101,11 +114,7 @@ Uncertainty AnalyzeUncertainty(const RowMatrix& J, double cost,
       u.covariance(free[a], free[b]) = s2 * Cn(a, b) / (da * db);
     }
   }
-  for (int j = 0; j < n; ++j) {
-    u.std_error[j] = fixed[j]            ? 0.0
-                     : u.identifiable[j] ? std::sqrt(std::max(u.covariance(j, j), 0.0))
-                                         : std::numeric_limits<double>::infinity();
-  }
+  SetStdErrors(fixed, &u);
   return u;
 }
 
@@ -134,6 +143,47 @@ Uncertainty AnalyzeUncertaintyReduced(const RowMatrix& A, const Eigen::SparseMat
   Eigen::MatrixXd QtA = qr.matrixQ().transpose() * Eigen::MatrixXd(A);
   const RowMatrix reduced = QtA.bottomRows(m - rank_b);
   return AnalyzeUncertainty(reduced, cost, names, values, fixed, options);
+}
+
+RowTriangle::RowTriangle(int n) : n_(n), r_(0, n) {}
+
+void RowTriangle::Add(const Eigen::Ref<const RowMatrix>& rows) {
+  if (rows.cols() != n_) {
+    throw std::invalid_argument("RowTriangle: rows have " + std::to_string(rows.cols()) +
+                                " columns, expected " + std::to_string(n_));
+  }
+  for (Eigen::Index first = 0; first < rows.rows(); first += kChunkRows) {
+    // [R; chunk] -> the R of its thin QR (same normal matrix as every row added so far)
+    const Eigen::Index count = std::min<Eigen::Index>(kChunkRows, rows.rows() - first);
+    const Eigen::Index top = r_.rows();
+    stacked_.resize(top + count, n_);
+    stacked_.topRows(top) = r_;
+    stacked_.bottomRows(count) = rows.middleRows(first, count);
+    const Eigen::HouseholderQR<Eigen::Ref<Eigen::MatrixXd>> qr(stacked_);
+    const Eigen::Index kept = std::min<Eigen::Index>(top + count, n_);
+    r_ = qr.matrixQR().topRows(kept).triangularView<Eigen::Upper>();
+    rows_ += count;
+  }
+}
+
+Uncertainty AnalyzeUncertaintyCompressed(const RowMatrix& R, long long m, double cost,
+                                         const std::vector<std::string>& names,
+                                         const Eigen::VectorXd& values,
+                                         const std::vector<bool>& fixed,
+                                         const UncertaintyOptions& options) {
+  // the analysis of R at s^2 = 1, then the residual variance over the m real rows
+  UncertaintyOptions unscaled = options;
+  unscaled.scale_by_residual_variance = false;
+  Uncertainty u = AnalyzeUncertainty(R, cost, names, values, fixed, unscaled);
+  const long long dof = m - u.rank;
+  u.dof = static_cast<int>(dof);
+  u.residual_variance =
+      dof > 0 ? 2.0 * cost / static_cast<double>(dof) : std::numeric_limits<double>::quiet_NaN();
+  if (options.scale_by_residual_variance) {
+    u.covariance *= u.residual_variance;
+    SetStdErrors(fixed, &u);
+  }
+  return u;
 }
 
 }  // namespace mjsysid

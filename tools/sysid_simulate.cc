@@ -63,12 +63,16 @@ int RunSimulate(const SimulateArgs& args) {
   // simulate, then write atomically (creating the folder)
   mjsysid::sim::SimulateSettings settings;
   settings.threads = args.has_threads ? args.threads : config.options.threads;
+  settings.progress = [&start](const std::string& line) {
+    std::fprintf(stderr, "  simulating  %s  %.2f s\n", line.c_str(), Seconds(start));
+  };
   std::vector<std::string> inputs = {args.experiment};
   for (const mjsysid::io::ModelSpec& spec : config.models) inputs.push_back(spec.path);
   mjsysid::run::CheckOutputFile(out, inputs, "--out");
 #ifdef MJSYSID_WITH_MPI
   // under mpirun: the rollouts sharded across the ranks, the log written by rank 0 alone
   if (mjsysid::mpi::Size() > 1) settings.rollout = mjsysid::mpi::ShardedRollout;
+  if (mjsysid::mpi::Rank() > 0) settings.progress = nullptr;  // rank 0 speaks
 #endif
   const mjsysid::io::Log log = mjsysid::sim::SimulateExperiment(config, settings);
 #ifdef MJSYSID_WITH_MPI

@@ -332,7 +332,8 @@ NB_MODULE(_mjsysid, m) {
                    [](const FitResult& r) -> Eigen::MatrixXd { return r.uncertainty.covariance; })
       .def_prop_ro("unidentifiable",
                    [](const FitResult& r) { return r.uncertainty.unidentifiable; })
-      .def_ro("jacobian", &FitResult::jacobian, "dr/dp at the estimate, num_residuals x np")
+      .def_ro("jacobian", &FitResult::jacobian,
+              "dr/dp at the estimate as its thin-QR triangle R (np x np, R^T R = J^T J)")
       .def_ro("trace", &FitResult::trace)
       .def_ro("sequences", &FitResult::sequences)
       .def_ro("warnings", &FitResult::warnings)

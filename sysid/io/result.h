@@ -26,7 +26,8 @@
 //   intervals_valid (int 0/1, as result.yaml's; optional on reading, must agree with result.yaml);
 //   /parameters/{value, initial, std, ci95_low, ci95_high} (np) with string attribute `names`;
 //   /derived/{value, std, ci95_low, ci95_high} with attribute `names` (only when result.yaml has
-//   derived; must name the same quantities); /covariance (np x np); /jacobian (nres x np);
+//   derived; must name the same quantities); /covariance (np x np); /jacobian (the triangle R,
+//   min(nres, np) x np, R^T R = J^T J);
 //   /trace/{iteration, cost, step_norm, gradient_norm, seconds, successful} (nit) and
 //   /trace/parameters (nit x np);
 //   /sequences/<name>/{time (T), measured, simulated_initial, simulated_final (T x ns)} with

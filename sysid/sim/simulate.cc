@@ -217,6 +217,11 @@ io::Log SimulateExperiment(const io::ExperimentConfig& config, const SimulateSet
       inputs[s].ctrl = grid.ctrl;
       positions[s] = grid.position;
     }
+    if (settings.progress) {
+      settings.progress("model " + spec.name + ": " + std::to_string(so.sequences) + " sequence" +
+                        (so.sequences > 1 ? "s" : "") + " x " + std::to_string(so.steps) +
+                        " steps");
+    }
     std::vector<Trajectory> traj;
     if (settings.rollout) {
       settings.rollout(sim, inputs, &traj);

@@ -67,6 +67,9 @@ struct SimulateSettings {
   std::function<void(Simulator& sim, const std::vector<SequenceInput>& inputs,
                      std::vector<Trajectory>* out)>
       rollout;
+  // a progress line before each model's rollouts ("model NAME: N sequences x T steps"), so that a
+  // long log is not silent (empty: none)
+  std::function<void(const std::string& line)> progress;
 };
 
 // simulates the experiment's `simulate` block; see the contract above
