@@ -26,7 +26,8 @@ namespace mjsysid {
 void ChooseLinearSolver(Problem::Impl& I, int tangent, ceres::Solver::Options* so) {
   bool multiple = false;
   for (const Segment& seg : I.segments) multiple = multiple || seg.next >= 0;
-  if (!multiple) {
+  // sharded (sysid/mpi/): the states are eliminated by the shards, Ceres sees z and m (tangent)
+  if (!multiple || I.shards) {
     so->linear_solver_type = tangent <= 200 ? ceres::DENSE_QR : ceres::SPARSE_NORMAL_CHOLESKY;
     return;
   }

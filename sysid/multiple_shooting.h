@@ -53,7 +53,8 @@ std::string SegmentStart(const Problem::Impl& I, int q, int k0, const Trajectory
 
 // Ceres' linear solver for I's variables (tangent: their total tangent size): single shooting
 // dense QR (sparse normal Cholesky past 200); multiple shooting DENSE_SCHUR / SPARSE_SCHUR with
-// every other state block of each sequence eliminated first (so->linear_solver_ordering)
+// every other state block of each sequence eliminated first (so->linear_solver_ordering); a
+// sharded fit (Impl::shards: the states eliminated by the shards) as single shooting
 void ChooseLinearSolver(Problem::Impl& I, int tangent, ceres::Solver::Options* so);
 
 // Ceres' CRS Jacobian -> A (rows x nvar, dense: the first nvar columns) and B (rows x the rest,

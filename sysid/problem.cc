@@ -46,29 +46,6 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // estimate is reported as segments that do not join
 constexpr double kContinuityGapWarning = 1e-3;
 
-// A sharded start (Problem::ShardStart) simulated only the owned sequences at the initial values:
-// the others' rollouts there (no Jacobians), for the result's initial signals. Leaves the
-// simulators at the initial parameters.
-void RolloutUnowned(Problem::Impl* impl, std::vector<Trajectory>* initial) {
-  Problem::Impl& I = *impl;
-  std::vector<double> z0(I.params.size());
-  for (size_t g = 0; g < z0.size(); ++g) z0[g] = I.ToZ(static_cast<int>(g), I.params[g].initial);
-  for (auto& mo : I.models) {
-    std::vector<SequenceInput> ins;
-    std::vector<int> which;
-    for (size_t q = 0; q < I.sequences.size(); ++q) {
-      if (I.sequences[q].model != mo.name || (*initial)[q].states.rows() > 0) continue;
-      ins.push_back({I.sequences[q].x0, I.grids[q].ctrl});
-      which.push_back(static_cast<int>(q));
-    }
-    if (ins.empty()) continue;
-    ApplyVariables(I.params, mo.global, z0.data(), mo.sim.get());
-    std::vector<Trajectory> trs;
-    mo.sim->Rollout(ins, &trs);
-    for (size_t i = 0; i < which.size(); ++i) (*initial)[which[i]] = std::move(trs[i]);
-  }
-}
-
 // Reduces the sequence's matrices (T x nsensordata, the model's layout) to the columns of the
 // fitted sensors, in the order given, and fills their names, dimensions and the sample times.
 void KeepFittedColumns(const mjModel& m, const std::vector<std::string>& fitted,
@@ -130,6 +107,29 @@ void UseResidualRows(long long m, double cost, bool scaled, Uncertainty* u) {
 }
 
 }  // namespace
+
+// A sharded start (Problem::ShardStart) simulated only the owned sequences at the initial values:
+// the others' rollouts there (no Jacobians), for the result's initial signals. Leaves the
+// simulators at the initial parameters.
+void RolloutUnowned(Problem::Impl* impl, std::vector<Trajectory>* initial) {
+  Problem::Impl& I = *impl;
+  std::vector<double> z0(I.params.size());
+  for (size_t g = 0; g < z0.size(); ++g) z0[g] = I.ToZ(static_cast<int>(g), I.params[g].initial);
+  for (auto& mo : I.models) {
+    std::vector<SequenceInput> ins;
+    std::vector<int> which;
+    for (size_t q = 0; q < I.sequences.size(); ++q) {
+      if (I.sequences[q].model != mo.name || (*initial)[q].states.rows() > 0) continue;
+      ins.push_back({I.sequences[q].x0, I.grids[q].ctrl});
+      which.push_back(static_cast<int>(q));
+    }
+    if (ins.empty()) continue;
+    ApplyVariables(I.params, mo.global, z0.data(), mo.sim.get());
+    std::vector<Trajectory> trs;
+    mo.sim->Rollout(ins, &trs);
+    for (size_t i = 0; i < which.size(); ++i) (*initial)[which[i]] = std::move(trs[i]);
+  }
+}
 
 // -----------------------------------------------------------------------------------------------
 // building
@@ -333,7 +333,8 @@ FitResult Problem::Fit(const FitOptions& options) {
   so_ceres.minimizer_type = ceres::TRUST_REGION;
   so_ceres.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
   int tangent = np + static_cast<int>(I.m.size());
-  for (const auto& st : I.states) tangent += static_cast<int>(st.size());
+  // (sharded: the states are eliminated by the shards, Ceres sees z and m)
+  for (const auto& st : I.states) tangent += I.shards ? 0 : static_cast<int>(st.size());
   ChooseLinearSolver(I, tangent, &so_ceres);
   so_ceres.max_num_iterations = options.max_iterations;
   so_ceres.function_tolerance = options.function_tolerance;
@@ -460,7 +461,7 @@ FitResult Problem::Fit(const FitOptions& options) {
     SplitJacobian(crs, nvar, &A, &B);
     for (int g = 0; g < np; ++g) A.col(g) /= I.DpDz(g, I.z[g]);
     bool multiple = false;
-    for (const Segment& seg : I.segments) multiple = multiple || seg.next >= 0;
+    for (const Segment& seg : I.segments) multiple = multiple || (seg.next >= 0 && !I.shards);
     Eigen::VectorXd values = Eigen::VectorXd::Zero(multiple ? nvar : crs.num_cols);
     std::vector<bool> fixed(values.size(), false);
     std::vector<std::string> all_names = names;
@@ -483,8 +484,8 @@ FitResult Problem::Fit(const FitOptions& options) {
       }
       result.uncertainty = AnalyzeUncertainty(J, cost, all_names, values, fixed, uo);
       if (I.shards) {
-        UseResidualRows(result.num_residuals, cost, uo.scale_by_residual_variance,
-                        &result.uncertainty);
+        UseResidualRows(result.num_residuals - I.shards->EliminatedColumns(), cost,
+                        uo.scale_by_residual_variance, &result.uncertainty);
       }
     }
     // keep the parameter block of the covariance
@@ -570,6 +571,7 @@ FitResult Problem::Fit(const FitOptions& options) {
   // multiple shooting also the largest continuity gap at the estimate: segments that do not join
   // describe no single trajectory (a chaotic fit stuck far from the data), which the user must
   // be told (docs/stress.md)
+  if (I.shards) I.shards->CollectStates(&I);
   RolloutUnowned(&I, &prepared.initial);
   double worst_gap = 0;
   std::string worst_gap_where;

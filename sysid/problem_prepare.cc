@@ -439,6 +439,12 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
   out->probe_rate = horizon.rate;
   out->probe_growth = horizon.growth;
   I.stop_on_jacobian_warning = options.segment_steps < 0 && horizon.steps == 0;
+  // a sharded start with free states (sysid/mpi/state_projection.h): every shard starts every
+  // sequence's states from the data as one process does, so the other sequences are rolled out
+  // at the initial values too (no Jacobians)
+  if (I.owned_sequences && (horizon.steps > 0 || options.estimate_initial_state)) {
+    RolloutUnowned(&I, &initial);
+  }
   std::string start_source;
   for (size_t q = 0; q < I.sequences.size(); ++q) {
     const int T = I.grids[q].steps;  // simulation steps
@@ -453,8 +459,8 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
       seg.state_rows = !I.state_channels[q].empty();
       const bool free = k0 > 0 || options.estimate_initial_state;
       if (free && initial[q].states.rows() == 0) {
-        std::fprintf(stderr, "sysid: broken invariant: a sharded start with a free state\n");
-        std::abort();  // ShardStart is single shooting without estimated initial states
+        std::fprintf(stderr, "sysid: broken invariant: a free state without its start rollout\n");
+        std::abort();  // RolloutUnowned above simulated every sequence
       }
       if (free) {
         seg.block = static_cast<int>(I.states.size());

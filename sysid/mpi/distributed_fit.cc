@@ -12,14 +12,16 @@
 #include <map>
 
 #include "sysid/cost_functions.h"
+#include "sysid/mpi/state_projection.h"
 #include "sysid/run/fit_experiment.h"
 #include "sysid/state_residuals.h"
 
 namespace mjsysid::mpi {
 namespace {
 
-constexpr double kEvaluate = 1, kFinish = 0;  // commands (first double of the broadcast)
-constexpr int kHeader = 2;                    // doubles before the values
+// commands (first double of the broadcast): evaluate, finish, send the solved states to rank 0
+constexpr double kEvaluate = 1, kFinish = 0, kStates = 2;
+constexpr int kHeader = 2;  // doubles before the values
 
 bool g_initialized = false, g_finalized = false;
 
@@ -39,9 +41,57 @@ struct Share {
   std::vector<double> sums;             // per owned segment: sum r^2
   RowMatrix J, Jz, Jm;
   Eigen::VectorXd r;
+  // the fit has free states: the leaves are whole sequences, their states eliminated here
+  std::unique_ptr<StateProjection> projection;
 };
 
 namespace {
+
+// Appends to out (which holds [ok, warned, 0]) the maximal tree nodes inside the leaves
+// [first, last) of a tree over [0, leaves), each reduced from share's leaf values, and sets their
+// number in (*out)[2]
+void PackNodes(int first, int last, int leaves, bool jacobians, const Share& share,
+               std::vector<double>* out) {
+  const std::vector<std::pair<int, int>> nodes = CanonicalNodes(first, last, leaves);
+  (*out)[2] = static_cast<double>(nodes.size());
+  for (const auto& [lo, hi] : nodes) {
+    out->push_back(lo);
+    out->push_back(hi);
+    if (jacobians) {
+      const Eigen::MatrixXd R = ReduceTree<Eigen::MatrixXd>(
+          lo, hi, [&](int a, int b) { return b - a == 1 ? &share.blocks[a - first] : nullptr; },
+          MergeBlocks);
+      out->insert(out->end(), R.data(), R.data() + R.size());
+    } else {
+      out->push_back(ReduceTree<double>(
+          lo, hi, [&](int a, int b) { return b - a == 1 ? &share.sums[a - first] : nullptr; },
+          [](double a, double b) { return a + b; }));
+    }
+  }
+}
+
+// EvaluateShare (below) with free states (BySequence): the leaves [first, last) are whole
+// sequences, each solved for its states and reduced by StateProjection
+void EvaluateSequences(Problem::Impl* impl, int first, int last, bool jacobians, Share* share,
+                       std::vector<double>* out) {
+  Problem::Impl& I = *impl;
+  if (!share->projection) share->projection = std::make_unique<StateProjection>(impl);
+  const int leaves = static_cast<int>(I.sequences.size());
+  share->sums.assign(std::max(last - first, 0), 0.0);
+  share->blocks.resize(std::max(last - first, 0));
+  bool ok = true;
+  int warned = -1;
+  for (int q = first; q < last && ok; ++q) {
+    ok = share->projection->Solve(q, jacobians, &share->blocks[q - first], &share->sums[q - first]);
+    for (size_t s = 0; s < I.segments.size() && warned < 0; ++s) {
+      if (I.segments[s].seq == q && I.jacobian_warnings.count(static_cast<int>(s))) {
+        warned = static_cast<int>(s);
+      }
+    }
+  }
+  out->assign({ok ? 1.0 : 0.0, static_cast<double>(warned), 0.0});
+  if (ok) PackNodes(first, last, leaves, jacobians, *share, out);
+}
 
 // One rank's share at the variables in impl (z, m): its segments [first, last) simulated
 // (batched), their sensor and state residuals evaluated and, with Jacobians, compressed one
@@ -51,6 +101,7 @@ namespace {
 void EvaluateShare(Problem::Impl* impl, int first, int last, bool jacobians, Share* share,
                    std::vector<double>* out) {
   Problem::Impl& I = *impl;
+  if (BySequence(I)) return EvaluateSequences(impl, first, last, jacobians, share, out);
   const int np = static_cast<int>(I.z.size()), nm = static_cast<int>(I.m.size());
   const int n = np + nm, size = static_cast<int>(I.segments.size());
   // the owned segments at the new point, in the simulators' batches
@@ -100,24 +151,7 @@ void EvaluateShare(Problem::Impl* impl, int first, int last, bool jacobians, Sha
     if (warned < 0 && I.jacobian_warnings.count(s)) warned = s;
   }
   out->assign({ok ? 1.0 : 0.0, static_cast<double>(warned), 0.0});
-  if (!ok) return;
-  // the maximal tree nodes inside [first, last), each reduced from its leaves
-  const std::vector<std::pair<int, int>> nodes = CanonicalNodes(first, last, size);
-  (*out)[2] = static_cast<double>(nodes.size());
-  for (const auto& [lo, hi] : nodes) {
-    out->push_back(lo);
-    out->push_back(hi);
-    if (jacobians) {
-      const Eigen::MatrixXd R = ReduceTree<Eigen::MatrixXd>(
-          lo, hi, [&](int a, int b) { return b - a == 1 ? &share->blocks[a - first] : nullptr; },
-          MergeBlocks);
-      out->insert(out->end(), R.data(), R.data() + R.size());
-    } else {
-      out->push_back(ReduceTree<double>(
-          lo, hi, [&](int a, int b) { return b - a == 1 ? &share->sums[a - first] : nullptr; },
-          [](double a, double b) { return a + b; }));
-    }
-  }
+  if (ok) PackNodes(first, last, size, jacobians, *share, out);
 }
 
 // The one residual block of the segments on rank 0: the root of the tree, n + 1 rows on the
@@ -164,6 +198,25 @@ class TreeCost : public ceres::CostFunction {
  private:
   const ShardedResiduals* shards_;
 };
+
+// The state blocks of the sequences [first, last), concatenated in block order (the blocks of a
+// sequence follow those of the one before), gathered to rank 0: every rank's in rank order is
+// every block in order
+std::vector<double> OwnStates(const Problem::Impl& I, int first, int last) {
+  std::vector<double> out;
+  for (const Segment& seg : I.segments) {
+    if (seg.block < 0 || seg.seq < first || seg.seq >= last) continue;
+    out.insert(out.end(), I.states[seg.block].begin(), I.states[seg.block].end());
+  }
+  return out;
+}
+void SendStates(const Problem::Impl& I, int first, int last) {
+  std::vector<double> send = OwnStates(I, first, last);
+  int count = static_cast<int>(send.size());
+  MPI_Gather(&count, 1, MPI_INT, nullptr, 0, MPI_INT, 0, MPI_COMM_WORLD);
+  MPI_Gatherv(send.data(), count, MPI_DOUBLE, nullptr, nullptr, nullptr, MPI_DOUBLE, 0,
+              MPI_COMM_WORLD);
+}
 
 }  // namespace
 
@@ -230,17 +283,6 @@ bool AgreeReady(bool ok, const std::string& message, std::string* failure) {
 
 void CheckShardable(FitOptions* options) {
   if (options->segment_steps < 0) options->segment_steps = 0;  // auto: single shooting
-  if (options->segment_steps > 0) {
-    throw RankError(
-        "multiple_shooting: segment_steps " + std::to_string(options->segment_steps) +
-        ": a fit sharded across MPI ranks is single shooting only (docs/cluster.md); set "
-        "segment_steps: 0 or auto, or run on one rank");
-  }
-  if (options->estimate_initial_state) {
-    throw RankError(
-        "initial_state: estimate: a fit sharded across MPI ranks cannot estimate initial states "
-        "yet (docs/cluster.md); give the logged states, or run on one rank");
-  }
 }
 
 void AgreeMoves(const Problem::Impl& impl) {
@@ -267,6 +309,16 @@ std::vector<bool> OwnedSequences(const Problem::Impl& impl, int rank, int ranks)
   std::vector<bool> owned(impl.sequences.size(), false);
   for (int q = ranges[rank]; q < ranges[rank + 1]; ++q) owned[q] = true;
   return owned;
+}
+
+bool BySequence(const Problem::Impl& impl) { return !impl.states.empty(); }
+
+int Leaves(const Problem::Impl& impl) {
+  return static_cast<int>(BySequence(impl) ? impl.sequences.size() : impl.segments.size());
+}
+
+std::vector<int> LeafRanges(const Problem::Impl& impl, int ranks) {
+  return BySequence(impl) ? SequenceRanges(impl, ranks) : SegmentRanges(impl, ranks);
 }
 
 std::vector<int> SegmentRanges(const Problem::Impl& impl, int ranks) {
@@ -309,9 +361,12 @@ void ShardedResiduals::AddResidualBlocks(Problem::Impl* impl, ceres::Problem* pr
   impl_ = impl;
   const int np = static_cast<int>(impl->z.size()), nm = static_cast<int>(impl->m.size());
   n_ = np + nm;
-  ranges_ = SegmentRanges(*impl, Size());
+  ranges_ = LeafRanges(*impl, Size());
   rows_ = 0;
+  eliminated_ = 0;
   for (size_t s = 0; s < impl->segments.size(); ++s) {
+    const Segment& seg = impl->segments[s];
+    if (seg.block >= 0) eliminated_ += impl->models[seg.model].sim->dims().nx;
     rows_ += SegmentCost(impl, static_cast<int>(s)).num_residuals();
     if (impl->segments[s].state_rows) {
       rows_ += StateCost(impl, static_cast<int>(s)).num_residuals();
@@ -323,7 +378,7 @@ void ShardedResiduals::AddResidualBlocks(Problem::Impl* impl, ceres::Problem* pr
 void ShardedResiduals::PrepareForEvaluation(bool evaluate_jacobians,
                                             bool /*new_evaluation_point*/) {
   Problem::Impl& I = *impl_;
-  const int size = Size(), segments = static_cast<int>(I.segments.size());
+  const int size = Size(), segments = Leaves(I);
   // the command and the values, from the parameter blocks Ceres has updated
   auto t0 = std::chrono::steady_clock::now();
   command_.assign({kEvaluate, evaluate_jacobians ? 1.0 : 0.0});
@@ -398,6 +453,35 @@ void ShardedResiduals::PrepareForEvaluation(bool evaluate_jacobians,
   }
 }
 
+void ShardedResiduals::CollectStates(Problem::Impl* impl) {
+  Problem::Impl& I = *impl;
+  if (!BySequence(I) || done_ || !agreed_) return;
+  const int size = Size();
+  command_.assign(kHeader + n_, 0.0);
+  command_[0] = kStates;
+  MPI_Bcast(command_.data(), static_cast<int>(command_.size()), MPI_DOUBLE, 0, MPI_COMM_WORLD);
+  // rank 0's own blocks, then the others' (SendStates)
+  std::vector<double> mine = OwnStates(I, ranges_[0], ranges_[1]);
+  int count = static_cast<int>(mine.size());
+  counts_.assign(size, 0);
+  MPI_Gather(&count, 1, MPI_INT, counts_.data(), 1, MPI_INT, 0, MPI_COMM_WORLD);
+  displs_.assign(size, 0);
+  for (int r = 1; r < size; ++r) displs_[r] = displs_[r - 1] + counts_[r - 1];
+  receive_.resize(static_cast<size_t>(displs_[size - 1] + counts_[size - 1]));
+  MPI_Gatherv(mine.data(), count, MPI_DOUBLE, receive_.data(), counts_.data(), displs_.data(),
+              MPI_DOUBLE, 0, MPI_COMM_WORLD);
+  size_t at = 0;
+  for (std::vector<double>& x : I.states) {
+    if (at + x.size() > receive_.size()) {
+      std::fprintf(stderr,
+                   "sysid: broken invariant: the ranks sent fewer states than the fit has\n");
+      std::abort();
+    }
+    std::copy(receive_.begin() + at, receive_.begin() + at + x.size(), x.begin());
+    at += x.size();
+  }
+}
+
 void ShardedResiduals::Finish() {
   if (done_) return;
   done_ = true;
@@ -451,13 +535,17 @@ int ServeFit(const io::ExperimentConfig* config, int threads, const std::string&
     return 0;  // the same failure on rank 0, which reports it
   }
   const int rank = Rank(), n = static_cast<int>(impl->z.size() + impl->m.size());
-  const std::vector<int> ranges = SegmentRanges(*impl, Size());
+  const std::vector<int> ranges = LeafRanges(*impl, Size());
   std::vector<double> command(kHeader + n), send;
   Share share;
   // evaluate at every point rank 0 sends, until it finishes
   for (;;) {
     MPI_Bcast(command.data(), kHeader + n, MPI_DOUBLE, 0, MPI_COMM_WORLD);
     if (command[0] == kFinish) break;
+    if (command[0] == kStates) {
+      SendStates(*impl, ranges[rank], ranges[rank + 1]);
+      continue;
+    }
     std::copy(command.begin() + kHeader, command.begin() + kHeader + impl->z.size(),
               impl->z.begin());
     std::copy(command.begin() + kHeader + impl->z.size(), command.end(), impl->m.begin());

@@ -23,9 +23,14 @@
 // number of samples; it never holds the Jacobian of another rank's segments. The tree makes the
 // root bitwise the same for any rank and thread count, hence the same estimates and iterations.
 //
-// What is sharded: single shooting without estimated initial states (the segments are whole
-// sequences; their states would have to be eliminated on the owning rank). CheckShardable turns
-// `segment_steps: auto` into single shooting and refuses the rest with a message.
+// Free states (multiple shooting with fixed segment_steps, estimated initial states): the leaves
+// of the tree are whole sequences instead of segments, each owned by one rank with all its
+// segments and continuity residuals; the owner solves the sequence's states at every broadcast
+// point and eliminates them (sysid/mpi/state_projection.h: variable projection), so rank 0's
+// Ceres sees z and m only and gets the same (n + 1)^2 blocks. The solved states stay on their
+// rank (the warm start of the next points); rank 0 collects them once after the fit
+// (CollectStates: command kStates, MPI_Gatherv in rank order) for the result. CheckShardable turns
+// `segment_steps: auto` into single shooting.
 //
 // Faults. A rank that dies (killed, crashed) ends the job through the MPI runtime (mpirun names
 // the rank, its PID and host); rank 0's checkpoint after every successful iteration is written
@@ -74,8 +79,8 @@ class RankError : public std::invalid_argument {
 // *failure = the message of the lowest failing rank, prefixed with RankName
 bool AgreeReady(bool ok, const std::string& message, std::string* failure);
 
-// single shooting (auto becomes 0); throws RankError (bad input, exit 2) for multiple shooting or
-// estimated initial states, naming the experiment key
+// `segment_steps: auto` becomes single shooting (0); fixed segments and estimated initial states
+// are sharded (state_projection.h)
 void CheckShardable(FitOptions* options);
 
 // every rank, once, after AgreeReady succeeded: combines Problem::Impl::moves over the ranks (a
@@ -92,6 +97,12 @@ std::vector<bool> OwnedSequences(const Problem::Impl& impl, int rank, int ranks)
 // the contiguous segment ranges of a prepared fit's ranks: the segments of SequenceRanges' whole
 // sequences (ranks + 1 entries)
 std::vector<int> SegmentRanges(const Problem::Impl& impl, int ranks);
+// The leaves of the tree: whole sequences when the fit has free states (multiple shooting,
+// estimated initial states; each sequence's states eliminated on its rank, state_projection.h),
+// else segments (single shooting: one per sequence). LeafRanges: their ranges per rank.
+bool BySequence(const Problem::Impl& impl);
+int Leaves(const Problem::Impl& impl);
+std::vector<int> LeafRanges(const Problem::Impl& impl, int ranks);
 
 struct Share;  // the buffers of one rank's evaluation (distributed_fit.cc)
 
@@ -115,6 +126,9 @@ class ShardedResiduals : public ResidualShards, public ceres::EvaluationCallback
                          const std::vector<double*>& blocks) override;
   ceres::EvaluationCallback* Callback() override { return this; }
   long long NumResiduals() const override { return rows_; }
+  int EliminatedColumns() const override { return eliminated_; }
+  // rank 0's states of every sequence from their owners (the last Jacobian evaluation's)
+  void CollectStates(Problem::Impl* impl) override;
   // rank 0's share of the start (OwnedSequences)
   std::vector<bool> OwnedSequences(const Problem::Impl& impl) const override;
   // EvaluationCallback: every rank at the current values
@@ -141,6 +155,7 @@ class ShardedResiduals : public ResidualShards, public ceres::EvaluationCallback
   Problem::Impl* impl_ = nullptr;
   int n_ = 0;
   long long rows_ = 0;
+  int eliminated_ = 0;  // tangent columns of the free states
   bool agreed_ = false, done_ = false;
   Root root_;
   std::vector<int> ranges_, counts_, displs_;
