@@ -719,6 +719,7 @@ int RunFitSharded(const FitArgs& args) {
     return mpi::ServeFit(config ? &*config : nullptr, args.threads, failure);
   }
   mpi::ShardedResiduals shards;
+  shards.SetInterrupt(&g_interrupted);  // a worker's stop signal stops the fit too
   int code = 0;
   try {
     check_starts(mjsysid::io::LoadExperiment(ExperimentOf(args)));

@@ -7,6 +7,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <map>
@@ -24,6 +25,15 @@ constexpr double kEvaluate = 1, kFinish = 0, kStates = 2;
 constexpr int kHeader = 2;  // doubles before the values
 
 bool g_initialized = false, g_finalized = false;
+
+// A worker's stop signals (SIGINT, SIGTERM, SIGHUP; mpirun forwards its own to every rank): noted
+// and reported to rank 0 with the next evaluation; a second one has the default action
+constexpr int kStopSignals[] = {SIGINT, SIGTERM, SIGHUP};
+volatile std::sig_atomic_t g_stop = 0;
+void OnWorkerStop(int) {
+  g_stop = 1;
+  for (int s : kStopSignals) std::signal(s, SIG_DFL);
+}
 
 double Seconds(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
@@ -392,19 +402,26 @@ void ShardedResiduals::PrepareForEvaluation(bool evaluate_jacobians,
   stats_.seconds_own_share += Seconds(t0);
   // every rank's tree nodes (their sizes first)
   t0 = std::chrono::steady_clock::now();
-  int count = static_cast<int>(send_.size());
+  // [size, stopped] of every rank: a worker that caught a stop signal stops the fit after this
+  // iteration, as rank 0's own signal does
+  const int head[2] = {static_cast<int>(send_.size()), 0};
+  heads_.assign(2 * size, 0);
+  MPI_Gather(head, 2, MPI_INT, heads_.data(), 2, MPI_INT, 0, MPI_COMM_WORLD);
   counts_.assign(size, 0);
-  MPI_Gather(&count, 1, MPI_INT, counts_.data(), 1, MPI_INT, 0, MPI_COMM_WORLD);
+  for (int r = 0; r < size; ++r) {
+    counts_[r] = heads_[2 * r];
+    if (heads_[2 * r + 1] && interrupt_) interrupt_->store(true);
+  }
   displs_.assign(size, 0);
   for (int r = 1; r < size; ++r) displs_[r] = displs_[r - 1] + counts_[r - 1];
   receive_.resize(static_cast<size_t>(displs_[size - 1] + counts_[size - 1]));
-  MPI_Gatherv(send_.data(), count, MPI_DOUBLE, receive_.data(), counts_.data(), displs_.data(),
+  MPI_Gatherv(send_.data(), head[0], MPI_DOUBLE, receive_.data(), counts_.data(), displs_.data(),
               MPI_DOUBLE, 0, MPI_COMM_WORLD);
   stats_.seconds_mpi += Seconds(t0);
   stats_.evaluations += 1;
   stats_.jacobian_evaluations += evaluate_jacobians ? 1 : 0;
   stats_.bytes += static_cast<long long>(size - 1) *
-                  static_cast<long long>(sizeof(double) * command_.size() + sizeof(int));
+                  static_cast<long long>(sizeof(double) * command_.size() + 2 * sizeof(int));
   for (int r = 1; r < size; ++r) stats_.bytes += sizeof(double) * counts_[r];
   // the root from the nodes of every rank (the same bits with any number of ranks)
   root_.ok = true;
@@ -509,6 +526,8 @@ void ShardedResiduals::Abandon(const std::string& message) {
 // workers
 
 int ServeFit(const io::ExperimentConfig* config, int threads, const std::string& failure) {
+  // a stop signal ends the fit after the iteration (rank 0 decides), not this rank at once
+  for (int s : kStopSignals) std::signal(s, OnWorkerStop);
   // the same problem as rank 0's, prepared (bad input is found here, on every rank)
   std::string error = failure;
   run::BuiltProblem bp;
@@ -550,9 +569,9 @@ int ServeFit(const io::ExperimentConfig* config, int threads, const std::string&
               impl->z.begin());
     std::copy(command.begin() + kHeader + impl->z.size(), command.end(), impl->m.begin());
     EvaluateShare(impl, ranges[rank], ranges[rank + 1], command[1] == 1.0, &share, &send);
-    int count = static_cast<int>(send.size());
-    MPI_Gather(&count, 1, MPI_INT, nullptr, 0, MPI_INT, 0, MPI_COMM_WORLD);
-    MPI_Gatherv(send.data(), count, MPI_DOUBLE, nullptr, nullptr, nullptr, MPI_DOUBLE, 0,
+    const int head[2] = {static_cast<int>(send.size()), g_stop ? 1 : 0};
+    MPI_Gather(head, 2, MPI_INT, nullptr, 0, MPI_INT, 0, MPI_COMM_WORLD);
+    MPI_Gatherv(send.data(), head[0], MPI_DOUBLE, nullptr, nullptr, nullptr, MPI_DOUBLE, 0,
                 MPI_COMM_WORLD);
   }
   return 0;

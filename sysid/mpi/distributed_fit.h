@@ -44,6 +44,7 @@
 
 #include <ceres/ceres.h>
 
+#include <atomic>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -139,6 +140,10 @@ class ShardedResiduals : public ResidualShards, public ceres::EvaluationCallback
   // most once, in any order; the second call does nothing.
   void Finish();
   void Abandon(const std::string& message);
+  // the fit's interrupt flag (FitOptions::interrupt's), set when a worker reports a stop signal
+  // at an evaluation (ServeFit catches SIGINT, SIGTERM and SIGHUP): every rank then stops after
+  // the current iteration and rank 0 writes the result of the last good iterate once
+  void SetInterrupt(std::atomic<bool>* flag) { interrupt_ = flag; }
   const ShardStats& stats() const { return stats_; }
 
   // the root of the last evaluation (the residual block's values)
@@ -158,7 +163,8 @@ class ShardedResiduals : public ResidualShards, public ceres::EvaluationCallback
   int eliminated_ = 0;  // tangent columns of the free states
   bool agreed_ = false, done_ = false;
   Root root_;
-  std::vector<int> ranges_, counts_, displs_;
+  std::vector<int> ranges_, counts_, displs_, heads_;
+  std::atomic<bool>* interrupt_ = nullptr;
   std::vector<double> command_, send_, receive_;
   std::unique_ptr<Share> share_;
   ShardStats stats_;
@@ -166,7 +172,9 @@ class ShardedResiduals : public ResidualShards, public ceres::EvaluationCallback
 
 // a worker rank (rank > 0): builds the problem of config (nullptr: this rank already failed with
 // `failure`), agrees on readiness, then evaluates its share of the segments until rank 0
-// finishes. Returns the process exit code: 0 (rank 0 reports every failure).
+// finishes. Catches SIGINT, SIGTERM and SIGHUP (mpirun forwards its own to every rank) and reports
+// them with its next evaluation, so that the fit stops after the current iteration (a second
+// signal ends the rank at once). Returns the process exit code: 0 (rank 0 reports every failure).
 int ServeFit(const io::ExperimentConfig* config, int threads, const std::string& failure);
 
 }  // namespace mjsysid::mpi

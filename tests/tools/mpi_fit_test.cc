@@ -425,5 +425,45 @@ TEST_F(MpiFitTest, KilledRankEndsTheRunAndResumeContinues) {
   }
 }
 
+// SIGTERM to mpirun (as Ctrl-C or a scheduler's stop; mpirun forwards it to every rank) after
+// the checkpoint of iteration 1: the workers note it and keep serving, the ranks stop after the
+// current iteration, rank 0 writes the result of the last good iterate once (status
+// interrupted, no intervals) and the run ends with exit 1, the documented interrupted code,
+// before the uninterrupted fit's iteration count (truth: the same fit without the signal)
+TEST_F(MpiFitTest, StopSignalEndsAfterTheIteration) {
+  Write(6000);
+  const Ended full = Shell(Mpirun(2) + kSysid + " fit " + exp_ + " --out " + Path("full") +
+                           " --quiet --threads 1");
+  ASSERT_EQ(full.code, 0) << full.output;
+  const io::FitResultFile want = io::ReadResult(Path("full"));
+  ASSERT_GE(want.iterations, 4);
+  const std::string out = Path("stopped"), cp = out + ".partial/checkpoint.yaml";
+  const std::string log = Path("stopped.log");
+  const pid_t pid = fork();
+  if (pid == 0) {
+    const std::string cmd = "exec " + Mpirun(2) + kSysid + " fit " + exp_ + " --out " + out +
+                            " --quiet --threads 1 >" + log + " 2>&1";
+    execl("/bin/sh", "sh", "-c", cmd.c_str(), nullptr);
+    _exit(127);
+  }
+  for (int i = 0; i < 600000 && test::ReadFile(cp).find("\niterations: 1\n") == std::string::npos;
+       ++i) {
+    std::this_thread::sleep_for(std::chrono::microseconds(100));
+  }
+  ASSERT_NE(test::ReadFile(cp).find("\niterations: 1\n"), std::string::npos);
+  ASSERT_EQ(kill(pid, SIGTERM), 0);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  const std::string said = test::ReadFile(log);
+  ASSERT_TRUE(WIFEXITED(status)) << said;
+  EXPECT_EQ(WEXITSTATUS(status), 1) << said;
+  EXPECT_NE(said.find("results of the last good iterate written"), std::string::npos) << said;
+  const io::FitResultFile got = io::ReadResult(out);
+  EXPECT_EQ(got.status, "interrupted");
+  EXPECT_GE(got.iterations, 1);
+  EXPECT_LT(got.iterations, want.iterations);
+  for (const auto& p : got.parameters) EXPECT_TRUE(std::isfinite(p.value)) << p.name;
+}
+
 }  // namespace
 }  // namespace mjsysid
