@@ -35,6 +35,8 @@ HorizonChoice ChooseHorizon(Problem::Impl& I, const std::vector<Trajectory>& ini
 // the segment length min(k*/2, ln 2 / rate), at least 10, and the reason; 0 when the warning
 // names no step.
 int SegmentStepsAfterWarning(const std::string& warning, double rate, std::string* reason);
+// the step k* a core Sensitivity warning names ("... from step k* ...": the last one), or -1
+int WarningStep(const std::string& warning);
 
 // Auto, third stage: a single-shooting fit (auto chose it) whose optimiser did not converge, on a
 // system whose probe grew beyond linear by more than kRefitGrowth (growth: HorizonChoice::growth;

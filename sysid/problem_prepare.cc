@@ -433,6 +433,8 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
   // segments (multiple shooting) and state blocks
   I.segments.clear();
   I.states.clear();
+  // auto under a sharded start (sysid/mpi/): every shard probes every sequence, as one process
+  if (I.owned_sequences && options.segment_steps < 0) RolloutUnowned(&I, &initial);
   const HorizonChoice horizon = ChooseHorizon(I, initial, options);
   out->segment_steps = horizon.steps;
   out->segment_reason = horizon.reason;

@@ -723,8 +723,7 @@ int RunFitSharded(const FitArgs& args) {
   int code = 0;
   try {
     check_starts(mjsysid::io::LoadExperiment(ExperimentOf(args)));
-    code = RunFitHere(args, [&](mjsysid::Problem& problem, mjsysid::FitOptions* options) {
-      mpi::CheckShardable(options);
+    code = RunFitHere(args, [&](mjsysid::Problem& problem, mjsysid::FitOptions* /*options*/) {
       problem.DistributeResiduals(&shards);
     });
   } catch (const mpi::RankError& e) {

@@ -14,14 +14,19 @@
 
 #include "sysid/cost_functions.h"
 #include "sysid/mpi/state_projection.h"
+#include "sysid/multiple_shooting.h"
 #include "sysid/run/fit_experiment.h"
 #include "sysid/state_residuals.h"
 
 namespace mjsysid::mpi {
 namespace {
 
-// commands (first double of the broadcast): evaluate, finish, send the solved states to rank 0
-constexpr double kEvaluate = 1, kFinish = 0, kStates = 2;
+// commands (first double of the broadcast): evaluate, finish, send the solved states to rank 0,
+// prepare again with the segment length of the second value (auto's refit in multiple shooting)
+constexpr double kEvaluate = 1, kFinish = 0, kStates = 2, kPrepare = 3;
+// a rank's reply to an evaluation: [ok, warned segment (-1: none), the step its warning names
+// (-1: none), number of nodes], then the nodes
+constexpr int kReplyHeader = 4;
 constexpr int kHeader = 2;  // doubles before the values
 
 bool g_initialized = false, g_finalized = false;
@@ -57,13 +62,15 @@ struct Share {
 
 namespace {
 
-// Appends to out (which holds [ok, warned, 0]) the maximal tree nodes inside the leaves
-// [first, last) of a tree over [0, leaves), each reduced from share's leaf values, and sets their
-// number in (*out)[2]
-void PackNodes(int first, int last, int leaves, bool jacobians, const Share& share,
-               std::vector<double>* out) {
+// out = the reply header (kReplyHeader) and, when ok, the maximal tree nodes inside the leaves
+// [first, last) of a tree over [0, leaves), each reduced from share's leaf values
+void Reply(const Problem::Impl& I, bool ok, int warned, int first, int last, int leaves,
+           bool jacobians, const Share& share, std::vector<double>* out) {
+  const int step = warned >= 0 ? WarningStep(I.jacobian_warnings.at(warned)) : -1;
+  out->assign({ok ? 1.0 : 0.0, static_cast<double>(warned), static_cast<double>(step), 0.0});
+  if (!ok) return;
   const std::vector<std::pair<int, int>> nodes = CanonicalNodes(first, last, leaves);
-  (*out)[2] = static_cast<double>(nodes.size());
+  (*out)[3] = static_cast<double>(nodes.size());
   for (const auto& [lo, hi] : nodes) {
     out->push_back(lo);
     out->push_back(hi);
@@ -99,8 +106,7 @@ void EvaluateSequences(Problem::Impl* impl, int first, int last, bool jacobians,
       }
     }
   }
-  out->assign({ok ? 1.0 : 0.0, static_cast<double>(warned), 0.0});
-  if (ok) PackNodes(first, last, leaves, jacobians, *share, out);
+  Reply(I, ok, warned, first, last, leaves, jacobians, *share, out);
 }
 
 // One rank's share at the variables in impl (z, m): its segments [first, last) simulated
@@ -160,8 +166,7 @@ void EvaluateShare(Problem::Impl* impl, int first, int last, bool jacobians, Sha
     if (jacobians) share->blocks[s - first] = share->block.Augmented();
     if (warned < 0 && I.jacobian_warnings.count(s)) warned = s;
   }
-  out->assign({ok ? 1.0 : 0.0, static_cast<double>(warned), 0.0});
-  if (ok) PackNodes(first, last, size, jacobians, *share, out);
+  Reply(I, ok, warned, first, last, size, jacobians, *share, out);
 }
 
 // The one residual block of the segments on rank 0: the root of the tree, n + 1 rows on the
@@ -291,10 +296,6 @@ bool AgreeReady(bool ok, const std::string& message, std::string* failure) {
   return false;
 }
 
-void CheckShardable(FitOptions* options) {
-  if (options->segment_steps < 0) options->segment_steps = 0;  // auto: single shooting
-}
-
 void AgreeMoves(const Problem::Impl& impl) {
   // or over the ranks (max of 0/1)
   std::vector<int> mine(impl.params.size(), 0), all(impl.params.size(), 0);
@@ -355,18 +356,28 @@ std::vector<bool> ShardedResiduals::OwnedSequences(const Problem::Impl& impl) co
 
 void ShardedResiduals::AddResidualBlocks(Problem::Impl* impl, ceres::Problem* problem,
                                          const std::vector<double*>& blocks) {
-  std::string failure;
-  agreed_ = true;
-  if (!AgreeReady(true, "", &failure)) {
-    done_ = true;
-    throw RankError(failure);
-  }
-  // the checks over every rank's sequences: a failure ends every rank here (ParameterError)
-  try {
-    AgreeMoves(*impl);
-  } catch (...) {
-    done_ = true;
-    throw;
+  if (impl_) {
+    // a refit of the same input (auto's segments, Problem::Fit calling itself): the workers
+    // prepare again with its segment length; they agreed on the input before
+    command_.assign(kHeader + n_, 0.0);
+    command_[0] = kPrepare;
+    command_[1] = impl->options.segment_steps;
+    MPI_Bcast(command_.data(), static_cast<int>(command_.size()), MPI_DOUBLE, 0, MPI_COMM_WORLD);
+    share_ = std::make_unique<Share>();
+  } else {
+    std::string failure;
+    agreed_ = true;
+    if (!AgreeReady(true, "", &failure)) {
+      done_ = true;
+      throw RankError(failure);
+    }
+    // the checks over every rank's sequences: a failure ends every rank here (ParameterError)
+    try {
+      AgreeMoves(*impl);
+    } catch (...) {
+      done_ = true;
+      throw;
+    }
   }
   impl_ = impl;
   const int np = static_cast<int>(impl->z.size()), nm = static_cast<int>(impl->m.size());
@@ -436,13 +447,15 @@ void ShardedResiduals::PrepareForEvaluation(bool evaluate_jacobians,
                       " failed or was not finite at the trial point");
       continue;
     }
-    const int warned = static_cast<int>(in[1]);
+    const int warned = static_cast<int>(in[1]), step = static_cast<int>(in[2]);
     if (warned >= 0 && r > 0) {
-      I.NoteJacobianWarning(
-          warned, "the core flagged this sequence's Jacobian on rank " + std::to_string(r));
+      // the step it names, for auto's refit in segments (SegmentStepsAfterWarning)
+      I.NoteJacobianWarning(warned, "the core flagged this sequence's Jacobian on rank " +
+                                        std::to_string(r) +
+                                        (step >= 0 ? " from step " + std::to_string(step) : ""));
     }
-    const double* node = in + 3;
-    for (int k = 0; k < static_cast<int>(in[2]); ++k, node += 2 + width) {
+    const double* node = in + kReplyHeader;
+    for (int k = 0; k < static_cast<int>(in[3]); ++k, node += 2 + width) {
       nodes[{static_cast<int>(node[0]), static_cast<int>(node[1])}] = node + 2;
     }
   }
@@ -531,12 +544,12 @@ int ServeFit(const io::ExperimentConfig* config, int threads, const std::string&
   // the same problem as rank 0's, prepared (bad input is found here, on every rank)
   std::string error = failure;
   run::BuiltProblem bp;
+  FitOptions options;
   Problem::Impl* impl = nullptr;
   if (config && error.empty()) {
     try {
       bp = run::BuildProblem(*config, threads);
-      FitOptions options = bp.options;
-      CheckShardable(&options);
+      options = bp.options;
       options.verbose = false;
       // a sharded start: this rank's sequences only
       const int rank = Rank(), ranks = Size();
@@ -554,7 +567,7 @@ int ServeFit(const io::ExperimentConfig* config, int threads, const std::string&
     return 0;  // the same failure on rank 0, which reports it
   }
   const int rank = Rank(), n = static_cast<int>(impl->z.size() + impl->m.size());
-  const std::vector<int> ranges = LeafRanges(*impl, Size());
+  std::vector<int> ranges = LeafRanges(*impl, Size());
   std::vector<double> command(kHeader + n), send;
   Share share;
   // evaluate at every point rank 0 sends, until it finishes
@@ -563,6 +576,20 @@ int ServeFit(const io::ExperimentConfig* config, int threads, const std::string&
     if (command[0] == kFinish) break;
     if (command[0] == kStates) {
       SendStates(*impl, ranges[rank], ranges[rank + 1]);
+      continue;
+    }
+    if (command[0] == kPrepare) {
+      // auto's refit in segments: the same input prepared again with rank 0's segment length
+      options.segment_steps = static_cast<int>(command[1]);
+      try {
+        impl = bp.problem->PrepareOnly(options);
+      } catch (const std::exception& e) {
+        std::fprintf(stderr, "sysid: %s: preparing the refit failed: %s\n", RankName(rank).c_str(),
+                     e.what());
+        MPI_Abort(MPI_COMM_WORLD, 1);
+      }
+      ranges = LeafRanges(*impl, Size());
+      share = Share();
       continue;
     }
     std::copy(command.begin() + kHeader, command.begin() + kHeader + impl->z.size(),

@@ -29,8 +29,16 @@
 // point and eliminates them (sysid/mpi/state_projection.h: variable projection), so rank 0's
 // Ceres sees z and m only and gets the same (n + 1)^2 blocks. The solved states stay on their
 // rank (the warm start of the next points); rank 0 collects them once after the fit
-// (CollectStates: command kStates, MPI_Gatherv in rank order) for the result. CheckShardable turns
-// `segment_steps: auto` into single shooting.
+// (CollectStates: command kStates, MPI_Gatherv in rank order) for the result.
+//
+// `segment_steps: auto` (sysid/multiple_shooting.h): every rank rolls out and probes every
+// sequence at the initial values in Prepare (one nominal and one probe rollout of each, no
+// Jacobians), so every rank chooses the segments one process chooses, without a collective call
+// before the ranks agree that they are ready. Its refits in segments (the single-shooting
+// Jacobian warned, or the fit did not converge) are Problem::Fit calling itself on rank 0: the
+// second AddResidualBlocks broadcasts kPrepare with the new segment length and every worker
+// prepares again (ServeFit). A worker's Jacobian warning reaches rank 0 with the step it names,
+// so the refit's segments are those of one process.
 //
 // Faults. A rank that dies (killed, crashed) ends the job through the MPI runtime (mpirun names
 // the rank, its PID and host); rank 0's checkpoint after every successful iteration is written
@@ -70,7 +78,7 @@ int Size();     // 1 without MPI
 std::string RankName(int rank);
 
 // Bad input for a sharded fit: a rank that was not ready (the message names the rank and its
-// host), or what is not sharded (CheckShardable)
+// host)
 class RankError : public std::invalid_argument {
  public:
   using std::invalid_argument::invalid_argument;
@@ -79,10 +87,6 @@ class RankError : public std::invalid_argument {
 // every rank once, before the first evaluation: true when every rank is ready (ok); else false and
 // *failure = the message of the lowest failing rank, prefixed with RankName
 bool AgreeReady(bool ok, const std::string& message, std::string* failure);
-
-// `segment_steps: auto` becomes single shooting (0); fixed segments and estimated initial states
-// are sharded (state_projection.h)
-void CheckShardable(FitOptions* options);
 
 // every rank, once, after AgreeReady succeeded: combines Problem::Impl::moves over the ranks (a
 // parameter moves the data when it moves the sequences of some rank: a logical or) and throws
