@@ -28,6 +28,7 @@ void SequenceParts(const Problem::Impl& I, int q, int* first, int* last, std::ve
 
 StateProjection::StateProjection(Problem::Impl* impl) : impl_(impl) {
   costs_.resize(impl->segments.size());
+  solved_.resize(impl->sequences.size());
 }
 
 StateProjection::~StateProjection() = default;
@@ -117,9 +118,20 @@ bool StateProjection::Solve(int q, bool jacobians, Eigen::MatrixXd* reduced, dou
   std::vector<int> blocks;
   SequenceParts(I, q, &first, &last, &blocks);
   const int k = StateColumns(q);
-  // 1. the warm start
+  // 1. the warm start; the last solve when it had the same point and warm start
   std::vector<std::vector<double>> x, trial;
   for (int b : blocks) x.push_back(I.states[b]);
+  std::vector<double> key(I.z.begin(), I.z.end());
+  key.insert(key.end(), I.m.begin(), I.m.end());
+  for (const std::vector<double>& xb : x) key.insert(key.end(), xb.begin(), xb.end());
+  Solved& done = solved_[q];
+  if (k > 0 && done.key == key) {
+    *sum = done.sum;
+    if (!jacobians) return true;
+    *reduced = done.reduced;
+    for (size_t i = 0; i < blocks.size(); ++i) I.states[blocks[i]] = done.x[i];
+    return true;
+  }
   // 2. the triangle at x (residuals alone suffice without states to solve)
   if (!Evaluate(q, x, jacobians || k > 0, sum)) return false;
   if (k == 0 && !jacobians) return true;
@@ -155,10 +167,15 @@ bool StateProjection::Solve(int q, bool jacobians, Eigen::MatrixXd* reduced, dou
     if (!Evaluate(q, x, true, sum)) return false;
     e = EliminateStates(block_.Augmented(), k);
   }
-  // 4. the reduced triangle with the exact cost; the states kept for the next points
+  // 4. the reduced triangle with the exact cost (kept with the solve); the states kept for the
+  // next points after a Jacobian evaluation
+  done.key = std::move(key);
+  done.x = x;
+  done.reduced = e.reduced;
+  done.reduced(n, n) = std::hypot(e.reduced(n, n), e.q_x.norm());
+  done.sum = *sum;
   if (!jacobians) return true;
-  *reduced = e.reduced;
-  (*reduced)(n, n) = std::hypot(e.reduced(n, n), e.q_x.norm());
+  *reduced = done.reduced;
   for (size_t i = 0; i < blocks.size(); ++i) I.states[blocks[i]] = x[i];
   return true;
 }

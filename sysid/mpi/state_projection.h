@@ -24,6 +24,10 @@
 //      J_p^T J_p - J_p^T J_x (J_x^T J_x)^-1 J_x^T J_p: the Gauss-Newton matrix of the reduced cost
 //      min_x |r(x, p)|^2 (variable projection), and the parameters' normal matrix of the joint
 //      fit with the states eliminated, so the covariance follows from it directly.
+// Steps 1-3 compute the triangle at the solved states for a trial point too, so each sequence
+// keeps its last solve keyed by (z, m, warm start): the Jacobian evaluation at an accepted trial
+// point (Ceres evaluates it there next, from the same warm start) takes it instead of solving
+// again; the same bits either way.
 // Every step depends on the sequence's own data and the broadcast points only, so the states and
 // blocks are bitwise the same whichever rank owns the sequence: the same estimates with any
 // number of ranks. The joint one-process fit (Ceres' Schur solver over z, m and every state)
@@ -71,7 +75,16 @@ class StateProjection {
   // jacobians, the triangle into block_
   bool Evaluate(int q, const std::vector<std::vector<double>>& x, bool jacobians, double* sum);
 
+  // a sequence's last solve (see above): its key [z, m, warm start states] and results
+  struct Solved {
+    std::vector<double> key;
+    std::vector<std::vector<double>> x;
+    Eigen::MatrixXd reduced;
+    double sum = 0;
+  };
+
   Problem::Impl* impl_;
+  std::vector<Solved> solved_;  // per sequence
   // per segment: its sensor and continuity cost and its fitted-state cost (or nullptr)
   std::vector<std::array<std::unique_ptr<ceres::CostFunction>, 2>> costs_;
   CompressedBlock block_;
