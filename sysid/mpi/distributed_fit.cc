@@ -16,6 +16,7 @@
 #include "sysid/mpi/state_projection.h"
 #include "sysid/multiple_shooting.h"
 #include "sysid/run/fit_experiment.h"
+#include "sysid/run/multi_start.h"
 #include "sysid/state_residuals.h"
 
 namespace mjsysid::mpi {
@@ -23,7 +24,8 @@ namespace {
 
 // commands (first double of the broadcast): evaluate, finish, send the solved states to rank 0,
 // prepare again with the segment length of the second value (auto's refit in multiple shooting)
-constexpr double kEvaluate = 1, kFinish = 0, kStates = 2, kPrepare = 3;
+// or a new Problem at the start values that follow (the next start of --starts)
+constexpr double kEvaluate = 1, kFinish = 0, kStates = 2, kPrepare = 3, kStart = 4;
 // a rank's reply to an evaluation: [ok, warned segment (-1: none), the step its warning names
 // (-1: none), number of nodes], then the nodes
 constexpr int kReplyHeader = 4;
@@ -356,15 +358,18 @@ std::vector<bool> ShardedResiduals::OwnedSequences(const Problem::Impl& impl) co
 
 void ShardedResiduals::AddResidualBlocks(Problem::Impl* impl, ceres::Problem* problem,
                                          const std::vector<double*>& blocks) {
-  if (impl_) {
+  const bool first = !agreed_, refit = agreed_ && !new_problem_;
+  new_problem_ = false;
+  n_ = static_cast<int>(impl->z.size() + impl->m.size());
+  if (refit) {
     // a refit of the same input (auto's segments, Problem::Fit calling itself): the workers
     // prepare again with its segment length; they agreed on the input before
     command_.assign(kHeader + n_, 0.0);
     command_[0] = kPrepare;
     command_[1] = impl->options.segment_steps;
     MPI_Bcast(command_.data(), static_cast<int>(command_.size()), MPI_DOUBLE, 0, MPI_COMM_WORLD);
-    share_ = std::make_unique<Share>();
-  } else {
+  }
+  if (first) {
     std::string failure;
     agreed_ = true;
     if (!AgreeReady(true, "", &failure)) {
@@ -379,6 +384,21 @@ void ShardedResiduals::AddResidualBlocks(Problem::Impl* impl, ceres::Problem* pr
       throw;
     }
   }
+  if (!refit && (!first || problems_ > 1)) {
+    // a start of --starts after the first problem (sysid/run/multi_start.h): the workers build
+    // the same Problem at its start values (physical, in the parameter slots) and prepare it; the
+    // ranks agree on readiness and on the parameters' effect as before the first fit (a failure
+    // fails this start only)
+    command_.assign(kHeader + n_, 0.0);
+    command_[0] = kStart;
+    for (size_t j = 0; j < impl->params.size(); ++j)
+      command_[kHeader + j] = impl->params[j].initial;
+    MPI_Bcast(command_.data(), static_cast<int>(command_.size()), MPI_DOUBLE, 0, MPI_COMM_WORLD);
+    std::string failure;
+    if (!AgreeReady(true, "", &failure)) throw RankError(failure);
+    AgreeMoves(*impl);
+  }
+  share_ = std::make_unique<Share>();
   impl_ = impl;
   const int np = static_cast<int>(impl->z.size()), nm = static_cast<int>(impl->m.size());
   n_ = np + nm;
@@ -544,13 +564,15 @@ int ServeFit(const io::ExperimentConfig* config, int threads, const std::string&
   // the same problem as rank 0's, prepared (bad input is found here, on every rank)
   std::string error = failure;
   run::BuiltProblem bp;
-  FitOptions options;
+  FitOptions options, base;        // as prepared now; as the experiment says
+  std::unique_ptr<Problem> start;  // the current start's Problem (--starts), after the first
   Problem::Impl* impl = nullptr;
   if (config && error.empty()) {
     try {
       bp = run::BuildProblem(*config, threads);
       options = bp.options;
       options.verbose = false;
+      base = options;
       // a sharded start: this rank's sequences only
       const int rank = Rank(), ranks = Size();
       bp.problem->ShardStart(
@@ -578,11 +600,38 @@ int ServeFit(const io::ExperimentConfig* config, int threads, const std::string&
       SendStates(*impl, ranges[rank], ranges[rank + 1]);
       continue;
     }
+    if (command[0] == kStart) {
+      // the next start: bp's Problem at the start values, prepared; then the agreement
+      std::string not_ready;
+      Problem::Impl* next = nullptr;
+      try {
+        Eigen::VectorXd values(static_cast<Eigen::Index>(bp.parameters.size()));
+        for (Eigen::Index j = 0; j < values.size(); ++j) values[j] = command[kHeader + j];
+        start = run::ProblemFrom(bp, values);
+        const int ranks = Size();
+        start->ShardStart(
+            [rank, ranks](const Problem::Impl& I) { return OwnedSequences(I, rank, ranks); });
+        options = base;
+        next = start->PrepareOnly(options);
+      } catch (const std::exception& e) {
+        not_ready = e.what();
+      }
+      if (!AgreeReady(not_ready.empty(), not_ready, nullptr)) continue;  // rank 0 records it
+      try {
+        AgreeMoves(*next);
+      } catch (const std::exception&) {
+        continue;  // the same failure on rank 0
+      }
+      impl = next;
+      ranges = LeafRanges(*impl, Size());
+      share = Share();
+      continue;
+    }
     if (command[0] == kPrepare) {
       // auto's refit in segments: the same input prepared again with rank 0's segment length
       options.segment_steps = static_cast<int>(command[1]);
       try {
-        impl = bp.problem->PrepareOnly(options);
+        impl = (start ? start : bp.problem)->PrepareOnly(options);
       } catch (const std::exception& e) {
         std::fprintf(stderr, "sysid: %s: preparing the refit failed: %s\n", RankName(rank).c_str(),
                      e.what());

@@ -148,6 +148,14 @@ class ShardedResiduals : public ResidualShards, public ceres::EvaluationCallback
   // at an evaluation (ServeFit catches SIGINT, SIGTERM and SIGHUP): every rank then stops after
   // the current iteration and rank 0 writes the result of the last good iterate once
   void SetInterrupt(std::atomic<bool>* flag) { interrupt_ = flag; }
+  // the next Problem is a new one (FitRunOptions::on_problem, before its DistributeResiduals):
+  // from the second on (--starts), its AddResidualBlocks makes the workers build and prepare it
+  // at its start values; without this call a second AddResidualBlocks is a refit of the same
+  // Problem (auto's segments)
+  void NextProblem() {
+    new_problem_ = true;
+    ++problems_;
+  }
   const ShardStats& stats() const { return stats_; }
 
   // the root of the last evaluation (the residual block's values)
@@ -165,7 +173,8 @@ class ShardedResiduals : public ResidualShards, public ceres::EvaluationCallback
   int n_ = 0;
   long long rows_ = 0;
   int eliminated_ = 0;  // tangent columns of the free states
-  bool agreed_ = false, done_ = false;
+  bool agreed_ = false, done_ = false, new_problem_ = false;
+  int problems_ = 0;
   Root root_;
   std::vector<int> ranges_, counts_, displs_, heads_;
   std::atomic<bool>* interrupt_ = nullptr;
