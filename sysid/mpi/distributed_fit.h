@@ -40,6 +40,14 @@
 // prepares again (ServeFit). A worker's Jacobian warning reaches rank 0 with the step it names,
 // so the refit's segments are those of one process.
 //
+// Several starts (--starts, sysid/run/multi_start.h) run one after another, each a Problem of
+// its own on rank 0 (NextProblem before its DistributeResiduals): from the second on,
+// AddResidualBlocks broadcasts kStart with its physical start values, every worker builds the
+// same Problem (run::ProblemFrom) and prepares it, and the ranks agree on readiness and on the
+// parameters' effect again (a failure fails that start only).
+//
+// Stop signals: see ServeFit and SetInterrupt (the fit ends after the current iteration).
+//
 // Faults. A rank that dies (killed, crashed) ends the job through the MPI runtime (mpirun names
 // the rank, its PID and host); rank 0's checkpoint after every successful iteration is written
 // atomically (sysid/run), so the last complete one stays on disk for `sysid fit --resume`. A
