@@ -616,6 +616,7 @@ int ServeFit(const io::ExperimentConfig* config, int threads, const std::string&
       } catch (const std::exception& e) {
         not_ready = e.what();
       }
+      impl = nullptr;  // the previous start's Problem is gone
       if (!AgreeReady(not_ready.empty(), not_ready, nullptr)) continue;  // rank 0 records it
       try {
         AgreeMoves(*next);
