@@ -26,7 +26,8 @@ namespace mjsysid {
 void ChooseLinearSolver(Problem::Impl& I, int tangent, ceres::Solver::Options* so) {
   bool multiple = false;
   for (const Segment& seg : I.segments) multiple = multiple || seg.next >= 0;
-  if (!multiple) {
+  // sharded (sysid/mpi/): the states are eliminated by the shards, Ceres sees z and m (tangent)
+  if (!multiple || I.shards) {
     so->linear_solver_type = tangent <= 200 ? ceres::DENSE_QR : ceres::SPARSE_NORMAL_CHOLESKY;
     return;
   }
@@ -187,13 +188,18 @@ HorizonChoice ChooseHorizon(Problem::Impl& I, const std::vector<Trajectory>& ini
 // the initial values and there) is stopped and refitted in multiple shooting with segments of
 // min(k*/2, ln(2) / lambda) steps, lambda the probe's rate, at least kMinSegmentSteps. Returns
 // 0 when the warning names no step.
-int SegmentStepsAfterWarning(const std::string& warning, double rate, std::string* reason) {
+int WarningStep(const std::string& warning) {
   static const std::regex kStep("from step ([0-9]+)");
   int kstar = -1;
   for (auto it = std::sregex_iterator(warning.begin(), warning.end(), kStep);
        it != std::sregex_iterator(); ++it) {
     kstar = std::stoi((*it)[1]);
   }
+  return kstar;
+}
+
+int SegmentStepsAfterWarning(const std::string& warning, double rate, std::string* reason) {
+  const int kstar = WarningStep(warning);
   if (kstar < 0) return 0;
   int len = kstar / 2;
   if (rate > 0) len = std::min(len, static_cast<int>(std::ceil(std::log(kSegmentGrowth) / rate)));

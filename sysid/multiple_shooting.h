@@ -35,6 +35,8 @@ HorizonChoice ChooseHorizon(Problem::Impl& I, const std::vector<Trajectory>& ini
 // the segment length min(k*/2, ln 2 / rate), at least 10, and the reason; 0 when the warning
 // names no step.
 int SegmentStepsAfterWarning(const std::string& warning, double rate, std::string* reason);
+// the step k* a core Sensitivity warning names ("... from step k* ...": the last one), or -1
+int WarningStep(const std::string& warning);
 
 // Auto, third stage: a single-shooting fit (auto chose it) whose optimiser did not converge, on a
 // system whose probe grew beyond linear by more than kRefitGrowth (growth: HorizonChoice::growth;
@@ -53,7 +55,8 @@ std::string SegmentStart(const Problem::Impl& I, int q, int k0, const Trajectory
 
 // Ceres' linear solver for I's variables (tangent: their total tangent size): single shooting
 // dense QR (sparse normal Cholesky past 200); multiple shooting DENSE_SCHUR / SPARSE_SCHUR with
-// every other state block of each sequence eliminated first (so->linear_solver_ordering)
+// every other state block of each sequence eliminated first (so->linear_solver_ordering); a
+// sharded fit (Impl::shards: the states eliminated by the shards) as single shooting
 void ChooseLinearSolver(Problem::Impl& I, int tangent, ceres::Solver::Options* so);
 
 // Ceres' CRS Jacobian -> A (rows x nvar, dense: the first nvar columns) and B (rows x the rest,

@@ -49,29 +49,6 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // estimate is reported as segments that do not join
 constexpr double kContinuityGapWarning = 1e-3;
 
-// A sharded start (Problem::ShardStart) simulated only the owned sequences at the initial values:
-// the others' rollouts there (no Jacobians), for the result's initial signals. Leaves the
-// simulators at the initial parameters.
-void RolloutUnowned(Problem::Impl* impl, std::vector<Trajectory>* initial) {
-  Problem::Impl& I = *impl;
-  std::vector<double> z0(I.params.size());
-  for (size_t g = 0; g < z0.size(); ++g) z0[g] = I.ToZ(static_cast<int>(g), I.params[g].initial);
-  for (auto& mo : I.models) {
-    std::vector<SequenceInput> ins;
-    std::vector<int> which;
-    for (size_t q = 0; q < I.sequences.size(); ++q) {
-      if (I.sequences[q].model != mo.name || (*initial)[q].states.rows() > 0) continue;
-      ins.push_back({I.sequences[q].x0, I.grids[q].ctrl});
-      which.push_back(static_cast<int>(q));
-    }
-    if (ins.empty()) continue;
-    ApplyVariables(I.params, mo.global, z0.data(), mo.sim.get());
-    std::vector<Trajectory> trs;
-    mo.sim->Rollout(ins, &trs);
-    for (size_t i = 0; i < which.size(); ++i) (*initial)[which[i]] = std::move(trs[i]);
-  }
-}
-
 // Reduces the sequence's matrices (T x nsensordata, the model's layout) to the columns of the
 // fitted sensors, in the order given, and fills their names, dimensions and the sample times.
 void KeepFittedColumns(const mjModel& m, const std::vector<std::string>& fitted,
@@ -135,6 +112,29 @@ void RecordReduction(const Problem::Impl& I, const FitOptions& options, FitResul
 }
 
 }  // namespace
+
+// A sharded start (Problem::ShardStart) simulated only the owned sequences at the initial values:
+// the others' rollouts there (no Jacobians), for the result's initial signals. Leaves the
+// simulators at the initial parameters.
+void RolloutUnowned(Problem::Impl* impl, std::vector<Trajectory>* initial) {
+  Problem::Impl& I = *impl;
+  std::vector<double> z0(I.params.size());
+  for (size_t g = 0; g < z0.size(); ++g) z0[g] = I.ToZ(static_cast<int>(g), I.params[g].initial);
+  for (auto& mo : I.models) {
+    std::vector<SequenceInput> ins;
+    std::vector<int> which;
+    for (size_t q = 0; q < I.sequences.size(); ++q) {
+      if (I.sequences[q].model != mo.name || (*initial)[q].states.rows() > 0) continue;
+      ins.push_back({I.sequences[q].x0, I.grids[q].ctrl});
+      which.push_back(static_cast<int>(q));
+    }
+    if (ins.empty()) continue;
+    ApplyVariables(I.params, mo.global, z0.data(), mo.sim.get());
+    std::vector<Trajectory> trs;
+    mo.sim->Rollout(ins, &trs);
+    for (size_t i = 0; i < which.size(); ++i) (*initial)[which[i]] = std::move(trs[i]);
+  }
+}
 
 // -----------------------------------------------------------------------------------------------
 // building
@@ -353,7 +353,10 @@ FitResult Problem::Fit(const FitOptions& options) {
   so_ceres.minimizer_type = ceres::TRUST_REGION;
   so_ceres.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
   int tangent = np + static_cast<int>(I.m.size());
-  for (size_t b = 0; b < I.states.size(); ++b) tangent += static_cast<int>(I.states[b].size());
+  // (sharded: the states are eliminated by the shards, Ceres sees z and m)
+  for (size_t b = 0; b < I.states.size(); ++b) {
+    tangent += I.shards ? 0 : static_cast<int>(I.states[b].size());
+  }
   ChooseLinearSolver(I, tangent, &so_ceres);
   so_ceres.max_num_iterations = options.max_iterations;
   so_ceres.function_tolerance = options.function_tolerance;
@@ -459,7 +462,8 @@ FitResult Problem::Fit(const FitOptions& options) {
   ceres::Problem::EvaluateOptions eo;
   eo.num_threads = 1;  // as the solve
   bool multiple = false;
-  for (const Segment& seg : I.segments) multiple = multiple || seg.next >= 0;
+  // (sharded: the shards eliminate the states, the sharded problem is single-shooting shaped)
+  for (const Segment& seg : I.segments) multiple = multiple || (seg.next >= 0 && !I.shards);
   // single shooting: the Jacobian only as the thin-QR triangle of [J r], block by block
   // (sysid/estimate_jacobian.h); multiple shooting: the whole sparse Jacobian, whose state columns
   // are eliminated below
@@ -527,8 +531,11 @@ FitResult Problem::Fit(const FitOptions& options) {
       for (int g = 0; g < np; ++g) triangle.r_aug.col(g) /= I.DpDz(g, I.z[g]);
       for (int c = nvar; c < n; ++c) all_names.push_back("x0[" + std::to_string(c - nvar) + "]");
       cost = triangle.cost;
+      // residual rows less the states the shards eliminated (they enter the dof as columns)
+      const long long residual_rows =
+          result.num_residuals - (I.shards ? I.shards->EliminatedColumns() : 0);
       result.uncertainty = AnalyzeUncertaintyCompressed(
-          triangle.r_aug.leftCols(n), result.num_residuals, cost, all_names, values, fixed, uo);
+          triangle.r_aug.leftCols(n), residual_rows, cost, all_names, values, fixed, uo);
       // [J_p r]'s triangle: the parameter columns come first, so R's leading block is J_p's
       RowTriangle tri(nvar + 1);
       RowMatrix rows(triangle.r_aug.rows(), nvar + 1);
@@ -623,6 +630,7 @@ FitResult Problem::Fit(const FitOptions& options) {
   // multiple shooting also the largest continuity gap at the estimate: segments that do not join
   // describe no single trajectory (a chaotic fit stuck far from the data), which the user must
   // be told (docs/stress.md)
+  if (I.shards) I.shards->CollectStates(&I);
   RolloutUnowned(&I, &prepared.initial);
   double worst_gap = 0;
   std::string worst_gap_where;

@@ -103,7 +103,7 @@ class Problem {
   const std::vector<FitParameter>& parameters() const;
 
   // Fit with the segment residuals evaluated by shards (borrowed; nullptr: here, as usual); see
-  // ResidualShards. Single shooting without estimated initial states only (the caller checks).
+  // ResidualShards.
   void DistributeResiduals(ResidualShards* shards);
   struct Impl;  // the state behind the API (sysid/problem_impl.h, for the cost functions)
   // Validates and prepares the fit as Fit does, without solving, and returns the prepared state
@@ -115,9 +115,9 @@ class Problem {
   // grids are built; empty: all), and does not itself check that every parameter moves the data:
   // it leaves Impl::moves (per parameter: some owned sequence sees it) for the caller to combine
   // over all shards and pass to CheckParametersMove (sysid/problem_impl.h). Fit rolls out the
-  // other sequences at the initial values for the result only (rollouts, no Jacobians). Single
-  // shooting without estimated initial states only (segment starts come from the rollouts of the
-  // sequence; Prepare aborts on a free state of a sequence it did not simulate).
+  // other sequences at the initial values for the result only (rollouts, no Jacobians). With free
+  // states (multiple shooting, estimated initial states) Prepare rolls out the other sequences
+  // too (no Jacobians), so that every shard starts every segment state as one process does.
   void ShardStart(std::function<std::vector<bool>(const Impl&)> owned);
 
  private:
@@ -141,7 +141,8 @@ class Problem {
 // Segment residuals evaluated elsewhere (sysid/mpi/: sharded across MPI ranks, each segment's
 // block compressed to a thin-QR triangle). When set (Problem::DistributeResiduals), Fit adds no
 // SegmentCost / StateCost blocks: it asks AddResidualBlocks for the blocks that replace them (on
-// the z and m parameter blocks only), uses Callback() as the Ceres EvaluationCallback, and reports
+// the z and m parameter blocks only: free states are eliminated by the shards), uses Callback() as
+// the Ceres EvaluationCallback, and reports
 // NumResiduals() (the rows of the uncompressed residual vector, for the residual variance and the
 // chi-square) instead of the rows Ceres sees. The uncertainty then comes from the compressed
 // Jacobian, whose normal matrix J^T J and cost equal the full one's.
@@ -154,6 +155,13 @@ class ResidualShards {
                                  const std::vector<double*>& blocks) = 0;
   virtual ceres::EvaluationCallback* Callback() = 0;
   virtual long long NumResiduals() const = 0;
+  // the tangent columns of the states eliminated where the residuals are evaluated (multiple
+  // shooting, estimated initial states: sysid/mpi/state_projection.h); the residual variance's
+  // degrees of freedom subtract them, as the one-process fit's with the states in its Jacobian
+  virtual int EliminatedColumns() const { return 0; }
+  // called by Fit after the evaluation at the estimate: brings every sequence's eliminated states
+  // into impl->states (for the result's segment states, continuity gaps and final signals)
+  virtual void CollectStates(Problem::Impl* /*impl*/) {}
   // the sequences whose start this process simulates (Problem::ShardStart; empty: all). Called by
   // Prepare; the caller of Fit then owns the check of Impl::moves (AddResidualBlocks' place).
   virtual std::vector<bool> OwnedSequences(const Problem::Impl& /*impl*/) const { return {}; }

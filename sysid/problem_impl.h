@@ -236,4 +236,9 @@ struct Problem::Impl {
 // with moves combined over every shard
 void CheckParametersMove(const Problem::Impl& I, const std::vector<bool>& moves);
 
+// A sharded start (Problem::ShardStart) simulated only the owned sequences at the initial values:
+// rolls out the others (those with an empty trajectory in initial; no Jacobians), and leaves the
+// simulators at the initial parameters
+void RolloutUnowned(Problem::Impl* impl, std::vector<Trajectory>* initial);
+
 }  // namespace mjsysid

@@ -464,12 +464,20 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
   // segments (multiple shooting) and state blocks
   I.segments.clear();
   I.states.clear();
+  // auto under a sharded start (sysid/mpi/): every shard probes every sequence, as one process
+  if (I.owned_sequences && options.segment_steps < 0) RolloutUnowned(&I, &initial);
   const HorizonChoice horizon = ChooseHorizon(I, initial, options);
   out->segment_steps = horizon.steps;
   out->segment_reason = horizon.reason;
   out->probe_rate = horizon.rate;
   out->probe_growth = horizon.growth;
   I.stop_on_jacobian_warning = options.segment_steps < 0 && horizon.steps == 0;
+  // a sharded start with free states (sysid/mpi/state_projection.h): every shard starts every
+  // sequence's states from the data as one process does, so the other sequences are rolled out
+  // at the initial values too (no Jacobians)
+  if (I.owned_sequences && (horizon.steps > 0 || options.estimate_initial_state)) {
+    RolloutUnowned(&I, &initial);
+  }
   std::string start_source;
   for (size_t q = 0; q < I.sequences.size(); ++q) {
     const int T = I.grids[q].steps;  // simulation steps
@@ -484,8 +492,8 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
       seg.state_rows = !I.state_channels[q].empty();
       const bool free = k0 > 0 || options.estimate_initial_state;
       if (free && initial[q].states.rows() == 0) {
-        std::fprintf(stderr, "sysid: broken invariant: a sharded start with a free state\n");
-        std::abort();  // ShardStart is single shooting without estimated initial states
+        std::fprintf(stderr, "sysid: broken invariant: a free state without its start rollout\n");
+        std::abort();  // RolloutUnowned above simulated every sequence
       }
       if (free) {
         seg.block = static_cast<int>(I.states.size());

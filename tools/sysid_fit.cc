@@ -213,28 +213,23 @@ int RunFitHere(const FitArgs& args,
 // reports the first rank's failure (exit 2)
 int RunFitSharded(const FitArgs& args) {
   namespace mpi = mjsysid::mpi;
-  auto check_starts = [&args](const mjsysid::io::ExperimentConfig& config) {
-    if ((args.starts >= 1 ? args.starts : config.starts) > 1) {
-      throw InputError("solver.starts / --starts above 1 with MPI: a sharded fit is one start");
-    }
-  };
   if (mpi::Rank() > 0) {
     std::string failure;
     std::optional<mjsysid::io::ExperimentConfig> config;
     try {
       config = mjsysid::io::LoadExperiment(ExperimentOf(args));
-      check_starts(*config);
     } catch (const std::exception& e) {
       failure = e.what();
     }
     return mpi::ServeFit(config ? &*config : nullptr, args.threads, failure);
   }
   mpi::ShardedResiduals shards;
+  shards.SetInterrupt(&g_interrupted);  // a worker's stop signal stops the fit too
   int code = 0;
   try {
-    check_starts(mjsysid::io::LoadExperiment(ExperimentOf(args)));
-    code = RunFitHere(args, [&](mjsysid::Problem& problem, mjsysid::FitOptions* options) {
-      mpi::CheckShardable(options);
+    // every start of --starts a whole sharded fit, one after another
+    code = RunFitHere(args, [&](mjsysid::Problem& problem, mjsysid::FitOptions* /*options*/) {
+      shards.NextProblem();
       problem.DistributeResiduals(&shards);
     });
   } catch (const mpi::RankError& e) {

@@ -7,21 +7,40 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <map>
 
 #include "sysid/cost_functions.h"
+#include "sysid/mpi/state_projection.h"
+#include "sysid/multiple_shooting.h"
 #include "sysid/run/fit_experiment.h"
+#include "sysid/run/multi_start.h"
 #include "sysid/state_residuals.h"
 
 namespace mjsysid::mpi {
 namespace {
 
-constexpr double kEvaluate = 1, kFinish = 0;  // commands (first double of the broadcast)
-constexpr int kHeader = 2;                    // doubles before the values
+// commands (first double of the broadcast): evaluate, finish, send the solved states to rank 0,
+// prepare again with the segment length of the second value (auto's refit in multiple shooting)
+// or a new Problem at the start values that follow (the next start of --starts)
+constexpr double kEvaluate = 1, kFinish = 0, kStates = 2, kPrepare = 3, kStart = 4;
+// a rank's reply to an evaluation: [ok, warned segment (-1: none), the step its warning names
+// (-1: none), number of nodes], then the nodes
+constexpr int kReplyHeader = 4;
+constexpr int kHeader = 2;  // doubles before the values
 
 bool g_initialized = false, g_finalized = false;
+
+// A worker's stop signals (SIGINT, SIGTERM, SIGHUP; mpirun forwards its own to every rank): noted
+// and reported to rank 0 with the next evaluation; a second one has the default action
+constexpr int kStopSignals[] = {SIGINT, SIGTERM, SIGHUP};
+volatile std::sig_atomic_t g_stop = 0;
+void OnWorkerStop(int) {
+  g_stop = 1;
+  for (int s : kStopSignals) std::signal(s, SIG_DFL);
+}
 
 double Seconds(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
@@ -39,9 +58,58 @@ struct Share {
   std::vector<double> sums;             // per owned segment: sum r^2
   RowMatrix J, Jz, Jm;
   Eigen::VectorXd r;
+  // the fit has free states: the leaves are whole sequences, their states eliminated here
+  std::unique_ptr<StateProjection> projection;
 };
 
 namespace {
+
+// out = the reply header (kReplyHeader) and, when ok, the maximal tree nodes inside the leaves
+// [first, last) of a tree over [0, leaves), each reduced from share's leaf values
+void Reply(const Problem::Impl& I, bool ok, int warned, int first, int last, int leaves,
+           bool jacobians, const Share& share, std::vector<double>* out) {
+  const int step = warned >= 0 ? WarningStep(I.jacobian_warnings.at(warned)) : -1;
+  out->assign({ok ? 1.0 : 0.0, static_cast<double>(warned), static_cast<double>(step), 0.0});
+  if (!ok) return;
+  const std::vector<std::pair<int, int>> nodes = CanonicalNodes(first, last, leaves);
+  (*out)[3] = static_cast<double>(nodes.size());
+  for (const auto& [lo, hi] : nodes) {
+    out->push_back(lo);
+    out->push_back(hi);
+    if (jacobians) {
+      const Eigen::MatrixXd R = ReduceTree<Eigen::MatrixXd>(
+          lo, hi, [&](int a, int b) { return b - a == 1 ? &share.blocks[a - first] : nullptr; },
+          MergeBlocks);
+      out->insert(out->end(), R.data(), R.data() + R.size());
+    } else {
+      out->push_back(ReduceTree<double>(
+          lo, hi, [&](int a, int b) { return b - a == 1 ? &share.sums[a - first] : nullptr; },
+          [](double a, double b) { return a + b; }));
+    }
+  }
+}
+
+// EvaluateShare (below) with free states (BySequence): the leaves [first, last) are whole
+// sequences, each solved for its states and reduced by StateProjection
+void EvaluateSequences(Problem::Impl* impl, int first, int last, bool jacobians, Share* share,
+                       std::vector<double>* out) {
+  Problem::Impl& I = *impl;
+  if (!share->projection) share->projection = std::make_unique<StateProjection>(impl);
+  const int leaves = static_cast<int>(I.sequences.size());
+  share->sums.assign(std::max(last - first, 0), 0.0);
+  share->blocks.resize(std::max(last - first, 0));
+  bool ok = true;
+  int warned = -1;
+  for (int q = first; q < last && ok; ++q) {
+    ok = share->projection->Solve(q, jacobians, &share->blocks[q - first], &share->sums[q - first]);
+    for (size_t s = 0; s < I.segments.size() && warned < 0; ++s) {
+      if (I.segments[s].seq == q && I.jacobian_warnings.count(static_cast<int>(s))) {
+        warned = static_cast<int>(s);
+      }
+    }
+  }
+  Reply(I, ok, warned, first, last, leaves, jacobians, *share, out);
+}
 
 // One rank's share at the variables in impl (z, m): its segments [first, last) simulated
 // (batched), their sensor and state residuals evaluated and, with Jacobians, compressed one
@@ -51,6 +119,7 @@ namespace {
 void EvaluateShare(Problem::Impl* impl, int first, int last, bool jacobians, Share* share,
                    std::vector<double>* out) {
   Problem::Impl& I = *impl;
+  if (BySequence(I)) return EvaluateSequences(impl, first, last, jacobians, share, out);
   const int np = static_cast<int>(I.z.size()), nm = static_cast<int>(I.m.size());
   const int n = np + nm, size = static_cast<int>(I.segments.size());
   // the owned segments at the new point, in the simulators' batches
@@ -99,25 +168,7 @@ void EvaluateShare(Problem::Impl* impl, int first, int last, bool jacobians, Sha
     if (jacobians) share->blocks[s - first] = share->block.Augmented();
     if (warned < 0 && I.jacobian_warnings.count(s)) warned = s;
   }
-  out->assign({ok ? 1.0 : 0.0, static_cast<double>(warned), 0.0});
-  if (!ok) return;
-  // the maximal tree nodes inside [first, last), each reduced from its leaves
-  const std::vector<std::pair<int, int>> nodes = CanonicalNodes(first, last, size);
-  (*out)[2] = static_cast<double>(nodes.size());
-  for (const auto& [lo, hi] : nodes) {
-    out->push_back(lo);
-    out->push_back(hi);
-    if (jacobians) {
-      const Eigen::MatrixXd R = ReduceTree<Eigen::MatrixXd>(
-          lo, hi, [&](int a, int b) { return b - a == 1 ? &share->blocks[a - first] : nullptr; },
-          MergeBlocks);
-      out->insert(out->end(), R.data(), R.data() + R.size());
-    } else {
-      out->push_back(ReduceTree<double>(
-          lo, hi, [&](int a, int b) { return b - a == 1 ? &share->sums[a - first] : nullptr; },
-          [](double a, double b) { return a + b; }));
-    }
-  }
+  Reply(I, ok, warned, first, last, size, jacobians, *share, out);
 }
 
 // The one residual block of the segments on rank 0: the root of the tree, n + 1 rows on the
@@ -164,6 +215,25 @@ class TreeCost : public ceres::CostFunction {
  private:
   const ShardedResiduals* shards_;
 };
+
+// The state blocks of the sequences [first, last), concatenated in block order (the blocks of a
+// sequence follow those of the one before), gathered to rank 0: every rank's in rank order is
+// every block in order
+std::vector<double> OwnStates(const Problem::Impl& I, int first, int last) {
+  std::vector<double> out;
+  for (const Segment& seg : I.segments) {
+    if (seg.block < 0 || seg.seq < first || seg.seq >= last) continue;
+    out.insert(out.end(), I.states[seg.block].begin(), I.states[seg.block].end());
+  }
+  return out;
+}
+void SendStates(const Problem::Impl& I, int first, int last) {
+  std::vector<double> send = OwnStates(I, first, last);
+  int count = static_cast<int>(send.size());
+  MPI_Gather(&count, 1, MPI_INT, nullptr, 0, MPI_INT, 0, MPI_COMM_WORLD);
+  MPI_Gatherv(send.data(), count, MPI_DOUBLE, nullptr, nullptr, nullptr, MPI_DOUBLE, 0,
+              MPI_COMM_WORLD);
+}
 
 }  // namespace
 
@@ -228,21 +298,6 @@ bool AgreeReady(bool ok, const std::string& message, std::string* failure) {
   return false;
 }
 
-void CheckShardable(FitOptions* options) {
-  if (options->segment_steps < 0) options->segment_steps = 0;  // auto: single shooting
-  if (options->segment_steps > 0) {
-    throw RankError(
-        "multiple_shooting: segment_steps " + std::to_string(options->segment_steps) +
-        ": a fit sharded across MPI ranks is single shooting only (docs/cluster.md); set "
-        "segment_steps: 0 or auto, or run on one rank");
-  }
-  if (options->estimate_initial_state) {
-    throw RankError(
-        "initial_state: estimate: a fit sharded across MPI ranks cannot estimate initial states "
-        "yet (docs/cluster.md); give the logged states, or run on one rank");
-  }
-}
-
 void AgreeMoves(const Problem::Impl& impl) {
   // or over the ranks (max of 0/1)
   std::vector<int> mine(impl.params.size(), 0), all(impl.params.size(), 0);
@@ -269,6 +324,16 @@ std::vector<bool> OwnedSequences(const Problem::Impl& impl, int rank, int ranks)
   return owned;
 }
 
+bool BySequence(const Problem::Impl& impl) { return !impl.states.empty(); }
+
+int Leaves(const Problem::Impl& impl) {
+  return static_cast<int>(BySequence(impl) ? impl.sequences.size() : impl.segments.size());
+}
+
+std::vector<int> LeafRanges(const Problem::Impl& impl, int ranks) {
+  return BySequence(impl) ? SequenceRanges(impl, ranks) : SegmentRanges(impl, ranks);
+}
+
 std::vector<int> SegmentRanges(const Problem::Impl& impl, int ranks) {
   // the first segment of each rank's first sequence (segments are in sequence order)
   const std::vector<int> sequences = SequenceRanges(impl, ranks);
@@ -293,25 +358,56 @@ std::vector<bool> ShardedResiduals::OwnedSequences(const Problem::Impl& impl) co
 
 void ShardedResiduals::AddResidualBlocks(Problem::Impl* impl, ceres::Problem* problem,
                                          const std::vector<double*>& blocks) {
-  std::string failure;
-  agreed_ = true;
-  if (!AgreeReady(true, "", &failure)) {
-    done_ = true;
-    throw RankError(failure);
+  const bool first = !agreed_, refit = agreed_ && !new_problem_;
+  new_problem_ = false;
+  n_ = static_cast<int>(impl->z.size() + impl->m.size());
+  if (refit) {
+    // a refit of the same input (auto's segments, Problem::Fit calling itself): the workers
+    // prepare again with its segment length; they agreed on the input before
+    command_.assign(kHeader + n_, 0.0);
+    command_[0] = kPrepare;
+    command_[1] = impl->options.segment_steps;
+    MPI_Bcast(command_.data(), static_cast<int>(command_.size()), MPI_DOUBLE, 0, MPI_COMM_WORLD);
   }
-  // the checks over every rank's sequences: a failure ends every rank here (ParameterError)
-  try {
+  if (first) {
+    std::string failure;
+    agreed_ = true;
+    if (!AgreeReady(true, "", &failure)) {
+      done_ = true;
+      throw RankError(failure);
+    }
+    // the checks over every rank's sequences: a failure ends every rank here (ParameterError)
+    try {
+      AgreeMoves(*impl);
+    } catch (...) {
+      done_ = true;
+      throw;
+    }
+  }
+  if (!refit && (!first || problems_ > 1)) {
+    // a start of --starts after the first problem (sysid/run/multi_start.h): the workers build
+    // the same Problem at its start values (physical, in the parameter slots) and prepare it; the
+    // ranks agree on readiness and on the parameters' effect as before the first fit (a failure
+    // fails this start only)
+    command_.assign(kHeader + n_, 0.0);
+    command_[0] = kStart;
+    for (size_t j = 0; j < impl->params.size(); ++j)
+      command_[kHeader + j] = impl->params[j].initial;
+    MPI_Bcast(command_.data(), static_cast<int>(command_.size()), MPI_DOUBLE, 0, MPI_COMM_WORLD);
+    std::string failure;
+    if (!AgreeReady(true, "", &failure)) throw RankError(failure);
     AgreeMoves(*impl);
-  } catch (...) {
-    done_ = true;
-    throw;
   }
+  share_ = std::make_unique<Share>();
   impl_ = impl;
   const int np = static_cast<int>(impl->z.size()), nm = static_cast<int>(impl->m.size());
   n_ = np + nm;
-  ranges_ = SegmentRanges(*impl, Size());
+  ranges_ = LeafRanges(*impl, Size());
   rows_ = 0;
+  eliminated_ = 0;
   for (size_t s = 0; s < impl->segments.size(); ++s) {
+    const Segment& seg = impl->segments[s];
+    if (seg.block >= 0) eliminated_ += impl->models[seg.model].sim->dims().nx;
     rows_ += SegmentCost(impl, static_cast<int>(s)).num_residuals();
     if (impl->segments[s].state_rows) {
       rows_ += StateCost(impl, static_cast<int>(s)).num_residuals();
@@ -323,7 +419,7 @@ void ShardedResiduals::AddResidualBlocks(Problem::Impl* impl, ceres::Problem* pr
 void ShardedResiduals::PrepareForEvaluation(bool evaluate_jacobians,
                                             bool /*new_evaluation_point*/) {
   Problem::Impl& I = *impl_;
-  const int size = Size(), segments = static_cast<int>(I.segments.size());
+  const int size = Size(), segments = Leaves(I);
   // the command and the values, from the parameter blocks Ceres has updated
   auto t0 = std::chrono::steady_clock::now();
   command_.assign({kEvaluate, evaluate_jacobians ? 1.0 : 0.0});
@@ -337,19 +433,26 @@ void ShardedResiduals::PrepareForEvaluation(bool evaluate_jacobians,
   stats_.seconds_own_share += Seconds(t0);
   // every rank's tree nodes (their sizes first)
   t0 = std::chrono::steady_clock::now();
-  int count = static_cast<int>(send_.size());
+  // [size, stopped] of every rank: a worker that caught a stop signal stops the fit after this
+  // iteration, as rank 0's own signal does
+  const int head[2] = {static_cast<int>(send_.size()), 0};
+  heads_.assign(2 * size, 0);
+  MPI_Gather(head, 2, MPI_INT, heads_.data(), 2, MPI_INT, 0, MPI_COMM_WORLD);
   counts_.assign(size, 0);
-  MPI_Gather(&count, 1, MPI_INT, counts_.data(), 1, MPI_INT, 0, MPI_COMM_WORLD);
+  for (int r = 0; r < size; ++r) {
+    counts_[r] = heads_[2 * r];
+    if (heads_[2 * r + 1] && interrupt_) interrupt_->store(true);
+  }
   displs_.assign(size, 0);
   for (int r = 1; r < size; ++r) displs_[r] = displs_[r - 1] + counts_[r - 1];
   receive_.resize(static_cast<size_t>(displs_[size - 1] + counts_[size - 1]));
-  MPI_Gatherv(send_.data(), count, MPI_DOUBLE, receive_.data(), counts_.data(), displs_.data(),
+  MPI_Gatherv(send_.data(), head[0], MPI_DOUBLE, receive_.data(), counts_.data(), displs_.data(),
               MPI_DOUBLE, 0, MPI_COMM_WORLD);
   stats_.seconds_mpi += Seconds(t0);
   stats_.evaluations += 1;
   stats_.jacobian_evaluations += evaluate_jacobians ? 1 : 0;
   stats_.bytes += static_cast<long long>(size - 1) *
-                  static_cast<long long>(sizeof(double) * command_.size() + sizeof(int));
+                  static_cast<long long>(sizeof(double) * command_.size() + 2 * sizeof(int));
   for (int r = 1; r < size; ++r) stats_.bytes += sizeof(double) * counts_[r];
   // the root from the nodes of every rank (the same bits with any number of ranks)
   root_.ok = true;
@@ -364,13 +467,15 @@ void ShardedResiduals::PrepareForEvaluation(bool evaluate_jacobians,
                       " failed or was not finite at the trial point");
       continue;
     }
-    const int warned = static_cast<int>(in[1]);
+    const int warned = static_cast<int>(in[1]), step = static_cast<int>(in[2]);
     if (warned >= 0 && r > 0) {
-      I.NoteJacobianWarning(
-          warned, "the core flagged this sequence's Jacobian on rank " + std::to_string(r));
+      // the step it names, for auto's refit in segments (SegmentStepsAfterWarning)
+      I.NoteJacobianWarning(warned, "the core flagged this sequence's Jacobian on rank " +
+                                        std::to_string(r) +
+                                        (step >= 0 ? " from step " + std::to_string(step) : ""));
     }
-    const double* node = in + 3;
-    for (int k = 0; k < static_cast<int>(in[2]); ++k, node += 2 + width) {
+    const double* node = in + kReplyHeader;
+    for (int k = 0; k < static_cast<int>(in[3]); ++k, node += 2 + width) {
       nodes[{static_cast<int>(node[0]), static_cast<int>(node[1])}] = node + 2;
     }
   }
@@ -395,6 +500,35 @@ void ShardedResiduals::PrepareForEvaluation(bool evaluate_jacobians,
           return it == nodes.end() ? nullptr : it->second;
         },
         [](double a, double b) { return a + b; });
+  }
+}
+
+void ShardedResiduals::CollectStates(Problem::Impl* impl) {
+  Problem::Impl& I = *impl;
+  if (!BySequence(I) || done_ || !agreed_) return;
+  const int size = Size();
+  command_.assign(kHeader + n_, 0.0);
+  command_[0] = kStates;
+  MPI_Bcast(command_.data(), static_cast<int>(command_.size()), MPI_DOUBLE, 0, MPI_COMM_WORLD);
+  // rank 0's own blocks, then the others' (SendStates)
+  std::vector<double> mine = OwnStates(I, ranges_[0], ranges_[1]);
+  int count = static_cast<int>(mine.size());
+  counts_.assign(size, 0);
+  MPI_Gather(&count, 1, MPI_INT, counts_.data(), 1, MPI_INT, 0, MPI_COMM_WORLD);
+  displs_.assign(size, 0);
+  for (int r = 1; r < size; ++r) displs_[r] = displs_[r - 1] + counts_[r - 1];
+  receive_.resize(static_cast<size_t>(displs_[size - 1] + counts_[size - 1]));
+  MPI_Gatherv(mine.data(), count, MPI_DOUBLE, receive_.data(), counts_.data(), displs_.data(),
+              MPI_DOUBLE, 0, MPI_COMM_WORLD);
+  size_t at = 0;
+  for (std::vector<double>& x : I.states) {
+    if (at + x.size() > receive_.size()) {
+      std::fprintf(stderr,
+                   "sysid: broken invariant: the ranks sent fewer states than the fit has\n");
+      std::abort();
+    }
+    std::copy(receive_.begin() + at, receive_.begin() + at + x.size(), x.begin());
+    at += x.size();
   }
 }
 
@@ -425,16 +559,20 @@ void ShardedResiduals::Abandon(const std::string& message) {
 // workers
 
 int ServeFit(const io::ExperimentConfig* config, int threads, const std::string& failure) {
+  // a stop signal ends the fit after the iteration (rank 0 decides), not this rank at once
+  for (int s : kStopSignals) std::signal(s, OnWorkerStop);
   // the same problem as rank 0's, prepared (bad input is found here, on every rank)
   std::string error = failure;
   run::BuiltProblem bp;
+  FitOptions options, base;        // as prepared now; as the experiment says
+  std::unique_ptr<Problem> start;  // the current start's Problem (--starts), after the first
   Problem::Impl* impl = nullptr;
   if (config && error.empty()) {
     try {
       bp = run::BuildProblem(*config, threads);
-      FitOptions options = bp.options;
-      CheckShardable(&options);
+      options = bp.options;
       options.verbose = false;
+      base = options;
       // a sharded start: this rank's sequences only
       const int rank = Rank(), ranks = Size();
       bp.problem->ShardStart(
@@ -451,20 +589,66 @@ int ServeFit(const io::ExperimentConfig* config, int threads, const std::string&
     return 0;  // the same failure on rank 0, which reports it
   }
   const int rank = Rank(), n = static_cast<int>(impl->z.size() + impl->m.size());
-  const std::vector<int> ranges = SegmentRanges(*impl, Size());
+  std::vector<int> ranges = LeafRanges(*impl, Size());
   std::vector<double> command(kHeader + n), send;
   Share share;
   // evaluate at every point rank 0 sends, until it finishes
   for (;;) {
     MPI_Bcast(command.data(), kHeader + n, MPI_DOUBLE, 0, MPI_COMM_WORLD);
     if (command[0] == kFinish) break;
+    if (command[0] == kStates) {
+      SendStates(*impl, ranges[rank], ranges[rank + 1]);
+      continue;
+    }
+    if (command[0] == kStart) {
+      // the next start: bp's Problem at the start values, prepared; then the agreement
+      std::string not_ready;
+      Problem::Impl* next = nullptr;
+      try {
+        Eigen::VectorXd values(static_cast<Eigen::Index>(bp.parameters.size()));
+        for (Eigen::Index j = 0; j < values.size(); ++j) values[j] = command[kHeader + j];
+        start = run::ProblemFrom(bp, values);
+        const int ranks = Size();
+        start->ShardStart(
+            [rank, ranks](const Problem::Impl& I) { return OwnedSequences(I, rank, ranks); });
+        options = base;
+        next = start->PrepareOnly(options);
+      } catch (const std::exception& e) {
+        not_ready = e.what();
+      }
+      impl = nullptr;  // the previous start's Problem is gone
+      if (!AgreeReady(not_ready.empty(), not_ready, nullptr)) continue;  // rank 0 records it
+      try {
+        AgreeMoves(*next);
+      } catch (const std::exception&) {
+        continue;  // the same failure on rank 0
+      }
+      impl = next;
+      ranges = LeafRanges(*impl, Size());
+      share = Share();
+      continue;
+    }
+    if (command[0] == kPrepare) {
+      // auto's refit in segments: the same input prepared again with rank 0's segment length
+      options.segment_steps = static_cast<int>(command[1]);
+      try {
+        impl = (start ? start : bp.problem)->PrepareOnly(options);
+      } catch (const std::exception& e) {
+        std::fprintf(stderr, "sysid: %s: preparing the refit failed: %s\n", RankName(rank).c_str(),
+                     e.what());
+        MPI_Abort(MPI_COMM_WORLD, 1);
+      }
+      ranges = LeafRanges(*impl, Size());
+      share = Share();
+      continue;
+    }
     std::copy(command.begin() + kHeader, command.begin() + kHeader + impl->z.size(),
               impl->z.begin());
     std::copy(command.begin() + kHeader + impl->z.size(), command.end(), impl->m.begin());
     EvaluateShare(impl, ranges[rank], ranges[rank + 1], command[1] == 1.0, &share, &send);
-    int count = static_cast<int>(send.size());
-    MPI_Gather(&count, 1, MPI_INT, nullptr, 0, MPI_INT, 0, MPI_COMM_WORLD);
-    MPI_Gatherv(send.data(), count, MPI_DOUBLE, nullptr, nullptr, nullptr, MPI_DOUBLE, 0,
+    const int head[2] = {static_cast<int>(send.size()), g_stop ? 1 : 0};
+    MPI_Gather(head, 2, MPI_INT, nullptr, 0, MPI_INT, 0, MPI_COMM_WORLD);
+    MPI_Gatherv(send.data(), head[0], MPI_DOUBLE, nullptr, nullptr, nullptr, MPI_DOUBLE, 0,
                 MPI_COMM_WORLD);
   }
   return 0;

@@ -23,9 +23,30 @@
 // number of samples; it never holds the Jacobian of another rank's segments. The tree makes the
 // root bitwise the same for any rank and thread count, hence the same estimates and iterations.
 //
-// What is sharded: single shooting without estimated initial states (the segments are whole
-// sequences; their states would have to be eliminated on the owning rank). CheckShardable turns
-// `segment_steps: auto` into single shooting and refuses the rest with a message.
+// Free states (multiple shooting with fixed segment_steps, estimated initial states): the leaves
+// of the tree are whole sequences instead of segments, each owned by one rank with all its
+// segments and continuity residuals; the owner solves the sequence's states at every broadcast
+// point and eliminates them (sysid/mpi/state_projection.h: variable projection), so rank 0's
+// Ceres sees z and m only and gets the same (n + 1)^2 blocks. The solved states stay on their
+// rank (the warm start of the next points); rank 0 collects them once after the fit
+// (CollectStates: command kStates, MPI_Gatherv in rank order) for the result.
+//
+// `segment_steps: auto` (sysid/multiple_shooting.h): every rank rolls out and probes every
+// sequence at the initial values in Prepare (one nominal and one probe rollout of each, no
+// Jacobians), so every rank chooses the segments one process chooses, without a collective call
+// before the ranks agree that they are ready. Its refits in segments (the single-shooting
+// Jacobian warned, or the fit did not converge) are Problem::Fit calling itself on rank 0: the
+// second AddResidualBlocks broadcasts kPrepare with the new segment length and every worker
+// prepares again (ServeFit). A worker's Jacobian warning reaches rank 0 with the step it names,
+// so the refit's segments are those of one process.
+//
+// Several starts (--starts, sysid/run/multi_start.h) run one after another, each a Problem of
+// its own on rank 0 (NextProblem before its DistributeResiduals): from the second on,
+// AddResidualBlocks broadcasts kStart with its physical start values, every worker builds the
+// same Problem (run::ProblemFrom) and prepares it, and the ranks agree on readiness and on the
+// parameters' effect again (a failure fails that start only).
+//
+// Stop signals: see ServeFit and SetInterrupt (the fit ends after the current iteration).
 //
 // Faults. A rank that dies (killed, crashed) ends the job through the MPI runtime (mpirun names
 // the rank, its PID and host); rank 0's checkpoint after every successful iteration is written
@@ -39,6 +60,7 @@
 
 #include <ceres/ceres.h>
 
+#include <atomic>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -64,7 +86,7 @@ int Size();     // 1 without MPI
 std::string RankName(int rank);
 
 // Bad input for a sharded fit: a rank that was not ready (the message names the rank and its
-// host), or what is not sharded (CheckShardable)
+// host)
 class RankError : public std::invalid_argument {
  public:
   using std::invalid_argument::invalid_argument;
@@ -73,10 +95,6 @@ class RankError : public std::invalid_argument {
 // every rank once, before the first evaluation: true when every rank is ready (ok); else false and
 // *failure = the message of the lowest failing rank, prefixed with RankName
 bool AgreeReady(bool ok, const std::string& message, std::string* failure);
-
-// single shooting (auto becomes 0); throws RankError (bad input, exit 2) for multiple shooting or
-// estimated initial states, naming the experiment key
-void CheckShardable(FitOptions* options);
 
 // every rank, once, after AgreeReady succeeded: combines Problem::Impl::moves over the ranks (a
 // parameter moves the data when it moves the sequences of some rank: a logical or) and throws
@@ -92,6 +110,12 @@ std::vector<bool> OwnedSequences(const Problem::Impl& impl, int rank, int ranks)
 // the contiguous segment ranges of a prepared fit's ranks: the segments of SequenceRanges' whole
 // sequences (ranks + 1 entries)
 std::vector<int> SegmentRanges(const Problem::Impl& impl, int ranks);
+// The leaves of the tree: whole sequences when the fit has free states (multiple shooting,
+// estimated initial states; each sequence's states eliminated on its rank, state_projection.h),
+// else segments (single shooting: one per sequence). LeafRanges: their ranges per rank.
+bool BySequence(const Problem::Impl& impl);
+int Leaves(const Problem::Impl& impl);
+std::vector<int> LeafRanges(const Problem::Impl& impl, int ranks);
 
 struct Share;  // the buffers of one rank's evaluation (distributed_fit.cc)
 
@@ -115,6 +139,9 @@ class ShardedResiduals : public ResidualShards, public ceres::EvaluationCallback
                          const std::vector<double*>& blocks) override;
   ceres::EvaluationCallback* Callback() override { return this; }
   long long NumResiduals() const override { return rows_; }
+  int EliminatedColumns() const override { return eliminated_; }
+  // rank 0's states of every sequence from their owners (the last Jacobian evaluation's)
+  void CollectStates(Problem::Impl* impl) override;
   // rank 0's share of the start (OwnedSequences)
   std::vector<bool> OwnedSequences(const Problem::Impl& impl) const override;
   // EvaluationCallback: every rank at the current values
@@ -125,6 +152,18 @@ class ShardedResiduals : public ResidualShards, public ceres::EvaluationCallback
   // most once, in any order; the second call does nothing.
   void Finish();
   void Abandon(const std::string& message);
+  // the fit's interrupt flag (FitOptions::interrupt's), set when a worker reports a stop signal
+  // at an evaluation (ServeFit catches SIGINT, SIGTERM and SIGHUP): every rank then stops after
+  // the current iteration and rank 0 writes the result of the last good iterate once
+  void SetInterrupt(std::atomic<bool>* flag) { interrupt_ = flag; }
+  // the next Problem is a new one (FitRunOptions::on_problem, before its DistributeResiduals):
+  // from the second on (--starts), its AddResidualBlocks makes the workers build and prepare it
+  // at its start values; without this call a second AddResidualBlocks is a refit of the same
+  // Problem (auto's segments)
+  void NextProblem() {
+    new_problem_ = true;
+    ++problems_;
+  }
   const ShardStats& stats() const { return stats_; }
 
   // the root of the last evaluation (the residual block's values)
@@ -141,9 +180,12 @@ class ShardedResiduals : public ResidualShards, public ceres::EvaluationCallback
   Problem::Impl* impl_ = nullptr;
   int n_ = 0;
   long long rows_ = 0;
-  bool agreed_ = false, done_ = false;
+  int eliminated_ = 0;  // tangent columns of the free states
+  bool agreed_ = false, done_ = false, new_problem_ = false;
+  int problems_ = 0;
   Root root_;
-  std::vector<int> ranges_, counts_, displs_;
+  std::vector<int> ranges_, counts_, displs_, heads_;
+  std::atomic<bool>* interrupt_ = nullptr;
   std::vector<double> command_, send_, receive_;
   std::unique_ptr<Share> share_;
   ShardStats stats_;
@@ -151,7 +193,9 @@ class ShardedResiduals : public ResidualShards, public ceres::EvaluationCallback
 
 // a worker rank (rank > 0): builds the problem of config (nullptr: this rank already failed with
 // `failure`), agrees on readiness, then evaluates its share of the segments until rank 0
-// finishes. Returns the process exit code: 0 (rank 0 reports every failure).
+// finishes. Catches SIGINT, SIGTERM and SIGHUP (mpirun forwards its own to every rank) and reports
+// them with its next evaluation, so that the fit stops after the current iteration (a second
+// signal ends the rank at once). Returns the process exit code: 0 (rank 0 reports every failure).
 int ServeFit(const io::ExperimentConfig* config, int threads, const std::string& failure);
 
 }  // namespace mjsysid::mpi

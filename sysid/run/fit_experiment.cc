@@ -602,7 +602,7 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   try {
     if (starts > 1) {
       static_cast<FitResult&>(file) =
-          FitFromStarts(bp, options, starts, start_seed, /*progress=*/true);
+          FitFromStarts(bp, options, starts, start_seed, /*progress=*/true, ro.on_problem);
     } else {
       if (ro.on_problem) ro.on_problem(*bp.problem, &options);
       static_cast<FitResult&>(file) = bp.problem->Fit(options);

@@ -78,8 +78,25 @@ RowMatrix SpreadStarts(const std::vector<FitParameter>& parameters, int n, std::
   return out;
 }
 
+std::unique_ptr<Problem> ProblemFrom(const BuiltProblem& bp, const Eigen::VectorXd& initial) {
+  auto problem = std::make_unique<Problem>();
+  for (size_t m = 0; m < bp.models.size(); ++m) {
+    problem->AddModel(bp.model_names[m], *bp.models[m]);
+  }
+  for (size_t j = 0; j < bp.parameters.size(); ++j) {
+    FitParameter p = bp.parameters[j];
+    p.initial = initial[static_cast<Eigen::Index>(j)];
+    problem->AddParameter(p);
+  }
+  for (const FitMeasurement& me : bp.measurements) problem->AddMeasurement(me);
+  for (const FitControlDelay& d : bp.control_delays) problem->AddControlDelay(d);
+  for (const FitSequence& s : bp.sequences) problem->AddSequence(s);
+  return problem;
+}
+
 FitResult FitFromStarts(const BuiltProblem& bp, const FitOptions& options, int n,
-                        std::uint64_t seed, bool progress) {
+                        std::uint64_t seed, bool progress,
+                        const std::function<void(Problem&, FitOptions*)>& on_problem) {
   const auto wall = std::chrono::steady_clock::now();
   const RowMatrix starts = SpreadStarts(bp.parameters, n, seed);
 
@@ -94,7 +111,8 @@ FitResult FitFromStarts(const BuiltProblem& bp, const FitOptions& options, int n
 
   // min(n, threads) fits at a time, the simulator threads divided among them
   const int threads = std::max(1, options.threads);
-  const int concurrent = std::min(n, threads);
+  // (sharded across MPI ranks: one at a time)
+  const int concurrent = on_problem ? 1 : std::min(n, threads);
   FitOptions per_fit = options;
   per_fit.threads = std::max(1, threads / concurrent);
   per_fit.verbose = false;
@@ -121,20 +139,11 @@ FitResult FitFromStarts(const BuiltProblem& bp, const FitOptions& options, int n
       }
       try {
         // a Problem of its own: the same models, measurement terms and sequences
-        Problem problem;
-        for (size_t m = 0; m < bp.models.size(); ++m) {
-          problem.AddModel(bp.model_names[m], *bp.models[m]);
-        }
-        for (size_t j = 0; j < bp.parameters.size(); ++j) {
-          FitParameter p = bp.parameters[j];
-          p.initial = starts(k, static_cast<Eigen::Index>(j));
-          problem.AddParameter(p);
-        }
-        for (const FitMeasurement& me : bp.measurements) problem.AddMeasurement(me);
-        for (const FitControlDelay& d : bp.control_delays) problem.AddControlDelay(d);
-        for (const FitSequence& s : bp.sequences) problem.AddSequence(s);
+        const std::unique_ptr<Problem> problem = ProblemFrom(bp, starts.row(k).transpose());
+        FitOptions fit_options = per_fit;
+        if (on_problem) on_problem(*problem, &fit_options);
         FitResult& r = fits[static_cast<size_t>(k)];
-        r = problem.Fit(per_fit);
+        r = problem->Fit(fit_options);
         rec.estimate.resize(static_cast<Eigen::Index>(r.parameters.size()));
         for (size_t j = 0; j < r.parameters.size(); ++j) {
           rec.estimate[static_cast<Eigen::Index>(j)] = r.parameters[j].value;

@@ -37,6 +37,8 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -54,9 +56,16 @@ double Chi2Quantile(double dof, double z);
 
 // The fits of bp from n starts (n >= 2), options as for one fit (options.threads: all the fits'
 // threads together). progress: one line per finished start on stderr. Throws what a single fit
-// throws when every start fails.
+// throws when every start fails. on_problem (FitRunOptions::on_problem: a fit sharded across MPI
+// ranks, sysid/mpi/): called with each start's Problem before its fit; the starts then run one
+// after another, each with all the threads.
 FitResult FitFromStarts(const BuiltProblem& bp, const FitOptions& options, int n,
-                        std::uint64_t seed, bool progress);
+                        std::uint64_t seed, bool progress,
+                        const std::function<void(Problem&, FitOptions*)>& on_problem = {});
+
+// a Problem of bp's models, measurement terms, control delays and sequences with bp's parameters
+// starting at initial (physical values, one per parameter): one start of FitFromStarts
+std::unique_ptr<Problem> ProblemFrom(const BuiltProblem& bp, const Eigen::VectorXd& initial);
 
 // the local-minimum warnings of a multi-start result (empty when none): see above
 std::vector<std::string> LocalMinimaWarnings(const FitResult& result);
