@@ -52,12 +52,15 @@ class StateBlocks {
     int n;
     T* data() const { return p; }
     size_t size() const { return static_cast<size_t>(n); }
+    T* begin() const { return p; }
+    T* end() const { return p + n; }
   };
   void clear() {
     values_.clear();
     first_.clear();
   }
   size_t size() const { return first_.size(); }
+  bool empty() const { return first_.empty(); }
   // appends a block with the values x
   void push_back(const std::vector<double>& x) {
     first_.push_back(values_.size());

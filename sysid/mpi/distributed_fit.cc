@@ -521,7 +521,8 @@ void ShardedResiduals::CollectStates(Problem::Impl* impl) {
   MPI_Gatherv(mine.data(), count, MPI_DOUBLE, receive_.data(), counts_.data(), displs_.data(),
               MPI_DOUBLE, 0, MPI_COMM_WORLD);
   size_t at = 0;
-  for (std::vector<double>& x : I.states) {
+  for (size_t b = 0; b < I.states.size(); ++b) {
+    const StateBlocks::View<double> x = I.states[b];
     if (at + x.size() > receive_.size()) {
       std::fprintf(stderr,
                    "sysid: broken invariant: the ranks sent fewer states than the fit has\n");

@@ -1,6 +1,7 @@
 // Variable projection of a sequence's free states (sysid/mpi/state_projection.h).
 #include "sysid/mpi/state_projection.h"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -120,7 +121,7 @@ bool StateProjection::Solve(int q, bool jacobians, Eigen::MatrixXd* reduced, dou
   const int k = StateColumns(q);
   // 1. the warm start; the last solve when it had the same point and warm start
   std::vector<std::vector<double>> x, trial;
-  for (int b : blocks) x.push_back(I.states[b]);
+  for (int b : blocks) x.emplace_back(I.states[b].begin(), I.states[b].end());
   std::vector<double> key(I.z.begin(), I.z.end());
   key.insert(key.end(), I.m.begin(), I.m.end());
   for (const std::vector<double>& xb : x) key.insert(key.end(), xb.begin(), xb.end());
@@ -129,7 +130,9 @@ bool StateProjection::Solve(int q, bool jacobians, Eigen::MatrixXd* reduced, dou
     *sum = done.sum;
     if (!jacobians) return true;
     *reduced = done.reduced;
-    for (size_t i = 0; i < blocks.size(); ++i) I.states[blocks[i]] = done.x[i];
+    for (size_t i = 0; i < blocks.size(); ++i) {
+      std::copy(done.x[i].begin(), done.x[i].end(), I.states[blocks[i]].begin());
+    }
     return true;
   }
   // 2. the triangle at x (residuals alone suffice without states to solve)
@@ -176,7 +179,9 @@ bool StateProjection::Solve(int q, bool jacobians, Eigen::MatrixXd* reduced, dou
   done.sum = *sum;
   if (!jacobians) return true;
   *reduced = done.reduced;
-  for (size_t i = 0; i < blocks.size(); ++i) I.states[blocks[i]] = x[i];
+  for (size_t i = 0; i < blocks.size(); ++i) {
+    std::copy(x[i].begin(), x[i].end(), I.states[blocks[i]].begin());
+  }
   return true;
 }
 

@@ -79,13 +79,16 @@ TEST(StateProjectionTest, ReducedBlockIsTheProjectedCost) {
 
   // solved: solving again from the committed states keeps them and the cost (1e-12; measured:
   // the same bits, the predicted decrease below the tolerance at once)
-  const std::vector<std::vector<double>> solved = impl->states;
+  std::vector<std::vector<double>> solved;
+  for (size_t b = 0; b < impl->states.size(); ++b) {
+    solved.emplace_back(impl->states[b].begin(), impl->states[b].end());
+  }
   double again = 0;
   ASSERT_TRUE(projection.Solve(0, true, &R, &again));
   EXPECT_NEAR(again, sum, 1e-12 * sum);
   for (size_t b = 0; b < solved.size(); ++b) {
     for (size_t i = 0; i < solved[b].size(); ++i) {
-      EXPECT_NEAR(impl->states[b][i], solved[b][i], 1e-12) << "block " << b << " entry " << i;
+      EXPECT_NEAR(impl->states[b].data()[i], solved[b][i], 1e-12) << "block " << b << " entry " << i;
     }
   }
 }
