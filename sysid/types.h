@@ -230,6 +230,13 @@ struct FitOptions {
   std::function<void(const IterationInfo&)> on_iteration;  // e.g. checkpoint the iterate
   const std::atomic<bool>* interrupt = nullptr;  // set to stop after the current iteration
   FitStates states;                              // logged states fitted as data (none by default)
+  // multiple shooting: continuity_weight relative to the sensors (the default: a gap of a fraction
+  // f of a state coordinate's spread costs as much as a sensor residual of f of its sensor's
+  // spread; sysid/multiple_shooting.h, ContinuityWeights), or absolute (false: the weight itself)
+  bool continuity_relative = true;
+  // auto's contact segments (sysid/multiple_shooting.h, OmitJumpingSensors): fit the touch,
+  // accelerometer, force and torque sensors too (true), or leave them out with a warning (false)
+  bool fit_jumping_sensors = false;
 };
 
 // one estimated variable: a physical parameter or a measurement term ("<sensor>.delay", ...)
