@@ -142,8 +142,10 @@ HorizonChoice ChooseHorizon(Problem::Impl& I, const std::vector<Trajectory>& ini
     for (size_t k = 1; k < t.ncon.size(); ++k) changes += t.ncon[k] != t.ncon[k - 1] ? 1 : 0;
     steps += static_cast<long long>(t.ncon.size());
   }
+  // events (impacts, touch-downs) rather than chatter: at most kContactEventRate of the steps
+  const bool events = changes > 0 && changes <= kContactEventRate * static_cast<double>(steps);
   std::string contact_source;
-  for (size_t q = 0; changes > 0 && q < I.sequences.size() && contact_source.empty(); ++q) {
+  for (size_t q = 0; events && q < I.sequences.size() && contact_source.empty(); ++q) {
     if (I.grids[q].steps < 2 * kContactSegmentSteps) continue;
     std::vector<double> x;
     const std::string source =
@@ -163,6 +165,13 @@ HorizonChoice ChooseHorizon(Problem::Impl& I, const std::vector<Trajectory>& ini
     }
     out.reason = "single shooting: sensitivity bounded (growth beyond linear x" +
                  FormatDigits(worst_e, 3) + " <= " + FormatDigits(kExponentialGrowth, 3) + ")";
+    if (changes > 0 && !events) {
+      out.reason +=
+          "; the contact count changes at " +
+          FormatDigits(100.0 * static_cast<double>(changes) / static_cast<double>(steps), 3) +
+          " % of the steps (> " + FormatDigits(100 * kContactEventRate, 3) +
+          " %: chatter, which segments do not isolate)";
+    }
     return out;
   }
   out.steps =

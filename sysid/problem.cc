@@ -688,9 +688,7 @@ FitResult Problem::Fit(const FitOptions& options) {
 
   // auto: single shooting that did not converge on a system whose probe grew well beyond linear
   // is refitted in multiple shooting (sysid/multiple_shooting.h, SegmentStepsAfterFailure); the
-  // refit is the result when it converges, or when it ended (not stuck at its start, not
-  // interrupted) at a lower final cost (sensor rows plus continuity rows, in the same weighted
-  // units), saying so; else this one stays, saying so
+  // refit is the result when it converges, else this one stays, saying so
   if (options.segment_steps < 0 && prepared.segment_steps == 0 && !result.converged &&
       !result.interrupted) {
     int shortest = std::numeric_limits<int>::max();
@@ -701,17 +699,7 @@ FitResult Problem::Fit(const FitOptions& options) {
         SegmentStepsAfterFailure(prepared.probe_growth, prepared.probe_rate, shortest, &reason);
     if (segmented.segment_steps > 0) {
       FitResult refit = Fit(segmented);
-      const bool lower = refit.outcome != FitStatus::kDidNotMove &&
-                         refit.outcome != FitStatus::kInterrupted &&
-                         refit.final_cost < result.final_cost;
-      if (refit.outcome == FitStatus::kConverged || lower) {
-        if (refit.outcome != FitStatus::kConverged) {
-          refit.warnings.push_back(
-              "auto: single shooting ended " + std::string(FitStatusName(result.outcome)) +
-              " at cost " + FormatDigits(result.final_cost, 4) +
-              "; the multiple-shooting refit ended " + FitStatusName(refit.outcome) +
-              " at the lower cost " + FormatDigits(refit.final_cost, 4) + " and is the result");
-        }
+      if (refit.outcome == FitStatus::kConverged) {
         const size_t from = refit.segment_reason.find("segment states");
         refit.segment_reason =
             reason + (from == std::string::npos ? "" : "; " + refit.segment_reason.substr(from));
