@@ -146,7 +146,10 @@ HorizonChoice ChooseHorizon(Problem::Impl& I, const std::vector<Trajectory>& ini
   const bool events = changes > 0 && changes <= kContactEventRate * static_cast<double>(steps);
   std::string contact_source;
   for (size_t q = 0; events && q < I.sequences.size() && contact_source.empty(); ++q) {
-    if (I.grids[q].steps < 2 * kContactSegmentSteps) continue;
+    if (I.grids[q].steps < 2 * kContactSegmentSteps ||
+        initial[q].states.rows() <= kContactSegmentSteps) {
+      continue;  // too short, or not simulated here (a sharded start)
+    }
     std::vector<double> x;
     const std::string source =
         SegmentStart(I, static_cast<int>(q), kContactSegmentSteps, initial[q], &x);
