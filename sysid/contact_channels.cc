@@ -6,6 +6,21 @@
 
 namespace mjsysid {
 
+const char* JumpingSensorType(const mjModel& m, int sensor_id) {
+  switch (m.sensor_type[sensor_id]) {
+    case mjSENS_TOUCH:
+      return "touch";
+    case mjSENS_ACCELEROMETER:
+      return "accelerometer";
+    case mjSENS_FORCE:
+      return "force";
+    case mjSENS_TORQUE:
+      return "torque";
+    default:
+      return nullptr;
+  }
+}
+
 std::vector<std::string> DiscontinuousChannelWarnings(const mjModel& m,
                                                       const std::vector<std::string>& fitted,
                                                       const std::vector<Trajectory>& rollouts) {
@@ -21,23 +36,7 @@ std::vector<std::string> DiscontinuousChannelWarnings(const mjModel& m,
   for (const std::string& name : fitted) {
     const int id = mj_name2id(&m, mjOBJ_SENSOR, name.c_str());
     if (id < 0) continue;
-    const char* type = nullptr;
-    switch (m.sensor_type[id]) {
-      case mjSENS_TOUCH:
-        type = "touch";
-        break;
-      case mjSENS_ACCELEROMETER:
-        type = "accelerometer";
-        break;
-      case mjSENS_FORCE:
-        type = "force";
-        break;
-      case mjSENS_TORQUE:
-        type = "torque";
-        break;
-      default:
-        break;
-    }
+    const char* type = JumpingSensorType(m, id);
     if (!type) continue;
     out.push_back("sensor '" + name + "' (" + type +
                   ") jumps when a contact switches on or off (the rollouts at the initial values "

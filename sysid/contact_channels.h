@@ -20,6 +20,10 @@
 
 namespace mjsysid {
 
+// "touch", "accelerometer", "force" or "torque" for a sensor of those types (their reading jumps
+// with a contact or spikes at an impact), nullptr for any other
+const char* JumpingSensorType(const mjModel& m, int sensor_id);
+
 // One warning per fitted sensor (names in `fitted`) of type touch, accelerometer, force or torque
 // when the rollouts of this model (at the initial values) change their contact count at least once
 // (Trajectory::ncon); none otherwise. Each names the sensor, its type and the contact-count

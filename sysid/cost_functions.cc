@@ -146,17 +146,18 @@ bool SegmentCost::EvaluateOrThrow(double const* const* parameters, double* resid
     }
   }
 
-  // continuity: w * (x_end (-) x_next) in tangent space (the difference is MuJoCo's
-  // mj_differentiatePos); its Jacobian is w times the end-state rows of DxDp for the core's
-  // columns and -w I for the next x_0's tangent, exact off orientations; the 3 rows of a ball or
+  // continuity: w_i * (x_end (-) x_next)_i in tangent space (w per row: ContinuityWeights,
+  // equal over an orientation's 3 rows; the difference is MuJoCo's mj_differentiatePos); its
+  // Jacobian is w_i times the end-state rows of DxDp for the core's
+  // columns and -w_i I for the next x_0's tangent, exact off orientations; the 3 rows of a ball or
   // free joint's orientation d = log(q_next^-1 q_end) are then mixed by Jr^-1(d) (end state)
   // and Jr^-1(d)^T (next state) (InverseRightJacobianSO3, core/state.h)
   if (seg.next >= 0) {
-    const double w = I.options.continuity_weight;
+    const std::vector<double>& w = I.continuity_weights[seg.model];  // per tangent row
     const int r0 = row + 1;
     std::vector<double> d(nx);
     TangentDifference(sim.model(), xn, tr.states.row(seg.T).data(), 1.0, d.data());
-    for (int i = 0; i < nx; ++i) residuals[r0 + i] = w * d[i];
+    for (int i = 0; i < nx; ++i) residuals[r0 + i] = w[i] * d[i];
     if (want) {
       const auto S = s.DxDp.middleRows(static_cast<Eigen::Index>(seg.T) * nx, nx);
       if (zb >= 0 && jacobians[zb]) {
@@ -164,7 +165,7 @@ bool SegmentCost::EvaluateOrThrow(double const* const* parameters, double* resid
         for (int i = 0; i < nx; ++i) {
           for (int j = 0; j < npm; ++j) {
             const int g = mo.global[j];
-            jacobians[zb][(r0 + i) * nz + g] = w * S(i, j) * I.DpDz(g, zv[g]);
+            jacobians[zb][(r0 + i) * nz + g] = w[i] * S(i, j) * I.DpDz(g, zv[g]);
           }
         }
       }
@@ -173,7 +174,7 @@ bool SegmentCost::EvaluateOrThrow(double const* const* parameters, double* resid
           for (int a = 0; a < dims.nphys; ++a) {
             double v = 0;
             for (int t = 0; t < nx; ++t) v += S(i, npm + t) * pinv[t * dims.nphys + a];
-            jacobians[xb][(r0 + i) * dims.nphys + a] = w * v;
+            jacobians[xb][(r0 + i) * dims.nphys + a] = w[i] * v;
           }
         }
       }
@@ -182,7 +183,7 @@ bool SegmentCost::EvaluateOrThrow(double const* const* parameters, double* resid
         mo.manifold->PlusJacobianPseudoInverse(xn, pn.data());
         for (int i = 0; i < nx; ++i) {
           for (int a = 0; a < dims.nphys; ++a) {
-            jacobians[nb][(r0 + i) * dims.nphys + a] = -w * pn[i * dims.nphys + a];
+            jacobians[nb][(r0 + i) * dims.nphys + a] = -w[i] * pn[i * dims.nphys + a];
           }
         }
       }
@@ -239,7 +240,7 @@ void SegmentCost::Residuals(const Trajectory& tr, const double* mv, const double
   if (seg.next >= 0) {
     const int nx = sim.dims().nx;
     TangentDifference(sim.model(), xn, tr.states.row(seg.T).data(), 1.0, out + row);
-    for (int i = 0; i < nx; ++i) out[row + i] *= I.options.continuity_weight;
+    for (int i = 0; i < nx; ++i) out[row + i] *= I.continuity_weights[seg.model][i];
   }
 }
 

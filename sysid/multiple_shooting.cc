@@ -13,6 +13,7 @@
 
 #include "core/state.h"
 #include "core/text.h"
+#include "sysid/contact_channels.h"
 
 namespace mjsysid {
 
@@ -169,17 +170,196 @@ HorizonChoice ChooseHorizon(Problem::Impl& I, const std::vector<Trajectory>& ini
     }
   }
   out.growth = worst_e;
+  // contacts: the nominal rollouts change their contact count, and a segment at step
+  // kContactSegmentSteps of the first long enough sequence starts on the data
+  long long changes = 0, steps = 0;
+  for (const Trajectory& t : initial) {
+    for (size_t k = 1; k < t.ncon.size(); ++k) changes += t.ncon[k] != t.ncon[k - 1] ? 1 : 0;
+    steps += static_cast<long long>(t.ncon.size());
+  }
+  // events (impacts, touch-downs) rather than chatter: at most kContactEventRate of the steps
+  const bool events = changes > 0 && changes <= kContactEventRate * static_cast<double>(steps);
+  std::string contact_source;
+  for (size_t q = 0; events && q < I.sequences.size() && contact_source.empty(); ++q) {
+    if (I.grids[q].steps < 2 * kContactSegmentSteps ||
+        initial[q].states.rows() <= kContactSegmentSteps) {
+      continue;  // too short, or not simulated here (a sharded start)
+    }
+    std::vector<double> x;
+    const std::string source =
+        SegmentStart(I, static_cast<int>(q), kContactSegmentSteps, initial[q], &x);
+    if (source != "the rollout") contact_source = source;
+  }
+  const std::string contacts = "the rollouts change their contact count " +
+                               std::to_string(changes) + " times in " + std::to_string(steps) +
+                               " steps and the segments start on the " + contact_source;
   if (first < 0) {
+    if (!contact_source.empty()) {
+      out.steps = kContactSegmentSteps;
+      out.contacts = true;
+      out.reason = "multiple shooting: " + contacts + ": segments of " + std::to_string(out.steps) +
+                   " steps";
+      return out;
+    }
     out.reason = "single shooting: sensitivity bounded (growth beyond linear x" +
                  FormatDigits(worst_e, 3) + " <= " + FormatDigits(kExponentialGrowth, 3) + ")";
+    if (changes > 0 && !events) {
+      out.reason +=
+          "; the contact count changes at " +
+          FormatDigits(100.0 * static_cast<double>(changes) / static_cast<double>(steps), 3) +
+          " % of the steps (> " + FormatDigits(100 * kContactEventRate, 3) +
+          " %: chatter, which segments do not isolate)";
+    }
     return out;
   }
   out.steps =
       std::max(static_cast<int>(std::ceil(std::log(kSegmentGrowth) / rate)), kMinSegmentSteps);
   out.reason = "multiple shooting: sensitivity grows exponentially, rate " + FormatDigits(rate, 3) +
                " per step (x" + FormatDigits(kExponentialGrowth, 3) + " beyond linear at step " +
-               std::to_string(first) + " of sequence '" + where + "'): segments of " +
-               std::to_string(out.steps) + " steps";
+               std::to_string(first) + " of sequence '" + where + "')";
+  if (!contact_source.empty() && kContactSegmentSteps < out.steps) {
+    out.steps = kContactSegmentSteps;
+    out.contacts = true;
+    out.reason += " and " + contacts;
+  }
+  out.reason += ": segments of " + std::to_string(out.steps) + " steps";
+  return out;
+}
+
+// Auto's contact segments: the sensors that jump at contact events left out (see the header)
+std::vector<std::string> OmitJumpingSensors(Problem::Impl& I) {
+  std::vector<std::string> omitted;  // "model/sensor (type)" once each
+  for (size_t q = 0; q < I.sequences.size(); ++q) {
+    const mjModel& m = I.models[I.ModelIndex(I.sequences[q].model)].sim->model();
+    std::vector<bool> jumps(I.channels[q].size(), false);
+    bool any_kept = false;
+    for (size_t c = 0; c < I.channels[q].size(); ++c) {
+      // the sensor of the column
+      int id = 0;
+      while (id + 1 < m.nsensor && m.sensor_adr[id + 1] <= I.channels[q][c].column) ++id;
+      jumps[c] = JumpingSensorType(m, id) != nullptr;
+      any_kept = any_kept || !jumps[c];
+    }
+    if (!any_kept) continue;
+    std::vector<Channel> channels;
+    std::vector<int> missing;
+    for (size_t c = 0; c < jumps.size(); ++c) {
+      if (jumps[c]) continue;
+      channels.push_back(I.channels[q][c]);
+      missing.push_back(I.missing[q][c]);
+    }
+    I.channels[q] = std::move(channels);
+    I.missing[q] = std::move(missing);
+    std::vector<std::string> fitted;
+    for (const std::string& name : I.fitted[q]) {
+      const int id = mj_name2id(&m, mjOBJ_SENSOR, name.c_str());
+      const char* type = id >= 0 ? JumpingSensorType(m, id) : nullptr;
+      if (!type) {
+        fitted.push_back(name);
+        continue;
+      }
+      const std::string what = "'" + name + "' (" + type + ")";
+      if (std::find(omitted.begin(), omitted.end(), what) == omitted.end()) omitted.push_back(what);
+    }
+    I.fitted[q] = std::move(fitted);
+  }
+  std::vector<std::string> warnings;
+  for (const std::string& what : omitted) {
+    warnings.push_back("sensor " + what +
+                       " left out of the fit: auto chose contact segments, and its residuals "
+                       "are dominated by the timing of contact events (fitted, it made the robust "
+                       "suite's contact fits worse: docs/stress.md); it is not in the chi-square "
+                       "test nor in the result's sequences. multiple_shooting: {jumping_sensors: "
+                       "fit} keeps it");
+  }
+  return warnings;
+}
+
+// Continuity weights (see the header)
+std::vector<std::vector<double>> ContinuityWeights(const Problem::Impl& I,
+                                                   const std::vector<Trajectory>& initial,
+                                                   const FitOptions& options,
+                                                   std::string* summary) {
+  constexpr double kSpreadFloor = 1e-3;  // of the largest spread of the same part
+  std::vector<std::vector<double>> out(I.models.size());
+  double lo = std::numeric_limits<double>::infinity(), hi = 0, shown_scale = 0;
+  for (size_t mi = 0; mi < I.models.size(); ++mi) {
+    const Simulator& sim = *I.models[mi].sim;
+    const mjModel& m = sim.model();
+    const StateDims& dims = sim.dims();
+    out[mi].assign(dims.nx, options.continuity_weight);
+    if (!options.continuity_relative) continue;
+    // S: the median of weight * spread over the fitted sensor columns of this model's sequences
+    std::vector<double> scaled;
+    // s_i: running sums of tangent coordinate i (from the sequence's first state) over samples
+    Eigen::VectorXd sum = Eigen::VectorXd::Zero(dims.nx), sum2 = sum, d(dims.nx);
+    double n = 0;
+    for (size_t q = 0; q < I.sequences.size(); ++q) {
+      const FitSequence& sq = I.sequences[q];
+      if (I.ModelIndex(sq.model) != static_cast<int>(mi) || initial[q].states.rows() == 0) continue;
+      for (const Channel& ch : I.channels[q]) {
+        double s1 = 0, s2 = 0, c = 0;
+        for (Eigen::Index k = 0; k < sq.measured.rows(); ++k) {
+          const double y = sq.measured(k, ch.column);
+          if (std::isnan(y)) continue;
+          s1 += y, s2 += y * y, ++c;
+        }
+        if (c > 1) scaled.push_back(ch.weight * std::sqrt(std::max(0.0, s2 / c - s1 * s1 / c / c)));
+      }
+      const Trajectory& tr = initial[q];
+      const std::vector<double>& position = I.grids[q].position;
+      const bool logged = sq.qpos.cols() == m.nq && sq.qvel.cols() == m.nv;
+      Eigen::VectorXd x(tr.states.cols());
+      const Eigen::VectorXd x_ref = tr.states.row(0).transpose();
+      for (size_t i = 0; i < position.size(); ++i) {
+        const int k = static_cast<int>(std::lround(position[i]));
+        if (k < 0 || k > tr.T) continue;
+        x = tr.states.row(k).transpose();
+        if (logged && static_cast<Eigen::Index>(i) < sq.qpos.rows() && sq.qpos.row(i).allFinite() &&
+            sq.qvel.row(i).allFinite()) {
+          x.head(m.nq) = sq.qpos.row(i).transpose();
+          x.segment(m.nq, m.nv) = sq.qvel.row(i).transpose();
+        }
+        TangentDifference(m, x.data(), x_ref.data(), 1.0, d.data());
+        sum += d, sum2 += d.cwiseAbs2(), n += 1;
+      }
+    }
+    if (scaled.empty() || n < 2) continue;
+    std::nth_element(scaled.begin(), scaled.begin() + scaled.size() / 2, scaled.end());
+    const double S = scaled[scaled.size() / 2];
+    if (!(S > 0)) continue;
+    Eigen::VectorXd spread = (sum2 / n - (sum / n).cwiseAbs2()).cwiseMax(0.0).cwiseSqrt();
+    // one weight for the 3 rows of a ball or free joint's orientation (the cost functions mix
+    // those rows by Jr^-1, which commutes with a multiple of the identity only)
+    for (int j = 0; j < m.njnt; ++j) {
+      if (m.jnt_type[j] != mjJNT_BALL && m.jnt_type[j] != mjJNT_FREE) continue;
+      const int k = m.jnt_dofadr[j] + (m.jnt_type[j] == mjJNT_FREE ? 3 : 0);
+      spread.segment(k, 3).setConstant(spread.segment(k, 3).maxCoeff());
+    }
+    // the parts: positions [0, nv), velocities [nv, 2 nv), activations [2 nv, nx)
+    const int part_start[3] = {0, dims.nv, 2 * dims.nv}, part_size[3] = {dims.nv, dims.nv, dims.na};
+    for (int p = 0; p < 3; ++p) {
+      if (part_size[p] == 0) continue;
+      const double largest = spread.segment(part_start[p], part_size[p]).maxCoeff();
+      for (int i = part_start[p]; i < part_start[p] + part_size[p]; ++i) {
+        const double s_i = std::max(spread[i], kSpreadFloor * largest);
+        if (s_i > 0) out[mi][i] = options.continuity_weight * S / s_i;
+        lo = std::min(lo, out[mi][i]);
+        hi = std::max(hi, out[mi][i]);
+      }
+    }
+    shown_scale = std::max(shown_scale, S);
+  }
+  if (!options.continuity_relative) {
+    *summary = "continuity weight " + FormatDigits(options.continuity_weight, 3) + " (absolute)";
+  } else if (hi > 0) {
+    *summary = "continuity weights " + FormatDigits(options.continuity_weight, 3) +
+               " x S / state spread = " + FormatDigits(lo, 3) + " .. " + FormatDigits(hi, 3) +
+               " (S, sensor weight x spread: " + FormatDigits(shown_scale, 3) + ")";
+  } else {
+    *summary = "continuity weight " + FormatDigits(options.continuity_weight, 3) +
+               " (no sensor or state spread to scale it)";
+  }
   return out;
 }
 

@@ -118,6 +118,9 @@ struct Problem::Impl {
   // channel, the samples not measured (NaN, masked)
   std::vector<std::vector<StateChannel>> state_channels;
   std::vector<std::vector<int>> state_missing;
+  // multiple shooting: per model, per tangent coordinate (nx): the continuity rows' weights
+  // (sysid/multiple_shooting.h, ContinuityWeights)
+  std::vector<std::vector<double>> continuity_weights;
 
   // What the cost functions met during a fit, so that FitResult::warnings can say it (a rejected
   // trial point or a Jacobian past its validity is otherwise invisible to the user): the number

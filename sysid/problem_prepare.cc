@@ -478,6 +478,10 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
   if (I.owned_sequences && (horizon.steps > 0 || options.estimate_initial_state)) {
     RolloutUnowned(&I, &initial);
   }
+  // auto's contact segments: the sensors that jump at contact events left out, saying so
+  if (horizon.contacts && !options.fit_jumping_sensors) {
+    for (std::string& w : OmitJumpingSensors(I)) I.prepare_warnings.push_back(std::move(w));
+  }
   std::string start_source;
   for (size_t q = 0; q < I.sequences.size(); ++q) {
     const int T = I.grids[q].steps;  // simulation steps
@@ -516,6 +520,12 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
   }
 
   if (!start_source.empty()) out->segment_reason += "; segment states from " + start_source;
+  // the continuity rows' weights, scaled to the sensors (sysid/multiple_shooting.h)
+  bool joined = false;
+  for (const Segment& seg : I.segments) joined = joined || seg.next >= 0;
+  std::string weights;
+  I.continuity_weights = ContinuityWeights(I, initial, options, &weights);
+  if (joined) out->segment_reason += "; " + weights;
 
   // evaluation cache, seeded with the initial rollouts (and Jacobians) of whole sequences
   std::vector<EvaluationCache::Model> simulated;

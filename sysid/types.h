@@ -233,6 +233,13 @@ struct FitOptions {
   // fit on a reduced copy of each model (core/reduced_model.h): island discovery and collision
   // pairs that never come near switched off, guarded; the estimate is the same bit for bit
   bool reduce_model = true;
+  // multiple shooting: continuity_weight relative to the sensors (the default: a gap of a fraction
+  // f of a state coordinate's spread costs as much as a sensor residual of f of its sensor's
+  // spread; sysid/multiple_shooting.h, ContinuityWeights), or absolute (false: the weight itself)
+  bool continuity_relative = true;
+  // auto's contact segments (sysid/multiple_shooting.h, OmitJumpingSensors): fit the touch,
+  // accelerometer, force and torque sensors too (true), or leave them out with a warning (false)
+  bool fit_jumping_sensors = false;
 };
 
 // one estimated variable: a physical parameter or a measurement term ("<sensor>.delay", ...)

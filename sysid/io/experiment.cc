@@ -188,10 +188,32 @@ ExperimentConfig Parser::Parse(const YAML::Node& root) {
     }
     c.options.segment_steps = -1;
   } else if (r.Has("multiple_shooting")) {
-    const MapReader s(*this, r.Get("multiple_shooting"), {"segment_steps", "continuity_weight"});
+    const MapReader s(
+        *this, r.Get("multiple_shooting"),
+        {"segment_steps", "continuity_weight", "continuity_scale", "jumping_sensors"});
     if (s.Has("segment_steps")) c.options.segment_steps = segment_steps(s.Get("segment_steps"));
     if (s.Has("continuity_weight")) {
       c.options.continuity_weight = Positive(s.Get("continuity_weight"));
+    }
+    // continuity_scale: relative (the default: to the sensors) or absolute
+    if (s.Has("continuity_scale")) {
+      const Field f = s.Get("continuity_scale");
+      const std::string v = f.node.IsScalar() ? f.node.Scalar() : "";
+      if (v != "relative" && v != "absolute") {
+        Fail(f.mark, f.path + ": expected 'relative' or 'absolute', got " + Quote(v),
+             "multiple_shooting: {continuity_scale: relative|absolute}");
+      }
+      c.options.continuity_relative = v == "relative";
+    }
+    // jumping_sensors: omit (the default: left out under auto's contact segments) or fit
+    if (s.Has("jumping_sensors")) {
+      const Field f = s.Get("jumping_sensors");
+      const std::string v = f.node.IsScalar() ? f.node.Scalar() : "";
+      if (v != "omit" && v != "fit") {
+        Fail(f.mark, f.path + ": expected 'omit' or 'fit', got " + Quote(v),
+             "multiple_shooting: {jumping_sensors: omit|fit}");
+      }
+      c.options.fit_jumping_sensors = v == "fit";
     }
   }
   if (r.Has("states")) ParseStates(r.Get("states"), &c);

@@ -520,6 +520,8 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
       {"estimate_initial_state", options.estimate_initial_state ? "true" : "false"},
       {"segment_steps", std::to_string(options.segment_steps)},
       {"continuity_weight", FormatG17(options.continuity_weight)},
+      {"continuity_scale", options.continuity_relative ? "relative" : "absolute"},
+      {"jumping_sensors", options.fit_jumping_sensors ? "fit" : "omit"},
       {"mujoco_solver_tolerance", "min(model, " + FormatG17(sim_defaults.solver_tolerance) + ")"},
       {"minimizer", "ceres levenberg-marquardt"},
       {"starts", std::to_string(starts)},

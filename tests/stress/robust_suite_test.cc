@@ -47,9 +47,9 @@ const std::string kSuite = std::string(MJSYSID_EXPERIMENTS_DIR) + "/robust";
 const std::vector<std::string> kCases = {"cartpole_swing", "acrobot", "finger",
                                          "hopper",         "walker",  "crate"};
 
-// the cases that must recover today with the experiment default (single shooting until
-// `multiple_shooting: auto` is the default): converged, every estimate within kTolerance of its
-// truth. The goal is every case.
+// the cases that must recover today with the experiment default (`multiple_shooting: auto`):
+// converged, every estimate within kTolerance of its truth. The goal is every case; the contact
+// cases end honestly without recovering (docs/stress.md).
 const std::vector<std::string> kRecovery = {"cartpole_swing", "acrobot"};
 constexpr double kTolerance = 0.05;  // relative
 
@@ -188,6 +188,21 @@ TEST_P(RobustSuiteTest, EndsHonestly) {
   const std::map<std::string, int> kJumping = {{"cartpole_swing", 0}, {"acrobot", 0}, {"finger", 1},
                                                {"hopper", 2},         {"walker", 1},  {"crate", 1}};
   EXPECT_EQ(jumping, kJumping.at(name)) << "sensors named as jumping at contact events";
+  // auto (no override): the cases whose contacts change at events (finger, hopper, walker) get
+  // contact segments started on the logged states and leave those sensors out of the fit, saying
+  // so (sysid/multiple_shooting.h); the crate's contacts chatter (~20 % of the steps) and the
+  // contact-free cases have none: they keep single shooting
+  if (segment_steps == -2) {
+    int omitted = 0;
+    for (const std::string& w : out.file.warnings) {
+      omitted += w.find("left out of the fit") != std::string::npos ? 1 : 0;
+    }
+    const bool events = name == "finger" || name == "hopper" || name == "walker";
+    EXPECT_EQ(omitted, events ? kJumping.at(name) : 0) << "jumping sensors left out of the fit";
+    const bool contact_segments =
+        out.file.segment_reason.find("change their contact count") != std::string::npos;
+    EXPECT_EQ(contact_segments, events) << out.file.segment_reason;
+  }
 
   // honest: converged means exit 0, valid intervals and every truth inside them; anything else
   // is a non-zero exit code with intervals not valid

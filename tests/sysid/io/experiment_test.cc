@@ -252,6 +252,23 @@ TEST_F(ExperimentTest, MultipleShootingAutoForms) {
               "segment_steps: auto|0|N");
 }
 
+// multiple_shooting: continuity_scale relative (default) | absolute, jumping_sensors omit (default)
+// | fit; other values name the key, its line and the forms
+TEST_F(ExperimentTest, MultipleShootingContinuityScaleAndJumpingSensors) {
+  const std::string base = kPendulum;
+  const ExperimentConfig d = LoadExperiment(Write("d.yaml", base));
+  EXPECT_TRUE(d.options.continuity_relative);
+  EXPECT_FALSE(d.options.fit_jumping_sensors);
+  const ExperimentConfig c = LoadExperiment(Write(
+      "e.yaml", base + "multiple_shooting: {continuity_scale: absolute, jumping_sensors: fit}\n"));
+  EXPECT_FALSE(c.options.continuity_relative);
+  EXPECT_TRUE(c.options.fit_jumping_sensors);
+  ExpectError(base + "multiple_shooting: {continuity_scale: sensors}\n", 4, 39,
+              "expected 'relative' or 'absolute'", "continuity_scale: relative|absolute");
+  ExpectError(base + "multiple_shooting: {jumping_sensors: drop}\n", 4, 38,
+              "expected 'omit' or 'fit'", "jumping_sensors: omit|fit");
+}
+
 TEST_F(ExperimentTest, MinimalFileGetsTheDefaults) {
   const ExperimentConfig c = LoadExperiment(Write("swing.yaml", kPendulum));
   EXPECT_EQ(c.name, "swing");
