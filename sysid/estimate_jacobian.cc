@@ -3,6 +3,8 @@
 #include "sysid/estimate_jacobian.h"
 
 #include <algorithm>
+#include <cstdio>
+#include <cstdlib>
 #include <map>
 #include <vector>
 
@@ -11,10 +13,13 @@
 
 namespace mjsysid {
 
-bool EvaluateTriangle(const ceres::Problem& problem, EstimateTriangle* out) {
-  // the columns: every parameter block in the order added, its tangent size wide
-  std::vector<double*> blocks;
-  problem.GetParameterBlocks(&blocks);
+bool EvaluateTriangle(const ceres::Problem& problem, const std::vector<double*>& blocks,
+                      EstimateTriangle* out) {
+  // the columns: every parameter block in the caller's order, its tangent size wide
+  if (static_cast<int>(blocks.size()) != problem.NumParameterBlocks()) {
+    std::fprintf(stderr, "sysid: broken invariant: EvaluateTriangle needs every parameter block\n");
+    std::abort();
+  }
   std::map<const double*, int> first_column;
   int n = 0;
   for (double* b : blocks) {

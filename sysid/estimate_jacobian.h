@@ -5,8 +5,10 @@
 // (Ceres' EvaluateResidualBlock: the evaluation callback runs once, for the first block; Jacobians
 // in the tangent space of each parameter block, robust losses of the problem applied) and adds
 // the block's rows [J_b r_b] to a RowTriangle (sysid/uncertainty.h) of width n + 1, n the sum of
-// the tangent sizes of problem's parameter blocks in the order they were added (the column order
-// of ceres::Problem::Evaluate's CRSMatrix). Result: R_aug, min(m, n + 1) x (n + 1), upper
+// the tangent sizes of problem's parameter blocks in the order `blocks` gives (the caller passes
+// the order it added them in, the column order of ceres::Problem::Evaluate's CRSMatrix; Ceres'
+// own GetParameterBlocks lists them by memory address, which changes from run to run). blocks
+// must name every parameter block of problem exactly once (else a broken invariant: abort). Result: R_aug, min(m, n + 1) x (n + 1), upper
 // triangular, with R_aug^T R_aug = [J r]^T [J r] over the m rows, so R_aug.leftCols(n) stands for J
 // and R_aug.col(n) for r in every quadratic form (cost 0.5 |r + J d|^2, J^T J, J^T r). Memory:
 // the residuals and Jacobian of the largest residual block plus O(n^2); the rows go into the
@@ -17,6 +19,7 @@
 #include <ceres/ceres.h>
 
 #include <Eigen/Core>
+#include <vector>
 
 namespace mjsysid {
 
@@ -27,6 +30,7 @@ struct EstimateTriangle {
   int n = 0;              // columns of J (tangent sizes of every parameter block)
 };
 
-bool EvaluateTriangle(const ceres::Problem& problem, EstimateTriangle* out);
+bool EvaluateTriangle(const ceres::Problem& problem, const std::vector<double*>& blocks,
+                      EstimateTriangle* out);
 
 }  // namespace mjsysid

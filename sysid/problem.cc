@@ -477,10 +477,17 @@ FitResult Problem::Fit(const FitOptions& options) {
   if (options.verbose && !interrupted_now()) {
     PrintFitProgress("unc", "Jacobian at the estimate (uncertainty)", I.fit_start);
   }
+  // the triangle's columns in the order the blocks were added (z, m, the state blocks)
+  std::vector<double*> blocks;
+  if (np) blocks.push_back(I.z.data());
+  if (!I.m.empty()) blocks.push_back(I.m.data());
+  for (size_t b = 0; b < I.states.size(); ++b) {
+    if (problem.HasParameterBlock(I.states[b].data())) blocks.push_back(I.states[b].data());
+  }
   ledger.Enter(kPhaseEstimate);
   const bool evaluated =
       !interrupted_now() && (multiple ? problem.Evaluate(eo, &cost, &residuals, nullptr, &crs)
-                                      : EvaluateTriangle(problem, &triangle));
+                                      : EvaluateTriangle(problem, blocks, &triangle));
   ledger.Enter(kPhaseCovariance);
   const bool jacobian_warned_at_estimate = evaluated && !I.jacobian_warnings.empty();
   I.jacobian_warnings.insert(solve_warnings.begin(), solve_warnings.end());
