@@ -40,14 +40,17 @@ void ChooseLinearSolver(Problem::Impl& I, int tangent, ceres::Solver::Options* s
     if (seg.seq != seq) seq = seg.seq, position = 0;
     if (seg.block >= 0) eliminated[seg.block] = position++ % 2 == 0;
   }
+  // Ceres orders the blocks of one group by memory address: z, m and the kept states each get
+  // their own group (the states are contiguous in block order, sysid/problem_impl.h StateBlocks),
+  // so the reduced system's column order, and every sum over it, is the same in every run
   auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
   int reduced = tangent;
   for (size_t b = 0; b < I.states.size(); ++b) {
-    ordering->AddElementToGroup(I.states[b].data(), eliminated[b] ? 0 : 1);
+    ordering->AddElementToGroup(I.states[b].data(), eliminated[b] ? 0 : 3);
     if (eliminated[b]) reduced -= static_cast<int>(I.states[b].size());
   }
   if (!I.z.empty()) ordering->AddElementToGroup(I.z.data(), 1);
-  if (!I.m.empty()) ordering->AddElementToGroup(I.m.data(), 1);
+  if (!I.m.empty()) ordering->AddElementToGroup(I.m.data(), 2);
   so->linear_solver_ordering = ordering;
   so->linear_solver_type = reduced <= 200 ? ceres::DENSE_SCHUR : ceres::SPARSE_SCHUR;
 }
