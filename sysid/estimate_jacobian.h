@@ -8,12 +8,13 @@
 // the tangent sizes of problem's parameter blocks in the order `blocks` gives (the caller passes
 // the order it added them in, the column order of ceres::Problem::Evaluate's CRSMatrix; Ceres'
 // own GetParameterBlocks lists them by memory address, which changes from run to run). blocks
-// must name every parameter block of problem exactly once (else a broken invariant: abort). Result: R_aug, min(m, n + 1) x (n + 1), upper
-// triangular, with R_aug^T R_aug = [J r]^T [J r] over the m rows, so R_aug.leftCols(n) stands for J
-// and R_aug.col(n) for r in every quadratic form (cost 0.5 |r + J d|^2, J^T J, J^T r). Memory:
-// the residuals and Jacobian of the largest residual block plus O(n^2); the rows go into the
-// triangle in the blocks' order, in fixed chunks, so the same values give the same bits.
-// Failure: returns false when a block cannot be evaluated (a failed or cancelled simulation).
+// must name every parameter block of problem exactly once (else a broken invariant: abort). Result:
+// R_aug, min(m, n + 1) x (n + 1), upper triangular, with R_aug^T R_aug = [J r]^T [J r] over the m
+// rows, so R_aug.leftCols(n) stands for J and R_aug.col(n) for r in every quadratic form (cost 0.5
+// |r + J d|^2, J^T J, J^T r). Memory: the residuals and Jacobian of the largest residual block plus
+// O(n^2); the rows go into the triangle in the blocks' order, in fixed chunks, so the same values
+// give the same bits. Failure: returns false when a block cannot be evaluated (a failed or
+// cancelled simulation).
 #pragma once
 
 #include <ceres/ceres.h>

@@ -541,8 +541,8 @@ FitResult Problem::Fit(const FitOptions& options) {
       // residual rows less the states the shards eliminated (they enter the dof as columns)
       const long long residual_rows =
           result.num_residuals - (I.shards ? I.shards->EliminatedColumns() : 0);
-      result.uncertainty = AnalyzeUncertaintyCompressed(
-          triangle.r_aug.leftCols(n), residual_rows, cost, all_names, values, fixed, uo);
+      result.uncertainty = AnalyzeUncertaintyCompressed(triangle.r_aug.leftCols(n), residual_rows,
+                                                        cost, all_names, values, fixed, uo);
       // [J_p r]'s triangle: the parameter columns come first, so R's leading block is J_p's
       RowTriangle tri(nvar + 1);
       RowMatrix rows(triangle.r_aug.rows(), nvar + 1);
