@@ -88,7 +88,8 @@ TEST(StateProjectionTest, ReducedBlockIsTheProjectedCost) {
   EXPECT_NEAR(again, sum, 1e-12 * sum);
   for (size_t b = 0; b < solved.size(); ++b) {
     for (size_t i = 0; i < solved[b].size(); ++i) {
-      EXPECT_NEAR(impl->states[b].data()[i], solved[b][i], 1e-12) << "block " << b << " entry " << i;
+      EXPECT_NEAR(impl->states[b].data()[i], solved[b][i], 1e-12)
+          << "block " << b << " entry " << i;
     }
   }
 }
