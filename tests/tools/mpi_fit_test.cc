@@ -59,6 +59,21 @@ std::string Mpirun(int ranks, const std::string& marker = "none") {
 
 const std::string kSysid = MJSYSID_SYSID_BIN;
 
+// got is want's fit: the same iterations, residual count and status, every estimate and standard
+// error to 1e-12 relative (the ranks' tree gives the same bits)
+void ExpectSameFit(const io::FitResultFile& got, const io::FitResultFile& want) {
+  EXPECT_EQ(got.iterations, want.iterations);
+  EXPECT_EQ(got.num_residuals, want.num_residuals);
+  EXPECT_EQ(got.status, want.status);
+  ASSERT_EQ(got.parameters.size(), want.parameters.size());
+  for (size_t i = 0; i < want.parameters.size(); ++i) {
+    SCOPED_TRACE(want.parameters[i].name);
+    const double v = want.parameters[i].value, se = want.parameters[i].std_error;
+    EXPECT_NEAR(got.parameters[i].value, v, 1e-12 * std::abs(v));
+    EXPECT_NEAR(got.parameters[i].std_error, se, 1e-12 * se);
+  }
+}
+
 // the pendulum of experiments/pendulum.yaml with 4 sequences of 1500 steps (truth damping 0.08,
 // friction loss 0.03, bob mass 1.2; start 0.2, 0.01, 0.8; noise 1e-3 rad, 1e-2 rad/s, seed 1)
 // extra: top-level keys; solver: more solver keys ("loss: {...}, ")
@@ -125,16 +140,7 @@ TEST_F(MpiFitTest, SameEstimatesWithAnyRanksAndThreads) {
                             " --quiet --threads " + std::to_string(threads));
     ASSERT_EQ(run.code, 0) << run.output;
     const io::FitResultFile got = io::ReadResult(out);
-    EXPECT_EQ(got.iterations, want.iterations);
-    EXPECT_EQ(got.num_residuals, want.num_residuals);
-    EXPECT_EQ(got.status, want.status);
-    ASSERT_EQ(got.parameters.size(), want.parameters.size());
-    for (size_t i = 0; i < want.parameters.size(); ++i) {
-      SCOPED_TRACE(want.parameters[i].name);
-      const double v = want.parameters[i].value, se = want.parameters[i].std_error;
-      EXPECT_NEAR(got.parameters[i].value, v, 1e-12 * std::abs(v));
-      EXPECT_NEAR(got.parameters[i].std_error, se, 1e-12 * se);
-    }
+    ExpectSameFit(got, want);
     // the start is sharded: rank 0 rolled out the other ranks' sequences at the initial values
     // for the result only; the same bits as the one rank that simulated all of them
     ASSERT_EQ(got.sequences.size(), want.sequences.size());
@@ -203,15 +209,7 @@ TEST_F(MpiFitTest, MultipleShootingIsShardedBySequence) {
                             " --quiet --threads " + std::to_string(threads));
     ASSERT_EQ(run.code, 0) << run.output;
     const io::FitResultFile got = io::ReadResult(out);
-    EXPECT_EQ(got.iterations, want.iterations);
-    EXPECT_EQ(got.status, want.status);
-    ASSERT_EQ(got.parameters.size(), want.parameters.size());
-    for (size_t i = 0; i < want.parameters.size(); ++i) {
-      SCOPED_TRACE(want.parameters[i].name);
-      const double v = want.parameters[i].value, se = want.parameters[i].std_error;
-      EXPECT_NEAR(got.parameters[i].value, v, 1e-12 * std::abs(v));
-      EXPECT_NEAR(got.parameters[i].std_error, se, 1e-12 * se);
-    }
+    ExpectSameFit(got, want);
     ASSERT_EQ(got.sequences.size(), want.sequences.size());
     for (size_t q = 0; q < want.sequences.size(); ++q) {
       EXPECT_TRUE(got.sequences[q].simulated_final == want.sequences[q].simulated_final)
