@@ -13,6 +13,12 @@
 //
 // Noise: qacc from differenced velocity noise is the weak part; the window (default 5 samples
 // each side) averages it, and the LM then removes what bias remains (this is only a start).
+//
+// Contacts: refused. Treating the contact forces as per-sample unknowns (a normal force per
+// contact, friction mu N against the slip) was measured on the robust suite's sliding crate and
+// does not give a start within 5 % even with exact accelerations: a box's four corners carry a
+// statically indeterminate load (the yaw inertia is not determined) and a pyramidal cone's
+// friction is not opposite the slip (docs/stress.md, "The crate"; tools/bench/crate_probe.py).
 #pragma once
 
 #include <mujoco/mujoco.h>
