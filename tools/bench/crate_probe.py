@@ -7,10 +7,11 @@ steps of 2 ms from the model's rest pose); it does not read the experiment's log
 
   hops            the box's contact events under MuJoCo settings a modeller could choose (cone,
                   impratio, noslip, integrator, timestep, solref, solimp, margin, gap, solver
-                  tolerance, dm_control's stacker.xml contact settings, no friction): steps whose contact count changes, steps with no
-                  contact, the largest lift, and |pos(m (1 + h)) - pos(m)| / h over the mass
-                  steps h (constant over h where the trajectory is smooth in the mass); then the
-                  lift of a box that only slides (no push), started at 0.1 .. 3 m/s.
+                  tolerance, dm_control's stacker.xml contact settings, no friction): steps
+                  whose contact count changes, steps with no contact, the largest lift, and
+                  |pos(m (1 + h)) - pos(m)| / h over the mass steps h (constant over h where the
+                  trajectory is smooth in the mass); then the lift of a box that only slides
+                  (no push), started at 0.1 .. 3 m/s.
   equation-error  the equation-error start with the contact forces as unknowns: per sample, the
                   generalized force mj_inverse needs beyond the pushes (contact forces disabled)
                   must equal sum_i J_i' N_i (n_i - mu t_i), t_i the slip direction of contact i,
@@ -23,8 +24,10 @@ steps of 2 ms from the model's rest pose); it does not read the experiment's log
                   it, for whole sequences (--segments 0) or rollouts restarted from the true
                   states every N steps; 1 % sensor noise; then the cost on the straight line
                   from the start to the truth (--sensors: a subset of pos,quat,gyro,accel).
+  search          the same cost minimized without derivatives (Nelder-Mead in log parameters,
+                  first simplex 10 % wide, 150 iterations) from the start.
 
-Run: .venv/bin/python tools/bench/crate_probe.py hops|equation-error|steps [--segments N]
+Run: .venv/bin/python tools/bench/crate_probe.py hops|equation-error|steps|search [--segments N]
      [--sensors pos,quat,gyro,accel]
 """
 import argparse
@@ -212,7 +215,8 @@ def equation_error():
 SENSOR_COLUMNS = {"pos": [0, 1, 2], "quat": [3, 4, 5, 6], "gyro": [7, 8, 9], "accel": [10, 11, 12]}
 
 
-def steps(segments, sensors):
+def fit_cost(segments, sensors):
+    """the residuals of the fitted sensors as a function of log parameters (noisy data)"""
     rng = np.random.default_rng(16)
     us = [pushes(STEPS, DT, 16 + s) for s in range(SEQS)]
     logs = [rollout(load(XML), u) for u in us]
@@ -225,13 +229,19 @@ def steps(segments, sensors):
         return np.concatenate([((rollout(m, u, lg, segments)["y"] - y) / SIGMA)[:, cols].ravel()
                                for u, lg, y in zip(us, logs, ys)])
 
+    return res
+
+
+def steps(segments, sensors):
+    res = fit_cost(segments, sensors)
+
     def cost(lp):
         r = res(lp)
         return 0.5 * r @ r
 
     lp0, lpt = np.log(START), np.log(TRUTH)
-    print(f"segments {segments}, sensors {sensors}: cost at the start {cost(lp0):.4g}, at the truth {cost(lpt):.4g}; "
-          f"the truth is at d log p = {np.round(lpt - lp0, 3)}")
+    print(f"segments {segments}, sensors {sensors}: cost at the start {cost(lp0):.4g}, at the "
+          f"truth {cost(lpt):.4g}; the truth is at d log p = {np.round(lpt - lp0, 3)}")
     r0 = res(lp0)
     for h in (1e-6, 1e-4, 1e-2, 1e-1):
         jac = np.stack([(res(lp0 + h * e) - res(lp0 - h * e)) / (2 * h) for e in np.eye(3)], 1)
@@ -243,11 +253,48 @@ def steps(segments, sensors):
     print("  cost on the line from the start to the truth: " + " ".join(f"{c:.4g}" for c in line))
 
 
+def search(segments, sensors):
+    res = fit_cost(segments, sensors)
+
+    def cost(lp):
+        r = res(lp)
+        return 0.5 * r @ r
+
+    x = [np.log(START)] + [np.log(START) + 0.1 * e for e in np.eye(3)]
+    f = [cost(v) for v in x]
+    for it in range(150):
+        order = np.argsort(f)
+        x, f = [x[i] for i in order], [f[i] for i in order]
+        c = np.mean(x[:-1], 0)
+        xr = 2 * c - x[-1]
+        fr = cost(xr)
+        if fr < f[0]:
+            xe = 3 * c - 2 * x[-1]
+            fe = cost(xe)
+            x[-1], f[-1] = (xe, fe) if fe < fr else (xr, fr)
+        elif fr < f[-2]:
+            x[-1], f[-1] = xr, fr
+        else:
+            xc = 0.5 * (c + x[-1])
+            fc = cost(xc)
+            if fc < f[-1]:
+                x[-1], f[-1] = xc, fc
+            else:  # shrink towards the best
+                x = [x[0]] + [0.5 * (x[0] + v) for v in x[1:]]
+                f = [f[0]] + [cost(v) for v in x[1:]]
+        if it % 30 == 29 or it == 149:
+            b = int(np.argmin(f))
+            print(f"  iteration {it + 1}: cost {f[b]:.4g}, error against the truth "
+                  f"{np.round(100 * (np.exp(x[b]) / TRUTH - 1), 1)} %")
+    print(f"  the truth's cost {cost(np.log(TRUTH)):.4g}")
+
+
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("probe", choices=["hops", "equation-error", "steps"])
+    ap.add_argument("probe", choices=["hops", "equation-error", "steps", "search"])
     ap.add_argument("--segments", type=int, default=0)
     ap.add_argument("--sensors", default="pos,quat,gyro,accel", help="steps: the fitted sensors")
     a = ap.parse_args()
     {"hops": hops, "equation-error": equation_error,
-     "steps": lambda: steps(a.segments, a.sensors)}[a.probe]()
+     "steps": lambda: steps(a.segments, a.sensors),
+     "search": lambda: search(a.segments, a.sensors)}[a.probe]()
