@@ -24,8 +24,9 @@ steps of 2 ms from the model's rest pose); it does not read the experiment's log
                   it, for whole sequences (--segments 0) or rollouts restarted from the true
                   states every N steps; 1 % sensor noise; then the cost on the straight line
                   from the start to the truth (--sensors: a subset of pos,quat,gyro,accel).
-  search          the same cost minimized without derivatives (Nelder-Mead in log parameters,
-                  first simplex 10 % wide, 150 iterations) from the start.
+  search          the same cost minimized from the start without derivatives (Nelder-Mead in
+                  log parameters, first simplex 10 % wide, 150 iterations) and by a plain
+                  Levenberg-Marquardt with central differences of relative step 1e-6 and 1e-2.
 
 Run: .venv/bin/python tools/bench/crate_probe.py hops|equation-error|steps|search [--segments N]
      [--sensors pos,quat,gyro,accel]
@@ -287,6 +288,25 @@ def search(segments, sensors):
             print(f"  iteration {it + 1}: cost {f[b]:.4g}, error against the truth "
                   f"{np.round(100 * (np.exp(x[b]) / TRUTH - 1), 1)} %")
     print(f"  the truth's cost {cost(np.log(TRUTH)):.4g}")
+    # Levenberg-Marquardt on the same residuals (central differences, h 1e-6 and 1e-2)
+    for h in (1e-6, 1e-2):
+        lp = np.log(START)
+        r = res(lp)
+        c, lam = 0.5 * r @ r, 1e-3
+        for it in range(40):
+            jac = np.stack([(res(lp + h * e) - res(lp - h * e)) / (2 * h) for e in np.eye(3)], 1)
+            a, g = jac.T @ jac, jac.T @ r
+            while lam < 1e8:
+                step = np.linalg.solve(a + lam * np.diag(np.diag(a)), -g)
+                rn = res(lp + step)
+                if 0.5 * rn @ rn < c:
+                    lp, r, c, lam = lp + step, rn, 0.5 * rn @ rn, max(lam / 3, 1e-7)
+                    break
+                lam *= 4
+            if lam >= 1e8:
+                break
+        print(f"  Levenberg-Marquardt, h {h:.0e}: {it + 1} iterations, cost {c:.4g}, error against "
+              f"the truth {np.round(100 * (np.exp(lp) / TRUTH - 1), 1)} %")
 
 
 if __name__ == "__main__":
