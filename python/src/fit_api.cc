@@ -8,7 +8,7 @@
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/vector.h>
 
-#include <set>
+#include <algorithm>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -23,14 +23,53 @@ namespace {
 using nb::arg;
 using namespace nb::literals;
 
+// "a, b, c"
+std::string Joined(const std::vector<std::string>& names) {
+  std::string out;
+  for (const std::string& n : names) out += (out.empty() ? "" : ", ") + n;
+  return out;
+}
+
+// The keys of the three kinds of dict, each list written once: CheckKeys, the docstring of
+// fit() and the ValueError for an unknown key read it (tests/python/test_fit_options.py
+// compares the options with docs/python.md).
+const std::vector<std::string> kParameterKeys = {"name",  "kind",    "object", "field",
+                                                 "index", "initial", "lower",  "upper",
+                                                 "log",   "scale",   "prior",  "models"};
+const std::vector<std::string> kSequenceKeys = {"name",      "ctrl",      "measured",  "qpos",
+                                                "qvel",      "act",       "time",      "sensors",
+                                                "ctrl_time", "ctrl_hold", "ctrl_delay"};
+const std::vector<std::string> kOptionKeys = {"max_iterations",
+                                              "function_tolerance",
+                                              "gradient_tolerance",
+                                              "parameter_tolerance",
+                                              "threads",
+                                              "loss",
+                                              "loss_scale",
+                                              "estimate_initial_state",
+                                              "segment_steps",
+                                              "continuity_weight",
+                                              "continuity_scale",
+                                              "jumping_sensors",
+                                              "sensor_weights",
+                                              "sensor_sigmas",
+                                              "jacobian",
+                                              "differences",
+                                              "relative_step",
+                                              "reduce_model",
+                                              "verbose"};
+
+// the spellings of the experiment file's enums (docs/experiment-schema.md)
+const std::vector<std::string> kDifferences = {"forward", "central"};
+const std::vector<std::string> kContinuityScales = {"relative", "absolute"};
+const std::vector<std::string> kJumpingSensors = {"omit", "fit"};
+
 // the keys of `d` must be in `valid`; `what` names the dict in messages
-void CheckKeys(const nb::dict& d, const std::set<std::string>& valid, const std::string& what) {
+void CheckKeys(const nb::dict& d, const std::vector<std::string>& valid, const std::string& what) {
   for (auto [key, value] : d) {
     const std::string k = nb::cast<std::string>(nb::str(key));
-    if (!valid.count(k)) {
-      std::string list;
-      for (const std::string& v : valid) list += (list.empty() ? "" : ", ") + v;
-      throw std::invalid_argument(what + ": unknown key '" + k + "'; valid: " + list);
+    if (std::find(valid.begin(), valid.end(), k) == valid.end()) {
+      throw std::invalid_argument(what + ": unknown key '" + k + "'; valid: " + Joined(valid));
     }
   }
 }
@@ -45,6 +84,19 @@ T Get(const nb::dict& d, const char* key, const T& fallback, const std::string& 
     throw std::invalid_argument(what + ": '" + key + "' has the wrong type (" +
                                 nb::cast<std::string>(nb::str(nb::handle(d[key]).type())) + ")");
   }
+}
+
+// d[key] as the index of one of `names`, or `fallback` when absent; another string names the key
+// and the valid spellings
+int GetChoice(const nb::dict& d, const char* key, const std::vector<std::string>& names,
+              int fallback, const std::string& what) {
+  if (!d.contains(key)) return fallback;
+  const std::string v = Get<std::string>(d, key, "", what);
+  const auto it = std::find(names.begin(), names.end(), v);
+  if (it == names.end()) {
+    throw std::invalid_argument(what + ": " + key + " '" + v + "': expected " + Joined(names));
+  }
+  return static_cast<int>(it - names.begin());
 }
 
 // d[key] as a float64 matrix (a 1-D array is one column), or 0 x 0 when absent
@@ -75,10 +127,7 @@ Eigen::VectorXd GetVector(const nb::dict& d, const char* key, const std::string&
 
 FitParameter ParameterOf(const nb::dict& d, size_t i) {
   const std::string what = "parameters[" + std::to_string(i) + "]";
-  CheckKeys(d,
-            {"name", "kind", "object", "field", "index", "initial", "lower", "upper", "log",
-             "scale", "prior", "models"},
-            what);
+  CheckKeys(d, kParameterKeys, what);
   for (const char* key : {"name", "kind", "initial"}) {
     if (!d.contains(key)) throw std::invalid_argument(what + ": '" + key + "' is required");
   }
@@ -107,7 +156,7 @@ FitParameter ParameterOf(const nb::dict& d, size_t i) {
 
 FitSequence SequenceOf(const nb::dict& d, size_t i) {
   const std::string what = "sequences[" + std::to_string(i) + "]";
-  CheckKeys(d, {"name", "ctrl", "measured", "qpos", "qvel", "act", "time", "sensors"}, what);
+  CheckKeys(d, kSequenceKeys, what);
   for (const char* key : {"ctrl", "measured"}) {
     if (!d.contains(key)) throw std::invalid_argument(what + ": '" + key + "' is required");
   }
@@ -122,37 +171,61 @@ FitSequence SequenceOf(const nb::dict& d, size_t i) {
   s.time = GetVector(d, "time", what);
   if (s.time.size() > 0) s.x0.time = s.time[0];
   s.sensors = Get<std::vector<std::string>>(d, "sensors", {}, what);
+  // the controls' own clock and how they reach the steps (the experiment's `controls:`)
+  s.ctrl_time = GetVector(d, "ctrl_time", what);
+  if (d.contains("ctrl_hold")) {
+    // one spelling for every actuator, or a list with one per actuator
+    std::vector<std::string> holds;
+    if (nb::isinstance<nb::str>(d["ctrl_hold"])) {
+      holds.assign(s.ctrl.cols(), Get<std::string>(d, "ctrl_hold", "", what));
+    } else {
+      holds = Get<std::vector<std::string>>(d, "ctrl_hold", {}, what);
+    }
+    for (const std::string& h : holds) {
+      if (h == ControlHoldName(ControlHold::kZeroOrder)) {
+        s.ctrl_hold.push_back(ControlHold::kZeroOrder);
+      } else if (h == ControlHoldName(ControlHold::kLinear)) {
+        s.ctrl_hold.push_back(ControlHold::kLinear);
+      } else {
+        throw std::invalid_argument(what + ": ctrl_hold '" + h + "': expected " +
+                                    ControlHoldName(ControlHold::kZeroOrder) + " or " +
+                                    ControlHoldName(ControlHold::kLinear));
+      }
+    }
+  }
+  if (d.contains("ctrl_delay")) {
+    // one delay (s) for every actuator, or one per actuator
+    const Eigen::VectorXd delay = GetVector(d, "ctrl_delay", what);
+    if (delay.size() == 1) {
+      s.ctrl_delay.assign(s.ctrl.cols(), delay[0]);
+    } else {
+      s.ctrl_delay.assign(delay.data(), delay.data() + delay.size());
+    }
+  }
   return s;
 }
 
 FitOptions OptionsOf(const nb::dict& d) {
   const std::string what = "options";
-  CheckKeys(d,
-            {"max_iterations", "function_tolerance", "gradient_tolerance", "parameter_tolerance",
-             "threads", "loss", "loss_scale", "estimate_initial_state", "segment_steps",
-             "continuity_weight", "sensor_weights", "sensor_sigmas", "verbose"},
-            what);
+  CheckKeys(d, kOptionKeys, what);
   FitOptions o;
   o.max_iterations = Get<int>(d, "max_iterations", o.max_iterations, what);
   o.function_tolerance = Get<double>(d, "function_tolerance", o.function_tolerance, what);
   o.gradient_tolerance = Get<double>(d, "gradient_tolerance", o.gradient_tolerance, what);
   o.parameter_tolerance = Get<double>(d, "parameter_tolerance", o.parameter_tolerance, what);
   o.threads = Get<int>(d, "threads", o.threads, what);
-  const std::string loss = Get<std::string>(d, "loss", LossTypeName(o.loss), what);
-  bool known = false;
-  for (LossType t : {LossType::kNone, LossType::kHuber, LossType::kCauchy}) {
-    if (loss == LossTypeName(t)) {
-      o.loss = t;
-      known = true;
-    }
-  }
-  if (!known) {
-    throw std::invalid_argument("options: loss '" + loss + "': expected none, huber or cauchy");
-  }
+  const LossType loss_types[] = {LossType::kNone, LossType::kHuber, LossType::kCauchy};
+  std::vector<std::string> losses;
+  for (LossType t : loss_types) losses.push_back(LossTypeName(t));
+  if (d.contains("loss")) o.loss = loss_types[GetChoice(d, "loss", losses, 0, what)];
   o.loss_scale = Get<double>(d, "loss_scale", o.loss_scale, what);
   o.estimate_initial_state = Get<bool>(d, "estimate_initial_state", false, what);
   o.segment_steps = Get<int>(d, "segment_steps", o.segment_steps, what);
   o.continuity_weight = Get<double>(d, "continuity_weight", o.continuity_weight, what);
+  o.continuity_relative =
+      GetChoice(d, "continuity_scale", kContinuityScales, o.continuity_relative ? 0 : 1, what) == 0;
+  o.fit_jumping_sensors =
+      GetChoice(d, "jumping_sensors", kJumpingSensors, o.fit_jumping_sensors ? 1 : 0, what) == 1;
   o.sensor_weights = Get<std::map<std::string, double>>(d, "sensor_weights", {}, what);
   // a sigma is a weight 1/sigma that also enters the model_mismatch verdict (as in YAML)
   for (const auto& [sensor, sigma] :
@@ -163,6 +236,20 @@ FitOptions OptionsOf(const nb::dict& d) {
     o.sensor_weights[sensor] = 1.0 / sigma;
     o.sensors_with_sigma.push_back(sensor);
   }
+  // the Jacobian (the experiment's solver.jacobian, differences, relative_step)
+  const JacobianMode jacobian_modes[] = {JacobianMode::kAuto, JacobianMode::kDirectional,
+                                         JacobianMode::kMatrix, JacobianMode::kWholeRollout};
+  std::vector<std::string> modes;
+  for (JacobianMode m : jacobian_modes) modes.push_back(JacobianModeName(m));
+  if (d.contains("jacobian")) {
+    o.jacobian.mode = jacobian_modes[GetChoice(d, "jacobian", modes, 0, what)];
+  }
+  o.jacobian.central = GetChoice(d, "differences", kDifferences, o.jacobian.central, what) == 1;
+  o.jacobian.relative_step = Get<double>(d, "relative_step", o.jacobian.relative_step, what);
+  if (!(o.jacobian.relative_step > 0)) {
+    throw std::invalid_argument("options: relative_step must be > 0");
+  }
+  o.reduce_model = Get<bool>(d, "reduce_model", o.reduce_model, what);
   o.verbose = Get<bool>(d, "verbose", false, what);
   return o;
 }
@@ -211,18 +298,19 @@ FitResult Fit(const std::string& model, const nb::list& parameters, const nb::li
 }  // namespace
 
 void BindFitApi(nb::module_& m) {
+  // the docstring names the keys of the tables above (it lives as long as the module)
+  static const std::string doc =
+      "Fits a model's parameters to logged sequences (sysid/problem.h; docs/python.md).\n\n"
+      "model: an MJCF path or MJCF text. parameters: list of dicts {" +
+      Joined(kParameterKeys) + "} (name, kind, initial required; object | field). " +
+      "sequences: list of dicts {" + Joined(kSequenceKeys) +
+      "} (ctrl T x nu and measured T x nsensordata in model order required; qpos, qvel, act: "
+      "the initial state). options: dict {" +
+      Joined(kOptionKeys) +
+      "}. callback(IterationInfo) after every successful iteration. The GIL is released during "
+      "the fit; Ctrl-C stops it after the current iteration (status interrupted).";
   m.def("fit", &Fit, arg("model"), arg("parameters"), arg("sequences"), arg("options") = nb::none(),
-        arg("callback") = nb::none(),
-        "Fits a model's parameters to logged sequences (sysid/problem.h).\n\n"
-        "model: an MJCF path or MJCF text. parameters: list of dicts {name, kind, object | "
-        "field, index?, initial, lower?, upper?, log?, scale?, prior? [mean, sigma], models?}. "
-        "sequences: list of dicts {ctrl (T x nu), measured (T x nsensordata, model order), "
-        "qpos?, qvel?, act? (the initial state), time? (T), name?, sensors? (the fitted ones)}. "
-        "options: dict {max_iterations, function_tolerance, gradient_tolerance, "
-        "parameter_tolerance, threads, loss, loss_scale, estimate_initial_state, "
-        "segment_steps, continuity_weight, sensor_weights, sensor_sigmas, verbose}. "
-        "callback(IterationInfo) after every successful iteration. The GIL is released during "
-        "the fit; Ctrl-C stops it after the current iteration (status interrupted).");
+        arg("callback") = nb::none(), doc.c_str());
 }
 
 }  // namespace mjsysid::python

@@ -1,0 +1,187 @@
+"""The options of mjsysid.fit that mirror the experiment file's keys (docs/experiment-schema.md):
+multiple shooting's continuity_scale and jumping_sensors, the Jacobian (jacobian, differences,
+relative_step), reduce_model, the controls' ctrl_time / ctrl_hold / ctrl_delay; each set and
+seen in a real fit. And the options docs/python.md lists are the ones the module accepts.
+
+Data: the pendulum experiment's simulated log (truth damping 0.08, frictionloss 0.03, bob_mass
+1.2; noise 0.001 rad, 0.01 rad/s; start 0.2, 0.01, 0.8), and a ball on a vertical slide
+dropped onto the floor and pushed by a sine (12 N, 1.1 Hz; it lands and lifts off: the contact
+count changes 4 times in 1000 steps), noise-free, truth slide damping 0.5 from 0.3.
+"""
+
+import re
+
+import numpy as np
+import pytest
+
+import mjsysid
+from test_fit_api import PARAMETERS, SIGMAS, frames, sequences_of  # noqa: F401 (a fixture)
+
+BALL_XML = """<mujoco model="ball">
+  <option timestep="0.002"/>
+  <worldbody>
+    <geom name="floor" type="plane" size="1 1 0.1"/>
+    <body name="ball" pos="0 0 0.3">
+      <joint name="z" type="slide" axis="0 0 1" damping="0.5"/>
+      <geom name="ball" type="sphere" size="0.05" mass="1"/>
+      <site name="foot" pos="0 0 -0.04" size="0.03"/>
+    </body>
+  </worldbody>
+  <actuator><motor name="push" joint="z"/></actuator>
+  <sensor>
+    <jointpos name="height" joint="z"/>
+    <jointvel name="speed" joint="z"/>
+    <touch name="touch" site="foot"/>
+  </sensor>
+</mujoco>
+"""
+
+BALL_EXPERIMENT = """name: ball
+model: {model}
+parameters:
+  - {{name: damping, target: joint_damping, object: z, initial: 0.3, bounds: [0.01, 5.0]}}
+simulate:
+  truth: {{damping: 0.5}}
+  sequences: 1
+  steps: 1000
+  seed: 3
+  excitation: {{type: sines, amplitude: 12.0, frequencies: [1.1]}}
+"""
+
+
+@pytest.fixture
+def ball(tmp_path):
+    """(model path, [sequence dict]) of the ball's simulated log"""
+    model = tmp_path / "ball.xml"
+    model.write_text(BALL_XML)
+    exp = tmp_path / "ball.yaml"
+    exp.write_text(BALL_EXPERIMENT.format(model=model))
+    log = mjsysid.simulate(str(exp), write=False)
+    s = log.sequences[0]
+    assert s.sensor_names == ["height", "speed", "touch"]
+    return str(model), [{"time": s.time, "ctrl": s.ctrl, "measured": s.sensordata,
+                         "qpos": s.qpos[0], "qvel": s.qvel[0]}]
+
+
+BALL_PARAMETERS = [{"name": "damping", "kind": "joint_damping", "object": "z", "initial": 0.3,
+                    "lower": 0.01, "upper": 5.0}]
+
+
+def test_jumping_sensors_omit_or_fit(ball):
+    # auto's contact segments (started on the jointpos + jointvel sensors) leave the touch sensor
+    # out by default and with "omit"; "fit" keeps it. Both recover the damping of the
+    # noise-free log to 1e-4 relative.
+    model, seqs = ball
+    fits = {}
+    for choice in (None, "omit", "fit"):
+        options = {"max_iterations": 30}
+        if choice:
+            options["jumping_sensors"] = choice
+        fits[choice] = r = mjsysid.fit(model, BALL_PARAMETERS, seqs, options=options)
+        assert "contact count" in r.segment_reason and r.segment_steps_used == 10, r.segment_reason
+        assert r.estimates["damping"] == pytest.approx(0.5, rel=1e-4), (choice, r.estimates)
+    for choice in (None, "omit"):
+        assert fits[choice].sequences[0].sensor_names == ["height", "speed"]
+        assert any("sensor 'touch' (touch) left out" in w for w in fits[choice].warnings)
+    assert fits[None].estimates == fits["omit"].estimates
+    assert fits["fit"].sequences[0].sensor_names == ["height", "speed", "touch"]
+    assert not any("left out" in w for w in fits["fit"].warnings)
+    with pytest.raises(ValueError, match="jumping_sensors 'drop': expected omit, fit"):
+        mjsysid.fit(model, BALL_PARAMETERS, seqs, options={"jumping_sensors": "drop"})
+
+
+def test_continuity_scale_relative_or_absolute(root, frames):  # noqa: F811
+    # segments of 500 steps (4 per sequence) with continuity_weight 1: relative to the sensors
+    # (the default; measured: 236 .. 1010 per state coordinate) and absolute (1) are different
+    # weights, so different costs at the same start (the segments start on the noisy sensors:
+    # gaps from the first evaluation; measured 3.781e6 and 3.770e6); both recover the truth
+    # within 4 standard errors
+    model = str(root / "models/pendulum.xml")
+    seqs = sequences_of(frames)[:1]
+    fits = {}
+    for choice in (None, "relative", "absolute"):
+        options = {"sensor_sigmas": SIGMAS, "segment_steps": 500, "continuity_weight": 1.0}
+        if choice:
+            options["continuity_scale"] = choice
+        fits[choice] = r = mjsysid.fit(model, PARAMETERS, seqs, options=options)
+        assert r.status == "converged" and r.segment_steps_used == 500, (choice, r.status)
+        for p in r.parameters:
+            truth = {"damping": 0.08, "frictionloss": 0.03, "bob_mass": 1.2}[p.name]
+            assert abs(p.value - truth) < 4 * p.std_error, (choice, p)
+    assert fits[None].initial_cost == fits["relative"].initial_cost
+    assert fits[None].estimates == fits["relative"].estimates
+    assert "continuity weights 1 x S / state spread" in fits["relative"].segment_reason
+    assert "continuity weight 1 (absolute)" in fits["absolute"].segment_reason
+    rel, ab = fits["relative"].initial_cost, fits["absolute"].initial_cost
+    assert abs(rel - ab) > 1e-3 * max(rel, ab), (rel, ab)
+    with pytest.raises(ValueError, match="continuity_scale 'sensors': expected relative, abs"):
+        mjsysid.fit(model, PARAMETERS, seqs, options={"continuity_scale": "sensors"})
+
+
+def test_jacobian_options(root, frames):  # noqa: F811
+    # the mode is the one asked for; central differences step twice per column (more simulation
+    # steps than forward); another relative_step moves the estimate by rounding only (1e-6
+    # relative) but not by nothing; reduce_model false is recorded as off
+    model = str(root / "models/pendulum.xml")
+    seqs = sequences_of(frames)[:1]
+    base = {"sensor_sigmas": SIGMAS, "max_iterations": 30, "threads": 1}
+    fits = {name: mjsysid.fit(model, PARAMETERS, seqs, options=dict(base, **extra))
+            for name, extra in {
+                "forward": {"jacobian": "matrix"},
+                "central": {"jacobian": "matrix", "differences": "central"},
+                "step": {"jacobian": "matrix", "relative_step": 1e-5},
+                "directional": {"jacobian": "directional"},
+                "full": {"reduce_model": False}}.items()}
+    assert fits["forward"].jacobian_mode == "matrix"
+    assert fits["directional"].jacobian_mode == "directional"
+    assert fits["central"].simulation_steps > fits["forward"].simulation_steps
+    for name in ("central", "step"):
+        assert fits[name].estimates != fits["forward"].estimates, name
+        for key, value in fits["forward"].estimates.items():
+            assert fits[name].estimates[key] == pytest.approx(value, rel=1e-6), (name, key)
+    assert fits["forward"].reduction["used"]
+    assert not fits["full"].reduction["used"]
+    assert fits["full"].reduction["text"].startswith("off")
+    with pytest.raises(ValueError, match="jacobian 'fd': expected auto, directional, matrix"):
+        mjsysid.fit(model, PARAMETERS, seqs, options={"jacobian": "fd"})
+    with pytest.raises(ValueError, match="relative_step must be > 0"):
+        mjsysid.fit(model, PARAMETERS, seqs, options={"relative_step": 0.0})
+
+
+def test_controls_hold_delay_and_own_clock(root, frames):  # noqa: F811
+    # the controls at their own times: every 2nd sample held (zoh) gives another fit than every
+    # sample; linear hold another again; a known transport delay another; the ones given as
+    # explicit defaults (zoh, delay 0, ctrl_time = time) the same bits as none
+    model = str(root / "models/pendulum.xml")
+    seq = sequences_of(frames)[0]
+    time = np.asarray(seq["time"])
+    options = {"sensor_sigmas": SIGMAS, "max_iterations": 30, "threads": 1}
+    plain = mjsysid.fit(model, PARAMETERS, [seq], options=options)
+    same = mjsysid.fit(model, PARAMETERS, [dict(seq, ctrl_time=time, ctrl_hold="zoh",
+                                                ctrl_delay=0.0)], options=options)
+    assert same.estimates == plain.estimates
+    variants = {
+        "coarse": dict(seq, ctrl_time=time[::2], ctrl=seq["ctrl"][::2]),
+        "linear": dict(seq, ctrl_time=time[::2], ctrl=seq["ctrl"][::2], ctrl_hold=["linear"]),
+        "delay": dict(seq, ctrl_delay=[0.01]),
+    }
+    costs = {"plain": plain.initial_cost}
+    for name, s in variants.items():
+        costs[name] = mjsysid.fit(model, PARAMETERS, [s], options=options).initial_cost
+    assert len(set(costs.values())) == len(costs), costs
+    with pytest.raises(ValueError, match="ctrl_hold 'cubic': expected zoh or linear"):
+        mjsysid.fit(model, PARAMETERS, [dict(seq, ctrl_hold="cubic")])
+    with pytest.raises(ValueError, match="one entry per actuator"):
+        mjsysid.fit(model, PARAMETERS, [dict(seq, ctrl_delay=[0.0, 0.0])])
+
+
+def test_docs_list_the_options_the_module_accepts(root):
+    # the module's list (its ValueError for an unknown key) against docs/python.md's table of
+    # options: the same keys, so that neither changes without the other
+    with pytest.raises(ValueError) as err:
+        mjsysid.fit("<mujoco/>", [], [], options={"no_such_key": 1})
+    accepted = set(str(err.value).split("valid: ", 1)[1].split(", "))
+    doc = (root / "docs/python.md").read_text()
+    table = doc.split("<!-- options: begin", 1)[1].split("<!-- options: end -->", 1)[0]
+    documented = set(re.findall(r"^\| `([a-z_0-9]+)` \|", table, re.MULTILINE))
+    assert documented == accepted, documented ^ accepted
