@@ -1,7 +1,8 @@
-// mjsysid.fit(model, parameters, sequences, options=None, callback=None): the library API
-// (sysid/problem.h) on Python data. The dicts are read into FitParameter / FitSequence /
-// FitOptions; unknown keys and wrong shapes raise ValueError naming the key; everything else
-// (names, bounds, shapes against the model) is checked by Problem as for a C++ caller.
+// mjsysid.fit(model, parameters, sequences, options=None, callback=None, measurements=None): the
+// library API (sysid/problem.h) on Python data. The dicts are read into FitParameter /
+// FitSequence / FitOptions / FitMeasurement; unknown keys and wrong shapes raise ValueError naming
+// the key; everything else (names, bounds, shapes against the model) is checked by Problem as for a
+// C++ caller.
 #include <nanobind/eigen/dense.h>
 #include <nanobind/nanobind.h>
 #include <nanobind/stl/map.h>
@@ -58,6 +59,8 @@ const std::vector<std::string> kOptionKeys = {"max_iterations",
                                               "relative_step",
                                               "reduce_model",
                                               "verbose"};
+const std::vector<std::string> kMeasurementKeys = {"sensor", "delay", "gain", "bias"};
+const std::vector<std::string> kTermKeys = {"initial", "fit", "lower", "upper"};
 
 // the spellings of the experiment file's enums (docs/experiment-schema.md)
 const std::vector<std::string> kDifferences = {"forward", "central"};
@@ -152,6 +155,33 @@ FitParameter ParameterOf(const nb::dict& d, size_t i) {
   }
   p.models = Get<std::vector<std::string>>(d, "models", {}, what);
   return p;
+}
+
+// one term of a measurement: {initial?, fit?, lower?, upper?}, defaults those of `term`
+void TermOf(const nb::dict& d, const char* key, const std::string& what,
+            FitMeasurement::Term* term) {
+  if (!d.contains(key)) return;
+  const std::string w = what + "." + key;
+  if (!nb::isinstance<nb::dict>(d[key])) throw std::invalid_argument(w + ": expected a dict");
+  const nb::dict t = nb::cast<nb::dict>(d[key]);
+  CheckKeys(t, kTermKeys, w);
+  term->initial = Get<double>(t, "initial", term->initial, w);
+  term->fit = Get<bool>(t, "fit", term->fit, w);
+  term->lower = Get<double>(t, "lower", term->lower, w);
+  term->upper = Get<double>(t, "upper", term->upper, w);
+}
+
+// measured = gain * simulated(t - delay) + bias for one sensor (the experiment's `measurement:`)
+FitMeasurement MeasurementOf(const nb::dict& d, size_t i) {
+  const std::string what = "measurements[" + std::to_string(i) + "]";
+  CheckKeys(d, kMeasurementKeys, what);
+  if (!d.contains("sensor")) throw std::invalid_argument(what + ": 'sensor' is required");
+  FitMeasurement m;
+  m.sensor = Get<std::string>(d, "sensor", "", what);
+  TermOf(d, "delay", what, &m.delay);
+  TermOf(d, "gain", what, &m.gain);
+  TermOf(d, "bias", what, &m.bias);
+  return m;
 }
 
 FitSequence SequenceOf(const nb::dict& d, size_t i) {
@@ -262,7 +292,7 @@ ModelPtr ModelOf(const std::string& model) {
 }
 
 FitResult Fit(const std::string& model, const nb::list& parameters, const nb::list& sequences,
-              nb::object options, nb::object callback) {
+              nb::object options, nb::object callback, nb::object measurements) {
   ModelPtr m = ModelOf(model);
   Problem problem;
   problem.AddModel("model", *m);
@@ -271,6 +301,18 @@ FitResult Fit(const std::string& model, const nb::list& parameters, const nb::li
       throw std::invalid_argument("parameters[" + std::to_string(i) + "]: expected a dict");
     }
     problem.AddParameter(ParameterOf(nb::cast<nb::dict>(parameters[i]), i));
+  }
+  if (!measurements.is_none()) {
+    if (!nb::isinstance<nb::list>(measurements)) {
+      throw std::invalid_argument("measurements: expected a list of dicts");
+    }
+    const nb::list list = nb::cast<nb::list>(measurements);
+    for (size_t i = 0; i < nb::len(list); ++i) {
+      if (!nb::isinstance<nb::dict>(list[i])) {
+        throw std::invalid_argument("measurements[" + std::to_string(i) + "]: expected a dict");
+      }
+      problem.AddMeasurement(MeasurementOf(nb::cast<nb::dict>(list[i]), i));
+    }
   }
   for (size_t i = 0; i < nb::len(sequences); ++i) {
     if (!nb::isinstance<nb::dict>(sequences[i])) {
@@ -307,10 +349,15 @@ void BindFitApi(nb::module_& m) {
       "} (ctrl T x nu and measured T x nsensordata in model order required; qpos, qvel, act: "
       "the initial state). options: dict {" +
       Joined(kOptionKeys) +
-      "}. callback(IterationInfo) after every successful iteration. The GIL is released during "
+      "}. callback(IterationInfo) after every successful iteration. measurements: list of "
+      "dicts {" +
+      Joined(kMeasurementKeys) + "}, each term a dict {" + Joined(kTermKeys) +
+      "}: measured = gain * simulated(t - delay) + bias, fitted terms estimated as "
+      "SENSOR.delay, SENSOR.gain, SENSOR.bias."
+      " The GIL is released during "
       "the fit; Ctrl-C stops it after the current iteration (status interrupted).";
   m.def("fit", &Fit, arg("model"), arg("parameters"), arg("sequences"), arg("options") = nb::none(),
-        arg("callback") = nb::none(), doc.c_str());
+        arg("callback") = nb::none(), arg("measurements") = nb::none(), doc.c_str());
 }
 
 }  // namespace mjsysid::python

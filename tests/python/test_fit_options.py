@@ -1,7 +1,7 @@
 """The options of mjsysid.fit that mirror the experiment file's keys (docs/experiment-schema.md):
 multiple shooting's continuity_scale and jumping_sensors, the Jacobian (jacobian, differences,
-relative_step), reduce_model, the controls' ctrl_time / ctrl_hold / ctrl_delay; each set and
-seen in a real fit. And the options docs/python.md lists are the ones the module accepts.
+relative_step), reduce_model, the controls' ctrl_time / ctrl_hold / ctrl_delay, the measurement
+terms; each set and seen in a real fit. And the options docs/python.md lists are the ones the module accepts.
 
 Data: the pendulum experiment's simulated log (truth damping 0.08, frictionloss 0.03, bob_mass
 1.2; noise 0.001 rad, 0.01 rad/s; start 0.2, 0.01, 0.8), and a ball on a vertical slide
@@ -173,6 +173,31 @@ def test_controls_hold_delay_and_own_clock(root, frames):  # noqa: F811
         mjsysid.fit(model, PARAMETERS, [dict(seq, ctrl_hold="cubic")])
     with pytest.raises(ValueError, match="one entry per actuator"):
         mjsysid.fit(model, PARAMETERS, [dict(seq, ctrl_delay=[0.0, 0.0])])
+
+
+def test_measurement_bias_is_fitted(root, frames):  # noqa: F811
+    # the angle logged 0.05 rad too high (both sequences): without a measurement term the fit
+    # cannot explain it (model_mismatch; measured chi2 ratio 1231); with a fitted bias (start 0,
+    # bounds +-1) it converges with the bias and the physical parameters within 4 standard errors
+    # of the truth (measured: bias 0.049977 +- 1.3e-5)
+    model = str(root / "models/pendulum.xml")
+    seqs = sequences_of(frames)
+    for s in seqs:
+        s["measured"] = s["measured"] + np.array([0.05, 0.0])
+    options = {"sensor_sigmas": SIGMAS}
+    assert mjsysid.fit(model, PARAMETERS, seqs, options=options).status == "model_mismatch"
+    bias = {"sensor": "angle", "bias": {"initial": 0.0, "fit": True, "lower": -1.0, "upper": 1.0}}
+    r = mjsysid.fit(model, PARAMETERS, seqs, options=options, measurements=[bias])
+    assert r.status == "converged"
+    truth = {"damping": 0.08, "frictionloss": 0.03, "bob_mass": 1.2, "angle.bias": 0.05}
+    assert [p.name for p in r.parameters] == list(truth)
+    for p in r.parameters:
+        assert abs(p.value - truth[p.name]) < 4 * p.std_error, p
+    with pytest.raises(ValueError, match="measurements\\[0\\].bias: unknown key 'start'"):
+        mjsysid.fit(model, PARAMETERS, seqs, measurements=[{"sensor": "angle",
+                                                            "bias": {"start": 0.0}}])
+    with pytest.raises(ValueError, match="measurements\\[0\\]: 'sensor' is required"):
+        mjsysid.fit(model, PARAMETERS, seqs, measurements=[{"bias": {"fit": True}}])
 
 
 def test_docs_list_the_options_the_module_accepts(root):
