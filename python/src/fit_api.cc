@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "bindings.h"
@@ -37,9 +38,9 @@ std::string Joined(const std::vector<std::string>& names) {
 const std::vector<std::string> kParameterKeys = {"name",  "kind",    "object", "field",
                                                  "index", "initial", "lower",  "upper",
                                                  "log",   "scale",   "prior",  "models"};
-const std::vector<std::string> kSequenceKeys = {"name",      "ctrl",      "measured",  "qpos",
-                                                "qvel",      "act",       "time",      "sensors",
-                                                "ctrl_time", "ctrl_hold", "ctrl_delay"};
+const std::vector<std::string> kSequenceKeys = {
+    "name", "ctrl",    "measured",  "qpos",      "qvel",       "act",
+    "time", "sensors", "ctrl_time", "ctrl_hold", "ctrl_delay", "no_sensors"};
 const std::vector<std::string> kOptionKeys = {"max_iterations",
                                               "function_tolerance",
                                               "gradient_tolerance",
@@ -58,6 +59,7 @@ const std::vector<std::string> kOptionKeys = {"max_iterations",
                                               "differences",
                                               "relative_step",
                                               "reduce_model",
+                                              "states",
                                               "verbose"};
 const std::vector<std::string> kMeasurementKeys = {"sensor", "delay", "gain", "bias"};
 const std::vector<std::string> kTermKeys = {"initial", "fit", "lower", "upper"};
@@ -195,9 +197,23 @@ FitSequence SequenceOf(const nb::dict& d, size_t i) {
   s.model = "model";
   s.ctrl = GetMatrix(d, "ctrl", what);
   s.measured = GetMatrix(d, "measured", what);
-  s.x0.qpos = GetVector(d, "qpos", what);
-  s.x0.qvel = GetVector(d, "qvel", what);
-  s.x0.act = GetVector(d, "act", what);
+  // qpos, qvel, act: the initial state (1-D), or the logged states (T rows: fitted where
+  // options' `states` says so, and their first row the initial state)
+  const std::pair<const char*, std::pair<Eigen::VectorXd*, RowMatrix*>> states[] = {
+      {"qpos", {&s.x0.qpos, &s.qpos}},
+      {"qvel", {&s.x0.qvel, &s.qvel}},
+      {"act", {&s.x0.act, &s.act}}};
+  for (const auto& [key, into] : states) {
+    if (!d.contains(key)) continue;
+    nb::module_ np = nb::module_::import_("numpy");
+    if (nb::cast<int>(np.attr("ndim")(d[key])) == 2) {
+      *into.second = GetMatrix(d, key, what);
+      if (into.second->rows() > 0) *into.first = into.second->row(0).transpose();
+    } else {
+      *into.first = GetVector(d, key, what);
+    }
+  }
+  s.no_sensors = Get<bool>(d, "no_sensors", false, what);
   s.time = GetVector(d, "time", what);
   if (s.time.size() > 0) s.x0.time = s.time[0];
   s.sensors = Get<std::vector<std::string>>(d, "sensors", {}, what);
@@ -280,6 +296,30 @@ FitOptions OptionsOf(const nb::dict& d) {
     throw std::invalid_argument("options: relative_step must be > 0");
   }
   o.reduce_model = Get<bool>(d, "reduce_model", o.reduce_model, what);
+  // logged states fitted as data: {qpos: {sigma, joints?}, qvel: ..., act: {sigma, actuators?}}
+  if (d.contains("states")) {
+    if (!nb::isinstance<nb::dict>(d["states"])) {
+      throw std::invalid_argument("options: states: expected a dict");
+    }
+    const nb::dict st = nb::cast<nb::dict>(d["states"]);
+    CheckKeys(st, {"qpos", "qvel", "act"}, "options.states");
+    FitStates::Part* parts[] = {&o.states.qpos, &o.states.qvel, &o.states.act};
+    const char* names[] = {"qpos", "qvel", "act"};
+    for (int i = 0; i < 3; ++i) {
+      if (!st.contains(names[i])) continue;
+      const std::string w = std::string("options.states.") + names[i];
+      if (!nb::isinstance<nb::dict>(st[names[i]]))
+        throw std::invalid_argument(w + ": expected a dict");
+      const nb::dict part = nb::cast<nb::dict>(st[names[i]]);
+      const char* objects = i < 2 ? "joints" : "actuators";
+      CheckKeys(part, {"sigma", objects}, w);
+      if (!part.contains("sigma")) throw std::invalid_argument(w + ": 'sigma' is required");
+      const Eigen::VectorXd sigma = GetVector(part, "sigma", w);
+      parts[i]->fit = true;
+      parts[i]->sigma.assign(sigma.data(), sigma.data() + sigma.size());
+      parts[i]->names = Get<std::vector<std::string>>(part, objects, {}, w);
+    }
+  }
   o.verbose = Get<bool>(d, "verbose", false, what);
   return o;
 }
@@ -347,7 +387,7 @@ void BindFitApi(nb::module_& m) {
       Joined(kParameterKeys) + "} (name, kind, initial required; object | field). " +
       "sequences: list of dicts {" + Joined(kSequenceKeys) +
       "} (ctrl T x nu and measured T x nsensordata in model order required; qpos, qvel, act: "
-      "the initial state). options: dict {" +
+      "the initial state, or T rows of logged states). options: dict {" +
       Joined(kOptionKeys) +
       "}. callback(IterationInfo) after every successful iteration. measurements: list of "
       "dicts {" +

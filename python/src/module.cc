@@ -309,7 +309,13 @@ NB_MODULE(_mjsysid, m) {
       .def_ro("measured", &SequenceResult::measured)
       .def_ro("simulated_initial", &SequenceResult::simulated_initial)
       .def_ro("simulated_final", &SequenceResult::simulated_final)
-      .def_ro("x0_final", &SequenceResult::x0_final);
+      .def_ro("x0_final", &SequenceResult::x0_final)
+      .def_ro("state_names", &SequenceResult::state_names,
+              "fitted states: qpos:<joint>, qvel:<joint>, act:<actuator>")
+      .def_ro("state_dims", &SequenceResult::state_dims)
+      .def_ro("state_measured", &SequenceResult::state_measured)
+      .def_ro("state_simulated_initial", &SequenceResult::state_simulated_initial)
+      .def_ro("state_simulated_final", &SequenceResult::state_simulated_final);
 
   nb::class_<FitResult>(m, "FitResult", "The result of a fit (sysid/types.h)")
       .def_ro("parameters", &FitResult::parameters)

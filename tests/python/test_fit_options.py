@@ -1,7 +1,7 @@
 """The options of mjsysid.fit that mirror the experiment file's keys (docs/experiment-schema.md):
 multiple shooting's continuity_scale and jumping_sensors, the Jacobian (jacobian, differences,
 relative_step), reduce_model, the controls' ctrl_time / ctrl_hold / ctrl_delay, the measurement
-terms; each set and seen in a real fit. And the options docs/python.md lists are the ones the module accepts.
+terms, logged states as residuals; each set and seen in a real fit. And the options docs/python.md lists are the ones the module accepts.
 
 Data: the pendulum experiment's simulated log (truth damping 0.08, frictionloss 0.03, bob_mass
 1.2; noise 0.001 rad, 0.01 rad/s; start 0.2, 0.01, 0.8), and a ball on a vertical slide
@@ -198,6 +198,27 @@ def test_measurement_bias_is_fitted(root, frames):  # noqa: F811
                                                             "bias": {"start": 0.0}}])
     with pytest.raises(ValueError, match="measurements\\[0\\]: 'sensor' is required"):
         mjsysid.fit(model, PARAMETERS, seqs, measurements=[{"bias": {"fit": True}}])
+
+
+def test_logged_states_fitted_without_sensors(root, pendulum):
+    # the simulated log's qpos and qvel (T x 1 each: logged states, noise-free) fitted alone
+    # (no_sensors; sigma 1e-3 rad and 1e-2 rad/s, the experiment's `states:`): converged at the
+    # truth to 1e-6 relative (measured 3e-11), the states named in the result, no sensor
+    s = mjsysid.simulate(str(pendulum), write=False).sequences[0]
+    model = str(root / "models/pendulum.xml")
+    seq = {"time": s.time, "ctrl": s.ctrl, "measured": s.sensordata, "qpos": s.qpos,
+           "qvel": s.qvel, "no_sensors": True}
+    states = {"qpos": {"sigma": 1e-3}, "qvel": {"sigma": [1e-2], "joints": ["hinge"]}}
+    r = mjsysid.fit(model, PARAMETERS, [seq], options={"states": states})
+    assert r.status == "converged"
+    truth = {"damping": 0.08, "frictionloss": 0.03, "bob_mass": 1.2}
+    for name, value in truth.items():
+        assert r.estimates[name] == pytest.approx(value, rel=1e-6), name
+    assert r.sequences[0].sensor_names == []
+    assert r.sequences[0].state_names == ["qpos:hinge", "qvel:hinge"]
+    assert r.sequences[0].state_measured.shape == (2000, 2)
+    with pytest.raises(ValueError, match="options.states.qpos: 'sigma' is required"):
+        mjsysid.fit(model, PARAMETERS, [seq], options={"states": {"qpos": {}}})
 
 
 def test_docs_list_the_options_the_module_accepts(root):
