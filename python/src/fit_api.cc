@@ -1,8 +1,8 @@
-// mjsysid.fit(model, parameters, sequences, options=None, callback=None, measurements=None): the
-// library API (sysid/problem.h) on Python data. The dicts are read into FitParameter /
-// FitSequence / FitOptions / FitMeasurement; unknown keys and wrong shapes raise ValueError naming
-// the key; everything else (names, bounds, shapes against the model) is checked by Problem as for a
-// C++ caller.
+// mjsysid.fit(model, parameters, sequences, options=None, callback=None, measurements=None,
+// control_delays=None): the library API (sysid/problem.h) on Python data. The dicts are read into
+// FitParameter / FitSequence / FitOptions / FitMeasurement / FitControlDelay; unknown keys and
+// wrong shapes raise ValueError naming the key; everything else (names, bounds, shapes against the
+// model) is checked by Problem as for a C++ caller.
 #include <nanobind/eigen/dense.h>
 #include <nanobind/nanobind.h>
 #include <nanobind/stl/map.h>
@@ -63,6 +63,7 @@ const std::vector<std::string> kOptionKeys = {"max_iterations",
                                               "verbose"};
 const std::vector<std::string> kMeasurementKeys = {"sensor", "delay", "gain", "bias"};
 const std::vector<std::string> kTermKeys = {"initial", "fit", "lower", "upper"};
+const std::vector<std::string> kControlDelayKeys = {"actuator", "initial", "lower", "upper"};
 
 // the spellings of the experiment file's enums (docs/experiment-schema.md)
 const std::vector<std::string> kDifferences = {"forward", "central"};
@@ -184,6 +185,19 @@ FitMeasurement MeasurementOf(const nb::dict& d, size_t i) {
   TermOf(d, "gain", what, &m.gain);
   TermOf(d, "bias", what, &m.bias);
   return m;
+}
+
+// a transport delay of the controls fitted as a variable (the experiment's controls.delay with
+// fit: true): one actuator's, or shared by every actuator without its own (actuator absent)
+FitControlDelay ControlDelayOf(const nb::dict& d, size_t i) {
+  const std::string what = "control_delays[" + std::to_string(i) + "]";
+  CheckKeys(d, kControlDelayKeys, what);
+  FitControlDelay c;
+  c.actuator = Get<std::string>(d, "actuator", "", what);
+  c.initial = Get<double>(d, "initial", c.initial, what);
+  c.lower = Get<double>(d, "lower", c.lower, what);
+  c.upper = Get<double>(d, "upper", c.upper, what);
+  return c;
 }
 
 FitSequence SequenceOf(const nb::dict& d, size_t i) {
@@ -332,7 +346,8 @@ ModelPtr ModelOf(const std::string& model) {
 }
 
 FitResult Fit(const std::string& model, const nb::list& parameters, const nb::list& sequences,
-              nb::object options, nb::object callback, nb::object measurements) {
+              nb::object options, nb::object callback, nb::object measurements,
+              nb::object control_delays) {
   ModelPtr m = ModelOf(model);
   Problem problem;
   problem.AddModel("model", *m);
@@ -352,6 +367,18 @@ FitResult Fit(const std::string& model, const nb::list& parameters, const nb::li
         throw std::invalid_argument("measurements[" + std::to_string(i) + "]: expected a dict");
       }
       problem.AddMeasurement(MeasurementOf(nb::cast<nb::dict>(list[i]), i));
+    }
+  }
+  if (!control_delays.is_none()) {
+    if (!nb::isinstance<nb::list>(control_delays)) {
+      throw std::invalid_argument("control_delays: expected a list of dicts");
+    }
+    const nb::list list = nb::cast<nb::list>(control_delays);
+    for (size_t i = 0; i < nb::len(list); ++i) {
+      if (!nb::isinstance<nb::dict>(list[i])) {
+        throw std::invalid_argument("control_delays[" + std::to_string(i) + "]: expected a dict");
+      }
+      problem.AddControlDelay(ControlDelayOf(nb::cast<nb::dict>(list[i]), i));
     }
   }
   for (size_t i = 0; i < nb::len(sequences); ++i) {
@@ -393,11 +420,15 @@ void BindFitApi(nb::module_& m) {
       "dicts {" +
       Joined(kMeasurementKeys) + "}, each term a dict {" + Joined(kTermKeys) +
       "}: measured = gain * simulated(t - delay) + bias, fitted terms estimated as "
-      "SENSOR.delay, SENSOR.gain, SENSOR.bias."
+      "SENSOR.delay, SENSOR.gain, SENSOR.bias. control_delays: list of dicts {" +
+      Joined(kControlDelayKeys) +
+      "} (s; no actuator: shared by every actuator without its own), estimated as "
+      "controls.delay[.ACTUATOR]."
       " The GIL is released during "
       "the fit; Ctrl-C stops it after the current iteration (status interrupted).";
   m.def("fit", &Fit, arg("model"), arg("parameters"), arg("sequences"), arg("options") = nb::none(),
-        arg("callback") = nb::none(), arg("measurements") = nb::none(), doc.c_str());
+        arg("callback") = nb::none(), arg("measurements") = nb::none(),
+        arg("control_delays") = nb::none(), doc.c_str());
 }
 
 }  // namespace mjsysid::python
