@@ -39,7 +39,7 @@ const std::vector<std::string> kParameterKeys = {"name",  "kind",    "object", "
                                                  "index", "initial", "lower",  "upper",
                                                  "log",   "scale",   "prior",  "models"};
 const std::vector<std::string> kSequenceKeys = {
-    "name", "ctrl",    "measured",  "qpos",      "qvel",       "act",
+    "name", "model",   "ctrl",      "measured",  "qpos",       "qvel",      "act",
     "time", "sensors", "ctrl_time", "ctrl_hold", "ctrl_delay", "no_sensors"};
 const std::vector<std::string> kOptionKeys = {"max_iterations",
                                               "function_tolerance",
@@ -200,7 +200,9 @@ FitControlDelay ControlDelayOf(const nb::dict& d, size_t i) {
   return c;
 }
 
-FitSequence SequenceOf(const nb::dict& d, size_t i) {
+// models: the names given to Problem::AddModel (a sequence names one with `model` when there are
+// several)
+FitSequence SequenceOf(const nb::dict& d, size_t i, const std::vector<std::string>& models) {
   const std::string what = "sequences[" + std::to_string(i) + "]";
   CheckKeys(d, kSequenceKeys, what);
   for (const char* key : {"ctrl", "measured"}) {
@@ -208,7 +210,11 @@ FitSequence SequenceOf(const nb::dict& d, size_t i) {
   }
   FitSequence s;
   s.name = Get<std::string>(d, "name", "seq" + std::to_string(i), what);
-  s.model = "model";
+  if (models.size() > 1 && !d.contains("model")) {
+    throw std::invalid_argument(what + ": 'model' is required with several models (one of " +
+                                Joined(models) + ")");
+  }
+  s.model = Get<std::string>(d, "model", models.front(), what);
   s.ctrl = GetMatrix(d, "ctrl", what);
   s.measured = GetMatrix(d, "measured", what);
   // qpos, qvel, act: the initial state (1-D), or the logged states (T rows: fitted where
@@ -345,12 +351,27 @@ ModelPtr ModelOf(const std::string& model) {
   return LoadModel(model);
 }
 
-FitResult Fit(const std::string& model, const nb::list& parameters, const nb::list& sequences,
+FitResult Fit(nb::object model, const nb::list& parameters, const nb::list& sequences,
               nb::object options, nb::object callback, nb::object measurements,
               nb::object control_delays) {
-  ModelPtr m = ModelOf(model);
+  // one model (named "model"), or several: {name: model}
   Problem problem;
-  problem.AddModel("model", *m);
+  std::vector<std::string> models;
+  if (nb::isinstance<nb::dict>(model)) {
+    for (auto [name, value] : nb::cast<nb::dict>(model)) {
+      models.push_back(nb::cast<std::string>(nb::str(name)));
+      if (!nb::isinstance<nb::str>(value)) {
+        throw std::invalid_argument("model['" + models.back() + "']: expected a path or MJCF text");
+      }
+      problem.AddModel(models.back(), *ModelOf(nb::cast<std::string>(value)));
+    }
+    if (models.empty()) throw std::invalid_argument("model: an empty dict");
+  } else if (nb::isinstance<nb::str>(model) || nb::hasattr(model, "__fspath__")) {
+    models.push_back("model");
+    problem.AddModel("model", *ModelOf(nb::cast<std::string>(nb::str(model))));
+  } else {
+    throw std::invalid_argument("model: expected a path, MJCF text or a dict {name: model}");
+  }
   for (size_t i = 0; i < nb::len(parameters); ++i) {
     if (!nb::isinstance<nb::dict>(parameters[i])) {
       throw std::invalid_argument("parameters[" + std::to_string(i) + "]: expected a dict");
@@ -385,7 +406,7 @@ FitResult Fit(const std::string& model, const nb::list& parameters, const nb::li
     if (!nb::isinstance<nb::dict>(sequences[i])) {
       throw std::invalid_argument("sequences[" + std::to_string(i) + "]: expected a dict");
     }
-    problem.AddSequence(SequenceOf(nb::cast<nb::dict>(sequences[i]), i));
+    problem.AddSequence(SequenceOf(nb::cast<nb::dict>(sequences[i]), i, models));
   }
   FitOptions fit_options;
   if (!options.is_none()) {
@@ -410,7 +431,9 @@ void BindFitApi(nb::module_& m) {
   // the docstring names the keys of the tables above (it lives as long as the module)
   static const std::string doc =
       "Fits a model's parameters to logged sequences (sysid/problem.h; docs/python.md).\n\n"
-      "model: an MJCF path or MJCF text. parameters: list of dicts {" +
+      "model: an MJCF path or MJCF text, or a dict {name: path or text} of several models (each "
+      "sequence names its `model`, a parameter the `models` it applies to; default all). "
+      "parameters: list of dicts {" +
       Joined(kParameterKeys) + "} (name, kind, initial required; object | field). " +
       "sequences: list of dicts {" + Joined(kSequenceKeys) +
       "} (ctrl T x nu and measured T x nsensordata in model order required; qpos, qvel, act: "

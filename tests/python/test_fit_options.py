@@ -1,7 +1,8 @@
 """The options of mjsysid.fit that mirror the experiment file's keys (docs/experiment-schema.md):
 multiple shooting's continuity_scale and jumping_sensors, the Jacobian (jacobian, differences,
 relative_step), reduce_model, the controls' ctrl_time / ctrl_hold / ctrl_delay, the measurement
-terms, logged states as residuals, a fitted control delay; each set and seen in a real fit. And the options docs/python.md lists are the ones the module accepts.
+terms, logged states as residuals, a fitted control delay, several models; each set and seen in
+a real fit. And the options docs/python.md lists are the ones the module accepts.
 
 Data: the pendulum experiment's simulated log (truth damping 0.08, frictionloss 0.03, bob_mass
 1.2; noise 0.001 rad, 0.01 rad/s; start 0.2, 0.01, 0.8), and a ball on a vertical slide
@@ -243,6 +244,27 @@ def test_control_delay_is_fitted(root, pendulum):
         assert abs(p.value - truth[p.name]) < 4 * p.std_error, p
     with pytest.raises(ValueError, match="control_delays\\[0\\]: unknown key 'start'"):
         mjsysid.fit(model, PARAMETERS, seqs, control_delays=[{"start": 0.01}])
+
+
+def test_several_models(root, frames):  # noqa: F811
+    # two models (the pendulum as a path and as MJCF text), one sequence each: damping and
+    # friction loss shared, the bob's mass fitted per model (`models`); both masses within 4
+    # standard errors of the truth 1.2, each sequence fitted with its model
+    path = root / "models/pendulum.xml"
+    seqs = [dict(q, model=name) for q, name in zip(sequences_of(frames), ["a", "b"])]
+    params = PARAMETERS[:2] + [dict(PARAMETERS[2], models=["a"]),
+                               dict(PARAMETERS[2], name="bob_mass_b", models=["b"])]
+    r = mjsysid.fit({"a": str(path), "b": path.read_text()}, params, seqs,
+                    options={"sensor_sigmas": SIGMAS})
+    assert r.status == "converged"
+    assert [q.model for q in r.sequences] == ["a", "b"]
+    truth = {"damping": 0.08, "frictionloss": 0.03, "bob_mass": 1.2, "bob_mass_b": 1.2}
+    for p in r.parameters:
+        assert abs(p.value - truth[p.name]) < 4 * p.std_error, p
+    assert r.estimates["bob_mass"] != r.estimates["bob_mass_b"]
+    with pytest.raises(ValueError, match="sequences\\[1\\]: 'model' is required with several"):
+        mjsysid.fit({"a": str(path), "b": str(path)}, params,
+                    [seqs[0], {k: v for k, v in seqs[1].items() if k != "model"}])
 
 
 def test_docs_list_the_options_the_module_accepts(root):
