@@ -10,6 +10,7 @@
 #include <nanobind/stl/vector.h>
 
 #include <algorithm>
+#include <functional>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -344,6 +345,23 @@ FitOptions OptionsOf(const nb::dict& d) {
   return o;
 }
 
+// each item of `list` (None: no item) as a dict, with its index; `what` names the list in errors
+void ForEachDict(const nb::object& list, const char* what,
+                 const std::function<void(const nb::dict&, size_t)>& each) {
+  if (list.is_none()) return;
+  if (!nb::isinstance<nb::list>(list)) {
+    throw std::invalid_argument(std::string(what) + ": expected a list of dicts");
+  }
+  const nb::list items = nb::cast<nb::list>(list);
+  for (size_t i = 0; i < nb::len(items); ++i) {
+    if (!nb::isinstance<nb::dict>(items[i])) {
+      throw std::invalid_argument(std::string(what) + "[" + std::to_string(i) +
+                                  "]: expected a dict");
+    }
+    each(nb::cast<nb::dict>(items[i]), i);
+  }
+}
+
 // model: a path to an MJCF/MJB file, or MJCF text (anything starting with '<')
 ModelPtr ModelOf(const std::string& model) {
   const size_t first = model.find_first_not_of(" \t\r\n");
@@ -351,9 +369,8 @@ ModelPtr ModelOf(const std::string& model) {
   return LoadModel(model);
 }
 
-FitResult Fit(nb::object model, const nb::list& parameters, const nb::list& sequences,
-              nb::object options, nb::object callback, nb::object measurements,
-              nb::object control_delays) {
+FitResult Fit(nb::object model, nb::object parameters, nb::object sequences, nb::object options,
+              nb::object callback, nb::object measurements, nb::object control_delays) {
   // one model (named "model"), or several: {name: model}
   Problem problem;
   std::vector<std::string> models;
@@ -372,42 +389,14 @@ FitResult Fit(nb::object model, const nb::list& parameters, const nb::list& sequ
   } else {
     throw std::invalid_argument("model: expected a path, MJCF text or a dict {name: model}");
   }
-  for (size_t i = 0; i < nb::len(parameters); ++i) {
-    if (!nb::isinstance<nb::dict>(parameters[i])) {
-      throw std::invalid_argument("parameters[" + std::to_string(i) + "]: expected a dict");
-    }
-    problem.AddParameter(ParameterOf(nb::cast<nb::dict>(parameters[i]), i));
-  }
-  if (!measurements.is_none()) {
-    if (!nb::isinstance<nb::list>(measurements)) {
-      throw std::invalid_argument("measurements: expected a list of dicts");
-    }
-    const nb::list list = nb::cast<nb::list>(measurements);
-    for (size_t i = 0; i < nb::len(list); ++i) {
-      if (!nb::isinstance<nb::dict>(list[i])) {
-        throw std::invalid_argument("measurements[" + std::to_string(i) + "]: expected a dict");
-      }
-      problem.AddMeasurement(MeasurementOf(nb::cast<nb::dict>(list[i]), i));
-    }
-  }
-  if (!control_delays.is_none()) {
-    if (!nb::isinstance<nb::list>(control_delays)) {
-      throw std::invalid_argument("control_delays: expected a list of dicts");
-    }
-    const nb::list list = nb::cast<nb::list>(control_delays);
-    for (size_t i = 0; i < nb::len(list); ++i) {
-      if (!nb::isinstance<nb::dict>(list[i])) {
-        throw std::invalid_argument("control_delays[" + std::to_string(i) + "]: expected a dict");
-      }
-      problem.AddControlDelay(ControlDelayOf(nb::cast<nb::dict>(list[i]), i));
-    }
-  }
-  for (size_t i = 0; i < nb::len(sequences); ++i) {
-    if (!nb::isinstance<nb::dict>(sequences[i])) {
-      throw std::invalid_argument("sequences[" + std::to_string(i) + "]: expected a dict");
-    }
-    problem.AddSequence(SequenceOf(nb::cast<nb::dict>(sequences[i]), i, models));
-  }
+  ForEachDict(parameters, "parameters",
+              [&](const nb::dict& d, size_t i) { problem.AddParameter(ParameterOf(d, i)); });
+  ForEachDict(measurements, "measurements",
+              [&](const nb::dict& d, size_t i) { problem.AddMeasurement(MeasurementOf(d, i)); });
+  ForEachDict(control_delays, "control_delays",
+              [&](const nb::dict& d, size_t i) { problem.AddControlDelay(ControlDelayOf(d, i)); });
+  ForEachDict(sequences, "sequences",
+              [&](const nb::dict& d, size_t i) { problem.AddSequence(SequenceOf(d, i, models)); });
   FitOptions fit_options;
   if (!options.is_none()) {
     if (!nb::isinstance<nb::dict>(options)) throw std::invalid_argument("options: expected a dict");

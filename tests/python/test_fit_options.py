@@ -16,7 +16,16 @@ import numpy as np
 import pytest
 
 import mjsysid
-from test_fit_api import PARAMETERS, SIGMAS, frames, sequences_of  # noqa: F401 (a fixture)
+from test_fit_api import PARAMETERS, SIGMAS, TRUTH, frames, sequences_of  # noqa: F401 (a fixture)
+
+
+def expect_truth(result, truth):
+    """converged, the estimates named as `truth` (in order), each within 4 standard errors"""
+    assert result.status == "converged", result.status
+    assert [p.name for p in result.parameters] == list(truth)
+    for p in result.parameters:
+        assert abs(p.value - truth[p.name]) < 4 * p.std_error, p
+
 
 BALL_XML = """<mujoco model="ball">
   <option timestep="0.002"/>
@@ -105,10 +114,8 @@ def test_continuity_scale_relative_or_absolute(root, frames):  # noqa: F811
         if choice:
             options["continuity_scale"] = choice
         fits[choice] = r = mjsysid.fit(model, PARAMETERS, seqs, options=options)
-        assert r.status == "converged" and r.segment_steps_used == 500, (choice, r.status)
-        for p in r.parameters:
-            truth = {"damping": 0.08, "frictionloss": 0.03, "bob_mass": 1.2}[p.name]
-            assert abs(p.value - truth) < 4 * p.std_error, (choice, p)
+        expect_truth(r, TRUTH)
+        assert r.segment_steps_used == 500, choice
     assert fits[None].initial_cost == fits["relative"].initial_cost
     assert fits[None].estimates == fits["relative"].estimates
     assert "continuity weights 1 x S / state spread" in fits["relative"].segment_reason
@@ -189,11 +196,7 @@ def test_measurement_bias_is_fitted(root, frames):  # noqa: F811
     assert mjsysid.fit(model, PARAMETERS, seqs, options=options).status == "model_mismatch"
     bias = {"sensor": "angle", "bias": {"initial": 0.0, "fit": True, "lower": -1.0, "upper": 1.0}}
     r = mjsysid.fit(model, PARAMETERS, seqs, options=options, measurements=[bias])
-    assert r.status == "converged"
-    truth = {"damping": 0.08, "frictionloss": 0.03, "bob_mass": 1.2, "angle.bias": 0.05}
-    assert [p.name for p in r.parameters] == list(truth)
-    for p in r.parameters:
-        assert abs(p.value - truth[p.name]) < 4 * p.std_error, p
+    expect_truth(r, dict(TRUTH, **{"angle.bias": 0.05}))
     with pytest.raises(ValueError, match="measurements\\[0\\].bias: unknown key 'start'"):
         mjsysid.fit(model, PARAMETERS, seqs, measurements=[{"sensor": "angle",
                                                             "bias": {"start": 0.0}}])
@@ -212,8 +215,7 @@ def test_logged_states_fitted_without_sensors(root, pendulum):
     states = {"qpos": {"sigma": 1e-3}, "qvel": {"sigma": [1e-2], "joints": ["hinge"]}}
     r = mjsysid.fit(model, PARAMETERS, [seq], options={"states": states})
     assert r.status == "converged"
-    truth = {"damping": 0.08, "frictionloss": 0.03, "bob_mass": 1.2}
-    for name, value in truth.items():
+    for name, value in TRUTH.items():
         assert r.estimates[name] == pytest.approx(value, rel=1e-6), name
     assert r.sequences[0].sensor_names == []
     assert r.sequences[0].state_names == ["qpos:hinge", "qvel:hinge"]
@@ -237,11 +239,7 @@ def test_control_delay_is_fitted(root, pendulum):
     assert mjsysid.fit(model, PARAMETERS, seqs, options=options).status == "model_mismatch"
     r = mjsysid.fit(model, PARAMETERS, seqs, options=options,
                     control_delays=[{"initial": 0.01, "upper": 0.05}])
-    assert r.status == "converged"
-    truth = {"damping": 0.08, "frictionloss": 0.03, "bob_mass": 1.2, "controls.delay": 0.02}
-    assert [p.name for p in r.parameters] == list(truth)
-    for p in r.parameters:
-        assert abs(p.value - truth[p.name]) < 4 * p.std_error, p
+    expect_truth(r, dict(TRUTH, **{"controls.delay": 0.02}))
     with pytest.raises(ValueError, match="control_delays\\[0\\]: unknown key 'start'"):
         mjsysid.fit(model, PARAMETERS, seqs, control_delays=[{"start": 0.01}])
 
@@ -256,11 +254,8 @@ def test_several_models(root, frames):  # noqa: F811
                                dict(PARAMETERS[2], name="bob_mass_b", models=["b"])]
     r = mjsysid.fit({"a": str(path), "b": path.read_text()}, params, seqs,
                     options={"sensor_sigmas": SIGMAS})
-    assert r.status == "converged"
+    expect_truth(r, dict(TRUTH, bob_mass_b=1.2))
     assert [q.model for q in r.sequences] == ["a", "b"]
-    truth = {"damping": 0.08, "frictionloss": 0.03, "bob_mass": 1.2, "bob_mass_b": 1.2}
-    for p in r.parameters:
-        assert abs(p.value - truth[p.name]) < 4 * p.std_error, p
     assert r.estimates["bob_mass"] != r.estimates["bob_mass_b"]
     with pytest.raises(ValueError, match="sequences\\[1\\]: 'model' is required with several"):
         mjsysid.fit({"a": str(path), "b": str(path)}, params,
