@@ -1,5 +1,6 @@
-// A test fixture with a fresh folder per test (temp/mjsysid_<suite>_<pid>_<test>), removed
-// afterwards: what every test that writes files derives from.
+// A test fixture with a fresh folder per test (temp/mjsysid_<suite>_<pid>_<test>, any '/' of a
+// parameterized test's names as '_'), removed afterwards: what every test that writes files derives
+// from.
 #pragma once
 
 #include <gtest/gtest.h>
@@ -15,9 +16,11 @@ class TempDirTest : public ::testing::Test {
  protected:
   void SetUp() override {
     const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = std::filesystem::temp_directory_path() /
-           ("mjsysid_" + std::string(info->test_suite_name()) + "_" + std::to_string(::getpid()) +
-            "_" + info->name());
+    std::string name = "mjsysid_" + std::string(info->test_suite_name()) + "_" +
+                       std::to_string(::getpid()) + "_" + info->name();
+    // a parameterized test's names hold '/' (Prefix/Suite, Test/0): one folder, not a tree
+    for (char& c : name) c = c == '/' ? '_' : c;
+    dir_ = std::filesystem::temp_directory_path() / name;
     std::filesystem::remove_all(dir_);
     std::filesystem::create_directories(dir_);
   }

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <memory>
 #include <random>
 #include <string>
 #include <vector>
@@ -17,6 +18,25 @@
 #include "core/state.h"
 
 namespace mjsysid::test {
+
+// two hinges in a chain driven by one motor on hinge1, no sensor (fitted from logged states)
+inline constexpr char kChainXml[] = R"(
+<mujoco model="chain">
+  <option timestep="0.002" integrator="Euler"/>
+  <worldbody>
+    <body name="link1" pos="0 0 2">
+      <joint name="hinge1" type="hinge" axis="0 1 0" damping="0.2"/>
+      <geom name="link1" type="capsule" fromto="0 0 0 0 0 -0.5" size="0.03" mass="1.0"/>
+      <body name="link2" pos="0 0 -0.5">
+        <joint name="hinge2" type="hinge" axis="0 1 0" damping="0.1"/>
+        <geom name="link2" type="capsule" fromto="0 0 0 0 0 -0.5" size="0.03" mass="0.8"/>
+      </body>
+    </body>
+  </worldbody>
+  <actuator>
+    <motor name="torque1" joint="hinge1" gear="1"/>
+  </actuator>
+</mujoco>)";
 
 inline ParameterSpec Spec(const std::string& kind, const std::string& object, int index = 0) {
   ParameterSpec s;
@@ -54,18 +74,24 @@ struct Truth {
   double value;
 };
 
-// sensors of m with the true parameter values, plus Gaussian noise sigma (all channels)
-inline RowMatrix Measure(const mjModel& m, const std::vector<Truth>& truth, const InitialState& x0,
-                         const RowMatrix& ctrl, double sigma, int seed) {
+// a simulator of m with `truth`'s parameters at their true values (the model's own with none)
+inline std::unique_ptr<Simulator> TrueSimulator(const mjModel& m, const std::vector<Truth>& truth) {
   std::vector<ParameterSpec> specs;
   Eigen::VectorXd values(truth.size());
   for (size_t i = 0; i < truth.size(); ++i) {
     specs.push_back(truth[i].spec);
     values[i] = truth[i].value;
   }
-  Simulator sim(m, specs);
-  if (!truth.empty()) sim.SetParameters(values);
-  RowMatrix y = sim.Rollout(SequenceInput{x0, ctrl}).sensors;
+  auto sim = std::make_unique<Simulator>(m, specs);
+  if (!truth.empty()) sim->SetParameters(values);
+  return sim;
+}
+
+// sensors of m with the true parameter values, plus Gaussian noise sigma (all channels)
+inline RowMatrix Measure(const mjModel& m, const std::vector<Truth>& truth, const InitialState& x0,
+                         const RowMatrix& ctrl, double sigma, int seed) {
+  const std::unique_ptr<Simulator> sim = TrueSimulator(m, truth);
+  RowMatrix y = sim->Rollout(SequenceInput{x0, ctrl}).sensors;
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> noise(0, sigma);
   if (sigma > 0) {

@@ -1,16 +1,19 @@
-// mjsysid.fit(model, parameters, sequences, options=None, callback=None): the library API
-// (sysid/problem.h) on Python data. The dicts are read into FitParameter / FitSequence /
-// FitOptions; unknown keys and wrong shapes raise ValueError naming the key; everything else
-// (names, bounds, shapes against the model) is checked by Problem as for a C++ caller.
+// mjsysid.fit(model, parameters, sequences, options=None, callback=None, measurements=None,
+// control_delays=None): the library API (sysid/problem.h) on Python data. The dicts are read into
+// FitParameter / FitSequence / FitOptions / FitMeasurement / FitControlDelay; unknown keys and
+// wrong shapes raise ValueError naming the key; everything else (names, bounds, shapes against the
+// model) is checked by Problem as for a C++ caller.
 #include <nanobind/eigen/dense.h>
 #include <nanobind/nanobind.h>
 #include <nanobind/stl/map.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/vector.h>
 
-#include <set>
+#include <algorithm>
+#include <functional>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "bindings.h"
@@ -23,14 +26,57 @@ namespace {
 using nb::arg;
 using namespace nb::literals;
 
+// "a, b, c"
+std::string Joined(const std::vector<std::string>& names) {
+  std::string out;
+  for (const std::string& n : names) out += (out.empty() ? "" : ", ") + n;
+  return out;
+}
+
+// The keys of the three kinds of dict, each list written once: CheckKeys, the docstring of
+// fit() and the ValueError for an unknown key read it (tests/python/test_fit_options.py
+// compares the options with docs/python.md).
+const std::vector<std::string> kParameterKeys = {"name",  "kind",    "object", "field",
+                                                 "index", "initial", "lower",  "upper",
+                                                 "log",   "scale",   "prior",  "models"};
+const std::vector<std::string> kSequenceKeys = {
+    "name", "model",   "ctrl",      "measured",  "qpos",       "qvel",      "act",
+    "time", "sensors", "ctrl_time", "ctrl_hold", "ctrl_delay", "no_sensors"};
+const std::vector<std::string> kOptionKeys = {"max_iterations",
+                                              "function_tolerance",
+                                              "gradient_tolerance",
+                                              "parameter_tolerance",
+                                              "threads",
+                                              "loss",
+                                              "loss_scale",
+                                              "estimate_initial_state",
+                                              "segment_steps",
+                                              "continuity_weight",
+                                              "continuity_scale",
+                                              "jumping_sensors",
+                                              "sensor_weights",
+                                              "sensor_sigmas",
+                                              "jacobian",
+                                              "differences",
+                                              "relative_step",
+                                              "reduce_model",
+                                              "states",
+                                              "verbose"};
+const std::vector<std::string> kMeasurementKeys = {"sensor", "delay", "gain", "bias"};
+const std::vector<std::string> kTermKeys = {"initial", "fit", "lower", "upper"};
+const std::vector<std::string> kControlDelayKeys = {"actuator", "initial", "lower", "upper"};
+
+// the spellings of the experiment file's enums (docs/experiment-schema.md)
+const std::vector<std::string> kDifferences = {"forward", "central"};
+const std::vector<std::string> kContinuityScales = {"relative", "absolute"};
+const std::vector<std::string> kJumpingSensors = {"omit", "fit"};
+
 // the keys of `d` must be in `valid`; `what` names the dict in messages
-void CheckKeys(const nb::dict& d, const std::set<std::string>& valid, const std::string& what) {
+void CheckKeys(const nb::dict& d, const std::vector<std::string>& valid, const std::string& what) {
   for (auto [key, value] : d) {
     const std::string k = nb::cast<std::string>(nb::str(key));
-    if (!valid.count(k)) {
-      std::string list;
-      for (const std::string& v : valid) list += (list.empty() ? "" : ", ") + v;
-      throw std::invalid_argument(what + ": unknown key '" + k + "'; valid: " + list);
+    if (std::find(valid.begin(), valid.end(), k) == valid.end()) {
+      throw std::invalid_argument(what + ": unknown key '" + k + "'; valid: " + Joined(valid));
     }
   }
 }
@@ -45,6 +91,19 @@ T Get(const nb::dict& d, const char* key, const T& fallback, const std::string& 
     throw std::invalid_argument(what + ": '" + key + "' has the wrong type (" +
                                 nb::cast<std::string>(nb::str(nb::handle(d[key]).type())) + ")");
   }
+}
+
+// d[key] as the index of one of `names`, or `fallback` when absent; another string names the key
+// and the valid spellings
+int GetChoice(const nb::dict& d, const char* key, const std::vector<std::string>& names,
+              int fallback, const std::string& what) {
+  if (!d.contains(key)) return fallback;
+  const std::string v = Get<std::string>(d, key, "", what);
+  const auto it = std::find(names.begin(), names.end(), v);
+  if (it == names.end()) {
+    throw std::invalid_argument(what + ": " + key + " '" + v + "': expected " + Joined(names));
+  }
+  return static_cast<int>(it - names.begin());
 }
 
 // d[key] as a float64 matrix (a 1-D array is one column), or 0 x 0 when absent
@@ -75,10 +134,7 @@ Eigen::VectorXd GetVector(const nb::dict& d, const char* key, const std::string&
 
 FitParameter ParameterOf(const nb::dict& d, size_t i) {
   const std::string what = "parameters[" + std::to_string(i) + "]";
-  CheckKeys(d,
-            {"name", "kind", "object", "field", "index", "initial", "lower", "upper", "log",
-             "scale", "prior", "models"},
-            what);
+  CheckKeys(d, kParameterKeys, what);
   for (const char* key : {"name", "kind", "initial"}) {
     if (!d.contains(key)) throw std::invalid_argument(what + ": '" + key + "' is required");
   }
@@ -105,54 +161,138 @@ FitParameter ParameterOf(const nb::dict& d, size_t i) {
   return p;
 }
 
-FitSequence SequenceOf(const nb::dict& d, size_t i) {
+// one term of a measurement: {initial?, fit?, lower?, upper?}, defaults those of `term`
+void TermOf(const nb::dict& d, const char* key, const std::string& what,
+            FitMeasurement::Term* term) {
+  if (!d.contains(key)) return;
+  const std::string w = what + "." + key;
+  if (!nb::isinstance<nb::dict>(d[key])) throw std::invalid_argument(w + ": expected a dict");
+  const nb::dict t = nb::cast<nb::dict>(d[key]);
+  CheckKeys(t, kTermKeys, w);
+  term->initial = Get<double>(t, "initial", term->initial, w);
+  term->fit = Get<bool>(t, "fit", term->fit, w);
+  term->lower = Get<double>(t, "lower", term->lower, w);
+  term->upper = Get<double>(t, "upper", term->upper, w);
+}
+
+// measured = gain * simulated(t - delay) + bias for one sensor (the experiment's `measurement:`)
+FitMeasurement MeasurementOf(const nb::dict& d, size_t i) {
+  const std::string what = "measurements[" + std::to_string(i) + "]";
+  CheckKeys(d, kMeasurementKeys, what);
+  if (!d.contains("sensor")) throw std::invalid_argument(what + ": 'sensor' is required");
+  FitMeasurement m;
+  m.sensor = Get<std::string>(d, "sensor", "", what);
+  TermOf(d, "delay", what, &m.delay);
+  TermOf(d, "gain", what, &m.gain);
+  TermOf(d, "bias", what, &m.bias);
+  return m;
+}
+
+// a transport delay of the controls fitted as a variable (the experiment's controls.delay with
+// fit: true): one actuator's, or shared by every actuator without its own (actuator absent)
+FitControlDelay ControlDelayOf(const nb::dict& d, size_t i) {
+  const std::string what = "control_delays[" + std::to_string(i) + "]";
+  CheckKeys(d, kControlDelayKeys, what);
+  FitControlDelay c;
+  c.actuator = Get<std::string>(d, "actuator", "", what);
+  c.initial = Get<double>(d, "initial", c.initial, what);
+  c.lower = Get<double>(d, "lower", c.lower, what);
+  c.upper = Get<double>(d, "upper", c.upper, what);
+  return c;
+}
+
+// models: the names given to Problem::AddModel (a sequence names one with `model` when there are
+// several)
+FitSequence SequenceOf(const nb::dict& d, size_t i, const std::vector<std::string>& models) {
   const std::string what = "sequences[" + std::to_string(i) + "]";
-  CheckKeys(d, {"name", "ctrl", "measured", "qpos", "qvel", "act", "time", "sensors"}, what);
+  CheckKeys(d, kSequenceKeys, what);
   for (const char* key : {"ctrl", "measured"}) {
     if (!d.contains(key)) throw std::invalid_argument(what + ": '" + key + "' is required");
   }
   FitSequence s;
   s.name = Get<std::string>(d, "name", "seq" + std::to_string(i), what);
-  s.model = "model";
+  if (models.size() > 1 && !d.contains("model")) {
+    throw std::invalid_argument(what + ": 'model' is required with several models (one of " +
+                                Joined(models) + ")");
+  }
+  s.model = Get<std::string>(d, "model", models.front(), what);
   s.ctrl = GetMatrix(d, "ctrl", what);
   s.measured = GetMatrix(d, "measured", what);
-  s.x0.qpos = GetVector(d, "qpos", what);
-  s.x0.qvel = GetVector(d, "qvel", what);
-  s.x0.act = GetVector(d, "act", what);
+  // qpos, qvel, act: the initial state (1-D), or the logged states (T rows: fitted where
+  // options' `states` says so, and their first row the initial state)
+  const std::pair<const char*, std::pair<Eigen::VectorXd*, RowMatrix*>> states[] = {
+      {"qpos", {&s.x0.qpos, &s.qpos}},
+      {"qvel", {&s.x0.qvel, &s.qvel}},
+      {"act", {&s.x0.act, &s.act}}};
+  for (const auto& [key, into] : states) {
+    if (!d.contains(key)) continue;
+    nb::module_ np = nb::module_::import_("numpy");
+    if (nb::cast<int>(np.attr("ndim")(d[key])) == 2) {
+      *into.second = GetMatrix(d, key, what);
+      if (into.second->rows() > 0) *into.first = into.second->row(0).transpose();
+    } else {
+      *into.first = GetVector(d, key, what);
+    }
+  }
+  s.no_sensors = Get<bool>(d, "no_sensors", false, what);
   s.time = GetVector(d, "time", what);
   if (s.time.size() > 0) s.x0.time = s.time[0];
   s.sensors = Get<std::vector<std::string>>(d, "sensors", {}, what);
+  // the controls' own clock and how they reach the steps (the experiment's `controls:`)
+  s.ctrl_time = GetVector(d, "ctrl_time", what);
+  if (d.contains("ctrl_hold")) {
+    // one spelling for every actuator, or a list with one per actuator
+    std::vector<std::string> holds;
+    if (nb::isinstance<nb::str>(d["ctrl_hold"])) {
+      holds.assign(s.ctrl.cols(), Get<std::string>(d, "ctrl_hold", "", what));
+    } else {
+      holds = Get<std::vector<std::string>>(d, "ctrl_hold", {}, what);
+    }
+    for (const std::string& h : holds) {
+      if (h == ControlHoldName(ControlHold::kZeroOrder)) {
+        s.ctrl_hold.push_back(ControlHold::kZeroOrder);
+      } else if (h == ControlHoldName(ControlHold::kLinear)) {
+        s.ctrl_hold.push_back(ControlHold::kLinear);
+      } else {
+        throw std::invalid_argument(what + ": ctrl_hold '" + h + "': expected " +
+                                    ControlHoldName(ControlHold::kZeroOrder) + " or " +
+                                    ControlHoldName(ControlHold::kLinear));
+      }
+    }
+  }
+  if (d.contains("ctrl_delay")) {
+    // one delay (s) for every actuator, or one per actuator
+    const Eigen::VectorXd delay = GetVector(d, "ctrl_delay", what);
+    if (delay.size() == 1) {
+      s.ctrl_delay.assign(s.ctrl.cols(), delay[0]);
+    } else {
+      s.ctrl_delay.assign(delay.data(), delay.data() + delay.size());
+    }
+  }
   return s;
 }
 
 FitOptions OptionsOf(const nb::dict& d) {
   const std::string what = "options";
-  CheckKeys(d,
-            {"max_iterations", "function_tolerance", "gradient_tolerance", "parameter_tolerance",
-             "threads", "loss", "loss_scale", "estimate_initial_state", "segment_steps",
-             "continuity_weight", "sensor_weights", "sensor_sigmas", "verbose"},
-            what);
+  CheckKeys(d, kOptionKeys, what);
   FitOptions o;
   o.max_iterations = Get<int>(d, "max_iterations", o.max_iterations, what);
   o.function_tolerance = Get<double>(d, "function_tolerance", o.function_tolerance, what);
   o.gradient_tolerance = Get<double>(d, "gradient_tolerance", o.gradient_tolerance, what);
   o.parameter_tolerance = Get<double>(d, "parameter_tolerance", o.parameter_tolerance, what);
   o.threads = Get<int>(d, "threads", o.threads, what);
-  const std::string loss = Get<std::string>(d, "loss", LossTypeName(o.loss), what);
-  bool known = false;
-  for (LossType t : {LossType::kNone, LossType::kHuber, LossType::kCauchy}) {
-    if (loss == LossTypeName(t)) {
-      o.loss = t;
-      known = true;
-    }
-  }
-  if (!known) {
-    throw std::invalid_argument("options: loss '" + loss + "': expected none, huber or cauchy");
-  }
+  const LossType loss_types[] = {LossType::kNone, LossType::kHuber, LossType::kCauchy};
+  std::vector<std::string> losses;
+  for (LossType t : loss_types) losses.push_back(LossTypeName(t));
+  if (d.contains("loss")) o.loss = loss_types[GetChoice(d, "loss", losses, 0, what)];
   o.loss_scale = Get<double>(d, "loss_scale", o.loss_scale, what);
   o.estimate_initial_state = Get<bool>(d, "estimate_initial_state", false, what);
   o.segment_steps = Get<int>(d, "segment_steps", o.segment_steps, what);
   o.continuity_weight = Get<double>(d, "continuity_weight", o.continuity_weight, what);
+  o.continuity_relative =
+      GetChoice(d, "continuity_scale", kContinuityScales, o.continuity_relative ? 0 : 1, what) == 0;
+  o.fit_jumping_sensors =
+      GetChoice(d, "jumping_sensors", kJumpingSensors, o.fit_jumping_sensors ? 1 : 0, what) == 1;
   o.sensor_weights = Get<std::map<std::string, double>>(d, "sensor_weights", {}, what);
   // a sigma is a weight 1/sigma that also enters the model_mismatch verdict (as in YAML)
   for (const auto& [sensor, sigma] :
@@ -163,8 +303,63 @@ FitOptions OptionsOf(const nb::dict& d) {
     o.sensor_weights[sensor] = 1.0 / sigma;
     o.sensors_with_sigma.push_back(sensor);
   }
+  // the Jacobian (the experiment's solver.jacobian, differences, relative_step)
+  const JacobianMode jacobian_modes[] = {JacobianMode::kAuto, JacobianMode::kDirectional,
+                                         JacobianMode::kMatrix, JacobianMode::kWholeRollout};
+  std::vector<std::string> modes;
+  for (JacobianMode m : jacobian_modes) modes.push_back(JacobianModeName(m));
+  if (d.contains("jacobian")) {
+    o.jacobian.mode = jacobian_modes[GetChoice(d, "jacobian", modes, 0, what)];
+  }
+  o.jacobian.central = GetChoice(d, "differences", kDifferences, o.jacobian.central, what) == 1;
+  o.jacobian.relative_step = Get<double>(d, "relative_step", o.jacobian.relative_step, what);
+  if (!(o.jacobian.relative_step > 0)) {
+    throw std::invalid_argument("options: relative_step must be > 0");
+  }
+  o.reduce_model = Get<bool>(d, "reduce_model", o.reduce_model, what);
+  // logged states fitted as data: {qpos: {sigma, joints?}, qvel: ..., act: {sigma, actuators?}}
+  if (d.contains("states")) {
+    if (!nb::isinstance<nb::dict>(d["states"])) {
+      throw std::invalid_argument("options: states: expected a dict");
+    }
+    const nb::dict st = nb::cast<nb::dict>(d["states"]);
+    CheckKeys(st, {"qpos", "qvel", "act"}, "options.states");
+    FitStates::Part* parts[] = {&o.states.qpos, &o.states.qvel, &o.states.act};
+    const char* names[] = {"qpos", "qvel", "act"};
+    for (int i = 0; i < 3; ++i) {
+      if (!st.contains(names[i])) continue;
+      const std::string w = std::string("options.states.") + names[i];
+      if (!nb::isinstance<nb::dict>(st[names[i]]))
+        throw std::invalid_argument(w + ": expected a dict");
+      const nb::dict part = nb::cast<nb::dict>(st[names[i]]);
+      const char* objects = i < 2 ? "joints" : "actuators";
+      CheckKeys(part, {"sigma", objects}, w);
+      if (!part.contains("sigma")) throw std::invalid_argument(w + ": 'sigma' is required");
+      const Eigen::VectorXd sigma = GetVector(part, "sigma", w);
+      parts[i]->fit = true;
+      parts[i]->sigma.assign(sigma.data(), sigma.data() + sigma.size());
+      parts[i]->names = Get<std::vector<std::string>>(part, objects, {}, w);
+    }
+  }
   o.verbose = Get<bool>(d, "verbose", false, what);
   return o;
+}
+
+// each item of `list` (None: no item) as a dict, with its index; `what` names the list in errors
+void ForEachDict(const nb::object& list, const char* what,
+                 const std::function<void(const nb::dict&, size_t)>& each) {
+  if (list.is_none()) return;
+  if (!nb::isinstance<nb::list>(list)) {
+    throw std::invalid_argument(std::string(what) + ": expected a list of dicts");
+  }
+  const nb::list items = nb::cast<nb::list>(list);
+  for (size_t i = 0; i < nb::len(items); ++i) {
+    if (!nb::isinstance<nb::dict>(items[i])) {
+      throw std::invalid_argument(std::string(what) + "[" + std::to_string(i) +
+                                  "]: expected a dict");
+    }
+    each(nb::cast<nb::dict>(items[i]), i);
+  }
 }
 
 // model: a path to an MJCF/MJB file, or MJCF text (anything starting with '<')
@@ -174,23 +369,34 @@ ModelPtr ModelOf(const std::string& model) {
   return LoadModel(model);
 }
 
-FitResult Fit(const std::string& model, const nb::list& parameters, const nb::list& sequences,
-              nb::object options, nb::object callback) {
-  ModelPtr m = ModelOf(model);
+FitResult Fit(nb::object model, nb::object parameters, nb::object sequences, nb::object options,
+              nb::object callback, nb::object measurements, nb::object control_delays) {
+  // one model (named "model"), or several: {name: model}
   Problem problem;
-  problem.AddModel("model", *m);
-  for (size_t i = 0; i < nb::len(parameters); ++i) {
-    if (!nb::isinstance<nb::dict>(parameters[i])) {
-      throw std::invalid_argument("parameters[" + std::to_string(i) + "]: expected a dict");
+  std::vector<std::string> models;
+  if (nb::isinstance<nb::dict>(model)) {
+    for (auto [name, value] : nb::cast<nb::dict>(model)) {
+      models.push_back(nb::cast<std::string>(nb::str(name)));
+      if (!nb::isinstance<nb::str>(value)) {
+        throw std::invalid_argument("model['" + models.back() + "']: expected a path or MJCF text");
+      }
+      problem.AddModel(models.back(), *ModelOf(nb::cast<std::string>(value)));
     }
-    problem.AddParameter(ParameterOf(nb::cast<nb::dict>(parameters[i]), i));
+    if (models.empty()) throw std::invalid_argument("model: an empty dict");
+  } else if (nb::isinstance<nb::str>(model) || nb::hasattr(model, "__fspath__")) {
+    models.push_back("model");
+    problem.AddModel("model", *ModelOf(nb::cast<std::string>(nb::str(model))));
+  } else {
+    throw std::invalid_argument("model: expected a path, MJCF text or a dict {name: model}");
   }
-  for (size_t i = 0; i < nb::len(sequences); ++i) {
-    if (!nb::isinstance<nb::dict>(sequences[i])) {
-      throw std::invalid_argument("sequences[" + std::to_string(i) + "]: expected a dict");
-    }
-    problem.AddSequence(SequenceOf(nb::cast<nb::dict>(sequences[i]), i));
-  }
+  ForEachDict(parameters, "parameters",
+              [&](const nb::dict& d, size_t i) { problem.AddParameter(ParameterOf(d, i)); });
+  ForEachDict(measurements, "measurements",
+              [&](const nb::dict& d, size_t i) { problem.AddMeasurement(MeasurementOf(d, i)); });
+  ForEachDict(control_delays, "control_delays",
+              [&](const nb::dict& d, size_t i) { problem.AddControlDelay(ControlDelayOf(d, i)); });
+  ForEachDict(sequences, "sequences",
+              [&](const nb::dict& d, size_t i) { problem.AddSequence(SequenceOf(d, i, models)); });
   FitOptions fit_options;
   if (!options.is_none()) {
     if (!nb::isinstance<nb::dict>(options)) throw std::invalid_argument("options: expected a dict");
@@ -211,18 +417,30 @@ FitResult Fit(const std::string& model, const nb::list& parameters, const nb::li
 }  // namespace
 
 void BindFitApi(nb::module_& m) {
+  // the docstring names the keys of the tables above (it lives as long as the module)
+  static const std::string doc =
+      "Fits a model's parameters to logged sequences (sysid/problem.h; docs/python.md).\n\n"
+      "model: an MJCF path or MJCF text, or a dict {name: path or text} of several models (each "
+      "sequence names its `model`, a parameter the `models` it applies to; default all). "
+      "parameters: list of dicts {" +
+      Joined(kParameterKeys) + "} (name, kind, initial required; object | field). " +
+      "sequences: list of dicts {" + Joined(kSequenceKeys) +
+      "} (ctrl T x nu and measured T x nsensordata in model order required; qpos, qvel, act: "
+      "the initial state, or T rows of logged states). options: dict {" +
+      Joined(kOptionKeys) +
+      "}. callback(IterationInfo) after every successful iteration. measurements: list of "
+      "dicts {" +
+      Joined(kMeasurementKeys) + "}, each term a dict {" + Joined(kTermKeys) +
+      "}: measured = gain * simulated(t - delay) + bias, fitted terms estimated as "
+      "SENSOR.delay, SENSOR.gain, SENSOR.bias. control_delays: list of dicts {" +
+      Joined(kControlDelayKeys) +
+      "} (s; no actuator: shared by every actuator without its own), estimated as "
+      "controls.delay[.ACTUATOR]."
+      " The GIL is released during "
+      "the fit; Ctrl-C stops it after the current iteration (status interrupted).";
   m.def("fit", &Fit, arg("model"), arg("parameters"), arg("sequences"), arg("options") = nb::none(),
-        arg("callback") = nb::none(),
-        "Fits a model's parameters to logged sequences (sysid/problem.h).\n\n"
-        "model: an MJCF path or MJCF text. parameters: list of dicts {name, kind, object | "
-        "field, index?, initial, lower?, upper?, log?, scale?, prior? [mean, sigma], models?}. "
-        "sequences: list of dicts {ctrl (T x nu), measured (T x nsensordata, model order), "
-        "qpos?, qvel?, act? (the initial state), time? (T), name?, sensors? (the fitted ones)}. "
-        "options: dict {max_iterations, function_tolerance, gradient_tolerance, "
-        "parameter_tolerance, threads, loss, loss_scale, estimate_initial_state, "
-        "segment_steps, continuity_weight, sensor_weights, sensor_sigmas, verbose}. "
-        "callback(IterationInfo) after every successful iteration. The GIL is released during "
-        "the fit; Ctrl-C stops it after the current iteration (status interrupted).");
+        arg("callback") = nb::none(), arg("measurements") = nb::none(),
+        arg("control_delays") = nb::none(), doc.c_str());
 }
 
 }  // namespace mjsysid::python

@@ -309,7 +309,13 @@ NB_MODULE(_mjsysid, m) {
       .def_ro("measured", &SequenceResult::measured)
       .def_ro("simulated_initial", &SequenceResult::simulated_initial)
       .def_ro("simulated_final", &SequenceResult::simulated_final)
-      .def_ro("x0_final", &SequenceResult::x0_final);
+      .def_ro("x0_final", &SequenceResult::x0_final)
+      .def_ro("state_names", &SequenceResult::state_names,
+              "fitted states: qpos:<joint>, qvel:<joint>, act:<actuator>")
+      .def_ro("state_dims", &SequenceResult::state_dims)
+      .def_ro("state_measured", &SequenceResult::state_measured)
+      .def_ro("state_simulated_initial", &SequenceResult::state_simulated_initial)
+      .def_ro("state_simulated_final", &SequenceResult::state_simulated_final);
 
   nb::class_<FitResult>(m, "FitResult", "The result of a fit (sysid/types.h)")
       .def_ro("parameters", &FitResult::parameters)
@@ -339,7 +345,26 @@ NB_MODULE(_mjsysid, m) {
       .def_ro("warnings", &FitResult::warnings)
       .def_ro("seconds", &FitResult::seconds)
       .def_ro("simulation_steps", &FitResult::simulation_steps)
-      .def_ro("jacobian_mode", &FitResult::jacobian_mode);
+      .def_ro("jacobian_mode", &FitResult::jacobian_mode)
+      .def_ro("segment_steps_used", &FitResult::segment_steps_used,
+              "multiple shooting: steps per segment (0: single shooting)")
+      .def_ro("segment_reason", &FitResult::segment_reason,
+              "why (multiple_shooting: auto's choice, or the given segment_steps)")
+      .def_prop_ro(
+          "reduction",
+          [](const FitResult& r) {
+            nb::dict d;
+            d["used"] = r.reduction.used;
+            d["collision_pairs"] = r.reduction.collision_pairs;
+            d["collision_pairs_off"] = r.reduction.collision_pairs_off;
+            d["geoms_off"] = r.reduction.geoms_off;
+            d["disabled"] = r.reduction.disabled;
+            d["guard_trips"] = r.reduction.guard_trips;
+            d["text"] = ReductionText(r.reduction);
+            return d;
+          },
+          "the reduced model (reduce_model): dict used, collision_pairs, collision_pairs_off, "
+          "geoms_off, disabled, guard_trips, text (as result.yaml's `reduced:`)");
 
   nb::class_<io::FitResultFile, FitResult>(m, "ResultFile",
                                            "A fit as stored in DIR/result.yaml + result.h5")

@@ -2,7 +2,6 @@
 #include "core/identified_model.h"
 
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -20,6 +19,7 @@
 #include "core/parameters.h"
 #include "core/state.h"
 #include "tests/core/inertial_by_hand.h"
+#include "tests/temp_dir_test.h"
 #include "tests/test_util.h"
 
 namespace mjsysid {
@@ -193,26 +193,14 @@ ParameterSpec Spec(const std::string& kind, const std::string& object, int index
 }
 
 // a fresh folder per test holding the base model file
-class IdentifiedModelTest : public ::testing::Test {
+class IdentifiedModelTest : public test::TempDirTest {
  protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    std::string name = std::string(info->name()) + "_" + std::to_string(getpid());
-    for (char& c : name) c = c == '/' ? '_' : c;
-    dir_ = fs::temp_directory_path() / ("mjsysid_identified_model_test_" + name);
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-
   // the template (with overrides) as a model file
   std::string ModelFile(const std::map<std::string, std::string>& overrides = {}) {
     const std::string path = (dir_ / "model.xml").string();
     std::ofstream(path) << Xml(overrides);
     return path;
   }
-
-  fs::path dir_;
 };
 
 struct KindCase {

@@ -124,15 +124,8 @@ RobotLog MakeRobotLog(const std::string& file, const std::vector<test::Truth>& t
     while (j + 1 < J && log.ctrl_time[j + 1] + rs.control_delay <= t + 1e-12) ++j;
     u.row(n) = log.ctrl.row(j);
   }
-  std::vector<ParameterSpec> specs;
-  Eigen::VectorXd values(truth.size());
-  for (size_t i = 0; i < truth.size(); ++i) {
-    specs.push_back(truth[i].spec);
-    values[i] = truth[i].value;
-  }
-  Simulator sim(m, specs);
-  sim.SetParameters(values);
-  const RowMatrix y = sim.Rollout(SequenceInput{x0, u}).sensors;  // y_n at n fine_dt
+  const RowMatrix y =
+      test::TrueSimulator(m, truth)->Rollout(SequenceInput{x0, u}).sensors;  // y_n at n fine_dt
 
   // sample instants
   std::vector<double> times;

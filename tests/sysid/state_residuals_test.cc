@@ -43,39 +43,14 @@ const char* kFreeBody = R"(
   </actuator>
 </mujoco>)";
 
-// two hinges in a chain driven by one motor, no sensor
-const char* kChain = R"(
-<mujoco model="chain">
-  <option timestep="0.002" integrator="Euler"/>
-  <worldbody>
-    <body name="link1" pos="0 0 2">
-      <joint name="hinge1" type="hinge" axis="0 1 0" damping="0.2"/>
-      <geom name="link1" type="capsule" fromto="0 0 0 0 0 -0.5" size="0.03" mass="1.0"/>
-      <body name="link2" pos="0 0 -0.5">
-        <joint name="hinge2" type="hinge" axis="0 1 0" damping="0.1"/>
-        <geom name="link2" type="capsule" fromto="0 0 0 0 0 -0.5" size="0.03" mass="0.8"/>
-      </body>
-    </body>
-  </worldbody>
-  <actuator>
-    <motor name="torque1" joint="hinge1" gear="1"/>
-  </actuator>
-</mujoco>)";
-
 // The logged states of a rollout with the true values at the sample times `time` (empty: one
 // sample per step, T samples), with Gaussian noise sigma_q on qpos and sigma_v on qvel (a noisy
 // quaternion is renormalised by the fit)
 FitSequence StateLog(const mjModel& m, const std::vector<Truth>& truth, const InitialState& x0,
                      const RowMatrix& u, int T, const Eigen::VectorXd& time, double sigma_q,
                      double sigma_v, int seed) {
-  std::vector<ParameterSpec> specs;
-  Eigen::VectorXd values(truth.size());
-  for (size_t i = 0; i < truth.size(); ++i) {
-    specs.push_back(truth[i].spec);
-    values[i] = truth[i].value;
-  }
-  Simulator sim(m, specs);
-  if (!truth.empty()) sim.SetParameters(values);
+  const std::unique_ptr<Simulator> simulator = test::TrueSimulator(m, truth);
+  Simulator& sim = *simulator;
   const StateDims d(m);
   // at the sample times: simulate on the grid and read the states at the samples' positions
   const int steps = time.size() ? static_cast<int>(std::ceil(time[T - 1] / m.opt.timestep)) + 2 : T;
@@ -120,34 +95,49 @@ void PrintCheck(const JacobianCheck& check) {
               check.worst_where.c_str());
 }
 
-// free body, qpos (position + quaternion) and qvel residuals, truth damping 0.3, mass 1.5, start
-// 0.6 and 1.1 (residuals far from zero, so the orientation's Jr^-1 matters), noise-free; x_0 a
-// variable (multiple shooting, 2 segments). Tolerance 1e-4 column-scaled, as the sensor check
-TEST(StateResidualsTest, FreeBodyJacobiansAgreeWithCeres) {
-  ModelPtr m = LoadModelFromString(kFreeBody);
+// the Jacobians of the fit of truth's damping (log, bounds 1e-3..10) and mass (bounds 0.1..10)
+// from their starts to sq against ceres::GradientChecker (printed): at least `variables`
+// variables checked, the worst within 1e-4 column-scaled (as the sensor check)
+void ExpectDampingMassJacobians(const mjModel& m, const std::vector<Truth>& truth, double damping,
+                                double mass, const FitSequence& sq, const FitOptions& opt,
+                                size_t variables) {
+  Problem problem;
+  problem.AddModel("m", m);
+  problem.AddParameter(FitParameter("damping", truth[0].spec, damping).Bounds(1e-3, 10).Log());
+  problem.AddParameter(FitParameter("mass", truth[1].spec, mass).Bounds(0.1, 10));
+  problem.AddSequence(sq);
+  const JacobianCheck check = problem.CheckJacobians(opt);
+  PrintCheck(check);
+  EXPECT_GE(check.per_variable.size(), variables);
+  EXPECT_LE(check.worst_relative_error, 1e-4) << check.worst_where;
+}
+
+// the free body's start: 1 m up, turned 0.6 rad about (0.6, 0, 0.8), moving and spinning
+InitialState FreeBodyStart() {
   InitialState x0;
   x0.qpos.resize(7);
   x0.qpos << 0, 0, 1, std::cos(0.3), std::sin(0.3) * 0.6, 0, std::sin(0.3) * 0.8;
   x0.qvel.resize(6);
   x0.qvel << 0.2, -0.1, 0.5, 2.0, -1.0, 3.0;
+  return x0;
+}
+
+// free body, qpos (position + quaternion) and qvel residuals, truth damping 0.3, mass 1.5, start
+// 0.6 and 1.1 (residuals far from zero, so the orientation's Jr^-1 matters), noise-free; x_0 a
+// variable (multiple shooting, 2 segments). Tolerance 1e-4 column-scaled, as the sensor check
+TEST(StateResidualsTest, FreeBodyJacobiansAgreeWithCeres) {
+  ModelPtr m = LoadModelFromString(kFreeBody);
+  const InitialState x0 = FreeBodyStart();
   const int T = 200;
   const RowMatrix u = Excitation(*m, T, 1.0, 4);
   const std::vector<Truth> truth = {{"damping", Spec("joint_damping", "free"), 0.3},
                                     {"mass", Spec("body_mass", "box"), 1.5}};
   const FitSequence sq = StateLog(*m, truth, x0, u, T, Eigen::VectorXd(), 0, 0, 0);
-  Problem problem;
-  problem.AddModel("m", *m);
-  problem.AddParameter(FitParameter("damping", truth[0].spec, 0.6).Bounds(1e-3, 10).Log());
-  problem.AddParameter(FitParameter("mass", truth[1].spec, 1.1).Bounds(0.1, 10));
-  problem.AddSequence(sq);
   FitOptions opt;
   opt.states = QposQvel(1e-3, 1e-2);
   opt.estimate_initial_state = true;
   opt.segment_steps = 100;
-  const JacobianCheck check = problem.CheckJacobians(opt);
-  PrintCheck(check);
-  EXPECT_GE(check.per_variable.size(), 3u);
-  EXPECT_LE(check.worst_relative_error, 1e-4) << check.worst_where;
+  ExpectDampingMassJacobians(*m, truth, 0.6, 1.1, sq, opt, 3);
 }
 
 // free body as above logged at 3.3 ms on a 2 ms grid: an orientation between two steps is
@@ -155,35 +145,23 @@ TEST(StateResidualsTest, FreeBodyJacobiansAgreeWithCeres) {
 // up to 3.2 rad/s x 2 ms); x_0 fixed. Tolerance 1e-4 column-scaled, as on the grid
 TEST(StateResidualsTest, FreeBodyOffGridJacobiansAgreeWithCeres) {
   ModelPtr m = LoadModelFromString(kFreeBody);
-  InitialState x0;
-  x0.qpos.resize(7);
-  x0.qpos << 0, 0, 1, std::cos(0.3), std::sin(0.3) * 0.6, 0, std::sin(0.3) * 0.8;
-  x0.qvel.resize(6);
-  x0.qvel << 0.2, -0.1, 0.5, 2.0, -1.0, 3.0;
+  const InitialState x0 = FreeBodyStart();
   const int T = 120;
   const Eigen::VectorXd time = Eigen::VectorXd::LinSpaced(T, 0, (T - 1) * 0.0033);
   const RowMatrix u = Excitation(*m, 400, 1.0, 4);
   const std::vector<Truth> truth = {{"damping", Spec("joint_damping", "free"), 0.3},
                                     {"mass", Spec("body_mass", "box"), 1.5}};
   const FitSequence sq = StateLog(*m, truth, x0, u, T, time, 0, 0, 0);
-  Problem problem;
-  problem.AddModel("m", *m);
-  problem.AddParameter(FitParameter("damping", truth[0].spec, 0.6).Bounds(1e-3, 10).Log());
-  problem.AddParameter(FitParameter("mass", truth[1].spec, 1.1).Bounds(0.1, 10));
-  problem.AddSequence(sq);
   FitOptions opt;
   opt.states = QposQvel(1e-3, 1e-2);
-  const JacobianCheck check = problem.CheckJacobians(opt);
-  PrintCheck(check);
-  EXPECT_GE(check.per_variable.size(), 2u);
-  EXPECT_LE(check.worst_relative_error, 1e-4) << check.worst_where;
+  ExpectDampingMassJacobians(*m, truth, 0.6, 1.1, sq, opt, 2);
 }
 
 // hinge chain, qpos and qvel of both joints logged at 3.3 ms on a 2 ms grid (every sample off
 // the grid: the state and its rows interpolated), truth damping 0.2, mass 1.0, start 0.5, 1.6;
 // tolerance 1e-4 column-scaled
 TEST(StateResidualsTest, HingeChainOffGridJacobiansAgreeWithCeres) {
-  ModelPtr m = LoadModelFromString(kChain);
+  ModelPtr m = LoadModelFromString(test::kChainXml);
   InitialState x0;
   x0.qpos = Eigen::Vector2d(0.4, -0.3);
   const int T = 120;
@@ -192,18 +170,10 @@ TEST(StateResidualsTest, HingeChainOffGridJacobiansAgreeWithCeres) {
   const std::vector<Truth> truth = {{"damping", Spec("joint_damping", "hinge1"), 0.2},
                                     {"mass", Spec("body_mass", "link1"), 1.0}};
   const FitSequence sq = StateLog(*m, truth, x0, u, T, time, 0, 0, 0);
-  Problem problem;
-  problem.AddModel("m", *m);
-  problem.AddParameter(FitParameter("damping", truth[0].spec, 0.5).Bounds(1e-3, 10).Log());
-  problem.AddParameter(FitParameter("mass", truth[1].spec, 1.6).Bounds(0.1, 10));
-  problem.AddSequence(sq);
   FitOptions opt;
   opt.states = QposQvel(1e-3, 1e-2);
   opt.estimate_initial_state = true;
-  const JacobianCheck check = problem.CheckJacobians(opt);
-  PrintCheck(check);
-  EXPECT_GE(check.per_variable.size(), 3u);
-  EXPECT_LE(check.worst_relative_error, 1e-4) << check.worst_where;
+  ExpectDampingMassJacobians(*m, truth, 0.5, 1.6, sq, opt, 3);
 }
 
 // a hinge driven through a first-order filter actuator (one activation), no sensor
@@ -267,7 +237,7 @@ TEST(StateResidualsTest, ActivationJacobiansAgreeWithCeres) {
 // With noise (sigma 1e-3 rad on qpos, 1e-2 rad/s on qvel, seed 7): converged, the truth inside
 // the 95 % intervals, the weighted residual variance near 1 (0.8 .. 1.2)
 TEST(StateResidualsTest, RecoversDampingAndMassWithoutSensors) {
-  ModelPtr m = LoadModelFromString(kChain);
+  ModelPtr m = LoadModelFromString(test::kChainXml);
   ASSERT_EQ(m->nsensordata, 0);
   InitialState x0;
   x0.qpos = Eigen::Vector2d(0.4, -0.3);
@@ -369,7 +339,7 @@ TEST(StateResidualsTest, StatesFitLikeTheEquivalentSensors) {
 
 // A qpos log with a NaN sample: masked (one residual row fewer, warned), not an error
 TEST(StateResidualsTest, NanSamplesAreMasked) {
-  ModelPtr m = LoadModelFromString(kChain);
+  ModelPtr m = LoadModelFromString(test::kChainXml);
   InitialState x0;
   x0.qpos = Eigen::Vector2d(0.4, -0.3);
   const int T = 300;
@@ -395,7 +365,7 @@ TEST(StateResidualsTest, NanSamplesAreMasked) {
 // bad input: unknown joint (with a hint), sigma <= 0, a sigma count that fits no rule, a log
 // without the qpos the fit needs, an actuator without activation
 TEST(StateResidualsTest, BadInputIsNamed) {
-  ModelPtr m = LoadModelFromString(kChain);
+  ModelPtr m = LoadModelFromString(test::kChainXml);
   InitialState x0;
   const RowMatrix u = Excitation(*m, 50, 1.0, 1);
   auto fit_error = [&](const FitStates& st, bool with_qpos) {

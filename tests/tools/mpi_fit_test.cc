@@ -26,6 +26,7 @@
 
 #include "sysid/io/log.h"
 #include "sysid/io/result.h"
+#include "tests/cli_util.h"
 #include "tests/file_util.h"
 #include "tests/temp_dir_test.h"
 
@@ -34,19 +35,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct Ended {
-  int code = -1;
-  std::string output;  // stdout and stderr
-};
-
-Ended Shell(const std::string& cmd) {
-  FILE* pipe = popen((cmd + " 2>&1").c_str(), "r");
-  std::string out;
-  char buf[4096];
-  while (size_t n = fread(buf, 1, sizeof(buf), pipe)) out.append(buf, n);
-  const int status = pclose(pipe);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
-}
+using test::CliRun;
+using test::Shell;
 
 // mpirun with N ranks, the network path forced (TCP over loopback, no shared memory), as root,
 // more ranks than cores; `marker` is exported to every rank (to find a rank's process)
@@ -71,6 +61,22 @@ void ExpectSameFit(const io::FitResultFile& got, const io::FitResultFile& want) 
     const double v = want.parameters[i].value, se = want.parameters[i].std_error;
     EXPECT_NEAR(got.parameters[i].value, v, 1e-12 * std::abs(v));
     EXPECT_NEAR(got.parameters[i].std_error, se, 1e-12 * se);
+  }
+}
+
+// got: the fits of one process, 1 rank and 2 ranks (MpiFitTest::FitOneTwo). 2 ranks give the
+// iterations and every estimate of 1 rank (1e-12 relative: the same tree of sums), and the one
+// process agrees within `se_fraction` standard errors (another path to the same minimum)
+void ExpectRanksAgree(const std::vector<io::FitResultFile>& got, double se_fraction) {
+  ASSERT_EQ(got.size(), 3u);
+  EXPECT_EQ(got[2].iterations, got[1].iterations);
+  ASSERT_EQ(got[2].parameters.size(), got[1].parameters.size());
+  ASSERT_EQ(got[0].parameters.size(), got[1].parameters.size());
+  for (size_t i = 0; i < got[1].parameters.size(); ++i) {
+    SCOPED_TRACE(got[1].parameters[i].name);
+    const double v = got[1].parameters[i].value, se = got[1].parameters[i].std_error;
+    EXPECT_NEAR(got[2].parameters[i].value, v, 1e-12 * std::abs(v));
+    EXPECT_NEAR(got[0].parameters[i].value, v, se_fraction * se);
   }
 }
 
@@ -104,9 +110,64 @@ class MpiFitTest : public test::TempDirTest {
   void Write(int steps, const std::string& extra = "", const std::string& solver = "") {
     exp_ = Path("exp.yaml");
     test::WriteFile(exp_, Experiment(steps, extra, solver));
-    const Ended sim = Shell(kSysid + " simulate " + exp_);
+    const CliRun sim = Shell(kSysid + " simulate " + exp_);
     ASSERT_EQ(sim.code, 0) << sim.output;
   }
+
+  // `sysid fit` of exp_ into Path(out) under `launcher` ("" = one process, else Mpirun(N)) with
+  // `flags`: it must exit 0; its result into *got. Call inside ASSERT_NO_FATAL_FAILURE.
+  void Fit(const std::string& launcher, const std::string& out, const std::string& flags,
+           io::FitResultFile* got) {
+    const CliRun run = Shell(launcher + kSysid + " fit " + exp_ + " --out " + Path(out) + flags);
+    ASSERT_EQ(run.code, 0) << run.output;
+    *got = io::ReadResult(Path(out));
+  }
+
+  // the fit under mpirun with `ranks` ranks x `threads` threads is want's (ExpectSameFit), with the
+  // same bits of `signal` (SequenceResult::simulated_initial or simulated_final) in every sequence
+  void FitOnRanks(int ranks, int threads, const io::FitResultFile& want,
+                  RowMatrix SequenceResult::*signal) {
+    const std::string n = std::to_string(ranks), t = std::to_string(threads);
+    SCOPED_TRACE(n + " ranks x " + t + " threads");
+    io::FitResultFile got;
+    ASSERT_NO_FATAL_FAILURE(Fit(Mpirun(ranks), "r" + n + "t" + t, " --quiet --threads " + t, &got));
+    ExpectSameFit(got, want);
+    ASSERT_EQ(got.sequences.size(), want.sequences.size());
+    for (size_t q = 0; q < want.sequences.size(); ++q) {
+      EXPECT_TRUE(got.sequences[q].*signal == want.sequences[q].*signal) << want.sequences[q].name;
+    }
+  }
+
+  // the fit of one process, then under mpirun with 1 and 2 ranks (each with `flags`)
+  void FitOneTwo(const std::string& name, const std::string& flags,
+                 std::vector<io::FitResultFile>* got) {
+    for (const std::string& launcher : {std::string(), Mpirun(1), Mpirun(2)}) {
+      got->emplace_back();
+      ASSERT_NO_FATAL_FAILURE(
+          Fit(launcher, name + std::to_string(got->size() - 1), flags, &got->back()));
+    }
+  }
+
+  // starts `sysid fit` of exp_ into Path(out) under `launcher` in the background (the shell execs
+  // it: *pid is the launcher's; its output into Path(out + ".log")) and returns once its
+  // checkpoint has reached `iterations` (waits at most 60 s). Call inside ASSERT_NO_FATAL_FAILURE.
+  void StartFitUntil(const std::string& launcher, const std::string& out, int iterations,
+                     pid_t* pid) {
+    const std::string cp = Path(out + ".partial/checkpoint.yaml");
+    const std::string reached = "\niterations: " + std::to_string(iterations) + "\n";
+    *pid = fork();
+    if (*pid == 0) {
+      const std::string cmd = "exec " + launcher + kSysid + " fit " + exp_ + " --out " + Path(out) +
+                              " --quiet --threads 1 >" + Path(out + ".log") + " 2>&1";
+      execl("/bin/sh", "sh", "-c", cmd.c_str(), nullptr);
+      _exit(127);
+    }
+    for (int i = 0; i < 600000 && test::ReadFile(cp).find(reached) == std::string::npos; ++i) {
+      std::this_thread::sleep_for(std::chrono::microseconds(100));
+    }
+    ASSERT_NE(test::ReadFile(cp).find(reached), std::string::npos);
+  }
+
   std::string exp_;
 };
 
@@ -117,14 +178,10 @@ class MpiFitTest : public test::TempDirTest {
 // here within 1e-6 standard errors.
 TEST_F(MpiFitTest, SameEstimatesWithAnyRanksAndThreads) {
   Write(1500);
-  const Ended ref =
-      Shell(Mpirun(1) + kSysid + " fit " + exp_ + " --out " + Path("ref") + " --quiet --threads 1");
-  ASSERT_EQ(ref.code, 0) << ref.output;
-  const io::FitResultFile want = io::ReadResult(Path("ref"));
+  io::FitResultFile want, here;
+  ASSERT_NO_FATAL_FAILURE(Fit(Mpirun(1), "ref", " --quiet --threads 1", &want));
   ASSERT_GE(want.iterations, 3);
-  const Ended plain = Shell(kSysid + " fit " + exp_ + " --out " + Path("plain") + " --quiet");
-  ASSERT_EQ(plain.code, 0) << plain.output;
-  const io::FitResultFile here = io::ReadResult(Path("plain"));
+  ASSERT_NO_FATAL_FAILURE(Fit("", "plain", " --quiet", &here));
   ASSERT_EQ(here.parameters.size(), want.parameters.size());
   EXPECT_EQ(here.num_residuals, want.num_residuals);
   for (size_t i = 0; i < want.parameters.size(); ++i) {
@@ -133,21 +190,10 @@ TEST_F(MpiFitTest, SameEstimatesWithAnyRanksAndThreads) {
     EXPECT_NEAR(here.parameters[i].std_error, want.parameters[i].std_error,
                 1e-6 * want.parameters[i].std_error);
   }
+  // the start is sharded: rank 0 rolled out the other ranks' sequences at the initial values
+  // for the result only; the same bits as the one rank that simulated all of them
   for (const auto& [ranks, threads] : {std::pair{1, 2}, {2, 1}, {2, 2}, {4, 1}}) {
-    SCOPED_TRACE(std::to_string(ranks) + " ranks x " + std::to_string(threads) + " threads");
-    const std::string out = Path("r" + std::to_string(ranks) + "t" + std::to_string(threads));
-    const Ended run = Shell(Mpirun(ranks) + kSysid + " fit " + exp_ + " --out " + out +
-                            " --quiet --threads " + std::to_string(threads));
-    ASSERT_EQ(run.code, 0) << run.output;
-    const io::FitResultFile got = io::ReadResult(out);
-    ExpectSameFit(got, want);
-    // the start is sharded: rank 0 rolled out the other ranks' sequences at the initial values
-    // for the result only; the same bits as the one rank that simulated all of them
-    ASSERT_EQ(got.sequences.size(), want.sequences.size());
-    for (size_t q = 0; q < want.sequences.size(); ++q) {
-      EXPECT_TRUE(got.sequences[q].simulated_initial == want.sequences[q].simulated_initial)
-          << want.sequences[q].name;
-    }
+    FitOnRanks(ranks, threads, want, &SequenceResult::simulated_initial);
   }
 }
 
@@ -157,19 +203,9 @@ TEST_F(MpiFitTest, SameEstimatesWithAnyRanksAndThreads) {
 TEST_F(MpiFitTest, RobustLossIsSharded) {
   Write(600, "", "loss: {type: huber, scale: 2.0}, ");
   std::vector<io::FitResultFile> got;
-  for (const std::string& launcher : {std::string(), Mpirun(1), Mpirun(2)}) {
-    const std::string out = Path("huber" + std::to_string(got.size()));
-    const Ended run = Shell(launcher + kSysid + " fit " + exp_ + " --out " + out + " --quiet");
-    ASSERT_EQ(run.code, 0) << run.output;
-    got.push_back(io::ReadResult(out));
-    EXPECT_EQ(got.back().solver.at("loss"), "huber");
-  }
-  EXPECT_EQ(got[2].iterations, got[1].iterations);
-  for (size_t i = 0; i < got[0].parameters.size(); ++i) {
-    const double v = got[1].parameters[i].value, se = got[1].parameters[i].std_error;
-    EXPECT_NEAR(got[2].parameters[i].value, v, 1e-12 * std::abs(v));
-    EXPECT_NEAR(got[0].parameters[i].value, v, 1e-6 * se);
-  }
+  ASSERT_NO_FATAL_FAILURE(FitOneTwo("huber", " --quiet", &got));
+  for (const io::FitResultFile& f : got) EXPECT_EQ(f.solver.at("loss"), "huber");
+  ExpectRanksAgree(got, 1e-6);
 }
 
 // Multiple shooting (segments of 100 steps: 6 per sequence, 5 free states each) is sharded by
@@ -184,13 +220,9 @@ TEST_F(MpiFitTest, RobustLossIsSharded) {
 // standard errors apart (measured at the merge), which this tolerance would not accept.
 TEST_F(MpiFitTest, MultipleShootingIsShardedBySequence) {
   Write(600, "multiple_shooting: {segment_steps: 100, continuity_scale: absolute}\n");
-  const Ended joint = Shell(kSysid + " fit " + exp_ + " --out " + Path("joint") + " --quiet");
-  ASSERT_EQ(joint.code, 0) << joint.output;
-  const io::FitResultFile one = io::ReadResult(Path("joint"));
-  const Ended ref =
-      Shell(Mpirun(1) + kSysid + " fit " + exp_ + " --out " + Path("ref") + " --quiet --threads 1");
-  ASSERT_EQ(ref.code, 0) << ref.output;
-  const io::FitResultFile want = io::ReadResult(Path("ref"));
+  io::FitResultFile one, want;
+  ASSERT_NO_FATAL_FAILURE(Fit("", "joint", " --quiet", &one));
+  ASSERT_NO_FATAL_FAILURE(Fit(Mpirun(1), "ref", " --quiet --threads 1", &want));
   EXPECT_EQ(want.segment_steps_used, 100);
   EXPECT_EQ(want.status, "converged");
   EXPECT_EQ(want.num_residuals, one.num_residuals);
@@ -203,18 +235,7 @@ TEST_F(MpiFitTest, MultipleShootingIsShardedBySequence) {
                 1e-3 * one.parameters[i].std_error);
   }
   for (const auto& [ranks, threads] : {std::pair{2, 1}, {4, 2}}) {
-    SCOPED_TRACE(std::to_string(ranks) + " ranks x " + std::to_string(threads) + " threads");
-    const std::string out = Path("r" + std::to_string(ranks) + "t" + std::to_string(threads));
-    const Ended run = Shell(Mpirun(ranks) + kSysid + " fit " + exp_ + " --out " + out +
-                            " --quiet --threads " + std::to_string(threads));
-    ASSERT_EQ(run.code, 0) << run.output;
-    const io::FitResultFile got = io::ReadResult(out);
-    ExpectSameFit(got, want);
-    ASSERT_EQ(got.sequences.size(), want.sequences.size());
-    for (size_t q = 0; q < want.sequences.size(); ++q) {
-      EXPECT_TRUE(got.sequences[q].simulated_final == want.sequences[q].simulated_final)
-          << want.sequences[q].name;
-    }
+    FitOnRanks(ranks, threads, want, &SequenceResult::simulated_final);
   }
 }
 
@@ -224,20 +245,11 @@ TEST_F(MpiFitTest, MultipleShootingIsShardedBySequence) {
 TEST_F(MpiFitTest, EstimatedInitialStatesAreSharded) {
   Write(600, "initial_state: {estimate: true}\n");
   std::vector<io::FitResultFile> got;
-  for (const std::string& launcher : {std::string(), Mpirun(1), Mpirun(2)}) {
-    const std::string out = Path("x0_" + std::to_string(got.size()));
-    const Ended run =
-        Shell(launcher + kSysid + " fit " + exp_ + " --out " + out + " --quiet --threads 1");
-    ASSERT_EQ(run.code, 0) << run.output;
-    got.push_back(io::ReadResult(out));
-  }
-  EXPECT_EQ(got[2].iterations, got[1].iterations);
+  ASSERT_NO_FATAL_FAILURE(FitOneTwo("x0_", " --quiet --threads 1", &got));
+  ExpectRanksAgree(got, 1e-3);
   for (size_t i = 0; i < got[0].parameters.size(); ++i) {
-    SCOPED_TRACE(got[0].parameters[i].name);
-    const double v = got[1].parameters[i].value, se = got[1].parameters[i].std_error;
-    EXPECT_NEAR(got[2].parameters[i].value, v, 1e-12 * std::abs(v));
-    EXPECT_NEAR(got[0].parameters[i].value, v, 1e-3 * se);
-    EXPECT_NEAR(got[0].parameters[i].std_error, se, 1e-3 * se);
+    const double se = got[1].parameters[i].std_error;
+    EXPECT_NEAR(got[0].parameters[i].std_error, se, 1e-3 * se) << got[0].parameters[i].name;
   }
   for (size_t q = 0; q < got[0].sequences.size(); ++q) {
     EXPECT_TRUE(got[2].sequences[q].simulated_final == got[1].sequences[q].simulated_final);
@@ -271,16 +283,10 @@ TEST_F(MpiFitTest, AutoChoosesTheSameSegments) {
                 "  excitation: {type: chirp, amplitude: 0.5, f0: 0.2, f1: 3.0}\n"
                 "  noise: {q1: 0.001, q2: 0.001, v1: 0.01, v2: 0.01}\n"
                 "  initial_state: {qpos: [2.5, -2.0]}\n");
-  const Ended sim = Shell(kSysid + " simulate " + exp_);
+  const CliRun sim = Shell(kSysid + " simulate " + exp_);
   ASSERT_EQ(sim.code, 0) << sim.output;
   std::vector<io::FitResultFile> got;
-  for (const std::string& launcher : {std::string(), Mpirun(1), Mpirun(2)}) {
-    const std::string out = Path("auto" + std::to_string(got.size()));
-    const Ended run =
-        Shell(launcher + kSysid + " fit " + exp_ + " --out " + out + " --quiet --threads 1");
-    ASSERT_EQ(run.code, 0) << run.output;
-    got.push_back(io::ReadResult(out));
-  }
+  ASSERT_NO_FATAL_FAILURE(FitOneTwo("auto", " --quiet --threads 1", &got));
   EXPECT_GT(got[0].segment_steps_used, 0) << got[0].segment_reason;
   EXPECT_LT(got[0].segment_steps_used, 2000) << got[0].segment_reason;
   for (int i : {1, 2}) {
@@ -288,20 +294,14 @@ TEST_F(MpiFitTest, AutoChoosesTheSameSegments) {
     EXPECT_EQ(got[i].segment_reason, got[0].segment_reason);
     EXPECT_EQ(got[i].status, "converged");
   }
-  EXPECT_EQ(got[2].iterations, got[1].iterations);
-  for (size_t i = 0; i < got[0].parameters.size(); ++i) {
-    SCOPED_TRACE(got[0].parameters[i].name);
-    const double v = got[1].parameters[i].value, se = got[1].parameters[i].std_error;
-    EXPECT_NEAR(got[2].parameters[i].value, v, 1e-12 * std::abs(v));
-    EXPECT_NEAR(got[0].parameters[i].value, v, 1e-3 * se);
-  }
+  ExpectRanksAgree(got, 1e-3);
 }
 
 // `sysid simulate` under mpirun shards the rollouts (3 ranks, 4 sequences: shares of 1, 1 and 2)
 // and rank 0 writes: every dataset equals the log of one process, bit for bit
 TEST_F(MpiFitTest, SimulateIsShardedAndEqual) {
   Write(400);
-  const Ended sharded = Shell(Mpirun(3) + kSysid + " simulate " + exp_ + " --out " + Path("s.h5"));
+  const CliRun sharded = Shell(Mpirun(3) + kSysid + " simulate " + exp_ + " --out " + Path("s.h5"));
   ASSERT_EQ(sharded.code, 0) << sharded.output;
   const io::Log want = io::ReadLog(Path("logs/pendulum.h5")), got = io::ReadLog(Path("s.h5"));
   ASSERT_EQ(got.sequences.size(), want.sequences.size());
@@ -327,8 +327,8 @@ TEST_F(MpiFitTest, StartsRunOneAfterAnother) {
   std::vector<io::FitResultFile> got;
   for (const std::string& launcher : {std::string(), Mpirun(1), Mpirun(2)}) {
     const std::string out = Path("starts" + std::to_string(got.size()));
-    const Ended run = Shell(launcher + kSysid + " fit " + exp_ + " --out " + out +
-                            " --quiet --threads 1 --starts 3");
+    const CliRun run = Shell(launcher + kSysid + " fit " + exp_ + " --out " + out +
+                             " --quiet --threads 1 --starts 3");
     ASSERT_EQ(run.code, 0) << run.output;
     EXPECT_NE(run.output.find("3 starts (3 converged"), std::string::npos) << run.output;
     got.push_back(io::ReadResult(out));
@@ -368,7 +368,7 @@ TEST_F(MpiFitTest, BadInputEndsEveryRank) {
                            kSysid + " fit " + exp_ + " --out " + Path("one") + " --quiet : -n 1 " +
                            kSysid + " fit " + Path("node1/exp.yaml") + " --out " + Path("one") +
                            " --quiet";
-  const Ended one = Shell(mpmd);
+  const CliRun one = Shell(mpmd);
   EXPECT_EQ(one.code, 2) << one.output;
   char host[256] = {0};
   gethostname(host, sizeof(host) - 1);
@@ -378,7 +378,7 @@ TEST_F(MpiFitTest, BadInputEndsEveryRank) {
   EXPECT_FALSE(fs::exists(Path("one")));
   // a log no rank can read: the message once (rank 0 reports), exit 2
   fs::remove(Path("logs/pendulum.h5"));
-  const Ended bad =
+  const CliRun bad =
       Shell(Mpirun(2) + kSysid + " fit " + exp_ + " --out " + Path("bad") + " --quiet");
   EXPECT_EQ(bad.code, 2) << bad.output;
   EXPECT_NE(bad.output.find("pendulum.h5"), std::string::npos) << bad.output;
@@ -400,7 +400,8 @@ TEST_F(MpiFitTest, NoEffectIsFoundAcrossRanks) {
   for (int ranks : {1, 2}) {
     SCOPED_TRACE(std::to_string(ranks) + " ranks");
     const std::string out = Path("none" + std::to_string(ranks));
-    const Ended run = Shell(Mpirun(ranks) + kSysid + " fit " + exp_ + " --out " + out + " --quiet");
+    const CliRun run =
+        Shell(Mpirun(ranks) + kSysid + " fit " + exp_ + " --out " + out + " --quiet");
     EXPECT_EQ(run.code, 2) << run.output;
     const std::string message = "parameter 'bob_friction' has no effect";
     EXPECT_NE(run.output.find(message), std::string::npos) << run.output;
@@ -416,7 +417,7 @@ TEST_F(MpiFitTest, NoEffectIsFoundAcrossRanks) {
   still.replace(still.find("amplitude: 2.0"), 14, "amplitude: 0.0");
   still.replace(still.find("logs/pendulum.h5"), 16, "logs/still.h5");
   test::WriteFile(Path("still.yaml"), still);
-  const Ended sim = Shell(kSysid + " simulate " + Path("still.yaml"));
+  const CliRun sim = Shell(kSysid + " simulate " + Path("still.yaml"));
   ASSERT_EQ(sim.code, 0) << sim.output;
   io::Log log = io::ReadLog(Path("logs/pendulum.h5"));
   const io::Log undriven = io::ReadLog(Path("logs/still.h5"));
@@ -429,8 +430,8 @@ TEST_F(MpiFitTest, NoEffectIsFoundAcrossRanks) {
               "  - {name: gear, target: actuator_gear, object: torque, initial: 1.3, bounds: "
               "[0.5, 2.0]}\n");
   test::WriteFile(exp_, text);
-  const Ended run = Shell(Mpirun(2) + kSysid + " fit " + exp_ + " --out " + Path("gear") +
-                          " --quiet --threads 1");
+  const CliRun run = Shell(Mpirun(2) + kSysid + " fit " + exp_ + " --out " + Path("gear") +
+                           " --quiet --threads 1");
   EXPECT_NE(run.code, 2) << run.output;
   EXPECT_EQ(run.output.find("has no effect"), std::string::npos) << run.output;
   const io::FitResultFile got = io::ReadResult(Path("gear"));
@@ -463,32 +464,19 @@ int FindRank(const std::string& marker, int rank) {
 // trust region restarts at the checkpoint)
 TEST_F(MpiFitTest, KilledRankEndsTheRunAndResumeContinues) {
   Write(3000);
-  const Ended full = Shell(Mpirun(2) + kSysid + " fit " + exp_ + " --out " + Path("full") +
-                           " --quiet --threads 1");
-  ASSERT_EQ(full.code, 0) << full.output;
-  const io::FitResultFile want = io::ReadResult(Path("full"));
+  io::FitResultFile want;
+  ASSERT_NO_FATAL_FAILURE(Fit(Mpirun(2), "full", " --quiet --threads 1", &want));
   ASSERT_GE(want.iterations, 4);
   const std::string out = Path("part"), cp = out + ".partial/checkpoint.yaml";
   const std::string marker = "kill" + std::to_string(getpid());
-  const std::string log = Path("killed.log");
-  const pid_t pid = fork();
-  if (pid == 0) {
-    const std::string cmd = Mpirun(2, marker) + kSysid + " fit " + exp_ + " --out " + out +
-                            " --quiet --threads 1 >" + log + " 2>&1";
-    execl("/bin/sh", "sh", "-c", cmd.c_str(), nullptr);
-    _exit(127);
-  }
-  for (int i = 0; i < 600000 && test::ReadFile(cp).find("\niterations: 2\n") == std::string::npos;
-       ++i) {
-    std::this_thread::sleep_for(std::chrono::microseconds(100));
-  }
-  ASSERT_NE(test::ReadFile(cp).find("\niterations: 2\n"), std::string::npos);
+  pid_t pid = -1;
+  ASSERT_NO_FATAL_FAILURE(StartFitUntil(Mpirun(2, marker), "part", 2, &pid));
   const int worker = FindRank(marker, 1);
   ASSERT_GT(worker, 0);
   ASSERT_EQ(kill(worker, SIGKILL), 0);
   int status = 0;
   waitpid(pid, &status, 0);
-  const std::string said = test::ReadFile(log);
+  const std::string said = test::ReadFile(out + ".log");
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) != 0) << said;
   char host[256] = {0};
   gethostname(host, sizeof(host) - 1);
@@ -496,7 +484,8 @@ TEST_F(MpiFitTest, KilledRankEndsTheRunAndResumeContinues) {
   EXPECT_NE(said.find(host), std::string::npos) << said;
   EXPECT_FALSE(fs::exists(out + "/result.yaml"));
   ASSERT_TRUE(fs::exists(cp));
-  const Ended resumed = Shell(Mpirun(2) + kSysid + " fit --resume " + out + " --quiet --threads 1");
+  const CliRun resumed =
+      Shell(Mpirun(2) + kSysid + " fit --resume " + out + " --quiet --threads 1");
   ASSERT_EQ(resumed.code, 0) << resumed.output;
   const io::FitResultFile got = io::ReadResult(out);
   EXPECT_EQ(got.status, "converged");
@@ -518,29 +507,16 @@ TEST_F(MpiFitTest, KilledRankEndsTheRunAndResumeContinues) {
 // log is long enough (4 x 60000 steps) for the signal to arrive mid-fit.
 TEST_F(MpiFitTest, StopSignalEndsAfterTheIteration) {
   Write(60000);
-  const Ended full = Shell(Mpirun(2) + kSysid + " fit " + exp_ + " --out " + Path("full") +
-                           " --quiet --threads 1");
-  ASSERT_EQ(full.code, 0) << full.output;
-  const io::FitResultFile want = io::ReadResult(Path("full"));
+  io::FitResultFile want;
+  ASSERT_NO_FATAL_FAILURE(Fit(Mpirun(2), "full", " --quiet --threads 1", &want));
   ASSERT_GE(want.iterations, 4);
-  const std::string out = Path("stopped"), cp = out + ".partial/checkpoint.yaml";
-  const std::string log = Path("stopped.log");
-  const pid_t pid = fork();
-  if (pid == 0) {
-    const std::string cmd = "exec " + Mpirun(2) + kSysid + " fit " + exp_ + " --out " + out +
-                            " --quiet --threads 1 >" + log + " 2>&1";
-    execl("/bin/sh", "sh", "-c", cmd.c_str(), nullptr);
-    _exit(127);
-  }
-  for (int i = 0; i < 600000 && test::ReadFile(cp).find("\niterations: 1\n") == std::string::npos;
-       ++i) {
-    std::this_thread::sleep_for(std::chrono::microseconds(100));
-  }
-  ASSERT_NE(test::ReadFile(cp).find("\niterations: 1\n"), std::string::npos);
+  const std::string out = Path("stopped");
+  pid_t pid = -1;
+  ASSERT_NO_FATAL_FAILURE(StartFitUntil(Mpirun(2), "stopped", 1, &pid));
   ASSERT_EQ(kill(pid, SIGTERM), 0);
   int status = 0;
   waitpid(pid, &status, 0);
-  const std::string said = test::ReadFile(log);
+  const std::string said = test::ReadFile(out + ".log");
   ASSERT_TRUE(WIFEXITED(status)) << said;
   EXPECT_EQ(WEXITSTATUS(status), 1) << said;
   EXPECT_NE(said.find("results of the last good iterate written"), std::string::npos) << said;

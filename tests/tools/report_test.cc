@@ -2,19 +2,19 @@
 
 #include <cairo.h>
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
-#include <fstream>
 #include <iterator>
 #include <limits>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "tests/file_util.h"
+#include "tests/temp_dir_test.h"
 #include "tests/tools/png_util.h"
 #include "tools/report/axes.h"
 #include "tools/report/canvas.h"
@@ -28,27 +28,12 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // ---------------------------------------------------------------------------------------------
 // helpers
 
-// a fresh directory per test, removed afterwards
-class ReportTest : public ::testing::Test {
+// a fresh directory per test (test::TempDirTest)
+class ReportTest : public test::TempDirTest {
  protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() /
-           ("mjsysid_report_test_" + std::to_string(::getpid()) + "_" + info->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  std::string Dir() const { return dir_.string(); }
-  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
-
-  fs::path dir_;
 };
 
-std::string ReadBytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
+using test::ReadFile;
 
 // a damped oscillation with a given frequency and damping
 double Swing(double t, double freq, double damping) {
@@ -199,7 +184,7 @@ void ExpectPlot(const std::string& path, uint32_t width, uint32_t height,
                 const std::vector<Rgb>& curves = {}) {
   SCOPED_TRACE(path);
   Png png;
-  ASSERT_TRUE(Decode(ReadBytes(path), &png));
+  ASSERT_TRUE(Decode(ReadFile(path), &png));
   EXPECT_EQ(png.width, width);
   EXPECT_EQ(png.height, height);
   const Colors c = CountColors(png);
@@ -225,7 +210,7 @@ TEST_F(ReportTest, WritesAPageAndPlotsFromTheResultFiles) {
   EXPECT_EQ(WriteReport(Dir(), &summary), 4);
 
   // the page: self-contained, with the parameters and the identifiability finding
-  const std::string html = ReadBytes(Path("report.html"));
+  const std::string html = ReadFile(Path("report.html"));
   ASSERT_FALSE(html.empty());
   for (const char* needle : {"<!DOCTYPE html>", "pendulum", "damping", "bob_mass", "unidentifiable",
                              "converged", "function tolerance reached", "max_iterations", "4.0.0",
@@ -280,7 +265,7 @@ TEST_F(ReportTest, LongSequencesAreDecimatedAndManyColumnsTiled) {
 TEST_F(ReportTest, DerivedQuantitiesGetATable) {
   io::FitResultFile r = Result(50);
   EXPECT_EQ(WriteReport(r, Dir(), nullptr), 4);
-  EXPECT_EQ(ReadBytes(Path("report.html")).find("Derived quantities"), std::string::npos);
+  EXPECT_EQ(ReadFile(Path("report.html")).find("Derived quantities"), std::string::npos);
   DerivedQuantity d;
   d.name = "link7.mass";
   d.unit = "kg";
@@ -291,7 +276,7 @@ TEST_F(ReportTest, DerivedQuantitiesGetATable) {
   d.derived_from = "body_inertial (payload_alpha) by the delta method";
   r.derived.push_back(d);
   EXPECT_EQ(WriteReport(r, Dir(), nullptr), 4);
-  const std::string html = ReadBytes(Path("report.html"));
+  const std::string html = ReadFile(Path("report.html"));
   const size_t table = html.find("<h3>Derived quantities</h3>");
   ASSERT_NE(table, std::string::npos);
   EXPECT_LT(html.find("<h2>Parameters</h2>"), table);
@@ -305,11 +290,11 @@ TEST_F(ReportTest, EmptyResultsStillMakeAPage) {
   r.name = "nothing";
   r.status = "failed";
   EXPECT_EQ(WriteReport(r, Dir(), nullptr), 3);
-  const std::string html = ReadBytes(Path("report.html"));
+  const std::string html = ReadFile(Path("report.html"));
   EXPECT_NE(html.find("no parameters"), std::string::npos);
   EXPECT_NE(html.find("badge bad"), std::string::npos);
   Png png;
-  EXPECT_TRUE(Decode(ReadBytes(Path("parameters.png")), &png));
+  EXPECT_TRUE(Decode(ReadFile(Path("parameters.png")), &png));
 }
 
 TEST_F(ReportTest, MissingResultsAndFoldersAreErrors) {

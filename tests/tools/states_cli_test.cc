@@ -22,25 +22,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// two hinges in a chain driven by one motor, no sensor
-const char* kChain = R"(<mujoco model="chain">
-  <option timestep="0.002" integrator="Euler"/>
-  <worldbody>
-    <body name="link1" pos="0 0 2">
-      <joint name="hinge1" type="hinge" axis="0 1 0" damping="0.2"/>
-      <geom name="link1" type="capsule" fromto="0 0 0 0 0 -0.5" size="0.03" mass="1.0"/>
-      <body name="link2" pos="0 0 -0.5">
-        <joint name="hinge2" type="hinge" axis="0 1 0" damping="0.1"/>
-        <geom name="link2" type="capsule" fromto="0 0 0 0 0 -0.5" size="0.03" mass="0.8"/>
-      </body>
-    </body>
-  </worldbody>
-  <actuator>
-    <motor name="torque1" joint="hinge1" gear="1"/>
-  </actuator>
-</mujoco>
-)";
-
 using test::CliRun;
 using test::Sysid;
 
@@ -50,8 +31,8 @@ class StatesCliTest : public ::testing::Test {
   // model says 0.2), states only: qpos with noise 1e-3 rad, qvel with 1e-2 rad/s (seed 11)
   void SetUp() override {
     dir_ = test::FreshTempDir("states_cli");
-    test::WriteFile(dir_ + "/chain.xml", kChain);
-    ModelPtr m = LoadModelFromString(kChain);
+    test::WriteFile(dir_ + "/chain.xml", test::kChainXml);
+    ModelPtr m = LoadModelFromString(test::kChainXml);
     const int T = 800;
     Simulator sim(*m, {test::Spec("joint_damping", "hinge1")});
     sim.SetParameters(Eigen::VectorXd::Constant(1, 0.35));

@@ -1,7 +1,6 @@
 #include "sysid/io/csv.h"
 
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
@@ -13,6 +12,7 @@
 
 #include "core/mujoco_env.h"
 #include "sysid/io/log.h"
+#include "tests/temp_dir_test.h"
 
 namespace mjsysid::io {
 namespace {
@@ -21,18 +21,13 @@ namespace fs = std::filesystem;
 const std::string kModels = MJSYSID_MODELS_DIR;
 
 // a fresh directory per test, the pendulum and the box models
-class CsvTest : public ::testing::Test {
+class CsvTest : public test::TempDirTest {
  protected:
   void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() /
-           ("mjsysid_csv_test_" + std::to_string(::getpid()) + "_" + info->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
+    TempDirTest::SetUp();
     pendulum_ = LoadModel(kModels + "/pendulum.xml");
     box_ = LoadModel(kModels + "/box_floor.xml");
   }
-  void TearDown() override { fs::remove_all(dir_); }
 
   // writes `text` to a file in the test directory and returns its path
   std::string Write(const std::string& name, const std::string& text) const {
@@ -54,7 +49,6 @@ class CsvTest : public ::testing::Test {
     return "";
   }
 
-  fs::path dir_;
   ModelPtr pendulum_;
   ModelPtr box_;
 };

@@ -2,13 +2,11 @@
 
 #include <gtest/gtest.h>
 #include <hdf5.h>
-#include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 #include <iterator>
 #include <limits>
 #include <optional>
@@ -18,6 +16,8 @@
 #include <vector>
 
 #include "sysid/metrics.h"
+#include "tests/file_util.h"
+#include "tests/temp_dir_test.h"
 
 namespace mjsysid::io {
 namespace {
@@ -28,20 +28,9 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // ---------------------------------------------------------------------------------------------
 // helpers
 
-// a fresh directory per test, removed afterwards
-class ResultTest : public ::testing::Test {
+// a fresh directory per test (test::TempDirTest)
+class ResultTest : public test::TempDirTest {
  protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() /
-           ("mjsysid_result_test_" + std::to_string(::getpid()) + "_" + info->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  std::string Dir() const { return dir_.string(); }
-  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
-
   // names of the files in the test directory
   std::vector<std::string> Files() const {
     std::vector<std::string> out;
@@ -66,26 +55,18 @@ class ResultTest : public ::testing::Test {
     ADD_FAILURE() << "ReadResult did not throw";
     return "";
   }
-
-  fs::path dir_;
 };
 
-std::string ReadText(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
-
-void WriteText(const std::string& path, const std::string& text) {
-  std::ofstream(path, std::ios::binary) << text;
-}
+using test::ReadFile;
+using test::WriteFile;
 
 // replaces the one occurrence of `from` in the file
 void ReplaceInFile(const std::string& path, const std::string& from, const std::string& to) {
-  std::string text = ReadText(path);
+  std::string text = ReadFile(path);
   const size_t at = text.find(from);
   ASSERT_NE(at, std::string::npos) << from << " not in\n" << text;
   ASSERT_EQ(text.find(from, at + 1), std::string::npos) << from << " twice in\n" << text;
-  WriteText(path, text.replace(at, from.size(), to));
+  WriteFile(path, text.replace(at, from.size(), to));
 }
 
 // deterministic, varied values
@@ -415,7 +396,7 @@ TEST_F(ResultTest, TraceWithoutParameterValuesRoundTrips) {
 
 TEST_F(ResultTest, YamlIsReadableWithYamlInfinitiesAndShortNumbers) {
   WriteResultYaml(Path("result.yaml"), FullResult());
-  const std::string text = ReadText(Path("result.yaml"));
+  const std::string text = ReadFile(Path("result.yaml"));
   EXPECT_NE(text.find("format: mjsysid-result\n"), std::string::npos) << text;
   EXPECT_NE(text.find("format_version: 1\n"), std::string::npos) << text;
   EXPECT_NE(text.find("std: .inf\n"), std::string::npos) << text;
@@ -432,8 +413,8 @@ TEST_F(ResultTest, YamlIsReadableWithYamlInfinitiesAndShortNumbers) {
 TEST_F(ResultTest, FailingWritesLeaveThePreviousFilesAndNoTemporary) {
   const FitResultFile good = FullResult();
   WriteBoth(good);
-  const std::string yaml_before = ReadText(Path("result.yaml"));
-  const std::string h5_before = ReadText(Path("result.h5"));
+  const std::string yaml_before = ReadFile(Path("result.yaml"));
+  const std::string h5_before = ReadFile(Path("result.h5"));
 
   // h5: the last sequence is malformed, found after the others were written
   FitResultFile bad = good;
@@ -453,8 +434,8 @@ TEST_F(ResultTest, FailingWritesLeaveThePreviousFilesAndNoTemporary) {
   EXPECT_THROW(WriteResultYaml(Path("result.yaml"), bad), ResultError);
   EXPECT_THROW(WriteResultH5(Path("result.h5"), bad), ResultError);
 
-  EXPECT_EQ(ReadText(Path("result.yaml")), yaml_before);
-  EXPECT_EQ(ReadText(Path("result.h5")), h5_before);
+  EXPECT_EQ(ReadFile(Path("result.yaml")), yaml_before);
+  EXPECT_EQ(ReadFile(Path("result.h5")), h5_before);
   EXPECT_EQ(Files(), (std::vector<std::string>{"result.h5", "result.yaml"}));
   ExpectSame(ReadResult(Dir()), good);
 }
@@ -530,7 +511,7 @@ TEST_F(ResultTest, WrongYamlTypesAreNamedWithTheirPosition) {
   EXPECT_NE(msg.find("key 'parameters[2].flags': unknown flag 'unidentifyable'"), std::string::npos)
       << msg;
 
-  WriteText(Path("result.yaml"), "format: [unclosed\n");
+  WriteFile(Path("result.yaml"), "format: [unclosed\n");
   msg = ReadError();
   EXPECT_NE(msg.find(Path("result.yaml") + ":"), std::string::npos) << msg;
   EXPECT_NE(msg.find("invalid YAML"), std::string::npos) << msg;
@@ -711,7 +692,7 @@ TEST_F(ResultTest, NotAResultIsNamed) {
             std::string::npos)
       << msg;
   WriteBoth(FullResult());
-  WriteText(Path("result.h5"), "not hdf5");
+  WriteFile(Path("result.h5"), "not hdf5");
   msg = ReadError();
   EXPECT_NE(msg.find(Path("result.h5") + ": is not an HDF5 file"), std::string::npos) << msg;
 }
