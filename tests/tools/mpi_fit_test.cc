@@ -14,6 +14,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -502,17 +503,23 @@ TEST_F(MpiFitTest, KilledRankEndsTheRunAndResumeContinues) {
 // current iteration, rank 0 writes the result of the last good iterate once (status
 // interrupted, no intervals) and the run ends with exit 1, the documented interrupted code,
 // before the uninterrupted fit's iteration count (truth: the same fit without the signal).
-// mpirun passes the signal on through its own kill sequence, which took about 1 s here (idle
-// machine: a 4 x 6000-step fit had converged in 0.7 s before the ranks saw it, measured), so the
-// log is long enough (4 x 60000 steps) for the signal to arrive mid-fit.
+// mpirun passes the signal on through its kill sequence (OpenMPI 4.1: SIGCONT, a wait of
+// odls_base_sigkill_timeout seconds, SIGTERM, the same wait, SIGKILL; default 1 s), so the ranks
+// see the signal T s after mpirun and have T s to end the iteration. With the default 1 s a
+// loaded machine killed the ranks inside an iteration of this log (no result written); the test
+// sets T to about two iterations of the uninterrupted fit (at least 2 s), so the signal arrives
+// mid-fit and the iteration can end (docs/cluster.md).
 TEST_F(MpiFitTest, StopSignalEndsAfterTheIteration) {
   Write(60000);
   io::FitResultFile want;
   ASSERT_NO_FATAL_FAILURE(Fit(Mpirun(2), "full", " --quiet --threads 1", &want));
-  ASSERT_GE(want.iterations, 4);
+  ASSERT_GE(want.iterations, 6);
+  const int wait_s = std::max(2, static_cast<int>(std::ceil(2 * want.seconds / want.iterations)));
+  const std::string mpirun =
+      Mpirun(2) + "--mca odls_base_sigkill_timeout " + std::to_string(wait_s) + " ";
   const std::string out = Path("stopped");
   pid_t pid = -1;
-  ASSERT_NO_FATAL_FAILURE(StartFitUntil(Mpirun(2), "stopped", 1, &pid));
+  ASSERT_NO_FATAL_FAILURE(StartFitUntil(mpirun, "stopped", 1, &pid));
   ASSERT_EQ(kill(pid, SIGTERM), 0);
   int status = 0;
   waitpid(pid, &status, 0);
