@@ -243,6 +243,9 @@ FitResult Problem::Fit(const FitOptions& options) {
   } unborrow{&I};
   ledger.Enter(kPhaseAutoStart);
   I.fit_start = start;
+  // the progress lines inside long rollouts (Prepare installs them on the simulators)
+  if (!I.step_progress) I.step_progress = std::make_unique<StepProgressLines>(start, 0);
+  I.step_progress->Reset(start, options.progress_seconds);
   const std::vector<std::string> start_notes = SolveAutoStarts(I);
   ledger.Enter(kPhasePrepare);
   Prepared prepared;
