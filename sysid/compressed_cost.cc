@@ -28,9 +28,7 @@ bool CompressedCost::Evaluate(double const* const* parameters, double* residuals
   // residuals only: any n + 1 values of norm |r| give the cost
   if (jacobians == nullptr) {
     if (!inner_->Evaluate(parameters, B.r.data(), nullptr)) return false;
-    const double sum = Eigen::Map<const Eigen::VectorXd>(B.r.data(), m).squaredNorm();
-    std::fill(residuals, residuals + n, 0.0);
-    residuals[n] = std::sqrt(sum);
+    WriteNorm(n, Eigen::Map<const Eigen::VectorXd>(B.r.data(), m).squaredNorm(), residuals);
     return true;
   }
 
@@ -62,16 +60,28 @@ bool CompressedCost::Evaluate(double const* const* parameters, double* residuals
   // residuals (Q^T r, c): c^2 = |r|^2 - |Q^T r|^2, so the cost is the rows' to rounding
   const double sum = Eigen::Map<const Eigen::VectorXd>(B.r.data(), m).squaredNorm();
   const double projected = R.col(n).head(n).squaredNorm();
-  for (int i = 0; i < n; ++i) residuals[i] = R(i, n);
-  residuals[n] = std::sqrt(std::max(0.0, sum - projected));
+  WriteTriangle(R, std::sqrt(std::max(0.0, sum - projected)), sizes, residuals, jacobians);
+  return true;
+}
+
+void WriteTriangle(const Eigen::MatrixXd& r_aug, double last, const std::vector<int32_t>& sizes,
+                   double* residuals, double** jacobians) {
+  const int n = static_cast<int>(r_aug.cols()) - 1;
+  for (int i = 0; i < n; ++i) residuals[i] = r_aug(i, n);
+  residuals[n] = last;
+  if (jacobians == nullptr) return;
   // Jacobian [R; 0], row-major per asked block
   for (size_t b = 0, c0 = 0; b < sizes.size(); c0 += sizes[b], ++b) {
     if (jacobians[b] == nullptr) continue;
     for (int i = 0; i <= n; ++i) {
-      for (int c = 0; c < sizes[b]; ++c) jacobians[b][i * sizes[b] + c] = R(i, c0 + c);
+      for (int c = 0; c < sizes[b]; ++c) jacobians[b][i * sizes[b] + c] = r_aug(i, c0 + c);
     }
   }
-  return true;
+}
+
+void WriteNorm(int n, double sum_squares, double* residuals) {
+  std::fill(residuals, residuals + n, 0.0);
+  residuals[n] = std::sqrt(sum_squares);
 }
 
 ceres::CostFunction* Compress(ceres::CostFunction* cost, CompressedBlocks* blocks) {

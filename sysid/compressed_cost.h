@@ -59,6 +59,16 @@ class CompressedCost : public ceres::CostFunction {
   CompressedBlocks* blocks_;
 };
 
+// Ceres' view of a folded block (also the MPI root's, sysid/mpi/distributed_fit.h): residuals
+// r_aug.col(n) with the last (rho) replaced by `last`, and the Jacobian r_aug.leftCols(n)
+// row-major per parameter block of `sizes` (n = sum sizes; jacobians or any of its blocks may be
+// nullptr: not written). r_aug: (n + 1) x (n + 1), [R Q^T r; 0 rho].
+void WriteTriangle(const Eigen::MatrixXd& r_aug, double last, const std::vector<int32_t>& sizes,
+                   double* residuals, double** jacobians);
+// a residual-only evaluation's n + 1 values: n zeros and sqrt(sum_squares) (any values of that
+// norm give the cost)
+void WriteNorm(int n, double sum_squares, double* residuals);
+
 // cost itself when it has no more rows than its triangle (m <= n + 1), else a CompressedCost that
 // owns it (blocks->hidden_rows counts the rows it hides); ownership of the result as of cost
 ceres::CostFunction* Compress(ceres::CostFunction* cost, CompressedBlocks* blocks);
