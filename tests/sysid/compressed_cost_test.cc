@@ -5,7 +5,8 @@
 // gives, compressed, the cost 0.5 |r|^2, the gradient J^T r and the Gauss-Newton matrix J^T J of
 // its rows to 1e-12 relative, with and without Jacobians, and asks Ceres for n + 1 rows.
 // Fits: shipped experiments (the `simulate` block's truth, noise and seed, fewer sequences and
-// steps so that both fits take a few seconds; single shooting) fitted both ways reach the same
+// steps so that both fits take a few seconds; single shooting; robust losses; estimated initial
+// states, whose blocks sit on the state manifold) fitted both ways reach the same
 // iterations and residual rows, and costs, estimates and standard errors that differ by rounding
 // alone: the Levenberg-Marquardt steps depend on the rows only through J^T J, J^T r and the cost.
 // Rounding is amplified by the finite-difference Jacobians (a parameter moved by one ulp moves
@@ -108,13 +109,15 @@ struct Case {
   std::string experiment;  // under experiments/
   int sequences, steps;
   const char* loss;  // "" as shipped, else solver.loss's type (scale 2)
+  bool x0 = false;   // the initial states estimated too (their blocks on the state manifold)
 };
 
 class CompressedFitTest : public ::testing::TestWithParam<Case> {};
 
-FitResult FitOnce(const io::ExperimentConfig& cfg, bool compress) {
+FitResult FitOnce(const io::ExperimentConfig& cfg, bool compress, bool x0) {
   run::BuiltProblem built = run::BuildProblem(cfg, 1);
   FitOptions options = built.options;
+  options.estimate_initial_state = x0;
   options.verbose = false;
   options.threads = 1;
   options.segment_steps = 0;  // single shooting
@@ -146,8 +149,8 @@ TEST_P(CompressedFitTest, SameFitAsRowByRow) {
     cfg.options.loss_scale = 2.0;
   }
 
-  const FitResult rows = FitOnce(cfg, false);
-  const FitResult compressed = FitOnce(cfg, true);
+  const FitResult rows = FitOnce(cfg, false, c.x0);
+  const FitResult compressed = FitOnce(cfg, true, c.x0);
   std::printf("%s: %d iterations, cost %.10g, %d residual rows\n", c.experiment.c_str(),
               compressed.iterations, compressed.final_cost, compressed.num_residuals);
   EXPECT_TRUE(rows.converged);
@@ -173,10 +176,12 @@ INSTANTIATE_TEST_SUITE_P(Shipped, CompressedFitTest,
                                            Case{"pendulum.yaml", 2, 1000, "huber"},
                                            Case{"cartpole.yaml", 1, 1000, ""},
                                            Case{"spring_mass.yaml", 1, 1000, "cauchy"},
-                                           Case{"double_pendulum.yaml", 1, 1000, ""}),
+                                           Case{"double_pendulum.yaml", 1, 1000, ""},
+                                           Case{"double_pendulum.yaml", 1, 1000, "", true}),
                          [](const ::testing::TestParamInfo<Case>& p) {
                            return p.param.experiment.substr(0, p.param.experiment.find('.')) +
-                                  (*p.param.loss ? std::string("_") + p.param.loss : "");
+                                  (*p.param.loss ? std::string("_") + p.param.loss : "") +
+                                  (p.param.x0 ? "_x0" : "");
                          });
 
 }  // namespace
