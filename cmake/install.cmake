@@ -7,8 +7,9 @@
 #                                             targets and FindMuJoCo.cmake
 # A consumer calls find_package(mjsysid) and links mjsysid::core (core/: MuJoCo + Eigen),
 # mjsysid::sysid (the Ceres Problem, sysid/problem.h) and mjsysid::io (YAML, HDF5, CSV,
-# results); mjsysid::sim and mjsysid::run are exported too. mjsysid::types and mjsysid::residual
-# come along as their dependencies. tests/consumer/ is such a consumer, built by tools/run_tests.sh.
+# results); mjsysid::sim and mjsysid::run are exported too. mjsysid::types, mjsysid::residual and
+# mjsysid::triangle come along as their dependencies. tests/consumer/ is such a consumer, built by
+# tools/run_tests.sh.
 include(GNUInstallDirs)
 include(CMakePackageConfigHelpers)
 
@@ -17,6 +18,7 @@ set(_mjsysid_exported
   mjsysid_core core
   mjsysid_types types
   mjsysid_residual residual
+  mjsysid_triangle triangle
   mjsysid sysid
   mjsysid_io io
   mjsysid_sim sim

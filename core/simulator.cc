@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <exception>
+#include <limits>
 #include <stdexcept>
 #include <thread>
 
@@ -19,6 +20,27 @@ constexpr double kCostSkipVel = 0.4;
 
 // a perturbation h*|S| past this (in state units) is no longer a local finite difference
 constexpr double kGrowthLimit = kSensitivityGrowthLimit;
+
+// the tenths of one step loop reported to a StepProgress hook: one compare per step
+class Tenths {
+ public:
+  Tenths(StepProgress* hook, const char* what, int total)
+      : hook_(hook),
+        what_(what),
+        total_(total),
+        stride_(std::max(1, total / 10)),
+        next_(hook ? 0 : std::numeric_limits<int>::max()) {}
+  void At(int done) {
+    if (done < next_) return;
+    hook_->Step(what_, done, total_);
+    next_ = (done / stride_ + 1) * stride_;
+  }
+
+ private:
+  StepProgress* hook_;
+  const char* what_;
+  int total_, stride_, next_;
+};
 
 // forward and backward differences further apart than this (relative) straddle a kink
 constexpr double kKinkTolerance = 0.1;
@@ -319,8 +341,10 @@ void Simulator::RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq
   const int T = static_cast<int>(seq.ctrl.rows());
   const bool want_sensors = options_.sensors && sensors && dims_.ns > 0;
   // step the model, recording x_k (and the step state) before and y_k after each step
+  Tenths tenths(step_progress_, "rollout", T);
   for (int k = 0; k < T; ++k) {
     CheckCancel();
+    tenths.At(k);
     mju_copy(d->ctrl, seq.ctrl.row(k).data(), dims_.nu);
     if (step) GetStepState(*m, dims_, *d, step->row(k).data());
     GetPhysics(*m, *d, states->row(k).data());
@@ -513,8 +537,10 @@ void Simulator::DirectionalColumn(Worker& w, const RowMatrix& ctrl, int seq_inde
     return d->ncon;
   };
 
+  Tenths tenths(step_progress_, "Jacobian column", T);
   for (int k = 0; k < T; ++k) {
     CheckCancel();
+    tenths.At(k);
     if (!WaitForRows(ready, k + 2)) return;
     // forward side; the backward side too for central differences or a contact-set change
     const int ncon = side(w.plus.get(), 1.0, k, w.s_next, w.yp);
@@ -624,7 +650,9 @@ void Simulator::MatrixJacobian(const RowMatrix& ctrl, int seq_index, const Traje
   std::vector<int> growth_step(ncol, -1);
   for (int c = 0; c < ncol; ++c) col_step[c] = c < np ? steps[c] : opt.state_step;
 
+  Tenths tenths(step_progress_, "Jacobians", T);
   for (int k0 = 0; k0 < T; k0 += chunk) {
+    tenths.At(k0);
     const int kn = std::min(chunk, T - k0);
     // step Jacobians of this chunk, in parallel over time steps
     pool_.ParallelFor(kn, [&](int worker, int kk) {

@@ -168,6 +168,18 @@ struct Sensitivity {
   std::vector<std::string> warnings;
 };
 
+// Progress inside one long step loop (Simulator::SetStepProgress): a rollout or a Jacobian
+// column over a sequence of `total` steps calls Step(what, done, total) from the thread that runs
+// it when it starts (done = 0) and each time another tenth of its steps is done; the loop pays one
+// integer compare per step (no allocation, no lock, no clock). Several workers call it at once:
+// the hook must be thread-safe and cheap, and outlive its use. what: "rollout", "Jacobian column"
+// or "Jacobians" (static strings).
+class StepProgress {
+ public:
+  virtual ~StepProgress() = default;
+  virtual void Step(const char* what, int done, int total) = 0;
+};
+
 class Simulator {
  public:
   // copies m; resolves the parameters (throws ParameterError)
@@ -229,6 +241,8 @@ class Simulator {
   // throw Cancelled (e.g. a user's interrupt during a long Jacobian); nullptr: never (default).
   // The flag must outlive its use here.
   void SetCancelFlag(const std::atomic<bool>* flag) { cancel_ = flag; }
+  // the progress hook of long step loops (StepProgress); nullptr: none (default)
+  void SetStepProgress(StepProgress* hook) { step_progress_ = hook; }
 
   // Step calls made since construction or ResetStepCount(), over all workers: every mj_step of
   // a rollout or a perturbed step (also those skipping stages) counts 1, a call of
@@ -313,6 +327,7 @@ class Simulator {
   bool contacts_possible_full_ = false;             // ContactsPossible of the full model
   int reduction_trips_ = 0;                         // see ReductionTrips
   mutable std::atomic<bool> guard_tripped_{false};  // set by RolloutOne when the guard trips
+  StepProgress* step_progress_ = nullptr;           // SetStepProgress
 };
 
 }  // namespace mjsysid

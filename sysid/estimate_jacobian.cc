@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "core/state.h"
+#include "sysid/compressed_cost.h"
 #include "sysid/uncertainty.h"
 
 namespace mjsysid {
@@ -59,7 +60,7 @@ bool EvaluateTriangle(const ceres::Problem& problem, const std::vector<double*>&
                                  id, true, &block_cost, residuals.data(), jacobian_ptrs.data());
     if (!ok) return false;
     cost += block_cost;
-    rows += m;
+    rows += RealRows(*problem.GetCostFunctionForResidualBlock(id));  // a compressed block's too
     for (int first = 0; first < m; first += RowTriangle::kChunkRows) {
       const int count = std::min(RowTriangle::kChunkRows, m - first);
       chunk.setZero(count, n + 1);

@@ -4,7 +4,7 @@
 // EvaluateTriangle evaluates every residual block of problem at the current parameter values
 // (Ceres' EvaluateResidualBlock: the evaluation callback runs once, for the first block; Jacobians
 // in the tangent space of each parameter block, robust losses of the problem applied) and adds
-// the block's rows [J_b r_b] to a RowTriangle (sysid/uncertainty.h) of width n + 1, n the sum of
+// the block's rows [J_b r_b] to a RowTriangle (sysid/row_triangle.h) of width n + 1, n the sum of
 // the tangent sizes of problem's parameter blocks in the order `blocks` gives (the caller passes
 // the order it added them in, the column order of ceres::Problem::Evaluate's CRSMatrix; Ceres'
 // own GetParameterBlocks lists them by memory address, which changes from run to run). blocks
@@ -26,7 +26,7 @@ namespace mjsysid {
 
 struct EstimateTriangle {
   Eigen::MatrixXd r_aug;  // min(m, n + 1) x (n + 1), upper triangular: [R q; 0 rho]
-  long long rows = 0;     // m, the residual rows evaluated
+  long long rows = 0;     // m, the residual rows (a compressed block's real rows, RealRows)
   double cost = 0;        // 0.5 |r|^2 summed over the blocks
   int n = 0;              // columns of J (tangent sizes of every parameter block)
 };

@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "core/text.h"
+#include "sysid/compressed_cost.h"
 #include "sysid/contact_channels.h"
 #include "sysid/cost_functions.h"
 #include "sysid/derived_inertials.h"
@@ -242,6 +243,9 @@ FitResult Problem::Fit(const FitOptions& options) {
   } unborrow{&I};
   ledger.Enter(kPhaseAutoStart);
   I.fit_start = start;
+  // the progress lines inside long rollouts (Prepare installs them on the simulators)
+  if (!I.step_progress) I.step_progress = std::make_unique<StepProgressLines>(start, 0);
+  I.step_progress->Reset(start, options.progress_seconds);
   const std::vector<std::string> start_notes = SolveAutoStarts(I);
   ledger.Enter(kPhasePrepare);
   Prepared prepared;
@@ -281,6 +285,11 @@ FitResult Problem::Fit(const FitOptions& options) {
   std::vector<bool> relative;
   for (const FitParameter& p : I.params) relative.push_back(smooth && RelativeStep(p));
   VariableManifold variable_manifold(std::move(relative));
+  // single shooting: each segment's block to Ceres as its thin-QR triangle (memory: Ceres holds
+  // n + 1 rows per block, sysid/compressed_cost.h); declared before the problem, which uses it
+  CompressedBlocks compressed;
+  bool compress = options.compress_blocks && !I.shards;
+  for (const Segment& seg : I.segments) compress = compress && seg.next < 0;
   ceres::Problem problem(po);
   if (np) {
     problem.AddParameterBlock(I.z.data(), np);
@@ -324,7 +333,7 @@ FitResult Problem::Fit(const FitOptions& options) {
     if (seg.next >= 0) blocks.push_back(I.states[seg.next].data());
     auto* cost = new SegmentCost(&I, static_cast<int>(s));
     if (cost->num_residuals() > 0 && !blocks.empty()) {
-      problem.AddResidualBlock(cost, nullptr, blocks);
+      problem.AddResidualBlock(compress ? Compress(cost, &compressed) : cost, nullptr, blocks);
     } else {
       delete cost;  // e.g. a model without sensors fitted from its states alone
     }
@@ -335,7 +344,8 @@ FitResult Problem::Fit(const FitOptions& options) {
       if (seg.block >= 0) state_blocks.push_back(I.states[seg.block].data());
       auto* state_cost = new StateCost(&I, static_cast<int>(s));
       if (state_cost->num_residuals() > 0 && !state_blocks.empty()) {
-        problem.AddResidualBlock(state_cost, nullptr, state_blocks);
+        problem.AddResidualBlock(compress ? Compress(state_cost, &compressed) : state_cost, nullptr,
+                                 state_blocks);
       } else {
         delete state_cost;
       }
@@ -410,11 +420,13 @@ FitResult Problem::Fit(const FitOptions& options) {
   result.iterations = static_cast<int>(summary.iterations.size()) - 1;
   result.converged = summary.termination_type == ceres::CONVERGENCE && !result.interrupted;
   result.termination = summary.message;
-  // sharded (sysid/mpi/): the uncompressed rows, with the priors'
+  // sharded (sysid/mpi/): the uncompressed rows, with the priors'; compressed blocks: the rows
+  // they stand for
   int prior_rows = 0;
   for (const FitParameter& p : I.params) prior_rows += p.has_prior ? 1 : 0;
-  result.num_residuals =
-      I.shards ? static_cast<int>(I.shards->NumResiduals()) + prior_rows : summary.num_residuals;
+  result.num_residuals = I.shards
+                             ? static_cast<int>(I.shards->NumResiduals()) + prior_rows
+                             : summary.num_residuals + static_cast<int>(compressed.hidden_rows);
   if (summary.termination_type == ceres::FAILURE) {
     result.warnings.push_back("Ceres failed: " + summary.message);
   }

@@ -28,6 +28,7 @@
 #include "sysid/evaluation_cache.h"
 #include "sysid/fit_ledger.h"
 #include "sysid/problem.h"
+#include "sysid/progress.h"
 #include "sysid/residual_model.h"
 #include "sysid/sample_grid.h"
 #include "sysid/state_manifold.h"
@@ -235,6 +236,9 @@ struct Problem::Impl {
   // the running fit's ledger (Fit's own, borrowed; nullptr outside Fit): the evaluation callback
   // charges the solve's simulation to it
   FitLedger* ledger = nullptr;
+  // verbose fits: the progress lines inside long rollouts (sysid/progress.h), on every simulator
+  // (created once, reset by each Fit; Prepare installs it)
+  std::unique_ptr<StepProgressLines> step_progress;
 };
 
 // throws ParameterError naming the first parameter g with !moves[g] (its Jacobian column is zero

@@ -153,6 +153,7 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
       throw ParameterError("model '" + mo.name + "': " + e.what());
     }
     mo.manifold = std::make_unique<StateManifold>(&mo.sim->model());
+    mo.sim->SetStepProgress(options.verbose ? I.step_progress.get() : nullptr);
   }
   I.z.resize(np);
   for (int g = 0; g < np; ++g) I.z[g] = I.ToZ(g, I.params[g].initial);

@@ -240,6 +240,13 @@ struct FitOptions {
   // auto's contact segments (sysid/multiple_shooting.h, OmitJumpingSensors): fit the touch,
   // accelerometer, force and torque sensors too (true), or leave them out with a warning (false)
   bool fit_jumping_sensors = false;
+  // single shooting: each segment's residual block handed to Ceres as its thin-QR triangle
+  // (sysid/compressed_cost.h: the same cost, gradient and Gauss-Newton matrix in n + 1 rows), not
+  // row by row; false: every row (the memory of Ceres' copies grows with the samples)
+  bool compress_blocks = true;
+  // verbose: progress lines inside one long rollout or Jacobian column (sysid/progress.h
+  // StepProgressLines) every tenth of its steps, at most one per this many seconds of it
+  double progress_seconds = 2.0;
 };
 
 // one estimated variable: a physical parameter or a measurement term ("<sensor>.delay", ...)

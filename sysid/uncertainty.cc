@@ -145,27 +145,6 @@ Uncertainty AnalyzeUncertaintyReduced(const RowMatrix& A, const Eigen::SparseMat
   return AnalyzeUncertainty(reduced, cost, names, values, fixed, options);
 }
 
-RowTriangle::RowTriangle(int n) : n_(n), r_(0, n) {}
-
-void RowTriangle::Add(const Eigen::Ref<const RowMatrix>& rows) {
-  if (rows.cols() != n_) {
-    throw std::invalid_argument("RowTriangle: rows have " + std::to_string(rows.cols()) +
-                                " columns, expected " + std::to_string(n_));
-  }
-  for (Eigen::Index first = 0; first < rows.rows(); first += kChunkRows) {
-    // [R; chunk] -> the R of its thin QR (same normal matrix as every row added so far)
-    const Eigen::Index count = std::min<Eigen::Index>(kChunkRows, rows.rows() - first);
-    const Eigen::Index top = r_.rows();
-    stacked_.resize(top + count, n_);
-    stacked_.topRows(top) = r_;
-    stacked_.bottomRows(count) = rows.middleRows(first, count);
-    const Eigen::HouseholderQR<Eigen::Ref<Eigen::MatrixXd>> qr(stacked_);
-    const Eigen::Index kept = std::min<Eigen::Index>(top + count, n_);
-    r_ = qr.matrixQR().topRows(kept).triangularView<Eigen::Upper>();
-    rows_ += count;
-  }
-}
-
 Uncertainty AnalyzeUncertaintyCompressed(const RowMatrix& R, long long m, double cost,
                                          const std::vector<std::string>& names,
                                          const Eigen::VectorXd& values,

@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "core/state.h"
+#include "sysid/row_triangle.h"  // RowTriangle (the compressed forms below)
 
 namespace mjsysid {
 
@@ -66,32 +67,6 @@ Uncertainty AnalyzeUncertaintyReduced(const RowMatrix& A, const Eigen::SparseMat
                                       double cost, const std::vector<std::string>& names,
                                       const Eigen::VectorXd& values, const std::vector<bool>& fixed,
                                       const UncertaintyOptions& options = UncertaintyOptions());
-
-// The thin-QR triangle of a tall matrix whose rows arrive in blocks, without holding the rows:
-// after blocks M_1 .. M_k (each rows_i x n, row-major) R() is upper triangular, min(rows, n) x n
-// (column-major), with R^T R = sum M_i^T M_i (the same normal matrix, so the same least-squares
-// solutions, singular values and right singular vectors as the stacked matrix). Each block is
-// taken in chunks of kChunkRows rows: Householder QR of [R; chunk], in place. Memory O(n (n +
-// kChunkRows)) whatever the rows; the chunks are fixed by the rows added, so the result is the
-// same bits for the same blocks (no dependence on threads). A column scaling commutes: the R of
-// M D is R D. Used for the Jacobian at the estimate (sysid/estimate_jacobian.h): [J r] row block
-// by row block, then the uncertainty from R (AnalyzeUncertainty on R, dof from the real rows).
-class RowTriangle {
- public:
-  static constexpr int kChunkRows = 1024;
-  explicit RowTriangle(int n);
-  // adds rows (rows x n, row-major); n must match
-  void Add(const Eigen::Ref<const RowMatrix>& rows);
-  const Eigen::MatrixXd& R() const { return r_; }
-  int64_t rows() const { return rows_; }  // rows added
-  int n() const { return n_; }
-
- private:
-  int n_;
-  int64_t rows_ = 0;
-  Eigen::MatrixXd r_;        // min(rows_, n_) x n_
-  Eigen::MatrixXd stacked_;  // [R; chunk], reused
-};
 
 // AnalyzeUncertainty of a Jacobian J with m rows given by a compressed equivalent R (any rows
 // with R^T R = J^T J: a RowTriangle's R, sysid/mpi/'s compressed blocks): the same result as from

@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <map>
 
+#include "sysid/compressed_cost.h"
 #include "sysid/cost_functions.h"
 #include "sysid/mpi/state_projection.h"
 #include "sysid/multiple_shooting.h"
@@ -190,25 +191,12 @@ class TreeCost : public ceres::CostFunction {
       std::fprintf(stderr, "sysid: broken invariant: Jacobians asked without the callback\n");
       std::abort();
     }
+    // as a compressed block (sysid/compressed_cost.h): z columns, then m columns
     if (!g.jacobians) {
-      // residuals only: any vector of norm |r| gives the exact cost
-      for (int i = 0; i < n; ++i) residuals[i] = 0;
-      residuals[n] = std::sqrt(g.sum_squares);
+      WriteNorm(n, g.sum_squares, residuals);
       return true;
     }
-    for (int i = 0; i <= n; ++i) residuals[i] = g.r_aug(i, n);
-    if (jacobians) {
-      // row-major blocks: z columns, then m columns
-      for (int b = 0, c0 = 0; b < static_cast<int>(parameter_block_sizes().size()); ++b) {
-        const int w = parameter_block_sizes()[b];
-        if (jacobians[b]) {
-          for (int i = 0; i <= n; ++i) {
-            for (int c = 0; c < w; ++c) jacobians[b][i * w + c] = g.r_aug(i, c0 + c);
-          }
-        }
-        c0 += w;
-      }
-    }
+    WriteTriangle(g.r_aug, g.r_aug(n, n), parameter_block_sizes(), residuals, jacobians);
     return true;
   }
 

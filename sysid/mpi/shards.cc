@@ -1,7 +1,6 @@
 // The sharding and the compressed residual blocks of sysid/mpi/shards.h.
 #include "sysid/mpi/shards.h"
 
-#include <Eigen/QR>
 #include <algorithm>
 #include <numeric>
 
@@ -47,30 +46,20 @@ std::vector<std::pair<int, int>> CanonicalNodes(int first, int last, int size) {
 }
 
 Eigen::MatrixXd MergeBlocks(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
-  Eigen::MatrixXd stacked(a.rows() + b.rows(), a.cols());
+  RowMatrix stacked(a.rows() + b.rows(), a.cols());
   stacked << a, b;
-  const Eigen::HouseholderQR<Eigen::Ref<Eigen::MatrixXd>> qr(stacked);
-  return qr.matrixQR().topRows(a.cols()).triangularView<Eigen::Upper>();
+  RowTriangle triangle(static_cast<int>(a.cols()));
+  triangle.Add(stacked);
+  return triangle.Square();
 }
 
 CompressedBlock::CompressedBlock(int n) { Reset(n); }
 
-void CompressedBlock::Reset(int n) {
-  n_ = n;
-  r_aug_ = Eigen::MatrixXd::Zero(n + 1, n + 1);
-}
+void CompressedBlock::Reset(int n) { triangle_.Reset(n + 1); }
 
 void CompressedBlock::Add(const Eigen::Ref<const RowMatrix>& J,
                           const Eigen::Ref<const Eigen::VectorXd>& r) {
-  // [R_aug; J r] -> the R of its thin QR, which keeps [J r]^T [J r] of every row added
-  const Eigen::Index rows = J.rows();
-  if (rows == 0) return;
-  stacked_.resize(n_ + 1 + rows, n_ + 1);
-  stacked_.topRows(n_ + 1) = r_aug_;
-  stacked_.bottomLeftCorner(rows, n_) = J;
-  stacked_.bottomRightCorner(rows, 1) = r;
-  const Eigen::HouseholderQR<Eigen::Ref<Eigen::MatrixXd>> qr(stacked_);
-  r_aug_ = qr.matrixQR().topRows(n_ + 1).triangularView<Eigen::Upper>();
+  triangle_.Add(J, r);
 }
 
 EliminatedBlock EliminateStates(const Eigen::MatrixXd& r_aug, int k) {

@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "core/state.h"
+#include "sysid/row_triangle.h"
 
 namespace mjsysid::mpi {
 
@@ -44,9 +45,10 @@ T ReduceTree(int lo, int hi, const Known& known, const Merge& merge) {
   return merge(ReduceTree<T>(lo, mid, known, merge), ReduceTree<T>(mid, hi, known, merge));
 }
 
-// the R_aug of [a; b] (both (n + 1) x (n + 1) R_aug blocks)
+// the R_aug of [a; b] (both (n + 1) x (n + 1) R_aug blocks; one RowTriangle fold of the two)
 Eigen::MatrixXd MergeBlocks(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b);
 
+// a segment's rows [J r] folded by the RowTriangle of sysid/row_triangle.h (width n + 1)
 class CompressedBlock {
  public:
   // n: the fitted variables (columns of every J added)
@@ -54,14 +56,13 @@ class CompressedBlock {
   void Reset(int n);
   // adds rows: J (rows x n, row-major) and r (rows)
   void Add(const Eigen::Ref<const RowMatrix>& J, const Eigen::Ref<const Eigen::VectorXd>& r);
-  int n() const { return n_; }
-  // R_aug, (n + 1) x (n + 1), upper triangular, column-major (as sent)
-  const Eigen::MatrixXd& Augmented() const { return r_aug_; }
+  int n() const { return triangle_.n() - 1; }
+  // R_aug, (n + 1) x (n + 1), upper triangular (zero rows below the fold's), column-major (as
+  // sent)
+  Eigen::MatrixXd Augmented() const { return triangle_.Square(); }
 
  private:
-  int n_ = 0;
-  Eigen::MatrixXd r_aug_;
-  Eigen::MatrixXd stacked_;  // [R_aug; J r], reused between Add calls
+  RowTriangle triangle_;
 };
 
 // Eliminating a sequence's own states (multiple shooting sharded by whole sequences; a building
