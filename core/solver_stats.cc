@@ -20,6 +20,30 @@ const char* SolverName(int solver) {
 }  // namespace
 
 void CountSolve(const mjModel& m, const mjData& d, SolverStats* stats) {
+  // the rows per solver state against the step before's
+  int states[6] = {0, 0, 0, 0, 0, 0};
+  for (int i = 0; m.opt.solver != mjSOL_PGS && i < d.nefc; ++i) {
+    const int s = d.efc_state[i];
+    const bool friction =
+        d.efc_type[i] == mjCNSTR_FRICTION_DOF || d.efc_type[i] == mjCNSTR_FRICTION_TENDON;
+    if (friction) {
+      ++states[s == mjCNSTRSTATE_QUADRATIC ? 4 : 5];
+    } else {
+      ++states[s == mjCNSTRSTATE_SATISFIED   ? 0
+               : s == mjCNSTRSTATE_QUADRATIC ? 1
+               : s == mjCNSTRSTATE_CONE      ? 3
+                                             : 2];
+    }
+  }
+  if (stats->last_nefc >= 0) {
+    if (d.nefc != stats->last_nefc || !std::equal(states, states + 4, stats->last_states)) {
+      ++stats->row_changes;
+    } else if (!std::equal(states + 4, states + 6, stats->last_states + 4)) {
+      ++stats->friction_changes;
+    }
+  }
+  stats->last_nefc = d.nefc;
+  std::copy(states, states + 6, stats->last_states);
   if (d.nefc == 0) return;
   ++stats->solved;
   // islands with a count: at least slot 0 (monolithic), at most mjNISLAND

@@ -21,10 +21,25 @@ namespace mjsysid {
 struct SolverStats {
   int solved = 0;  // steps that ran the constraint solver (nefc > 0)
   int capped = 0;  // of those, steps where it stopped at opt.iterations (in any island)
+  // Over the steps of one rollout in order (a Trajectory's; summed by +=): the steps after the
+  // first whose constraint rows differ from the step before's. row_changes: another number of
+  // rows (a contact, limit or other constraint that came or went), or as many rows other than
+  // friction loss in other solver states (mjData::efc_state counted per state: active or
+  // satisfied, a contact's friction sticking or slipping); friction_changes: the friction-loss
+  // rows (dof and tendon) between sticking (quadratic) and slipping (linear), a force continuous
+  // in the velocity (a kink). Both 0: the constraint forces followed one smooth branch
+  // (sysid/interval_check.h). PGS keeps no row states: only the number of rows is compared.
+  int row_changes = 0;
+  int friction_changes = 0;
+  int last_nefc = -1;                       // the step before's rows (-1: no step counted yet)
+  int last_states[6] = {0, 0, 0, 0, 0, 0};  // its rows per state (satisfied, quadratic, linear,
+                                            // cone; friction loss quadratic, linear)
 
   SolverStats& operator+=(const SolverStats& other) {
     solved += other.solved;
     capped += other.capped;
+    row_changes += other.row_changes;
+    friction_changes += other.friction_changes;
     return *this;
   }
 };

@@ -112,6 +112,10 @@ class EvaluationCache {
   // DxDp is dropped unless the segment reads it (continuity or fitted states).
   void Seed(int segment, const double* z, const double* x0, Trajectory tr, Sensitivity s);
 
+  // the entry of a segment as last evaluated, without simulating (an empty key: none, or
+  // cancelled); e.g. the rollouts at the estimate after its evaluation
+  const Entry& Cached(int segment) const { return entries_[segment]; }
+
  private:
   // aborts unless called on the constructing thread (see Threads above)
   void CheckThread(const char* where) const;

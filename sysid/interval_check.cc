@@ -38,4 +38,28 @@ IntervalCheck CheckIntervalScale(const Eigen::VectorXd& r, const RowMatrix& J,
   return check;
 }
 
+std::string RuggedReason(const CostSmoothness& s) {
+  if (!s.all_rollouts) return "the rollouts at the estimate are not all on this process";
+  const std::string of = " of " + std::to_string(s.steps) + " steps";
+  if (s.contact_steps > 0) return "contacts in " + std::to_string(s.contact_steps) + of;
+  if (s.row_changes > 0) {
+    return "constraint rows come, go or change state (sticking, slipping) in " +
+           std::to_string(s.row_changes) + of;
+  }
+  if (s.robust_loss) return "a robust loss: the cost is not quadratic in the residuals";
+  if (s.fitted_delays > 0) {
+    return std::to_string(s.fitted_delays) + " fitted delays (interpolated between samples)";
+  }
+  if (s.pgs_constraints) return "constraint rows solved by PGS (their states are not compared)";
+  if (s.kinks > 0) return std::to_string(s.kinks) + " kinks in the Jacobian at the estimate";
+  if (s.jacobian_warnings > 0) {
+    return std::to_string(s.jacobian_warnings) + " core Jacobian warnings";
+  }
+  return "";
+}
+
+bool CheckAlongSmooth(double value, double se) {
+  return !(se <= kSmoothRelativeStd * std::abs(value));
+}
+
 }  // namespace mjsysid

@@ -582,21 +582,71 @@ FitResult Problem::Fit(const FitOptions& options) {
     // same model 0.5 |r + J_v d|^2 as the residual rows
     ledger.Enter(kPhaseIntervalCheck);
     if (options.verbose) PrintFitProgress("unc", "interval check", I.fit_start);
-    const IntervalCheck ic = CheckIntervalScale(
-        r_aug.col(nvar), r_aug.leftCols(nvar), se, names, [&](int v, double delta, double* c) {
-          const ParameterEstimate& e = result.parameters[v];
-          const double value = e.value + delta;
-          const double lo = v < np ? I.params[v].lower : mbounds[v - np].first;
-          const double hi = v < np ? I.params[v].upper : mbounds[v - np].second;
-          if (e.at_lower || e.at_upper || value < lo || value > hi) return false;
-          double* slot = v < np ? &I.z[v] : &I.m[v - np];
-          const double saved = *slot;
-          *slot = v < np ? I.params[v].ToVariable(value) : value;
-          const bool ok =
-              std::isfinite(*slot) && problem.Evaluate(eo, c, nullptr, nullptr, nullptr);
-          *slot = saved;
-          return ok;
-        });
+    // along the simulator parameters only where the rollouts at the estimate can make the cost
+    // rugged (RuggedReason); the measurement terms and control delays always
+    CostSmoothness smoothness;
+    smoothness.all_rollouts = !I.shards;
+    smoothness.jacobian_warnings = static_cast<int>(I.jacobian_warnings.size());
+    smoothness.robust_loss = options.loss != LossType::kNone;
+    smoothness.fitted_delays = static_cast<int>(I.control_delay_index.size());
+    for (const TermIndex& t : I.term_index) smoothness.fitted_delays += t.delay >= 0 ? 1 : 0;
+    for (size_t g = 0; g < I.segments.size() && smoothness.all_rollouts; ++g) {
+      const EvaluationCache::Entry& e = I.cache->Cached(static_cast<int>(g));
+      if (e.key.empty() || e.failed) {
+        smoothness.all_rollouts = false;
+        break;
+      }
+      smoothness.steps += e.tr.T;
+      for (int n : e.tr.ncon) smoothness.contact_steps += n > 0 ? 1 : 0;
+      smoothness.row_changes += e.tr.solver.row_changes;
+      smoothness.friction_changes += e.tr.solver.friction_changes;
+      const mjModel& mm = I.models[I.segments[g].model].sim->model();
+      smoothness.pgs_constraints |= mm.opt.solver == mjSOL_PGS && e.tr.solver.solved > 0;
+      if (e.has_jacobians && !e.jacobians_failed) smoothness.kinks += e.s.kinks;
+    }
+    const std::string rugged = RuggedReason(smoothness);
+    Eigen::VectorXd se_checked = se;
+    int skipped = 0;
+    for (int v = 0; v < np && rugged.empty(); ++v) {
+      if (!std::isfinite(se[v]) || !(se[v] > 0)) continue;
+      if (!CheckAlongSmooth(result.parameters[v].value, se[v])) {
+        ++skipped;
+        se_checked[v] = std::numeric_limits<double>::quiet_NaN();
+      }
+    }
+    // the cost with variable v moved by delta (physical units), false outside its bounds
+    auto cost_at = [&](int v, double delta, double* c) {
+      const ParameterEstimate& e = result.parameters[v];
+      const double value = e.value + delta;
+      const double lo = v < np ? I.params[v].lower : mbounds[v - np].first;
+      const double hi = v < np ? I.params[v].upper : mbounds[v - np].second;
+      if (e.at_lower || e.at_upper || value < lo || value > hi) return false;
+      double* slot = v < np ? &I.z[v] : &I.m[v - np];
+      const double saved = *slot;
+      *slot = v < np ? I.params[v].ToVariable(value) : value;
+      const bool ok = std::isfinite(*slot) && problem.Evaluate(eo, c, nullptr, nullptr, nullptr);
+      *slot = saved;
+      return ok;
+    };
+    const IntervalCheck ic =
+        CheckIntervalScale(r_aug.col(nvar), r_aug.leftCols(nvar), se_checked, names, cost_at);
+    // what ran and why, for result.yaml (never silent)
+    const std::string wide = FormatDigits(100 * kSmoothRelativeStd, 3) + " % of the value";
+    if (!rugged.empty()) {
+      result.interval_check =
+          "ran: " + std::to_string(ic.checked) + " cost evaluations (" + rugged + ")";
+    } else if (skipped == 0) {
+      result.interval_check = "ran: " + std::to_string(ic.checked) +
+                              " cost evaluations (smooth rollouts, standard errors above " + wide +
+                              ")";
+    } else {
+      result.interval_check =
+          "skipped along " + std::to_string(skipped) + " of the " + std::to_string(np) +
+          " simulator parameters (standard error <= " + wide +
+          "): the rollouts at the estimate have no contact, no constraint row that comes, goes or "
+          "changes state, no kink and no Jacobian warning (a smooth cost); " +
+          std::to_string(ic.checked) + " cost evaluations along the other variables";
+    }
     if (!ic.local) {
       cost_not_local = true;
       result.warnings.push_back(

@@ -397,6 +397,9 @@ struct FitResult {
   Reduction reduction;
   // the fit's steps and seconds by phase (sysid/fit_ledger.h); rows add up to simulation_steps
   std::vector<LedgerRow> ledger;
+  // whether the interval check (sysid/interval_check.h) ran, along which variables and why, one
+  // line; empty when the uncertainty step did not run
+  std::string interval_check;
 };
 
 // one line for a user, e.g. "collision pairs off 3 of 4, geoms off 2, disabled [island], guard

@@ -184,6 +184,10 @@ std::string EmitYaml(const FitResultFile& r) {
   // multiple shooting as used (0: single shooting) and why
   out << YAML::Key << "segment_steps_used" << YAML::Value << r.segment_steps_used;
   out << YAML::Key << "segment_reason" << YAML::Value << r.segment_reason;
+  // whether the interval check ran and why (sysid/interval_check.h); absent: no uncertainty step
+  if (!r.interval_check.empty()) {
+    out << YAML::Key << "interval_check" << YAML::Value << r.interval_check;
+  }
 
   // solver settings, as text
   out << YAML::Key << "solver" << YAML::Value << YAML::BeginMap;
@@ -589,6 +593,7 @@ void ReadYaml(const std::string& path, FitResultFile* r) {
   if (root["run_id"]) r->run_id = y.Text(root["run_id"], "run_id");
   // optional (results before automatic multiple shooting have neither)
   if (root["segment_reason"]) r->segment_reason = y.Text(root["segment_reason"], "segment_reason");
+  if (root["interval_check"]) r->interval_check = y.Text(root["interval_check"], "interval_check");
   if (root["segment_steps_used"]) {
     const std::string steps = y.Text(root["segment_steps_used"], "segment_steps_used");
     try {

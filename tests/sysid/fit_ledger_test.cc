@@ -12,6 +12,7 @@
 
 #include "core/mujoco_env.h"
 #include "sysid/problem.h"
+#include "tests/file_util.h"
 #include "tests/fit_test_util.h"
 #include "tests/test_util.h"
 
@@ -84,8 +85,11 @@ TEST(FitLedgerTest, SpringMassFitLedgerAddsUpAndTheEstimateCostsNoSteps) {
   EXPECT_EQ(by_phase[kPhaseTrials].steps % 1000, 0);
   EXPECT_EQ(by_phase[kPhaseEstimate].steps, 0);  // the last iterate, from the cache
   EXPECT_EQ(by_phase[kPhaseSignals].steps, 0);   // the final signals, from the cache
-  // the interval check: the cost at +-1 std of each of the 2 parameters, one rollout each
-  EXPECT_EQ(by_phase[kPhaseIntervalCheck].steps, 4000);
+  // the interval check: the rollouts have no constraint row (a smooth cost), so it is skipped
+  // along both simulator parameters and says so (the limited spring below runs it)
+  EXPECT_EQ(by_phase[kPhaseIntervalCheck].steps, 0);
+  EXPECT_EQ(r.interval_check.rfind("skipped along 2 of the 2 simulator parameters", 0), 0u)
+      << r.interval_check;
   // fitted again (new simulators, step counts from 0): the same ledger, no negative row
   const FitResult again = problem.Fit(o);
   long long again_steps = 0;
@@ -95,6 +99,39 @@ TEST(FitLedgerTest, SpringMassFitLedgerAddsUpAndTheEstimateCostsNoSteps) {
   }
   EXPECT_EQ(again_steps, again.simulation_steps);
   EXPECT_EQ(again.simulation_steps, r.simulation_steps);
+}
+
+// The same spring with a slide range of +-0.2 m that its excitation (amplitude 2 N against 4 N/m)
+// runs into: the limit row comes and goes, so the interval check runs, the cost at +-1 std of
+// each of the 2 parameters, one 1000-step rollout each (truth and start as above)
+TEST(FitLedgerTest, TheIntervalCheckRunsWhereConstraintRowsComeAndGo) {
+  std::string xml = test::ReadFile(kModels + "/spring_mass.xml");
+  const std::string joint = "damping=\"0.3\"";
+  ASSERT_NE(xml.find(joint), std::string::npos);
+  xml.replace(xml.find(joint), joint.size(), joint + " limited=\"true\" range=\"-0.2 0.2\"");
+  ModelPtr m = LoadModelFromString(xml);
+  const RowMatrix u = test::Excitation(*m, 1000, 2.0, 1);
+  InitialState x0;
+  const std::vector<test::Truth> truth = {{"mass", test::Spec("body_mass", "mass"), 1.0},
+                                          {"damping", test::Spec("joint_damping", "slide"), 0.3}};
+  const RowMatrix y = test::Measure(*m, truth, x0, u, 1e-3, 3);
+  Problem problem;
+  problem.AddModel("spring", *m);
+  problem.AddParameter(
+      FitParameter("mass", test::Spec("body_mass", "mass"), 2.0).Bounds(0.01, 100).Log());
+  problem.AddParameter(
+      FitParameter("damping", test::Spec("joint_damping", "slide"), 0.1).Bounds(1e-3, 10).Log());
+  problem.AddSequence(FitSequence("seq0", "spring", x0, u, y));
+  FitOptions o;
+  o.threads = 1;
+  const FitResult r = problem.Fit(o);
+  long long check_steps = -1;
+  for (const LedgerRow& row : r.ledger) {
+    if (row.phase == kPhaseIntervalCheck) check_steps = row.steps;
+  }
+  EXPECT_EQ(check_steps, 4000);
+  EXPECT_EQ(r.interval_check.rfind("ran: 4 cost evaluations (constraint rows come, go", 0), 0u)
+      << r.interval_check;
 }
 
 }  // namespace

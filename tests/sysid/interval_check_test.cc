@@ -90,5 +90,49 @@ TEST(IntervalCheckTest, SkipsVariablesWithoutIntervalsAndSidesThatFail) {
   EXPECT_NE(one.worst.find("a +1 std"), std::string::npos) << one.worst;
 }
 
+// RuggedReason: every sign of a branch switch in the rollouts at the estimate keeps the check;
+// rollouts without any (friction loss sticking and slipping alone: a kink, no jump) skip it
+TEST(IntervalCheckTest, RuggedReasonNamesWhatSwitched) {
+  const CostSmoothness smooth{true, 6000, 0, 0, 0, false, 0, 0};
+  EXPECT_EQ(RuggedReason(smooth), "");
+  CostSmoothness friction = smooth;
+  friction.friction_changes = 40;
+  EXPECT_EQ(RuggedReason(friction), "");
+  CostSmoothness s = smooth;
+  s.all_rollouts = false;
+  EXPECT_NE(RuggedReason(s).find("not all"), std::string::npos);
+  s = smooth;
+  s.contact_steps = 3;
+  EXPECT_EQ(RuggedReason(s), "contacts in 3 of 6000 steps");
+  s = smooth;
+  s.row_changes = 2;
+  EXPECT_NE(RuggedReason(s).find("in 2 of 6000 steps"), std::string::npos) << RuggedReason(s);
+  s = smooth;
+  s.robust_loss = true;
+  EXPECT_NE(RuggedReason(s).find("robust loss"), std::string::npos);
+  s = smooth;
+  s.fitted_delays = 2;
+  EXPECT_EQ(RuggedReason(s), "2 fitted delays (interpolated between samples)");
+  s = smooth;
+  s.pgs_constraints = true;
+  EXPECT_NE(RuggedReason(s).find("PGS"), std::string::npos);
+  s = smooth;
+  s.kinks = 1;
+  EXPECT_NE(RuggedReason(s).find("kinks"), std::string::npos);
+  s = smooth;
+  s.jacobian_warnings = 1;
+  EXPECT_NE(RuggedReason(s).find("Jacobian warnings"), std::string::npos);
+}
+
+// on smooth rollouts the check runs along a simulator parameter only where its standard error is
+// wide against its value (kSmoothRelativeStd)
+TEST(IntervalCheckTest, AlongSmoothRolloutsOnlyWideIntervalsAreChecked) {
+  EXPECT_FALSE(CheckAlongSmooth(120.0, 1.0));                      // 0.8 %
+  EXPECT_FALSE(CheckAlongSmooth(-2.0, kSmoothRelativeStd * 2.0));  // at the limit
+  EXPECT_TRUE(CheckAlongSmooth(120.9, 51.7));                      // 43 %: LuGre's
+  EXPECT_TRUE(CheckAlongSmooth(0.0, 1e-9));                        // no scale
+  EXPECT_TRUE(CheckAlongSmooth(2.0, std::nextafter(0.2, 1.0)));    // just past it
+}
+
 }  // namespace
 }  // namespace mjsysid
