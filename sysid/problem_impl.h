@@ -121,6 +121,9 @@ struct Problem::Impl {
   // multiple shooting: per model, per tangent coordinate (nx): the continuity rows' weights
   // (sysid/multiple_shooting.h, ContinuityWeights)
   std::vector<std::vector<double>> continuity_weights;
+  // per sequence and fitted channel (as `channels`): the cells of `missing` that are event
+  // windows (sysid/event_windows.h), not unmeasured samples
+  std::vector<std::vector<int>> event_masked;
 
   // What the cost functions met during a fit, so that FitResult::warnings can say it (a rejected
   // trial point or a Jacobian past its validity is otherwise invisible to the user): the number

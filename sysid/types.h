@@ -240,6 +240,14 @@ struct FitOptions {
   // auto's contact segments (sysid/multiple_shooting.h, OmitJumpingSensors): fit the touch,
   // accelerometer, force and torque sensors too (true), or leave them out with a warning (false)
   bool fit_jumping_sensors = false;
+  // auto's contact segments (sysid/event_windows.h): the cells of velocity- and
+  // acceleration-level sensors within this many samples of a contact event are left out of the
+  // fit (0, the default: none)
+  int event_window = 0;
+  // auto's contact segments (sysid/multiple_shooting.h, SolveWithStatesHeld): a first solve with
+  // the segment states held on the data, then the solve with them free (false: the free solve
+  // only)
+  bool hold_states_first = true;
 };
 
 // one estimated variable: a physical parameter or a measurement term ("<sensor>.delay", ...)
@@ -390,6 +398,15 @@ struct FitResult {
   Reduction reduction;
   // the fit's steps and seconds by phase (sysid/fit_ledger.h); rows add up to simulation_steps
   std::vector<LedgerRow> ledger;
+  // auto's contact segments: the event windows left out of the fit (sysid/event_windows.h; all 0
+  // when none); sensors: those with masked cells
+  struct EventWindows {
+    int window = 0;  // half-width in samples (FitOptions::event_window)
+    int events = 0;  // contact-count changes found in the data
+    int masked = 0;  // measured cells left out
+    std::vector<std::string> sensors;
+  };
+  EventWindows event_windows;
 };
 
 // one line for a user, e.g. "collision pairs off 3 of 4, geoms off 2, disabled [island], guard
