@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "sysid/metrics.h"
+#include "tests/file_util.h"
 
 namespace mjsysid::io {
 namespace {
@@ -357,6 +358,22 @@ TEST_F(ResultTest, RoundTripKeepsTheStartsOfAMultiStartFit) {
   const FitResultFile r = MultiStartResult();
   WriteBoth(r);
   ExpectSame(ReadResult(Dir()), r);
+}
+
+// the event windows of a contact fit (sysid/event_windows.h): written only when cells were left
+// out, read back as written
+TEST_F(ResultTest, EventWindowsRoundTripAndAreAbsentWhenNone) {
+  FitResultFile r = FullResult();
+  WriteBoth(r);
+  EXPECT_EQ(ReadResult(Dir()).event_windows.masked, 0);
+  EXPECT_EQ(test::ReadFile(Dir() + "/result.yaml").find("event_windows"), std::string::npos);
+  r.event_windows = {2, 76, 771, {"torso_gyro", "leg_vel"}};
+  WriteBoth(r);
+  const FitResultFile back = ReadResult(Dir());
+  EXPECT_EQ(back.event_windows.window, 2);
+  EXPECT_EQ(back.event_windows.events, 76);
+  EXPECT_EQ(back.event_windows.masked, 771);
+  EXPECT_EQ(back.event_windows.sensors, (std::vector<std::string>{"torso_gyro", "leg_vel"}));
 }
 
 TEST_F(ResultTest, FitMetricsAreWrittenPerSequenceAndChannel) {
