@@ -383,14 +383,14 @@ FitResult Problem::Fit(const FitOptions& options) {
   I.jacobian_warnings.clear();
   ledger.solving = true;
   // auto's contact segments: a first solve with the segment states held on the data
-  // (sysid/multiple_shooting.h, SolveWithStatesHeld)
-  // (its accepted steps count as the fit's, its initial cost is the fit's)
+  // (sysid/multiple_shooting.h, SolveWithStatesHeld); its accepted steps count as the fit's, its
+  // initial cost is the fit's
   int held_accepted = 0;
   double held_initial_cost = -1;
   if (prepared.contact_segments && options.hold_states_first && !I.shards) {
     const ceres::Solver::Summary held = SolveWithStatesHeld(I, &problem, so_ceres);
-    for (const ceres::IterationSummary& it : held.iterations) {
-      held_accepted += it.step_is_successful ? 1 : 0;
+    for (size_t i = 1; i < held.iterations.size(); ++i) {
+      held_accepted += held.iterations[i].step_is_successful ? 1 : 0;
     }
     held_initial_cost = held.initial_cost;
     result.segment_reason += "; first " + std::to_string(held.iterations.size() - 1) +
