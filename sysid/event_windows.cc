@@ -85,7 +85,9 @@ EventWindowMask MaskEventWindows(Problem::Impl& I, const std::vector<Trajectory>
       }
       if (masked == 0 || left == 0) continue;
       for (int k = 0; k < T; ++k) {
-        if (in_window[k]) sq.measured(k, column) = nan;
+        if (!in_window[k] || std::isnan(sq.measured(k, column))) continue;
+        I.event_cells.emplace_back(static_cast<int>(q), k, column, sq.measured(k, column));
+        sq.measured(k, column) = nan;
       }
       I.missing[q][c] += masked;
       I.event_masked[q][c] += masked;
@@ -99,6 +101,12 @@ EventWindowMask MaskEventWindows(Problem::Impl& I, const std::vector<Trajectory>
   }
   if (out.source.empty()) out.source = "no contact counts";
   return out;
+}
+
+void RestoreEventWindows(Problem::Impl& I) {
+  for (const auto& [q, k, column, value] : I.event_cells)
+    I.sequences[q].measured(k, column) = value;
+  I.event_cells.clear();
 }
 
 }  // namespace mjsysid

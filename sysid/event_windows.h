@@ -46,7 +46,10 @@ struct EventWindowMask {
 // prepared up to the channels; initial: the rollouts at the initial values, one per sequence, rows
 // may be empty). window <= 0 masks nothing. A channel is never masked down to no measured sample
 // (its cells are kept then).
+// The masked cells are recorded (I.event_cells); RestoreEventWindows puts their values back (at
+// the start of every Prepare, so that each fit of a Problem decides its own mask from the data).
 EventWindowMask MaskEventWindows(Problem::Impl& I, const std::vector<Trajectory>& initial,
                                  int window);
+void RestoreEventWindows(Problem::Impl& I);
 
 }  // namespace mjsysid

@@ -99,6 +99,7 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
   Impl& I = *impl_;
   I.cache.reset();  // it borrows the simulators rebuilt below
   I.options = options;
+  RestoreEventWindows(I);  // a previous fit's event windows (sysid/event_windows.h)
   if (I.models.empty()) throw std::invalid_argument("no model: call AddModel first");
   if (I.sequences.empty()) throw std::invalid_argument("no sequence: call AddSequence first");
   std::vector<Trajectory>& initial = out->initial;

@@ -20,26 +20,32 @@
 namespace mjsysid {
 namespace {
 
-// the hopper's experiment, one short sequence, logged and fitted with event_window `window`
-run::FitRunOutcome FitHopper(int window, const std::string& name) {
+// the hopper's experiment, one short sequence, logged in a fresh folder `name`, with event_window
+// `window` and two iterations
+io::ExperimentConfig Hopper(int window, const std::string& name) {
   io::ExperimentConfig cfg =
       io::LoadExperiment(std::string(MJSYSID_EXPERIMENTS_DIR) + "/robust/hopper.yaml");
   cfg.simulate.sequences = 1;
   cfg.options.event_window = window;
   cfg.options.max_iterations = 2;
   cfg.options.verbose = false;
-  const std::string dir = test::FreshTempDir("event_windows_" + name);
-  const std::string log_path = dir + "/log.h5";
+  const std::string log_path = test::FreshTempDir("event_windows_" + name) + "/log.h5";
   cfg.data = {io::DataFile{log_path, {}}};
   io::WriteLog(log_path, sim::SimulateExperiment(cfg));
+  return cfg;
+}
+
+// ... fitted by the runner
+run::FitRunOutcome FitHopper(int window, const std::string& name) {
+  const io::ExperimentConfig cfg = Hopper(window, name);
   run::FitRunOptions opt;
-  opt.out_dir = dir + "/out";
+  opt.out_dir = std::filesystem::path(cfg.data[0].path).parent_path().string() + "/out";
   opt.verbose = false;
   return run::RunFit(cfg, opt);
 }
 
 // NaN cells of sensor `sensor` in the result's sequences
-int NanCells(const io::FitResultFile& r, const std::string& sensor) {
+int NanCells(const FitResult& r, const std::string& sensor) {
   int n = 0;
   for (const SequenceResult& s : r.sequences) {
     for (size_t i = 0, col = 0; i < s.sensor_names.size(); col += s.sensor_dims[i++]) {
@@ -91,6 +97,26 @@ TEST(EventWindowsTest, MaskVelocityCellsNextToContactEventsAndSaySo) {
     EXPECT_EQ(w.find("event windows"), std::string::npos) << w;
   }
   EXPECT_EQ(test::ReadFile(off.out_dir + "/result.yaml").find("event_windows:"), std::string::npos);
+}
+
+// Each fit of one Problem decides its mask from the data as given: a second fit with the same
+// window masks the same cells (not counted as unmeasured), a third with window 0 none.
+TEST(EventWindowsTest, EachFitOfAProblemStartsFromTheData) {
+  const io::ExperimentConfig cfg = Hopper(2, "refit");
+  const run::BuiltProblem bp = run::BuildProblem(cfg);
+  const FitResult first = bp.problem->Fit(cfg.options);
+  const FitResult second = bp.problem->Fit(cfg.options);
+  ASSERT_GT(first.event_windows.masked, 0);
+  EXPECT_EQ(second.event_windows.masked, first.event_windows.masked);
+  EXPECT_EQ(NanCells(second, "torso_gyro"), first.event_windows.masked);
+  for (const std::string& w : second.warnings) {
+    EXPECT_EQ(w.find("not measured (NaN)"), std::string::npos) << w;
+  }
+  FitOptions off = cfg.options;
+  off.event_window = 0;
+  const FitResult third = bp.problem->Fit(off);
+  EXPECT_EQ(third.event_windows.masked, 0);
+  EXPECT_EQ(NanCells(third, "torso_gyro"), 0);
 }
 
 }  // namespace
