@@ -278,6 +278,24 @@ std::vector<std::string> OmitJumpingSensors(Problem::Impl& I) {
   return warnings;
 }
 
+// Auto's contact segments, first stage (see the header)
+ceres::Solver::Summary SolveWithStatesHeld(Problem::Impl& I, ceres::Problem* problem,
+                                           ceres::Solver::Options so) {
+  std::vector<double*> held;
+  for (size_t b = 0; b < I.states.size(); ++b) {
+    double* x = I.states[b].data();
+    if (!problem->HasParameterBlock(x)) continue;
+    problem->SetParameterBlockConstant(x);
+    held.push_back(x);
+  }
+  so.linear_solver_type = ceres::DENSE_QR;
+  so.linear_solver_ordering.reset();
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, problem, &summary);
+  for (double* x : held) problem->SetParameterBlockVariable(x);
+  return summary;
+}
+
 // Continuity weights (see the header)
 std::vector<std::vector<double>> ContinuityWeights(const Problem::Impl& I,
                                                    const std::vector<Trajectory>& initial,

@@ -105,6 +105,15 @@ std::vector<std::vector<double>> ContinuityWeights(const Problem::Impl& I,
 // sharded fit (Impl::shards: the states eliminated by the shards) as single shooting
 void ChooseLinearSolver(Problem::Impl& I, int tangent, ceres::Solver::Options* so);
 
+// Auto's contact segments, first stage: the solve with every segment state held where it started
+// (on the logged states: SegmentStart), so that the parameters alone fit each segment's prediction
+// from the data (the cost that falls nearly monotonically from the start to the truth,
+// docs/stress.md); the states are released after it, for the solve that follows. `so`: the main
+// solve's options (its iteration cap and tolerances); the held solve uses dense QR on the
+// parameters. Returns the held solve's summary; *problem is left with every state variable.
+ceres::Solver::Summary SolveWithStatesHeld(Problem::Impl& I, ceres::Problem* problem,
+                                           ceres::Solver::Options so);
+
 // Ceres' CRS Jacobian -> A (rows x nvar, dense: the first nvar columns) and B (rows x the rest,
 // sparse: the state columns in tangent space)
 void SplitJacobian(const ceres::CRSMatrix& crs, int nvar, RowMatrix* A,

@@ -258,6 +258,7 @@ FitResult Problem::Fit(const FitOptions& options) {
   result.jacobian_mode = prepared.jacobian_mode;
   result.segment_steps_used = prepared.segment_steps;
   result.segment_reason = prepared.segment_reason;
+  result.event_windows = prepared.event_windows;
 
   result.warnings = I.prepare_warnings;
   result.warnings.insert(result.warnings.end(), start_notes.begin(), start_notes.end());
@@ -391,6 +392,22 @@ FitResult Problem::Fit(const FitOptions& options) {
   I.rejected_evaluations = 0;
   I.jacobian_warnings.clear();
   ledger.solving = true;
+  // auto's contact segments: a first solve with the segment states held on the data
+  // (sysid/multiple_shooting.h, SolveWithStatesHeld); its accepted steps count as the fit's, its
+  // initial cost is the fit's
+  int held_accepted = 0;
+  double held_initial_cost = -1;
+  if (prepared.contact_segments && options.hold_states_first && !I.shards) {
+    const ceres::Solver::Summary held = SolveWithStatesHeld(I, &problem, so_ceres);
+    for (size_t i = 1; i < held.iterations.size(); ++i) {
+      held_accepted += held.iterations[i].step_is_successful ? 1 : 0;
+    }
+    held_initial_cost = held.initial_cost;
+    result.segment_reason += "; first " + std::to_string(held.iterations.size() - 1) +
+                             " iterations with the segment states held on the data (cost " +
+                             FormatDigits(held.initial_cost, 3) + " -> " +
+                             FormatDigits(held.final_cost, 3) + ")";
+  }
   ceres::Solve(so_ceres, &problem, &summary);
   ledger.solving = false;
 
@@ -415,7 +432,7 @@ FitResult Problem::Fit(const FitOptions& options) {
     }
   }
 
-  result.initial_cost = summary.initial_cost;
+  result.initial_cost = held_initial_cost >= 0 ? held_initial_cost : summary.initial_cost;
   result.final_cost = summary.final_cost;
   result.iterations = static_cast<int>(summary.iterations.size()) - 1;
   result.converged = summary.termination_type == ceres::CONVERGENCE && !result.interrupted;
@@ -790,6 +807,10 @@ FitResult Problem::Fit(const FitOptions& options) {
     for (size_t i = 0, col = 0; i < sr.sensor_names.size(); col += sr.sensor_dims[i++]) {
       int missing = 0;
       for (int c = 0; c < sr.sensor_dims[i]; ++c) missing += sr.missing[col + c];
+      // event windows are said once (FitResult::event_windows), not as unmeasured samples
+      for (int c = 0; c < sr.sensor_dims[i] && q < I.event_masked.size(); ++c) {
+        if (col + c < I.event_masked[q].size()) missing -= I.event_masked[q][col + c];
+      }
       if (missing == 0) continue;
       result.warnings.push_back("sequence '" + sq.name + "': sensor '" + sr.sensor_names[i] +
                                 "': " + std::to_string(missing) + " of " +
@@ -807,7 +828,7 @@ FitResult Problem::Fit(const FitOptions& options) {
         "or a start closer to the data");
   }
   // the verdict (sysid/fit_status.h): accepted steps, Jacobian warnings, chi-square
-  int accepted_steps = 0;
+  int accepted_steps = held_accepted;
   for (size_t i = 1; i < summary.iterations.size(); ++i) {
     accepted_steps += summary.iterations[i].step_is_successful ? 1 : 0;
   }

@@ -131,6 +131,8 @@ class Problem {
     std::string segment_reason;  // why (FitResult::segment_reason)
     double probe_rate = 0;       // growth rate per step of the auto probe
     double probe_growth = 0;     // its largest growth beyond linear (HorizonChoice::growth)
+    FitResult::EventWindows event_windows;  // auto's contact segments (sysid/event_windows.h)
+    bool contact_segments = false;          // auto chose contact segments (HorizonChoice)
   };
   // validates the inputs, builds the simulators, variables and segments
   void Prepare(const FitOptions& options, Prepared* out);

@@ -22,6 +22,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "core/simulator.h"
@@ -122,6 +123,12 @@ struct Problem::Impl {
   // multiple shooting: per model, per tangent coordinate (nx): the continuity rows' weights
   // (sysid/multiple_shooting.h, ContinuityWeights)
   std::vector<std::vector<double>> continuity_weights;
+  // per sequence and fitted channel (as `channels`): the cells of `missing` that are event
+  // windows (sysid/event_windows.h), not unmeasured samples
+  std::vector<std::vector<int>> event_masked;
+  // the measured cells the event windows set to NaN: (sequence, row, column, value), so that the
+  // next Prepare starts from the data as given
+  std::vector<std::tuple<int, int, int, double>> event_cells;
 
   // What the cost functions met during a fit, so that FitResult::warnings can say it (a rejected
   // trial point or a Jacobian past its validity is otherwise invisible to the user): the number

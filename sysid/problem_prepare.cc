@@ -25,6 +25,7 @@
 #include "sysid/derived_inertials.h"
 #include "sysid/equation_error.h"
 #include "sysid/evaluation_cache.h"
+#include "sysid/event_windows.h"
 #include "sysid/fit_status.h"
 #include "sysid/interval_check.h"
 #include "sysid/multiple_shooting.h"
@@ -98,6 +99,7 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
   Impl& I = *impl_;
   I.cache.reset();  // it borrows the simulators rebuilt below
   I.options = options;
+  RestoreEventWindows(I);  // a previous fit's event windows (sysid/event_windows.h)
   if (I.models.empty()) throw std::invalid_argument("no model: call AddModel first");
   if (I.sequences.empty()) throw std::invalid_argument("no sequence: call AddSequence first");
   std::vector<Trajectory>& initial = out->initial;
@@ -472,6 +474,7 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
   out->segment_reason = horizon.reason;
   out->probe_rate = horizon.rate;
   out->probe_growth = horizon.growth;
+  out->contact_segments = horizon.contacts;
   I.stop_on_jacobian_warning = options.segment_steps < 0 && horizon.steps == 0;
   // a sharded start with free states (sysid/mpi/state_projection.h): every shard starts every
   // sequence's states from the data as one process does, so the other sequences are rolled out
@@ -482,6 +485,14 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
   // auto's contact segments: the sensors that jump at contact events left out, saying so
   if (horizon.contacts && !options.fit_jumping_sensors) {
     for (std::string& w : OmitJumpingSensors(I)) I.prepare_warnings.push_back(std::move(w));
+  }
+  // auto's contact segments: the velocity- and acceleration-level cells next to contact events
+  // left out, saying so (sysid/event_windows.h)
+  const EventWindowMask events =
+      MaskEventWindows(I, initial, horizon.contacts ? options.event_window : 0);
+  if (events.masked > 0) {
+    out->event_windows = {options.event_window, events.events, events.masked, events.sensors};
+    I.prepare_warnings.push_back(events.Summary());
   }
   std::string start_source;
   for (size_t q = 0; q < I.sequences.size(); ++q) {

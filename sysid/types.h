@@ -247,6 +247,14 @@ struct FitOptions {
   // verbose: progress lines inside one long rollout or Jacobian column (sysid/progress.h
   // StepProgressLines) every tenth of its steps, at most one per this many seconds of it
   double progress_seconds = 2.0;
+  // auto's contact segments (sysid/event_windows.h): the cells of velocity- and
+  // acceleration-level sensors within this many samples of a contact event are left out of the
+  // fit (0, the default: none)
+  int event_window = 0;
+  // auto's contact segments (sysid/multiple_shooting.h, SolveWithStatesHeld): a first solve with
+  // the segment states held on the data, then the solve with them free (false: the free solve
+  // only)
+  bool hold_states_first = true;
 };
 
 // one estimated variable: a physical parameter or a measurement term ("<sensor>.delay", ...)
@@ -400,6 +408,15 @@ struct FitResult {
   // whether the interval check (sysid/interval_check.h) ran, along which variables and why, one
   // line; empty when the uncertainty step did not run
   std::string interval_check;
+  // auto's contact segments: the event windows left out of the fit (sysid/event_windows.h; all 0
+  // when none); sensors: those with masked cells
+  struct EventWindows {
+    int window = 0;  // half-width in samples (FitOptions::event_window)
+    int events = 0;  // contact-count changes found in the data
+    int masked = 0;  // measured cells left out
+    std::vector<std::string> sensors;
+  };
+  EventWindows event_windows;
 };
 
 // one line for a user, e.g. "collision pairs off 3 of 4, geoms off 2, disabled [island], guard

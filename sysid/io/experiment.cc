@@ -188,9 +188,9 @@ ExperimentConfig Parser::Parse(const YAML::Node& root) {
     }
     c.options.segment_steps = -1;
   } else if (r.Has("multiple_shooting")) {
-    const MapReader s(
-        *this, r.Get("multiple_shooting"),
-        {"segment_steps", "continuity_weight", "continuity_scale", "jumping_sensors"});
+    const MapReader s(*this, r.Get("multiple_shooting"),
+                      {"segment_steps", "continuity_weight", "continuity_scale", "jumping_sensors",
+                       "event_window", "hold_states_first"});
     if (s.Has("segment_steps")) c.options.segment_steps = segment_steps(s.Get("segment_steps"));
     if (s.Has("continuity_weight")) {
       c.options.continuity_weight = Positive(s.Get("continuity_weight"));
@@ -214,6 +214,20 @@ ExperimentConfig Parser::Parse(const YAML::Node& root) {
              "multiple_shooting: {jumping_sensors: omit|fit}");
       }
       c.options.fit_jumping_sensors = v == "fit";
+    }
+    // event_window: samples either side of a contact event left out (sysid/event_windows.h)
+    if (s.Has("event_window")) {
+      c.options.event_window = static_cast<int>(Integer(s.Get("event_window"), 0, 1000));
+    }
+    // hold_states_first: auto's contact segments start with their states held on the data
+    if (s.Has("hold_states_first")) {
+      const Field f = s.Get("hold_states_first");
+      const std::string v = f.node.IsScalar() ? f.node.Scalar() : "";
+      if (v != "true" && v != "false") {
+        Fail(f.mark, f.path + ": expected true or false, got " + Quote(v),
+             "multiple_shooting: {hold_states_first: true|false}");
+      }
+      c.options.hold_states_first = v == "true";
     }
   }
   if (r.Has("states")) ParseStates(r.Get("states"), &c);

@@ -188,6 +188,15 @@ std::string EmitYaml(const FitResultFile& r) {
   if (!r.interval_check.empty()) {
     out << YAML::Key << "interval_check" << YAML::Value << r.interval_check;
   }
+  // auto's contact segments: the cells next to contact events left out (sysid/event_windows.h)
+  if (r.event_windows.masked > 0) {
+    out << YAML::Key << "event_windows" << YAML::Value << YAML::BeginMap;
+    out << YAML::Key << "window" << YAML::Value << r.event_windows.window;
+    out << YAML::Key << "events" << YAML::Value << r.event_windows.events;
+    out << YAML::Key << "masked_cells" << YAML::Value << r.event_windows.masked;
+    out << YAML::Key << "sensors" << YAML::Value << YAML::Flow << r.event_windows.sensors;
+    out << YAML::EndMap;
+  }
 
   // solver settings, as text
   out << YAML::Key << "solver" << YAML::Value << YAML::BeginMap;
@@ -627,6 +636,24 @@ void ReadYaml(const std::string& path, FitResultFile* r) {
       {"wall_time_s", &r->seconds}};
   for (const auto& [key, value] : doubles) *value = y.Double(y.Get(root, key, key), key);
   r->solver = y.TextMap(y.Get(root, "solver", "solver"), "solver");
+  // event windows (optional: absent when none were left out)
+  if (const YAML::Node ev = root["event_windows"]) {
+    const std::pair<const char*, int*> counts[] = {{"window", &r->event_windows.window},
+                                                   {"events", &r->event_windows.events},
+                                                   {"masked_cells", &r->event_windows.masked}};
+    for (const auto& [key, value] : counts) {
+      const std::string at = std::string("event_windows.") + key;
+      *value = y.Int(y.Get(ev, key, at), at);
+    }
+    const YAML::Node sensors = y.Get(ev, "sensors", "event_windows.sensors");
+    if (!sensors.IsSequence()) {
+      y.Fail(sensors, "event_windows.sensors",
+             "expected a list, found " + YamlReader::Kind(sensors));
+    }
+    for (size_t i = 0; i < sensors.size(); ++i) {
+      r->event_windows.sensors.push_back(y.Text(sensors[i], "event_windows.sensors"));
+    }
+  }
 
   // parameters
   const YAML::Node params = y.Get(root, "parameters", "parameters");

@@ -522,6 +522,8 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
       {"continuity_weight", FormatG17(options.continuity_weight)},
       {"continuity_scale", options.continuity_relative ? "relative" : "absolute"},
       {"jumping_sensors", options.fit_jumping_sensors ? "fit" : "omit"},
+      {"event_window", std::to_string(options.event_window)},
+      {"hold_states_first", options.hold_states_first ? "true" : "false"},
       {"mujoco_solver_tolerance", "min(model, " + FormatG17(sim_defaults.solver_tolerance) + ")"},
       {"minimizer", "ceres levenberg-marquardt"},
       {"starts", std::to_string(starts)},

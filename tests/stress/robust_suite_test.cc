@@ -11,7 +11,8 @@
 // and the suite has ~27 parameters; tests/sysid/problem_test.cc tests the calibration over 100
 // seeds); any other ending has a non-zero exit code and says its intervals are not valid. Then,
 // separately, kRecovery lists the cases that must also recover (converged, every estimate within
-// 5 % of its truth): the goal is all of them.
+// 5 % of its truth): the goal is all of them; kWithin5Percent the cases whose every estimate
+// must be within 5 % while their status honestly says the intervals are not valid.
 //
 // The shooting mode is the experiment's default (no multiple_shooting key); the environment
 // variable MJSYSID_ROBUST_SEGMENT_STEPS=N overrides FitOptions::segment_steps for every case (the
@@ -48,9 +49,13 @@ const std::vector<std::string> kCases = {"cartpole_swing", "acrobot", "finger",
                                          "hopper",         "walker",  "crate"};
 
 // the cases that must recover today with the experiment default (`multiple_shooting: auto`):
-// converged, every estimate within kTolerance of its truth. The goal is every case; the contact
-// cases end honestly without recovering (docs/stress.md).
-const std::vector<std::string> kRecovery = {"cartpole_swing", "acrobot"};
+// converged, every estimate within kTolerance of its truth. The goal is every case
+// (docs/stress.md).
+const std::vector<std::string> kRecovery = {"cartpole_swing", "acrobot", "finger"};
+// the cases whose every estimate must be within kTolerance of its truth although the fit is not
+// `converged` (the hopper and walker: jacobian_unreliable, the interval check finds their contact
+// costs jumping within one standard error; the honesty checks below hold as for every case)
+const std::vector<std::string> kWithin5Percent = {"hopper", "walker"};
 constexpr double kTolerance = 0.05;  // relative
 
 // the start of every parameter: 40 % off its truth (above or below)
@@ -202,6 +207,10 @@ TEST_P(RobustSuiteTest, EndsHonestly) {
     const bool contact_segments =
         out.file.segment_reason.find("change their contact count") != std::string::npos;
     EXPECT_EQ(contact_segments, events) << out.file.segment_reason;
+    // and start with the segment states held on the data (sysid/multiple_shooting.h,
+    // SolveWithStatesHeld), saying so
+    const bool held = out.file.segment_reason.find("held on the data") != std::string::npos;
+    EXPECT_EQ(held, events) << out.file.segment_reason;
   }
 
   // honest: converged means exit 0, valid intervals and every truth inside them; anything else
@@ -228,6 +237,9 @@ TEST_P(RobustSuiteTest, EndsHonestly) {
   if (!LongMode() && std::count(kRecovery.begin(), kRecovery.end(), name)) {
     EXPECT_EQ(out.file.outcome, FitStatus::kConverged) << out.file.termination;
     EXPECT_LE(worst, kTolerance) << "worst relative error";
+  }
+  if (!LongMode() && std::count(kWithin5Percent.begin(), kWithin5Percent.end(), name)) {
+    EXPECT_LE(worst, kTolerance) << "worst relative error (" << out.file.status << ")";
   }
   fs::remove_all(dir);
 }

@@ -269,6 +269,23 @@ TEST_F(ExperimentTest, MultipleShootingContinuityScaleAndJumpingSensors) {
               "expected 'omit' or 'fit'", "jumping_sensors: omit|fit");
 }
 
+// multiple_shooting: hold_states_first true (default) | false, event_window 0 (default, off) | k
+// in 0..1000; other values name the key, its line and the forms
+TEST_F(ExperimentTest, MultipleShootingHeldStatesAndEventWindow) {
+  const std::string base = kPendulum;
+  const ExperimentConfig d = LoadExperiment(Write("d.yaml", base));
+  EXPECT_TRUE(d.options.hold_states_first);
+  EXPECT_EQ(d.options.event_window, 0);
+  const ExperimentConfig c = LoadExperiment(
+      Write("e.yaml", base + "multiple_shooting: {hold_states_first: false, event_window: 3}\n"));
+  EXPECT_FALSE(c.options.hold_states_first);
+  EXPECT_EQ(c.options.event_window, 3);
+  EXPECT_EQ(c.options.segment_steps, -1);  // still auto
+  ExpectError(base + "multiple_shooting: {hold_states_first: maybe}\n", 4, 40,
+              "expected true or false", "hold_states_first: true|false");
+  ExpectError(base + "multiple_shooting: {event_window: -1}\n", 4, 35, "must be in 0..1000");
+}
+
 TEST_F(ExperimentTest, MinimalFileGetsTheDefaults) {
   const ExperimentConfig c = LoadExperiment(Write("swing.yaml", kPendulum));
   EXPECT_EQ(c.name, "swing");

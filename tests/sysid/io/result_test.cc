@@ -340,6 +340,22 @@ TEST_F(ResultTest, RoundTripKeepsTheStartsOfAMultiStartFit) {
   ExpectSame(ReadResult(Dir()), r);
 }
 
+// the event windows of a contact fit (sysid/event_windows.h): written only when cells were left
+// out, read back as written
+TEST_F(ResultTest, EventWindowsRoundTripAndAreAbsentWhenNone) {
+  FitResultFile r = FullResult();
+  WriteBoth(r);
+  EXPECT_EQ(ReadResult(Dir()).event_windows.masked, 0);
+  EXPECT_EQ(test::ReadFile(Dir() + "/result.yaml").find("event_windows"), std::string::npos);
+  r.event_windows = {2, 76, 771, {"torso_gyro", "leg_vel"}};
+  WriteBoth(r);
+  const FitResultFile back = ReadResult(Dir());
+  EXPECT_EQ(back.event_windows.window, 2);
+  EXPECT_EQ(back.event_windows.events, 76);
+  EXPECT_EQ(back.event_windows.masked, 771);
+  EXPECT_EQ(back.event_windows.sensors, (std::vector<std::string>{"torso_gyro", "leg_vel"}));
+}
+
 TEST_F(ResultTest, FitMetricsAreWrittenPerSequenceAndChannel) {
   // result.yaml lists the metrics of the fitted and the held-out sequences, each channel by name,
   // with the values the runner computed (read back with yaml-cpp, at full precision)
