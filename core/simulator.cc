@@ -168,6 +168,8 @@ Simulator::Simulator(const mjModel& m, const std::vector<ParameterSpec>& params,
     worker->minus = CopyModel(*model_);
     workers_.push_back(std::move(worker));
   }
+  // the pool's task model counts in step calls (ParallelLoad)
+  pool_.SetMeter([this](int worker) { return workers_[worker]->steps; });
 }
 
 Simulator::~Simulator() = default;
@@ -214,6 +216,7 @@ long long Simulator::StepCount() const {
 
 void Simulator::ResetStepCount() {
   for (auto& w : workers_) w->steps = 0;
+  pool_.ResetLoad();
 }
 
 Eigen::VectorXd Simulator::GetParameters() const {
@@ -922,6 +925,12 @@ void Simulator::ColumnJacobians(const std::vector<SequenceInput>& sequences,
   std::unique_ptr<std::atomic<int>[]> ready(new std::atomic<int>[nroll]);
   for (int i = 0; i < nroll; ++i) ready[i].store(0);
   std::vector<std::exception_ptr> rollout_error(nroll);
+  // for the task model: a pipelined column follows its rollout
+  if (nroll > 0) {
+    std::vector<int> follows(nroll + nseq * ncol, -1);
+    for (int t = nroll; t < nroll + nseq * ncol; ++t) follows[t] = (t - nroll) / ncol;
+    pool_.SetNextFollows(std::move(follows));
+  }
   try {
     pool_.ParallelFor(nroll + nseq * ncol, [&](int worker, int t) {
       Worker& w = *workers_[worker];

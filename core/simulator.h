@@ -236,6 +236,11 @@ class Simulator {
   // against a running Rollout/Jacobians call.
   long long StepCount() const;
   void ResetStepCount();
+  // The parallel structure of those steps (core/thread_pool.h, "Task model"): per parallel batch
+  // the step calls of each task, summed as work (= StepCount) and as the makespan on 1-4 workers
+  // under the pool's scheduling (span[2]: steps on the critical path at 2 workers). Reset with
+  // ResetStepCount.
+  const PoolLoad& ParallelLoad() const { return pool_.load(); }
 
   // The reduced model (core/reduced_model.h): switches r off in the private model (r from
   // AnalyzeReduction on this simulator's model and its nominal rollouts). Rollout, Jacobians and

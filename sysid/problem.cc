@@ -230,11 +230,18 @@ FitResult Problem::Fit(const FitOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   FitResult result;
   // the ledger of steps and time by phase (sysid/fit_ledger.h); the simulators exist after Prepare
-  FitLedger ledger([&I] {
-    long long steps = 0;
-    for (const Impl::Model& mo : I.models) steps += mo.sim ? mo.sim->StepCount() : 0;
-    return steps;
-  });
+  FitLedger ledger(
+      [&I] {
+        long long steps = 0;
+        for (const Impl::Model& mo : I.models) steps += mo.sim ? mo.sim->StepCount() : 0;
+        return steps;
+      },
+      [&I] {
+        // the task model's critical path at 2 workers (core/thread_pool.h)
+        long long steps = 0;
+        for (const Impl::Model& mo : I.models) steps += mo.sim ? mo.sim->ParallelLoad().span[2] : 0;
+        return steps;
+      });
   I.ledger = &ledger;
   struct Unborrow {
     Impl* impl;

@@ -42,9 +42,24 @@ TEST(FitLedgerTest, ChargesStepsToTheCurrentPhase) {
   EXPECT_NE(table.find("total"), std::string::npos);
 }
 
-// truth mass 1.0, damping 0.3, start 2.0 / 0.1 (log), sensor noise sigma 1e-3 (seed 3), 1000
-// samples, 1 thread: the estimate within 1e-3 relative, the ledger adds up to the step count
-// exactly
+// truth mass 1.0, damping 0.3, start 2.0 / 0.1 (log), sensor noise sigma 1e-3 (seed 3), one
+// sequence of 1000 samples
+void SpringMassProblem(Problem* problem) {
+  ModelPtr m = LoadModel(kModels + "/spring_mass.xml");
+  const RowMatrix u = test::Excitation(*m, 1000, 2.0, 1);
+  InitialState x0;
+  const std::vector<test::Truth> truth = {{"mass", test::Spec("body_mass", "mass"), 1.0},
+                                          {"damping", test::Spec("joint_damping", "slide"), 0.3}};
+  const RowMatrix y = test::Measure(*m, truth, x0, u, 1e-3, 3);
+  problem->AddModel("spring", *m);
+  problem->AddParameter(
+      FitParameter("mass", test::Spec("body_mass", "mass"), 2.0).Bounds(0.01, 100).Log());
+  problem->AddParameter(
+      FitParameter("damping", test::Spec("joint_damping", "slide"), 0.1).Bounds(1e-3, 10).Log());
+  problem->AddSequence(FitSequence("seq0", "spring", x0, u, y));
+}
+
+// 1 thread: the estimate within 1e-3 relative, the ledger adds up to the step count exactly
 TEST(FitLedgerTest, SpringMassFitLedgerAddsUpAndTheEstimateCostsNoSteps) {
   ModelPtr m = LoadModel(kModels + "/spring_mass.xml");
   const RowMatrix u = test::Excitation(*m, 1000, 2.0, 1);
@@ -95,6 +110,42 @@ TEST(FitLedgerTest, SpringMassFitLedgerAddsUpAndTheEstimateCostsNoSteps) {
   }
   EXPECT_EQ(again_steps, again.simulation_steps);
   EXPECT_EQ(again.simulation_steps, r.simulation_steps);
+}
+
+// The task model (core/thread_pool.h) in the ledger: the steps on the critical path at 2 workers
+// follow from the batches' task lengths alone, so they are the same at 1 and 2 threads, and on
+// one sequence with 2 Jacobian columns they are exact: a Jacobian batch (2 columns of 1000 steps)
+// is 1000 steps long on 2 workers, a trial rollout or an interval-check rollout (1 task) its own
+// length, the input checks' rollout with its 2 columns behind it 2000 of 3000 (+ the probe)
+TEST(FitLedgerTest, CriticalStepsAtTwoWorkersAreExactAndThreadIndependent) {
+  std::vector<std::vector<LedgerRow>> ledgers;
+  for (int threads : {1, 2}) {
+    Problem problem;
+    SpringMassProblem(&problem);
+    FitOptions o;
+    o.threads = threads;
+    const FitResult r = problem.Fit(o);
+    ASSERT_TRUE(r.converged) << r.termination;
+    ledgers.push_back(r.ledger);
+  }
+  ASSERT_EQ(ledgers[0].size(), ledgers[1].size());
+  for (size_t i = 0; i < ledgers[0].size(); ++i) {
+    EXPECT_EQ(ledgers[0][i].phase, ledgers[1][i].phase);
+    EXPECT_EQ(ledgers[0][i].steps, ledgers[1][i].steps) << ledgers[0][i].phase;
+    EXPECT_EQ(ledgers[0][i].critical_steps, ledgers[1][i].critical_steps) << ledgers[0][i].phase;
+  }
+  std::map<std::string, LedgerRow> by_phase;
+  for (const LedgerRow& row : ledgers[0]) by_phase[row.phase] = row;
+  const LedgerRow& jac = by_phase[kPhaseJacobians];
+  ASSERT_GT(jac.steps, 0);
+  EXPECT_EQ(jac.critical_steps * 2, jac.steps);
+  for (const char* phase : {kPhaseTrials, kPhaseIntervalCheck}) {
+    EXPECT_GT(by_phase[phase].steps, 0) << phase;
+    EXPECT_EQ(by_phase[phase].critical_steps, by_phase[phase].steps) << phase;
+  }
+  EXPECT_EQ(by_phase[kPhasePrepare].steps - by_phase[kPhasePrepare].critical_steps, 1000);
+  const std::string table = FormatLedger(ledgers[0], 1000);
+  EXPECT_NE(table.find("2w model"), std::string::npos);
 }
 
 }  // namespace
