@@ -767,12 +767,8 @@ void Simulator::Jacobians(const std::vector<SequenceInput>& sequences,
 void Simulator::RolloutAndJacobians(const std::vector<SequenceInput>& sequences,
                                     const JacobianOptions& opt, std::vector<Trajectory>* nominal,
                                     std::vector<Sensitivity>* out) {
-  // pipelined only where it can change something and the mode does not depend on the contacts
-  // the rollouts will find (ChooseJacobianMode at either end of the contact share)
   const int ncol = params_.size() + (opt.initial_state ? dims_.nx : 0);
-  const JacobianMode mode = ChooseJacobianMode(opt, 0.0);
-  if (pool_.size() == 1 || ncol == 0 || mode != JacobianMode::kDirectional ||
-      ChooseJacobianMode(opt, 1.0) != mode || model_->nhistory > 0) {
+  if (!CanPipeline(opt, ncol)) {
     Rollout(sequences, nominal);
     Jacobians(sequences, *nominal, opt, out);
     return;
@@ -783,9 +779,68 @@ void Simulator::RolloutAndJacobians(const std::vector<SequenceInput>& sequences,
   });
 }
 
+bool Simulator::CanPipeline(const JacobianOptions& opt, int ncol) const {
+  // pipelined only where it can change something and the mode does not depend on the contacts
+  // the rollouts will find (ChooseJacobianMode at either end of the contact share)
+  const JacobianMode mode = ChooseJacobianMode(opt, 0.0);
+  return pool_.size() > 1 && ncol > 0 && mode == JacobianMode::kDirectional &&
+         ChooseJacobianMode(opt, 1.0) == mode && model_->nhistory == 0;
+}
+
+namespace {
+
+// whether columns computed with options a are those options b ask for
+bool SameColumns(const JacobianOptions& a, const JacobianOptions& b) {
+  return a.mode == b.mode && a.central == b.central && a.relative_step == b.relative_step &&
+         a.step_floor == b.step_floor && a.parameter_steps == b.parameter_steps &&
+         a.state_step == b.state_step && a.initial_state == b.initial_state &&
+         a.state_jacobians == b.state_jacobians;
+}
+
+}  // namespace
+
+void Simulator::RolloutWithColumnsAhead(const std::vector<SequenceInput>& sequences,
+                                        const JacobianOptions& opt, const std::vector<int>& columns,
+                                        std::vector<Trajectory>* nominal,
+                                        std::vector<ColumnsAhead>* ahead) {
+  const int ncol = params_.size() + (opt.initial_state ? dims_.nx : 0);
+  ahead->assign(sequences.size(), ColumnsAhead());
+  std::vector<int> end(sequences.size(), 0);
+  bool any = false;
+  for (size_t i = 0; i < sequences.size() && i < columns.size(); ++i) {
+    end[i] = std::clamp(columns[i], 0, ncol);
+    any = any || end[i] > 0;
+  }
+  if (!any || !CanPipeline(opt, ncol)) {
+    Rollout(sequences, nominal);
+    return;
+  }
+  try {
+    Guarded([&] {
+      SizeTrajectories(sequences, nominal);
+      std::vector<Sensitivity> out;
+      JacobiansImpl(sequences, *nominal, opt, &out, nominal, ahead, &end);
+    });
+  } catch (const Cancelled&) {
+    throw;
+  } catch (...) {
+    // a failed rollout or column: the rollouts alone again, so that only a rollout's own failure
+    // reaches the caller, as from Rollout (a column's would fail the Jacobians, if asked for)
+    ahead->assign(sequences.size(), ColumnsAhead());
+    Rollout(sequences, nominal);
+  }
+}
+
+void Simulator::Jacobians(const std::vector<SequenceInput>& sequences,
+                          const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
+                          std::vector<ColumnsAhead>* ahead, std::vector<Sensitivity>* out) {
+  Guarded([&] { JacobiansImpl(sequences, nominal, opt, out, nullptr, ahead); });
+}
+
 void Simulator::JacobiansImpl(const std::vector<SequenceInput>& sequences,
                               const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
-                              std::vector<Sensitivity>* out, std::vector<Trajectory>* rollouts) {
+                              std::vector<Sensitivity>* out, std::vector<Trajectory>* rollouts,
+                              std::vector<ColumnsAhead>* ahead, const std::vector<int>* ahead_end) {
   CheckInputs(sequences);
   if (nominal.size() != sequences.size()) {
     throw std::invalid_argument("Jacobians: " + std::to_string(sequences.size()) +
@@ -845,6 +900,28 @@ void Simulator::JacobiansImpl(const std::vector<SequenceInput>& sequences,
 
   // constraint solves of the perturbed steps, per sequence
   std::vector<SolverStats> perturbed(sequences.size());
+
+  // columns computed ahead: only the first ahead_end[i] now; or the columns of ahead[i] that
+  // belong to these parameter values and options taken (moved: a call without rollouts is never
+  // simulated again by Guarded), the rest computed
+  std::vector<int> begin(sequences.size(), 0), end(sequences.size(), ncol);
+  if (ahead && ahead_end) {
+    end = *ahead_end;
+  } else if (ahead && ahead->size() == sequences.size() && mode == JacobianMode::kDirectional) {
+    const Eigen::VectorXd p = GetParameters();
+    for (size_t i = 0; i < sequences.size(); ++i) {
+      ColumnsAhead& a = (*ahead)[i];
+      if (a.columns <= 0 || a.s.ncol != ncol || a.at.size() != p.size() || a.at != p ||
+          !SameColumns(a.options, opt) || a.s.DyDp.rows() != (*out)[i].DyDp.rows() ||
+          a.s.DxDp.rows() != (*out)[i].DxDp.rows()) {
+        continue;
+      }
+      (*out)[i] = std::move(a.s);
+      perturbed[i] = a.perturbed;
+      begin[i] = a.columns;
+      a = ColumnsAhead();  // taken
+    }
+  }
   if (mode == JacobianMode::kMatrix) {
     // one perturbed model per parameter and side, per worker (mj_setConst uses its mjData)
     for (auto& w : workers_) {
@@ -867,7 +944,23 @@ void Simulator::JacobiansImpl(const std::vector<SequenceInput>& sequences,
                      &perturbed[i]);
     }
   } else {
-    ColumnJacobians(sequences, nominal, opt, mode, steps, out, &perturbed, rollouts);
+    std::vector<long long> task_steps;
+    ColumnJacobians(sequences, nominal, opt, mode, steps, out, &perturbed, rollouts, &begin, &end,
+                    ahead_end ? &task_steps : nullptr);
+    if (ahead_end) {
+      // the columns ahead are kept for Jacobians; no warnings and checks before the rest is there
+      const Eigen::VectorXd p = GetParameters();
+      for (size_t i = 0; i < sequences.size(); ++i) {
+        ColumnsAhead& a = (*ahead)[i];
+        a.columns = end[i];
+        a.at = p;
+        a.options = opt;
+        a.s = std::move((*out)[i]);
+        a.perturbed = perturbed[i];
+        for (int col = 0; col < end[i]; ++col) a.steps += task_steps[i * ncol + col];
+      }
+      return;
+    }
   }
   for (size_t i = 0; i < sequences.size(); ++i) {
     for (std::string& w : SolverWarnings(*model_, nominal[i].solver, perturbed[i])) {
@@ -899,7 +992,9 @@ void Simulator::ColumnJacobians(const std::vector<SequenceInput>& sequences,
                                 const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
                                 JacobianMode mode, const Eigen::VectorXd& steps,
                                 std::vector<Sensitivity>* out, std::vector<SolverStats>* solver,
-                                std::vector<Trajectory>* rollouts) {
+                                std::vector<Trajectory>* rollouts,
+                                const std::vector<int>* col_begin, const std::vector<int>* col_end,
+                                std::vector<long long>* task_steps) {
   const int ncol = (*out)[0].ncol, ns = options_.sensors ? dims_.ns : 0;
 
   // directional and whole-rollout: one task per (sequence, column)
@@ -922,17 +1017,25 @@ void Simulator::ColumnJacobians(const std::vector<SequenceInput>& sequences,
   // pipelined (rollouts given, directional mode only): the rollouts are the first tasks, so every
   // column is handed out after its rollout started on another worker, and follows it step by step
   const int nroll = rollouts ? nseq : 0;
+  // the tasks (i * ncol + col): the columns [col_begin[i], col_end[i]) of each sequence, in order
+  std::vector<int> tasks;
+  for (int i = 0; i < nseq; ++i) {
+    const int b = col_begin ? (*col_begin)[i] : 0, e = col_end ? (*col_end)[i] : ncol;
+    for (int col = b; col < e; ++col) tasks.push_back(i * ncol + col);
+  }
+  const int ntask = static_cast<int>(tasks.size());
+  if (task_steps) task_steps->assign(static_cast<size_t>(nseq) * ncol, 0);
   std::unique_ptr<std::atomic<int>[]> ready(new std::atomic<int>[nroll]);
   for (int i = 0; i < nroll; ++i) ready[i].store(0);
   std::vector<std::exception_ptr> rollout_error(nroll);
   // for the task model: a pipelined column follows its rollout
   if (nroll > 0) {
-    std::vector<int> follows(nroll + nseq * ncol, -1);
-    for (int t = nroll; t < nroll + nseq * ncol; ++t) follows[t] = (t - nroll) / ncol;
+    std::vector<int> follows(nroll + ntask, -1);
+    for (int t = nroll; t < nroll + ntask; ++t) follows[t] = tasks[t - nroll] / ncol;
     pool_.SetNextFollows(std::move(follows));
   }
   try {
-    pool_.ParallelFor(nroll + nseq * ncol, [&](int worker, int t) {
+    pool_.ParallelFor(nroll + ntask, [&](int worker, int t) {
       Worker& w = *workers_[worker];
       if (t < nroll) {
         try {
@@ -943,7 +1046,8 @@ void Simulator::ColumnJacobians(const std::vector<SequenceInput>& sequences,
         }
         return;
       }
-      const int task = t - nroll, i = task / ncol, col = task % ncol;
+      const int task = tasks[t - nroll], i = task / ncol, col = task % ncol;
+      const long long steps0 = w.steps;
       OnWorker(w, [&] {
         if (mode == JacobianMode::kDirectional) {
           DirectionalColumn(w, sequences[i].ctrl, i, nominal[i], opt, col, steps, &(*out)[i],
@@ -953,6 +1057,7 @@ void Simulator::ColumnJacobians(const std::vector<SequenceInput>& sequences,
                              &reports[task]);
         }
       });
+      if (task_steps) (*task_steps)[task] = w.steps - steps0;
     });
   } catch (...) {
     // a failed rollout is reported as Rollout would (every rollout ran: they are the first tasks),
@@ -962,7 +1067,7 @@ void Simulator::ColumnJacobians(const std::vector<SequenceInput>& sequences,
     }
     throw;
   }
-  for (int task = 0; task < nseq * ncol; ++task) {
+  for (int task : tasks) {
     Sensitivity& s = (*out)[task / ncol];
     const TaskReport& r = reports[task];
     if (!r.warning.empty()) s.warnings.push_back(r.warning);

@@ -168,6 +168,20 @@ struct Sensitivity {
   std::vector<std::string> warnings;
 };
 
+// Jacobian columns of one sequence computed ahead of being asked for
+// (Simulator::RolloutWithColumnsAhead): the first `columns` columns of its Sensitivity at the
+// parameter values `at` with the options `options`, with what their tasks reported (warnings and
+// kinks in s, the constraint solves of their perturbed steps in perturbed) and the step calls
+// they took. Simulator::Jacobians with them computes only the remaining columns.
+struct ColumnsAhead {
+  int columns = 0;  // 0: none
+  Eigen::VectorXd at;
+  JacobianOptions options;
+  Sensitivity s;  // sized as Jacobians sizes it; columns [0, columns) filled
+  SolverStats perturbed;
+  long long steps = 0;
+};
+
 class Simulator {
  public:
   // copies m; resolves the parameters (throws ParameterError)
@@ -207,6 +221,24 @@ class Simulator {
   void RolloutAndJacobians(const std::vector<SequenceInput>& sequences,
                            const JacobianOptions& options, std::vector<Trajectory>* nominal,
                            std::vector<Sensitivity>* out);
+
+  // Rollout, and in the same parallel pass the first columns[i] (at most ncol) directional
+  // Jacobian columns of sequence i behind its rollout, step by step (as RolloutAndJacobians), into
+  // ahead[i]: speculative columns that fill the workers a batch of rollouts leaves idle (3
+  // rollouts on 2 workers leave one idle for a rollout's time). Where RolloutAndJacobians would not
+  // pipeline (1 thread, a mode that is not directional at every contact share, native delays),
+  // only the rollouts (ahead[i].columns = 0). The trajectories are Rollout's bit for bit, and so
+  // is the failure: when a column fails, the rollouts are simulated again alone (no columns).
+  void RolloutWithColumnsAhead(const std::vector<SequenceInput>& sequences,
+                               const JacobianOptions& options, const std::vector<int>& columns,
+                               std::vector<Trajectory>* nominal, std::vector<ColumnsAhead>* ahead);
+  // Jacobians that take the columns of ahead[i] where they belong to the current parameter values
+  // and these options (else they are computed anew) and compute the rest: the same result bit for
+  // bit as Jacobians without them. The entries taken are left empty (columns 0), the others as
+  // they were (ahead.size() other than sequences.size(): none taken).
+  void Jacobians(const std::vector<SequenceInput>& sequences,
+                 const std::vector<Trajectory>& nominal, const JacobianOptions& options,
+                 std::vector<ColumnsAhead>* ahead, std::vector<Sensitivity>* out);
 
   // the mode kAuto resolves to for these options (deterministic: counts only). contact_fraction:
   // the share of time steps with contacts near (there forward matrix mode differences both
@@ -276,10 +308,17 @@ class Simulator {
   // one rollout task; progress (optional): state rows recorded, kRolloutFailed when it throws
   void RolloutTask(Worker& w, const SequenceInput& seq, int seq_index, Trajectory* tr,
                    std::atomic<int>* progress) const;
-  // Jacobians; rollouts (sized, not simulated yet) are simulated in the same pass when given
+  // Jacobians; rollouts (sized, not simulated yet) are simulated in the same pass when given.
+  // ahead (optional): with ahead_end, only the columns [0, ahead_end[i]) are computed, into
+  // ahead[i] (directional mode); without, the columns of ahead[i] that match are taken and the
+  // rest computed (see ColumnsAhead)
   void JacobiansImpl(const std::vector<SequenceInput>& sequences,
                      const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
-                     std::vector<Sensitivity>* out, std::vector<Trajectory>* rollouts);
+                     std::vector<Sensitivity>* out, std::vector<Trajectory>* rollouts,
+                     std::vector<ColumnsAhead>* ahead = nullptr,
+                     const std::vector<int>* ahead_end = nullptr);
+  // whether RolloutAndJacobians can pipeline these options (ncol columns)
+  bool CanPipeline(const JacobianOptions& opt, int ncol) const;
   void DirectionalColumn(Worker& w, const RowMatrix& ctrl, int seq_index, const Trajectory& nom,
                          const JacobianOptions& opt, int col, const Eigen::VectorXd& steps,
                          Sensitivity* out, TaskReport* report,
@@ -294,7 +333,10 @@ class Simulator {
                        const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
                        JacobianMode mode, const Eigen::VectorXd& steps,
                        std::vector<Sensitivity>* out, std::vector<SolverStats>* solver,
-                       std::vector<Trajectory>* rollouts = nullptr);
+                       std::vector<Trajectory>* rollouts = nullptr,
+                       const std::vector<int>* col_begin = nullptr,
+                       const std::vector<int>* col_end = nullptr,
+                       std::vector<long long>* task_steps = nullptr);
   void CheckZeroColumns(const std::vector<Sensitivity>& out) const;
   // runs call(); when the reduction's guard tripped during it, drops the reduction and runs it
   // again

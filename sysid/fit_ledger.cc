@@ -50,6 +50,26 @@ void FitLedger::Enter(const std::string& phase) {
   rows_.push_back({phase, 1, 0, 0.0, 0});
 }
 
+void FitLedger::Move(const std::string& from, const std::string& to, long long steps) {
+  if (steps <= 0) return;
+  auto row = [&](const std::string& phase) -> LedgerRow* {
+    for (LedgerRow& r : rows_) {
+      if (r.phase == phase) return &r;
+    }
+    return nullptr;
+  };
+  LedgerRow* source = row(from);
+  if (!source) return;
+  source->steps -= steps;
+  LedgerRow* target = row(to);
+  if (!target) {
+    rows_.push_back({to, 1, 0, 0.0, 0});
+    target = &rows_.back();
+    source = row(from);  // push_back may have moved it
+  }
+  target->steps += steps;
+}
+
 std::vector<LedgerRow> FitLedger::Finish() {
   Charge();
   return rows_;

@@ -39,6 +39,9 @@ inline constexpr const char* kPhaseSetup = "setup: Ceres problem";
 inline constexpr const char* kPhaseJacobians = "solve: Jacobians";
 inline constexpr const char* kPhaseTrials = "solve: trial rollouts (steps, line search)";
 inline constexpr const char* kPhaseSolver = "solve: residuals, Ceres linear algebra";
+// of the trial rollouts' steps, the Jacobian columns computed ahead of points Ceres then did not
+// take (sysid/evaluation_cache.h, "Columns ahead"; more than one thread only)
+inline constexpr const char* kPhaseAheadUnused = "solve: columns ahead, not used";
 inline constexpr const char* kPhaseEstimate = "uncertainty: evaluation at the estimate";
 inline constexpr const char* kPhaseCovariance = "uncertainty: covariance";
 inline constexpr const char* kPhaseIntervalCheck = "interval check (cost at +-1 std)";
@@ -55,6 +58,9 @@ class FitLedger {
   void Enter(const std::string& phase);
   // the phase entered last ("" before the first Enter)
   const std::string& current() const { return current_; }
+  // moves steps (not their critical steps: the batch's makespan stays where it ran) from row
+  // `from` to row `to` (added, 1 entry, when new); nothing when from has no row or steps <= 0
+  void Move(const std::string& from, const std::string& to, long long steps);
   // charges the current phase and returns every row (order of first entry)
   std::vector<LedgerRow> Finish();
 

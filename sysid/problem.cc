@@ -388,8 +388,12 @@ FitResult Problem::Fit(const FitOptions& options) {
   I.rejected_evaluations = 0;
   I.jacobian_warnings.clear();
   ledger.solving = true;
+  I.cache->SetColumnsAhead(true);  // trial points' first columns on idle workers
   ceres::Solve(so_ceres, &problem, &summary);
+  I.cache->SetColumnsAhead(false);
   ledger.solving = false;
+  // the columns computed ahead of points that were not taken (the last trial's at least)
+  ledger.Move(kPhaseTrials, kPhaseAheadUnused, I.cache->AheadStepsUnused());
 
   // auto: single shooting whose Jacobian stopped being local is refitted in multiple shooting
   if (I.stop_on_jacobian_warning && !I.jacobian_warnings.empty() && !result.interrupted) {
