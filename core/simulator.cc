@@ -368,18 +368,18 @@ void Simulator::SizeTrajectories(const std::vector<SequenceInput>& sequences,
 }
 
 void Simulator::RolloutTask(Worker& w, const SequenceInput& seq, int seq_index, Trajectory* tr,
-                            std::atomic<int>* progress) const {
+                            std::atomic<int>* progress, const mjModel* m) const {
+  if (!m) m = model_.get();
   OnWorker(w, [&] {
     try {
       mjData* d = w.data.get();
       SetInitialState(d, seq.x0);
       if (dims_.ninput) {
-        CallMujoco([&] {
-          mj_getState(model_.get(), d, tr->inputs.data(), static_cast<int>(dims_.input_sig));
-        });
+        CallMujoco(
+            [&] { mj_getState(m, d, tr->inputs.data(), static_cast<int>(dims_.input_sig)); });
       }
-      RolloutOne(w, model_.get(), seq, seq_index, &tr->states, &tr->sensors, &tr->step, &tr->ncon,
-                 &tr->solver, progress);
+      RolloutOne(w, m, seq, seq_index, &tr->states, &tr->sensors, &tr->step, &tr->ncon, &tr->solver,
+                 progress);
     } catch (...) {
       if (progress) progress->store(kRolloutFailed, std::memory_order_release);
       throw;
@@ -393,6 +393,33 @@ void Simulator::Rollout(const std::vector<SequenceInput>& sequences, std::vector
     SizeTrajectories(sequences, out);
     pool_.ParallelFor(static_cast<int>(sequences.size()), [&](int worker, int i) {
       RolloutTask(*workers_[worker], sequences[i], i, &(*out)[i], nullptr);
+    });
+  });
+}
+
+void Simulator::RolloutAt(const std::vector<SequenceInput>& sequences,
+                          const std::vector<Eigen::VectorXd>& values,
+                          std::vector<std::vector<Trajectory>>* out) {
+  for (const Eigen::VectorXd& v : values) {
+    if (v.size() != params_.size()) {
+      throw std::invalid_argument("RolloutAt: expected " + std::to_string(params_.size()) +
+                                  " values per point, got " + std::to_string(v.size()));
+    }
+  }
+  const int n = static_cast<int>(sequences.size()), npoint = static_cast<int>(values.size());
+  Guarded([&] {
+    out->assign(npoint, std::vector<Trajectory>());
+    for (std::vector<Trajectory>& o : *out) SizeTrajectories(sequences, &o);
+    // task k * n + i: sequence i on the worker's model copy with the values of point k written
+    // as SetParameters writes them
+    pool_.ParallelFor(npoint * n, [&](int worker, int t) {
+      const int k = t / n, i = t % n;
+      Worker& w = *workers_[worker];
+      OnWorker(w, [&] {
+        CopyModelInto(w.plus.get(), model_.get());
+        params_.Write(w.plus.get(), w.data.get(), values[k].data());
+      });
+      RolloutTask(w, sequences[i], i, &(*out)[k][i], nullptr, w.plus.get());
     });
   });
 }

@@ -206,6 +206,15 @@ class Simulator {
   // nominal rollouts, in parallel across sequences
   void Rollout(const std::vector<SequenceInput>& sequences, std::vector<Trajectory>* out);
   Trajectory Rollout(const SequenceInput& sequence);
+  // Rollouts of the sequences at several parameter vectors in one parallel pass (task k n + i:
+  // sequence i at values[k], on a worker's copy of the private model with values[k] written as
+  // SetParameters writes them): (*out)[k] is what SetParameters(values[k]) and Rollout give, bit
+  // for bit; the simulator's own parameter values are unchanged. For points that are known
+  // together (the interval check's +- one standard error), so that their rollouts share rounds
+  // of the workers. Failure as Rollout (and as SetParameters for values MuJoCo rejects).
+  void RolloutAt(const std::vector<SequenceInput>& sequences,
+                 const std::vector<Eigen::VectorXd>& values,
+                 std::vector<std::vector<Trajectory>>* out);
 
   // Jacobians around nominal trajectories computed by Rollout with the current parameters
   void Jacobians(const std::vector<SequenceInput>& sequences,
@@ -306,8 +315,9 @@ class Simulator {
   void SizeTrajectories(const std::vector<SequenceInput>& sequences,
                         std::vector<Trajectory>* out) const;
   // one rollout task; progress (optional): state rows recorded, kRolloutFailed when it throws
+  // (m: the model to step, default the private one)
   void RolloutTask(Worker& w, const SequenceInput& seq, int seq_index, Trajectory* tr,
-                   std::atomic<int>* progress) const;
+                   std::atomic<int>* progress, const mjModel* m = nullptr) const;
   // Jacobians; rollouts (sized, not simulated yet) are simulated in the same pass when given.
   // ahead (optional): with ahead_end, only the columns [0, ahead_end[i]) are computed, into
   // ahead[i] (directional mode); without, the columns of ahead[i] that match are taken and the

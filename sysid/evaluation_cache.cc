@@ -29,6 +29,7 @@ EvaluationCache::EvaluationCache(std::vector<Model> models,
       jacobian_(jacobian),
       entries_(segments->size()),
       kept_(segments->size()),
+      spare_(segments->size()),
       owner_(std::this_thread::get_id()) {}
 
 EvaluationCache::EvaluationCache(std::vector<Model> models,
@@ -145,6 +146,16 @@ void EvaluationCache::Simulate(int mo, const std::vector<int>& segs, const doubl
       kept = Entry();
       continue;
     }
+    // a point PrefetchPoints simulated with others
+    std::vector<Entry>& spare = spare_[segs[i]];
+    auto held =
+        std::find_if(spare.begin(), spare.end(), [&](const Entry& e) { return e.key == key; });
+    if (held != spare.end()) {
+      if (c.has_jacobians) kept = std::move(c);
+      c = std::move(*held);
+      spare.erase(held);
+      continue;
+    }
     if (c.has_jacobians) kept = std::move(c);
     c = Entry();
     c.key = std::move(key);
@@ -254,6 +265,45 @@ void EvaluationCache::Prefetch(const double* z, const std::vector<const double*>
       x0s.push_back(x0[s]);
     }
     if (!segs.empty()) Simulate(mo, segs, z, x0s, jacobians);
+  }
+}
+
+void EvaluationCache::PrefetchPoints(const std::vector<const double*>& zs,
+                                     const std::vector<const double*>& x0) {
+  CheckThread("PrefetchPoints");
+  for (std::vector<Entry>& spare : spare_) spare.clear();
+  for (int mo = 0; mo < static_cast<int>(models_.size()); ++mo) {
+    std::vector<int> segs;
+    std::vector<SequenceInput> ins;
+    for (int s = 0; s < static_cast<int>(segments_->size()); ++s) {
+      if ((*segments_)[s].model != mo || x0[s] == nullptr) continue;
+      segs.push_back(s);
+      ins.push_back(InputOf(s, x0[s]));
+    }
+    if (segs.empty()) continue;
+    // the simulator's parameter values at each point (as ApplyVariables writes them)
+    Simulator& sim = *models_[mo].sim;
+    const std::vector<int>& variables = models_[mo].variables;
+    std::vector<Eigen::VectorXd> values(zs.size(), Eigen::VectorXd(sim.parameters().size()));
+    for (size_t k = 0; k < zs.size(); ++k) {
+      for (int j = 0; j < values[k].size(); ++j) {
+        values[k][j] = (*parameters_)[variables[j]].FromVariable(zs[k][variables[j]]);
+      }
+    }
+    std::vector<std::vector<Trajectory>> trs;
+    try {
+      sim.RolloutAt(ins, values, &trs);
+    } catch (const std::exception&) {
+      continue;  // simulated one by one when asked, failing there as before
+    }
+    for (size_t k = 0; k < zs.size(); ++k) {
+      for (size_t i = 0; i < segs.size(); ++i) {
+        Entry e;
+        e.key = KeyOf(segs[i], zs[k], x0[segs[i]]);
+        e.tr = std::move(trs[k][i]);
+        spare_[segs[i]].push_back(std::move(e));
+      }
+    }
   }
 }
 

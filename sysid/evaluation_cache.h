@@ -122,6 +122,14 @@ class EvaluationCache {
   // DxDp is dropped unless the segment reads it (continuity or fitted states).
   void Seed(int segment, const double* z, const double* x0, Trajectory tr, Sensitivity s);
 
+  // Rollouts at several points z (x0 per segment as for Prefetch; every segment with an x0) in one
+  // batch per model (Simulator::RolloutAt), held aside until Evaluate or Prefetch asks for one of
+  // them, which then costs no simulation; replaces the points held before. For points known
+  // together (the interval check's +- one standard error of a variable: 2 n rollout tasks in one
+  // batch instead of two batches of n). A failed batch holds nothing (the points are simulated
+  // when asked, failing there as before).
+  void PrefetchPoints(const std::vector<const double*>& zs, const std::vector<const double*>& x0);
+
   // whether trial points get columns ahead (see Columns ahead; off by default): on in the solve,
   // where trial points are followed by their Jacobians when accepted, off outside it (the
   // interval check's points never are)
@@ -152,6 +160,8 @@ class EvaluationCache {
   // none), given back without simulation when its point is asked for again; dropped when the
   // segment's next Jacobians are computed, so one Jacobian per segment is held
   std::vector<Entry> kept_;
+  // per segment: the entries PrefetchPoints simulated, taken (moved out) when asked for
+  std::vector<std::vector<Entry>> spare_;
   std::thread::id owner_;                             // the constructing thread
   long long ahead_steps_ = 0, ahead_used_steps_ = 0;  // see AheadStepsUnused
   bool columns_ahead_ = false;                        // SetColumnsAhead

@@ -588,6 +588,20 @@ FitResult Problem::Fit(const FitOptions& options) {
           const double lo = v < np ? I.params[v].lower : mbounds[v - np].first;
           const double hi = v < np ? I.params[v].upper : mbounds[v - np].second;
           if (e.at_lower || e.at_upper || value < lo || value > hi) return false;
+          // a fit parameter's +- one standard error in one batch of rollouts (2 n tasks instead of
+          // two batches of n; 3 sequences on 2 workers: 3 rounds instead of 4); each evaluation
+          // then finds its rollouts in the cache
+          if (v < np && delta > 0) {
+            const double minus = e.value - delta;
+            std::vector<double> zp = I.z, zm = I.z;
+            zp[v] = I.params[v].ToVariable(value);
+            zm[v] = I.params[v].ToVariable(minus);
+            if (minus >= lo && minus <= hi && std::isfinite(zp[v]) && std::isfinite(zm[v])) {
+              std::vector<const double*> x0(I.segments.size());
+              for (size_t s = 0; s < I.segments.size(); ++s) x0[s] = I.X0(static_cast<int>(s));
+              I.cache->PrefetchPoints({zp.data(), zm.data()}, x0);
+            }
+          }
           double* slot = v < np ? &I.z[v] : &I.m[v - np];
           const double saved = *slot;
           *slot = v < np ? I.params[v].ToVariable(value) : value;

@@ -714,6 +714,44 @@ TEST(SimulatorTest, ColumnsAheadEqualRolloutThenJacobiansBitForBit) {
   }
 }
 
+// RolloutAt: the rollouts at several parameter vectors in one pass are those of SetParameters and
+// Rollout bit for bit, at 1, 2 and 3 threads, and leave the simulator's own values unchanged
+TEST(SimulatorTest, RolloutAtEqualsSetParametersThenRolloutBitForBit) {
+  ModelPtr model = LoadModel(kModels + "/arm5.xml");
+  const std::vector<ParameterSpec> params = {Spec("joint_armature", "j2"),
+                                             Spec("body_mass", "link3")};
+  std::vector<SequenceInput> seqs(3);
+  for (int i = 0; i < 3; ++i) seqs[i].ctrl = SineControls(*model, 120 + 30 * i, 0.6);
+  Simulator serial(*model, params);
+  const Eigen::VectorXd p0 = serial.GetParameters();
+  const std::vector<Eigen::VectorXd> points = {p0 * 1.1, p0 * 0.9};
+  std::vector<std::vector<Trajectory>> expected(points.size());
+  for (size_t k = 0; k < points.size(); ++k) {
+    serial.SetParameters(points[k]);
+    serial.Rollout(seqs, &expected[k]);
+  }
+  for (int threads : {1, 2, 3}) {
+    SimulatorOptions so;
+    so.threads = threads;
+    Simulator sim(*model, params, so);
+    std::vector<std::vector<Trajectory>> out;
+    sim.RolloutAt(seqs, points, &out);
+    EXPECT_TRUE(sim.GetParameters() == p0);
+    ASSERT_EQ(out.size(), points.size());
+    for (size_t k = 0; k < points.size(); ++k) {
+      for (int i = 0; i < 3; ++i) {
+        const std::string where = "threads " + std::to_string(threads) + " point " +
+                                  std::to_string(k) + " seq " + std::to_string(i);
+        EXPECT_TRUE(out[k][i].states == expected[k][i].states) << where;
+        EXPECT_TRUE(out[k][i].sensors == expected[k][i].sensors) << where;
+        EXPECT_TRUE(out[k][i].step == expected[k][i].step) << where;
+        EXPECT_TRUE(out[k][i].ncon == expected[k][i].ncon) << where;
+      }
+    }
+    EXPECT_THROW(sim.RolloutAt(seqs, {Eigen::VectorXd(1)}, &out), std::invalid_argument);
+  }
+}
+
 // a pipelined rollout that diverges is the SimulationError of Rollout (its columns stop instead of
 // waiting), and the simulator then gives the results of a fresh one
 TEST(SimulatorTest, PipelinedDivergenceIsASimulationErrorAndTheSimulatorStaysUsable) {
