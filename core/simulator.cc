@@ -190,6 +190,8 @@ Simulator::Simulator(const mjModel& m, const std::vector<ParameterSpec>& params,
     worker->minus = CopyModel(*model_);
     workers_.push_back(std::move(worker));
   }
+  // the pool's task model counts in step calls (ParallelLoad)
+  pool_.SetMeter([this](int worker) { return workers_[worker]->steps; });
 }
 
 Simulator::~Simulator() = default;
@@ -236,6 +238,7 @@ long long Simulator::StepCount() const {
 
 void Simulator::ResetStepCount() {
   for (auto& w : workers_) w->steps = 0;
+  pool_.ResetLoad();
 }
 
 Eigen::VectorXd Simulator::GetParameters() const {
@@ -389,18 +392,18 @@ void Simulator::SizeTrajectories(const std::vector<SequenceInput>& sequences,
 }
 
 void Simulator::RolloutTask(Worker& w, const SequenceInput& seq, int seq_index, Trajectory* tr,
-                            std::atomic<int>* progress) const {
+                            std::atomic<int>* progress, const mjModel* m) const {
+  if (!m) m = model_.get();
   OnWorker(w, [&] {
     try {
       mjData* d = w.data.get();
       SetInitialState(d, seq.x0);
       if (dims_.ninput) {
-        CallMujoco([&] {
-          mj_getState(model_.get(), d, tr->inputs.data(), static_cast<int>(dims_.input_sig));
-        });
+        CallMujoco(
+            [&] { mj_getState(m, d, tr->inputs.data(), static_cast<int>(dims_.input_sig)); });
       }
-      RolloutOne(w, model_.get(), seq, seq_index, &tr->states, &tr->sensors, &tr->step, &tr->ncon,
-                 &tr->solver, progress);
+      RolloutOne(w, m, seq, seq_index, &tr->states, &tr->sensors, &tr->step, &tr->ncon, &tr->solver,
+                 progress);
     } catch (...) {
       if (progress) progress->store(kRolloutFailed, std::memory_order_release);
       throw;
@@ -414,6 +417,33 @@ void Simulator::Rollout(const std::vector<SequenceInput>& sequences, std::vector
     SizeTrajectories(sequences, out);
     pool_.ParallelFor(static_cast<int>(sequences.size()), [&](int worker, int i) {
       RolloutTask(*workers_[worker], sequences[i], i, &(*out)[i], nullptr);
+    });
+  });
+}
+
+void Simulator::RolloutAt(const std::vector<SequenceInput>& sequences,
+                          const std::vector<Eigen::VectorXd>& values,
+                          std::vector<std::vector<Trajectory>>* out) {
+  for (const Eigen::VectorXd& v : values) {
+    if (v.size() != params_.size()) {
+      throw std::invalid_argument("RolloutAt: expected " + std::to_string(params_.size()) +
+                                  " values per point, got " + std::to_string(v.size()));
+    }
+  }
+  const int n = static_cast<int>(sequences.size()), npoint = static_cast<int>(values.size());
+  Guarded([&] {
+    out->assign(npoint, std::vector<Trajectory>());
+    for (std::vector<Trajectory>& o : *out) SizeTrajectories(sequences, &o);
+    // task k * n + i: sequence i on the worker's model copy with the values of point k written
+    // as SetParameters writes them
+    pool_.ParallelFor(npoint * n, [&](int worker, int t) {
+      const int k = t / n, i = t % n;
+      Worker& w = *workers_[worker];
+      OnWorker(w, [&] {
+        CopyModelInto(w.plus.get(), model_.get());
+        params_.Write(w.plus.get(), w.data.get(), values[k].data());
+      });
+      RolloutTask(w, sequences[i], i, &(*out)[k][i], nullptr, w.plus.get());
     });
   });
 }
@@ -792,12 +822,8 @@ void Simulator::Jacobians(const std::vector<SequenceInput>& sequences,
 void Simulator::RolloutAndJacobians(const std::vector<SequenceInput>& sequences,
                                     const JacobianOptions& opt, std::vector<Trajectory>* nominal,
                                     std::vector<Sensitivity>* out) {
-  // pipelined only where it can change something and the mode does not depend on the contacts
-  // the rollouts will find (ChooseJacobianMode at either end of the contact share)
   const int ncol = params_.size() + (opt.initial_state ? dims_.nx : 0);
-  const JacobianMode mode = ChooseJacobianMode(opt, 0.0);
-  if (pool_.size() == 1 || ncol == 0 || mode != JacobianMode::kDirectional ||
-      ChooseJacobianMode(opt, 1.0) != mode || model_->nhistory > 0) {
+  if (!CanPipeline(opt, ncol)) {
     Rollout(sequences, nominal);
     Jacobians(sequences, *nominal, opt, out);
     return;
@@ -808,9 +834,68 @@ void Simulator::RolloutAndJacobians(const std::vector<SequenceInput>& sequences,
   });
 }
 
+bool Simulator::CanPipeline(const JacobianOptions& opt, int ncol) const {
+  // pipelined only where it can change something and the mode does not depend on the contacts
+  // the rollouts will find (ChooseJacobianMode at either end of the contact share)
+  const JacobianMode mode = ChooseJacobianMode(opt, 0.0);
+  return pool_.size() > 1 && ncol > 0 && mode == JacobianMode::kDirectional &&
+         ChooseJacobianMode(opt, 1.0) == mode && model_->nhistory == 0;
+}
+
+namespace {
+
+// whether columns computed with options a are those options b ask for
+bool SameColumns(const JacobianOptions& a, const JacobianOptions& b) {
+  return a.mode == b.mode && a.central == b.central && a.relative_step == b.relative_step &&
+         a.step_floor == b.step_floor && a.parameter_steps == b.parameter_steps &&
+         a.state_step == b.state_step && a.initial_state == b.initial_state &&
+         a.state_jacobians == b.state_jacobians;
+}
+
+}  // namespace
+
+void Simulator::RolloutWithColumnsAhead(const std::vector<SequenceInput>& sequences,
+                                        const JacobianOptions& opt, const std::vector<int>& columns,
+                                        std::vector<Trajectory>* nominal,
+                                        std::vector<ColumnsAhead>* ahead) {
+  const int ncol = params_.size() + (opt.initial_state ? dims_.nx : 0);
+  ahead->assign(sequences.size(), ColumnsAhead());
+  std::vector<int> end(sequences.size(), 0);
+  bool any = false;
+  for (size_t i = 0; i < sequences.size() && i < columns.size(); ++i) {
+    end[i] = std::clamp(columns[i], 0, ncol);
+    any = any || end[i] > 0;
+  }
+  if (!any || !CanPipeline(opt, ncol)) {
+    Rollout(sequences, nominal);
+    return;
+  }
+  try {
+    Guarded([&] {
+      SizeTrajectories(sequences, nominal);
+      std::vector<Sensitivity> out;
+      JacobiansImpl(sequences, *nominal, opt, &out, nominal, ahead, &end);
+    });
+  } catch (const Cancelled&) {
+    throw;
+  } catch (...) {
+    // a failed rollout or column: the rollouts alone again, so that only a rollout's own failure
+    // reaches the caller, as from Rollout (a column's would fail the Jacobians, if asked for)
+    ahead->assign(sequences.size(), ColumnsAhead());
+    Rollout(sequences, nominal);
+  }
+}
+
+void Simulator::Jacobians(const std::vector<SequenceInput>& sequences,
+                          const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
+                          std::vector<ColumnsAhead>* ahead, std::vector<Sensitivity>* out) {
+  Guarded([&] { JacobiansImpl(sequences, nominal, opt, out, nullptr, ahead); });
+}
+
 void Simulator::JacobiansImpl(const std::vector<SequenceInput>& sequences,
                               const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
-                              std::vector<Sensitivity>* out, std::vector<Trajectory>* rollouts) {
+                              std::vector<Sensitivity>* out, std::vector<Trajectory>* rollouts,
+                              std::vector<ColumnsAhead>* ahead, const std::vector<int>* ahead_end) {
   CheckInputs(sequences);
   if (nominal.size() != sequences.size()) {
     throw std::invalid_argument("Jacobians: " + std::to_string(sequences.size()) +
@@ -870,6 +955,28 @@ void Simulator::JacobiansImpl(const std::vector<SequenceInput>& sequences,
 
   // constraint solves of the perturbed steps, per sequence
   std::vector<SolverStats> perturbed(sequences.size());
+
+  // columns computed ahead: only the first ahead_end[i] now; or the columns of ahead[i] that
+  // belong to these parameter values and options taken (moved: a call without rollouts is never
+  // simulated again by Guarded), the rest computed
+  std::vector<int> begin(sequences.size(), 0), end(sequences.size(), ncol);
+  if (ahead && ahead_end) {
+    end = *ahead_end;
+  } else if (ahead && ahead->size() == sequences.size() && mode == JacobianMode::kDirectional) {
+    const Eigen::VectorXd p = GetParameters();
+    for (size_t i = 0; i < sequences.size(); ++i) {
+      ColumnsAhead& a = (*ahead)[i];
+      if (a.columns <= 0 || a.s.ncol != ncol || a.at.size() != p.size() || a.at != p ||
+          !SameColumns(a.options, opt) || a.s.DyDp.rows() != (*out)[i].DyDp.rows() ||
+          a.s.DxDp.rows() != (*out)[i].DxDp.rows()) {
+        continue;
+      }
+      (*out)[i] = std::move(a.s);
+      perturbed[i] = a.perturbed;
+      begin[i] = a.columns;
+      a = ColumnsAhead();  // taken
+    }
+  }
   if (mode == JacobianMode::kMatrix) {
     // one perturbed model per parameter and side, per worker (mj_setConst uses its mjData)
     for (auto& w : workers_) {
@@ -892,7 +999,23 @@ void Simulator::JacobiansImpl(const std::vector<SequenceInput>& sequences,
                      &perturbed[i]);
     }
   } else {
-    ColumnJacobians(sequences, nominal, opt, mode, steps, out, &perturbed, rollouts);
+    std::vector<long long> task_steps;
+    ColumnJacobians(sequences, nominal, opt, mode, steps, out, &perturbed, rollouts, &begin, &end,
+                    ahead_end ? &task_steps : nullptr);
+    if (ahead_end) {
+      // the columns ahead are kept for Jacobians; no warnings and checks before the rest is there
+      const Eigen::VectorXd p = GetParameters();
+      for (size_t i = 0; i < sequences.size(); ++i) {
+        ColumnsAhead& a = (*ahead)[i];
+        a.columns = end[i];
+        a.at = p;
+        a.options = opt;
+        a.s = std::move((*out)[i]);
+        a.perturbed = perturbed[i];
+        for (int col = 0; col < end[i]; ++col) a.steps += task_steps[i * ncol + col];
+      }
+      return;
+    }
   }
   for (size_t i = 0; i < sequences.size(); ++i) {
     for (std::string& w : SolverWarnings(*model_, nominal[i].solver, perturbed[i])) {
@@ -924,7 +1047,9 @@ void Simulator::ColumnJacobians(const std::vector<SequenceInput>& sequences,
                                 const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
                                 JacobianMode mode, const Eigen::VectorXd& steps,
                                 std::vector<Sensitivity>* out, std::vector<SolverStats>* solver,
-                                std::vector<Trajectory>* rollouts) {
+                                std::vector<Trajectory>* rollouts,
+                                const std::vector<int>* col_begin, const std::vector<int>* col_end,
+                                std::vector<long long>* task_steps) {
   const int ncol = (*out)[0].ncol, ns = options_.sensors ? dims_.ns : 0;
 
   // directional and whole-rollout: one task per (sequence, column)
@@ -947,11 +1072,25 @@ void Simulator::ColumnJacobians(const std::vector<SequenceInput>& sequences,
   // pipelined (rollouts given, directional mode only): the rollouts are the first tasks, so every
   // column is handed out after its rollout started on another worker, and follows it step by step
   const int nroll = rollouts ? nseq : 0;
+  // the tasks (i * ncol + col): the columns [col_begin[i], col_end[i]) of each sequence, in order
+  std::vector<int> tasks;
+  for (int i = 0; i < nseq; ++i) {
+    const int b = col_begin ? (*col_begin)[i] : 0, e = col_end ? (*col_end)[i] : ncol;
+    for (int col = b; col < e; ++col) tasks.push_back(i * ncol + col);
+  }
+  const int ntask = static_cast<int>(tasks.size());
+  if (task_steps) task_steps->assign(static_cast<size_t>(nseq) * ncol, 0);
   std::unique_ptr<std::atomic<int>[]> ready(new std::atomic<int>[nroll]);
   for (int i = 0; i < nroll; ++i) ready[i].store(0);
   std::vector<std::exception_ptr> rollout_error(nroll);
+  // for the task model: a pipelined column follows its rollout
+  if (nroll > 0) {
+    std::vector<int> follows(nroll + ntask, -1);
+    for (int t = nroll; t < nroll + ntask; ++t) follows[t] = tasks[t - nroll] / ncol;
+    pool_.SetNextFollows(std::move(follows));
+  }
   try {
-    pool_.ParallelFor(nroll + nseq * ncol, [&](int worker, int t) {
+    pool_.ParallelFor(nroll + ntask, [&](int worker, int t) {
       Worker& w = *workers_[worker];
       if (t < nroll) {
         try {
@@ -962,7 +1101,8 @@ void Simulator::ColumnJacobians(const std::vector<SequenceInput>& sequences,
         }
         return;
       }
-      const int task = t - nroll, i = task / ncol, col = task % ncol;
+      const int task = tasks[t - nroll], i = task / ncol, col = task % ncol;
+      const long long steps0 = w.steps;
       OnWorker(w, [&] {
         if (mode == JacobianMode::kDirectional) {
           DirectionalColumn(w, sequences[i].ctrl, i, nominal[i], opt, col, steps, &(*out)[i],
@@ -972,6 +1112,7 @@ void Simulator::ColumnJacobians(const std::vector<SequenceInput>& sequences,
                              &reports[task]);
         }
       });
+      if (task_steps) (*task_steps)[task] = w.steps - steps0;
     });
   } catch (...) {
     // a failed rollout is reported as Rollout would (every rollout ran: they are the first tasks),
@@ -981,7 +1122,7 @@ void Simulator::ColumnJacobians(const std::vector<SequenceInput>& sequences,
     }
     throw;
   }
-  for (int task = 0; task < nseq * ncol; ++task) {
+  for (int task : tasks) {
     Sensitivity& s = (*out)[task / ncol];
     const TaskReport& r = reports[task];
     if (!r.warning.empty()) s.warnings.push_back(r.warning);

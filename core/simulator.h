@@ -180,6 +180,20 @@ class StepProgress {
   virtual void Step(const char* what, int done, int total) = 0;
 };
 
+// Jacobian columns of one sequence computed ahead of being asked for
+// (Simulator::RolloutWithColumnsAhead): the first `columns` columns of its Sensitivity at the
+// parameter values `at` with the options `options`, with what their tasks reported (warnings and
+// kinks in s, the constraint solves of their perturbed steps in perturbed) and the step calls
+// they took. Simulator::Jacobians with them computes only the remaining columns.
+struct ColumnsAhead {
+  int columns = 0;  // 0: none
+  Eigen::VectorXd at;
+  JacobianOptions options;
+  Sensitivity s;  // sized as Jacobians sizes it; columns [0, columns) filled
+  SolverStats perturbed;
+  long long steps = 0;
+};
+
 class Simulator {
  public:
   // copies m; resolves the parameters (throws ParameterError)
@@ -204,6 +218,15 @@ class Simulator {
   // nominal rollouts, in parallel across sequences
   void Rollout(const std::vector<SequenceInput>& sequences, std::vector<Trajectory>* out);
   Trajectory Rollout(const SequenceInput& sequence);
+  // Rollouts of the sequences at several parameter vectors in one parallel pass (task k n + i:
+  // sequence i at values[k], on a worker's copy of the private model with values[k] written as
+  // SetParameters writes them): (*out)[k] is what SetParameters(values[k]) and Rollout give, bit
+  // for bit; the simulator's own parameter values are unchanged. For points that are known
+  // together (the interval check's +- one standard error), so that their rollouts share rounds
+  // of the workers. Failure as Rollout (and as SetParameters for values MuJoCo rejects).
+  void RolloutAt(const std::vector<SequenceInput>& sequences,
+                 const std::vector<Eigen::VectorXd>& values,
+                 std::vector<std::vector<Trajectory>>* out);
 
   // Jacobians around nominal trajectories computed by Rollout with the current parameters
   void Jacobians(const std::vector<SequenceInput>& sequences,
@@ -219,6 +242,24 @@ class Simulator {
   void RolloutAndJacobians(const std::vector<SequenceInput>& sequences,
                            const JacobianOptions& options, std::vector<Trajectory>* nominal,
                            std::vector<Sensitivity>* out);
+
+  // Rollout, and in the same parallel pass the first columns[i] (at most ncol) directional
+  // Jacobian columns of sequence i behind its rollout, step by step (as RolloutAndJacobians), into
+  // ahead[i]: speculative columns that fill the workers a batch of rollouts leaves idle (3
+  // rollouts on 2 workers leave one idle for a rollout's time). Where RolloutAndJacobians would not
+  // pipeline (1 thread, a mode that is not directional at every contact share, native delays),
+  // only the rollouts (ahead[i].columns = 0). The trajectories are Rollout's bit for bit, and so
+  // is the failure: when a column fails, the rollouts are simulated again alone (no columns).
+  void RolloutWithColumnsAhead(const std::vector<SequenceInput>& sequences,
+                               const JacobianOptions& options, const std::vector<int>& columns,
+                               std::vector<Trajectory>* nominal, std::vector<ColumnsAhead>* ahead);
+  // Jacobians that take the columns of ahead[i] where they belong to the current parameter values
+  // and these options (else they are computed anew) and compute the rest: the same result bit for
+  // bit as Jacobians without them. The entries taken are left empty (columns 0), the others as
+  // they were (ahead.size() other than sequences.size(): none taken).
+  void Jacobians(const std::vector<SequenceInput>& sequences,
+                 const std::vector<Trajectory>& nominal, const JacobianOptions& options,
+                 std::vector<ColumnsAhead>* ahead, std::vector<Sensitivity>* out);
 
   // the mode kAuto resolves to for these options (deterministic: counts only). contact_fraction:
   // the share of time steps with contacts near (there forward matrix mode differences both
@@ -250,6 +291,11 @@ class Simulator {
   // against a running Rollout/Jacobians call.
   long long StepCount() const;
   void ResetStepCount();
+  // The parallel structure of those steps (core/thread_pool.h, "Task model"): per parallel batch
+  // the step calls of each task, summed as work (= StepCount) and as the makespan on 1-4 workers
+  // under the pool's scheduling (span[2]: steps on the critical path at 2 workers). Reset with
+  // ResetStepCount.
+  const PoolLoad& ParallelLoad() const { return pool_.load(); }
 
   // The reduced model (core/reduced_model.h): switches r off in the private model (r from
   // AnalyzeReduction on this simulator's model and its nominal rollouts). Rollout, Jacobians and
@@ -283,12 +329,20 @@ class Simulator {
   void SizeTrajectories(const std::vector<SequenceInput>& sequences,
                         std::vector<Trajectory>* out) const;
   // one rollout task; progress (optional): state rows recorded, kRolloutFailed when it throws
+  // (m: the model to step, default the private one)
   void RolloutTask(Worker& w, const SequenceInput& seq, int seq_index, Trajectory* tr,
-                   std::atomic<int>* progress) const;
-  // Jacobians; rollouts (sized, not simulated yet) are simulated in the same pass when given
+                   std::atomic<int>* progress, const mjModel* m = nullptr) const;
+  // Jacobians; rollouts (sized, not simulated yet) are simulated in the same pass when given.
+  // ahead (optional): with ahead_end, only the columns [0, ahead_end[i]) are computed, into
+  // ahead[i] (directional mode); without, the columns of ahead[i] that match are taken and the
+  // rest computed (see ColumnsAhead)
   void JacobiansImpl(const std::vector<SequenceInput>& sequences,
                      const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
-                     std::vector<Sensitivity>* out, std::vector<Trajectory>* rollouts);
+                     std::vector<Sensitivity>* out, std::vector<Trajectory>* rollouts,
+                     std::vector<ColumnsAhead>* ahead = nullptr,
+                     const std::vector<int>* ahead_end = nullptr);
+  // whether RolloutAndJacobians can pipeline these options (ncol columns)
+  bool CanPipeline(const JacobianOptions& opt, int ncol) const;
   void DirectionalColumn(Worker& w, const RowMatrix& ctrl, int seq_index, const Trajectory& nom,
                          const JacobianOptions& opt, int col, const Eigen::VectorXd& steps,
                          Sensitivity* out, TaskReport* report,
@@ -303,7 +357,10 @@ class Simulator {
                        const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
                        JacobianMode mode, const Eigen::VectorXd& steps,
                        std::vector<Sensitivity>* out, std::vector<SolverStats>* solver,
-                       std::vector<Trajectory>* rollouts = nullptr);
+                       std::vector<Trajectory>* rollouts = nullptr,
+                       const std::vector<int>* col_begin = nullptr,
+                       const std::vector<int>* col_end = nullptr,
+                       std::vector<long long>* task_steps = nullptr);
   void CheckZeroColumns(const std::vector<Sensitivity>& out) const;
   // runs call(); when the reduction's guard tripped during it, drops the reduction and runs it
   // again

@@ -1,5 +1,6 @@
 #include "sysid/evaluation_cache.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
@@ -28,6 +29,7 @@ EvaluationCache::EvaluationCache(std::vector<Model> models,
       jacobian_(jacobian),
       entries_(segments->size()),
       kept_(segments->size()),
+      spare_(segments->size()),
       owner_(std::this_thread::get_id()) {}
 
 EvaluationCache::EvaluationCache(std::vector<Model> models,
@@ -83,6 +85,47 @@ SequenceInput EvaluationCache::InputOf(int segment, const double* x0) const {
   return in;
 }
 
+// the core's options for the Jacobians of a segment: initial-state columns when x_0 is a
+// variable, state rows for continuity and fitted states
+JacobianOptions EvaluationCache::GroupOptions(int segment) const {
+  const Segment& seg = (*segments_)[segment];
+  JacobianOptions jo = jacobian_;
+  jo.initial_state = seg.block >= 0;
+  jo.state_jacobians = seg.next >= 0 || seg.state_rows;
+  jo.zero_column_is_error = false;
+  return jo;
+}
+
+// Columns ahead for the rollouts of segs (one model), where they pay by the task model: the batch
+// leaves idle = ceil(n / W) W - n slots; a columns ahead shorten the Jacobian batch of n c columns
+// from ceil(n c / W) rounds to ceil((n c - a) / W), so the fewest a <= idle that reach the fewest
+// rounds, given to the segments in order, at most c each (3 sequences x 3 columns on 2 workers:
+// 1; 1 sequence x 2 columns: none, the 2 columns are one round already). None when the segments'
+// Jacobians differ in kind (one options for the pass), with one worker, or outside the solve.
+std::vector<int> EvaluationCache::AheadColumns(int mo, const std::vector<int>& segs) const {
+  const Simulator& sim = *models_[mo].sim;
+  const int workers = sim.threads(), n = static_cast<int>(segs.size());
+  int idle = (n + workers - 1) / workers * workers - n;
+  if (!columns_ahead_ || workers <= 1 || idle == 0) return {};
+  const JacobianOptions jo = GroupOptions(segs[0]);
+  for (int s : segs) {
+    const JacobianOptions other = GroupOptions(s);
+    if (other.initial_state != jo.initial_state || other.state_jacobians != jo.state_jacobians) {
+      return {};
+    }
+  }
+  const int ncol = sim.parameters().size() + (jo.initial_state ? sim.dims().nx : 0);
+  const int total = n * ncol, rounds = (std::max(total - idle, 0) + workers - 1) / workers;
+  if (rounds == (total + workers - 1) / workers) return {};  // no round saved
+  idle = std::max(total - rounds * workers, 0);
+  std::vector<int> columns(n, 0);
+  for (int i = 0; i < n && idle > 0; ++i) {
+    columns[i] = std::min(idle, ncol);
+    idle -= columns[i];
+  }
+  return columns;
+}
+
 void EvaluationCache::Simulate(int mo, const std::vector<int>& segs, const double* z,
                                const std::vector<const double*>& x0s, bool jacobians) {
   Simulator& sim = *models_[mo].sim;
@@ -103,6 +146,16 @@ void EvaluationCache::Simulate(int mo, const std::vector<int>& segs, const doubl
       kept = Entry();
       continue;
     }
+    // a point PrefetchPoints simulated with others
+    std::vector<Entry>& spare = spare_[segs[i]];
+    auto held =
+        std::find_if(spare.begin(), spare.end(), [&](const Entry& e) { return e.key == key; });
+    if (held != spare.end()) {
+      if (c.has_jacobians) kept = std::move(c);
+      c = std::move(*held);
+      spare.erase(held);
+      continue;
+    }
     if (c.has_jacobians) kept = std::move(c);
     c = Entry();
     c.key = std::move(key);
@@ -112,7 +165,18 @@ void EvaluationCache::Simulate(int mo, const std::vector<int>& segs, const doubl
   if (!roll.empty()) {
     std::vector<Trajectory> trs;
     try {
-      sim.Rollout(ins, &trs);
+      // a trial point: its first Jacobian columns on the workers its rollouts leave idle
+      const std::vector<int> columns = jacobians ? std::vector<int>() : AheadColumns(mo, roll);
+      if (columns.empty()) {
+        sim.Rollout(ins, &trs);
+      } else {
+        std::vector<ColumnsAhead> ahead;
+        sim.RolloutWithColumnsAhead(ins, GroupOptions(roll[0]), columns, &trs, &ahead);
+        for (size_t i = 0; i < roll.size(); ++i) {
+          ahead_steps_ += ahead[i].steps;
+          entries_[roll[i]].ahead = std::move(ahead[i]);
+        }
+      }
       for (size_t i = 0; i < roll.size(); ++i) entries_[roll[i]].tr = std::move(trs[i]);
     } catch (const std::exception& e) {
       // a divergent trial point: rejected; cancelled: failed now, simulated again when asked
@@ -134,6 +198,7 @@ void EvaluationCache::Simulate(int mo, const std::vector<int>& segs, const doubl
     std::vector<int> jac;
     std::vector<SequenceInput> jins;
     std::vector<Trajectory> nominal;
+    std::vector<ColumnsAhead> ahead;
     for (size_t i = 0; i < segs.size(); ++i) {
       Entry& c = entries_[segs[i]];
       const Segment& seg = (*segments_)[segs[i]];
@@ -143,17 +208,22 @@ void EvaluationCache::Simulate(int mo, const std::vector<int>& segs, const doubl
       jac.push_back(segs[i]);
       jins.push_back(InputOf(segs[i], x0s[i]));
       nominal.push_back(std::move(c.tr));
+      ahead.push_back(std::move(c.ahead));
+      c.ahead = ColumnsAhead();
     }
     if (jac.empty()) continue;
-    JacobianOptions jo = jacobian_;
-    jo.initial_state = with_x0;
-    jo.state_jacobians = with_states;
-    jo.zero_column_is_error = false;
+    const JacobianOptions jo = GroupOptions(jac[0]);
     std::vector<Sensitivity> sens;
     bool ok = true, cancelled = false;
     std::string error;
     try {
-      sim.Jacobians(jins, nominal, jo, &sens);
+      // the columns computed ahead that the simulator takes (left empty) are work used
+      std::vector<long long> steps(ahead.size());
+      for (size_t i = 0; i < ahead.size(); ++i) steps[i] = ahead[i].steps;
+      sim.Jacobians(jins, nominal, jo, &ahead, &sens);
+      for (size_t i = 0; i < ahead.size(); ++i) {
+        if (ahead[i].columns == 0) ahead_used_steps_ += steps[i];
+      }
     } catch (const Cancelled& e) {
       ok = false;
       cancelled = true;  // not a property of the point: computed again when asked
@@ -195,6 +265,45 @@ void EvaluationCache::Prefetch(const double* z, const std::vector<const double*>
       x0s.push_back(x0[s]);
     }
     if (!segs.empty()) Simulate(mo, segs, z, x0s, jacobians);
+  }
+}
+
+void EvaluationCache::PrefetchPoints(const std::vector<const double*>& zs,
+                                     const std::vector<const double*>& x0) {
+  CheckThread("PrefetchPoints");
+  for (std::vector<Entry>& spare : spare_) spare.clear();
+  for (int mo = 0; mo < static_cast<int>(models_.size()); ++mo) {
+    std::vector<int> segs;
+    std::vector<SequenceInput> ins;
+    for (int s = 0; s < static_cast<int>(segments_->size()); ++s) {
+      if ((*segments_)[s].model != mo || x0[s] == nullptr) continue;
+      segs.push_back(s);
+      ins.push_back(InputOf(s, x0[s]));
+    }
+    if (segs.empty()) continue;
+    // the simulator's parameter values at each point (as ApplyVariables writes them)
+    Simulator& sim = *models_[mo].sim;
+    const std::vector<int>& variables = models_[mo].variables;
+    std::vector<Eigen::VectorXd> values(zs.size(), Eigen::VectorXd(sim.parameters().size()));
+    for (size_t k = 0; k < zs.size(); ++k) {
+      for (int j = 0; j < values[k].size(); ++j) {
+        values[k][j] = (*parameters_)[variables[j]].FromVariable(zs[k][variables[j]]);
+      }
+    }
+    std::vector<std::vector<Trajectory>> trs;
+    try {
+      sim.RolloutAt(ins, values, &trs);
+    } catch (const std::exception&) {
+      continue;  // simulated one by one when asked, failing there as before
+    }
+    for (size_t k = 0; k < zs.size(); ++k) {
+      for (size_t i = 0; i < segs.size(); ++i) {
+        Entry e;
+        e.key = KeyOf(segs[i], zs[k], x0[segs[i]]);
+        e.tr = std::move(trs[k][i]);
+        spare_[segs[i]].push_back(std::move(e));
+      }
+    }
   }
 }
 

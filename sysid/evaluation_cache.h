@@ -21,6 +21,15 @@
 // segment of a model whose key changed in one batch, so the simulator runs the segments (and
 // their Jacobian columns) in parallel instead of one after another; Evaluate() then finds them.
 //
+// Columns ahead (more than one thread, directional Jacobians). A batch of n rollouts on W workers
+// leaves ceil(n / W) W - n worker slots idle for a rollout's time (3 sequences on 2 workers: one);
+// the rollouts of a trial point fill them with the first Jacobian columns of the point, each
+// following its rollout step by step (Simulator::RolloutWithColumnsAhead), so that when Ceres
+// accepts the point and asks for its Jacobians only the rest is computed (a batch of 3 x 3
+// columns on 2 workers: 8 tasks, 4 rounds instead of 5). Speculative: a rejected point's columns
+// are work for nothing (AheadStepsUnused), but on the idle workers, so they cost CPU time, not
+// wall time (by the pool's task model, core/thread_pool.h). Results are the same bit for bit.
+//
 // Failure. A rollout or Jacobian that throws (SimulationError: a MuJoCo warning or a non-finite
 // value; MujocoError) is caught: the Entry records failed (or jacobians_failed) with the message,
 // so that the cost function rejects the trial point (the trust region shrinks) instead of the fit
@@ -81,7 +90,8 @@ class EvaluationCache {
     bool jacobians_failed = false;
     std::string error;  // why the rollout or the Jacobians failed
     Trajectory tr;
-    Sensitivity s;  // valid when has_jacobians
+    Sensitivity s;       // valid when has_jacobians
+    ColumnsAhead ahead;  // Jacobian columns computed with the rollout (see Columns ahead)
   };
 
   // parameters: the fit's (z has one variable per entry); sequences: their ctrl rows are the
@@ -116,11 +126,28 @@ class EvaluationCache {
   // cancelled); e.g. the rollouts at the estimate after its evaluation
   const Entry& Cached(int segment) const { return entries_[segment]; }
 
+  // Rollouts at several points z (x0 per segment as for Prefetch; every segment with an x0) in one
+  // batch per model (Simulator::RolloutAt), held aside until Evaluate or Prefetch asks for one of
+  // them, which then costs no simulation; replaces the points held before. For points known
+  // together (the interval check's +- one standard error of a variable: 2 n rollout tasks in one
+  // batch instead of two batches of n). A failed batch holds nothing (the points are simulated
+  // when asked, failing there as before).
+  void PrefetchPoints(const std::vector<const double*>& zs, const std::vector<const double*>& x0);
+
+  // whether trial points get columns ahead (see Columns ahead; off by default): on in the solve,
+  // where trial points are followed by their Jacobians when accepted, off outside it (the
+  // interval check's points never are)
+  void SetColumnsAhead(bool on) { columns_ahead_ = on; }
+  // step calls of the columns computed ahead (see Columns ahead) that no Jacobian has taken (yet)
+  long long AheadStepsUnused() const { return ahead_steps_ - ahead_used_steps_; }
+
  private:
   // aborts unless called on the constructing thread (see Threads above)
   void CheckThread(const char* where) const;
   std::vector<double> KeyOf(int segment, const double* z, const double* x0) const;
   SequenceInput InputOf(int segment, const double* x0) const;
+  JacobianOptions GroupOptions(int segment) const;
+  std::vector<int> AheadColumns(int mo, const std::vector<int>& segs) const;
   // the entries of segs (all of model mo) at z and x0s: rollouts of those whose key changed in one
   // batch, then the missing Jacobians batched by the columns and rows they need
   void Simulate(int mo, const std::vector<int>& segs, const double* z,
@@ -137,7 +164,11 @@ class EvaluationCache {
   // none), given back without simulation when its point is asked for again; dropped when the
   // segment's next Jacobians are computed, so one Jacobian per segment is held
   std::vector<Entry> kept_;
-  std::thread::id owner_;  // the constructing thread
+  // per segment: the entries PrefetchPoints simulated, taken (moved out) when asked for
+  std::vector<std::vector<Entry>> spare_;
+  std::thread::id owner_;                             // the constructing thread
+  long long ahead_steps_ = 0, ahead_used_steps_ = 0;  // see AheadStepsUnused
+  bool columns_ahead_ = false;                        // SetColumnsAhead
 };
 
 }  // namespace mjsysid

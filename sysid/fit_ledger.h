@@ -9,6 +9,11 @@
 // entered twice (e.g. the solve's Jacobians once per iteration) accumulates in one row, in the
 // order of first entry.
 //
+// The task model (core/thread_pool.h): a second counter, the steps on the critical path at 2
+// workers (the sum of Simulator::ParallelLoad().span[2]), is charged the same way to
+// LedgerRow::critical_steps, so that steps / critical_steps is a phase's (and the fit's) modelled
+// 2-thread speed-up, exact and independent of the machine's load.
+//
 // Steps come from a counter the caller supplies (the sum of Simulator::StepCount over the fit's
 // simulators, which may not exist yet when the ledger starts: then it returns 0); it grows, except
 // that a reading below the last one means the counter restarted from 0 (Problem::Prepare builds
@@ -34,6 +39,9 @@ inline constexpr const char* kPhaseSetup = "setup: Ceres problem";
 inline constexpr const char* kPhaseJacobians = "solve: Jacobians";
 inline constexpr const char* kPhaseTrials = "solve: trial rollouts (steps, line search)";
 inline constexpr const char* kPhaseSolver = "solve: residuals, Ceres linear algebra";
+// of the trial rollouts' steps, the Jacobian columns computed ahead of points Ceres then did not
+// take (sysid/evaluation_cache.h, "Columns ahead"; more than one thread only)
+inline constexpr const char* kPhaseAheadUnused = "solve: columns ahead, not used";
 inline constexpr const char* kPhaseEstimate = "uncertainty: evaluation at the estimate";
 inline constexpr const char* kPhaseCovariance = "uncertainty: covariance";
 inline constexpr const char* kPhaseIntervalCheck = "interval check (cost at +-1 std)";
@@ -43,11 +51,16 @@ class FitLedger {
  public:
   // steps: the total step count of the fit so far (non-decreasing)
   explicit FitLedger(std::function<long long()> steps);
+  // critical: steps on the critical path at 2 workers (see above), restarting with steps
+  FitLedger(std::function<long long()> steps, std::function<long long()> critical);
 
   // charges what happened since the last Enter to the phase then current; phase becomes current
   void Enter(const std::string& phase);
   // the phase entered last ("" before the first Enter)
   const std::string& current() const { return current_; }
+  // moves steps (not their critical steps: the batch's makespan stays where it ran) from row
+  // `from` to row `to` (added, 1 entry, when new); nothing when from has no row or steps <= 0
+  void Move(const std::string& from, const std::string& to, long long steps);
   // charges the current phase and returns every row (order of first entry)
   std::vector<LedgerRow> Finish();
 
@@ -60,14 +73,17 @@ class FitLedger {
   void Charge();
 
   std::function<long long()> steps_;
+  std::function<long long()> critical_;  // may be empty: critical_steps stay 0
   std::vector<LedgerRow> rows_;
   std::string current_;
   long long last_steps_ = 0;
+  long long last_critical_ = 0;
   std::chrono::steady_clock::time_point last_time_;
 };
 
 // The ledger as a table, one line per phase: entries, steps, steps / (sum T) ("rollouts"), seconds
-// and share of the time; sum_t: the fit's simulated samples per rollout of every sequence
+// and share of the time, and the modelled 2-thread speed-up steps / critical_steps ("2w model",
+// "-" for a phase without steps); sum_t: the fit's simulated samples per rollout of every sequence
 std::string FormatLedger(const std::vector<LedgerRow>& rows, long long sum_t);
 
 }  // namespace mjsysid

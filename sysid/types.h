@@ -347,6 +347,10 @@ struct LedgerRow {
   int entries = 0;
   long long steps = 0;
   double seconds = 0;
+  // of steps, those on the critical path at 2 workers: the phase's parallel batches' makespans on
+  // 2 workers under the thread pool's scheduling, in steps (Simulator::ParallelLoad), whatever
+  // the fit's thread count; steps / critical_steps is the phase's modelled 2-thread speed-up
+  long long critical_steps = 0;
 };
 
 struct FitResult {

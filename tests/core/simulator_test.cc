@@ -639,6 +639,119 @@ TEST(SimulatorTest, PipelinedColumnsEqualRolloutThenJacobiansBitForBit) {
   }
 }
 
+// Columns ahead (RolloutWithColumnsAhead, then Jacobians with them): the same rollouts and
+// Jacobians bit for bit as Rollout then Jacobians on 1 thread, whichever columns were computed
+// ahead; the columns taken are left empty; columns computed at other parameter values are not
+// taken (and the result is still the same)
+TEST(SimulatorTest, ColumnsAheadEqualRolloutThenJacobiansBitForBit) {
+  struct Case {
+    const char* model;
+    std::vector<ParameterSpec> params;
+    int nseq;
+    bool initial_state;
+  };
+  const std::vector<Case> cases = {
+      {"arm5.xml", {Spec("joint_armature", "j2"), Spec("body_mass", "link3")}, 3, false},
+      {"arm5.xml", {Spec("joint_damping", "j4")}, 1, true},
+      {"box_floor.xml", {Spec("geom_friction", "box")}, 3, false}};
+  for (const Case& c : cases) {
+    ModelPtr model = LoadModel(kModels + "/" + c.model);
+    std::vector<SequenceInput> seqs(c.nseq);
+    for (int i = 0; i < c.nseq; ++i) seqs[i].ctrl = SineControls(*model, 150 + 40 * i, 0.6);
+    JacobianOptions opt;
+    opt.mode = JacobianMode::kDirectional;
+    opt.initial_state = c.initial_state;
+    Simulator serial(*model, c.params);
+    std::vector<Trajectory> tr1;
+    std::vector<Sensitivity> s1;
+    serial.Rollout(seqs, &tr1);
+    serial.Jacobians(seqs, tr1, opt, &s1);
+    const int ncol = s1[0].ncol;
+    for (int threads : {2, 3}) {
+      SimulatorOptions so;
+      so.threads = threads;
+      Simulator sim(*model, c.params, so);
+      for (const std::vector<int>& columns :
+           {std::vector<int>{1}, std::vector<int>{ncol, 1, 0}, std::vector<int>{0, 0, ncol}}) {
+        const std::string where = std::string(c.model) + " threads " + std::to_string(threads) +
+                                  " columns ahead " + std::to_string(columns[0]);
+        std::vector<Trajectory> tr;
+        std::vector<ColumnsAhead> ahead;
+        sim.RolloutWithColumnsAhead(seqs, opt, columns, &tr, &ahead);
+        ASSERT_EQ(ahead.size(), seqs.size());
+        for (int i = 0; i < c.nseq; ++i) {
+          const int expected = i < static_cast<int>(columns.size()) ? columns[i] : 0;
+          EXPECT_EQ(ahead[i].columns, expected) << where;
+          EXPECT_EQ(ahead[i].steps, static_cast<long long>(expected) * tr1[i].T) << where;
+        }
+        std::vector<Sensitivity> s;
+        sim.Jacobians(seqs, tr, opt, &ahead, &s);
+        for (int i = 0; i < c.nseq; ++i) {
+          EXPECT_EQ(ahead[i].columns, 0) << where << " seq " << i;  // taken
+          EXPECT_TRUE(tr[i].states == tr1[i].states) << where << " seq " << i;
+          EXPECT_TRUE(tr[i].sensors == tr1[i].sensors) << where << " seq " << i;
+          EXPECT_TRUE(tr[i].ncon == tr1[i].ncon) << where << " seq " << i;
+          EXPECT_TRUE(s[i].DyDp == s1[i].DyDp) << where << " seq " << i;
+          EXPECT_TRUE(s[i].DxDp == s1[i].DxDp) << where << " seq " << i;
+          EXPECT_EQ(s[i].kinks, s1[i].kinks) << where << " seq " << i;
+          EXPECT_EQ(s[i].warnings, s1[i].warnings) << where << " seq " << i;
+        }
+      }
+      // columns ahead at other parameter values are not taken
+      std::vector<Trajectory> tr;
+      std::vector<ColumnsAhead> ahead;
+      const Eigen::VectorXd p = sim.GetParameters();
+      sim.SetParameters(p * 1.01);
+      sim.RolloutWithColumnsAhead(seqs, opt, {1}, &tr, &ahead);
+      EXPECT_EQ(ahead[0].columns, 1);
+      sim.SetParameters(p);
+      sim.Rollout(seqs, &tr);
+      std::vector<Sensitivity> s;
+      sim.Jacobians(seqs, tr, opt, &ahead, &s);
+      EXPECT_EQ(ahead[0].columns, 1) << c.model;  // not taken
+      for (int i = 0; i < c.nseq; ++i) EXPECT_TRUE(s[i].DyDp == s1[i].DyDp) << c.model;
+    }
+  }
+}
+
+// RolloutAt: the rollouts at several parameter vectors in one pass are those of SetParameters and
+// Rollout bit for bit, at 1, 2 and 3 threads, and leave the simulator's own values unchanged
+TEST(SimulatorTest, RolloutAtEqualsSetParametersThenRolloutBitForBit) {
+  ModelPtr model = LoadModel(kModels + "/arm5.xml");
+  const std::vector<ParameterSpec> params = {Spec("joint_armature", "j2"),
+                                             Spec("body_mass", "link3")};
+  std::vector<SequenceInput> seqs(3);
+  for (int i = 0; i < 3; ++i) seqs[i].ctrl = SineControls(*model, 120 + 30 * i, 0.6);
+  Simulator serial(*model, params);
+  const Eigen::VectorXd p0 = serial.GetParameters();
+  const std::vector<Eigen::VectorXd> points = {p0 * 1.1, p0 * 0.9};
+  std::vector<std::vector<Trajectory>> expected(points.size());
+  for (size_t k = 0; k < points.size(); ++k) {
+    serial.SetParameters(points[k]);
+    serial.Rollout(seqs, &expected[k]);
+  }
+  for (int threads : {1, 2, 3}) {
+    SimulatorOptions so;
+    so.threads = threads;
+    Simulator sim(*model, params, so);
+    std::vector<std::vector<Trajectory>> out;
+    sim.RolloutAt(seqs, points, &out);
+    EXPECT_TRUE(sim.GetParameters() == p0);
+    ASSERT_EQ(out.size(), points.size());
+    for (size_t k = 0; k < points.size(); ++k) {
+      for (int i = 0; i < 3; ++i) {
+        const std::string where = "threads " + std::to_string(threads) + " point " +
+                                  std::to_string(k) + " seq " + std::to_string(i);
+        EXPECT_TRUE(out[k][i].states == expected[k][i].states) << where;
+        EXPECT_TRUE(out[k][i].sensors == expected[k][i].sensors) << where;
+        EXPECT_TRUE(out[k][i].step == expected[k][i].step) << where;
+        EXPECT_TRUE(out[k][i].ncon == expected[k][i].ncon) << where;
+      }
+    }
+    EXPECT_THROW(sim.RolloutAt(seqs, {Eigen::VectorXd(1)}, &out), std::invalid_argument);
+  }
+}
+
 // a pipelined rollout that diverges is the SimulationError of Rollout (its columns stop instead of
 // waiting), and the simulator then gives the results of a fresh one
 TEST(SimulatorTest, PipelinedDivergenceIsASimulationErrorAndTheSimulatorStaysUsable) {

@@ -38,5 +38,55 @@ TEST(ThreadPoolTest, ExceptionPropagatesAndPoolStaysUsable) {
   EXPECT_EQ(count.load(), 50);
 }
 
+// the pool's scheduling in the model: tasks in index order, each to the worker free first; a
+// follower ends no earlier than the task it trails
+TEST(ThreadPoolTest, ListScheduleMakespan) {
+  EXPECT_EQ(ListScheduleMakespan({}, {}, 2), 0);
+  EXPECT_EQ(ListScheduleMakespan({5, 10}, {}, 1), 15);
+  // 3 equal tasks on 2 workers: 2 rounds for 1.5 of work; 4: 2 rounds
+  EXPECT_EQ(ListScheduleMakespan({10, 10, 10}, {}, 2), 20);
+  EXPECT_EQ(ListScheduleMakespan({10, 10, 10, 10}, {}, 2), 20);
+  // index order, not longest first: 1, 1, 10 on 2 workers ends at 11 (longest first: 10)
+  EXPECT_EQ(ListScheduleMakespan({1, 1, 10}, {}, 2), 11);
+  // a 3-step follower of a 10-step task on the other worker waits for it
+  EXPECT_EQ(ListScheduleMakespan({10, 3}, {-1, 0}, 2), 10);
+  EXPECT_EQ(ListScheduleMakespan({10, 10, 3}, {-1, -1, 0}, 2), 13);
+  // more workers than tasks: the longest task
+  EXPECT_EQ(ListScheduleMakespan({4, 7, 2}, {}, 4), 7);
+}
+
+// a metered pool records every task's cost (the growth of its worker's counter) and the batch's
+// work and makespans, the same for any thread count
+TEST(ThreadPoolTest, MeterRecordsWorkAndMakespans) {
+  const std::vector<long long> cost = {3, 1, 4, 1, 5, 9, 2};
+  const long long work = 25;
+  for (int threads : {1, 2, 3}) {
+    ThreadPool pool(threads);
+    std::vector<long long> counter(threads, 0);  // each slot advanced by its own worker only
+    pool.SetMeter([&](int worker) { return counter[worker]; });
+    pool.ParallelFor(static_cast<int>(cost.size()),
+                     [&](int worker, int i) { counter[worker] += cost[i]; });
+    pool.ParallelFor(1, [&](int worker, int) { counter[worker] += 10; });
+    const PoolLoad& load = pool.load();
+    EXPECT_EQ(load.batches, 2) << threads;
+    EXPECT_EQ(load.work, work + 10) << threads;
+    EXPECT_EQ(load.span[1], work + 10) << threads;
+    // 2 workers: 3|1, 4 (t=1..5), 1 (t=3..4), 5 (4..9), 9 (5..14), 2 (9..11): 14, then 10
+    EXPECT_EQ(load.span[2], 14 + 10) << threads;
+    EXPECT_EQ(load.span[2], ListScheduleMakespan(cost, {}, 2) + 10) << threads;
+    // a failed batch is recorded too: the task that threw counts what it did before
+    EXPECT_THROW(pool.ParallelFor(2,
+                                  [&](int worker, int i) {
+                                    counter[worker] += 7;
+                                    if (i == 1) throw std::runtime_error("boom");
+                                  }),
+                 std::runtime_error);
+    EXPECT_EQ(pool.load().work, work + 10 + 14) << threads;
+    pool.ResetLoad();
+    EXPECT_EQ(pool.load().work, 0);
+    EXPECT_EQ(pool.load().span[2], 0);
+  }
+}
+
 }  // namespace
 }  // namespace mjsysid

@@ -43,9 +43,24 @@ TEST(FitLedgerTest, ChargesStepsToTheCurrentPhase) {
   EXPECT_NE(table.find("total"), std::string::npos);
 }
 
-// truth mass 1.0, damping 0.3, start 2.0 / 0.1 (log), sensor noise sigma 1e-3 (seed 3), 1000
-// samples, 1 thread: the estimate within 1e-3 relative, the ledger adds up to the step count
-// exactly
+// truth mass 1.0, damping 0.3, start 2.0 / 0.1 (log), sensor noise sigma 1e-3 (seed 3), one
+// sequence of 1000 samples
+void SpringMassProblem(Problem* problem) {
+  ModelPtr m = LoadModel(kModels + "/spring_mass.xml");
+  const RowMatrix u = test::Excitation(*m, 1000, 2.0, 1);
+  InitialState x0;
+  const std::vector<test::Truth> truth = {{"mass", test::Spec("body_mass", "mass"), 1.0},
+                                          {"damping", test::Spec("joint_damping", "slide"), 0.3}};
+  const RowMatrix y = test::Measure(*m, truth, x0, u, 1e-3, 3);
+  problem->AddModel("spring", *m);
+  problem->AddParameter(
+      FitParameter("mass", test::Spec("body_mass", "mass"), 2.0).Bounds(0.01, 100).Log());
+  problem->AddParameter(
+      FitParameter("damping", test::Spec("joint_damping", "slide"), 0.1).Bounds(1e-3, 10).Log());
+  problem->AddSequence(FitSequence("seq0", "spring", x0, u, y));
+}
+
+// 1 thread: the estimate within 1e-3 relative, the ledger adds up to the step count exactly
 TEST(FitLedgerTest, SpringMassFitLedgerAddsUpAndTheEstimateCostsNoSteps) {
   ModelPtr m = LoadModel(kModels + "/spring_mass.xml");
   const RowMatrix u = test::Excitation(*m, 1000, 2.0, 1);
@@ -130,8 +145,108 @@ TEST(FitLedgerTest, TheIntervalCheckRunsWhereConstraintRowsComeAndGo) {
     if (row.phase == kPhaseIntervalCheck) check_steps = row.steps;
   }
   EXPECT_EQ(check_steps, 4000);
+  // the +- one standard error of each parameter in one batch: 2 rollouts, one round on 2 workers
+  long long check_critical = -1;
+  for (const LedgerRow& row : r.ledger) {
+    if (row.phase == kPhaseIntervalCheck) check_critical = row.critical_steps;
+  }
+  EXPECT_EQ(check_critical, 2000);
   EXPECT_EQ(r.interval_check.rfind("ran: 4 cost evaluations (constraint rows come, go", 0), 0u)
       << r.interval_check;
+}
+
+// The task model (core/thread_pool.h) in the ledger: the steps on the critical path at 2 workers
+// follow from the batches' task lengths alone, so they are the same at 1 and 2 threads, and on
+// one sequence with 2 Jacobian columns they are exact: a Jacobian batch (2 columns of 1000 steps)
+// is 1000 steps long on 2 workers, a trial rollout (1 task) its own length, the input checks'
+// rollout with its 2 columns behind it 2000 of 3000 (+ the probe)
+TEST(FitLedgerTest, CriticalStepsAtTwoWorkersAreExactAndThreadIndependent) {
+  std::vector<std::vector<LedgerRow>> ledgers;
+  for (int threads : {1, 2}) {
+    Problem problem;
+    SpringMassProblem(&problem);
+    FitOptions o;
+    o.threads = threads;
+    const FitResult r = problem.Fit(o);
+    ASSERT_TRUE(r.converged) << r.termination;
+    ledgers.push_back(r.ledger);
+  }
+  ASSERT_EQ(ledgers[0].size(), ledgers[1].size());
+  for (size_t i = 0; i < ledgers[0].size(); ++i) {
+    EXPECT_EQ(ledgers[0][i].phase, ledgers[1][i].phase);
+    EXPECT_EQ(ledgers[0][i].steps, ledgers[1][i].steps) << ledgers[0][i].phase;
+    EXPECT_EQ(ledgers[0][i].critical_steps, ledgers[1][i].critical_steps) << ledgers[0][i].phase;
+  }
+  std::map<std::string, LedgerRow> by_phase;
+  for (const LedgerRow& row : ledgers[0]) by_phase[row.phase] = row;
+  const LedgerRow& jac = by_phase[kPhaseJacobians];
+  ASSERT_GT(jac.steps, 0);
+  EXPECT_EQ(jac.critical_steps * 2, jac.steps);
+  const LedgerRow& trials = by_phase[kPhaseTrials];
+  EXPECT_GT(trials.steps, 0);
+  EXPECT_EQ(trials.critical_steps, trials.steps);
+  // the interval check is skipped on these smooth rollouts (its batches: the limited spring above)
+  EXPECT_EQ(by_phase[kPhaseIntervalCheck].steps, 0);
+  EXPECT_EQ(by_phase[kPhasePrepare].steps - by_phase[kPhasePrepare].critical_steps, 1000);
+  const std::string table = FormatLedger(ledgers[0], 1000);
+  EXPECT_NE(table.find("2w model"), std::string::npos);
+}
+
+// Columns ahead (sysid/evaluation_cache.h) at 2 threads: 3 sequences x 3 columns leave one
+// worker idle in a trial point's batch of 3 rollouts, filled with its first column. Truth mass
+// 1.0, damping 0.3, stiffness 4.0; start 2.0 / 0.1 / 2.0 (log); noise sigma 1e-3 (seeds 3-5); 3 x
+// 500 samples. The same estimates, costs and iterations as 1 thread bit for bit; the 2-thread fit
+// simulates exactly the unused columns' steps more (every column taken is one its Jacobian
+// does not simulate), and its Jacobian batches of 8 columns are 4 rounds on 2 workers.
+TEST(FitLedgerTest, ColumnsAheadAreTheSameFitAndTheirUnusedStepsAreCounted) {
+  ModelPtr m = LoadModel(kModels + "/spring_mass.xml");
+  const std::vector<test::Truth> truth = {{"mass", test::Spec("body_mass", "mass"), 1.0},
+                                          {"damping", test::Spec("joint_damping", "slide"), 0.3},
+                                          {"k", test::Spec("joint_stiffness", "slide"), 4.0}};
+  std::vector<FitResult> results;
+  for (int threads : {1, 2}) {
+    Problem problem;
+    problem.AddModel("spring", *m);
+    problem.AddParameter(
+        FitParameter("mass", test::Spec("body_mass", "mass"), 2.0).Bounds(0.01, 100).Log());
+    problem.AddParameter(
+        FitParameter("damping", test::Spec("joint_damping", "slide"), 0.1).Bounds(1e-3, 10).Log());
+    problem.AddParameter(
+        FitParameter("k", test::Spec("joint_stiffness", "slide"), 2.0).Bounds(0.1, 100).Log());
+    for (int i = 0; i < 3; ++i) {
+      InitialState x0;
+      const RowMatrix u = test::Excitation(*m, 500, 2.0, 1 + i);
+      const RowMatrix y = test::Measure(*m, truth, x0, u, 1e-3, 3 + i);
+      problem.AddSequence(FitSequence("seq" + std::to_string(i), "spring", x0, u, y));
+    }
+    FitOptions o;
+    o.threads = threads;
+    results.push_back(problem.Fit(o));
+    ASSERT_TRUE(results.back().converged) << results.back().termination;
+  }
+  const FitResult &one = results[0], &two = results[1];
+  EXPECT_EQ(one.iterations, two.iterations);
+  EXPECT_EQ(one.final_cost, two.final_cost);
+  for (size_t v = 0; v < one.parameters.size(); ++v) {
+    EXPECT_EQ(one.parameters[v].value, two.parameters[v].value) << v;
+    EXPECT_NEAR(one.parameters[v].value, truth[v].value, 1e-2 * truth[v].value) << v;
+  }
+  std::map<std::string, LedgerRow> by_phase;
+  long long steps = 0;
+  for (const LedgerRow& row : two.ledger) {
+    by_phase[row.phase] = row;
+    steps += row.steps;
+  }
+  EXPECT_EQ(steps, two.simulation_steps);
+  for (const LedgerRow& row : one.ledger) EXPECT_NE(row.phase, kPhaseAheadUnused);
+  ASSERT_EQ(by_phase.count(kPhaseAheadUnused), 1u);
+  const long long unused = by_phase[kPhaseAheadUnused].steps;
+  EXPECT_GT(unused, 0);  // the last trial's column at least
+  EXPECT_EQ(unused % 500, 0);
+  EXPECT_EQ(two.simulation_steps - one.simulation_steps, unused);
+  const LedgerRow& jac = by_phase[kPhaseJacobians];
+  EXPECT_EQ(jac.steps % 4000, 0);  // 8 columns of 500 steps per Jacobian
+  EXPECT_EQ(jac.critical_steps * 2, jac.steps);
 }
 
 }  // namespace
