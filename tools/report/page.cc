@@ -291,18 +291,6 @@ std::string Page(const FitResultFile& r, const std::vector<std::string>& sequenc
   }
   h << "</table>\n";
 
-  // solver settings
-  h << "<h2>Solver settings</h2>\n";
-  if (r.solver.empty()) {
-    h << "<p class=\"muted\">none recorded</p>\n";
-  } else {
-    h << "<table class=\"facts\">\n";
-    for (const auto& [key, value] : r.solver) {
-      h << "<tr><td>" << HtmlEscape(key) << "</td><td>" << HtmlEscape(value) << "</td></tr>\n";
-    }
-    h << "</table>\n";
-  }
-
   ParameterSection(h, r);
   StartsSection(h, r);
 
@@ -344,6 +332,18 @@ std::string Page(const FitResultFile& r, const std::vector<std::string>& sequenc
   }
   // the motion section (tools/report/motion.h), when the caller made one
   h << motion_html;
+  // solver settings: reference, after the results (the table grows with every option)
+  h << "<h2>Solver settings</h2>\n";
+  if (r.solver.empty()) {
+    h << "<p class=\"muted\">none recorded</p>\n";
+  } else {
+    h << "<table class=\"facts\">\n";
+    for (const auto& [key, value] : r.solver) {
+      h << "<tr><td>" << HtmlEscape(key) << "</td><td>" << HtmlEscape(value) << "</td></tr>\n";
+    }
+    h << "</table>\n";
+  }
+
   h << "<p class=\"muted\">written by mjsysid from result.yaml and result.h5; the plots are also "
        "in this folder as cost.png, parameters.png, seq_*.png"
     << (r.validation.empty() ? "" : " and val_*.png") << "</p>\n</body>\n</html>\n";
