@@ -44,9 +44,9 @@ TEST(FitLedgerTest, ChargesStepsToTheCurrentPhase) {
 }
 
 // truth mass 1.0, damping 0.3, start 2.0 / 0.1 (log), sensor noise sigma 1e-3 (seed 3), one
-// sequence of 1000 samples
-void SpringMassProblem(Problem* problem) {
-  ModelPtr m = LoadModel(kModels + "/spring_mass.xml");
+// sequence of 1000 samples; xml: the model (default: models/spring_mass.xml)
+void SpringMassProblem(Problem* problem, const std::string& xml = "") {
+  ModelPtr m = xml.empty() ? LoadModel(kModels + "/spring_mass.xml") : LoadModelFromString(xml);
   const RowMatrix u = test::Excitation(*m, 1000, 2.0, 1);
   InitialState x0;
   const std::vector<test::Truth> truth = {{"mass", test::Spec("body_mass", "mass"), 1.0},
@@ -62,19 +62,8 @@ void SpringMassProblem(Problem* problem) {
 
 // 1 thread: the estimate within 1e-3 relative, the ledger adds up to the step count exactly
 TEST(FitLedgerTest, SpringMassFitLedgerAddsUpAndTheEstimateCostsNoSteps) {
-  ModelPtr m = LoadModel(kModels + "/spring_mass.xml");
-  const RowMatrix u = test::Excitation(*m, 1000, 2.0, 1);
-  InitialState x0;
-  const std::vector<test::Truth> truth = {{"mass", test::Spec("body_mass", "mass"), 1.0},
-                                          {"damping", test::Spec("joint_damping", "slide"), 0.3}};
-  const RowMatrix y = test::Measure(*m, truth, x0, u, 1e-3, 3);
   Problem problem;
-  problem.AddModel("spring", *m);
-  problem.AddParameter(
-      FitParameter("mass", test::Spec("body_mass", "mass"), 2.0).Bounds(0.01, 100).Log());
-  problem.AddParameter(
-      FitParameter("damping", test::Spec("joint_damping", "slide"), 0.1).Bounds(1e-3, 10).Log());
-  problem.AddSequence(FitSequence("seq0", "spring", x0, u, y));
+  SpringMassProblem(&problem);
   FitOptions o;
   o.threads = 1;
   const FitResult r = problem.Fit(o);
@@ -124,19 +113,8 @@ TEST(FitLedgerTest, TheIntervalCheckRunsWhereConstraintRowsComeAndGo) {
   const std::string joint = "damping=\"0.3\"";
   ASSERT_NE(xml.find(joint), std::string::npos);
   xml.replace(xml.find(joint), joint.size(), joint + " limited=\"true\" range=\"-0.2 0.2\"");
-  ModelPtr m = LoadModelFromString(xml);
-  const RowMatrix u = test::Excitation(*m, 1000, 2.0, 1);
-  InitialState x0;
-  const std::vector<test::Truth> truth = {{"mass", test::Spec("body_mass", "mass"), 1.0},
-                                          {"damping", test::Spec("joint_damping", "slide"), 0.3}};
-  const RowMatrix y = test::Measure(*m, truth, x0, u, 1e-3, 3);
   Problem problem;
-  problem.AddModel("spring", *m);
-  problem.AddParameter(
-      FitParameter("mass", test::Spec("body_mass", "mass"), 2.0).Bounds(0.01, 100).Log());
-  problem.AddParameter(
-      FitParameter("damping", test::Spec("joint_damping", "slide"), 0.1).Bounds(1e-3, 10).Log());
-  problem.AddSequence(FitSequence("seq0", "spring", x0, u, y));
+  SpringMassProblem(&problem, xml);
   FitOptions o;
   o.threads = 1;
   const FitResult r = problem.Fit(o);
