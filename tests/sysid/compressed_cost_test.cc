@@ -30,6 +30,7 @@
 #include "sysid/io/log.h"
 #include "sysid/run/fit_experiment.h"
 #include "sysid/sim/simulate.h"
+#include "tests/experiment_log.h"
 #include "tests/file_util.h"
 
 namespace mjsysid {
@@ -134,16 +135,8 @@ FitResult FitOnce(const io::ExperimentConfig& cfg, bool compress, bool x0) {
 
 TEST_P(CompressedFitTest, SameFitAsRowByRow) {
   const Case& c = GetParam();
-  const std::string dir = test::FreshTempDir("compressed_fit");
   io::ExperimentConfig cfg =
-      io::LoadExperiment(std::string(MJSYSID_EXPERIMENTS_DIR) + "/" + c.experiment);
-  cfg.simulate.sequences = c.sequences;
-  cfg.simulate.steps = c.steps;
-  const std::string log = dir + "/log.h5";
-  cfg.data = {io::DataFile{log, {}}};
-  sim::SimulateSettings settings;
-  settings.threads = 1;
-  io::WriteLog(log, sim::SimulateExperiment(cfg, settings));
+      test::ShippedExperimentWithLog(c.experiment, c.sequences, c.steps, "compressed_fit");
   if (*c.loss) {
     cfg.options.loss = std::string(c.loss) == "huber" ? LossType::kHuber : LossType::kCauchy;
     cfg.options.loss_scale = 2.0;
@@ -168,7 +161,7 @@ TEST_P(CompressedFitTest, SameFitAsRowByRow) {
     EXPECT_TRUE(Near(a.std_error, b.std_error, 1e-6)) << b.name;
   }
   EXPECT_EQ(rows.outcome, compressed.outcome);
-  std::filesystem::remove_all(dir);
+  std::filesystem::remove_all(std::filesystem::path(cfg.data[0].path).parent_path());
 }
 
 INSTANTIATE_TEST_SUITE_P(Shipped, CompressedFitTest,

@@ -22,6 +22,7 @@
 #include "sysid/io/result.h"
 #include "sysid/run/fit_experiment.h"
 #include "sysid/sim/simulate.h"
+#include "tests/experiment_log.h"
 #include "tests/file_util.h"
 
 namespace mjsysid {
@@ -48,16 +49,8 @@ FitResult FitOnce(const io::ExperimentConfig& cfg, const Case& c, bool reduce) {
 
 TEST_P(ReducedFitTest, SameEstimateBitForBit) {
   const Case& c = GetParam();
-  const std::string dir = test::FreshTempDir("reduced_fit");
   io::ExperimentConfig cfg =
-      io::LoadExperiment(std::string(MJSYSID_EXPERIMENTS_DIR) + "/" + c.experiment);
-  cfg.simulate.sequences = c.sequences;
-  cfg.simulate.steps = c.steps;
-  const std::string log = dir + "/log.h5";
-  cfg.data = {io::DataFile{log, {}}};
-  sim::SimulateSettings settings;
-  settings.threads = 1;
-  io::WriteLog(log, sim::SimulateExperiment(cfg, settings));
+      test::ShippedExperimentWithLog(c.experiment, c.sequences, c.steps, "reduced_fit");
 
   const FitResult full = FitOnce(cfg, c, false);
   const FitResult reduced = FitOnce(cfg, c, true);
@@ -83,7 +76,7 @@ TEST_P(ReducedFitTest, SameEstimateBitForBit) {
   EXPECT_EQ(full.final_cost, reduced.final_cost);
   EXPECT_EQ(full.simulation_steps, reduced.simulation_steps);
   EXPECT_EQ(full.outcome, reduced.outcome);
-  std::filesystem::remove_all(dir);
+  std::filesystem::remove_all(std::filesystem::path(cfg.data[0].path).parent_path());
 }
 
 // `solver.reduce_model: false` reaches the fit, and a run's result.yaml records the reduction and

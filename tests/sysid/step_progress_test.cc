@@ -21,6 +21,7 @@
 #include "sysid/progress.h"
 #include "sysid/run/fit_experiment.h"
 #include "sysid/sim/simulate.h"
+#include "tests/experiment_log.h"
 #include "tests/file_util.h"
 
 namespace mjsysid {
@@ -76,16 +77,8 @@ TEST(StepProgressTest, TenthsOfRolloutsAndJacobianColumns) {
 
 // the stderr of a verbose fit of experiments/pendulum.yaml with `sequences` x `steps` samples
 std::string FitStderr(int sequences, int steps, double progress_seconds) {
-  const std::string dir = test::FreshTempDir("step_progress");
   io::ExperimentConfig cfg =
-      io::LoadExperiment(std::string(MJSYSID_EXPERIMENTS_DIR) + "/pendulum.yaml");
-  cfg.simulate.sequences = sequences;
-  cfg.simulate.steps = steps;
-  const std::string log = dir + "/log.h5";
-  cfg.data = {io::DataFile{log, {}}};
-  sim::SimulateSettings settings;
-  settings.threads = 1;
-  io::WriteLog(log, sim::SimulateExperiment(cfg, settings));
+      test::ShippedExperimentWithLog("pendulum.yaml", sequences, steps, "step_progress");
   run::BuiltProblem built = run::BuildProblem(cfg, 1);
   FitOptions options = built.options;
   options.verbose = true;
