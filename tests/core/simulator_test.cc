@@ -591,6 +591,21 @@ TEST(SimulatorTest, ResultsAreBitIdenticalForAnyThreadCount) {
   }
 }
 
+// tr, s are tr1, s1 bit for bit: states, sensors, step states, contact counts, Jacobians, kinks and
+// warnings
+void ExpectSameRolloutAndJacobians(const Trajectory& tr, const Sensitivity& s,
+                                   const Trajectory& tr1, const Sensitivity& s1,
+                                   const std::string& where) {
+  EXPECT_TRUE(tr.states == tr1.states) << where;
+  EXPECT_TRUE(tr.sensors == tr1.sensors) << where;
+  EXPECT_TRUE(tr.step == tr1.step) << where;
+  EXPECT_TRUE(tr.ncon == tr1.ncon) << where;
+  EXPECT_TRUE(s.DyDp == s1.DyDp) << where;
+  EXPECT_TRUE(s.DxDp == s1.DxDp) << where;
+  EXPECT_EQ(s.kinks, s1.kinks) << where;
+  EXPECT_EQ(s.warnings, s1.warnings) << where;
+}
+
 // RolloutAndJacobians (columns pipelined behind their rollouts at 2 and 3 threads) gives what
 // Rollout then Jacobians give at 1 thread, bit for bit: one and three sequences, parameter and
 // initial-state columns, a model in contact (box_floor: the mode may not depend on the contacts)
@@ -625,15 +640,8 @@ TEST(SimulatorTest, PipelinedColumnsEqualRolloutThenJacobiansBitForBit) {
       sim.RolloutAndJacobians(seqs, opt, &tr, &s);
       ASSERT_EQ(tr.size(), tr1.size());
       for (int i = 0; i < c.nseq; ++i) {
-        const std::string where = std::string(c.model) + " seq " + std::to_string(i);
-        EXPECT_TRUE(tr[i].states == tr1[i].states) << where;
-        EXPECT_TRUE(tr[i].sensors == tr1[i].sensors) << where;
-        EXPECT_TRUE(tr[i].step == tr1[i].step) << where;
-        EXPECT_TRUE(tr[i].ncon == tr1[i].ncon) << where;
-        EXPECT_TRUE(s[i].DyDp == s1[i].DyDp) << where;
-        EXPECT_TRUE(s[i].DxDp == s1[i].DxDp) << where;
-        EXPECT_EQ(s[i].kinks, s1[i].kinks) << where;
-        EXPECT_EQ(s[i].warnings, s1[i].warnings) << where;
+        ExpectSameRolloutAndJacobians(tr[i], s[i], tr1[i], s1[i],
+                                      std::string(c.model) + " seq " + std::to_string(i));
       }
     }
   }
@@ -688,13 +696,8 @@ TEST(SimulatorTest, ColumnsAheadEqualRolloutThenJacobiansBitForBit) {
         sim.Jacobians(seqs, tr, opt, &ahead, &s);
         for (int i = 0; i < c.nseq; ++i) {
           EXPECT_EQ(ahead[i].columns, 0) << where << " seq " << i;  // taken
-          EXPECT_TRUE(tr[i].states == tr1[i].states) << where << " seq " << i;
-          EXPECT_TRUE(tr[i].sensors == tr1[i].sensors) << where << " seq " << i;
-          EXPECT_TRUE(tr[i].ncon == tr1[i].ncon) << where << " seq " << i;
-          EXPECT_TRUE(s[i].DyDp == s1[i].DyDp) << where << " seq " << i;
-          EXPECT_TRUE(s[i].DxDp == s1[i].DxDp) << where << " seq " << i;
-          EXPECT_EQ(s[i].kinks, s1[i].kinks) << where << " seq " << i;
-          EXPECT_EQ(s[i].warnings, s1[i].warnings) << where << " seq " << i;
+          ExpectSameRolloutAndJacobians(tr[i], s[i], tr1[i], s1[i],
+                                        where + " seq " + std::to_string(i));
         }
       }
       // columns ahead at other parameter values are not taken
