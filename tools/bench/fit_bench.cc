@@ -7,6 +7,8 @@
 // error against the truth of `simulate.truth`:
 // - ours/<mode>/<differences>/<threads>t: Problem::Fit with the core Jacobians, mode directional
 //   or matrix, forward or central differences, 1 or 2 simulator threads;
+// - ours/directional/forward+auto/<threads>t: ours from the equation-error start (every
+//   parameter `initial: auto`, sysid/equation_error.h), 1 and 2 threads, method `auto`;
 // - oracle/whole/forward/2t: Problem::Fit with whole-rollout finite differences (kWholeRollout);
 // - full-model/directional/forward/<threads>t: ours without the reduced model
 //   (solver.reduce_model: false, core/reduced_model.h), method `full` (issue 15 item 6):
@@ -855,11 +857,14 @@ int Main(int argc, char** argv) {
       }
     }
     if (want("auto")) {
-      // the equation-error start: every parameter `initial: auto`, directional forward, 1 thread
-      add(measure(1, [&] {
-        return FitOurs(c, "ours/directional/forward+auto", JacobianMode::kDirectional, false, 1,
-                       max_it, true);
-      }));
+      // the equation-error start: every parameter `initial: auto`, directional forward, 1 and 2
+      // threads
+      for (int threads : {1, 2}) {
+        add(measure(threads, [&] {
+          return FitOurs(c, "ours/directional/forward+auto", JacobianMode::kDirectional, false,
+                         threads, max_it, true);
+        }));
+      }
     }
     if (want("full")) {
       // the reduced model's share: ours directional forward on the model as given
