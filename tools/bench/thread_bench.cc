@@ -1,0 +1,160 @@
+// bench_threads: the 2-thread wall-clock speed-up of the product's fit, measured against the
+// noise of a shared machine (issue 15, item 4; BENCHMARKS.md "Threads").
+//
+//   bench_threads --cases pendulum,cartpole --repeats 15 [--threads 1,2]
+//
+// Every repeat fits each case once per thread count, the thread counts in alternating order
+// (1, 2 then 2, 1, ...), so that a slow spell of the machine falls on both. Each fit is the
+// experiment's own (run::BuildProblem, the product's FitOptions, progress off). Per case and
+// thread count it prints the minimum and the median wall time of the fit (FitResult::seconds),
+// the ratios of the 1-thread to the n-thread minimum and median, and per fit (median) the time
+// outside the simulators' batches (serial: residuals, Ceres, setup; FitLedger's batch seconds),
+// the number of batches, their hand-off (wake: publication to the last worker's start; wait: the
+// fit thread's wait for the workers after its own last task, core/thread_pool.h) and the process
+// CPU time. The load average (/proc/loadavg) is printed before and after. Final costs must be the
+// same at every thread count bit for bit: a difference is printed as an error (exit 1).
+//
+// The experiments' data files must exist (bench_fit simulates them on its first run).
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <cstdio>
+#include <ctime>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "sysid/io/experiment.h"
+#include "sysid/problem.h"
+#include "sysid/run/fit_experiment.h"
+
+namespace mjsysid {
+namespace {
+
+double ProcessCpuSeconds() { return static_cast<double>(std::clock()) / CLOCKS_PER_SEC; }
+
+std::string LoadAverage() {
+  std::ifstream f("/proc/loadavg");
+  std::string a, b, c;
+  f >> a >> b >> c;
+  return a + " " + b + " " + c;
+}
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+// one fit's measurements
+struct Sample {
+  double wall = 0, serial = 0, wake = 0, wait = 0, cpu = 0, batches = 0;
+  double final_cost = 0;
+  int iterations = 0;
+};
+
+Sample FitOnce(const io::ExperimentConfig& config, int threads) {
+  run::BuiltProblem b = run::BuildProblem(config, threads);
+  FitOptions o = b.options;
+  o.threads = threads;
+  o.verbose = false;
+  o.on_iteration = nullptr;
+  const double cpu0 = ProcessCpuSeconds();
+  const FitResult r = b.problem->Fit(o);
+  Sample s;
+  s.cpu = ProcessCpuSeconds() - cpu0;
+  s.wall = r.seconds;
+  s.serial = r.seconds;
+  for (const LedgerRow& row : r.ledger) {
+    s.serial -= row.batch_seconds;
+    s.wake += row.wake_seconds;
+    s.wait += row.wait_seconds;
+    s.batches += static_cast<double>(row.batches);
+  }
+  s.final_cost = r.final_cost;
+  s.iterations = r.iterations;
+  return s;
+}
+
+int Main(int argc, char** argv) {
+  CLI::App app("bench_threads: 1- against n-thread wall time of the fit, alternating repeats");
+  std::vector<std::string> cases = {"spring_mass", "pendulum", "cartpole", "double_pendulum"};
+  std::vector<int> threads = {1, 2};
+  std::string experiments = MJSYSID_EXPERIMENTS_DIR;
+  int repeats = 11;
+  app.add_option("--cases", cases, "comma-separated experiment names")
+      ->delimiter(',')
+      ->capture_default_str();
+  app.add_option("--threads", threads, "comma-separated thread counts, the first the base")
+      ->delimiter(',')
+      ->capture_default_str();
+  app.add_option("--repeats", repeats, "fits per case and thread count")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--experiments", experiments, "folder of the experiment files")
+      ->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+
+  std::printf("load average before: %s\n", LoadAverage().c_str());
+  // samples[case][thread index]
+  std::map<std::string, std::vector<std::vector<Sample>>> samples;
+  std::map<std::string, io::ExperimentConfig> configs;
+  for (const std::string& name : cases) {
+    configs[name] = io::LoadExperiment(experiments + "/" + name + ".yaml");
+    samples[name].resize(threads.size());
+  }
+  int status = 0;
+  for (int rep = 0; rep < repeats; ++rep) {
+    for (const std::string& name : cases) {
+      for (size_t k = 0; k < threads.size(); ++k) {
+        // alternating order: forward on even repeats, backward on odd ones
+        const size_t t = rep % 2 ? threads.size() - 1 - k : k;
+        samples[name][t].push_back(FitOnce(configs[name], threads[t]));
+      }
+    }
+  }
+  std::printf("load average after: %s\n", LoadAverage().c_str());
+  std::printf("%-16s %3s %8s %8s %7s %7s %9s %8s %9s %9s %8s %5s\n", "case", "thr", "min [s]",
+              "med [s]", "x min", "x med", "serial s", "batches", "wake s", "wait s", "cpu s",
+              "iter");
+  for (const std::string& name : cases) {
+    const std::vector<std::vector<Sample>>& by_thread = samples[name];
+    auto column = [](const std::vector<Sample>& v, double Sample::*field) {
+      std::vector<double> out;
+      for (const Sample& s : v) out.push_back(s.*field);
+      return out;
+    };
+    const std::vector<double> base = column(by_thread[0], &Sample::wall);
+    const double base_min = *std::min_element(base.begin(), base.end());
+    const double base_med = Median(base);
+    for (size_t t = 0; t < threads.size(); ++t) {
+      const std::vector<Sample>& v = by_thread[t];
+      const std::vector<double> wall = column(v, &Sample::wall);
+      const double mn = *std::min_element(wall.begin(), wall.end()), med = Median(wall);
+      std::printf("%-16s %3d %8.4f %8.4f %7.3f %7.3f %9.4f %8.0f %9.4f %9.4f %8.4f %5d\n",
+                  name.c_str(), threads[t], mn, med, base_min / mn, base_med / med,
+                  Median(column(v, &Sample::serial)), Median(column(v, &Sample::batches)),
+                  Median(column(v, &Sample::wake)), Median(column(v, &Sample::wait)),
+                  Median(column(v, &Sample::cpu)), v[0].iterations);
+      for (const Sample& s : v) {
+        if (s.final_cost != by_thread[0][0].final_cost ||
+            s.iterations != by_thread[0][0].iterations) {
+          std::printf(
+              "ERROR: %s at %d threads: final cost %.17g in %d iterations, not %.17g in %d\n",
+              name.c_str(), threads[t], s.final_cost, s.iterations, by_thread[0][0].final_cost,
+              by_thread[0][0].iterations);
+          status = 1;
+          break;
+        }
+      }
+    }
+  }
+  return status;
+}
+
+}  // namespace
+}  // namespace mjsysid
+
+int main(int argc, char** argv) { return mjsysid::Main(argc, argv); }
