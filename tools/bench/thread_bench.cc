@@ -9,15 +9,27 @@
 // thread count it prints the minimum and the median wall time of the fit (FitResult::seconds),
 // the ratios of the 1-thread to the n-thread minimum and median, and per fit (median) the time
 // outside the simulators' batches (serial: residuals, Ceres, setup; FitLedger's batch seconds),
+// the ratio of the base's time inside them to this one's (median wall - median serial, "batch x":
+// to compare with the task model's bound, BENCHMARKS.md "Threads"),
 // the number of batches, their hand-off (wake: publication to the last worker's start; wait: the
 // fit thread's wait for the workers after its own last task, core/thread_pool.h) and the process
 // CPU time. The load average (/proc/loadavg) is printed before and after. Final costs must be the
 // same at every thread count bit for bit: a difference is printed as an error (exit 1).
 //
-// The experiments' data files must exist (bench_fit simulates them on its first run).
+// The experiments' data files must exist (`sysid simulate experiments/<case>.yaml` writes one; so
+// does bench_fit on its first run).
+//
+//   bench_threads --handoff 2000
+//
+// measures the pool's hand-off alone instead: batches of 2 tasks of 50 us of busy work on a
+// 2-thread pool, the fit thread busy for a serial gap of 20, 200 or 2000 us between batches, the
+// pool's bounded spin on (ThreadPool::kSpinSeconds) and off (MJSYSID_POOL_SPIN_US=0); per batch
+// the wall time over the 50 us a batch would take with a free second core, and the wake-up.
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <ctime>
 #include <fstream>
 #include <map>
@@ -25,6 +37,7 @@
 #include <string>
 #include <vector>
 
+#include "core/thread_pool.h"
 #include "sysid/io/experiment.h"
 #include "sysid/problem.h"
 #include "sysid/run/fit_experiment.h"
@@ -78,6 +91,48 @@ Sample FitOnce(const io::ExperimentConfig& config, int threads) {
   return s;
 }
 
+using Clock = std::chrono::steady_clock;
+
+// busy for `seconds` (no sleep: a core's worth of work)
+void BusyFor(double seconds) {
+  const Clock::time_point end = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                                   std::chrono::duration<double>(seconds));
+  while (Clock::now() < end) {
+  }
+}
+
+// the hand-off microbenchmark (see the top of the file)
+void HandOff(int batches) {
+  std::printf("load average before: %s\n", LoadAverage().c_str());
+  std::printf("%-10s %8s %10s %14s %12s %8s\n", "spin [us]", "gap [us]", "batches", "overhead [us]",
+              "wake [us]", "slept");
+  constexpr double kTask = 50e-6;
+  for (double gap : {20e-6, 200e-6, 2000e-6}) {
+    for (const char* spin : {"0", ""}) {
+      // "": the pool's own bound; the variable is read when a pool is built
+      if (*spin) {
+        setenv("MJSYSID_POOL_SPIN_US", spin, 1);
+      } else {
+        unsetenv("MJSYSID_POOL_SPIN_US");
+      }
+      ThreadPool pool(2);
+      pool.ParallelFor(2, [](int, int) {});  // the worker started
+      pool.ResetLoad();
+      for (int b = 0; b < batches; ++b) {
+        BusyFor(gap);
+        pool.ParallelFor(2, [&](int, int) { BusyFor(kTask); });
+      }
+      const PoolTime& t = pool.time();
+      std::printf("%-10s %8.0f %10lld %14.1f %12.1f %8lld\n",
+                  *spin ? spin : std::to_string(ThreadPool::kSpinSeconds * 1e6).c_str(), gap * 1e6,
+                  t.batches, (t.seconds / t.batches - kTask) * 1e6,
+                  t.wake_seconds / t.batches * 1e6, t.sleeps);
+    }
+  }
+  unsetenv("MJSYSID_POOL_SPIN_US");
+  std::printf("load average after: %s\n", LoadAverage().c_str());
+}
+
 int Main(int argc, char** argv) {
   CLI::App app("bench_threads: 1- against n-thread wall time of the fit, alternating repeats");
   std::vector<std::string> cases = {"spring_mass", "pendulum", "cartpole", "double_pendulum"};
@@ -95,7 +150,14 @@ int Main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--experiments", experiments, "folder of the experiment files")
       ->capture_default_str();
+  int handoff = 0;
+  app.add_option("--handoff", handoff,
+                 "instead of fits: the pool's hand-off in this many batches per setting");
   CLI11_PARSE(app, argc, argv);
+  if (handoff > 0) {
+    HandOff(handoff);
+    return 0;
+  }
 
   std::printf("load average before: %s\n", LoadAverage().c_str());
   // samples[case][thread index]
@@ -116,9 +178,9 @@ int Main(int argc, char** argv) {
     }
   }
   std::printf("load average after: %s\n", LoadAverage().c_str());
-  std::printf("%-16s %3s %8s %8s %7s %7s %9s %8s %9s %9s %8s %5s\n", "case", "thr", "min [s]",
-              "med [s]", "x min", "x med", "serial s", "batches", "wake s", "wait s", "cpu s",
-              "iter");
+  std::printf("%-16s %3s %8s %8s %7s %7s %9s %7s %8s %9s %9s %8s %5s\n", "case", "thr", "min [s]",
+              "med [s]", "x min", "x med", "serial s", "batch x", "batches", "wake s", "wait s",
+              "cpu s", "iter");
   for (const std::string& name : cases) {
     const std::vector<std::vector<Sample>>& by_thread = samples[name];
     auto column = [](const std::vector<Sample>& v, double Sample::*field) {
@@ -129,13 +191,16 @@ int Main(int argc, char** argv) {
     const std::vector<double> base = column(by_thread[0], &Sample::wall);
     const double base_min = *std::min_element(base.begin(), base.end());
     const double base_med = Median(base);
+    // the median time inside the batches (wall - serial) of the base thread count
+    const double base_batch = base_med - Median(column(by_thread[0], &Sample::serial));
     for (size_t t = 0; t < threads.size(); ++t) {
       const std::vector<Sample>& v = by_thread[t];
       const std::vector<double> wall = column(v, &Sample::wall);
       const double mn = *std::min_element(wall.begin(), wall.end()), med = Median(wall);
-      std::printf("%-16s %3d %8.4f %8.4f %7.3f %7.3f %9.4f %8.0f %9.4f %9.4f %8.4f %5d\n",
-                  name.c_str(), threads[t], mn, med, base_min / mn, base_med / med,
-                  Median(column(v, &Sample::serial)), Median(column(v, &Sample::batches)),
+      const double serial = Median(column(v, &Sample::serial));
+      std::printf("%-16s %3d %8.4f %8.4f %7.3f %7.3f %9.4f %7.3f %8.0f %9.4f %9.4f %8.4f %5d\n",
+                  name.c_str(), threads[t], mn, med, base_min / mn, base_med / med, serial,
+                  base_batch / (med - serial), Median(column(v, &Sample::batches)),
                   Median(column(v, &Sample::wake)), Median(column(v, &Sample::wait)),
                   Median(column(v, &Sample::cpu)), v[0].iterations);
       for (const Sample& s : v) {
