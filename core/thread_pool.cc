@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <ctime>
 
 namespace mjsysid {
 
@@ -47,6 +48,12 @@ bool SpinUntil(double seconds, Done&& done) {
 }
 
 }  // namespace
+
+double ThreadCpuSeconds() {
+  timespec t;
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
 
 ThreadPool::ThreadPool(int num_threads) {
   if (num_threads <= 0) num_threads = static_cast<int>(std::thread::hardware_concurrency());
@@ -144,6 +151,7 @@ void ThreadPool::ParallelFor(int n, const std::function<void(int, int)>& fn) {
     return;
   }
   const Clock::time_point start = Clock::now();
+  const double cpu_start = ThreadCpuSeconds();
   ++time_.batches;
   if (meter_) cost_.assign(n, 0);
   // serial fast path: no synchronisation
@@ -153,10 +161,12 @@ void ThreadPool::ParallelFor(int n, const std::function<void(int, int)>& fn) {
     } catch (...) {
       if (meter_) RecordBatch();
       time_.seconds += Seconds(start, Clock::now());
+      time_.cpu_seconds += ThreadCpuSeconds() - cpu_start;
       throw;
     }
     if (meter_) RecordBatch();
     time_.seconds += Seconds(start, Clock::now());
+    time_.cpu_seconds += ThreadCpuSeconds() - cpu_start;
     return;
   }
   ++time_.handed_off;
@@ -195,6 +205,7 @@ void ThreadPool::ParallelFor(int n, const std::function<void(int, int)>& fn) {
   time_.wake_seconds += Seconds(start, last_start);
   time_.wait_seconds += Seconds(own_end, end);
   time_.seconds += Seconds(start, end);
+  time_.cpu_seconds += ThreadCpuSeconds() - cpu_start;
   // a failed batch is recorded too (the tasks that did not run cost 0), so that the work is
   // every counted step
   if (meter_) RecordBatch();

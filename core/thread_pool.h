@@ -55,6 +55,9 @@ struct PoolLoad {
   long long span[kModelWorkers + 1] = {};  // span[w]: sum of the batches' makespans on w workers
 };
 
+// the calling thread's CPU time in seconds (CLOCK_THREAD_CPUTIME_ID)
+double ThreadCpuSeconds();
+
 // wall time of the pool's batches since construction or ResetLoad (steady_clock seconds)
 struct PoolTime {
   long long batches = 0;     // ParallelFor calls with n > 0
@@ -63,6 +66,9 @@ struct PoolTime {
   double wake_seconds = 0;   // handed off: publication to the last worker's start, summed
   double wait_seconds = 0;   // handed off: the caller's wait after its own last task, summed
   long long sleeps = 0;      // handed off: workers that were asleep when the batch came
+  // the calling thread's CPU time inside ParallelFor (CLOCK_THREAD_CPUTIME_ID): at 1 thread the
+  // batches' whole work, independent of other processes' load
+  double cpu_seconds = 0;
   // the sum of two pools' times (a fit's simulators)
   PoolTime& operator+=(const PoolTime& o) {
     batches += o.batches;
@@ -71,6 +77,7 @@ struct PoolTime {
     wake_seconds += o.wake_seconds;
     wait_seconds += o.wait_seconds;
     sleeps += o.sleeps;
+    cpu_seconds += o.cpu_seconds;
     return *this;
   }
 };

@@ -41,6 +41,7 @@ void FitLedger::Charge() {
       row.batch_seconds += pool.seconds - last_pool_.seconds;
       row.wake_seconds += pool.wake_seconds - last_pool_.wake_seconds;
       row.wait_seconds += pool.wait_seconds - last_pool_.wait_seconds;
+      row.batch_cpu_seconds += pool.cpu_seconds - last_pool_.cpu_seconds;
       break;
     }
   }

@@ -15,8 +15,9 @@
 // 2-thread speed-up, exact and independent of the machine's load.
 //
 // The time inside the simulators' batches (core/thread_pool.h, PoolTime; MeasureBatches) is charged
-// the same way to LedgerRow::batch_seconds, batches, wake_seconds and wait_seconds: a phase's
-// seconds - batch_seconds is its serial time, which a second thread does not shorten.
+// the same way to LedgerRow::batch_seconds, batches, wake_seconds, wait_seconds and
+// batch_cpu_seconds (the fit thread's CPU time in them): a phase's seconds - batch_seconds is its
+// serial time, which a second thread does not shorten.
 //
 // Steps come from a counter the caller supplies (the sum of Simulator::StepCount over the fit's
 // simulators, which may not exist yet when the ledger starts: then it returns 0); it grows, except

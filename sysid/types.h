@@ -360,6 +360,8 @@ struct LedgerRow {
   long long batches = 0;
   double wake_seconds = 0;
   double wait_seconds = 0;
+  // the fit thread's CPU time inside the batches (at 1 thread their whole work; PoolTime)
+  double batch_cpu_seconds = 0;
 };
 
 struct FitResult {

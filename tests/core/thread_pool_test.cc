@@ -105,6 +105,7 @@ TEST(ThreadPoolTest, TimeCountsBatchesAndTheirHandOff) {
     EXPECT_EQ(t.batches, 6) << threads;
     EXPECT_EQ(t.handed_off, threads > 1 ? 5 : 0) << threads;
     EXPECT_GT(t.seconds, 0.0) << threads;
+    EXPECT_GT(t.cpu_seconds, 0.0) << threads;
     EXPECT_GE(t.wake_seconds, 0.0) << threads;
     EXPECT_GE(t.wait_seconds, 0.0) << threads;
     EXPECT_LE(t.wake_seconds, t.seconds) << threads;

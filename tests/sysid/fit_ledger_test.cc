@@ -125,6 +125,7 @@ TEST(FitLedgerTest, BatchTimeIsPartOfThePhaseThatSimulates) {
       EXPECT_LE(row.wake_seconds + row.wait_seconds, row.batch_seconds) << row.phase;
       if (row.steps > 0) {
         EXPECT_GT(row.batch_seconds, 0.0) << row.phase;
+        EXPECT_GT(row.batch_cpu_seconds, 0.0) << row.phase;
       }
       if (threads == 1) {
         EXPECT_EQ(row.wake_seconds, 0.0) << row.phase;

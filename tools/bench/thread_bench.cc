@@ -13,7 +13,10 @@
 // to compare with the task model's bound, BENCHMARKS.md "Threads"),
 // the number of batches, their hand-off (wake: publication to the last worker's start; wait: the
 // fit thread's wait for the workers after its own last task, core/thread_pool.h) and the process
-// CPU time. The load average (/proc/loadavg) is printed before and after. Final costs must be the
+// CPU time, and the fit thread's CPU time outside the batches over its whole CPU time ("serial
+// cpu": at 1 thread the serial share of the fit's work, independent of other processes' load, so
+// that 1 / (serial + (1 - serial) / model) bounds the speed-up with the task model's ratio). The
+// load average (/proc/loadavg) is printed before and after. Final costs must be the
 // same at every thread count bit for bit: a difference is printed as an error (exit 1).
 //
 // The experiments' data files must exist (`sysid simulate experiments/<case>.yaml` writes one; so
@@ -64,6 +67,9 @@ double Median(std::vector<double> v) {
 // one fit's measurements
 struct Sample {
   double wall = 0, serial = 0, wake = 0, wait = 0, cpu = 0, batches = 0;
+  // the fit thread's CPU time outside the batches over its whole CPU time (load-independent; at 1
+  // thread the serial share of the fit's work)
+  double serial_cpu_share = 0;
   double final_cost = 0;
   int iterations = 0;
 };
@@ -74,10 +80,12 @@ Sample FitOnce(const io::ExperimentConfig& config, int threads) {
   o.threads = threads;
   o.verbose = false;
   o.on_iteration = nullptr;
-  const double cpu0 = ProcessCpuSeconds();
+  const double cpu0 = ProcessCpuSeconds(), thread0 = ThreadCpuSeconds();
   const FitResult r = b.problem->Fit(o);
   Sample s;
   s.cpu = ProcessCpuSeconds() - cpu0;
+  const double thread_cpu = ThreadCpuSeconds() - thread0;
+  double serial_cpu = thread_cpu;
   s.wall = r.seconds;
   s.serial = r.seconds;
   for (const LedgerRow& row : r.ledger) {
@@ -85,7 +93,9 @@ Sample FitOnce(const io::ExperimentConfig& config, int threads) {
     s.wake += row.wake_seconds;
     s.wait += row.wait_seconds;
     s.batches += static_cast<double>(row.batches);
+    serial_cpu -= row.batch_cpu_seconds;
   }
+  s.serial_cpu_share = thread_cpu > 0 ? serial_cpu / thread_cpu : 0;
   s.final_cost = r.final_cost;
   s.iterations = r.iterations;
   return s;
@@ -178,9 +188,9 @@ int Main(int argc, char** argv) {
     }
   }
   std::printf("load average after: %s\n", LoadAverage().c_str());
-  std::printf("%-16s %3s %8s %8s %7s %7s %9s %7s %8s %9s %9s %8s %5s\n", "case", "thr", "min [s]",
-              "med [s]", "x min", "x med", "serial s", "batch x", "batches", "wake s", "wait s",
-              "cpu s", "iter");
+  std::printf("%-16s %3s %8s %8s %7s %7s %9s %7s %8s %9s %9s %8s %5s %10s\n", "case", "thr",
+              "min [s]", "med [s]", "x min", "x med", "serial s", "batch x", "batches", "wake s",
+              "wait s", "cpu s", "iter", "serial cpu");
   for (const std::string& name : cases) {
     const std::vector<std::vector<Sample>>& by_thread = samples[name];
     auto column = [](const std::vector<Sample>& v, double Sample::*field) {
@@ -198,11 +208,13 @@ int Main(int argc, char** argv) {
       const std::vector<double> wall = column(v, &Sample::wall);
       const double mn = *std::min_element(wall.begin(), wall.end()), med = Median(wall);
       const double serial = Median(column(v, &Sample::serial));
-      std::printf("%-16s %3d %8.4f %8.4f %7.3f %7.3f %9.4f %7.3f %8.0f %9.4f %9.4f %8.4f %5d\n",
-                  name.c_str(), threads[t], mn, med, base_min / mn, base_med / med, serial,
-                  base_batch / (med - serial), Median(column(v, &Sample::batches)),
-                  Median(column(v, &Sample::wake)), Median(column(v, &Sample::wait)),
-                  Median(column(v, &Sample::cpu)), v[0].iterations);
+      std::printf(
+          "%-16s %3d %8.4f %8.4f %7.3f %7.3f %9.4f %7.3f %8.0f %9.4f %9.4f %8.4f %5d %9.2f%%\n",
+          name.c_str(), threads[t], mn, med, base_min / mn, base_med / med, serial,
+          base_batch / (med - serial), Median(column(v, &Sample::batches)),
+          Median(column(v, &Sample::wake)), Median(column(v, &Sample::wait)),
+          Median(column(v, &Sample::cpu)), v[0].iterations,
+          100 * Median(column(v, &Sample::serial_cpu_share)));
       for (const Sample& s : v) {
         if (s.final_cost != by_thread[0][0].final_cost ||
             s.iterations != by_thread[0][0].iterations) {
