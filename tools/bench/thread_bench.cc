@@ -15,7 +15,8 @@
 // fit thread's wait for the workers after its own last task, core/thread_pool.h) and the process
 // CPU time, and the fit thread's CPU time outside the batches over its whole CPU time ("serial
 // cpu": at 1 thread the serial share of the fit's work, independent of other processes' load, so
-// that 1 / (serial + (1 - serial) / model) bounds the speed-up with the task model's ratio). The
+// that 1 / (serial + (1 - serial) / model) bounds the speed-up with the task model's ratio
+// model = the base's steps over the critical steps at 2 workers: "model x", "bound x"). The
 // load average (/proc/loadavg) is printed before and after. Final costs must be the
 // same at every thread count bit for bit: a difference is printed as an error (exit 1).
 //
@@ -70,6 +71,7 @@ struct Sample {
   // the fit thread's CPU time outside the batches over its whole CPU time (load-independent; at 1
   // thread the serial share of the fit's work)
   double serial_cpu_share = 0;
+  double steps = 0, critical_steps = 0;  // the ledger's steps and critical steps at 2 workers
   double final_cost = 0;
   int iterations = 0;
 };
@@ -94,6 +96,8 @@ Sample FitOnce(const io::ExperimentConfig& config, int threads) {
     s.wait += row.wait_seconds;
     s.batches += static_cast<double>(row.batches);
     serial_cpu -= row.batch_cpu_seconds;
+    s.steps += static_cast<double>(row.steps);
+    s.critical_steps += static_cast<double>(row.critical_steps);
   }
   s.serial_cpu_share = thread_cpu > 0 ? serial_cpu / thread_cpu : 0;
   s.final_cost = r.final_cost;
@@ -188,9 +192,9 @@ int Main(int argc, char** argv) {
     }
   }
   std::printf("load average after: %s\n", LoadAverage().c_str());
-  std::printf("%-16s %3s %8s %8s %7s %7s %9s %7s %8s %9s %9s %8s %5s %10s\n", "case", "thr",
+  std::printf("%-16s %3s %8s %8s %7s %7s %9s %7s %8s %9s %9s %8s %5s %10s %8s %8s\n", "case", "thr",
               "min [s]", "med [s]", "x min", "x med", "serial s", "batch x", "batches", "wake s",
-              "wait s", "cpu s", "iter", "serial cpu");
+              "wait s", "cpu s", "iter", "serial cpu", "model x", "bound x");
   for (const std::string& name : cases) {
     const std::vector<std::vector<Sample>>& by_thread = samples[name];
     auto column = [](const std::vector<Sample>& v, double Sample::*field) {
@@ -203,18 +207,25 @@ int Main(int argc, char** argv) {
     const double base_med = Median(base);
     // the median time inside the batches (wall - serial) of the base thread count
     const double base_batch = base_med - Median(column(by_thread[0], &Sample::serial));
+    const double base_serial = Median(column(by_thread[0], &Sample::serial_cpu_share));
     for (size_t t = 0; t < threads.size(); ++t) {
       const std::vector<Sample>& v = by_thread[t];
       const std::vector<double> wall = column(v, &Sample::wall);
       const double mn = *std::min_element(wall.begin(), wall.end()), med = Median(wall);
       const double serial = Median(column(v, &Sample::serial));
+      // the task model's speed-up over the base (steps of the base's fit over this fit's steps on
+      // the critical path at 2 workers), and with the base's serial CPU share added (Amdahl)
+      const double model =
+          Median(column(by_thread[0], &Sample::steps)) / Median(column(v, &Sample::critical_steps));
       std::printf(
-          "%-16s %3d %8.4f %8.4f %7.3f %7.3f %9.4f %7.3f %8.0f %9.4f %9.4f %8.4f %5d %9.2f%%\n",
+          "%-16s %3d %8.4f %8.4f %7.3f %7.3f %9.4f %7.3f %8.0f %9.4f %9.4f %8.4f %5d %9.2f%% %8.3f "
+          "%8.3f\n",
           name.c_str(), threads[t], mn, med, base_min / mn, base_med / med, serial,
           base_batch / (med - serial), Median(column(v, &Sample::batches)),
           Median(column(v, &Sample::wake)), Median(column(v, &Sample::wait)),
           Median(column(v, &Sample::cpu)), v[0].iterations,
-          100 * Median(column(v, &Sample::serial_cpu_share)));
+          100 * Median(column(v, &Sample::serial_cpu_share)), model,
+          1 / (base_serial + (1 - base_serial) / model));
       for (const Sample& s : v) {
         if (s.final_cost != by_thread[0][0].final_cost ||
             s.iterations != by_thread[0][0].iterations) {
