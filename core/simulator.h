@@ -296,6 +296,9 @@ class Simulator {
   // under the pool's scheduling (span[2]: steps on the critical path at 2 workers). Reset with
   // ResetStepCount.
   const PoolLoad& ParallelLoad() const { return pool_.load(); }
+  // the wall time of those batches and of their hand-off to the workers (core/thread_pool.h,
+  // PoolTime); reset with ResetStepCount
+  const PoolTime& ParallelTime() const { return pool_.time(); }
 
   // The reduced model (core/reduced_model.h): switches r off in the private model (r from
   // AnalyzeReduction on this simulator's model and its nominal rollouts). Rollout, Jacobians and

@@ -1,6 +1,8 @@
 #include "core/thread_pool.h"
 
 #include <algorithm>
+#include <cstdlib>
+#include <ctime>
 
 namespace mjsysid {
 
@@ -22,16 +24,52 @@ long long ListScheduleMakespan(const std::vector<long long>& cost, const std::ve
   return span;
 }
 
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double Seconds(Clock::time_point a, Clock::time_point b) {
+  return std::chrono::duration<double>(b - a).count();
+}
+
+// polls done() for at most `seconds`, yielding the core between polls; true when it became true
+template <class Done>
+bool SpinUntil(double seconds, Done&& done) {
+  if (seconds <= 0) return done();
+  const Clock::time_point end = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                                   std::chrono::duration<double>(seconds));
+  for (;;) {
+    for (int k = 0; k < 64; ++k) {
+      if (done()) return true;
+    }
+    if (Clock::now() >= end) return done();
+    std::this_thread::yield();
+  }
+}
+
+}  // namespace
+
+double ThreadCpuSeconds() {
+  timespec t;
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+
 ThreadPool::ThreadPool(int num_threads) {
   if (num_threads <= 0) num_threads = static_cast<int>(std::thread::hardware_concurrency());
   if (num_threads <= 0) num_threads = 1;
+  if (const char* spin = std::getenv("MJSYSID_POOL_SPIN_US")) {
+    spin_seconds_ = std::max(0.0, std::atof(spin) * 1e-6);
+  }
+  started_.resize(num_threads - 1);
+  slept_.assign(num_threads - 1, 0);
   for (int w = 1; w < num_threads; ++w) threads_.emplace_back([this, w] { WorkerLoop(w); });
 }
 
 ThreadPool::~ThreadPool() {
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    stop_ = true;
+    stop_.store(true, std::memory_order_release);
   }
   wake_.notify_all();
   for (std::thread& t : threads_) t.join();
@@ -72,16 +110,27 @@ void ThreadPool::RunItems(int worker) {
 void ThreadPool::WorkerLoop(int worker) {
   long seen = 0;
   for (;;) {
-    {
+    // the next batch: polled for a bounded time, then waited for asleep
+    auto published = [&] {
+      return stop_.load(std::memory_order_acquire) ||
+             generation_.load(std::memory_order_acquire) != seen;
+    };
+    bool slept = false;
+    if (!SpinUntil(spin_seconds_, published)) {
       std::unique_lock<std::mutex> lock(mutex_);
-      wake_.wait(lock, [&] { return stop_ || generation_ != seen; });
-      if (stop_) return;
-      seen = generation_;
+      slept = !published();
+      wake_.wait(lock, published);
     }
+    if (stop_.load(std::memory_order_acquire)) return;
+    seen = generation_.load(std::memory_order_acquire);
+    started_[worker - 1] = Clock::now();
+    slept_[worker - 1] = slept;
     RunItems(worker);
-    {
+    // the last worker out wakes the caller if it sleeps (notified under the mutex, so that a
+    // caller between its check and its wait cannot miss it)
+    if (busy_.fetch_sub(1, std::memory_order_acq_rel) == 1) {
       std::lock_guard<std::mutex> lock(mutex_);
-      if (--busy_ == 0) done_.notify_one();
+      done_.notify_one();
     }
   }
 }
@@ -101,6 +150,9 @@ void ThreadPool::ParallelFor(int n, const std::function<void(int, int)>& fn) {
     follows_.clear();
     return;
   }
+  const Clock::time_point start = Clock::now();
+  const double cpu_start = ThreadCpuSeconds();
+  ++time_.batches;
   if (meter_) cost_.assign(n, 0);
   // serial fast path: no synchronisation
   if (threads_.empty() || n == 1) {
@@ -108,30 +160,52 @@ void ThreadPool::ParallelFor(int n, const std::function<void(int, int)>& fn) {
       for (int i = 0; i < n; ++i) Run(fn, 0, i);
     } catch (...) {
       if (meter_) RecordBatch();
+      time_.seconds += Seconds(start, Clock::now());
+      time_.cpu_seconds += ThreadCpuSeconds() - cpu_start;
       throw;
     }
     if (meter_) RecordBatch();
+    time_.seconds += Seconds(start, Clock::now());
+    time_.cpu_seconds += ThreadCpuSeconds() - cpu_start;
     return;
   }
+  ++time_.handed_off;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     fn_ = &fn;
     n_ = n;
     next_.store(0);
     error_ = nullptr;
-    busy_ = static_cast<int>(threads_.size());
-    ++generation_;
+    busy_.store(static_cast<int>(threads_.size()), std::memory_order_relaxed);
+    generation_.fetch_add(1, std::memory_order_release);
   }
   wake_.notify_all();
   RunItems(0);
+  // the workers' end: polled for a bounded time, then waited for asleep
+  const Clock::time_point own_end = Clock::now();
+  auto done = [&] { return busy_.load(std::memory_order_acquire) == 0; };
+  if (!SpinUntil(spin_seconds_, done)) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    done_.wait(lock, done);
+  }
+  const Clock::time_point end = Clock::now();
   std::exception_ptr error;
   {
-    std::unique_lock<std::mutex> lock(mutex_);
-    done_.wait(lock, [&] { return busy_ == 0; });
+    std::lock_guard<std::mutex> lock(mutex_);
     fn_ = nullptr;
     error = error_;
     error_ = nullptr;
   }
+  // the hand-off's cost: the last worker's start after publication, the caller's wait
+  Clock::time_point last_start = start;
+  for (size_t w = 0; w < started_.size(); ++w) {
+    last_start = std::max(last_start, started_[w]);
+    time_.sleeps += slept_[w];
+  }
+  time_.wake_seconds += Seconds(start, last_start);
+  time_.wait_seconds += Seconds(own_end, end);
+  time_.seconds += Seconds(start, end);
+  time_.cpu_seconds += ThreadCpuSeconds() - cpu_start;
   // a failed batch is recorded too (the tasks that did not run cost 0), so that the work is
   // every counted step
   if (meter_) RecordBatch();

@@ -16,9 +16,19 @@
 // (the counter's growth while it ran) and adds to load() the batch's work (the sum) and its
 // makespan on 1..kModelWorkers workers under this pool's scheduling (ListScheduleMakespan): a
 // measure of the parallel structure in exact counter units, independent of the machine's load.
+//
+// Hand-off (more than one worker). A batch is published under the mutex (a generation counter)
+// and the sleeping workers are woken through a condition variable; the caller waits for the last
+// worker the same way. Both sides first spin for a bounded time (kSpinSeconds, yielding the core
+// between polls) on the atomic generation and busy count: batches of a fit follow each other after
+// a short serial gap (residuals, Ceres' linear algebra), and a futex wake-up on a loaded virtual
+// machine costs tens to hundreds of microseconds per batch. Past the bound they sleep: an idle pool
+// (between fits) does not spin. time() measures the wall time inside ParallelFor, the wake-up
+// latency of the workers and the caller's wait for them.
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <exception>
 #include <functional>
@@ -45,8 +55,41 @@ struct PoolLoad {
   long long span[kModelWorkers + 1] = {};  // span[w]: sum of the batches' makespans on w workers
 };
 
+// the calling thread's CPU time in seconds (CLOCK_THREAD_CPUTIME_ID)
+double ThreadCpuSeconds();
+
+// wall time of the pool's batches since construction or ResetLoad (steady_clock seconds)
+struct PoolTime {
+  long long batches = 0;     // ParallelFor calls with n > 0
+  long long handed_off = 0;  // of them, those run by more than one worker (n > 1)
+  double seconds = 0;        // inside ParallelFor, every batch
+  double wake_seconds = 0;   // handed off: publication to the last worker's start, summed
+  double wait_seconds = 0;   // handed off: the caller's wait after its own last task, summed
+  long long sleeps = 0;      // handed off: workers that were asleep when the batch came
+  // the calling thread's CPU time inside ParallelFor (CLOCK_THREAD_CPUTIME_ID): at 1 thread the
+  // batches' whole work, independent of other processes' load
+  double cpu_seconds = 0;
+  // the sum of two pools' times (a fit's simulators)
+  PoolTime& operator+=(const PoolTime& o) {
+    batches += o.batches;
+    handed_off += o.handed_off;
+    seconds += o.seconds;
+    wake_seconds += o.wake_seconds;
+    wait_seconds += o.wait_seconds;
+    sleeps += o.sleeps;
+    cpu_seconds += o.cpu_seconds;
+    return *this;
+  }
+};
+
 class ThreadPool {
  public:
+  // how long a worker polls for the next batch, and the caller for the workers' end, before
+  // sleeping on the condition variable (see Hand-off above)
+  // (the environment variable MJSYSID_POOL_SPIN_US overrides it, in microseconds, 0: no spin; for
+  // measuring the hand-off)
+  static constexpr double kSpinSeconds = 200e-6;
+
   // num_threads <= 0 means std::thread::hardware_concurrency().
   explicit ThreadPool(int num_threads = 1);
   ~ThreadPool();
@@ -69,7 +112,12 @@ class ThreadPool {
   void SetMeter(std::function<long long(int worker)> meter) { meter_ = std::move(meter); }
   // what the meter recorded since construction or ResetLoad (not during a ParallelFor)
   const PoolLoad& load() const { return load_; }
-  void ResetLoad() { load_ = PoolLoad(); }
+  // wall time of the batches since construction or ResetLoad (not during a ParallelFor)
+  const PoolTime& time() const { return time_; }
+  void ResetLoad() {
+    load_ = PoolLoad();
+    time_ = PoolTime();
+  }
 
  private:
   // adds the batch just run (cost_, follows_) to load_
@@ -86,9 +134,14 @@ class ThreadPool {
   const std::function<void(int, int)>* fn_ = nullptr;
   int n_ = 0;
   std::atomic<int> next_{0};
-  int busy_ = 0;
-  long generation_ = 0;
-  bool stop_ = false;
+  std::atomic<int> busy_{0};         // workers still in the running batch
+  std::atomic<long> generation_{0};  // batches published (written under mutex_)
+  std::atomic<bool> stop_{false};    // written under mutex_
+  // per worker (index worker - 1): when it started the running batch, whether it had slept
+  std::vector<std::chrono::steady_clock::time_point> started_;
+  std::vector<char> slept_;
+  PoolTime time_;
+  double spin_seconds_ = kSpinSeconds;
   std::exception_ptr error_;
   std::function<long long(int)> meter_;
   std::vector<long long> cost_;  // per task of the running batch (each slot written by its task)

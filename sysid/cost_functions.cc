@@ -85,6 +85,13 @@ bool SegmentCost::EvaluateOrThrow(double const* const* parameters, double* resid
   const int ns = dims.ns;
   const int ncol = want ? s.ncol : 0;
   std::vector<double> row_t(want ? ncol : 0);  // d(simulated)/d(column) of one residual
+  // dp/dz of the model's parameters at z, once per evaluation instead of per row (an exp each for
+  // log variables: serial time between the simulator's batches)
+  std::vector<double> dpdz(want && zb >= 0 && jacobians[zb] ? npm : 0);
+  for (size_t j = 0; j < dpdz.size(); ++j) {
+    const int g = mo.global[j];
+    dpdz[j] = I.DpDz(g, zv[g]);
+  }
 
   // zero the Jacobian blocks
   if (want) {
@@ -126,7 +133,7 @@ bool SegmentCost::EvaluateOrThrow(double const* const* parameters, double* resid
         const int nz = static_cast<int>(I.z.size());
         for (int j = 0; j < npm; ++j) {
           const int g = mo.global[j];
-          jacobians[zb][row * nz + g] = r.d_simulated * row_t[j] * I.DpDz(g, zv[g]);
+          jacobians[zb][row * nz + g] = r.d_simulated * row_t[j] * dpdz[j];
         }
       }
       if (mb >= 0 && jacobians[mb] && ch.measurement >= 0) {
@@ -165,7 +172,7 @@ bool SegmentCost::EvaluateOrThrow(double const* const* parameters, double* resid
         for (int i = 0; i < nx; ++i) {
           for (int j = 0; j < npm; ++j) {
             const int g = mo.global[j];
-            jacobians[zb][(r0 + i) * nz + g] = w[i] * S(i, j) * I.DpDz(g, zv[g]);
+            jacobians[zb][(r0 + i) * nz + g] = w[i] * S(i, j) * dpdz[j];
           }
         }
       }

@@ -14,6 +14,11 @@
 // LedgerRow::critical_steps, so that steps / critical_steps is a phase's (and the fit's) modelled
 // 2-thread speed-up, exact and independent of the machine's load.
 //
+// The time inside the simulators' batches (core/thread_pool.h, PoolTime; MeasureBatches) is charged
+// the same way to LedgerRow::batch_seconds, batches, wake_seconds, wait_seconds and
+// batch_cpu_seconds (the fit thread's CPU time in them): a phase's seconds - batch_seconds is its
+// serial time, which a second thread does not shorten.
+//
 // Steps come from a counter the caller supplies (the sum of Simulator::StepCount over the fit's
 // simulators, which may not exist yet when the ledger starts: then it returns 0); it grows, except
 // that a reading below the last one means the counter restarted from 0 (Problem::Prepare builds
@@ -27,6 +32,7 @@
 #include <string>
 #include <vector>
 
+#include "core/thread_pool.h"
 #include "sysid/types.h"
 
 namespace mjsysid {
@@ -54,6 +60,10 @@ class FitLedger {
   // critical: steps on the critical path at 2 workers (see above), restarting with steps
   FitLedger(std::function<long long()> steps, std::function<long long()> critical);
 
+  // time: the summed PoolTime of the fit's simulators (restarting with steps); none: the batch
+  // columns stay 0
+  void MeasureBatches(std::function<PoolTime()> time);
+
   // charges what happened since the last Enter to the phase then current; phase becomes current
   void Enter(const std::string& phase);
   // the phase entered last ("" before the first Enter)
@@ -78,12 +88,15 @@ class FitLedger {
   std::string current_;
   long long last_steps_ = 0;
   long long last_critical_ = 0;
+  std::function<PoolTime()> time_;  // may be empty
+  PoolTime last_pool_;
   std::chrono::steady_clock::time_point last_time_;
 };
 
 // The ledger as a table, one line per phase: entries, steps, steps / (sum T) ("rollouts"), seconds
 // and share of the time, and the modelled 2-thread speed-up steps / critical_steps ("2w model",
-// "-" for a phase without steps); sum_t: the fit's simulated samples per rollout of every sequence
+// "-" for a phase without steps), and the seconds outside the simulators' batches ("serial s");
+// sum_t: the fit's simulated samples per rollout of every sequence
 std::string FormatLedger(const std::vector<LedgerRow>& rows, long long sum_t);
 
 }  // namespace mjsysid

@@ -243,6 +243,14 @@ FitResult Problem::Fit(const FitOptions& options) {
         for (const Impl::Model& mo : I.models) steps += mo.sim ? mo.sim->ParallelLoad().span[2] : 0;
         return steps;
       });
+  // the time inside the simulators' batches (serial time = the rest)
+  ledger.MeasureBatches([&I] {
+    PoolTime sum;
+    for (const Impl::Model& mo : I.models) {
+      if (mo.sim) sum += mo.sim->ParallelTime();
+    }
+    return sum;
+  });
   I.ledger = &ledger;
   struct Unborrow {
     Impl* impl;

@@ -351,6 +351,17 @@ struct LedgerRow {
   // 2 workers under the thread pool's scheduling, in steps (Simulator::ParallelLoad), whatever
   // the fit's thread count; steps / critical_steps is the phase's modelled 2-thread speed-up
   long long critical_steps = 0;
+  // of seconds, those inside the simulators' batches (ThreadPool::ParallelFor, core/thread_pool.h,
+  // PoolTime): seconds - batch_seconds is the phase's serial time (residuals, Ceres, setup, the
+  // equation-error start); batches: their number; of batch_seconds, wake_seconds from each
+  // batch's publication to its last worker's start, wait_seconds the fit thread's wait for the
+  // workers after its own last task (more than one thread only)
+  double batch_seconds = 0;
+  long long batches = 0;
+  double wake_seconds = 0;
+  double wait_seconds = 0;
+  // the fit thread's CPU time inside the batches (at 1 thread their whole work; PoolTime)
+  double batch_cpu_seconds = 0;
 };
 
 struct FitResult {

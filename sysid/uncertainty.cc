@@ -1,8 +1,8 @@
 #include "sysid/uncertainty.h"
 
 #include <Eigen/QR>
+#include <Eigen/SPQRSupport>
 #include <Eigen/SVD>
-#include <Eigen/SparseQR>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -135,7 +135,9 @@ Uncertainty AnalyzeUncertaintyReduced(const RowMatrix& A, const Eigen::SparseMat
   // sparse QR of the nuisance columns: B P = Q [R; 0]. The last m - rank(B) rows of Q^T A are A
   // projected onto the complement of B's range, the Jacobian of the reduced problem (the Schur
   // complement A^T A - A^T B (B^T B)^+ B^T A is its normal matrix)
-  Eigen::SparseQR<Eigen::SparseMatrix<double>, Eigen::COLAMDOrdering<int>> qr(Bs);
+  // (SuiteSparseQR, multifrontal: the arm5 experiment's factorisation took 9 % of its 1-thread fit
+  // with Eigen's left-looking SparseQR, serial time that a second thread does not shorten)
+  Eigen::SPQR<Eigen::SparseMatrix<double>> qr(Bs);
   if (qr.info() != Eigen::Success) {
     throw std::runtime_error("uncertainty: sparse QR of the initial-state columns failed");
   }

@@ -3,7 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
 #include <stdexcept>
+#include <thread>
 #include <vector>
 
 namespace mjsysid {
@@ -86,6 +88,54 @@ TEST(ThreadPoolTest, MeterRecordsWorkAndMakespans) {
     EXPECT_EQ(pool.load().work, 0);
     EXPECT_EQ(pool.load().span[2], 0);
   }
+}
+
+// the pool's time (PoolTime): every batch counted, the handed-off ones (more than one worker and
+// one task) with their hand-off inside the batch's time; nothing handed off at 1 thread; reset
+// with the load
+TEST(ThreadPoolTest, TimeCountsBatchesAndTheirHandOff) {
+  for (int threads : {1, 2, 3}) {
+    ThreadPool pool(threads);
+    std::atomic<int> count{0};
+    pool.ParallelFor(0, [&](int, int) { ++count; });  // no batch
+    pool.ParallelFor(1, [&](int, int) { ++count; });
+    for (int k = 0; k < 5; ++k) pool.ParallelFor(8, [&](int, int) { ++count; });
+    EXPECT_EQ(count.load(), 41);
+    const PoolTime& t = pool.time();
+    EXPECT_EQ(t.batches, 6) << threads;
+    EXPECT_EQ(t.handed_off, threads > 1 ? 5 : 0) << threads;
+    EXPECT_GT(t.seconds, 0.0) << threads;
+    EXPECT_GT(t.cpu_seconds, 0.0) << threads;
+    EXPECT_GE(t.wake_seconds, 0.0) << threads;
+    EXPECT_GE(t.wait_seconds, 0.0) << threads;
+    EXPECT_LE(t.wake_seconds, t.seconds) << threads;
+    EXPECT_LE(t.wait_seconds, t.seconds) << threads;
+    if (threads == 1) {
+      EXPECT_EQ(t.wake_seconds, 0.0);
+      EXPECT_EQ(t.wait_seconds, 0.0);
+    }
+    PoolTime sum;
+    sum += t;
+    sum += t;
+    EXPECT_EQ(sum.batches, 12);
+    EXPECT_EQ(sum.seconds, 2 * t.seconds);
+    pool.ResetLoad();
+    EXPECT_EQ(pool.time().batches, 0);
+    EXPECT_EQ(pool.time().seconds, 0.0);
+  }
+}
+
+// no busy-waiting when idle: the workers poll for the next batch for at most kSpinSeconds (200
+// us), so after an idle pause 1000 times as long each of them sleeps when the next batch comes
+TEST(ThreadPoolTest, IdleWorkersSleep) {
+  ThreadPool pool(3);
+  std::atomic<int> count{0};
+  pool.ParallelFor(4, [&](int, int) { ++count; });
+  const long long sleeps = pool.time().sleeps;
+  std::this_thread::sleep_for(std::chrono::duration<double>(1000 * ThreadPool::kSpinSeconds));
+  pool.ParallelFor(4, [&](int, int) { ++count; });
+  EXPECT_EQ(pool.time().sleeps - sleeps, 2);
+  EXPECT_EQ(count.load(), 8);
 }
 
 }  // namespace

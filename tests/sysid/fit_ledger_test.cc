@@ -105,6 +105,38 @@ TEST(FitLedgerTest, SpringMassFitLedgerAddsUpAndTheEstimateCostsNoSteps) {
   EXPECT_EQ(again.simulation_steps, r.simulation_steps);
 }
 
+// The time inside the simulators' batches (core/thread_pool.h, PoolTime) in the ledger: a phase
+// that simulates has batches and spends part of its time in them, one that does not has none; at
+// 1 thread nothing is handed off (no wake-up, no wait); the spring-mass fit above, 1 and 2 threads
+TEST(FitLedgerTest, BatchTimeIsPartOfThePhaseThatSimulates) {
+  for (int threads : {1, 2}) {
+    Problem problem;
+    SpringMassProblem(&problem);
+    FitOptions o;
+    o.threads = threads;
+    const FitResult r = problem.Fit(o);
+    ASSERT_TRUE(r.converged) << r.termination;
+    long long batches = 0;
+    for (const LedgerRow& row : r.ledger) {
+      batches += row.batches;
+      EXPECT_EQ(row.steps > 0, row.batches > 0) << row.phase << " at " << threads;
+      EXPECT_GE(row.batch_seconds, 0.0) << row.phase;
+      EXPECT_LE(row.batch_seconds, row.seconds) << row.phase << " at " << threads;
+      EXPECT_LE(row.wake_seconds + row.wait_seconds, row.batch_seconds) << row.phase;
+      if (row.steps > 0) {
+        EXPECT_GT(row.batch_seconds, 0.0) << row.phase;
+        EXPECT_GT(row.batch_cpu_seconds, 0.0) << row.phase;
+      }
+      if (threads == 1) {
+        EXPECT_EQ(row.wake_seconds, 0.0) << row.phase;
+        EXPECT_EQ(row.wait_seconds, 0.0) << row.phase;
+      }
+    }
+    EXPECT_GT(batches, 0);
+    EXPECT_NE(FormatLedger(r.ledger, 1000).find("serial s"), std::string::npos);
+  }
+}
+
 // The same spring with a slide range of +-0.2 m that its excitation (amplitude 2 N against 4 N/m)
 // runs into: the limit row comes and goes, so the interval check runs, the cost at +-1 std of
 // each of the 2 parameters, one 1000-step rollout each (truth and start as above)
