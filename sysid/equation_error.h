@@ -8,8 +8,21 @@
 // needs beyond its actuators, e_k(p) = qfrc_inverse - qfrc_actuator (nv), which the true
 // parameters make zero up to noise. For the kinds of EntersInverseDynamicsLinearly
 // (sysid/variable_manifold.h) e is linear in p (friction loss: as long as the velocity keeps its
-// sign), so one forward difference per parameter gives the regressor A = de/dp and the start is
-// p = p0 - pinv(A) e(p0), clipped into the bounds. Parameters of other kinds keep their value.
+// sign), and the start is p = p0 - pinv(A) e(p0) with the regressor A = de/dp, clipped into the
+// bounds. Parameters of other kinds keep their value.
+//
+// The regressor's columns (EquationErrorRegressor) cost one mj_inverse per sample for e(p0) and
+// what each column needs beyond it, read from MuJoCo's continuous-time inverse (qfrc_inverse =
+// M qacc + bias - qfrc_passive - qfrc_constraint): joint damping +qvel and joint armature +qacc
+// at the joint's dofs; joint friction loss -1 / +1 / 0 at a dof whose friction row is in its
+// linear negative / linear positive / quadratic zone (rows exist where the friction loss is > 0);
+// body mass J(xipos)^T (a(xipos) - gravity), the force a unit point mass there needs
+// (mj_rnePostConstraint, mj_objectAcceleration, mj_jac); kinds that enter only the actuation: one
+// mj_fwdActuation at p0 + h; kinds that enter the velocity stage: mj_inverseSkip past the
+// position stage at p0 + h; the rest (and every column with mjENBL_INVDISCRETE, gravity
+// compensation of the body, fluid forces): a full mj_inverse at p0 + h after mj_setConst. Sensors
+// are never computed. tests/sysid/equation_error_test.cc checks the closed forms against forward
+// differences of full mj_inverse calls.
 //
 // Noise: qacc from differenced velocity noise is the weak part; the window (default 5 samples
 // each side) averages it, and the LM then removes what bias remains (this is only a start).
@@ -23,6 +36,7 @@
 
 #include <mujoco/mujoco.h>
 
+#include <Eigen/Core>
 #include <string>
 #include <vector>
 
@@ -44,6 +58,32 @@ struct EquationErrorStart {
 // why) when no sequence has qpos and qvel, no parameter's kind is linear, a logged sample has
 // contacts (their inverse forces are not linear in p and amplify the noise of qacc), or the
 // regressor is rank deficient. Throws MuJoCo errors (core/mujoco_env.h) only for a broken model.
+// How the regressor's columns are formed: the closed forms and stage skips above where they
+// hold (the fit's), or every column by a forward difference of full mj_inverse calls (the
+// reference the closed forms are tested against).
+enum class RegressorColumns { kFastest, kForwardDifference };
+
+// The linear system of the start: e0 = e(p0) and A = de/dp, rows sample by sample (samples x nv,
+// row i * nv + j: dof j of sample i), column c for params[cols[c]] (cols: indices into params of
+// kinds that enter the inverse dynamics linearly).
+struct EquationErrorSystem {
+  std::vector<double> p0;         // per parameter: initial, else the model's value
+  Eigen::MatrixXd A;              // rows x cols.size(); zero when contacts > 0
+  Eigen::VectorXd e0;             // rows
+  std::vector<bool> closed_form;  // per column: read from e(p0)'s pipeline, no second call
+  int samples = 0;                // samples used (rows / nv)
+  int contacts = 0;               // samples with contacts at p0
+  std::string note;               // why there are no samples, else empty
+};
+
+// The system of SolveEquationError (same samples; arguments as there). Throws as there.
+EquationErrorSystem EquationErrorRegressor(const mjModel& model,
+                                           const std::vector<FitParameter>& params,
+                                           const std::vector<int>& cols,
+                                           const std::vector<const FitSequence*>& sequences,
+                                           RegressorColumns how, int window = 5,
+                                           int max_samples = 4000);
+
 EquationErrorStart SolveEquationError(const mjModel& model, const std::vector<FitParameter>& params,
                                       const std::vector<int>& which,
                                       const std::vector<const FitSequence*>& sequences,
