@@ -317,18 +317,22 @@ EquationErrorStart SolveEquationError(const mjModel& model, const std::vector<Fi
                std::to_string(out.samples) + " samples): no equation-error start";
     return out;
   }
-  const Eigen::MatrixXd& A = sys.A;
 
-  // the least-squares step, columns scaled to unit norm; rank deficient: no start
-  const Eigen::VectorXd norms = A.colwise().norm().transpose().cwiseMax(1e-300);
-  const Eigen::MatrixXd As = A * norms.cwiseInverse().asDiagonal();
-  Eigen::JacobiSVD<Eigen::MatrixXd> svd(As, Eigen::ComputeThinU | Eigen::ComputeThinV);
-  const Eigen::VectorXd& sv = svd.singularValues();
+  // the least-squares step, columns scaled to unit norm: a Householder QR of A (blocked; no Q
+  // formed), the singular values of its n x n R (those of A) for the rank, then R \ Q^T (-e0);
+  // rank deficient: no start
+  const int nc = static_cast<int>(cols.size());
+  const Eigen::VectorXd norms = sys.A.colwise().norm().transpose().cwiseMax(1e-300);
+  Eigen::HouseholderQR<Eigen::MatrixXd> qr(sys.A * norms.cwiseInverse().asDiagonal());
+  const Eigen::MatrixXd R = qr.matrixQR().topRows(nc).triangularView<Eigen::Upper>();
+  const Eigen::VectorXd sv = Eigen::JacobiSVD<Eigen::MatrixXd>(R).singularValues();
   if (!(sv.minCoeff() > 1e-8 * sv.maxCoeff())) {
     out.note = "the logged motion does not determine the parameters (rank deficient regressor)";
     return out;
   }
-  const Eigen::VectorXd step = norms.cwiseInverse().asDiagonal() * svd.solve(-sys.e0);
+  const Eigen::VectorXd qtb = qr.householderQ().adjoint() * (-sys.e0);
+  const Eigen::VectorXd step = norms.cwiseInverse().asDiagonal() *
+                               R.triangularView<Eigen::Upper>().solve(qtb.head(nc)).eval();
   std::string values;
   for (size_t c = 0; c < cols.size(); ++c) {
     const FitParameter& p = params[cols[c]];
