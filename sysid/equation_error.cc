@@ -14,11 +14,19 @@ namespace mjsysid {
 
 namespace {
 
-// one logged sample: the state, the finite-difference acceleration and the held control
+// one logged step: the state at k and the acceleration (qvel_{k+1} - qvel_k) / (t_{k+1} - t_k),
+// the one the integrator applied from k to k + 1 when the log has one sample per step
 struct Sample {
   const FitSequence* seq;
   int k;
   Eigen::VectorXd qacc;
+};
+
+// one row block of the system: the mean of the equations of `count` consecutive steps from
+// `first` (indices into the steps)
+struct Window {
+  int first;
+  int count;
 };
 
 // how one column of the regressor is formed (ColumnFormOf)
@@ -51,22 +59,29 @@ int JointDofs(const mjModel& m, int j) {
 }
 
 // the form of parameter p's column. The closed forms hold for the continuous-time inverse
-// (mjENBL_INVDISCRETE off; MuJoCo's engine_inverse.c, engine_passive.c, engine_core_smooth.c,
-// engine_core_constraint.c); the stage skips follow the kind table's stage (core/parameters.h).
+// (qfrc_inverse = M qacc + bias - qfrc_passive - qfrc_constraint; MuJoCo's engine_inverse.c,
+// engine_passive.c, engine_core_smooth.c, engine_core_constraint.c) and for the discrete-time one
+// (mjENBL_INVDISCRETE) of the Euler and implicitfast integrators without free joints, which adds
+// h D qacc (D: the dof damping) and leaves the rest linear in qacc as above; the stage skips
+// follow the kind table's stage (core/parameters.h).
 ColumnForm ColumnFormOf(const mjModel& m, const Parameter& p, RegressorColumns how) {
   if (how == RegressorColumns::kForwardDifference) return ColumnForm::kFull;
-  const bool continuous = !(m.opt.enableflags & mjENBL_INVDISCRETE);
+  bool closed = true;
+  if (m.opt.enableflags & mjENBL_INVDISCRETE) {
+    closed = m.opt.integrator == mjINT_EULER || m.opt.integrator == mjINT_IMPLICITFAST;
+    for (int j = 0; j < m.njnt; ++j) closed = closed && m.jnt_type[j] != mjJNT_FREE;
+  }
   const int id = p.id();
   switch (p.kind()) {
     case ParameterKind::kJointDamping:
-      if (continuous && !(m.opt.disableflags & mjDSBL_DAMPER)) return ColumnForm::kDamping;
+      if (closed && !(m.opt.disableflags & mjDSBL_DAMPER)) return ColumnForm::kDamping;
       break;
     case ParameterKind::kJointArmature:
-      if (continuous) return ColumnForm::kArmature;
+      if (closed) return ColumnForm::kArmature;
       break;
     case ParameterKind::kJointFrictionLoss: {
       // its rows exist only where the friction loss is > 0 at p0
-      bool rows = continuous && !(m.opt.disableflags & mjDSBL_FRICTIONLOSS) &&
+      bool rows = closed && !(m.opt.disableflags & mjDSBL_FRICTIONLOSS) &&
                   !(m.opt.disableflags & mjDSBL_CONSTRAINT);
       for (int i = 0; i < JointDofs(m, id); ++i) {
         rows = rows && m.dof_frictionloss[m.jnt_dofadr[id] + i] > 0;
@@ -76,7 +91,7 @@ ColumnForm ColumnFormOf(const mjModel& m, const Parameter& p, RegressorColumns h
     }
     case ParameterKind::kBodyMass:
       // gravity compensation and fluid forces depend on the mass too
-      if (continuous && m.body_gravcomp[id] == 0 && m.opt.density == 0 && m.opt.viscosity == 0) {
+      if (closed && m.body_gravcomp[id] == 0 && m.opt.density == 0 && m.opt.viscosity == 0) {
         return ColumnForm::kPointMass;
       }
       break;
@@ -86,6 +101,13 @@ ColumnForm ColumnFormOf(const mjModel& m, const Parameter& p, RegressorColumns h
   if (!p.needs_set_const() && p.stage() == mjSTAGE_VEL) return ColumnForm::kActuation;
   if (!p.needs_set_const() && p.stage() == mjSTAGE_POS) return ColumnForm::kVelocityStage;
   return ColumnForm::kFull;
+}
+
+// whether the discrete-time inverse treats the dof damping implicitly (qfrc + h D qacc)
+bool ImplicitDamping(const mjModel& m) {
+  if (!(m.opt.enableflags & mjENBL_INVDISCRETE)) return false;
+  if (m.opt.integrator == mjINT_EULER) return !(m.opt.disableflags & mjDSBL_EULERDAMP);
+  return m.opt.integrator == mjINT_IMPLICITFAST || m.opt.integrator == mjINT_IMPLICIT;
 }
 
 // the state, acceleration and control of sample sm into d (no allocation)
@@ -130,32 +152,58 @@ EquationErrorSystem EquationErrorRegressor(const mjModel& model,
   }
   const std::vector<double>& p0 = sys.p0;
 
-  // the samples with qpos, qvel (and act) logged at k and qvel at k +- window
+  // the windows: around every stride-th logged sample k with qpos, qvel (and act), the steps
+  // k - window .. k + window - 1 (their accelerations span qvel_{k-window} .. qvel_{k+window});
+  // each step evaluated once, however many windows hold it
+  auto usable_sequence = [&](const FitSequence& s) {
+    return s.qpos.rows() && s.qvel.rows() && (m->na == 0 || s.act.rows());
+  };
   int usable = 0;
   for (const FitSequence* s : sequences) {
-    if (s->qpos.rows() && s->qvel.rows() && (m->na == 0 || s->act.rows())) {
-      usable += std::max(0, static_cast<int>(s->qvel.rows()) - 2 * window);
-    }
+    if (usable_sequence(*s)) usable += std::max(0, static_cast<int>(s->qvel.rows()) - 2 * window);
   }
   if (usable == 0) {
     sys.note = "the log has no qpos and qvel" + std::string(m->na ? " and act" : "");
     return sys;
   }
   const int stride = std::max(1, usable / max_samples);
-  std::vector<Sample> samples;
+  std::vector<Sample> samples;  // the steps
+  std::vector<Window> windows;
+  bool per_step = true;  // one logged sample per simulation step everywhere
   for (const FitSequence* s : sequences) {
-    if (!(s->qpos.rows() && s->qvel.rows() && (m->na == 0 || s->act.rows()))) continue;
+    if (!usable_sequence(*s)) continue;
     const int T = static_cast<int>(s->qvel.rows());
-    for (int k = window; k + window < T; k += stride) {
-      const double dt = SampleTime(*m, *s, k + window) - SampleTime(*m, *s, k - window);
-      Sample sm{s, k, (s->qvel.row(k + window) - s->qvel.row(k - window)).transpose() / dt};
+    std::vector<int> index(T, -1);  // step k's index in samples, -2: not finite
+    auto step = [&](int k) {
+      if (index[k] != -1) return index[k];
+      const double dt = SampleTime(*m, *s, k + 1) - SampleTime(*m, *s, k);
+      per_step = per_step && std::abs(dt - m->opt.timestep) <= 1e-9 * m->opt.timestep;
+      Sample sm{s, k, (s->qvel.row(k + 1) - s->qvel.row(k)).transpose() / dt};
       bool finite = sm.qacc.allFinite() && s->qpos.row(k).allFinite() && s->qvel.row(k).allFinite();
       if (m->na) finite = finite && s->act.row(k).allFinite();
-      if (finite) samples.push_back(std::move(sm));
+      if (!finite) return index[k] = -2;
+      samples.push_back(std::move(sm));
+      return index[k] = static_cast<int>(samples.size()) - 1;
+    };
+    for (int k = window; k + window < T; k += stride) {
+      // a window's steps are consecutive in samples (each is new, or the previous window's)
+      bool finite = true;
+      int first = -1;
+      for (int j = k - window; j < k + window; ++j) {
+        const int i = step(j);
+        finite = finite && i >= 0;
+        if (j == k - window) first = i;
+      }
+      if (finite) windows.push_back(Window{first, 2 * window});
     }
   }
-  sys.samples = static_cast<int>(samples.size());
-  const int rows = sys.samples * nv;
+  // the integrator's own relation between steps (mjENBL_INVDISCRETE; RK4 has none) when the log
+  // has one sample per step, else the continuous-time inverse
+  if (per_step && m->opt.integrator != mjINT_RK4) m->opt.enableflags |= mjENBL_INVDISCRETE;
+  sys.discrete = m->opt.enableflags & mjENBL_INVDISCRETE;
+  sys.samples = static_cast<int>(windows.size());
+  const int steps = static_cast<int>(samples.size());
+  const int rows = steps * nv;
   const int nc = static_cast<int>(cols.size());
   sys.e0.resize(rows);
   sys.A.setZero(rows, nc);
@@ -174,15 +222,19 @@ EquationErrorSystem EquationErrorRegressor(const mjModel& model,
   // mj_fwdActuation, then every column but the full ones from that sample's pipeline results
   set.Write(m, d, p0.data());
   std::vector<double> f0(nv), a0(nv), jacp(3 * nv);
-  for (int i = 0; i < sys.samples; ++i) {
+  std::vector<bool> contact(steps, false);
+  bool any_contact = false;
+  const double implicit_h = ImplicitDamping(*m) ? m->opt.timestep : 0.0;
+  for (int i = 0; i < steps; ++i) {
     LoadSample(*m, samples[i], d);
     mj_inverseSkip(m, d, mjSTAGE_NONE, 1);
     mj_fwdActuation(m, d);
-    sys.contacts += d->ncon > 0;
+    contact[i] = d->ncon > 0;
+    any_contact = any_contact || contact[i];
     mju_copy(f0.data(), d->qfrc_inverse, nv);
     mju_copy(a0.data(), d->qfrc_actuator, nv);
     for (int j = 0; j < nv; ++j) sys.e0[i * nv + j] = f0[j] - a0[j];
-    if (sys.contacts) continue;  // refused below; no columns
+    if (any_contact) continue;  // refused below; no columns
     // the com-based accelerations (cacc, world at -gravity) for the point-mass columns
     if (point_mass) mj_rnePostConstraint(m, d);
     for (int c = 0; c < nc; ++c) {
@@ -192,7 +244,7 @@ EquationErrorSystem EquationErrorRegressor(const mjModel& model,
         case ColumnForm::kDamping:
           for (int k = 0; k < JointDofs(*m, p.id()); ++k) {
             const int dof = m->jnt_dofadr[p.id()] + k;
-            col[dof] = d->qvel[dof];
+            col[dof] = d->qvel[dof] + implicit_h * d->qacc[dof];
           }
           break;
         case ColumnForm::kArmature:
@@ -246,7 +298,17 @@ EquationErrorSystem EquationErrorRegressor(const mjModel& model,
       set.WriteOne(m, d, cols[c], p0[cols[c]]);
     }
   }
-  if (sys.contacts) return sys;
+  if (any_contact) {
+    for (const Window& w : windows) {
+      for (int i = w.first; i < w.first + w.count; ++i) {
+        if (contact[i]) {
+          ++sys.contacts;
+          break;
+        }
+      }
+    }
+    return sys;
+  }
 
   // pass 2, column by column: the full columns by a forward difference at p0 + h (one
   // mj_setConst per column, as the parameter may need it); e is linear in these p
@@ -256,7 +318,7 @@ EquationErrorSystem EquationErrorRegressor(const mjModel& model,
     const double h = Step(p0[cols[c]]);
     p[cols[c]] = p0[cols[c]] + h;
     set.Write(m, d, p.data());
-    for (int i = 0; i < sys.samples; ++i) {
+    for (int i = 0; i < steps; ++i) {
       LoadSample(*m, samples[i], d);
       mj_inverseSkip(m, d, mjSTAGE_NONE, 1);
       mj_fwdActuation(m, d);
@@ -266,6 +328,22 @@ EquationErrorSystem EquationErrorRegressor(const mjModel& model,
     }
     p[cols[c]] = p0[cols[c]];
   }
+
+  // each window's rows: the mean of its steps' equations (the same filter on the forces and on
+  // every column of the regressor), sample by sample
+  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(sys.samples * nv, nc);
+  Eigen::VectorXd e = Eigen::VectorXd::Zero(sys.samples * nv);
+  for (int w = 0; w < sys.samples; ++w) {
+    const Window& win = windows[w];
+    for (int i = win.first; i < win.first + win.count; ++i) {
+      A.middleRows(w * nv, nv) += sys.A.middleRows(i * nv, nv);
+      e.segment(w * nv, nv) += sys.e0.segment(i * nv, nv);
+    }
+    A.middleRows(w * nv, nv) /= win.count;
+    e.segment(w * nv, nv) /= win.count;
+  }
+  sys.A = std::move(A);
+  sys.e0 = std::move(e);
   return sys;
 }
 

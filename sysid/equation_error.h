@@ -72,7 +72,8 @@ struct EquationErrorSystem {
   Eigen::VectorXd e0;             // rows
   std::vector<bool> closed_form;  // per column: read from e(p0)'s pipeline, no second call
   int samples = 0;                // samples used (rows / nv)
-  int contacts = 0;               // samples with contacts at p0
+  int contacts = 0;               // samples whose window has contacts at p0
+  bool discrete = false;          // the discrete-time inverse (one logged sample per step)
   std::string note;               // why there are no samples, else empty
 };
 
