@@ -167,40 +167,61 @@ EquationErrorSystem EquationErrorRegressor(const mjModel& model,
     return sys;
   }
   const int stride = std::max(1, usable / max_samples);
-  std::vector<Sample> samples;  // the steps
+  // the log's states are the integrator's own when every sample is one step after the previous
+  // one and qpos_{k+1} = qpos_k (+) dt qvel_{k+1} (semi-implicit Euler, implicit and implicitfast)
+  // holds to 1e-9 (states logged by a simulator; noisy or filtered states fail it); RK4: never
+  bool own = m->opt.integrator != mjINT_RK4;
+  std::vector<double> dq(nv);
+  for (const FitSequence* s : sequences) {
+    if (!own || !usable_sequence(*s)) continue;
+    for (int k = 0; own && k + 1 < s->qvel.rows(); ++k) {
+      const double dt = SampleTime(*m, *s, k + 1) - SampleTime(*m, *s, k);
+      own = std::abs(dt - m->opt.timestep) <= 1e-9 * m->opt.timestep;
+      if (!own) break;
+      mj_differentiatePos(m, dq.data(), dt, s->qpos.row(k).data(), s->qpos.row(k + 1).data());
+      for (int j = 0; j < nv; ++j) {
+        const double v = s->qvel(k + 1, j);
+        own = own && std::abs(dq[j] - v) <= 1e-9 * (1 + std::abs(v));
+      }
+    }
+  }
+  // own states: each step's equation at its one-step acceleration (qvel_{k+1} - qvel_k) / dt, the
+  // integrator's (mjENBL_INVDISCRETE), and a window's rows the mean of its 2 x window steps'
+  // equations; else one equation per window at the central difference of qvel over it
+  std::vector<Sample> samples;  // the steps (own states) or the windows' centres
   std::vector<Window> windows;
-  bool per_step = true;  // one logged sample per simulation step everywhere
   for (const FitSequence* s : sequences) {
     if (!usable_sequence(*s)) continue;
     const int T = static_cast<int>(s->qvel.rows());
     std::vector<int> index(T, -1);  // step k's index in samples, -2: not finite
-    auto step = [&](int k) {
-      if (index[k] != -1) return index[k];
-      const double dt = SampleTime(*m, *s, k + 1) - SampleTime(*m, *s, k);
-      per_step = per_step && std::abs(dt - m->opt.timestep) <= 1e-9 * m->opt.timestep;
-      Sample sm{s, k, (s->qvel.row(k + 1) - s->qvel.row(k)).transpose() / dt};
+    auto add = [&](int k, int k0, int k1) {
+      const double dt = SampleTime(*m, *s, k1) - SampleTime(*m, *s, k0);
+      Sample sm{s, k, (s->qvel.row(k1) - s->qvel.row(k0)).transpose() / dt};
       bool finite = sm.qacc.allFinite() && s->qpos.row(k).allFinite() && s->qvel.row(k).allFinite();
       if (m->na) finite = finite && s->act.row(k).allFinite();
-      if (!finite) return index[k] = -2;
+      if (!finite) return -2;
       samples.push_back(std::move(sm));
-      return index[k] = static_cast<int>(samples.size()) - 1;
+      return static_cast<int>(samples.size()) - 1;
     };
     for (int k = window; k + window < T; k += stride) {
+      if (!own) {
+        const int i = add(k, k - window, k + window);
+        if (i >= 0) windows.push_back(Window{i, 1});
+        continue;
+      }
       // a window's steps are consecutive in samples (each is new, or the previous window's)
       bool finite = true;
       int first = -1;
       for (int j = k - window; j < k + window; ++j) {
-        const int i = step(j);
-        finite = finite && i >= 0;
-        if (j == k - window) first = i;
+        if (index[j] == -1) index[j] = add(j, j, j + 1);
+        finite = finite && index[j] >= 0;
+        if (j == k - window) first = index[j];
       }
       if (finite) windows.push_back(Window{first, 2 * window});
     }
   }
-  // the integrator's own relation between steps (mjENBL_INVDISCRETE; RK4 has none) when the log
-  // has one sample per step, else the continuous-time inverse
-  if (per_step && m->opt.integrator != mjINT_RK4) m->opt.enableflags |= mjENBL_INVDISCRETE;
-  sys.discrete = m->opt.enableflags & mjENBL_INVDISCRETE;
+  if (own) m->opt.enableflags |= mjENBL_INVDISCRETE;
+  sys.discrete = own;
   sys.samples = static_cast<int>(windows.size());
   const int steps = static_cast<int>(samples.size());
   const int rows = steps * nv;
@@ -424,7 +445,10 @@ EquationErrorStart SolveEquationError(const mjModel& model, const std::vector<Fi
     values += (values.empty() ? "" : ", ") + p.name + " " + FormatDigits(v, 4);
   }
   out.note = "equation-error start from " + std::to_string(out.samples) +
-             " logged samples (mj_inverse): " + values;
+             " logged samples (mj_inverse, " +
+             (sys.discrete ? std::string("the integrator's steps")
+                           : "central differences over +-" + std::to_string(window) + " samples") +
+             "): " + values;
   return out;
 }
 
