@@ -35,6 +35,7 @@ enum class ColumnForm {
   kArmature,       // joint armature: +qacc at the joint's dofs (M's diagonal holds the armature)
   kFrictionLoss,   // joint friction loss: -1 / +1 / 0 where its row is linear neg / pos / quadratic
   kPointMass,      // body mass: J(xipos)^T (acceleration of xipos - gravity), a point mass
+  kRigidBody,      // body mass with its inertia scaled along: the point mass and the rotation
   kActuation,      // enters the actuation only: mj_fwdActuation again
   kVelocityStage,  // enters the velocity stage: mj_inverseSkip past the position stage
   kFull,           // anything else: a full mj_inverse at p0 + h (after mj_setConst)
@@ -90,9 +91,11 @@ ColumnForm ColumnFormOf(const mjModel& m, const Parameter& p, RegressorColumns h
       break;
     }
     case ParameterKind::kBodyMass:
+    case ParameterKind::kBodyMassInertia:
       // gravity compensation and fluid forces depend on the mass too
       if (closed && m.body_gravcomp[id] == 0 && m.opt.density == 0 && m.opt.viscosity == 0) {
-        return ColumnForm::kPointMass;
+        return p.kind() == ParameterKind::kBodyMass ? ColumnForm::kPointMass
+                                                    : ColumnForm::kRigidBody;
       }
       break;
     default:
@@ -234,7 +237,8 @@ EquationErrorSystem EquationErrorRegressor(const mjModel& model,
   bool point_mass = false;
   for (int c = 0; c < nc; ++c) {
     form[c] = ColumnFormOf(*m, set[cols[c]], how);
-    point_mass = point_mass || form[c] == ColumnForm::kPointMass;
+    point_mass =
+        point_mass || form[c] == ColumnForm::kPointMass || form[c] == ColumnForm::kRigidBody;
   }
   sys.closed_form.assign(nc, false);
   for (int c = 0; c < nc; ++c) sys.closed_form[c] = form[c] < ColumnForm::kActuation;
@@ -242,7 +246,7 @@ EquationErrorSystem EquationErrorRegressor(const mjModel& model,
   // pass 1, sample by sample at p0: e(p0) from one mj_inverse (sensors skipped) and
   // mj_fwdActuation, then every column but the full ones from that sample's pipeline results
   set.Write(m, d, p0.data());
-  std::vector<double> f0(nv), a0(nv), jacp(3 * nv);
+  std::vector<double> f0(nv), a0(nv), jacp(3 * nv), jacr(3 * nv);
   std::vector<bool> contact(steps, false);
   bool any_contact = false;
   const double implicit_h = ImplicitDamping(*m) ? m->opt.timestep : 0.0;
@@ -286,13 +290,37 @@ EquationErrorSystem EquationErrorRegressor(const mjModel& model,
                                                                    : 0.0;
           }
           break;
-        case ColumnForm::kPointMass: {
-          // a unit point mass at the body's centre of mass: J^T (its acceleration - gravity)
-          double acc[6];
-          mj_objectAcceleration(m, d, mjOBJ_BODY, p.id(), acc, 0);
-          mj_jac(m, d, jacp.data(), nullptr, d->xipos + 3 * p.id(), p.id());
+        case ColumnForm::kPointMass:
+        case ColumnForm::kRigidBody: {
+          // a unit point mass at the body's centre of mass: Jp^T (its acceleration - gravity);
+          // with the inertia scaled along (I = I0 m / m0 about the centre of mass, world frame
+          // I0w = R I0 R^T), also Jr^T (I0w alpha + omega x I0w omega) / m0
+          const int b = p.id();
+          double acc[6], vel[6];
+          mj_objectAcceleration(m, d, mjOBJ_BODY, b, acc, 0);
+          const bool rigid = form[c] == ColumnForm::kRigidBody;
+          mj_jac(m, d, jacp.data(), rigid ? jacr.data() : nullptr, d->xipos + 3 * b, b);
           for (int j = 0; j < nv; ++j) {
             col[j] = jacp[j] * acc[3] + jacp[nv + j] * acc[4] + jacp[2 * nv + j] * acc[5];
+          }
+          if (!rigid) break;
+          mj_objectVelocity(m, d, mjOBJ_BODY, b, vel, 0);
+          // torque = R (I0 / m0) R^T alpha + omega x R (I0 / m0) R^T omega, R = ximat
+          const double* R = d->ximat + 9 * b;
+          double la[3], lw[3], ta[3], tw[3], torque[3];
+          mju_mulMatTVec3(la, R, acc);  // alpha in the inertial frame
+          mju_mulMatTVec3(lw, R, vel);  // omega in the inertial frame
+          for (int k = 0; k < 3; ++k) {
+            const double i0 = m->body_inertia[3 * b + k] / p0[cols[c]];
+            la[k] *= i0;
+            lw[k] *= i0;
+          }
+          mju_mulMatVec3(ta, R, la);
+          mju_mulMatVec3(tw, R, lw);
+          mju_cross(torque, vel, tw);
+          for (int k = 0; k < 3; ++k) torque[k] += ta[k];
+          for (int j = 0; j < nv; ++j) {
+            col[j] += jacr[j] * torque[0] + jacr[nv + j] * torque[1] + jacr[2 * nv + j] * torque[2];
           }
           break;
         }

@@ -31,13 +31,15 @@
 // -1 / +1 / 0 at a dof whose friction row is in its linear negative / linear positive /
 // quadratic zone (rows exist where the friction loss is > 0); body mass J(xipos)^T (a(xipos) -
 // gravity), the force a unit point mass there needs (mj_rnePostConstraint,
-// mj_objectAcceleration, mj_jac); kinds that enter only the actuation: one mj_fwdActuation at
-// p0 + h; kinds that enter the velocity stage: mj_inverseSkip past the position stage at p0 + h;
-// the rest (and every column of the discrete form with free joints or another integrator than
-// Euler and implicitfast, gravity compensation of the body, fluid forces): a full mj_inverse at
-// p0 + h after mj_setConst. Sensors are never computed. tests/sysid/equation_error_test.cc checks
-// the closed forms against forward differences of full mj_inverse calls (they leave out how the
-// friction row's force in its quadratic zone moves with the other parameters).
+// mj_objectAcceleration, mj_jac), and for body_mass_inertia also Jr^T (I0w alpha + omega x I0w
+// omega) / m0 (the inertia I0 at the mass m0 scaled along, in world axes); kinds that enter only
+// the actuation: one mj_fwdActuation at p0 + h; kinds that enter the velocity stage: mj_inverseSkip
+// past the position stage at p0 + h; the rest (and every column of the discrete form with free
+// joints or another integrator than Euler and implicitfast, gravity compensation of the body, fluid
+// forces): a full mj_inverse at p0 + h after mj_setConst. Sensors are never computed.
+// tests/sysid/equation_error_test.cc checks the closed forms against forward differences of full
+// mj_inverse calls (they leave out how the friction row's force in its quadratic zone moves with
+// the other parameters).
 //
 // Contacts: refused. Treating the contact forces as per-sample unknowns (a normal force per
 // contact, friction mu N against the slip) was measured on the robust suite's sliding crate and

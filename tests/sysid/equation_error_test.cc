@@ -209,7 +209,8 @@ TEST(EquationErrorTest, AutoStartsInCheckpointsAndResumedConfig) {
 // masses, seven dampings, seven armatures; 3 x 2000 steps; implicitfast), cartpole (pole mass,
 // cart damping, slide friction loss; 3 x 2000; Euler) and spring_mass (damping, stiffness: a
 // stage skip, and the motor's gain instead of the mass: actuation only, the solution scaled by
-// the model's mass over the true one; Euler) experiments with
+// the model's mass over the true one; Euler) and double_pendulum (two link masses with their
+// inertias scaled along; Euler) experiments with
 // their simulated logs, once with the logged states (the integrator's own: the one-step form)
 // and once with noise added to them (0.001 in qpos, 0.01 in qvel: central differences): e(p0)
 // the same to the bit; every column within 1e-9 of its norm on the rows of dofs without friction
@@ -222,7 +223,7 @@ TEST(EquationErrorTest, AutoStartsInCheckpointsAndResumedConfig) {
 // simulated noise is on the sensors; measured in [ measured ])
 TEST(EquationErrorTest, ClosedFormColumnsEqualForwardDifferences) {
   InstallMujocoHandlers();
-  for (const std::string name : {"arm7", "cartpole", "spring_mass"}) {
+  for (const std::string name : {"arm7", "cartpole", "spring_mass", "double_pendulum"}) {
     const io::ExperimentConfig cfg =
         test::ShippedExperimentWithLog(name + ".yaml", 3, 2000, "equation_error_cf_" + name);
     for (const bool noisy : {false, true}) {
