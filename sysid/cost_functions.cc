@@ -85,6 +85,11 @@ bool SegmentCost::EvaluateOrThrow(double const* const* parameters, double* resid
   const int ns = dims.ns;
   const int ncol = want ? s.ncol : 0;
   std::vector<double> row_t(want ? ncol : 0);  // d(simulated)/d(column) of one residual
+  // dp/dz of the model's parameters at this point, once per evaluation (not per row)
+  std::vector<double> dpdz(want && zv ? npm : 0);
+  for (int j = 0; j < static_cast<int>(dpdz.size()); ++j) {
+    dpdz[j] = I.DpDz(mo.global[j], zv[mo.global[j]]);
+  }
 
   // zero the Jacobian blocks
   if (want) {
@@ -126,7 +131,7 @@ bool SegmentCost::EvaluateOrThrow(double const* const* parameters, double* resid
         const int nz = static_cast<int>(I.z.size());
         for (int j = 0; j < npm; ++j) {
           const int g = mo.global[j];
-          jacobians[zb][row * nz + g] = r.d_simulated * row_t[j] * I.DpDz(g, zv[g]);
+          jacobians[zb][row * nz + g] = r.d_simulated * row_t[j] * dpdz[j];
         }
       }
       if (mb >= 0 && jacobians[mb] && ch.measurement >= 0) {
@@ -165,7 +170,7 @@ bool SegmentCost::EvaluateOrThrow(double const* const* parameters, double* resid
         for (int i = 0; i < nx; ++i) {
           for (int j = 0; j < npm; ++j) {
             const int g = mo.global[j];
-            jacobians[zb][(r0 + i) * nz + g] = w[i] * S(i, j) * I.DpDz(g, zv[g]);
+            jacobians[zb][(r0 + i) * nz + g] = w[i] * S(i, j) * dpdz[j];
           }
         }
       }
