@@ -127,13 +127,6 @@ const char* JacobianModeName(JacobianMode mode) {
   return "?";
 }
 
-void RestoreStep(const mjModel& m, const StateDims& dims, const Trajectory& tr, int k,
-                 const double* ctrl, mjData* d) {
-  SetPhysics(m, d, tr.states.row(k).data());
-  SetStepState(m, dims, d, tr.step.row(k).data());
-  for (int i = 0; i < dims.nu; ++i) d->ctrl[i] = ctrl[i];
-}
-
 void RestoreInputs(const mjModel& m, const StateDims& dims, const Trajectory& tr, mjData* d) {
   if (dims.ninput == 0) return;
   CallMujoco([&] { mj_setState(&m, d, tr.inputs.data(), static_cast<int>(dims.input_sig)); });

@@ -47,22 +47,6 @@ void SetStepExtras(const mjModel& m, const StateDims& dims, mjData* d, const dou
   CallMujoco([&] { mj_setState(&m, d, extras, static_cast<int>(dims.step_extra_sig)); });
 }
 
-void TangentDifference(const mjModel& m, const double* x1, const double* x2, double inv_scale,
-                       double* dx) {
-  const int nq = static_cast<int>(m.nq), nv = static_cast<int>(m.nv), na = static_cast<int>(m.na);
-  // positions: manifold difference, (q2 - q1) / dt with dt = 1/inv_scale; without ball and free
-  // joints (nq = nv: hinges and slides, qpos and dof addresses equal) the same arithmetic here
-  const double dt = 1.0 / inv_scale;
-  if (nq == nv) {
-    for (int i = 0; i < nv; ++i) dx[i] = (x2[i] - x1[i]) / dt;
-  } else {
-    mj_differentiatePos(&m, dx, dt, x1, x2);
-  }
-  // velocities and activations: vector difference
-  for (int i = 0; i < nv; ++i) dx[nv + i] = (x2[nq + i] - x1[nq + i]) * inv_scale;
-  for (int i = 0; i < na; ++i) dx[2 * nv + i] = (x2[nq + nv + i] - x1[nq + nv + i]) * inv_scale;
-}
-
 void InverseRightJacobianSO3(const double* phi, double w, double* out) {
   const double theta2 = phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2];
   const double theta = std::sqrt(theta2);
@@ -79,19 +63,6 @@ void InverseRightJacobianSO3(const double* phi, double w, double* out) {
       out[i * 3 + j] = w * ((i == j ? 1.0 : 0.0) + 0.5 * K[i * 3 + j] + c * k2);
     }
   }
-}
-
-void TangentPerturb(const mjModel& m, mjData* d, const double* dx, double scale) {
-  const int nv = static_cast<int>(m.nv), na = static_cast<int>(m.na);
-  // positions: integrate along the velocity-space direction for "time" scale; without ball and
-  // free joints (nq = nv) mj_integratePos's own arithmetic, q + scale * dq, here
-  if (m.nq == m.nv) {
-    for (int i = 0; i < nv; ++i) d->qpos[i] += scale * dx[i];
-  } else {
-    mj_integratePos(&m, d->qpos, dx, scale);
-  }
-  for (int i = 0; i < nv; ++i) d->qvel[i] += scale * dx[nv + i];
-  for (int i = 0; i < na; ++i) d->act[i] += scale * dx[2 * nv + i];
 }
 
 void StepSkip(const mjModel* m, mjData* d, int skipstage, bool skipsensor) {

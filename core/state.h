@@ -95,8 +95,21 @@ inline void SetStepState(const mjModel& m, const StateDims& dims, mjData* d, con
 // dx = (x2 (-) x1) * inv_scale in tangent space; x1, x2 physics vectors, dx of length nx. Positions
 // as mj_differentiatePos with dt = 1 / inv_scale, bit for bit (a model without ball and free
 // joints skips the call: the same subtraction and division inline; tested)
-void TangentDifference(const mjModel& m, const double* x1, const double* x2, double inv_scale,
-                       double* dx);
+inline void TangentDifference(const mjModel& m, const double* x1, const double* x2,
+                              double inv_scale, double* dx) {
+  const int nq = static_cast<int>(m.nq), nv = static_cast<int>(m.nv), na = static_cast<int>(m.na);
+  // positions: manifold difference, (q2 - q1) / dt with dt = 1/inv_scale; without ball and free
+  // joints (nq = nv: hinges and slides, qpos and dof addresses equal) the same arithmetic here
+  const double dt = 1.0 / inv_scale;
+  if (nq == nv) {
+    for (int i = 0; i < nv; ++i) dx[i] = (x2[i] - x1[i]) / dt;
+  } else {
+    mj_differentiatePos(&m, dx, dt, x1, x2);
+  }
+  // velocities and activations: vector difference
+  for (int i = 0; i < nv; ++i) dx[nv + i] = (x2[nq + i] - x1[nq + i]) * inv_scale;
+  for (int i = 0; i < na; ++i) dx[2 * nv + i] = (x2[nq + nv + i] - x1[nq + nv + i]) * inv_scale;
+}
 
 // out = w Jr^-1(phi) (3 x 3, row-major): the inverse right Jacobian of SO(3), so that
 // log(exp(phi) exp(d)) = phi + Jr^-1(phi) d + O(|d|^2) for rotation vectors phi, d (rad), and
@@ -106,7 +119,18 @@ void InverseRightJacobianSO3(const double* phi, double w, double* out);
 
 // perturbs d's qpos, qvel, act in place along the tangent vector dx scaled by scale; positions as
 // mj_integratePos, bit for bit (inline without ball and free joints; tested)
-void TangentPerturb(const mjModel& m, mjData* d, const double* dx, double scale);
+inline void TangentPerturb(const mjModel& m, mjData* d, const double* dx, double scale) {
+  const int nv = static_cast<int>(m.nv), na = static_cast<int>(m.na);
+  // positions: integrate along the velocity-space direction for "time" scale; without ball and
+  // free joints (nq = nv) mj_integratePos's own arithmetic, q + scale * dq, here
+  if (m.nq == m.nv) {
+    for (int i = 0; i < nv; ++i) d->qpos[i] += scale * dx[i];
+  } else {
+    mj_integratePos(&m, d->qpos, dx, scale);
+  }
+  for (int i = 0; i < nv; ++i) d->qvel[i] += scale * dx[nv + i];
+  for (int i = 0; i < na; ++i) d->act[i] += scale * dx[2 * nv + i];
+}
 
 // one step of the simulation that skips the pipeline stages before skipstage (mjtStage), and the
 // sensors if skipsensor. With mjSTAGE_NONE and skipsensor = false it computes exactly what mj_step
