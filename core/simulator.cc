@@ -127,13 +127,6 @@ const char* JacobianModeName(JacobianMode mode) {
   return "?";
 }
 
-void RestoreStep(const mjModel& m, const StateDims& dims, const Trajectory& tr, int k,
-                 const double* ctrl, mjData* d) {
-  SetPhysics(m, d, tr.states.row(k).data());
-  SetStepState(m, dims, d, tr.step.row(k).data());
-  mju_copy(d->ctrl, ctrl, dims.nu);
-}
-
 void RestoreInputs(const mjModel& m, const StateDims& dims, const Trajectory& tr, mjData* d) {
   if (dims.ninput == 0) return;
   CallMujoco([&] { mj_setState(&m, d, tr.inputs.data(), static_cast<int>(dims.input_sig)); });
@@ -324,16 +317,27 @@ void Simulator::CheckCancel() const {
   }
 }
 
+namespace {
+
+// the SimulationError of a step that warned (out of line: the step loops only test the counters)
+[[noreturn, gnu::noinline]] void ThrowStepWarning(const mjData& d, double t, int seq_index,
+                                                  int step, const char* what) {
+  // t comes from the caller: MuJoCo's reset after a bad acceleration sets d.time to 0
+  throw SimulationError(std::string(what) + ": sequence " + std::to_string(seq_index) + ", step " +
+                            std::to_string(step) + " (t = " + FormatDigits(t, 6) +
+                            " s): MuJoCo warning: " + SimulationWarnings(d),
+                        seq_index, step);
+}
+
+}  // namespace
+
 void Simulator::CheckStep(const mjData& d, double t, int seq_index, int step,
                           const char* what) const {
-  const std::string warnings = SimulationWarnings(d);
-  if (!warnings.empty()) {
-    // t comes from the caller: MuJoCo's reset after a bad acceleration sets d.time to 0
-    throw SimulationError(std::string(what) + ": sequence " + std::to_string(seq_index) +
-                              ", step " + std::to_string(step) + " (t = " + FormatDigits(t, 6) +
-                              " s): MuJoCo warning: " + warnings,
-                          seq_index, step);
-  }
+  // every step passes here: the counters are read without a branch per counter, the message
+  // built only when one is set
+  int warned = 0;
+  for (int i = 0; i < mjNWARNING; ++i) warned |= d.warning[i].number > 0;
+  if (warned) ThrowStepWarning(d, t, seq_index, step, what);
 }
 
 void Simulator::RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq, int seq_index,
@@ -348,7 +352,8 @@ void Simulator::RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq
   for (int k = 0; k < T; ++k) {
     CheckCancel();
     tenths.At(k);
-    mju_copy(d->ctrl, seq.ctrl.row(k).data(), dims_.nu);
+    const double* u = seq.ctrl.row(k).data();
+    for (int i = 0; i < dims_.nu; ++i) d->ctrl[i] = u[i];
     if (step) GetStepState(*m, dims_, *d, step->row(k).data());
     GetPhysics(*m, *d, states->row(k).data());
     // rows 0..k recorded, with the sensors and contacts of the steps before
@@ -362,7 +367,10 @@ void Simulator::RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq
     if (reduced_ && !ReductionGuardClear(reduction_, *m, *d)) {
       guard_tripped_.store(true, std::memory_order_relaxed);
     }
-    if (want_sensors) mju_copy(sensors->row(k).data(), d->sensordata, dims_.ns);
+    if (want_sensors) {
+      double* y = sensors->row(k).data();
+      for (int i = 0; i < dims_.ns; ++i) y[i] = d->sensordata[i];
+    }
     if (ncon) (*ncon)[k] = d->ncon;
   }
   GetPhysics(*m, *d, states->row(T).data());

@@ -123,8 +123,13 @@ struct Trajectory {
 // and the controls ctrl (nu, u_k), so that a step of m from d repeats step k (with m's
 // parameters). The inputs are not written: d must hold tr.inputs already (RestoreInputs; mj_step
 // never changes them). Copies only: no allocation, no MuJoCo error for a model of tr's sizes.
-void RestoreStep(const mjModel& m, const StateDims& dims, const Trajectory& tr, int k,
-                 const double* ctrl, mjData* d);
+// Inline: every perturbed step starts here.
+inline void RestoreStep(const mjModel& m, const StateDims& dims, const Trajectory& tr, int k,
+                        const double* ctrl, mjData* d) {
+  SetPhysics(m, d, tr.states.row(k).data());
+  SetStepState(m, dims, d, tr.step.row(k).data());
+  for (int i = 0; i < dims.nu; ++i) d->ctrl[i] = ctrl[i];
+}
 
 // writes tr.inputs into d (once before restoring steps of tr)
 void RestoreInputs(const mjModel& m, const StateDims& dims, const Trajectory& tr, mjData* d);

@@ -31,18 +31,6 @@ StateDims::StateDims(const mjModel& m)
       nstep(1 + nv + StateSize(m, step_extra_sig)),
       ninput(StateSize(m, input_sig)) {}
 
-void GetPhysics(const mjModel& m, const mjData& d, double* x) {
-  mju_copy(x, d.qpos, static_cast<int>(m.nq));
-  mju_copy(x + m.nq, d.qvel, static_cast<int>(m.nv));
-  mju_copy(x + m.nq + m.nv, d.act, static_cast<int>(m.na));
-}
-
-void SetPhysics(const mjModel& m, mjData* d, const double* x) {
-  mju_copy(d->qpos, x, static_cast<int>(m.nq));
-  mju_copy(d->qvel, x + m.nq, static_cast<int>(m.nv));
-  mju_copy(d->act, x + m.nq + m.nv, static_cast<int>(m.na));
-}
-
 void GetFullState(const mjModel* m, const mjData* d, double* state) {
   CallMujoco([=] { mj_getState(m, d, state, kFullStateSig); });
 }
@@ -51,33 +39,12 @@ void SetFullState(const mjModel* m, mjData* d, const double* state) {
   CallMujoco([=] { mj_setState(m, d, state, kFullStateSig); });
 }
 
-void GetStepState(const mjModel& m, const StateDims& dims, const mjData& d, double* step) {
-  step[0] = d.time;
-  mju_copy(step + 1, d.qacc_warmstart, dims.nv);
-  // the extras only where the model has them (mj_getState walks every state element)
-  if (dims.nstep > 1 + dims.nv) {
-    CallMujoco(
-        [&] { mj_getState(&m, &d, step + 1 + dims.nv, static_cast<int>(dims.step_extra_sig)); });
-  }
+void GetStepExtras(const mjModel& m, const StateDims& dims, const mjData& d, double* extras) {
+  CallMujoco([&] { mj_getState(&m, &d, extras, static_cast<int>(dims.step_extra_sig)); });
 }
 
-void SetStepState(const mjModel& m, const StateDims& dims, mjData* d, const double* step) {
-  d->time = step[0];
-  mju_copy(d->qacc_warmstart, step + 1, dims.nv);
-  if (dims.nstep > 1 + dims.nv) {
-    CallMujoco(
-        [&] { mj_setState(&m, d, step + 1 + dims.nv, static_cast<int>(dims.step_extra_sig)); });
-  }
-}
-
-void TangentDifference(const mjModel& m, const double* x1, const double* x2, double inv_scale,
-                       double* dx) {
-  const int nq = static_cast<int>(m.nq), nv = static_cast<int>(m.nv), na = static_cast<int>(m.na);
-  // positions: manifold difference, (q2 - q1) / dt with dt = 1/inv_scale
-  mj_differentiatePos(&m, dx, 1.0 / inv_scale, x1, x2);
-  // velocities and activations: vector difference
-  for (int i = 0; i < nv; ++i) dx[nv + i] = (x2[nq + i] - x1[nq + i]) * inv_scale;
-  for (int i = 0; i < na; ++i) dx[2 * nv + i] = (x2[nq + nv + i] - x1[nq + nv + i]) * inv_scale;
+void SetStepExtras(const mjModel& m, const StateDims& dims, mjData* d, const double* extras) {
+  CallMujoco([&] { mj_setState(&m, d, extras, static_cast<int>(dims.step_extra_sig)); });
 }
 
 void InverseRightJacobianSO3(const double* phi, double w, double* out) {
@@ -96,14 +63,6 @@ void InverseRightJacobianSO3(const double* phi, double w, double* out) {
       out[i * 3 + j] = w * ((i == j ? 1.0 : 0.0) + 0.5 * K[i * 3 + j] + c * k2);
     }
   }
-}
-
-void TangentPerturb(const mjModel& m, mjData* d, const double* dx, double scale) {
-  const int nv = static_cast<int>(m.nv), na = static_cast<int>(m.na);
-  // positions: integrate along the velocity-space direction for "time" scale
-  mj_integratePos(&m, d->qpos, dx, scale);
-  for (int i = 0; i < nv; ++i) d->qvel[i] += scale * dx[nv + i];
-  for (int i = 0; i < na; ++i) d->act[i] += scale * dx[2 * nv + i];
 }
 
 void StepSkip(const mjModel* m, mjData* d, int skipstage, bool skipsensor) {

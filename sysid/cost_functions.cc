@@ -115,6 +115,9 @@ bool SegmentCost::EvaluateOrThrow(double const* const* parameters, double* resid
   const std::vector<double>& position = I.grids[seg.seq].position;
   int row = -1;
   for (int k = first; k < first + count; ++k) {
+    // where the sample is read without a delay: once per sample, shared by its channels that have
+    // no measurement terms (the same DelayedSample their delay 0 gives)
+    const DelayedSample at0(position[k] - seg.k0, tr.T, 0.0, dt);
     for (int c = 0; c < nch; ++c) {
       const Channel& ch = chans[c];
       const double measured = sq.measured(k, ch.column);
@@ -122,7 +125,8 @@ bool SegmentCost::EvaluateOrThrow(double const* const* parameters, double* resid
       ++row;
       const MeasurementTerms terms =
           ch.measurement >= 0 ? I.Terms(ch.measurement, mv) : MeasurementTerms();
-      const DelayedSample at(position[k] - seg.k0, tr.T, terms.delay, dt);
+      const DelayedSample at =
+          ch.measurement >= 0 ? DelayedSample(position[k] - seg.k0, tr.T, terms.delay, dt) : at0;
       const SensorResidual r =
           EvaluateSensorResidual(at, {tr.sensors.data() + ch.column, tr.sensors.cols()}, measured,
                                  ch.weight, terms, I.options.loss, I.options.loss_scale);

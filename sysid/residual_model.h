@@ -20,6 +20,8 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
 
 namespace mjsysid {
 
@@ -28,8 +30,39 @@ namespace mjsysid {
 enum class LossType { kNone, kHuber, kCauchy };
 
 // Returns rhat = sign(e) sqrt(rho(e^2)) for the loss with scale c > 0 (weighted residual units),
-// so that rhat^2 is the robust cost of e, and d rhat / d e in *derivative (1 at e = 0).
-double RobustResidual(LossType loss, double c, double e, double* derivative);
+// so that rhat^2 is the robust cost of e, and d rhat / d e in *derivative (1 at e = 0). Inline,
+// like the rest of a residual row's arithmetic below: the cost functions run it for every
+// measured cell at every evaluation.
+inline double RobustResidual(LossType loss, double c, double e, double* derivative) {
+  // robust loss: rho and rho' at s = e^2, then rhat = sign(e) sqrt(rho) and
+  // d rhat / d e = rho'(s) 2e / (2 rhat) = rho'(s) e / rhat
+  const double s = e * e;
+  double rho = s, rho1 = 1;
+  switch (loss) {
+    case LossType::kNone:
+      *derivative = 1;
+      return e;
+    case LossType::kHuber:
+      if (s > c * c) {
+        const double r = std::sqrt(s);
+        rho = 2 * c * r - c * c;
+        rho1 = c / r;
+      }
+      break;
+    case LossType::kCauchy:
+      rho = c * c * std::log1p(s / (c * c));
+      rho1 = 1 / (1 + s / (c * c));
+      break;
+  }
+  // at e = 0 every loss is quadratic: rhat = e, slope 1
+  if (s == 0) {
+    *derivative = 1;
+    return 0;
+  }
+  const double rhat = std::copysign(std::sqrt(rho), e);
+  *derivative = rho1 * e / rhat;
+  return rhat;
+}
 
 // measured = gain * simulated(t - delay) + bias: the measurement terms of one sensor
 struct MeasurementTerms {
@@ -70,7 +103,32 @@ struct Signal {
 // the Jacobian rows (InterpolatedRow), so an off-grid sample's row is interpolated like its value.
 class DelayedSample {
  public:
-  DelayedSample(double k, int T, double delay, double dt);
+  DelayedSample(double k, int T, double delay, double dt) : dt_(dt) {
+    // no delay at a whole step: sample k itself, the backward slope
+    if (delay == 0 && k == std::floor(k)) {
+      const int i = std::min(static_cast<int>(k), T - 1);
+      i0_ = i;
+      lo_ = i > 0 ? i - 1 : i;
+      hi_ = i;
+      return;
+    }
+    // between samples i0 and i0 + 1 at fraction a; held outside the signal
+    const double q = k - delay / dt;
+    const int i0 = static_cast<int>(std::floor(q));
+    if (i0 < 0) {
+      i0_ = 0;
+      return;
+    }
+    if (i0 >= T - 1) {
+      i0_ = T - 1;
+      return;
+    }
+    interpolated_ = true;
+    i0_ = i0;
+    a_ = q - i0;
+    lo_ = i0;
+    hi_ = i0 + 1;
+  }
 
   // the signal's value at t_k - delay
   double Value(Signal s) const {
@@ -108,15 +166,36 @@ struct SensorResidual {
 // The residual of a channel with weight `weight` and terms `terms` against the measured value,
 // with the simulated signal (its column of the segment's T x ns sensor rows) read at `at`, which
 // must be DelayedSample(k, T, terms.delay, dt). loss_scale > 0 as in RobustResidual.
-SensorResidual EvaluateSensorResidual(const DelayedSample& at, Signal simulated, double measured,
-                                      double weight, const MeasurementTerms& terms, LossType loss,
-                                      double loss_scale);
+inline SensorResidual EvaluateSensorResidual(const DelayedSample& at, Signal simulated,
+                                             double measured, double weight,
+                                             const MeasurementTerms& terms, LossType loss,
+                                             double loss_scale) {
+  // e, the loss, then the chain rule through e = weight * (gain * y + bias - measured)
+  SensorResidual r;
+  r.simulated = at.Value(simulated);
+  const double e = weight * (terms.Apply(r.simulated) - measured);
+  double de = 1;
+  r.value = RobustResidual(loss, loss_scale, e, &de);
+  const double f = de * weight;  // d r / d (gain * y + bias)
+  r.d_simulated = f * terms.gain;
+  r.d_delay = r.d_simulated * at.DerivativeByDelay(simulated);
+  r.d_gain = f * r.simulated;
+  r.d_bias = f;
+  return r;
+}
 
 // The channel's Jacobian row read at `at` like the value: row[j] = dy/d(column j) at t_k - delay,
 // from the core's DyDp (T*ns x ncol, row-major: row i*ns + column is d y_i[column] / d columns).
 // The residual's row is SensorResidual::d_simulated * row.
-void InterpolatedRow(const DelayedSample& at, const double* dydp, int ns, int column, int ncol,
-                     double* row);
+inline void InterpolatedRow(const DelayedSample& at, const double* dydp, int ns, int column,
+                            int ncol, double* row) {
+  // column j of DyDp restricted to the channel's rows is the signal {dydp + column * ncol + j,
+  // ns * ncol}
+  const Eigen::Index stride = static_cast<Eigen::Index>(ns) * ncol;
+  for (int j = 0; j < ncol; ++j) {
+    row[j] = at.Value({dydp + static_cast<Eigen::Index>(column) * ncol + j, stride});
+  }
+}
 
 // Gaussian prior on a physical parameter p: returns (p - mean) / sigma, and in *derivative its
 // derivative by the optimiser variable z given dp_dz = dp/dz (sigma > 0).

@@ -332,6 +332,11 @@ bool StateCost::EvaluateOrThrow(double const* const* parameters, double* residua
   for (const StateChannel& ch : chans) max_rows = std::max(max_rows, ch.rows());
   std::vector<double> x(dims.nphys), scratch(nx), e(max_rows), de(max_rows * max_rows), row_t(ncol);
   RowMatrix S(want ? nx : 0, ncol);
+  // dp/dz of the model's parameters at this point, once per evaluation (not per row)
+  std::vector<double> dpdz(want && zv ? npm : 0);
+  for (int j = 0; j < static_cast<int>(dpdz.size()); ++j) {
+    dpdz[j] = I.DpDz(mo.global[j], zv[mo.global[j]]);
+  }
   int first = 0, count = 0;
   I.SamplesOf(segment_, &first, &count);
   const std::vector<double>& position = I.grids[seg.seq].position;
@@ -368,7 +373,7 @@ bool StateCost::EvaluateOrThrow(double const* const* parameters, double* residua
           const int nz = static_cast<int>(I.z.size());
           for (int j = 0; j < npm; ++j) {
             const int g = mo.global[j];
-            jacobians[zb][row * nz + g] = row_t[j] * I.DpDz(g, zv[g]);
+            jacobians[zb][row * nz + g] = row_t[j] * dpdz[j];
           }
         }
         if (xb >= 0 && jacobians[xb]) {

@@ -159,5 +159,42 @@ TEST(TangentTest, PerturbThenDifferenceRoundTrips) {
   for (int i = 0; i < dims.nx; ++i) EXPECT_NEAR(back[i], dx[i], 1e-9) << i;
 }
 
+// Without ball and free joints TangentPerturb and TangentDifference do the position arithmetic
+// inline instead of calling mj_integratePos / mj_differentiatePos: the same bits, on hinges and
+// slides with positions and steps of many magnitudes (truth: MuJoCo's functions on the same
+// inputs; tolerance: none). The ball-joint model takes MuJoCo's path and is compared too.
+TEST(TangentTest, InlinePositionMapsEqualMujocosBitForBit) {
+  for (const char* name : {"cartpole.xml", "arm7.xml", "double_pendulum.xml", "spring_mass.xml",
+                           "ball_pendulum.xml"}) {
+    ModelPtr m = LoadModel(kModels + "/" + name);
+    DataPtr d = MakeData(*m);
+    const StateDims dims(*m);
+    std::vector<double> x1(dims.nphys), x2(dims.nphys), dx(dims.nx), got(dims.nx);
+    std::vector<double> qpos(dims.nq), qvel(dims.nv);
+    for (int trial = 0; trial < 200; ++trial) {
+      // a state and a tangent direction of varied magnitudes (quaternions stay as qpos0 has them)
+      mju_copy(d->qpos, m->qpos0, dims.nq);
+      if (dims.nq == dims.nv) {
+        for (int i = 0; i < dims.nq; ++i) d->qpos[i] = std::sin(0.37 * trial + i) * (1 + trial);
+      }
+      for (int i = 0; i < dims.nv; ++i) d->qvel[i] = std::cos(0.11 * trial * (i + 1));
+      for (int i = 0; i < dims.na; ++i) d->act[i] = 0.5 * std::sin(trial + i);
+      for (int i = 0; i < dims.nx; ++i) dx[i] = std::sin(1.0 + i + 0.7 * trial) * (trial % 7 + 1);
+      const double h = std::pow(10.0, -(trial % 9)) * (1 + 0.01 * trial);
+      GetPhysics(*m, *d, x1.data());
+      // perturb: qpos as mj_integratePos moves it
+      mju_copy(qpos.data(), d->qpos, dims.nq);
+      mj_integratePos(m.get(), qpos.data(), dx.data(), h);
+      TangentPerturb(*m, d.get(), dx.data(), h);
+      for (int i = 0; i < dims.nq; ++i) ASSERT_EQ(d->qpos[i], qpos[i]) << name << " " << i;
+      // difference: positions as mj_differentiatePos with dt = 1 / inv_scale
+      GetPhysics(*m, *d, x2.data());
+      TangentDifference(*m, x1.data(), x2.data(), 1.0 / h, got.data());
+      mj_differentiatePos(m.get(), qvel.data(), 1.0 / (1.0 / h), x1.data(), x2.data());
+      for (int i = 0; i < dims.nv; ++i) ASSERT_EQ(got[i], qvel[i]) << name << " " << i;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace mjsysid
