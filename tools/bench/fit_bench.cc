@@ -95,6 +95,9 @@ struct Row {
   // CPU seconds of the whole process (all threads) during the fit: less sensitive than wall time
   // to other processes on the machine (printed with --ledger)
   double cpu_s = NAN;
+  // runs of the fit behind the row: wall_s is the fastest (--repeats; the estimates, iterations
+  // and steps of every run are the same)
+  int runs = 1;
 };
 
 // the process's CPU time (all threads), seconds
@@ -410,6 +413,7 @@ Row PeerRow(const Case& c, const std::string& dir, int threads, const std::strin
   }
   double v = 0;
   if (JsonNumber(t, "wall_time_s", &v)) row.wall_s = v;
+  if (JsonNumber(t, "runs", &v)) row.runs = static_cast<int>(v);
   if (JsonNumber(t, "iterations", &v)) row.iterations = static_cast<int>(v);
   if (JsonNumber(t, "initial_cost", &v)) row.initial_cost = v;
   if (JsonNumber(t, "final_cost", &v)) row.final_cost = v;
@@ -642,6 +646,7 @@ void WriteJson(const std::string& path, const std::vector<Row>& rows,
                          {"others_cores", r.others_cores},
                          {"load1", r.load1},
                          {"idle", r.idle},
+                         {"runs", r.runs},
                          {"estimates", estimates}});
   }
   j["ratios"] = nlohmann::ordered_json::array();
@@ -746,6 +751,8 @@ int Main(int argc, char** argv) {
   std::vector<std::string> caps;
   std::string ours_arg;
   double idle_wait = 30;
+  int repeats = 5;
+  double repeat_budget = 1.5;
   app.add_option("--cases", cases_arg, "comma-separated experiment names")->capture_default_str();
   app.add_option("--methods", methods_arg,
                  "comma-separated: ours, auto (ours from initial: auto), oracle, numdiff, peer, "
@@ -762,6 +769,13 @@ int Main(int argc, char** argv) {
                  "seconds to wait before each row for other processes to leave the cores it "
                  "needs (<= 0.5 busy core per thread of the row); rows that still are not idle say "
                  "so in their note")
+      ->capture_default_str();
+  app.add_option("--repeats", repeats,
+                 "runs per row of ours and numeric diff: the fastest is the row's wall time "
+                 "(repeated while the runs add up to less than --repeat-budget seconds)")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  app.add_option("--repeat-budget", repeat_budget, "seconds of fitting per row that allow a repeat")
       ->capture_default_str();
   app.add_option("--max-iterations", caps, "per-case iteration cap, e.g. humanoid=10");
   bool print_ledger = false;
@@ -813,10 +827,29 @@ int Main(int argc, char** argv) {
     }
     const int max_it = cap.count(name) ? cap[name] : 0;
     // a row measured here: the load checked (and waited for) first
+    // and the fastest of up to --repeats runs, repeated while their wall time adds up to less
+    // than --repeat-budget seconds (the same rule as the peer driver's --repeats)
     auto measure = [&](int threads, const std::function<Row()>& fit) {
       Row before;
       WaitForIdle(threads, idle_wait, &before);
       Row r = fit();
+      double spent = r.wall_s;
+      for (int k = 1; k < repeats && std::isfinite(spent) && spent < repeat_budget; ++k) {
+        Row again = fit();
+        spent += again.wall_s;
+        if (again.iterations != r.iterations || again.steps != r.steps ||
+            again.estimates != r.estimates) {
+          r.note += std::string(r.note.empty() ? "" : "; ") +
+                    "a repeated run differed (iterations, steps or estimates)";
+          break;
+        }
+        ++r.runs;
+        if (again.wall_s < r.wall_s) {
+          again.runs = r.runs;
+          again.note = r.note;
+          r = std::move(again);
+        }
+      }
       r.others_cores = before.others_cores;
       r.load1 = before.load1;
       r.idle = before.idle;

@@ -11,6 +11,9 @@
 # 0.5 core per thread of the row (busy time of /proc/stat over one second; the 1-minute load
 # average is recorded too but counts the previous row for a minute), and a row that still is not
 # idle says so in its note ("not idle: others used 1.20 cores, load average 2.31").
+# Every row's wall time is the fastest of up to 5 runs of its fit, repeated while the runs add up
+# to less than 1.5 s (bench_fit --repeats/--repeat-budget, the peer driver's the same): short fits
+# get several runs on this noisy virtual machine, long ones one.
 #
 # usage: tools/bench/run_fit_benchmarks.sh [--out DIR] [--cases a,b,...] [--columns]
 #                                          [--idle-wait S]
@@ -93,7 +96,7 @@ for c in ${cases//,/ }; do
     set +e
     .venv/bin/python tools/peer/mujoco_sysid_fit.py "experiments/$c.yaml" \
       "experiments/logs/$c.h5" --out "$dir" --threads "$t" --strict $transform \
-      ${cap:+--max-iters "$cap"} >"$dir/driver.log" 2>&1
+      --repeats 5 --repeat-budget 1.5 ${cap:+--max-iters "$cap"} >"$dir/driver.log" 2>&1
     rc=$?
     set -e
     if ((rc == 3)); then
