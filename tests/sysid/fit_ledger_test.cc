@@ -60,6 +60,15 @@ void SpringMassProblem(Problem* problem, const std::string& xml = "") {
   problem->AddSequence(FitSequence("seq0", "spring", x0, u, y));
 }
 
+// the spring-mass fit (SpringMassProblem above) with the product's options at
+// `threads` simulator threads
+FitResult SpringMassFit(Problem* problem, int threads) {
+  SpringMassProblem(problem);
+  FitOptions o;
+  o.threads = threads;
+  return problem->Fit(o);
+}
+
 // 1 thread: the estimate within 1e-3 relative, the ledger adds up to the step count exactly
 TEST(FitLedgerTest, SpringMassFitLedgerAddsUpAndTheEstimateCostsNoSteps) {
   Problem problem;
@@ -111,10 +120,7 @@ TEST(FitLedgerTest, SpringMassFitLedgerAddsUpAndTheEstimateCostsNoSteps) {
 TEST(FitLedgerTest, BatchTimeIsPartOfThePhaseThatSimulates) {
   for (int threads : {1, 2}) {
     Problem problem;
-    SpringMassProblem(&problem);
-    FitOptions o;
-    o.threads = threads;
-    const FitResult r = problem.Fit(o);
+    const FitResult r = SpringMassFit(&problem, threads);
     ASSERT_TRUE(r.converged) << r.termination;
     long long batches = 0;
     for (const LedgerRow& row : r.ledger) {
@@ -174,10 +180,7 @@ TEST(FitLedgerTest, CriticalStepsAtTwoWorkersAreExactAndThreadIndependent) {
   std::vector<std::vector<LedgerRow>> ledgers;
   for (int threads : {1, 2}) {
     Problem problem;
-    SpringMassProblem(&problem);
-    FitOptions o;
-    o.threads = threads;
-    const FitResult r = problem.Fit(o);
+    const FitResult r = SpringMassFit(&problem, threads);
     ASSERT_TRUE(r.converged) << r.termination;
     ledgers.push_back(r.ledger);
   }
