@@ -58,6 +58,10 @@ struct PoolLoad {
 // the calling thread's CPU time in seconds (CLOCK_THREAD_CPUTIME_ID)
 double ThreadCpuSeconds();
 
+// The threads a request of num_threads means: num_threads <= 0 is
+// std::thread::hardware_concurrency() (at least 1).
+int ThreadCount(int num_threads);
+
 // wall time of the pool's batches since construction or ResetLoad (steady_clock seconds)
 struct PoolTime {
   long long batches = 0;     // ParallelFor calls with n > 0
@@ -65,6 +69,8 @@ struct PoolTime {
   double seconds = 0;        // inside ParallelFor, every batch
   double wake_seconds = 0;   // handed off: publication to the last worker's start, summed
   double wait_seconds = 0;   // handed off: the caller's wait after its own last task, summed
+                             // (each of wake and wait is part of `seconds`, their sum need not
+                             // be: a worker that starts late is waited for while it wakes)
   long long sleeps = 0;      // handed off: workers that were asleep when the batch came
   // the calling thread's CPU time inside ParallelFor (CLOCK_THREAD_CPUTIME_ID): at 1 thread the
   // batches' whole work, independent of other processes' load

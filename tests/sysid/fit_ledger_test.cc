@@ -128,7 +128,10 @@ TEST(FitLedgerTest, BatchTimeIsPartOfThePhaseThatSimulates) {
       EXPECT_EQ(row.steps > 0, row.batches > 0) << row.phase << " at " << threads;
       EXPECT_GE(row.batch_seconds, 0.0) << row.phase;
       EXPECT_LE(row.batch_seconds, row.seconds) << row.phase << " at " << threads;
-      EXPECT_LE(row.wake_seconds + row.wait_seconds, row.batch_seconds) << row.phase;
+      // each inside the batch; not their sum: a worker that starts after the caller's own last
+      // task (a loaded machine) is waited for while it wakes
+      EXPECT_LE(row.wake_seconds, row.batch_seconds) << row.phase;
+      EXPECT_LE(row.wait_seconds, row.batch_seconds) << row.phase;
       if (row.steps > 0) {
         EXPECT_GT(row.batch_seconds, 0.0) << row.phase;
         EXPECT_GT(row.batch_cpu_seconds, 0.0) << row.phase;
