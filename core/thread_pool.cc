@@ -55,9 +55,13 @@ double ThreadCpuSeconds() {
   return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
 }
 
-ThreadPool::ThreadPool(int num_threads) {
+int ThreadCount(int num_threads) {
   if (num_threads <= 0) num_threads = static_cast<int>(std::thread::hardware_concurrency());
-  if (num_threads <= 0) num_threads = 1;
+  return std::max(num_threads, 1);
+}
+
+ThreadPool::ThreadPool(int num_threads) {
+  num_threads = ThreadCount(num_threads);
   if (const char* spin = std::getenv("MJSYSID_POOL_SPIN_US")) {
     spin_seconds_ = std::max(0.0, std::atof(spin) * 1e-6);
   }

@@ -4,10 +4,13 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <exception>
+#include <thread>
 
 #include "core/mujoco_env.h"
 #include "core/parameters.h"
 #include "core/text.h"
+#include "core/thread_pool.h"
 #include "sysid/variable_manifold.h"
 
 namespace mjsysid {
@@ -134,7 +137,8 @@ EquationErrorSystem EquationErrorRegressor(const mjModel& model,
                                            const std::vector<FitParameter>& params,
                                            const std::vector<int>& cols,
                                            const std::vector<const FitSequence*>& sequences,
-                                           RegressorColumns how, int window, int max_samples) {
+                                           RegressorColumns how, int window, int max_samples,
+                                           int threads) {
   EquationErrorSystem sys;
   const int np = static_cast<int>(params.size());
   ModelPtr mp = CopyModel(model);
@@ -244,109 +248,141 @@ EquationErrorSystem EquationErrorRegressor(const mjModel& model,
   for (int c = 0; c < nc; ++c) sys.closed_form[c] = form[c] < ColumnForm::kActuation;
 
   // pass 1, sample by sample at p0: e(p0) from one mj_inverse (sensors skipped) and
-  // mj_fwdActuation, then every column but the full ones from that sample's pipeline results
+  // mj_fwdActuation, then every column but the full ones from that sample's pipeline results.
+  // The samples are split into up to `threads` contiguous chunks, each on its own copy of the
+  // model (p0 written) and its own mjData; every row depends only on its sample, so the system is
+  // the same bit for bit at any thread count
   set.Write(m, d, p0.data());
-  std::vector<double> f0(nv), a0(nv), jacp(3 * nv), jacr(3 * nv);
-  std::vector<bool> contact(steps, false);
-  bool any_contact = false;
+  std::vector<char> contact(steps, 0);
   const double implicit_h = ImplicitDamping(*m) ? m->opt.timestep : 0.0;
-  for (int i = 0; i < steps; ++i) {
-    LoadSample(*m, samples[i], d);
-    mj_inverseSkip(m, d, mjSTAGE_NONE, 1);
-    mj_fwdActuation(m, d);
-    contact[i] = d->ncon > 0;
-    any_contact = any_contact || contact[i];
-    mju_copy(f0.data(), d->qfrc_inverse, nv);
-    mju_copy(a0.data(), d->qfrc_actuator, nv);
-    for (int j = 0; j < nv; ++j) sys.e0[i * nv + j] = f0[j] - a0[j];
-    if (any_contact) continue;  // refused below; no columns
-    // the com-based accelerations (cacc, world at -gravity) for the point-mass columns
-    if (point_mass) mj_rnePostConstraint(m, d);
-    for (int c = 0; c < nc; ++c) {
-      const Parameter& p = set[cols[c]];
-      double* col = sys.A.col(c).data() + i * nv;
-      switch (form[c]) {
-        case ColumnForm::kDamping:
-          for (int k = 0; k < JointDofs(*m, p.id()); ++k) {
-            const int dof = m->jnt_dofadr[p.id()] + k;
-            col[dof] = d->qvel[dof] + implicit_h * d->qacc[dof];
+  auto pass1 = [&](mjModel* mm, mjData* dd, int first, int last) {
+    std::vector<double> f0(nv), a0(nv), jacp(3 * nv), jacr(3 * nv);
+    for (int i = first; i < last; ++i) {
+      LoadSample(*mm, samples[i], dd);
+      mj_inverseSkip(mm, dd, mjSTAGE_NONE, 1);
+      mj_fwdActuation(mm, dd);
+      contact[i] = dd->ncon > 0;
+      mju_copy(f0.data(), dd->qfrc_inverse, nv);
+      mju_copy(a0.data(), dd->qfrc_actuator, nv);
+      for (int j = 0; j < nv; ++j) sys.e0[i * nv + j] = f0[j] - a0[j];
+      if (contact[i]) continue;  // refused below; no columns
+      // the com-based accelerations (cacc, world at -gravity) for the point-mass columns
+      if (point_mass) mj_rnePostConstraint(mm, dd);
+      for (int c = 0; c < nc; ++c) {
+        const Parameter& p = set[cols[c]];
+        double* col = sys.A.col(c).data() + i * nv;
+        switch (form[c]) {
+          case ColumnForm::kDamping:
+            for (int k = 0; k < JointDofs(*mm, p.id()); ++k) {
+              const int dof = mm->jnt_dofadr[p.id()] + k;
+              col[dof] = dd->qvel[dof] + implicit_h * dd->qacc[dof];
+            }
+            break;
+          case ColumnForm::kArmature:
+            for (int k = 0; k < JointDofs(*mm, p.id()); ++k) {
+              const int dof = mm->jnt_dofadr[p.id()] + k;
+              col[dof] = dd->qacc[dof];
+            }
+            break;
+          case ColumnForm::kFrictionLoss:
+            // the dof's friction row applies +floss (linear negative) or -floss (linear
+            // positive), a force independent of floss in its quadratic zone; qfrc_inverse
+            // subtracts it
+            for (int r = dd->ne; r < dd->ne + dd->nf; ++r) {
+              if (dd->efc_type[r] != mjCNSTR_FRICTION_DOF) continue;
+              const int dof = dd->efc_id[r];
+              if (mm->dof_jntid[dof] != p.id()) continue;
+              col[dof] = dd->efc_state[r] == mjCNSTRSTATE_LINEARNEG   ? -1.0
+                         : dd->efc_state[r] == mjCNSTRSTATE_LINEARPOS ? 1.0
+                                                                      : 0.0;
+            }
+            break;
+          case ColumnForm::kPointMass:
+          case ColumnForm::kRigidBody: {
+            // a unit point mass at the body's centre of mass: Jp^T (its acceleration - gravity);
+            // with the inertia scaled along (I = I0 m / m0 about the centre of mass, world frame
+            // I0w = R I0 R^T), also Jr^T (I0w alpha + omega x I0w omega) / m0
+            const int b = p.id();
+            double acc[6], vel[6];
+            mj_objectAcceleration(mm, dd, mjOBJ_BODY, b, acc, 0);
+            const bool rigid = form[c] == ColumnForm::kRigidBody;
+            mj_jac(mm, dd, jacp.data(), rigid ? jacr.data() : nullptr, dd->xipos + 3 * b, b);
+            for (int j = 0; j < nv; ++j) {
+              col[j] = jacp[j] * acc[3] + jacp[nv + j] * acc[4] + jacp[2 * nv + j] * acc[5];
+            }
+            if (!rigid) break;
+            mj_objectVelocity(mm, dd, mjOBJ_BODY, b, vel, 0);
+            // torque = R (I0 / m0) R^T alpha + omega x R (I0 / m0) R^T omega, R = ximat
+            const double* R = dd->ximat + 9 * b;
+            double la[3], lw[3], ta[3], tw[3], torque[3];
+            mju_mulMatTVec3(la, R, acc);  // alpha in the inertial frame
+            mju_mulMatTVec3(lw, R, vel);  // omega in the inertial frame
+            for (int k = 0; k < 3; ++k) {
+              const double i0 = mm->body_inertia[3 * b + k] / p0[cols[c]];
+              la[k] *= i0;
+              lw[k] *= i0;
+            }
+            mju_mulMatVec3(ta, R, la);
+            mju_mulMatVec3(tw, R, lw);
+            mju_cross(torque, vel, tw);
+            for (int k = 0; k < 3; ++k) torque[k] += ta[k];
+            for (int j = 0; j < nv; ++j) {
+              col[j] +=
+                  jacr[j] * torque[0] + jacr[nv + j] * torque[1] + jacr[2 * nv + j] * torque[2];
+            }
+            break;
           }
-          break;
-        case ColumnForm::kArmature:
-          for (int k = 0; k < JointDofs(*m, p.id()); ++k) {
-            const int dof = m->jnt_dofadr[p.id()] + k;
-            col[dof] = d->qacc[dof];
-          }
-          break;
-        case ColumnForm::kFrictionLoss:
-          // the dof's friction row applies +floss (linear negative) or -floss (linear positive),
-          // a force independent of floss in its quadratic zone; qfrc_inverse subtracts it
-          for (int r = d->ne; r < d->ne + d->nf; ++r) {
-            if (d->efc_type[r] != mjCNSTR_FRICTION_DOF) continue;
-            const int dof = d->efc_id[r];
-            if (m->dof_jntid[dof] != p.id()) continue;
-            col[dof] = d->efc_state[r] == mjCNSTRSTATE_LINEARNEG   ? -1.0
-                       : d->efc_state[r] == mjCNSTRSTATE_LINEARPOS ? 1.0
-                                                                   : 0.0;
-          }
-          break;
-        case ColumnForm::kPointMass:
-        case ColumnForm::kRigidBody: {
-          // a unit point mass at the body's centre of mass: Jp^T (its acceleration - gravity);
-          // with the inertia scaled along (I = I0 m / m0 about the centre of mass, world frame
-          // I0w = R I0 R^T), also Jr^T (I0w alpha + omega x I0w omega) / m0
-          const int b = p.id();
-          double acc[6], vel[6];
-          mj_objectAcceleration(m, d, mjOBJ_BODY, b, acc, 0);
-          const bool rigid = form[c] == ColumnForm::kRigidBody;
-          mj_jac(m, d, jacp.data(), rigid ? jacr.data() : nullptr, d->xipos + 3 * b, b);
-          for (int j = 0; j < nv; ++j) {
-            col[j] = jacp[j] * acc[3] + jacp[nv + j] * acc[4] + jacp[2 * nv + j] * acc[5];
-          }
-          if (!rigid) break;
-          mj_objectVelocity(m, d, mjOBJ_BODY, b, vel, 0);
-          // torque = R (I0 / m0) R^T alpha + omega x R (I0 / m0) R^T omega, R = ximat
-          const double* R = d->ximat + 9 * b;
-          double la[3], lw[3], ta[3], tw[3], torque[3];
-          mju_mulMatTVec3(la, R, acc);  // alpha in the inertial frame
-          mju_mulMatTVec3(lw, R, vel);  // omega in the inertial frame
-          for (int k = 0; k < 3; ++k) {
-            const double i0 = m->body_inertia[3 * b + k] / p0[cols[c]];
-            la[k] *= i0;
-            lw[k] *= i0;
-          }
-          mju_mulMatVec3(ta, R, la);
-          mju_mulMatVec3(tw, R, lw);
-          mju_cross(torque, vel, tw);
-          for (int k = 0; k < 3; ++k) torque[k] += ta[k];
-          for (int j = 0; j < nv; ++j) {
-            col[j] += jacr[j] * torque[0] + jacr[nv + j] * torque[1] + jacr[2 * nv + j] * torque[2];
-          }
-          break;
+          default:
+            break;
         }
-        default:
-          break;
+      }
+      // the stage skips: actuation first (it reads the nominal velocity stage), then the velocity
+      // stage; each writes its parameter, recomputes, and writes p0 back
+      for (int c = 0; c < nc; ++c) {
+        if (form[c] != ColumnForm::kActuation) continue;
+        const double h = Step(p0[cols[c]]);
+        set.WriteOne(mm, dd, cols[c], p0[cols[c]] + h);
+        mj_fwdActuation(mm, dd);
+        for (int j = 0; j < nv; ++j) sys.A(i * nv + j, c) = -(dd->qfrc_actuator[j] - a0[j]) / h;
+        set.WriteOne(mm, dd, cols[c], p0[cols[c]]);
+      }
+      for (int c = 0; c < nc; ++c) {
+        if (form[c] != ColumnForm::kVelocityStage) continue;
+        const double h = Step(p0[cols[c]]);
+        set.WriteOne(mm, dd, cols[c], p0[cols[c]] + h);
+        mj_inverseSkip(mm, dd, mjSTAGE_POS, 1);
+        for (int j = 0; j < nv; ++j) sys.A(i * nv + j, c) = (dd->qfrc_inverse[j] - f0[j]) / h;
+        set.WriteOne(mm, dd, cols[c], p0[cols[c]]);
       }
     }
-    // the stage skips: actuation first (it reads the nominal velocity stage), then the velocity
-    // stage; each writes its parameter, recomputes, and writes p0 back
-    for (int c = 0; c < nc; ++c) {
-      if (form[c] != ColumnForm::kActuation) continue;
-      const double h = Step(p0[cols[c]]);
-      set.WriteOne(m, d, cols[c], p0[cols[c]] + h);
-      mj_fwdActuation(m, d);
-      for (int j = 0; j < nv; ++j) sys.A(i * nv + j, c) = -(d->qfrc_actuator[j] - a0[j]) / h;
-      set.WriteOne(m, d, cols[c], p0[cols[c]]);
-    }
-    for (int c = 0; c < nc; ++c) {
-      if (form[c] != ColumnForm::kVelocityStage) continue;
-      const double h = Step(p0[cols[c]]);
-      set.WriteOne(m, d, cols[c], p0[cols[c]] + h);
-      mj_inverseSkip(m, d, mjSTAGE_POS, 1);
-      for (int j = 0; j < nv; ++j) sys.A(i * nv + j, c) = (d->qfrc_inverse[j] - f0[j]) / h;
-      set.WriteOne(m, d, cols[c], p0[cols[c]]);
+  };
+  // chunks of at least kMinChunk samples: a model copy costs about as much as a few samples
+  constexpr int kMinChunk = 256;
+  const int chunks = std::max(1, std::min(ThreadCount(threads), steps / kMinChunk));
+  if (chunks == 1) {
+    pass1(m, d, 0, steps);
+  } else {
+    std::vector<std::thread> pool;
+    std::vector<std::exception_ptr> failed(chunks);
+    auto chunk = [&](int t) {
+      try {
+        ModelPtr mt = CopyModel(*m);
+        DataPtr dt = MakeData(*mt);
+        pass1(mt.get(), dt.get(), static_cast<int>(static_cast<long long>(steps) * t / chunks),
+              static_cast<int>(static_cast<long long>(steps) * (t + 1) / chunks));
+      } catch (...) {
+        failed[t] = std::current_exception();
+      }
+    };
+    for (int t = 1; t < chunks; ++t) pool.emplace_back(chunk, t);
+    chunk(0);
+    for (std::thread& th : pool) th.join();
+    for (const std::exception_ptr& e : failed) {
+      if (e) std::rethrow_exception(e);
     }
   }
+  const bool any_contact = std::find(contact.begin(), contact.end(), 1) != contact.end();
+  if (any_contact) sys.A.setZero();  // no columns where the start is refused
   if (any_contact) {
     for (const Window& w : windows) {
       for (int i = w.first; i < w.first + w.count; ++i) {
@@ -399,7 +435,7 @@ EquationErrorSystem EquationErrorRegressor(const mjModel& model,
 EquationErrorStart SolveEquationError(const mjModel& model, const std::vector<FitParameter>& params,
                                       const std::vector<int>& which,
                                       const std::vector<const FitSequence*>& sequences, int window,
-                                      int max_samples) {
+                                      int max_samples, int threads) {
   EquationErrorStart out;
   const int np = static_cast<int>(params.size());
   out.solved.assign(np, false);
@@ -426,7 +462,7 @@ EquationErrorStart SolveEquationError(const mjModel& model, const std::vector<Fi
 
   // e(p0) and the regressor A = de/dp (e is linear in these p)
   const EquationErrorSystem sys = EquationErrorRegressor(
-      model, params, cols, sequences, RegressorColumns::kFastest, window, max_samples);
+      model, params, cols, sequences, RegressorColumns::kFastest, window, max_samples, threads);
   out.values = sys.p0;
   out.samples = sys.samples;
   if (!sys.note.empty()) {

@@ -74,7 +74,9 @@ struct EquationErrorStart {
 // regressor is rank deficient. Throws MuJoCo errors (core/mujoco_env.h) only for a broken model.
 // How the regressor's columns are formed: the closed forms and stage skips above where they
 // hold (the fit's), or every column by a forward difference of full mj_inverse calls (the
-// reference the closed forms are tested against).
+// reference the closed forms are tested against). threads: the samples' inverse dynamics on up
+// to this many threads (<= 0: every core; each with its own model copy, chunks of at least 256
+// samples); the result is the same bit for bit at any count.
 enum class RegressorColumns { kFastest, kForwardDifference };
 
 // The linear system of the start: e0 = e(p0) and A = de/dp, rows sample by sample (samples x nv,
@@ -97,11 +99,11 @@ EquationErrorSystem EquationErrorRegressor(const mjModel& model,
                                            const std::vector<int>& cols,
                                            const std::vector<const FitSequence*>& sequences,
                                            RegressorColumns how, int window = 5,
-                                           int max_samples = 4000);
+                                           int max_samples = 4000, int threads = 1);
 
 EquationErrorStart SolveEquationError(const mjModel& model, const std::vector<FitParameter>& params,
                                       const std::vector<int>& which,
                                       const std::vector<const FitSequence*>& sequences,
-                                      int window = 5, int max_samples = 4000);
+                                      int window = 5, int max_samples = 4000, int threads = 1);
 
 }  // namespace mjsysid

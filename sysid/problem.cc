@@ -194,7 +194,8 @@ void Problem::AddControlDelay(const FitControlDelay& delay) {
 // parameters from its sequences' logged qpos and qvel (sysid/equation_error.h); a parameter that
 // cannot be solved starts at its model's value. The marks are cleared, so that a refit (auto
 // multiple shooting) starts from the same values. Returns one line per model, for the warnings.
-static std::vector<std::string> SolveAutoStarts(Problem::Impl& I) {
+// threads: the fit's (FitOptions::threads), for the samples' inverse dynamics.
+static std::vector<std::string> SolveAutoStarts(Problem::Impl& I, int threads) {
   std::vector<std::string> notes;
   std::vector<bool> done(I.params.size(), false);
   for (const Problem::Impl::Model& mo : I.models) {
@@ -211,7 +212,8 @@ static std::vector<std::string> SolveAutoStarts(Problem::Impl& I) {
     for (const FitSequence& s : I.sequences) {
       if (s.model == mo.name) sequences.push_back(&s);
     }
-    const EquationErrorStart start = SolveEquationError(*mo.model, params, which, sequences);
+    const EquationErrorStart start =
+        SolveEquationError(*mo.model, params, which, sequences, 5, 4000, threads);
     std::string kept;
     for (int i : which) {
       FitParameter& p = I.params[global[i]];
@@ -261,7 +263,7 @@ FitResult Problem::Fit(const FitOptions& options) {
   // the progress lines inside long rollouts (Prepare installs them on the simulators)
   if (!I.step_progress) I.step_progress = std::make_unique<StepProgressLines>(start, 0);
   I.step_progress->Reset(start, options.progress_seconds);
-  const std::vector<std::string> start_notes = SolveAutoStarts(I);
+  const std::vector<std::string> start_notes = SolveAutoStarts(I, options.threads);
   ledger.Enter(kPhasePrepare);
   Prepared prepared;
   Prepare(options, &prepared);
@@ -912,7 +914,7 @@ const std::vector<FitParameter>& Problem::parameters() const { return impl_->par
 
 JacobianCheck Problem::CheckJacobians(const FitOptions& options) {
   Impl& I = *impl_;
-  SolveAutoStarts(I);  // `initial: auto`: checked at the start the fit would take
+  SolveAutoStarts(I, options.threads);  // `initial: auto`: checked at the start the fit would take
   Prepared prepared;
   Prepare(options, &prepared);
   const int np = static_cast<int>(I.params.size());

@@ -135,6 +135,21 @@ TEST(EquationErrorTest, NothingSolvedWithoutStatesOrForNonlinearKinds) {
   EXPECT_FALSE(contact.solved[0]);
   EXPECT_EQ(contact.values[0], 1.5);
   EXPECT_NE(contact.note.find("contacts (30 of 30 samples)"), std::string::npos) << contact.note;
+  // 600 samples at rest on 1 and 2 threads (two chunks of about 300 steps): every window in
+  // contact, no column, the same forces bit for bit
+  rest.ctrl = RowMatrix::Zero(600, box->nu);
+  rest.measured = RowMatrix::Zero(600, box->nsensordata);
+  rest.qpos = rest.x0.qpos.transpose().replicate(600, 1);
+  rest.qvel = RowMatrix::Zero(600, box->nv);
+  std::vector<EquationErrorSystem> at;
+  for (int threads : {1, 2}) {
+    at.push_back(EquationErrorRegressor(*box, {mass}, {0}, {&rest}, RegressorColumns::kFastest, 5,
+                                        4000, threads));
+    EXPECT_EQ(at.back().samples, 590) << threads;
+    EXPECT_EQ(at.back().contacts, 590) << threads;
+    EXPECT_TRUE(at.back().A.isZero(0)) << threads;
+  }
+  EXPECT_TRUE(at[0].e0 == at[1].e0);
 }
 
 // `initial: auto` before and after its start is solved (the pendulum's equation-error start,
@@ -220,7 +235,8 @@ TEST(EquationErrorTest, AutoStartsInCheckpointsAndResumedConfig) {
 // its force -D jar also moves with the other parameters, through the discrete acceleration and
 // through the regularisation mj_setConst derives from the masses and armatures); both solved
 // starts within 1e-3 relative of each other and, from the exact states, of the truth (the
-// simulated noise is on the sensors; measured in [ measured ])
+// simulated noise is on the sensors; measured in [ measured ]); the fast system the same bit for
+// bit with its samples on 2 and 3 threads
 TEST(EquationErrorTest, ClosedFormColumnsEqualForwardDifferences) {
   InstallMujocoHandlers();
   for (const std::string name : {"arm7", "cartpole", "spring_mass", "double_pendulum"}) {
@@ -253,6 +269,13 @@ TEST(EquationErrorTest, ClosedFormColumnsEqualForwardDifferences) {
       const EquationErrorSystem fd = EquationErrorRegressor(
           *b.models[0], b.parameters, cols, sequences, RegressorColumns::kForwardDifference);
       ASSERT_TRUE(fast.note.empty()) << fast.note;
+      // the samples in 2 and 3 chunks on as many threads: the same system bit for bit
+      for (int threads : {2, 3}) {
+        const EquationErrorSystem par =
+            EquationErrorRegressor(*b.models[0], b.parameters, cols, sequences,
+                                   RegressorColumns::kFastest, 5, 4000, threads);
+        EXPECT_TRUE(par.A == fast.A && par.e0 == fast.e0) << name << " at " << threads;
+      }
       EXPECT_EQ(fast.discrete, !noisy) << name;
       EXPECT_EQ(fd.discrete, !noisy) << name;
       EXPECT_EQ(fast.contacts, 0);
