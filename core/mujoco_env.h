@@ -124,6 +124,14 @@ ModelPtr CopyModel(const mjModel& m);
 // Fresh data for a model, at the model's reference configuration.
 DataPtr MakeData(const mjModel& m);
 
+// Whether d has raised a simulation warning (a counter > 0). Inline and without a branch per
+// counter: every simulated step asks.
+inline bool AnySimulationWarning(const mjData& d) {
+  int warned = 0;
+  for (int i = 0; i < mjNWARNING; ++i) warned |= d.warning[i].number > 0;
+  return warned != 0;
+}
+
 // Names of the simulation warnings raised in d (counters > 0), comma separated; "" when none.
 std::string SimulationWarnings(const mjData& d);
 

@@ -333,11 +333,8 @@ namespace {
 
 void Simulator::CheckStep(const mjData& d, double t, int seq_index, int step,
                           const char* what) const {
-  // every step passes here: the counters are read without a branch per counter, the message
-  // built only when one is set
-  int warned = 0;
-  for (int i = 0; i < mjNWARNING; ++i) warned |= d.warning[i].number > 0;
-  if (warned) ThrowStepWarning(d, t, seq_index, step, what);
+  // every step passes here: the message is built only when a warning is set
+  if (AnySimulationWarning(d)) ThrowStepWarning(d, t, seq_index, step, what);
 }
 
 void Simulator::RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq, int seq_index,
