@@ -364,11 +364,18 @@ EquationErrorSystem EquationErrorRegressor(const mjModel& model,
   } else {
     std::vector<std::thread> pool;
     std::vector<std::exception_ptr> failed(chunks);
+    // chunk 0 on the caller's model and data, the others on copies made before any chunk writes
+    // a parameter step into its model
+    std::vector<ModelPtr> models;
+    std::vector<DataPtr> datas;
+    for (int t = 1; t < chunks; ++t) {
+      models.push_back(CopyModel(*m));
+      datas.push_back(MakeData(*models.back()));
+    }
     auto chunk = [&](int t) {
       try {
-        ModelPtr mt = CopyModel(*m);
-        DataPtr dt = MakeData(*mt);
-        pass1(mt.get(), dt.get(), static_cast<int>(static_cast<long long>(steps) * t / chunks),
+        pass1(t ? models[t - 1].get() : m, t ? datas[t - 1].get() : d,
+              static_cast<int>(static_cast<long long>(steps) * t / chunks),
               static_cast<int>(static_cast<long long>(steps) * (t + 1) / chunks));
       } catch (...) {
         failed[t] = std::current_exception();
