@@ -591,6 +591,18 @@ TEST(SimulatorTest, ResultsAreBitIdenticalForAnyThreadCount) {
   }
 }
 
+// nseq sequences of sine controls (150, 190, ... steps) and their rollouts and Jacobians on one
+// thread, Rollout then Jacobians: the reference of the pipelined and columns-ahead tests
+void SerialReference(const mjModel& model, const std::vector<ParameterSpec>& params, int nseq,
+                     const JacobianOptions& opt, std::vector<SequenceInput>* seqs,
+                     std::vector<Trajectory>* tr, std::vector<Sensitivity>* s) {
+  seqs->assign(nseq, SequenceInput{});
+  for (int i = 0; i < nseq; ++i) (*seqs)[i].ctrl = SineControls(model, 150 + 40 * i, 0.6);
+  Simulator serial(model, params);
+  serial.Rollout(*seqs, tr);
+  serial.Jacobians(*seqs, *tr, opt, s);
+}
+
 // tr, s are tr1, s1 bit for bit: states, sensors, step states, contact counts, Jacobians, kinks and
 // warnings
 void ExpectSameRolloutAndJacobians(const Trajectory& tr, const Sensitivity& s,
@@ -621,16 +633,13 @@ TEST(SimulatorTest, PipelinedColumnsEqualRolloutThenJacobiansBitForBit) {
       {"box_floor.xml", {Spec("geom_friction", "box")}, 2}};
   for (const Case& c : cases) {
     ModelPtr model = LoadModel(kModels + "/" + c.model);
-    std::vector<SequenceInput> seqs(c.nseq);
-    for (int i = 0; i < c.nseq; ++i) seqs[i].ctrl = SineControls(*model, 150 + 40 * i, 0.6);
     JacobianOptions opt;
     opt.mode = JacobianMode::kDirectional;
     opt.initial_state = true;
-    Simulator serial(*model, c.params);
+    std::vector<SequenceInput> seqs;
     std::vector<Trajectory> tr1;
     std::vector<Sensitivity> s1;
-    serial.Rollout(seqs, &tr1);
-    serial.Jacobians(seqs, tr1, opt, &s1);
+    SerialReference(*model, c.params, c.nseq, opt, &seqs, &tr1, &s1);
     for (int threads : {2, 3}) {
       SimulatorOptions so;
       so.threads = threads;
@@ -664,16 +673,13 @@ TEST(SimulatorTest, ColumnsAheadEqualRolloutThenJacobiansBitForBit) {
       {"box_floor.xml", {Spec("geom_friction", "box")}, 3, false}};
   for (const Case& c : cases) {
     ModelPtr model = LoadModel(kModels + "/" + c.model);
-    std::vector<SequenceInput> seqs(c.nseq);
-    for (int i = 0; i < c.nseq; ++i) seqs[i].ctrl = SineControls(*model, 150 + 40 * i, 0.6);
     JacobianOptions opt;
     opt.mode = JacobianMode::kDirectional;
     opt.initial_state = c.initial_state;
-    Simulator serial(*model, c.params);
+    std::vector<SequenceInput> seqs;
     std::vector<Trajectory> tr1;
     std::vector<Sensitivity> s1;
-    serial.Rollout(seqs, &tr1);
-    serial.Jacobians(seqs, tr1, opt, &s1);
+    SerialReference(*model, c.params, c.nseq, opt, &seqs, &tr1, &s1);
     const int ncol = s1[0].ncol;
     for (int threads : {2, 3}) {
       SimulatorOptions so;
