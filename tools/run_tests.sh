@@ -56,7 +56,7 @@ MJSYSID_VENV="$venv" MJSYSID_SYSID="$root/build/default/bin/sysid" \
   "$venv/bin/python" -m pytest -q -p no:cacheprovider "$root/tests/python"
 
 if ((quick == 0)); then
-  step "sanitizer build (address, undefined) of the unit tests"
+  step "sanitizer build (address, undefined) of the unit tests (target unit_tests)"
   cmake --preset debug -G Ninja >/dev/null
   cmake --build --preset debug -j "$jobs"
   ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
@@ -70,4 +70,6 @@ if ((quick == 0)); then
     tools/run_fuzz.sh "$fuzz_seconds"
   fi
 fi
+# the disk the build trees take (CI once ran out of it: CMakeLists.txt, MJSYSID_COMPRESS_DEBUG)
+du -sh build/* 2>/dev/null || true
 step "all checks passed"
