@@ -49,6 +49,10 @@ void DecideFitStatus(const FitOptions& options, int accepted_steps, bool jacobia
   for (const ParameterEstimate& e : r.parameters) {
     moved = moved || (accepted_steps > 0 && e.value != e.initial);
   }
+  // the statistical stop at the start: the start is the estimate, within the stop's fraction of
+  // every standard error of the Gauss-Newton optimum (a full-rank Jacobian: every value moves
+  // the data), so not having moved is right
+  moved = moved || r.gauss_newton_converged;
   const double decrease = r.initial_cost > 0 ? (r.initial_cost - r.final_cost) / r.initial_cost : 0;
   const bool jacobian_bad = jacobian_warned && decrease < kSmallCostDecrease;
 

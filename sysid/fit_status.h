@@ -7,7 +7,8 @@
 // result->outcome, intervals_valid, chi2_ratio and sensor_chi2_ratio, and appends the warning that
 // says what went wrong. The first that applies, in this order:
 // - interrupted: result->interrupted.
-// - did_not_move: no accepted step changed any estimated value.
+// - did_not_move: no accepted step changed any estimated value, unless the solve's statistical
+//   stop found the start already converged (result->gauss_newton_converged).
 // - jacobian_unreliable: the core flagged a Jacobian during the solve (jacobian_warned) and the
 //   cost fell by less than 5 %.
 // - not_converged: the optimiser did not converge.

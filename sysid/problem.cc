@@ -32,6 +32,7 @@
 #include "sysid/evaluation_cache.h"
 #include "sysid/fit_ledger.h"
 #include "sysid/fit_status.h"
+#include "sysid/gn_convergence.h"
 #include "sysid/interval_check.h"
 #include "sysid/multiple_shooting.h"
 #include "sysid/problem_impl.h"
@@ -405,6 +406,25 @@ FitResult Problem::Fit(const FitOptions& options) {
   so_ceres.logging_type = ceres::SILENT;
   ProgressCallback progress(&I, &result, start);
   so_ceres.callbacks.push_back(&progress);
+  // the rank tolerance follows the finite differences' accuracy (relative step h: O(h)
+  // forward, O(h^2) central) unless the user's rank_tolerance is larger
+  UncertaintyOptions uo = options.uncertainty;
+  const double h = options.jacobian.relative_step;
+  uo.jacobian_accuracy = std::max(uo.jacobian_accuracy, options.jacobian.central ? h * h : h);
+  // the statistical stop (sysid/gn_convergence.h) where its test is valid: single shooting on
+  // this process, no robust loss, no fitted control delay (their columns are rollouts)
+  std::vector<double*> all_blocks;  // every parameter block, in the order added
+  if (np) all_blocks.push_back(I.z.data());
+  if (!I.m.empty()) all_blocks.push_back(I.m.data());
+  for (size_t b = 0; b < I.states.size(); ++b) {
+    if (problem.HasParameterBlock(I.states[b].data())) all_blocks.push_back(I.states[b].data());
+  }
+  bool gn_valid = options.gauss_newton_stop > 0 && !I.shards && options.loss == LossType::kNone &&
+                  I.control_delay_index.empty() && !all_blocks.empty();
+  for (const Segment& seg : I.segments) gn_valid = gn_valid && seg.next < 0;
+  GaussNewtonStop gn_stop(&problem, all_blocks, options.gauss_newton_stop, uo, options.verbose,
+                          &ledger);
+  if (gn_valid) so_ceres.callbacks.push_back(&gn_stop);
   ceres::Solver::Summary summary;
   I.rejected_evaluations = 0;
   I.jacobian_warnings.clear();
@@ -456,8 +476,11 @@ FitResult Problem::Fit(const FitOptions& options) {
   result.initial_cost = held_initial_cost >= 0 ? held_initial_cost : summary.initial_cost;
   result.final_cost = summary.final_cost;
   result.iterations = static_cast<int>(summary.iterations.size()) - 1;
-  result.converged = summary.termination_type == ceres::CONVERGENCE && !result.interrupted;
-  result.termination = summary.message;
+  result.gauss_newton_converged = gn_stop.fired() && !result.interrupted;
+  result.converged =
+      (summary.termination_type == ceres::CONVERGENCE || result.gauss_newton_converged) &&
+      !result.interrupted;
+  result.termination = result.gauss_newton_converged ? gn_stop.Message() : summary.message;
   // sharded (sysid/mpi/): the uncompressed rows, with the priors'; compressed blocks: the rows
   // they stand for
   int prior_rows = 0;
@@ -528,12 +551,7 @@ FitResult Problem::Fit(const FitOptions& options) {
     PrintFitProgress("unc", "Jacobian at the estimate (uncertainty)", I.fit_start);
   }
   // the triangle's columns in the order the blocks were added (z, m, the state blocks)
-  std::vector<double*> blocks;
-  if (np) blocks.push_back(I.z.data());
-  if (!I.m.empty()) blocks.push_back(I.m.data());
-  for (size_t b = 0; b < I.states.size(); ++b) {
-    if (problem.HasParameterBlock(I.states[b].data())) blocks.push_back(I.states[b].data());
-  }
+  const std::vector<double*>& blocks = all_blocks;
   ledger.Enter(kPhaseEstimate);
   const bool evaluated =
       !interrupted_now() && (multiple ? problem.Evaluate(eo, &cost, &residuals, nullptr, &crs)
@@ -558,11 +576,6 @@ FitResult Problem::Fit(const FitOptions& options) {
       values[v] = result.parameters[v].value;
       fixed[v] = result.parameters[v].at_lower || result.parameters[v].at_upper;
     }
-    // the rank tolerance follows the finite differences' accuracy (relative step h: O(h)
-    // forward, O(h^2) central) unless the user's rank_tolerance is larger
-    UncertaintyOptions uo = options.uncertainty;
-    const double h = options.jacobian.relative_step;
-    uo.jacobian_accuracy = std::max(uo.jacobian_accuracy, options.jacobian.central ? h * h : h);
     // r_aug: the triangle [R q; 0 rho] of [J_p r] over the parameter columns J_p (physical
     // units), for the result's jacobian and the interval check
     Eigen::MatrixXd r_aug;

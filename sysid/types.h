@@ -255,6 +255,10 @@ struct FitOptions {
   // the segment states held on the data, then the solve with them free (false: the free solve
   // only)
   bool hold_states_first = true;
+  // the solve's statistical stop (sysid/gn_convergence.h): converged once the predicted
+  // Gauss-Newton step is at most this fraction of every standard error, where the test is valid
+  // (single shooting, no robust loss, no fitted control delay); 0: off, Ceres' tolerances alone
+  double gauss_newton_stop = 0.03;
 };
 
 // one estimated variable: a physical parameter or a measurement term ("<sensor>.delay", ...)
@@ -432,6 +436,10 @@ struct FitResult {
     std::vector<std::string> sensors;
   };
   EventWindows event_windows;
+  // the solve ended on the statistical stop (FitOptions::gauss_newton_stop,
+  // sysid/gn_convergence.h): converged with the point, possibly the start, already within the
+  // fraction of every standard error of the Gauss-Newton optimum
+  bool gauss_newton_converged = false;
 };
 
 // one line for a user, e.g. "collision pairs off 3 of 4, geoms off 2, disabled [island], guard

@@ -60,6 +60,7 @@ const std::vector<std::string> kOptionKeys = {"max_iterations",
                                               "differences",
                                               "relative_step",
                                               "reduce_model",
+                                              "gauss_newton_stop",
                                               "states",
                                               "verbose"};
 const std::vector<std::string> kMeasurementKeys = {"sensor", "delay", "gain", "bias"};
@@ -317,6 +318,7 @@ FitOptions OptionsOf(const nb::dict& d) {
     throw std::invalid_argument("options: relative_step must be > 0");
   }
   o.reduce_model = Get<bool>(d, "reduce_model", o.reduce_model, what);
+  o.gauss_newton_stop = Get<double>(d, "gauss_newton_stop", o.gauss_newton_stop, what);
   // logged states fitted as data: {qpos: {sigma, joints?}, qvel: ..., act: {sigma, actuators?}}
   if (d.contains("states")) {
     if (!nb::isinstance<nb::dict>(d["states"])) {

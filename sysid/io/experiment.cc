@@ -641,7 +641,7 @@ void Parser::ParseSolver(const Field& f, ExperimentConfig* c) const {
   const MapReader r(*this, f,
                     {"max_iterations", "function_tolerance", "gradient_tolerance",
                      "parameter_tolerance", "jacobian", "differences", "relative_step", "threads",
-                     "loss", "verbose", "starts", "seed", "reduce_model"});
+                     "loss", "verbose", "starts", "seed", "reduce_model", "gauss_newton_stop"});
   c->solver_marks = r.marks();
   FitOptions* o = &c->options;
   const long long kIntMax = std::numeric_limits<int>::max();
@@ -667,6 +667,10 @@ void Parser::ParseSolver(const Field& f, ExperimentConfig* c) const {
   if (r.Has("verbose")) o->verbose = Bool(r.Get("verbose"));
   // the reduced model (core/reduced_model.h)
   if (r.Has("reduce_model")) o->reduce_model = Bool(r.Get("reduce_model"));
+  // the statistical stop (sysid/gn_convergence.h): a fraction of a standard error, 0 = off
+  if (r.Has("gauss_newton_stop")) {
+    o->gauss_newton_stop = NonNegative(r.Get("gauss_newton_stop"));
+  }
   // multi-start (sysid/run/multi_start.h)
   if (r.Has("starts")) c->starts = static_cast<int>(Integer(r.Get("starts"), 1, 10000));
   if (r.Has("seed")) {

@@ -511,6 +511,7 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
       {"function_tolerance", FormatG17(options.function_tolerance)},
       {"gradient_tolerance", FormatG17(options.gradient_tolerance)},
       {"parameter_tolerance", FormatG17(options.parameter_tolerance)},
+      {"gauss_newton_stop", FormatG17(options.gauss_newton_stop)},
       {"jacobian", JacobianModeName(options.jacobian.mode)},
       {"differences", options.jacobian.central ? "central" : "forward"},
       {"relative_step", FormatG17(options.jacobian.relative_step)},

@@ -1,0 +1,148 @@
+// The statistical convergence test of a solve: see sysid/gn_convergence.h.
+#include "sysid/gn_convergence.h"
+
+#include <Eigen/QR>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <utility>
+
+#include "core/text.h"
+
+namespace mjsysid {
+namespace {
+
+// a value within this relative distance of its bound is on it (as the estimate's at_lower /
+// at_upper, sysid/problem.cc)
+constexpr double kOnBound = 1e-6;
+
+}  // namespace
+
+GaussNewtonTest TestGaussNewtonStep(const EstimateTriangle& t,
+                                    const std::vector<ColumnBounds>& bounds, double fraction,
+                                    const UncertaintyOptions& uncertainty) {
+  GaussNewtonTest out;
+  const int n = t.n;
+  if (static_cast<int>(bounds.size()) != n || t.r_aug.cols() != n + 1) {
+    out.why_not = "no Jacobian of the expected shape";
+    return out;
+  }
+  // the active set: variables on a bound are held there (+1 lower, -1 upper, 0 free)
+  std::vector<int> side(n, 0);
+  std::vector<bool> held(n, false);
+  std::vector<int> free;
+  std::vector<std::string> names(n);
+  Eigen::VectorXd values(n);
+  for (int i = 0; i < n; ++i) {
+    const ColumnBounds& b = bounds[i];
+    const double tol = kOnBound * std::max(1.0, std::abs(b.value));
+    side[i] = b.value - b.lower <= tol ? 1 : (b.upper - b.value <= tol ? -1 : 0);
+    held[i] = side[i] != 0;
+    out.held += held[i] ? 1 : 0;
+    if (!held[i]) free.push_back(i);
+    names[i] = "column " + std::to_string(i);
+    values[i] = b.value;
+  }
+  if (free.empty()) {
+    out.why_not = "every variable on a bound";
+    return out;
+  }
+  // the standard errors the result would report here, and the rank decision of the uncertainty
+  const RowMatrix J = t.r_aug.leftCols(n);
+  const Uncertainty u =
+      AnalyzeUncertaintyCompressed(J, t.rows, t.cost, names, values, held, uncertainty);
+  const int nf = static_cast<int>(free.size());
+  if (u.rank < nf) {
+    out.why_not = "J'J of the free variables is rank-deficient";
+    return out;
+  }
+  // the Gauss-Newton step of the free variables: min |J_F d_F + r| over the triangle's rows
+  Eigen::MatrixXd JF(J.rows(), nf);
+  for (int a = 0; a < nf; ++a) JF.col(a) = J.col(free[a]);
+  const Eigen::VectorXd r = t.r_aug.col(n);
+  const Eigen::VectorXd d = JF.colPivHouseholderQr().solve(-r);
+  // every held variable must push outwards at the predicted point (gradient J_i' (r + J_F d_F):
+  // >= 0 on a lower bound, <= 0 on an upper one), else it would leave its bound
+  const Eigen::VectorXd predicted = r + JF * d;
+  for (int i = 0; i < n; ++i) {
+    if (side[i] == 0 || bounds[i].lower == bounds[i].upper) continue;
+    if (side[i] * J.col(i).dot(predicted) < 0) {
+      out.why_not = "a variable on its bound would leave it";
+      return out;
+    }
+  }
+  // the step against the standard errors
+  for (int a = 0; a < nf; ++a) {
+    const double s = u.std_error[free[a]];
+    if (!(s > 0) || !std::isfinite(s)) {
+      out.why_not = "a standard error is not positive (noise-free data?)";
+      return out;
+    }
+    out.max_ratio = std::max(out.max_ratio, std::abs(d[a]) / s);
+  }
+  out.applies = true;
+  out.passed = out.max_ratio <= fraction;
+  return out;
+}
+
+GaussNewtonStop::GaussNewtonStop(const ceres::Problem* problem, std::vector<double*> blocks,
+                                 double fraction, const UncertaintyOptions& uncertainty,
+                                 bool verbose, FitLedger* ledger)
+    : problem_(problem),
+      blocks_(std::move(blocks)),
+      fraction_(fraction),
+      uncertainty_(uncertainty),
+      verbose_(verbose),
+      ledger_(ledger) {}
+
+ceres::CallbackReturnType GaussNewtonStop::operator()(const ceres::IterationSummary& summary) {
+  // a rejected step left the point, and so the test's answer, as it was
+  if (summary.iteration > 0 && !summary.step_is_successful) return ceres::SOLVER_CONTINUE;
+  ++tests_;
+  iteration_ = summary.iteration;
+  last_ = GaussNewtonTest();
+  // J and r at the point: the evaluation cache holds what the solve computed there
+  const bool solving = ledger_ && ledger_->solving;
+  if (ledger_) ledger_->solving = false;
+  const bool evaluated = EvaluateTriangle(*problem_, blocks_, &triangle_);
+  if (ledger_) ledger_->solving = solving;
+  if (!evaluated) {
+    last_.why_not = "the point could not be evaluated";
+    return ceres::SOLVER_CONTINUE;
+  }
+  // the columns' bounds (tangent space: a block with a manifold of another size has none)
+  bounds_.clear();
+  for (double* b : blocks_) {
+    const int size = problem_->ParameterBlockSize(b);
+    const int tangent = problem_->ParameterBlockTangentSize(b);
+    for (int i = 0; i < tangent; ++i) {
+      ColumnBounds c;
+      if (tangent == size) {
+        c.value = b[i];
+        c.lower = problem_->GetParameterLowerBound(b, i);
+        c.upper = problem_->GetParameterUpperBound(b, i);
+      }
+      bounds_.push_back(c);
+    }
+  }
+  last_ = TestGaussNewtonStep(triangle_, bounds_, fraction_, uncertainty_);
+  if (verbose_) {
+    if (last_.applies) {
+      std::fprintf(stderr, "          Gauss-Newton step / std error: largest %.3g (stop at %.3g)\n",
+                   last_.max_ratio, fraction_);
+    } else {
+      std::fprintf(stderr, "          Gauss-Newton stop not tested: %s\n", last_.why_not.c_str());
+    }
+  }
+  if (!last_.passed) return ceres::SOLVER_CONTINUE;
+  fired_ = true;
+  return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
+}
+
+std::string GaussNewtonStop::Message() const {
+  return "converged: predicted Gauss-Newton step below " + FormatDigits(100 * fraction_, 3) +
+         " % of every standard error (largest " + FormatDigits(100 * last_.max_ratio, 2) +
+         " %, iteration " + std::to_string(iteration_) + ")";
+}
+
+}  // namespace mjsysid
