@@ -14,7 +14,6 @@
 #include "core/state.h"
 #include "core/text.h"
 #include "sysid/contact_channels.h"
-#include "sysid/evaluation_cache.h"
 
 namespace mjsysid {
 
@@ -87,9 +86,6 @@ void SplitJacobian(const ceres::CRSMatrix& crs, int nvar, RowMatrix* A,
 // it, the rate per step is lambda = ln(E_k*) / k* and segments are ln(2) / lambda steps long (the
 // perturbation at most doubles beyond linear in each), at least kMinSegmentSteps. The probe stops
 // where its perturbation reaches kSensitivityGrowthLimit (still local) or the horizon ends.
-// The probe is not run when the start's Jacobian columns already show bounded growth
-// (ColumnGrowth <= kColumnGrowth, sysid/multiple_shooting.h): that saves one rollout of every
-// sequence on stable and dissipative systems.
 constexpr double kProbeStep = 1e-8;
 constexpr double kExponentialGrowth = 1e2;
 constexpr int kMinSegmentSteps = 10;
@@ -136,26 +132,21 @@ static std::vector<Trajectory> ProbeRollouts(Problem::Impl& I, std::vector<doubl
   return probes;
 }
 
-// What the probe measured: the largest E over every sequence (growth), the largest ln(E_k) / k
-// past kMinSegmentSteps (rate), and the earliest step k* where E passed kExponentialGrowth
-// (first, -1: none) with its rate and sequence
-struct ProbeReading {
-  double growth = 0, rate = 0;
-  int first = -1;
-  double first_rate = 0;
-  std::string where;
-  long long steps = 0;  // simulator steps the probe took
-};
-
-// The probe (see above) at the parameter values I's simulators hold, against `initial`
-static ProbeReading ReadProbe(Problem::Impl& I, const std::vector<Trajectory>& initial) {
-  ProbeReading out;
+HorizonChoice ChooseHorizon(Problem::Impl& I, const std::vector<Trajectory>& initial,
+                            const FitOptions& options) {
+  HorizonChoice out;
+  if (options.segment_steps >= 0) {
+    out.steps = options.segment_steps;
+    out.reason = out.steps == 0
+                     ? "single shooting: segment_steps 0 (set)"
+                     : "multiple shooting: segment_steps " + std::to_string(out.steps) + " (set)";
+    return out;
+  }
+  double worst_e = 0, rate = 0;  // largest E; lambda of the earliest crossing
+  int first = -1;                // the earliest k*
+  std::string where;             // its sequence
   std::vector<double> hs;
-  long long before = 0;
-  for (const auto& mo : I.models) before += mo.sim->StepCount();
   const std::vector<Trajectory> probes = ProbeRollouts(I, &hs);
-  for (const auto& mo : I.models) out.steps += mo.sim->StepCount();
-  out.steps -= before;
   for (size_t q = 0; q < I.sequences.size(); ++q) {
     const FitSequence& sq = I.sequences[q];
     const Simulator& sim = *I.models[I.ModelIndex(sq.model)].sim;
@@ -171,74 +162,17 @@ static ProbeReading ReadProbe(Problem::Impl& I, const std::vector<Trajectory>& i
                         diff.data());
       const double p = diff.lpNorm<Eigen::Infinity>();
       const double e = p / h / (1 + k * m.opt.timestep);
-      out.growth = std::max(out.growth, e);
+      worst_e = std::max(worst_e, e);
       if (k >= kMinSegmentSteps && e > 1) out.rate = std::max(out.rate, std::log(e) / k);
-      if (e > kExponentialGrowth && (out.first < 0 || k < out.first)) {
-        out.first = k;
-        out.first_rate = std::log(e) / k;
-        out.where = sq.name;
+      if (e > kExponentialGrowth && (first < 0 || k < first)) {
+        first = k;
+        rate = std::log(e) / k;
+        where = sq.name;
       }
       if (e > kExponentialGrowth || p > kSensitivityGrowthLimit) break;
     }
   }
-  return out;
-}
-
-// The start's Jacobian columns instead of the probe: for every sequence and every parameter
-// column that moves it, s_k = |dx_k/dp|_inf (tangent space, DxDp), the column's growth from the
-// first half of the sequence to the whole, max_{k <= T} s_k / max_{k <= T/2} s_k. A parameter's
-// change forces the state all along the rollout, so on a stable or dissipative system its
-// sensitivity stays bounded or grows like a power of t (t^n: 2^n); on a chaotic one it grows as
-// a perturbation of the state does, e^(lambda k), and a probe that passes kExponentialGrowth by
-// the end reads about its square root here. Returns the largest growth when every sequence has
-// columns (owned here, T >= 2 kMinSegmentSteps, some column moving it in its first half), else
-// -1 (not available: the probe decides).
-static double ColumnGrowth(const Problem::Impl& I, const std::vector<Sensitivity>& columns) {
-  if (columns.size() != I.sequences.size()) return -1;
-  double worst = 0;
-  for (size_t q = 0; q < I.sequences.size(); ++q) {
-    const RowMatrix& S = columns[q].DxDp;
-    const int nx = I.models[I.ModelIndex(I.sequences[q].model)].sim->dims().nx;
-    const int T = S.rows() > 0 ? static_cast<int>(S.rows() / nx) - 1 : 0;
-    if (T < 2 * kMinSegmentSteps) return -1;
-    bool moved = false;
-    for (Eigen::Index j = 0; j < S.cols(); ++j) {
-      double first_half = 0, whole = 0;
-      for (int k = 0; k <= T; ++k) {
-        whole = std::max(
-            whole, S.block(static_cast<Eigen::Index>(k) * nx, j, nx, 1).lpNorm<Eigen::Infinity>());
-        if (k == T / 2) first_half = whole;
-      }
-      if (whole == 0) continue;          // this parameter does not move this sequence
-      if (!(first_half > 0)) return -1;  // moves it only late (or not finite): not decisive
-      worst = std::max(worst, whole / first_half);
-      moved = true;
-    }
-    if (!moved) return -1;
-  }
-  return worst;
-}
-
-HorizonChoice ChooseHorizon(Problem::Impl& I, const std::vector<Trajectory>& initial,
-                            const FitOptions& options, const std::vector<Sensitivity>& columns) {
-  HorizonChoice out;
-  if (options.segment_steps >= 0) {
-    out.steps = options.segment_steps;
-    out.reason = out.steps == 0
-                     ? "single shooting: segment_steps 0 (set)"
-                     : "multiple shooting: segment_steps " + std::to_string(out.steps) + " (set)";
-    return out;
-  }
-  // the start's columns when they show bounded growth, else the probe
-  const double column_growth = ColumnGrowth(I, columns);
-  ProbeReading probe;
-  out.probed = !(column_growth >= 0 && column_growth <= kColumnGrowth);
-  if (out.probed) probe = ReadProbe(I, initial);
-  const double worst_e = probe.growth, rate = probe.first_rate;
-  const int first = probe.first;
-  const std::string& where = probe.where;
-  out.rate = probe.rate;
-  out.growth = probe.growth;
+  out.growth = worst_e;
   // contacts: the nominal rollouts change their contact count, and a segment at step
   // kContactSegmentSteps of the first long enough sequence starts on the data
   long long changes = 0, steps = 0;
@@ -270,14 +204,8 @@ HorizonChoice ChooseHorizon(Problem::Impl& I, const std::vector<Trajectory>& ini
                    " steps";
       return out;
     }
-    out.reason =
-        out.probed
-            ? "single shooting: sensitivity bounded (growth beyond linear x" +
-                  FormatDigits(worst_e, 3) + " <= " + FormatDigits(kExponentialGrowth, 3) + ")"
-            : "single shooting: sensitivity bounded (the start's Jacobian columns "
-              "grow x" +
-                  FormatDigits(column_growth, 3) + " <= " + FormatDigits(kColumnGrowth, 3) +
-                  " from the first half of each sequence to the whole)";
+    out.reason = "single shooting: sensitivity bounded (growth beyond linear x" +
+                 FormatDigits(worst_e, 3) + " <= " + FormatDigits(kExponentialGrowth, 3) + ")";
     if (changes > 0 && !events) {
       out.reason +=
           "; the contact count changes at " +
@@ -299,21 +227,6 @@ HorizonChoice ChooseHorizon(Problem::Impl& I, const std::vector<Trajectory>& ini
   }
   out.reason += ": segments of " + std::to_string(out.steps) + " steps";
   return out;
-}
-
-// Auto's probe after a fit whose horizon the start's columns decided (see the header)
-long long ProbeAfterFit(Problem::Impl& I, const std::vector<Trajectory>& initial, double* rate,
-                        double* growth) {
-  // the initial values, the probe, then the current values back
-  const int np = static_cast<int>(I.params.size());
-  std::vector<double> z0(np);
-  for (int g = 0; g < np; ++g) z0[g] = I.ToZ(g, I.params[g].initial);
-  for (auto& mo : I.models) ApplyVariables(I.params, mo.global, z0.data(), mo.sim.get());
-  const ProbeReading probe = ReadProbe(I, initial);
-  for (auto& mo : I.models) ApplyVariables(I.params, mo.global, I.z.data(), mo.sim.get());
-  *rate = probe.rate;
-  *growth = probe.growth;
-  return probe.steps;
 }
 
 // Auto's contact segments: the sensors that jump at contact events left out (see the header)

@@ -23,32 +23,14 @@ struct HorizonChoice {
   double rate = 0;        // lambda of the probe (largest ln(E_k) / k), per step
   double growth = 0;      // the probe's largest growth beyond linear E (1 when bounded)
   bool contacts = false;  // the segments are kContactSegmentSteps because of contact changes
-  // the velocity probe ran; false: the start's Jacobian columns showed bounded growth (rate and
-  // growth 0; ProbeAfterFit measures them when a later stage needs them)
-  bool probed = true;
 };
 
-// FitOptions::segment_steps >= 0: as set. Auto (-1): when the start's Jacobian columns (columns:
-// per sequence, DxDp filled; empty or missing where not computed here) grow by at most
-// kColumnGrowth from the first half of every sequence to the whole, single shooting (or contact
-// segments) without a probe; else a probe per sequence at the current parameters (one more
-// rollout each, from x0 with the velocities raised by a tiny step; initial: the nominal
-// rollouts): exponential growth beyond linear past x100 gives segments, else single shooting.
-// I's simulators must hold the initial parameter values.
+// FitOptions::segment_steps >= 0: as set. Auto (-1): a probe per sequence at the current
+// parameters (one more rollout each, from x0 with the velocities raised by a tiny step; initial:
+// the nominal rollouts): exponential growth beyond linear past x100 gives segments, else single
+// shooting. I's simulators must hold the initial parameter values.
 HorizonChoice ChooseHorizon(Problem::Impl& I, const std::vector<Trajectory>& initial,
-                            const FitOptions& options, const std::vector<Sensitivity>& columns);
-
-// The bound on the start's columns' growth (first half to whole) below which the probe is not
-// run. Measured (docs/numerics.md, "Automatic multiple shooting"): 1.09-4.47 on the benchmark's
-// spring-mass, pendulum, cart-pole, double pendulum and arm7, whose probes read 1.0-3.6.
-constexpr double kColumnGrowth = 5;
-
-// Auto's later stages after ChooseHorizon skipped the probe (HorizonChoice::probed false): the
-// probe at the initial parameter values (I.params' initial; I's simulators hold I.z again after
-// it) against `initial`, the rollouts there. Sets *rate and *growth as ChooseHorizon's probe
-// would have; returns the simulator steps it took.
-long long ProbeAfterFit(Problem::Impl& I, const std::vector<Trajectory>& initial, double* rate,
-                        double* growth);
+                            const FitOptions& options);
 
 // Auto on contacts: when no exponential growth decides, but the rollouts at the initial values
 // change their contact count (Trajectory::ncon) at events and the segments can start on the data

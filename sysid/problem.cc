@@ -456,10 +456,6 @@ FitResult Problem::Fit(const FitOptions& options) {
   if (I.stop_on_jacobian_warning && !I.jacobian_warnings.empty() && !result.interrupted) {
     std::string reason;
     FitOptions segmented = options;
-    // the probe's rate, measured now if the start's columns decided the horizon
-    if (!prepared.probed && WarningStep(I.jacobian_warnings.begin()->second) >= 0) {
-      ProbeAfterFit(I, prepared.initial, &prepared.probe_rate, &prepared.probe_growth);
-    }
     segmented.segment_steps =
         SegmentStepsAfterWarning(I.jacobian_warnings.begin()->second, prepared.probe_rate, &reason);
     if (segmented.segment_steps > 0) {
@@ -898,19 +894,6 @@ FitResult Problem::Fit(const FitOptions& options) {
       !result.interrupted) {
     int shortest = std::numeric_limits<int>::max();
     for (const SampleGrid& g : I.grids) shortest = std::min(shortest, g.steps);
-    // the probe, measured now if the start's columns decided the horizon (in the ledger)
-    if (!prepared.probed) {
-      const auto t0 = std::chrono::steady_clock::now();
-      LedgerRow row;
-      row.phase = "auto probe after the fit";
-      row.entries = 1;
-      row.steps = row.critical_steps =
-          ProbeAfterFit(I, prepared.initial, &prepared.probe_rate, &prepared.probe_growth);
-      row.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      result.simulation_steps += row.steps;
-      result.seconds += row.seconds;
-      result.ledger.push_back(row);
-    }
     std::string reason;
     FitOptions segmented = options;
     segmented.segment_steps =

@@ -133,7 +133,6 @@ class Problem {
     double probe_growth = 0;     // its largest growth beyond linear (HorizonChoice::growth)
     FitResult::EventWindows event_windows;  // auto's contact segments (sysid/event_windows.h)
     bool contact_segments = false;          // auto chose contact segments (HorizonChoice)
-    bool probed = true;  // auto ran its probe (HorizonChoice::probed; false: ProbeAfterFit)
   };
   // validates the inputs, builds the simulators, variables and segments
   void Prepare(const FitOptions& options, Prepared* out);

@@ -469,16 +469,12 @@ void Problem::Prepare(const FitOptions& options, Prepared* out) {
   I.states.clear();
   // auto under a sharded start (sysid/mpi/): every shard probes every sequence, as one process
   if (I.owned_sequences && options.segment_steps < 0) RolloutUnowned(&I, &initial);
-  // the start's columns may replace the probe, but not under a sharded start: there every shard
-  // probes every sequence, so that all decide alike
-  const HorizonChoice horizon = ChooseHorizon(
-      I, initial, options, I.owned_sequences ? std::vector<Sensitivity>() : initial_sensitivity);
+  const HorizonChoice horizon = ChooseHorizon(I, initial, options);
   out->segment_steps = horizon.steps;
   out->segment_reason = horizon.reason;
   out->probe_rate = horizon.rate;
   out->probe_growth = horizon.growth;
   out->contact_segments = horizon.contacts;
-  out->probed = horizon.probed;
   I.stop_on_jacobian_warning = options.segment_steps < 0 && horizon.steps == 0;
   // a sharded start with free states (sysid/mpi/state_projection.h): every shard starts every
   // sequence's states from the data as one process does, so the other sequences are rolled out

@@ -56,37 +56,6 @@ TEST(RecoveryTest, SpringMassMassNoiseFree) {
   EXPECT_NEAR(Estimate(r, "mass").value, 1.0, 1e-6);
 }
 
-// auto's horizon from the start's Jacobian columns (sysid/multiple_shooting.h, kColumnGrowth):
-// on the stable spring-mass (truth 1.0, start 2.0, noise-free) auto runs no probe rollout, so it
-// takes exactly the steps, iterations and estimate of single shooting set by hand (with the
-// probe it took one more rollout of the 1000 steps)
-TEST(RecoveryTest, AutoHorizonFromTheStartColumnsRunsNoProbe) {
-  ModelPtr m = LoadModel(kModels + "/spring_mass.xml");
-  const RowMatrix u = Excitation(*m, 1000, 2.0, 1);
-  InitialState x0;
-  const RowMatrix y = Measure(*m, {{"mass", Spec("body_mass", "mass"), 1.0}}, x0, u, 0, 0);
-  auto fit = [&](int segment_steps) {
-    Problem problem;
-    problem.AddModel("spring", *m);
-    problem.AddParameter(
-        FitParameter("mass", Spec("body_mass", "mass"), 2.0).Bounds(0.01, 100).Log());
-    problem.AddSequence(FitSequence("seq0", "spring", x0, u, y));
-    FitOptions options;
-    options.segment_steps = segment_steps;
-    return problem.Fit(options);
-  };
-  const FitResult automatic = fit(-1), single = fit(0);
-  Print(automatic);
-  EXPECT_NE(automatic.segment_reason.find("single shooting: sensitivity bounded (the start's "
-                                          "Jacobian columns grow"),
-            std::string::npos)
-      << automatic.segment_reason;
-  EXPECT_TRUE(automatic.converged) << automatic.termination;
-  EXPECT_EQ(automatic.simulation_steps, single.simulation_steps);
-  EXPECT_EQ(automatic.iterations, single.iterations);
-  EXPECT_DOUBLE_EQ(Estimate(automatic, "mass").value, Estimate(single, "mass").value);
-}
-
 // truth 0.5, 0.4, 0.3, 0.2, 0.1, start 0.01 each, noise-free, relative error <= 1e-6
 TEST(RecoveryTest, Arm5ArmaturesNoiseFree) {
   ModelPtr m = LoadModel(kModels + "/arm5.xml");
