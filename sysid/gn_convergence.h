@@ -27,7 +27,9 @@
 // SOLVER_TERMINATE_SUCCESSFULLY when the test passes (Ceres reports USER_SUCCESS; fired() tells
 // it from other callbacks' stops). Problem::Fit installs it only where the test is valid: single
 // shooting (no continuity rows, no states eliminated elsewhere), no robust loss, no fitted
-// control delay (their columns are rollouts, not cached); elsewhere Ceres' tolerances decide.
+// control delay (their columns are rollouts, not cached), and auto's horizon probe measured
+// bounded growth (sysid/problem.cc: on a chaotic system's rugged cost every local minimum passes
+// the test); elsewhere Ceres' tolerances decide.
 //
 // Threads: as the evaluation cache, the thread that runs the solve. Failure: an evaluation that
 // fails (a cancelled simulation) or a broken argument makes the test not pass.
