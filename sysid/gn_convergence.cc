@@ -8,15 +8,9 @@
 #include <utility>
 
 #include "core/text.h"
+#include "sysid/types.h"
 
 namespace mjsysid {
-namespace {
-
-// a value within this relative distance of its bound is on it (as the estimate's at_lower /
-// at_upper, sysid/problem.cc)
-constexpr double kOnBound = 1e-6;
-
-}  // namespace
 
 GaussNewtonTest TestGaussNewtonStep(const EstimateTriangle& t,
                                     const std::vector<ColumnBounds>& bounds, double fraction,
@@ -35,8 +29,7 @@ GaussNewtonTest TestGaussNewtonStep(const EstimateTriangle& t,
   Eigen::VectorXd values(n);
   for (int i = 0; i < n; ++i) {
     const ColumnBounds& b = bounds[i];
-    const double tol = kOnBound * std::max(1.0, std::abs(b.value));
-    side[i] = b.value - b.lower <= tol ? 1 : (b.upper - b.value <= tol ? -1 : 0);
+    side[i] = OnBound(b.value, b.lower, true) ? 1 : (OnBound(b.value, b.upper, false) ? -1 : 0);
     held[i] = side[i] != 0;
     out.held += held[i] ? 1 : 0;
     if (!held[i]) free.push_back(i);

@@ -5,7 +5,7 @@
 //
 // The test, at a point with residuals r (m real rows, cost = 0.5 |r|^2, priors included) and
 // Jacobian J (tangent space, n columns), both already computed by the solve:
-// - the variables on a bound (within 1e-6 relative, as the estimate's at_lower / at_upper) are
+// - the variables on a bound (OnBound, sysid/types.h: as the estimate's at_lower / at_upper) are
 //   held there (the active set); the rest, F, take the Gauss-Newton step d_F = -(J_F' J_F)^-1
 //   J_F' r;
 // - each held variable must want to leave its bound outwards at the predicted point r + J_F d_F

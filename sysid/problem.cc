@@ -519,8 +519,7 @@ FitResult Problem::Fit(const FitOptions& options) {
   auto on_bound = [&](int v, double val, bool lower) {
     const double lo = v < np ? I.params[v].lower : mbounds[v - np].first;
     const double hi = v < np ? I.params[v].upper : mbounds[v - np].second;
-    const double tol = 1e-6 * std::max(1.0, std::abs(val));
-    return lower ? (std::isfinite(lo) && val - lo <= tol) : (std::isfinite(hi) && hi - val <= tol);
+    return OnBound(val, lower ? lo : hi, lower);
   };
   result.parameters.resize(nvar);
   for (int v = 0; v < nvar; ++v) {

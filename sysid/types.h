@@ -13,7 +13,9 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <functional>
 #include <limits>
 #include <map>
@@ -257,9 +259,18 @@ struct FitOptions {
   bool hold_states_first = true;
   // the solve's statistical stop (sysid/gn_convergence.h): converged once the predicted
   // Gauss-Newton step is at most this fraction of every standard error, where the test is valid
-  // (single shooting, no robust loss, no fitted control delay); 0: off, Ceres' tolerances alone
+  // (single shooting, no robust loss, no fitted control delay, segment_steps auto with its probe's
+  // growth at most kRefitGrowth: sysid/problem.cc); 0: off, Ceres' tolerances alone
   double gauss_newton_stop = 0.03;
 };
+
+// a value is on its bound (lower or upper; an infinite bound: never) within 1e-6 relative:
+// ParameterEstimate::at_lower / at_upper, and the statistical stop's active set
+// (sysid/gn_convergence.h)
+inline bool OnBound(double value, double bound, bool lower) {
+  const double tol = 1e-6 * std::max(1.0, std::abs(value));
+  return std::isfinite(bound) && (lower ? value - bound : bound - value) <= tol;
+}
 
 // one estimated variable: a physical parameter or a measurement term ("<sensor>.delay", ...)
 struct ParameterEstimate {
