@@ -333,7 +333,12 @@ void PrefetchCallback::PrepareForEvaluation(bool evaluate_jacobians, bool new_ev
   // Jacobians are simulated as always. (An evaluation within the test: all cached.)
   if (I.previous_jacobian) return;
   const bool solving = I.ledger && I.ledger->solving;
-  if (evaluate_jacobians && !new_evaluation_point && solving && I.gn_stop) {
+  bool previous = evaluate_jacobians && !new_evaluation_point && solving && I.gn_stop;
+  for (size_t s = 0; s < I.segments.size() && previous; ++s) {  // J_k of every segment held
+    const EvaluationCache::Entry& e = I.cache->Cached(static_cast<int>(s));
+    previous = !e.failed && (e.has_jacobians || I.cache->Previous(static_cast<int>(s)));
+  }
+  if (previous) {
     I.previous_jacobian = true;
     if (I.gn_stop->TestBeforeJacobian()) return;
     I.previous_jacobian = false;

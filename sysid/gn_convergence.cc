@@ -178,15 +178,10 @@ void GaussNewtonStop::FillBounds() {
 
 bool GaussNewtonStop::TestBeforeJacobian() {
   if (previous_.size() != blocks_.size() || fired_) return false;
-  // [J_k r_{k+1}]: the caller's cost functions answer with J_k; nothing is simulated
-  const bool solving = ledger_ && ledger_->solving;
-  if (ledger_) ledger_->solving = false;
-  const bool evaluated = EvaluateTriangle(*problem_, blocks_, &triangle_);
-  if (ledger_) ledger_->solving = solving;
-  if (!evaluated) return false;
-  FillBounds();
   // the step x_{k+1} - x_k in tangent space (a block's manifold's Minus)
-  Eigen::VectorXd step(triangle_.n);
+  int n = 0;
+  for (const double* x : blocks_) n += problem_->ParameterBlockTangentSize(x);
+  Eigen::VectorXd step(n);
   int column = 0;
   for (size_t b = 0; b < blocks_.size(); ++b) {
     const double* x = blocks_[b];
@@ -200,6 +195,21 @@ bool GaussNewtonStop::TestBeforeJacobian() {
     }
     column += tangent;
   }
+  // a step beyond twice the limit in x_k's standard errors (the test after J_k) is not tested:
+  // the standard errors would have to double over it (measured: within 0.2 % up to 1 standard
+  // error, 58 % after 127), and the test costs a fold of every row and an SVD
+  if (last_.applies && last_.std_error.size() == n) {
+    for (int i = 0; i < n; ++i) {
+      if (std::abs(step[i]) > 2 * kPreviousJacobianSteps * last_.std_error[i]) return false;
+    }
+  }
+  // [J_k r_{k+1}]: the caller's cost functions answer with J_k; nothing is simulated
+  const bool solving = ledger_ && ledger_->solving;
+  if (ledger_) ledger_->solving = false;
+  const bool evaluated = EvaluateTriangle(*problem_, blocks_, &triangle_);
+  if (ledger_) ledger_->solving = solving;
+  if (!evaluated) return false;
+  FillBounds();
   early_ = TestPreviousJacobian(triangle_, bounds_, step, fraction_, kPreviousJacobianSteps,
                                 uncertainty_);
   if (verbose_ && early_.applies) {
