@@ -199,8 +199,19 @@ bool GaussNewtonStop::TestBeforeJacobian() {
   // the standard errors would have to double over it (measured: within 0.2 % up to 1 standard
   // error, 58 % after 127), and the test costs a fold of every row and an SVD
   if (last_.applies && last_.std_error.size() == n) {
+    double ratio = 0;  // in x_k's standard errors (NaN for held variables: not compared)
     for (int i = 0; i < n; ++i) {
-      if (std::abs(step[i]) > 2 * kPreviousJacobianSteps * last_.std_error[i]) return false;
+      if (!std::isnan(last_.std_error[i]))
+        ratio = std::max(ratio, std::abs(step[i]) / last_.std_error[i]);
+    }
+    if (ratio > 2 * kPreviousJacobianSteps) {
+      if (verbose_) {
+        std::fprintf(stderr,
+                     "          before its Jacobian: last step %.3g std errors of the previous "
+                     "point, not tested (beyond %.3g)\n",
+                     ratio, 2 * kPreviousJacobianSteps);
+      }
+      return false;
     }
   }
   // [J_k r_{k+1}]: the caller's cost functions answer with J_k; nothing is simulated
