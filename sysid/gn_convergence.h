@@ -39,7 +39,7 @@
 // - the test above passes on that triangle (same fraction, active set at x_{k+1}), and
 // - the step just taken is small in the same standard errors: |x_{k+1,i} - x_{k,i}| <= L s_i
 //   for every free variable (tangent space; L = kPreviousJacobianSteps), and no held variable
-//   moved.
+//   moved. A step beyond 2 L in x_k's standard errors is refused before the test is made.
 // Why: the covariance is a linearization assumed valid over +-1 s anyway (the interval check tests
 // that where the cost can be rugged), so a Jacobian taken within L s of the estimate is as good
 // as the estimate's own; r_{k+1} is exact, so the predicted step sees r's nonlinearity along the
