@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <vector>
 
+#include "sysid/gn_convergence.h"
+
 namespace mjsysid {
 namespace {
 
@@ -77,10 +79,9 @@ bool SegmentCost::EvaluateOrThrow(double const* const* parameters, double* resid
   // rollout (and Jacobians only when asked for), from the cache when Prefetch or an earlier
   // evaluation at this point computed them; a failed one is rejected in Evaluate
   const bool want = jacobians != nullptr;
-  const EvaluationCache::Entry& cached = I.cache->Evaluate(segment_, zv, x0, want);
-  if (cached.failed || (want && !cached.has_jacobians)) throw std::runtime_error(cached.error);
-  const Trajectory& tr = cached.tr;
-  const Sensitivity& s = cached.s;
+  const Sensitivity* sens = nullptr;
+  const Trajectory& tr = I.CostEntry(segment_, zv, x0, want, &sens).tr;
+  const Sensitivity& s = *sens;
   if (want && !s.warnings.empty()) I.NoteJacobianWarning(segment_, s.warnings[0]);
   const int ns = dims.ns;
   const int ncol = want ? s.ncol : 0;
@@ -323,13 +324,29 @@ bool PriorCost::Evaluate(double const* const* parameters, double* residuals,
 
 // every segment at the point Ceres is about to evaluate (Ceres has written it into z, m and the
 // state blocks); the cache compares keys itself, so unchanged segments are kept
-void PrefetchCallback::PrepareForEvaluation(bool evaluate_jacobians,
-                                            bool /*new_evaluation_point*/) {
+void PrefetchCallback::PrepareForEvaluation(bool evaluate_jacobians, bool new_evaluation_point) {
   Problem::Impl& I = *impl_;
+  // the statistical stop before the last Jacobian (sysid/gn_convergence.h): Ceres asks for the
+  // Jacobians at the point it just accepted (HandleSuccessfulStep: not a new point); the test on
+  // [J_k r_{k+1}] runs first, the cost functions answering with J_k. Fired: Ceres' request is
+  // answered the same way and the stop's callback ends the solve, nothing simulated; else the
+  // Jacobians are simulated as always. (An evaluation within the test: all cached.)
+  if (I.previous_jacobian) return;
+  const bool solving = I.ledger && I.ledger->solving;
+  bool previous = evaluate_jacobians && !new_evaluation_point && solving && I.gn_stop;
+  for (size_t s = 0; s < I.segments.size() && previous; ++s) {  // J_k of every segment held
+    const EvaluationCache::Entry& e = I.cache->Cached(static_cast<int>(s));
+    previous = !e.failed && (e.has_jacobians || I.cache->Previous(static_cast<int>(s)));
+  }
+  if (previous) {
+    I.previous_jacobian = true;
+    if (I.gn_stop->TestBeforeJacobian()) return;
+    I.previous_jacobian = false;
+  }
   if (!I.m.empty()) I.SyncControlDelays(I.m.data());  // the controls at the fitted delays
   std::vector<const double*> x0(I.segments.size());
   for (size_t s = 0; s < I.segments.size(); ++s) x0[s] = I.X0(static_cast<int>(s));
-  const bool charge = I.ledger && I.ledger->solving;
+  const bool charge = solving;
   if (charge) I.ledger->Enter(evaluate_jacobians ? kPhaseJacobians : kPhaseTrials);
   I.cache->Prefetch(I.z.empty() ? nullptr : I.z.data(), x0, evaluate_jacobians);
   if (charge) I.ledger->Enter(kPhaseSolver);

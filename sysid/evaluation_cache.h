@@ -126,6 +126,15 @@ class EvaluationCache {
   // cancelled); e.g. the rollouts at the estimate after its evaluation
   const Entry& Cached(int segment) const { return entries_[segment]; }
 
+  // the segment's previous iterate: the entry with Jacobians that the current entry's trial
+  // point replaced (kept aside, see Reuse), or nullptr. Read as the Jacobian at its own point
+  // (its key), for the statistical stop before the last Jacobian (sysid/gn_convergence.h); the
+  // current entry is never given its Jacobians.
+  const Entry* Previous(int segment) const {
+    const Entry& kept = kept_[segment];
+    return kept.key.empty() || !kept.has_jacobians ? nullptr : &kept;
+  }
+
   // Rollouts at several points z (x0 per segment as for Prefetch; every segment with an x0) in one
   // batch per model (Simulator::RolloutAt), held aside until Evaluate or Prefetch asks for one of
   // them, which then costs no simulation; replaces the points held before. For points known

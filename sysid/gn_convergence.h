@@ -31,12 +31,32 @@
 // bounded growth (sysid/problem.cc: on a chaotic system's rugged cost every local minimum passes
 // the test); elsewhere Ceres' tolerances decide.
 //
+// Before the last Jacobian (TestBeforeJacobian). When Ceres accepts a step x_k -> x_{k+1} it asks
+// for the Jacobians at x_{k+1}; the test above would then confirm a converged point with a
+// Jacobian that serves nothing else (the covariance could use J_k). So before they are simulated
+// the test is made on [J_k r_{k+1}]: the previous iterate's Jacobian (the evaluation cache keeps
+// it aside) with the new point's residuals (its trial rollout, exact). It fires when
+// - the test above passes on that triangle (same fraction, active set at x_{k+1}), and
+// - the step just taken is small in the same standard errors: |x_{k+1,i} - x_{k,i}| <= L s_i
+//   for every free variable (tangent space; L = kPreviousJacobianSteps), and no held variable
+//   moved. A step beyond 2 L in x_k's standard errors is refused before the test is made.
+// Why: the covariance is a linearization assumed valid over +-1 s anyway (the interval check tests
+// that where the cost can be rugged), so a Jacobian taken within L s of the estimate is as good
+// as the estimate's own; r_{k+1} is exact, so the predicted step sees r's nonlinearity along the
+// step; what it cannot see, J's change over the step, is bounded by the step's size. L: measured,
+// docs/numerics.md "Stopping". The caller (the evaluation callback, sysid/cost_functions.h) makes
+// the problem's cost functions answer Jacobian requests with J_k while it runs and, when it
+// fires, for Ceres' request too (Ceres reads it for its gradient norm only); the next
+// operator() call then ends the solve without evaluating. The covariance then comes from J_k
+// with the residuals, cost and s^2 at x_{k+1} (FitResult::covariance_jacobian_iteration).
+//
 // Threads: as the evaluation cache, the thread that runs the solve. Failure: an evaluation that
 // fails (a cancelled simulation) or a broken argument makes the test not pass.
 #pragma once
 
 #include <ceres/ceres.h>
 
+#include <Eigen/Core>
 #include <limits>
 #include <string>
 #include <vector>
@@ -60,13 +80,31 @@ struct GaussNewtonTest {
   double max_ratio = 0;  // max over F of |d_i| / s_i (when applies)
   int held = 0;          // variables held on a bound
   std::string why_not;   // when !applies: why
+  // the standard errors of the test (tangent space, one per column; NaN for held ones) when it
+  // applies
+  Eigen::VectorXd std_error;
+  // TestPreviousJacobian: max over F of |x_{k+1,i} - x_{k,i}| / s_i (when applies)
+  double step_ratio = 0;
 };
+
+// the largest step, in standard errors of the estimate, over which the previous iterate's
+// Jacobian stands for the estimate's (TestPreviousJacobian; measured: docs/numerics.md,
+// "Stopping")
+inline constexpr double kPreviousJacobianSteps = 0.5;
 
 // The test on the triangle t of [J r] (EstimateTriangle: R_aug^T R_aug = [J r]^T [J r] over
 // t.rows rows, cost t.cost); bounds: t.n entries, one per column
 GaussNewtonTest TestGaussNewtonStep(const EstimateTriangle& t,
                                     const std::vector<ColumnBounds>& bounds, double fraction,
                                     const UncertaintyOptions& uncertainty);
+
+// The test before the last Jacobian (see above) on the triangle t of [J_k r_{k+1}], the bounds at
+// x_{k+1} and step = x_{k+1} - x_k (tangent space, t.n entries): TestGaussNewtonStep's, and it
+// passes only if also every free |step_i| <= limit s_i and every held step_i is 0
+GaussNewtonTest TestPreviousJacobian(const EstimateTriangle& t,
+                                     const std::vector<ColumnBounds>& bounds,
+                                     const Eigen::VectorXd& step, double fraction, double limit,
+                                     const UncertaintyOptions& uncertainty);
 
 class GaussNewtonStop : public ceres::IterationCallback {
  public:
@@ -79,8 +117,16 @@ class GaussNewtonStop : public ceres::IterationCallback {
                   const UncertaintyOptions& uncertainty, bool verbose = false,
                   FitLedger* ledger = nullptr);
   ceres::CallbackReturnType operator()(const ceres::IterationSummary& summary) override;
+  // the test before the Jacobians of an accepted point (see Before the last Jacobian), at the
+  // problem's current values x_{k+1}, its cost functions answering with J_k; true: it fired
+  // (the next operator() call ends the solve). False when no point was tested before.
+  bool TestBeforeJacobian();
 
   bool fired() const { return fired_; }
+  // fired before the last point's Jacobian: last() holds the test on [J_k r_{k+1}]
+  bool fired_before_jacobian() const { return fired_ && before_jacobian_; }
+  // the iteration of the last point tested after its Jacobian (x_k above)
+  int previous_iteration() const { return previous_iteration_; }
   int tests() const { return tests_; }  // how many points were tested
   const GaussNewtonTest& last() const { return last_; }
   // the termination message of a fired test, e.g. "converged: predicted Gauss-Newton step below
@@ -100,6 +146,13 @@ class GaussNewtonStop : public ceres::IterationCallback {
   GaussNewtonTest last_;
   EstimateTriangle triangle_;  // reused between iterations
   std::vector<ColumnBounds> bounds_;
+  // the last tested point x_k, every block's values in order; empty: none yet
+  std::vector<std::vector<double>> previous_;
+  int previous_iteration_ = 0;    // its iteration
+  bool before_jacobian_ = false;  // TestBeforeJacobian fired
+  GaussNewtonTest early_;         // its test
+
+  void FillBounds();  // bounds_ at the current values
 };
 
 }  // namespace mjsysid

@@ -432,6 +432,9 @@ FitResult Problem::Fit(const FitOptions& options) {
   GaussNewtonStop gn_stop(&problem, all_blocks, options.gauss_newton_stop, uo, options.verbose,
                           &ledger);
   if (gn_valid) so_ceres.callbacks.push_back(&gn_stop);
+  // and before a point's Jacobians (the evaluation callback asks it, sysid/cost_functions.h)
+  I.gn_stop = gn_valid && options.gauss_newton_stop_before_jacobian ? &gn_stop : nullptr;
+  I.previous_jacobian = false;
   ceres::Solver::Summary summary;
   I.rejected_evaluations = 0;
   I.jacobian_warnings.clear();
@@ -455,6 +458,11 @@ FitResult Problem::Fit(const FitOptions& options) {
   I.cache->SetColumnsAhead(true);  // trial points' first columns on idle workers
   ceres::Solve(so_ceres, &problem, &summary);
   I.cache->SetColumnsAhead(false);
+  I.gn_stop = nullptr;
+  I.previous_jacobian = false;
+  // fired before the last Jacobian: the estimate is evaluated with the previous iterate's
+  // Jacobian below too (else, e.g. interrupted at that point, with its own)
+  const bool previous_jacobian = gn_stop.fired_before_jacobian() && !result.interrupted;
   ledger.solving = false;
   // the columns computed ahead of points that were not taken (the last trial's at least)
   ledger.Move(kPhaseTrials, kPhaseAheadUnused, I.cache->AheadStepsUnused());
@@ -488,6 +496,10 @@ FitResult Problem::Fit(const FitOptions& options) {
       (summary.termination_type == ceres::CONVERGENCE || result.gauss_newton_converged) &&
       !result.interrupted;
   result.termination = result.gauss_newton_converged ? gn_stop.Message() : summary.message;
+  if (previous_jacobian) {
+    result.covariance_jacobian_iteration = gn_stop.previous_iteration();
+    result.last_step_std_errors = gn_stop.last().step_ratio;
+  }
   // sharded (sysid/mpi/): the uncompressed rows, with the priors'; compressed blocks: the rows
   // they stand for
   int prior_rows = 0;
@@ -559,10 +571,12 @@ FitResult Problem::Fit(const FitOptions& options) {
   // the triangle's columns in the order the blocks were added (z, m, the state blocks)
   const std::vector<double*>& blocks = all_blocks;
   ledger.Enter(kPhaseEstimate);
+  I.previous_jacobian = previous_jacobian;
   const bool evaluated =
       !interrupted_now() && (multiple ? problem.Evaluate(eo, &cost, &residuals, nullptr, &crs)
                                       : EvaluateTriangle(problem, blocks, &triangle));
   ledger.Enter(kPhaseCovariance);
+  I.previous_jacobian = false;
   const bool jacobian_warned_at_estimate = evaluated && !I.jacobian_warnings.empty();
   I.jacobian_warnings.insert(solve_warnings.begin(), solve_warnings.end());
   for (auto& mo : I.models) mo.sim->SetCancelFlag(nullptr);

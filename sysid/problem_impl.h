@@ -38,6 +38,8 @@
 
 namespace mjsysid {
 
+class GaussNewtonStop;  // sysid/gn_convergence.h
+
 // The state blocks of a fit (the segments' initial states, Ceres parameter blocks), stored
 // contiguously in block order. Ceres keeps the blocks of an elimination group in a
 // std::set<double*>, i.e. ordered by address, and orders the Schur elimination and the residual
@@ -243,6 +245,31 @@ struct Problem::Impl {
   // the running fit's ledger (Fit's own, borrowed; nullptr outside Fit): the evaluation callback
   // charges the solve's simulation to it
   FitLedger* ledger = nullptr;
+  // the statistical stop before the last Jacobian (sysid/gn_convergence.h, GaussNewtonStop::
+  // TestBeforeJacobian): the fit's stop where it may run it (borrowed, nullptr: not), and while
+  // previous_jacobian is set the cost functions answer a Jacobian request at the current point
+  // with the simulator's sensitivities at the previous iterate (EvaluationCache::Previous; the
+  // chain to the variables at the current point) and the evaluation callback simulates nothing.
+  // Set by the evaluation callback for the test and, when it fires, until Fit has evaluated the
+  // estimate; cleared by Fit.
+  GaussNewtonStop* gn_stop = nullptr;
+  bool previous_jacobian = false;
+  // a cost function's entry of segment at zv and x0, with Jacobians when want; *s: the
+  // sensitivities to read (the entry's, or the previous iterate's under previous_jacobian).
+  // Throws the entry's error when it failed (the cost function rejects the point).
+  const EvaluationCache::Entry& CostEntry(int segment, const double* zv, const double* x0,
+                                          bool want, const Sensitivity** s) {
+    const bool previous = want && previous_jacobian;
+    const EvaluationCache::Entry& e = cache->Evaluate(segment, zv, x0, want && !previous);
+    const EvaluationCache::Entry* with =
+        previous && !e.has_jacobians ? cache->Previous(segment) : &e;
+    if (e.failed) throw std::runtime_error(e.error);
+    if (want && (with == nullptr || !with->has_jacobians)) {
+      throw std::runtime_error(with == &e ? e.error : "no Jacobian at the previous iterate");
+    }
+    *s = &with->s;
+    return e;
+  }
   // verbose fits: the progress lines inside long rollouts (sysid/progress.h), on every simulator
   // (created once, reset by each Fit; Prepare installs it)
   std::unique_ptr<StepProgressLines> step_progress;

@@ -308,10 +308,9 @@ bool StateCost::EvaluateOrThrow(double const* const* parameters, double* residua
 
   // the segment's rollout and Jacobians from the evaluation cache (shared with SegmentCost)
   const bool want = jacobians != nullptr;
-  const EvaluationCache::Entry& cached = I.cache->Evaluate(segment_, zv, x0, want);
-  if (cached.failed || (want && !cached.has_jacobians)) throw std::runtime_error(cached.error);
-  const Trajectory& tr = cached.tr;
-  const Sensitivity& s = cached.s;
+  const Sensitivity* sens = nullptr;
+  const Trajectory& tr = I.CostEntry(segment_, zv, x0, want, &sens).tr;
+  const Sensitivity& s = *sens;
   const int ncol = want ? s.ncol : 0;
   if (want) {
     for (int i = 0; i < static_cast<int>(parameter_block_sizes().size()); ++i) {

@@ -262,6 +262,11 @@ struct FitOptions {
   // (single shooting, no robust loss, no fitted control delay, segment_steps auto with its probe's
   // growth at most kRefitGrowth: sysid/problem.cc); 0: off, Ceres' tolerances alone
   double gauss_newton_stop = 0.03;
+  // the statistical stop also before a point's Jacobians (sysid/gn_convergence.h, "Before the
+  // last Jacobian"): with the previous iterate's Jacobian when the last step was within
+  // kPreviousJacobianSteps standard errors, so that the last Jacobian is not simulated; false:
+  // only after each Jacobian
+  bool gauss_newton_stop_before_jacobian = true;
 };
 
 // a value is on its bound (lower or upper; an infinite bound: never) within 1e-6 relative:
@@ -451,6 +456,13 @@ struct FitResult {
   // sysid/gn_convergence.h): converged with the point, possibly the start, already within the
   // fraction of every standard error of the Gauss-Newton optimum
   bool gauss_newton_converged = false;
+  // the statistical stop fired before the estimate's Jacobian (FitOptions::
+  // gauss_newton_stop_before_jacobian): the covariance, standard errors and result's jacobian come
+  // from the previous iterate's Jacobian (iteration covariance_jacobian_iteration) with the
+  // residuals, cost and s^2 at the estimate; last_step_std_errors: the last step's largest
+  // |x_{k+1,i} - x_{k,i}| / s_i. -1 and NaN: the Jacobian is the estimate's own.
+  int covariance_jacobian_iteration = -1;
+  double last_step_std_errors = std::numeric_limits<double>::quiet_NaN();
 };
 
 // one line for a user, e.g. "collision pairs off 3 of 4, geoms off 2, disabled [island], guard

@@ -188,6 +188,14 @@ std::string EmitYaml(const FitResultFile& r) {
   if (!r.interval_check.empty()) {
     out << YAML::Key << "interval_check" << YAML::Value << r.interval_check;
   }
+  // the statistical stop before the last Jacobian (sysid/gn_convergence.h): the covariance's
+  // Jacobian is the previous iterate's; absent: the estimate's own
+  if (r.covariance_jacobian_iteration >= 0) {
+    out << YAML::Key << "covariance_jacobian" << YAML::Value << YAML::BeginMap;
+    out << YAML::Key << "iteration" << YAML::Value << r.covariance_jacobian_iteration;
+    out << YAML::Key << "last_step_std_errors" << YAML::Value << Number(r.last_step_std_errors);
+    out << YAML::EndMap;
+  }
   // auto's contact segments: the cells next to contact events left out (sysid/event_windows.h)
   if (r.event_windows.masked > 0) {
     out << YAML::Key << "event_windows" << YAML::Value << YAML::BeginMap;
@@ -636,6 +644,14 @@ void ReadYaml(const std::string& path, FitResultFile* r) {
       {"wall_time_s", &r->seconds}};
   for (const auto& [key, value] : doubles) *value = y.Double(y.Get(root, key, key), key);
   r->solver = y.TextMap(y.Get(root, "solver", "solver"), "solver");
+  // where the covariance's Jacobian was taken (optional: absent when at the estimate)
+  if (const YAML::Node cj = root["covariance_jacobian"]) {
+    r->covariance_jacobian_iteration = y.Int(
+        y.Get(cj, "iteration", "covariance_jacobian.iteration"), "covariance_jacobian.iteration");
+    r->last_step_std_errors =
+        y.Double(y.Get(cj, "last_step_std_errors", "covariance_jacobian.last_step_std_errors"),
+                 "covariance_jacobian.last_step_std_errors");
+  }
   // event windows (optional: absent when none were left out)
   if (const YAML::Node ev = root["event_windows"]) {
     const std::pair<const char*, int*> counts[] = {{"window", &r->event_windows.window},

@@ -356,6 +356,22 @@ TEST_F(ResultTest, EventWindowsRoundTripAndAreAbsentWhenNone) {
   EXPECT_EQ(back.event_windows.sensors, (std::vector<std::string>{"torso_gyro", "leg_vel"}));
 }
 
+// where the covariance's Jacobian was taken (the statistical stop before the last Jacobian,
+// sysid/gn_convergence.h): written only when it was the previous iterate's, read back as written
+TEST_F(ResultTest, CovarianceJacobianRoundTripsAndIsAbsentWhenTheEstimates) {
+  FitResultFile r = FullResult();
+  WriteBoth(r);
+  EXPECT_EQ(ReadResult(Dir()).covariance_jacobian_iteration, -1);
+  EXPECT_TRUE(std::isnan(ReadResult(Dir()).last_step_std_errors));
+  EXPECT_EQ(test::ReadFile(Dir() + "/result.yaml").find("covariance_jacobian"), std::string::npos);
+  r.covariance_jacobian_iteration = 4;
+  r.last_step_std_errors = 0.265;
+  WriteBoth(r);
+  const FitResultFile back = ReadResult(Dir());
+  EXPECT_EQ(back.covariance_jacobian_iteration, 4);
+  EXPECT_EQ(back.last_step_std_errors, 0.265);
+}
+
 TEST_F(ResultTest, FitMetricsAreWrittenPerSequenceAndChannel) {
   // result.yaml lists the metrics of the fitted and the held-out sequences, each channel by name,
   // with the values the runner computed (read back with yaml-cpp, at full precision)
