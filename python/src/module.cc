@@ -350,6 +350,13 @@ NB_MODULE(_mjsysid, m) {
               "multiple shooting: steps per segment (0: single shooting)")
       .def_ro("segment_reason", &FitResult::segment_reason,
               "why (multiple_shooting: auto's choice, or the given segment_steps)")
+      .def_ro("gauss_newton_converged", &FitResult::gauss_newton_converged,
+              "ended by the statistical stop (gauss_newton_stop, docs/numerics.md \"Stopping\")")
+      .def_ro("covariance_jacobian_iteration", &FitResult::covariance_jacobian_iteration,
+              "-1: covariance, std errors and jacobian from the estimate's own Jacobian; else "
+              "the iteration whose Jacobian they use (the stop before the last Jacobian)")
+      .def_ro("last_step_std_errors", &FitResult::last_step_std_errors,
+              "that stop: the last step's largest size in standard errors (NaN otherwise)")
       .def_prop_ro(
           "reduction",
           [](const FitResult& r) {

@@ -272,3 +272,26 @@ def test_docs_list_the_options_the_module_accepts(root):
     table = doc.split("<!-- options: begin", 1)[1].split("<!-- options: end -->", 1)[0]
     documented = set(re.findall(r"^\| `([a-z_0-9]+)` \|", table, re.MULTILINE))
     assert documented == accepted, documented ^ accepted
+
+
+def test_statistical_stop_is_reported(root, frames):  # noqa: F811
+    # the pendulum log (truth and start above), 1 thread: with the default gauss_newton_stop (0.03)
+    # the fit ends by the statistical stop, and where it fired before the last Jacobian the result
+    # names the iteration whose Jacobian the covariance used and the last step (<= 0.5 standard
+    # errors, docs/numerics.md "Stopping"); with 0 Ceres' tolerances end it and the covariance is
+    # the estimate's own
+    model = str(root / "models/pendulum.xml")
+    base = {"sensor_sigmas": SIGMAS, "max_iterations": 50, "threads": 1}
+    stop = mjsysid.fit(model, PARAMETERS, sequences_of(frames), options=base)
+    ceres = mjsysid.fit(model, PARAMETERS, sequences_of(frames),
+                        options=dict(base, gauss_newton_stop=0.0))
+    assert stop.status == ceres.status == "converged"
+    assert stop.gauss_newton_converged and not ceres.gauss_newton_converged
+    assert "Gauss-Newton" in stop.termination, stop.termination
+    assert ceres.covariance_jacobian_iteration == -1
+    assert np.isnan(ceres.last_step_std_errors)
+    assert 0 <= stop.covariance_jacobian_iteration == stop.iterations - 1, stop.termination
+    assert 0 <= stop.last_step_std_errors <= 0.5
+    for p, q in zip(stop.parameters, ceres.parameters):
+        assert abs(p.value - q.value) <= 0.03 * q.std_error, (p, q)
+        assert p.std_error == pytest.approx(q.std_error, rel=0.005), (p, q)
