@@ -67,8 +67,10 @@ machine_load() {
 step "dependencies (with the benchmark peer)"
 tools/bootstrap.sh --bench
 step "build (release preset)"
+# bench_threads too: BENCHMARKS.md runs it from the same build after this script (a stale binary
+# once gave another commit's 2-thread figures)
 cmake --preset release -G Ninja >/dev/null
-cmake --build --preset release -j "$(nproc)" --target sysid bench_fit bench_jacobian_cost
+cmake --build --preset release -j "$(nproc)" --target sysid bench_fit bench_jacobian_cost bench_threads
 bin=build/release/bin
 mkdir -p "$out/peer"
 
