@@ -218,7 +218,9 @@ TEST_P(FoldReuseFitTest, TheSameFitBitForBit) {
   EXPECT_EQ(on.segment_steps_used, 0);  // single shooting: compressed blocks
   // (with a fitted control delay the statistical stop is off and Ceres ends after trials at other
   // points, so the estimate's Jacobian is a new fold: the same fit is all there is to test)
-  if (!c.delay) EXPECT_GT(on.reused_folds, 0);
+  if (!c.delay) {
+    EXPECT_GT(on.reused_folds, 0);
+  }
   EXPECT_EQ(off.reused_folds, 0);
   EXPECT_EQ(on.folds + on.reused_folds, off.folds);  // each reused fold is one fold fewer
   EXPECT_EQ(on.outcome, off.outcome);
