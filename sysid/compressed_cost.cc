@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <utility>
 
 namespace mjsysid {
@@ -15,6 +16,28 @@ CompressedCost::CompressedCost(std::unique_ptr<ceres::CostFunction> inner, Compr
     n += size;
   }
   set_num_residuals(n + 1);
+  fold_.resize(n + 1, n + 1);
+  fold_values_.resize(n);
+}
+
+bool CompressedCost::HoldsFoldAt(double const* const* parameters) const {
+  const CompressedBlocks& B = *blocks_;
+  if (!has_fold_ || !B.reuse_folds || fold_epoch_ != (B.epoch ? *B.epoch : 0)) return false;
+  const std::vector<int32_t>& sizes = parameter_block_sizes();
+  for (size_t b = 0, c0 = 0; b < sizes.size(); c0 += sizes[b], ++b) {
+    if (std::memcmp(parameters[b], fold_values_.data() + c0, sizeof(double) * sizes[b]) != 0) {
+      return false;
+    }
+  }
+  return true;
+}
+
+void CompressedCost::KeepInputs(double const* const* parameters) const {
+  const std::vector<int32_t>& sizes = parameter_block_sizes();
+  for (size_t b = 0, c0 = 0; b < sizes.size(); c0 += sizes[b], ++b) {
+    std::copy(parameters[b], parameters[b] + sizes[b], fold_values_.begin() + c0);
+  }
+  fold_epoch_ = blocks_->epoch ? *blocks_->epoch : 0;
 }
 
 bool CompressedCost::Evaluate(double const* const* parameters, double* residuals,
@@ -25,15 +48,25 @@ bool CompressedCost::Evaluate(double const* const* parameters, double* residuals
   const std::vector<int32_t>& sizes = parameter_block_sizes();
   B.r.resize(m);
 
-  // residuals only: any n + 1 values of norm |r| give the cost
+  // residuals only: any n + 1 values of norm |r| give the cost (at other values than the last
+  // fold's: the fold is dropped, whatever the inner cost keeps aside may move)
   if (jacobians == nullptr) {
+    if (!HoldsFoldAt(parameters)) has_fold_ = false;
     if (!inner_->Evaluate(parameters, B.r.data(), nullptr)) return false;
     WriteNorm(n, Eigen::Map<const Eigen::VectorXd>(B.r.data(), m).squaredNorm(), residuals);
     return true;
   }
 
+  // the last fold at the same inputs: written out, the inner cost not called
+  if (HoldsFoldAt(parameters)) {
+    ++B.reused_folds;
+    WriteTriangle(fold_, fold_last_, sizes, residuals, jacobians);
+    return true;
+  }
+
   // the inner residuals and every block's Jacobian (all columns enter the fold, whichever blocks
   // Ceres asks for)
+  has_fold_ = false;
   B.jacobians.resize(std::max(B.jacobians.size(), sizes.size()));
   B.jacobian_ptrs.resize(sizes.size());
   for (size_t b = 0; b < sizes.size(); ++b) {
@@ -60,7 +93,15 @@ bool CompressedCost::Evaluate(double const* const* parameters, double* residuals
   // residuals (Q^T r, c): c^2 = |r|^2 - |Q^T r|^2, so the cost is the rows' to rounding
   const double sum = Eigen::Map<const Eigen::VectorXd>(B.r.data(), m).squaredNorm();
   const double projected = R.col(n).head(n).squaredNorm();
-  WriteTriangle(R, std::sqrt(std::max(0.0, sum - projected)), sizes, residuals, jacobians);
+  const double last = std::sqrt(std::max(0.0, sum - projected));
+  WriteTriangle(R, last, sizes, residuals, jacobians);
+  ++B.folds;
+
+  // kept as the last fold with its inputs
+  fold_ = R;
+  fold_last_ = last;
+  KeepInputs(parameters);
+  has_fold_ = true;
   return true;
 }
 

@@ -14,14 +14,24 @@
 // (sysid/residual_model.h RobustResidual: rows sign(e) sqrt(rho(e^2))), so they survive the fold;
 // a Ceres LossFunction on the whole block would not (Problem adds none).
 //
-// Memory: Ceres holds n + 1 rows per block; the inner cost's residuals and Jacobian live in a
-// CompressedBlocks scratch shared by every block of a problem (sized to the largest block), so one
-// block's rows exist at a time. Threads: the scratch makes Evaluate single-threaded (Ceres
-// num_threads = 1, as Problem::Fit runs it). Failure: the inner cost's false is returned.
+// The last fold: each block keeps its last fold with Jacobians (the triangle and c) with its
+// inputs, every parameter block's values (bitwise) and CompressedBlocks::epoch; a request with
+// Jacobians at the same inputs writes that fold out without calling the inner cost (the same bits
+// as a re-fold: the statistical stop's test and the covariance ask at the point whose Jacobian
+// Ceres just had folded, sysid/gn_convergence.h). The owner advances the epoch whenever anything
+// else the inner cost reads may change; a residual-only evaluation at other values drops the fold;
+// a failed evaluation keeps none. CompressedBlocks::reuse_folds = false: always re-fold.
+//
+// Memory: Ceres holds n + 1 rows per block, each block (n + 1)^2 + n doubles for its last fold;
+// the inner cost's residuals and Jacobian live in a CompressedBlocks scratch shared by every block
+// of a problem (sized to the largest block), so one block's rows exist at a time. Threads: the
+// scratch makes Evaluate single-threaded (Ceres num_threads = 1, as Problem::Fit runs it).
+// Failure: the inner cost's false is returned.
 #pragma once
 
 #include <ceres/ceres.h>
 
+#include <cstdint>
 #include <memory>
 #include <vector>
 
@@ -42,6 +52,13 @@ struct CompressedBlocks {
   std::vector<double*> jacobian_ptrs;
   RowMatrix chunk;
   RowTriangle triangle;
+  // the last folds (see above): whether a block may write out its last fold, and the epoch of the
+  // inputs besides the parameter values (borrowed, advanced by the owner; nullptr: always 0)
+  bool reuse_folds = true;
+  const std::uint64_t* epoch = nullptr;
+  // evaluations with Jacobians: folds made, and last folds written out instead
+  long long folds = 0;
+  long long reused_folds = 0;
 };
 
 class CompressedCost : public ceres::CostFunction {
@@ -55,8 +72,20 @@ class CompressedCost : public ceres::CostFunction {
   const ceres::CostFunction& inner() const { return *inner_; }
 
  private:
+  // whether the last fold was made at parameters (bitwise) in the current epoch
+  bool HoldsFoldAt(double const* const* parameters) const;
+  // remembers parameters and the epoch as the last fold's inputs
+  void KeepInputs(double const* const* parameters) const;
+
   std::unique_ptr<ceres::CostFunction> inner_;
   CompressedBlocks* blocks_;
+  // the last fold with Jacobians: (n + 1) x (n + 1) triangle, c, and its inputs (the values of
+  // every parameter block side by side, n; the epoch); allocated once
+  mutable bool has_fold_ = false;
+  mutable Eigen::MatrixXd fold_;
+  mutable double fold_last_ = 0;
+  mutable std::vector<double> fold_values_;
+  mutable std::uint64_t fold_epoch_ = 0;
 };
 
 // Ceres' view of a folded block (also the MPI root's, sysid/mpi/distributed_fit.h): residuals

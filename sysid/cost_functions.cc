@@ -339,9 +339,9 @@ void PrefetchCallback::PrepareForEvaluation(bool evaluate_jacobians, bool new_ev
     previous = !e.failed && (e.has_jacobians || I.cache->Previous(static_cast<int>(s)));
   }
   if (previous) {
-    I.previous_jacobian = true;
+    I.SetPreviousJacobian(true);
     if (I.gn_stop->TestBeforeJacobian()) return;
-    I.previous_jacobian = false;
+    I.SetPreviousJacobian(false);
   }
   if (!I.m.empty()) I.SyncControlDelays(I.m.data());  // the controls at the fitted delays
   std::vector<const double*> x0(I.segments.size());

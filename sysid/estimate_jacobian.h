@@ -13,8 +13,10 @@
 // rows, so R_aug.leftCols(n) stands for J and R_aug.col(n) for r in every quadratic form (cost 0.5
 // |r + J d|^2, J^T J, J^T r). Memory: the residuals and Jacobian of the largest residual block plus
 // O(n^2); the rows go into the triangle in the blocks' order, in fixed chunks, so the same values
-// give the same bits. Failure: returns false when a block cannot be evaluated (a failed or
-// cancelled simulation).
+// give the same bits. A compressed block (sysid/compressed_cost.h) asked at the inputs of its last
+// fold writes that fold out (n + 1 rows, the same bits) instead of evaluating its inner cost
+// again: after the solve's Jacobian at the point, nothing is chained or folded twice. Failure:
+// returns false when a block cannot be evaluated (a failed or cancelled simulation).
 #pragma once
 
 #include <ceres/ceres.h>

@@ -23,7 +23,11 @@
 // GaussNewtonStop runs the test as a ceres::IterationCallback at iteration 0 and after every
 // successful step (a rejected step leaves the point, and so the answer, unchanged), with J and r
 // from EvaluateTriangle (sysid/estimate_jacobian.h): the evaluation cache holds the rollouts and
-// Jacobians the solve just computed at that point, so nothing is simulated. Returns
+// Jacobians the solve just computed at that point, so nothing is simulated, and each compressed
+// block writes out the fold Ceres' Jacobian evaluation at that point just made (sysid/
+// compressed_cost.h, "The last fold"), so nothing is re-folded: the test folds the blocks' n + 1
+// rows and analyses an (n + 1) x (n + 1) triangle. (Before the last Jacobian, below, the blocks
+// fold [J_k r_{k+1}] from the cache: a fold at other inputs.) Returns
 // SOLVER_TERMINATE_SUCCESSFULLY when the test passes (Ceres reports USER_SUCCESS; fired() tells
 // it from other callbacks' stops). Problem::Fit installs it only where the test is valid: single
 // shooting (no continuity rows, no states eliminated elsewhere), no robust loss, no fitted

@@ -307,6 +307,8 @@ FitResult Problem::Fit(const FitOptions& options) {
   // single shooting: each segment's block to Ceres as its thin-QR triangle (memory: Ceres holds
   // n + 1 rows per block, sysid/compressed_cost.h); declared before the problem, which uses it
   CompressedBlocks compressed;
+  compressed.reuse_folds = options.reuse_folds;
+  compressed.epoch = &I.cost_inputs_epoch;  // (the epoch outlives the problem)
   bool compress = options.compress_blocks && !I.shards;
   for (const Segment& seg : I.segments) compress = compress && seg.next < 0;
   ceres::Problem problem(po);
@@ -434,10 +436,11 @@ FitResult Problem::Fit(const FitOptions& options) {
   if (gn_valid) so_ceres.callbacks.push_back(&gn_stop);
   // and before a point's Jacobians (the evaluation callback asks it, sysid/cost_functions.h)
   I.gn_stop = gn_valid && options.gauss_newton_stop_before_jacobian ? &gn_stop : nullptr;
-  I.previous_jacobian = false;
+  I.SetPreviousJacobian(false);
   ceres::Solver::Summary summary;
   I.rejected_evaluations = 0;
   I.jacobian_warnings.clear();
+  ++I.cost_inputs_epoch;  // (jacobian_warnings cleared)
   ledger.solving = true;
   // auto's contact segments: a first solve with the segment states held on the data
   // (sysid/multiple_shooting.h, SolveWithStatesHeld); its accepted steps count as the fit's, its
@@ -459,7 +462,7 @@ FitResult Problem::Fit(const FitOptions& options) {
   ceres::Solve(so_ceres, &problem, &summary);
   I.cache->SetColumnsAhead(false);
   I.gn_stop = nullptr;
-  I.previous_jacobian = false;
+  I.SetPreviousJacobian(false);
   // fired before the last Jacobian: the estimate is evaluated with the previous iterate's
   // Jacobian below too (else, e.g. interrupted at that point, with its own)
   const bool previous_jacobian = gn_stop.fired_before_jacobian() && !result.interrupted;
@@ -565,18 +568,21 @@ FitResult Problem::Fit(const FitOptions& options) {
   // the core's Jacobian warnings of this evaluation alone: the Jacobian the intervals come from
   std::map<int, std::string> solve_warnings;
   std::swap(solve_warnings, I.jacobian_warnings);
+  if (!solve_warnings.empty()) ++I.cost_inputs_epoch;  // the estimate's folds note theirs anew
   if (options.verbose && !interrupted_now()) {
     PrintFitProgress("unc", "Jacobian at the estimate (uncertainty)", I.fit_start);
   }
   // the triangle's columns in the order the blocks were added (z, m, the state blocks)
   const std::vector<double*>& blocks = all_blocks;
   ledger.Enter(kPhaseEstimate);
-  I.previous_jacobian = previous_jacobian;
+  I.SetPreviousJacobian(previous_jacobian);
   const bool evaluated =
       !interrupted_now() && (multiple ? problem.Evaluate(eo, &cost, &residuals, nullptr, &crs)
                                       : EvaluateTriangle(problem, blocks, &triangle));
   ledger.Enter(kPhaseCovariance);
-  I.previous_jacobian = false;
+  I.SetPreviousJacobian(false);
+  result.reused_folds = compressed.reused_folds;
+  result.folds = compressed.folds;
   const bool jacobian_warned_at_estimate = evaluated && !I.jacobian_warnings.empty();
   I.jacobian_warnings.insert(solve_warnings.begin(), solve_warnings.end());
   for (auto& mo : I.models) mo.sim->SetCancelFlag(nullptr);

@@ -17,6 +17,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <functional>
 #include <map>
 #include <memory>
@@ -254,6 +255,17 @@ struct Problem::Impl {
   // estimate; cleared by Fit.
   GaussNewtonStop* gn_stop = nullptr;
   bool previous_jacobian = false;
+  // sets previous_jacobian; a change advances cost_inputs_epoch
+  void SetPreviousJacobian(bool on) {
+    if (on != previous_jacobian) ++cost_inputs_epoch;
+    previous_jacobian = on;
+  }
+  // the epoch of what the cost functions read besides their parameter values, for the compressed
+  // blocks' last folds (sysid/compressed_cost.h CompressedBlocks::epoch): advanced when
+  // previous_jacobian changes, when a sequence's controls are held at other delays
+  // (SyncControlDelays) and when jacobian_warnings loses entries a fold's evaluation noted (a
+  // written-out fold notes none)
+  std::uint64_t cost_inputs_epoch = 0;
   // a cost function's entry of segment at zv and x0, with Jacobians when want; *s: the
   // sensitivities to read (the entry's, or the previous iterate's under previous_jacobian).
   // Throws the entry's error when it failed (the cost function rejects the point).

@@ -63,6 +63,7 @@ void Problem::Impl::SyncControlDelays(int q, const double* mv) {
   const double dt = models[ModelIndex(sq.model)].sim->model().opt.timestep;
   HoldControls(grid, sq.ctrl, sq.ctrl_hold, delay, dt, &grid.ctrl);
   grid.delay = delay;
+  ++cost_inputs_epoch;  // the cost functions read the controls
 }
 
 // -----------------------------------------------------------------------------------------------

@@ -267,6 +267,10 @@ struct FitOptions {
   // kPreviousJacobianSteps standard errors, so that the last Jacobian is not simulated; false:
   // only after each Jacobian
   bool gauss_newton_stop_before_jacobian = true;
+  // single shooting's compressed blocks: a block asked for its Jacobian at the inputs of its last
+  // fold writes that fold out instead of re-folding (sysid/compressed_cost.h; the same bits);
+  // false: every request re-folds (the same fit, slower)
+  bool reuse_folds = true;
 };
 
 // a value is on its bound (lower or upper; an infinite bound: never) within 1e-6 relative:
@@ -463,6 +467,10 @@ struct FitResult {
   // |x_{k+1,i} - x_{k,i}| / s_i. -1 and NaN: the Jacobian is the estimate's own.
   int covariance_jacobian_iteration = -1;
   double last_step_std_errors = std::numeric_limits<double>::quiet_NaN();
+  // single shooting's compressed blocks (FitOptions::reuse_folds): Jacobian requests answered
+  // with a block's last fold instead of a re-fold, and the folds made (sysid/compressed_cost.h)
+  long long reused_folds = 0;
+  long long folds = 0;
 };
 
 // one line for a user, e.g. "collision pairs off 3 of 4, geoms off 2, disabled [island], guard
