@@ -28,58 +28,19 @@
 #include <vector>
 
 #include "sysid/io/experiment.h"
-#include "sysid/row_triangle.h"
 #include "sysid/run/fit_experiment.h"
 #include "tests/experiment_log.h"
+#include "tests/sysid/linear_least_squares.h"
 
 namespace mjsysid {
 namespace {
 
 constexpr double kFraction = 0.03;
 
-// y = J x* + noise, the triangle of [J, J x - y] at x, and the least-squares solution
-struct Linear {
-  RowMatrix J;
-  Eigen::VectorXd y, xhat, se;
-
-  Linear(int m, int n) : J(m, n), y(m) {
-    std::mt19937 rng(7);
-    std::normal_distribution<double> unit(0.0, 1.0);
-    Eigen::VectorXd truth(n);
-    for (int i = 0; i < n; ++i) truth[i] = 1.0 + i;
-    for (int k = 0; k < m; ++k) {
-      for (int i = 0; i < n; ++i) J(k, i) = unit(rng);
-    }
-    std::mt19937 noise_rng(11);
-    std::normal_distribution<double> noise(0.0, 0.1);
-    y = J * truth;
-    for (int k = 0; k < m; ++k) y[k] += noise(noise_rng);
-    xhat = J.colPivHouseholderQr().solve(y);
-    // standard errors at the solution: s^2 (J'J)^-1, s^2 = |r|^2 / (m - n)
-    const double s2 = (J * xhat - y).squaredNorm() / (m - n);
-    se = (s2 * (J.transpose() * J).inverse()).diagonal().cwiseSqrt();
-  }
-
-  EstimateTriangle At(const Eigen::VectorXd& x) const {
-    const Eigen::VectorXd r = J * x - y;
-    RowTriangle tri(static_cast<int>(J.cols()) + 1);
-    tri.Add(J, r);
-    EstimateTriangle t;
-    t.r_aug = tri.R();
-    t.rows = J.rows();
-    t.cost = 0.5 * r.squaredNorm();
-    t.n = static_cast<int>(J.cols());
-    return t;
-  }
-  std::vector<ColumnBounds> Free(const Eigen::VectorXd& x) const {
-    std::vector<ColumnBounds> b(x.size());
-    for (int i = 0; i < x.size(); ++i) b[i].value = x[i];
-    return b;
-  }
-};
+using test::LinearLeastSquares;
 
 TEST(GaussNewtonStepTest, PassesAtTheOptimumAndFailsHalfAStandardErrorAway) {
-  const Linear L(400, 3);
+  const LinearLeastSquares L(400, 3);
   const GaussNewtonTest at = TestGaussNewtonStep(L.At(L.xhat), L.Free(L.xhat), kFraction, {});
   EXPECT_TRUE(at.applies);
   EXPECT_TRUE(at.passed);
@@ -101,7 +62,7 @@ TEST(GaussNewtonStepTest, PassesAtTheOptimumAndFailsHalfAStandardErrorAway) {
 }
 
 TEST(GaussNewtonStepTest, RankDeficientJacobianDoesNotApply) {
-  Linear L(400, 3);
+  LinearLeastSquares L(400, 3);
   L.J.col(2) = 2.0 * L.J.col(0);
   Eigen::VectorXd at(3);
   at << L.J.leftCols(2).colPivHouseholderQr().solve(L.y), 0.0;
@@ -112,7 +73,7 @@ TEST(GaussNewtonStepTest, RankDeficientJacobianDoesNotApply) {
 }
 
 TEST(GaussNewtonStepTest, AVariableOnItsBoundIsHeldWhenTheDataPushItOut) {
-  const Linear L(400, 3);
+  const LinearLeastSquares L(400, 3);
   // variable 0 held on a lower bound 2 standard errors above its unconstrained optimum: the
   // optimum of the others given it, where the data push it down (outwards)
   for (const double offset : {2.0, -2.0}) {

@@ -1,7 +1,7 @@
 // The statistical stop before the last Jacobian (sysid/gn_convergence.h, "Before the last
 // Jacobian"; FitOptions::gauss_newton_stop_before_jacobian).
 //
-// TestPreviousJacobian on linear least squares (truth, J and noise as gn_convergence_test: truth
+// TestPreviousJacobian on linear least squares (tests/sysid/linear_least_squares.h: truth
 // 1, 2, 3, J 400 x 3 Gaussian seed 7, noise sigma 0.1 seed 11), where J_k = J_{k+1}: at the
 // solution it passes after a last step of 0.25 standard errors, refuses after 2 (L = 0.5) although
 // the Gauss-Newton step is 0, and refuses when a variable held on its bound moved.
@@ -26,9 +26,9 @@
 
 #include "sysid/fit_ledger.h"
 #include "sysid/gn_convergence.h"
-#include "sysid/row_triangle.h"
 #include "sysid/run/fit_experiment.h"
 #include "tests/experiment_log.h"
+#include "tests/sysid/linear_least_squares.h"
 
 namespace mjsysid {
 namespace {
@@ -41,46 +41,10 @@ constexpr double kFraction = 0.03;
 constexpr double kStdErrorTolerance = 0.005;
 constexpr int kSteps = 1000;  // samples of each test log (one sequence), steps of a rollout
 
-// y = J x* + noise; the triangle of [J, J x - y] at x; the least-squares solution and its
-// standard errors
-struct Linear {
-  RowMatrix J;
-  Eigen::VectorXd y, xhat, se;
-
-  Linear() : J(400, 3), y(400) {
-    std::mt19937 rng(7);
-    std::normal_distribution<double> unit(0.0, 1.0);
-    for (int k = 0; k < J.rows(); ++k) {
-      for (int i = 0; i < J.cols(); ++i) J(k, i) = unit(rng);
-    }
-    std::mt19937 noise_rng(11);
-    std::normal_distribution<double> noise(0.0, 0.1);
-    y = J * Eigen::Vector3d(1, 2, 3);
-    for (int k = 0; k < y.size(); ++k) y[k] += noise(noise_rng);
-    xhat = J.colPivHouseholderQr().solve(y);
-    const double s2 = (J * xhat - y).squaredNorm() / (J.rows() - J.cols());
-    se = (s2 * (J.transpose() * J).inverse()).diagonal().cwiseSqrt();
-  }
-  EstimateTriangle At(const Eigen::VectorXd& x) const {
-    const Eigen::VectorXd r = J * x - y;
-    RowTriangle tri(static_cast<int>(J.cols()) + 1);
-    tri.Add(J, r);
-    EstimateTriangle t;
-    t.r_aug = tri.R();
-    t.rows = J.rows();
-    t.cost = 0.5 * r.squaredNorm();
-    t.n = static_cast<int>(J.cols());
-    return t;
-  }
-  std::vector<ColumnBounds> Free(const Eigen::VectorXd& x) const {
-    std::vector<ColumnBounds> b(x.size());
-    for (int i = 0; i < x.size(); ++i) b[i].value = x[i];
-    return b;
-  }
-};
+using test::LinearLeastSquares;
 
 TEST(PreviousJacobianTest, TheLastStepMustBeWithinTheLimit) {
-  const Linear L;
+  const LinearLeastSquares L(400, 3);
   for (const double steps : {0.25, 2.0}) {
     const Eigen::VectorXd step = steps * L.se;
     const GaussNewtonTest t = TestPreviousJacobian(L.At(L.xhat), L.Free(L.xhat), step, kFraction,
