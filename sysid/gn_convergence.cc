@@ -11,6 +11,18 @@
 #include "sysid/types.h"
 
 namespace mjsysid {
+namespace {
+
+// the largest |step_i| / s_i over the variables with a standard error (held ones, NaN: left out)
+double StepInStandardErrors(const Eigen::VectorXd& step, const Eigen::VectorXd& std_error) {
+  double ratio = 0;
+  for (int i = 0; i < step.size(); ++i) {
+    if (!std::isnan(std_error[i])) ratio = std::max(ratio, std::abs(step[i]) / std_error[i]);
+  }
+  return ratio;
+}
+
+}  // namespace
 
 GaussNewtonTest TestGaussNewtonStep(const EstimateTriangle& t,
                                     const std::vector<ColumnBounds>& bounds, double fraction,
@@ -94,13 +106,11 @@ GaussNewtonTest TestPreviousJacobian(const EstimateTriangle& t,
   }
   // the step just taken in the same standard errors; a held variable (no standard error) must
   // not have moved
+  out.step_ratio = StepInStandardErrors(step, out.std_error);
   for (int i = 0; i < t.n; ++i) {
-    const double s = out.std_error[i];
-    if (std::isnan(s)) {
-      if (step[i] != 0) out.step_ratio = std::numeric_limits<double>::infinity();
-      continue;
+    if (std::isnan(out.std_error[i]) && step[i] != 0) {
+      out.step_ratio = std::numeric_limits<double>::infinity();
     }
-    out.step_ratio = std::max(out.step_ratio, std::abs(step[i]) / s);
   }
   out.passed = out.passed && out.step_ratio <= limit;
   return out;
@@ -199,11 +209,7 @@ bool GaussNewtonStop::TestBeforeJacobian() {
   // the standard errors would have to double over it (measured: within 0.2 % up to 1 standard
   // error, 58 % after 127), and the test costs a fold of every row and an SVD
   if (last_.applies && last_.std_error.size() == n) {
-    double ratio = 0;  // in x_k's standard errors (NaN for held variables: not compared)
-    for (int i = 0; i < n; ++i) {
-      if (!std::isnan(last_.std_error[i]))
-        ratio = std::max(ratio, std::abs(step[i]) / last_.std_error[i]);
-    }
+    const double ratio = StepInStandardErrors(step, last_.std_error);  // held at x_k: left out
     if (ratio > 2 * kPreviousJacobianSteps) {
       if (verbose_) {
         std::fprintf(stderr,
