@@ -52,6 +52,7 @@
 
 #include <Eigen/Core>
 #include <atomic>
+#include <functional>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -304,6 +305,15 @@ class Simulator {
   // the wall time of those batches and of their hand-off to the workers (core/thread_pool.h,
   // PoolTime); reset with ResetStepCount
   const PoolTime& ParallelTime() const { return pool_.time(); }
+
+  // Runs fn(worker, i) for every i in [0, n) on the simulator's workers (ThreadPool::ParallelFor:
+  // the calling thread is worker 0; with one thread, in order on it): the caller's own work
+  // between the simulator's batches (the fit's residual blocks' folds, sysid/compressed_cost.h),
+  // a batch of ParallelTime and, without steps, of ParallelLoad. fn must not call this simulator
+  // (its workers' mjData are not fn's); the first exception thrown by fn is rethrown.
+  void ParallelFor(int n, const std::function<void(int worker, int i)>& fn) {
+    pool_.ParallelFor(n, fn);
+  }
 
   // The reduced model (core/reduced_model.h): switches r off in the private model (r from
   // AnalyzeReduction on this simulator's model and its nominal rollouts). Rollout, Jacobians and

@@ -22,16 +22,32 @@
 // else the inner cost reads may change; a residual-only evaluation at other values drops the fold;
 // a failed evaluation keeps none. CompressedBlocks::reuse_folds = false: always re-fold.
 //
+// Folds ahead (FoldAhead): an inner cost that is a FoldableCost can have its rows made and folded
+// before Ceres asks, on the simulator's workers, one task per block (the evaluation callback does
+// it after each Jacobian batch, sysid/cost_functions.h PrefetchCallback): each task writes its
+// block's last fold with the inputs it was made at (the parameter blocks' values as Ceres then
+// passes them: Ceres writes the point into the user's blocks before the callback), so that
+// Ceres' Evaluate calls, one after the other on the fit thread, only write folds out. The fold is
+// the same code on the same rows: the same bits as a fold at Evaluate, at any thread count. The
+// inner cost's side effects (FoldableCost::NoteRows) are applied when Ceres first asks for the
+// fold, in Ceres' order, as Evaluate applies them; a block whose rows fail ahead gets no fold, and
+// Evaluate evaluates it as without folds ahead (failing the same way). A fold made ahead is
+// written out once even with reuse_folds = false, and counts as a fold (folds) when it is, and
+// in ahead_folds: folds and reused_folds are those of a fit without folds ahead.
+//
 // Memory: Ceres holds n + 1 rows per block, each block (n + 1)^2 + n doubles for its last fold;
 // the inner cost's residuals and Jacobian live in a CompressedBlocks scratch shared by every block
-// of a problem (sized to the largest block), so one block's rows exist at a time. Threads: the
-// scratch makes Evaluate single-threaded (Ceres num_threads = 1, as Problem::Fit runs it).
+// of a problem (sized to the largest block), so one block's rows exist at a time; folds ahead use
+// one such scratch per worker. Threads: the scratch makes Evaluate single-threaded (Ceres
+// num_threads = 1, as Problem::Fit runs it); FoldAhead runs on the fit thread and hands the blocks
+// to the workers itself.
 // Failure: the inner cost's false is returned.
 #pragma once
 
 #include <ceres/ceres.h>
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -40,25 +56,59 @@
 
 namespace mjsysid {
 
-// what the compressed blocks of one ceres::Problem share; must outlive the problem
-struct CompressedBlocks {
-  // the rows the compressed blocks stand for, less the rows Ceres sees (real rows = Ceres'
-  // num_residuals + hidden_rows)
-  long long hidden_rows = 0;
-  // one evaluation's scratch: residuals (m), per-block Jacobians (m x n_b, row-major), a chunk of
-  // rows [J r], the fold
+// one fold's scratch: the inner cost's residuals (m), per-block Jacobians (m x n_b, row-major), a
+// chunk of rows [J r], the triangle; sized by the fold, reused
+struct FoldScratch {
   std::vector<double> r;
   std::vector<std::vector<double>> jacobians;
   std::vector<double*> jacobian_ptrs;
   RowMatrix chunk;
   RowTriangle triangle;
+};
+
+class CompressedCost;
+
+// what the compressed blocks of one ceres::Problem share; must outlive the problem
+struct CompressedBlocks {
+  // the rows the compressed blocks stand for, less the rows Ceres sees (real rows = Ceres'
+  // num_residuals + hidden_rows)
+  long long hidden_rows = 0;
+  // scratch[0]: Evaluate's (one evaluation at a time); scratch[w]: worker w's in FoldAhead
+  std::vector<FoldScratch> scratch = std::vector<FoldScratch>(1);
   // the last folds (see above): whether a block may write out its last fold, and the epoch of the
   // inputs besides the parameter values (borrowed, advanced by the owner; nullptr: always 0)
   bool reuse_folds = true;
   const std::uint64_t* epoch = nullptr;
-  // evaluations with Jacobians: folds made, and last folds written out instead
+  // folds ahead (see above): the blocks that can have them, each with the parameter blocks it was
+  // added to the problem with (the user's pointers; Compress registers them)
+  struct Member {
+    const CompressedCost* cost = nullptr;
+    std::vector<const double*> parameters;
+  };
+  std::vector<Member> members;
+  // evaluations with Jacobians: folds made (ahead ones once written out), last folds written out
+  // again instead, and of the folds those made ahead
   long long folds = 0;
   long long reused_folds = 0;
+  long long ahead_folds = 0;
+};
+
+// An inner cost whose rows can be made ahead on a worker thread (see "Folds ahead"): Evaluate with
+// Jacobians split into what reads or writes the fit's shared state (PrepareRows, NoteRows: the fit
+// thread) and the rows themselves (Rows: any thread).
+class FoldableCost : public ceres::CostFunction {
+ public:
+  // fit thread: whether Rows can give now, at parameters, what Evaluate with Jacobians would (its
+  // inputs ready: nothing to simulate, nothing shared to change); false: no fold ahead
+  virtual bool PrepareRows(double const* const* parameters) const = 0;
+  // any thread, after PrepareRows(parameters) returned true and before anything else runs on the
+  // fit: Evaluate's residuals and every block's Jacobian (jacobians: all blocks) at parameters, bit
+  // for bit, without its side effects; false (or a throw): Evaluate would fail there
+  virtual bool Rows(double const* const* parameters, double* residuals,
+                    double** jacobians) const = 0;
+  // fit thread: Evaluate's side effects at the inputs of the last successful PrepareRows and Rows
+  // (e.g. a warning noted); called when their fold is first written out
+  virtual void NoteRows() const = 0;
 };
 
 class CompressedCost : public ceres::CostFunction {
@@ -70,14 +120,26 @@ class CompressedCost : public ceres::CostFunction {
                 double** jacobians) const override;
 
   const ceres::CostFunction& inner() const { return *inner_; }
+  // the inner cost as a FoldableCost, or nullptr: no folds ahead
+  const FoldableCost* foldable() const { return foldable_; }
+
+  // the fold ahead (see "Folds ahead") at parameters into this block's last fold, with scratch;
+  // false: the rows failed (no fold kept). Any thread, one task per block, after
+  // foldable()->PrepareRows(parameters) returned true on the fit thread.
+  bool FoldAheadAt(double const* const* parameters, FoldScratch* scratch) const;
+  // whether the last fold was made at parameters (bitwise) in the current epoch and may be
+  // written out
+  bool HoldsFoldAt(double const* const* parameters) const;
 
  private:
-  // whether the last fold was made at parameters (bitwise) in the current epoch
-  bool HoldsFoldAt(double const* const* parameters) const;
+  // the inner rows at parameters (from Rows when ahead, else the inner Evaluate) folded into the
+  // last fold; false: the inner cost failed, no fold kept
+  bool Fold(double const* const* parameters, FoldScratch* scratch, bool ahead) const;
   // remembers parameters and the epoch as the last fold's inputs
   void KeepInputs(double const* const* parameters) const;
 
   std::unique_ptr<ceres::CostFunction> inner_;
+  const FoldableCost* foldable_;  // inner_ as a FoldableCost, or nullptr
   CompressedBlocks* blocks_;
   // the last fold with Jacobians: (n + 1) x (n + 1) triangle, c, and its inputs (the values of
   // every parameter block side by side, n; the epoch); allocated once
@@ -86,6 +148,8 @@ class CompressedCost : public ceres::CostFunction {
   mutable double fold_last_ = 0;
   mutable std::vector<double> fold_values_;
   mutable std::uint64_t fold_epoch_ = 0;
+  // the last fold was made ahead and has not been written out yet (its NoteRows pending)
+  mutable bool ahead_ = false;
 };
 
 // Ceres' view of a folded block (also the MPI root's, sysid/mpi/distributed_fit.h): residuals
@@ -99,8 +163,19 @@ void WriteTriangle(const Eigen::MatrixXd& r_aug, double last, const std::vector<
 void WriteNorm(int n, double sum_squares, double* residuals);
 
 // cost itself when it has no more rows than its triangle (m <= n + 1), else a CompressedCost that
-// owns it (blocks->hidden_rows counts the rows it hides); ownership of the result as of cost
-ceres::CostFunction* Compress(ceres::CostFunction* cost, CompressedBlocks* blocks);
+// owns it (blocks->hidden_rows counts the rows it hides); ownership of the result as of cost.
+// parameters: the parameter blocks the result is added to the problem with; given, a
+// CompressedCost of a FoldableCost joins blocks->members (folds ahead)
+ceres::CostFunction* Compress(ceres::CostFunction* cost, CompressedBlocks* blocks,
+                              const std::vector<double*>& parameters = {});
+
+// Folds ahead (see above) for every member block whose last fold is not at its parameter blocks'
+// current values, whose inner cost's PrepareRows agrees: one task per block, run by
+// parallel_for(n, task) (task(worker, i) for every i < n, worker < workers, e.g. the simulator's
+// pool: Simulator::ParallelFor), each block's fold into its own last fold. Fit thread. Returns the
+// blocks folded.
+int FoldAhead(CompressedBlocks* blocks, int workers,
+              const std::function<void(int, const std::function<void(int, int)>&)>& parallel_for);
 
 // the rows a residual block's cost function stands for: the inner cost's of a CompressedCost,
 // else its own

@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "sysid/gn_convergence.h"
@@ -50,9 +52,74 @@ bool SegmentCost::Evaluate(double const* const* parameters, double* residuals,
                                  [&] { return EvaluateOrThrow(parameters, residuals, jacobians); });
 }
 
+// the blocks present, in the order the constructor declared them
+SegmentCost::Blocks SegmentCost::Unpack(double const* const* parameters) const {
+  const Problem::Impl& I = *impl_;
+  const Segment& seg = I.segments[segment_];
+  Blocks k;
+  int b = 0;
+  if (!I.z.empty()) k.zv = parameters[k.zb = b++];
+  if (!I.m.empty()) k.mv = parameters[k.mb = b++];
+  k.x0 = seg.block >= 0 ? parameters[k.xb = b++] : I.fixed_x0[seg.seq].data();
+  if (seg.next >= 0) k.xn = parameters[k.nb = b++];
+  return k;
+}
+
 bool SegmentCost::EvaluateOrThrow(double const* const* parameters, double* residuals,
                                   double** jacobians) const {
   Problem::Impl& I = *impl_;
+  const Segment& seg = I.segments[segment_];
+  const Blocks k = Unpack(parameters);
+  // the controls at the fitted control delays in mv (a no-op when unchanged)
+  if (k.mv) I.SyncControlDelays(seg.seq, k.mv);
+
+  // rollout (and Jacobians only when asked for), from the cache when Prefetch or an earlier
+  // evaluation at this point computed them; a failed one is rejected in Evaluate
+  const bool want = jacobians != nullptr;
+  const Sensitivity* sens = nullptr;
+  const Trajectory& tr = I.CostEntry(segment_, k.zv, k.x0, want, &sens).tr;
+  if (want && !sens->warnings.empty()) I.NoteJacobianWarning(segment_, sens->warnings[0]);
+  FillRows(k, tr, sens, residuals, jacobians);
+  // fitted control delays: whole-rollout central differences
+  if (want && k.mb >= 0 && jacobians[k.mb] && I.HasControlDelay(seg.seq)) {
+    ControlDelayColumns(k.zv, k.mv, k.x0, k.xn, jacobians[k.mb]);
+  }
+  return Finite(residuals);
+}
+
+bool SegmentCost::Finite(const double* residuals) const {
+  for (int i = 0; i < num_residuals(); ++i) {
+    if (!std::isfinite(residuals[i])) return false;
+  }
+  return true;
+}
+
+// ready: the entry CostEntry would give with Jacobians, without simulating or syncing controls
+bool SegmentCost::PrepareRows(double const* const* parameters) const {
+  const Problem::Impl& I = *impl_;
+  ready_ = nullptr;
+  if (I.previous_jacobian || I.HasControlDelay(I.segments[segment_].seq)) return false;
+  const Blocks k = Unpack(parameters);
+  ready_ = I.cache->Ready(segment_, k.zv, k.x0, true);
+  if (ready_ == nullptr) return false;
+  ready_warning_ = ready_->s.warnings.empty() ? std::string() : ready_->s.warnings[0];
+  return true;
+}
+
+bool SegmentCost::Rows(double const* const* parameters, double* residuals,
+                       double** jacobians) const {
+  if (ready_ == nullptr) return false;
+  FillRows(Unpack(parameters), ready_->tr, &ready_->s, residuals, jacobians);
+  return Finite(residuals);
+}
+
+void SegmentCost::NoteRows() const {
+  if (!ready_warning_.empty()) impl_->NoteJacobianWarning(segment_, ready_warning_);
+}
+
+void SegmentCost::FillRows(const Blocks& blocks, const Trajectory& tr, const Sensitivity* sens,
+                           double* residuals, double** jacobians) const {
+  const Problem::Impl& I = *impl_;
   const Segment& seg = I.segments[segment_];
   const FitSequence& sq = I.sequences[seg.seq];
   const Problem::Impl::Model& mo = I.models[seg.model];
@@ -62,27 +129,10 @@ bool SegmentCost::EvaluateOrThrow(double const* const* parameters, double* resid
   const auto& chans = I.channels[seg.seq];
   const int nch = static_cast<int>(chans.size());
   const double dt = sim.model().opt.timestep;
-
-  // unpack blocks
-  int b = 0;
-  const double* zv = I.z.empty() ? nullptr : parameters[b++];
-  const int zb = I.z.empty() ? -1 : b - 1;
-  const double* mv = I.m.empty() ? nullptr : parameters[b++];
-  const int mb = I.m.empty() ? -1 : b - 1;
-  const double* x0 = seg.block >= 0 ? parameters[b++] : I.fixed_x0[seg.seq].data();
-  const int xb = seg.block >= 0 ? b - 1 : -1;
-  const double* xn = seg.next >= 0 ? parameters[b++] : nullptr;
-  const int nb = seg.next >= 0 ? b - 1 : -1;
-  // the controls at the fitted control delays in mv (a no-op when unchanged)
-  if (mv) I.SyncControlDelays(seg.seq, mv);
-
-  // rollout (and Jacobians only when asked for), from the cache when Prefetch or an earlier
-  // evaluation at this point computed them; a failed one is rejected in Evaluate
+  const double *zv = blocks.zv, *mv = blocks.mv, *x0 = blocks.x0, *xn = blocks.xn;
+  const int zb = blocks.zb, mb = blocks.mb, xb = blocks.xb, nb = blocks.nb;
   const bool want = jacobians != nullptr;
-  const Sensitivity* sens = nullptr;
-  const Trajectory& tr = I.CostEntry(segment_, zv, x0, want, &sens).tr;
   const Sensitivity& s = *sens;
-  if (want && !s.warnings.empty()) I.NoteJacobianWarning(segment_, s.warnings[0]);
   const int ns = dims.ns;
   const int ncol = want ? s.ncol : 0;
   std::vector<double> row_t(want ? ncol : 0);  // d(simulated)/d(column) of one residual
@@ -213,14 +263,6 @@ bool SegmentCost::EvaluateOrThrow(double const* const* parameters, double* resid
       }
     }
   }
-  // fitted control delays: whole-rollout central differences
-  if (want && mb >= 0 && jacobians[mb] && I.HasControlDelay(seg.seq)) {
-    ControlDelayColumns(zv, mv, x0, xn, jacobians[mb]);
-  }
-  for (int i = 0; i < num_residuals(); ++i) {
-    if (!std::isfinite(residuals[i])) return false;
-  }
-  return true;
 }
 
 void SegmentCost::Residuals(const Trajectory& tr, const double* mv, const double* xn,
@@ -349,6 +391,16 @@ void PrefetchCallback::PrepareForEvaluation(bool evaluate_jacobians, bool new_ev
   const bool charge = solving;
   if (charge) I.ledger->Enter(evaluate_jacobians ? kPhaseJacobians : kPhaseTrials);
   I.cache->Prefetch(I.z.empty() ? nullptr : I.z.data(), x0, evaluate_jacobians);
+  // the compressed blocks' folds at this point on the simulator's workers, one task per block
+  // (Ceres' Evaluate calls then write them out); the pool of the first model (every simulator has
+  // the fit's threads; the tasks do not simulate)
+  if (evaluate_jacobians && I.compressed && !I.models.empty() && I.models[0].sim) {
+    if (charge) I.ledger->Enter(kPhaseFolds);
+    Simulator& sim = *I.models[0].sim;
+    FoldAhead(
+        I.compressed, sim.threads(),
+        [&sim](int n, const std::function<void(int, int)>& task) { sim.ParallelFor(n, task); });
+  }
   if (charge) I.ledger->Enter(kPhaseSolver);
 }
 

@@ -17,25 +17,33 @@
 //   enough to straddle few kinks (measured on arm5 with friction loss, sysid/real_log_bench_test:
 //   0.05 steps disagreed with Ceres' numeric differences by 8e-2, 0.005 steps agrees to 3e-10).
 // - PriorCost: the Gaussian prior of one parameter, one residual on the z block.
+//   A SegmentCost is a FoldableCost (sysid/compressed_cost.h, "Folds ahead") where its sequence has
+//   no fitted control delay (those columns are rollouts, and the controls shared state):
+//   PrepareRows takes the cache's entry at the point when it is ready with Jacobians (under the
+//   statistical stop's previous Jacobian: never), Rows computes the rows from it alone, NoteRows
+//   notes its Jacobian warning.
 // - PrefetchCallback: before each Ceres evaluation, every segment at the new point in batches
-//   (EvaluationCache::Prefetch).
+//   (EvaluationCache::Prefetch); after a Jacobian batch, the compressed blocks' folds ahead on the
+//   simulator's workers (FoldAhead; FitOptions::fold_ahead).
 // - ProgressCallback: one IterationInfo per iteration into FitResult::trace, the progress line,
 //   FitOptions::on_iteration and FitOptions::interrupt.
 //
 // Failure: a segment whose simulation throws, warns or is not finite at the point evaluated
 // returns false (Ceres rejects the trial point and shrinks the trust region) and is counted in
-// Problem::Impl's diagnostics. Threads: as Problem::Impl, one thread (Ceres num_threads = 1).
+// Problem::Impl's diagnostics. Threads: as Problem::Impl, one thread (Ceres num_threads = 1), but
+// SegmentCost::Rows, which reads the fit and writes only its outputs (the folds ahead's tasks).
 #pragma once
 
 #include <ceres/ceres.h>
 
 #include <chrono>
 
+#include "sysid/compressed_cost.h"
 #include "sysid/problem_impl.h"
 
 namespace mjsysid {
 
-class SegmentCost : public ceres::CostFunction {
+class SegmentCost : public FoldableCost {
  public:
   // the finite-difference step of a fitted control delay's column, in simulation steps
   static constexpr double kControlDelayStep = 0.005;
@@ -46,9 +54,28 @@ class SegmentCost : public ceres::CostFunction {
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override;
 
+  // FoldableCost (see above)
+  bool PrepareRows(double const* const* parameters) const override;
+  bool Rows(double const* const* parameters, double* residuals, double** jacobians) const override;
+  void NoteRows() const override;
+
  private:
+  // the parameter blocks as Ceres passes them: values (nullptr: absent; x0 the sequence's given x0
+  // when it is not a block) and index among the blocks (-1: absent)
+  struct Blocks {
+    const double *zv = nullptr, *mv = nullptr, *x0 = nullptr, *xn = nullptr;
+    int zb = -1, mb = -1, xb = -1, nb = -1;
+  };
+  Blocks Unpack(double const* const* parameters) const;
   bool EvaluateOrThrow(double const* const* parameters, double* residuals,
                        double** jacobians) const;
+  // the residuals and, with jacobians, every asked block's Jacobian (but the fitted control
+  // delays' columns) from the segment's rollout tr and sensitivities s (read only with
+  // jacobians); reads the fit, writes only its outputs (any thread)
+  void FillRows(const Blocks& blocks, const Trajectory& tr, const Sensitivity* s, double* residuals,
+                double** jacobians) const;
+  // whether every residual is finite (else the point is rejected)
+  bool Finite(const double* residuals) const;
   // the residuals of the segment from rollout tr (sensor rows, then continuity to xn when a
   // segment follows) at measurement terms mv, values only
   void Residuals(const Trajectory& tr, const double* mv, const double* xn, double* out) const;
@@ -58,6 +85,9 @@ class SegmentCost : public ceres::CostFunction {
 
   Problem::Impl* impl_;
   int segment_;
+  // PrepareRows: the cache's entry Rows reads, and the Jacobian warning NoteRows notes ("": none)
+  mutable const EvaluationCache::Entry* ready_ = nullptr;
+  mutable std::string ready_warning_;
 };
 
 class PriorCost : public ceres::CostFunction {

@@ -253,6 +253,14 @@ const EvaluationCache::Entry& EvaluationCache::Evaluate(int segment, const doubl
   return c;
 }
 
+const EvaluationCache::Entry* EvaluationCache::Ready(int segment, const double* z, const double* x0,
+                                                     bool jacobians) const {
+  CheckThread("Ready");
+  const Entry& c = entries_[segment];
+  if (c.failed || (jacobians && !c.has_jacobians) || c.key != KeyOf(segment, z, x0)) return nullptr;
+  return &c;
+}
+
 void EvaluationCache::Prefetch(const double* z, const std::vector<const double*>& x0,
                                bool jacobians) {
   CheckThread("Prefetch");

@@ -111,6 +111,9 @@ class EvaluationCache {
   // physics vector x0 (nphys), with its Jacobians if asked for: from the cache, else simulated
   // alone. Valid until the next call of Evaluate, Prefetch or Seed.
   const Entry& Evaluate(int segment, const double* z, const double* x0, bool jacobians);
+  // The entry Evaluate would return at these arguments without simulating, when its rollout (and,
+  // when asked for, its Jacobians) succeeded; else nullptr. Simulates nothing; valid as Evaluate's.
+  const Entry* Ready(int segment, const double* z, const double* x0, bool jacobians) const;
 
   // Brings every segment to z and x0[segment] (with Jacobians if asked for), batched per model:
   // one Rollout call for the segments whose key changed, one Jacobians call per kind of segment.

@@ -45,6 +45,9 @@ inline constexpr const char* kPhaseSetup = "setup: Ceres problem";
 inline constexpr const char* kPhaseJacobians = "solve: Jacobians";
 inline constexpr const char* kPhaseTrials = "solve: trial rollouts (steps, line search)";
 inline constexpr const char* kPhaseSolver = "solve: residuals, Ceres linear algebra";
+// the compressed blocks' rows and folds made ahead on the simulator's workers after a Jacobian
+// batch (sysid/compressed_cost.h, "Folds ahead"; a batch: not serial)
+inline constexpr const char* kPhaseFolds = "solve: folds ahead (rows + thin QR)";
 // of the trial rollouts' steps, the Jacobian columns computed ahead of points Ceres then did not
 // take (sysid/evaluation_cache.h, "Columns ahead"; more than one thread only)
 inline constexpr const char* kPhaseAheadUnused = "solve: columns ahead, not used";

@@ -354,7 +354,8 @@ FitResult Problem::Fit(const FitOptions& options) {
     if (seg.next >= 0) blocks.push_back(I.states[seg.next].data());
     auto* cost = new SegmentCost(&I, static_cast<int>(s));
     if (cost->num_residuals() > 0 && !blocks.empty()) {
-      problem.AddResidualBlock(compress ? Compress(cost, &compressed) : cost, nullptr, blocks);
+      problem.AddResidualBlock(compress ? Compress(cost, &compressed, blocks) : cost, nullptr,
+                               blocks);
     } else {
       delete cost;  // e.g. a model without sensors fitted from its states alone
     }
@@ -459,6 +460,13 @@ FitResult Problem::Fit(const FitOptions& options) {
                              FormatDigits(held.final_cost, 3) + ")";
   }
   I.cache->SetColumnsAhead(true);  // trial points' first columns on idle workers
+  // the compressed blocks folded ahead (sysid/compressed_cost.h), in the solve and the
+  // evaluation at the estimate
+  struct Unlend {
+    Impl* impl;
+    ~Unlend() { impl->compressed = nullptr; }
+  } unlend{&I};
+  I.compressed = compress && options.fold_ahead ? &compressed : nullptr;
   ceres::Solve(so_ceres, &problem, &summary);
   I.cache->SetColumnsAhead(false);
   I.gn_stop = nullptr;
@@ -581,8 +589,10 @@ FitResult Problem::Fit(const FitOptions& options) {
                                       : EvaluateTriangle(problem, blocks, &triangle));
   ledger.Enter(kPhaseCovariance);
   I.SetPreviousJacobian(false);
+  I.compressed = nullptr;
   result.reused_folds = compressed.reused_folds;
   result.folds = compressed.folds;
+  result.ahead_folds = compressed.ahead_folds;
   const bool jacobian_warned_at_estimate = evaluated && !I.jacobian_warnings.empty();
   I.jacobian_warnings.insert(solve_warnings.begin(), solve_warnings.end());
   for (auto& mo : I.models) mo.sim->SetCancelFlag(nullptr);

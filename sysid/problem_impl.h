@@ -12,7 +12,9 @@
 //
 // Threads: single-threaded like its EvaluationCache (sysid/evaluation_cache.h), which aborts on a
 // call from another thread; the diagnostics below are written only by SegmentCost after it has
-// called the cache.
+// called the cache. The one exception: the compressed blocks' folds ahead (sysid/compressed_cost.h)
+// run SegmentCost::Rows on the simulator's workers, reading the prepared fit and a cache entry
+// while the fit thread waits for them in the same batch; nothing is written there.
 #pragma once
 
 #include <chrono>
@@ -39,7 +41,8 @@
 
 namespace mjsysid {
 
-class GaussNewtonStop;  // sysid/gn_convergence.h
+class GaussNewtonStop;          // sysid/gn_convergence.h
+struct CompressedBlocks;        // sysid/compressed_cost.h
 
 // The state blocks of a fit (the segments' initial states, Ceres parameter blocks), stored
 // contiguously in block order. Ceres keeps the blocks of an elimination group in a
@@ -282,6 +285,10 @@ struct Problem::Impl {
     *s = &with->s;
     return e;
   }
+  // the running solve's compressed blocks (Fit's own, borrowed; nullptr outside the solve and the
+  // evaluation at the estimate, and when FitOptions::fold_ahead is off): the evaluation callback
+  // folds them ahead after each Jacobian batch (sysid/compressed_cost.h FoldAhead)
+  CompressedBlocks* compressed = nullptr;
   // verbose fits: the progress lines inside long rollouts (sysid/progress.h), on every simulator
   // (created once, reset by each Fit; Prepare installs it)
   std::unique_ptr<StepProgressLines> step_progress;

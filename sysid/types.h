@@ -271,6 +271,11 @@ struct FitOptions {
   // fold writes that fold out instead of re-folding (sysid/compressed_cost.h; the same bits);
   // false: every request re-folds (the same fit, slower)
   bool reuse_folds = true;
+  // single shooting's compressed blocks: after each Jacobian batch, the blocks' rows and folds
+  // made on the simulator's workers, one task per block, before Ceres asks for them one by one
+  // (sysid/compressed_cost.h, "Folds ahead"; the same bits at any thread count); false: each block
+  // folded when Ceres asks (the same fit)
+  bool fold_ahead = true;
 };
 
 // a value is on its bound (lower or upper; an infinite bound: never) within 1e-6 relative:
@@ -471,6 +476,8 @@ struct FitResult {
   // with a block's last fold instead of a re-fold, and the folds made (sysid/compressed_cost.h)
   long long reused_folds = 0;
   long long folds = 0;
+  // of the folds, those made ahead on the simulator's workers (FitOptions::fold_ahead)
+  long long ahead_folds = 0;
 };
 
 // one line for a user, e.g. "collision pairs off 3 of 4, geoms off 2, disabled [island], guard

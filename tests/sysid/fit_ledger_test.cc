@@ -122,10 +122,18 @@ TEST(FitLedgerTest, BatchTimeIsPartOfThePhaseThatSimulates) {
     Problem problem;
     const FitResult r = SpringMassFit(&problem, threads);
     ASSERT_TRUE(r.converged) << r.termination;
-    long long batches = 0;
+    long long batches = 0, folds = 0;
     for (const LedgerRow& row : r.ledger) {
       batches += row.batches;
-      EXPECT_EQ(row.steps > 0, row.batches > 0) << row.phase << " at " << threads;
+      if (row.phase == kPhaseFolds) {
+        // the compressed blocks' folds ahead: one batch per Jacobian, without steps
+        EXPECT_EQ(row.steps, 0);
+        EXPECT_GT(row.batches, 0) << "at " << threads;
+        EXPECT_LE(row.batches, row.entries);  // (none when every block holds its fold)
+        folds = row.batches;
+      } else {
+        EXPECT_EQ(row.steps > 0, row.batches > 0) << row.phase << " at " << threads;
+      }
       EXPECT_GE(row.batch_seconds, 0.0) << row.phase;
       EXPECT_LE(row.batch_seconds, row.seconds) << row.phase << " at " << threads;
       // each inside the batch; not their sum: a worker that starts after the caller's own last
@@ -142,6 +150,8 @@ TEST(FitLedgerTest, BatchTimeIsPartOfThePhaseThatSimulates) {
       }
     }
     EXPECT_GT(batches, 0);
+    EXPECT_GT(folds, 0);
+    EXPECT_LE(folds, r.ahead_folds);  // each batch at least one block's fold
     EXPECT_NE(FormatLedger(r.ledger, 1000).find("serial s"), std::string::npos);
   }
 }

@@ -1,7 +1,7 @@
 // bench_threads: the 2-thread wall-clock speed-up of the product's fit, measured against the
 // noise of a shared machine (issue 15, item 4; BENCHMARKS.md "Threads").
 //
-//   bench_threads --cases pendulum,cartpole --repeats 15 [--threads 1,2]
+//   bench_threads --cases pendulum,cartpole --repeats 15 [--threads 1,2] [--fold-ahead false]
 //
 // Every repeat fits each case once per thread count, the thread counts in alternating order
 // (1, 2 then 2, 1, ...), so that a slow spell of the machine falls on both. Each fit is the
@@ -76,10 +76,11 @@ struct Sample {
   int iterations = 0;
 };
 
-Sample FitOnce(const io::ExperimentConfig& config, int threads) {
+Sample FitOnce(const io::ExperimentConfig& config, int threads, bool fold_ahead) {
   run::BuiltProblem b = run::BuildProblem(config, threads);
   FitOptions o = b.options;
   o.threads = threads;
+  o.fold_ahead = fold_ahead;
   o.verbose = false;
   o.on_iteration = nullptr;
   const double cpu0 = ProcessCpuSeconds(), thread0 = ThreadCpuSeconds();
@@ -164,6 +165,10 @@ int Main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--experiments", experiments, "folder of the experiment files")
       ->capture_default_str();
+  bool fold_ahead = true;
+  app.add_option("--fold-ahead", fold_ahead,
+                 "FitOptions::fold_ahead (false: each compressed block folded when Ceres asks)")
+      ->capture_default_str();
   int handoff = 0;
   app.add_option("--handoff", handoff,
                  "instead of fits: the pool's hand-off in this many batches per setting");
@@ -187,7 +192,7 @@ int Main(int argc, char** argv) {
       for (size_t k = 0; k < threads.size(); ++k) {
         // alternating order: forward on even repeats, backward on odd ones
         const size_t t = rep % 2 ? threads.size() - 1 - k : k;
-        samples[name][t].push_back(FitOnce(configs[name], threads[t]));
+        samples[name][t].push_back(FitOnce(configs[name], threads[t], fold_ahead));
       }
     }
   }

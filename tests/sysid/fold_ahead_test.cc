@@ -1,0 +1,300 @@
+// Compressed blocks folded ahead on worker threads (sysid/compressed_cost.h, "Folds ahead";
+// FitOptions::fold_ahead).
+//
+// Unit: a real nonlinear cost (r_i = a exp(-b t_i) + c t_i - y_i, m = 2500 rows > kChunkRows,
+// blocks of sizes 2 and 1, automatic derivatives; y from a = 2, b = 3, c = 0.5 with Gaussian
+// noise sigma 0.01, seed 5) as a FoldableCost that counts its calls. Folded ahead, by one thread or
+// by a 2-worker ThreadPool (several blocks at once), a block's Evaluate with Jacobians writes out
+// the same bits as a fold at Evaluate (tolerance 0) without calling the inner cost, notes the
+// inner cost's side effects once, at that first write-out, and counts one fold (ahead_folds 1);
+// rows that fail ahead leave no fold (Evaluate evaluates and fails as before); a block already
+// holding its fold at the values, or whose PrepareRows declines, is not folded ahead.
+// Whole fits: the shipped single-shooting experiments (their `simulate` block: truth, noise and
+// seed as shipped; 3 sequences of 1000 samples, so that 3 blocks share 2 workers) from the
+// shipped start, folds ahead on and off at 1 thread and on at 2 threads: estimates, standard
+// errors, final cost, iterations, status, warnings, folds and reused folds identical bit for bit
+// (tolerance 0), and the steps at 1 thread; on, the solve's Jacobians folded ahead, 3 blocks
+// each; off, none.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <memory>
+#include <ostream>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "core/thread_pool.h"
+#include "sysid/compressed_cost.h"
+#include "sysid/run/fit_experiment.h"
+#include "tests/experiment_log.h"
+
+namespace mjsysid {
+namespace {
+
+constexpr int kRows = 2500;
+
+// r_i = x0[0] exp(-x0[1] t_i) + x1[0] t_i - y_i (t_i = i / m)
+struct Decay {
+  std::vector<double> y;
+  template <typename T>
+  bool operator()(const T* x0, const T* x1, T* r) const {
+    for (int i = 0; i < kRows; ++i) {
+      const double t = static_cast<double>(i) / kRows;
+      r[i] = x0[0] * exp(-x0[1] * t) + x1[0] * t - y[i];
+    }
+    return true;
+  }
+};
+
+std::vector<double> DecayData(int seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> noise(0.0, 0.01);
+  std::vector<double> y;
+  for (int i = 0; i < kRows; ++i) {
+    const double t = static_cast<double>(i) / kRows;
+    y.push_back(2.0 * std::exp(-3.0 * t) + 0.5 * t + noise(rng));
+  }
+  return y;
+}
+
+// the decay as a FoldableCost: Rows is the inner Evaluate; counts every call; fails while fail
+class Foldable : public FoldableCost {
+ public:
+  explicit Foldable(int seed)
+      : inner_(new ceres::AutoDiffCostFunction<Decay, ceres::DYNAMIC, 2, 1>(
+            new Decay{DecayData(seed)}, kRows)) {
+    set_num_residuals(inner_->num_residuals());
+    *mutable_parameter_block_sizes() = inner_->parameter_block_sizes();
+  }
+  bool Evaluate(double const* const* p, double* residuals, double** jacobians) const override {
+    ++(jacobians ? with_jacobians : residuals_only);
+    return !fail && inner_->Evaluate(p, residuals, jacobians);
+  }
+  bool PrepareRows(double const* const*) const override {
+    ++prepared;
+    return prepare;
+  }
+  bool Rows(double const* const* p, double* residuals, double** jacobians) const override {
+    ++rows;  // (blocks are folded by one task each: no race)
+    return !fail && inner_->Evaluate(p, residuals, jacobians);
+  }
+  void NoteRows() const override { ++notes; }
+  mutable int with_jacobians = 0, residuals_only = 0, prepared = 0, rows = 0, notes = 0;
+  bool fail = false, prepare = true;
+
+ private:
+  std::unique_ptr<ceres::CostFunction> inner_;
+};
+
+// one evaluation's output: n + 1 residuals, the blocks' Jacobians row-major
+struct Out {
+  std::vector<double> r = std::vector<double>(4), j0 = std::vector<double>(8),
+                      j1 = std::vector<double>(4);
+  bool Eval(const ceres::CostFunction& cost, const double* x0, const double* x1) {
+    const double* p[2] = {x0, x1};
+    double* jac[2] = {j0.data(), j1.data()};
+    return cost.Evaluate(p, r.data(), jac);
+  }
+  bool SameBits(const Out& o) const {
+    return std::memcmp(r.data(), o.r.data(), sizeof(double) * r.size()) == 0 &&
+           std::memcmp(j0.data(), o.j0.data(), sizeof(double) * j0.size()) == 0 &&
+           std::memcmp(j1.data(), o.j1.data(), sizeof(double) * j1.size()) == 0;
+  }
+};
+
+// blocks compressed decays (seeds 5, 6, ..) at their own values x0 = (1.7 + 0.1 b, 2.6), x1 = 0.4
+struct Fixture {
+  CompressedBlocks blocks;
+  std::uint64_t epoch = 0;
+  std::vector<Foldable*> inner;  // owned by cost
+  std::vector<std::unique_ptr<ceres::CostFunction>> cost;
+  std::vector<std::vector<double>> x0, x1;
+
+  explicit Fixture(int n) {
+    blocks.epoch = &epoch;
+    x0.resize(n);
+    x1.resize(n);
+    for (int b = 0; b < n; ++b) {
+      x0[b] = {1.7 + 0.1 * b, 2.6};
+      x1[b] = {0.4};
+      inner.push_back(new Foldable(5 + b));
+      cost.emplace_back(Compress(inner.back(), &blocks, {x0[b].data(), x1[b].data()}));
+    }
+  }
+};
+
+// FoldAhead's runner: in order on this thread (one worker), or a pool's ParallelFor
+int FoldSerially(CompressedBlocks* blocks) {
+  return FoldAhead(blocks, 1, [](int n, const std::function<void(int, int)>& task) {
+    for (int i = 0; i < n; ++i) task(0, i);
+  });
+}
+int FoldOn(ThreadPool* pool, CompressedBlocks* blocks) {
+  return FoldAhead(blocks, pool->size(), [pool](int n, const std::function<void(int, int)>& task) {
+    pool->ParallelFor(n, task);
+  });
+}
+
+TEST(FoldAheadTest, AFoldAheadIsWrittenOutAsTheFoldAtEvaluateWithItsNotesOnce) {
+  Fixture plain(1), ahead(1);
+  plain.blocks.members.clear();  // folded at Evaluate only
+  Out at_evaluate, written, again;
+  ASSERT_TRUE(at_evaluate.Eval(*plain.cost[0], plain.x0[0].data(), plain.x1[0].data()));
+  EXPECT_EQ(plain.inner[0]->with_jacobians, 1);
+
+  ASSERT_EQ(ahead.blocks.members.size(), 1u);
+  EXPECT_EQ(FoldSerially(&ahead.blocks), 1);
+  const Foldable& f = *ahead.inner[0];
+  EXPECT_EQ(f.rows, 1);
+  EXPECT_EQ(f.notes, 0);  // not before Ceres asks
+  ASSERT_TRUE(written.Eval(*ahead.cost[0], ahead.x0[0].data(), ahead.x1[0].data()));
+  EXPECT_TRUE(written.SameBits(at_evaluate));
+  EXPECT_EQ(f.with_jacobians, 0);  // the inner cost not called again
+  EXPECT_EQ(f.notes, 1);
+  EXPECT_EQ(ahead.blocks.folds, 1);
+  EXPECT_EQ(ahead.blocks.ahead_folds, 1);
+  EXPECT_EQ(ahead.blocks.reused_folds, 0);
+  // asked again: a reused fold, no second note; a second FoldAhead at the same values folds nothing
+  ASSERT_TRUE(again.Eval(*ahead.cost[0], ahead.x0[0].data(), ahead.x1[0].data()));
+  EXPECT_TRUE(again.SameBits(at_evaluate));
+  EXPECT_EQ(f.notes, 1);
+  EXPECT_EQ(ahead.blocks.reused_folds, 1);
+  EXPECT_EQ(FoldSerially(&ahead.blocks), 0);
+  EXPECT_EQ(f.rows, 1);
+  // written out once even with reuse off, then re-folded
+  ahead.blocks.reuse_folds = false;
+  ahead.x1[0][0] = std::nextafter(0.4, 1.0);
+  EXPECT_EQ(FoldSerially(&ahead.blocks), 1);
+  ASSERT_TRUE(written.Eval(*ahead.cost[0], ahead.x0[0].data(), ahead.x1[0].data()));
+  EXPECT_EQ(f.with_jacobians, 0);
+  EXPECT_EQ(f.notes, 2);
+  ASSERT_TRUE(again.Eval(*ahead.cost[0], ahead.x0[0].data(), ahead.x1[0].data()));
+  EXPECT_EQ(f.with_jacobians, 1);
+  EXPECT_TRUE(again.SameBits(written));
+  EXPECT_EQ(ahead.blocks.ahead_folds, 2);
+}
+
+TEST(FoldAheadTest, FailedOrDeclinedRowsLeaveTheBlockToEvaluate) {
+  Fixture f(1);
+  Foldable& inner = *f.inner[0];
+  Out out;
+  // rows that fail ahead: no fold; Evaluate evaluates (and fails) as without folds ahead
+  inner.fail = true;
+  EXPECT_EQ(FoldSerially(&f.blocks), 1);
+  EXPECT_FALSE(out.Eval(*f.cost[0], f.x0[0].data(), f.x1[0].data()));
+  EXPECT_EQ(inner.with_jacobians, 1);
+  EXPECT_EQ(inner.notes, 0);
+  EXPECT_EQ(f.blocks.ahead_folds, 0);
+  // PrepareRows declines: not folded ahead
+  inner.fail = false;
+  inner.prepare = false;
+  EXPECT_EQ(FoldSerially(&f.blocks), 0);
+  EXPECT_EQ(inner.rows, 1);
+  ASSERT_TRUE(out.Eval(*f.cost[0], f.x0[0].data(), f.x1[0].data()));
+  EXPECT_EQ(inner.with_jacobians, 2);
+  EXPECT_EQ(f.blocks.folds, 1);
+  EXPECT_EQ(f.blocks.ahead_folds, 0);
+  // a fold ahead then a new epoch: not written out (folded again at Evaluate)
+  inner.prepare = true;
+  f.x1[0][0] = 0.5;
+  EXPECT_EQ(FoldSerially(&f.blocks), 1);
+  ++f.epoch;
+  ASSERT_TRUE(out.Eval(*f.cost[0], f.x0[0].data(), f.x1[0].data()));
+  EXPECT_EQ(inner.with_jacobians, 3);
+  EXPECT_EQ(inner.notes, 0);
+  EXPECT_EQ(f.blocks.ahead_folds, 0);
+}
+
+TEST(FoldAheadTest, FiveBlocksOnTwoWorkersGiveTheSerialBits) {
+  constexpr int kBlocks = 5;
+  Fixture serial(kBlocks), parallel(kBlocks);
+  ThreadPool pool(2);
+  EXPECT_EQ(FoldSerially(&serial.blocks), kBlocks);
+  EXPECT_EQ(FoldOn(&pool, &parallel.blocks), kBlocks);
+  EXPECT_GE(parallel.blocks.scratch.size(), 2u);
+  for (int b = 0; b < kBlocks; ++b) {
+    Out s, p;
+    ASSERT_TRUE(s.Eval(*serial.cost[b], serial.x0[b].data(), serial.x1[b].data()));
+    ASSERT_TRUE(p.Eval(*parallel.cost[b], parallel.x0[b].data(), parallel.x1[b].data()));
+    EXPECT_TRUE(p.SameBits(s)) << "block " << b;
+    EXPECT_EQ(parallel.inner[b]->with_jacobians, 0);
+    EXPECT_EQ(parallel.inner[b]->notes, 1);
+  }
+  EXPECT_EQ(parallel.blocks.ahead_folds, kBlocks);
+}
+
+FitResult FitWith(const io::ExperimentConfig& cfg, bool ahead, int threads) {
+  run::BuiltProblem built = run::BuildProblem(cfg, threads);
+  FitOptions options = built.options;
+  options.verbose = false;
+  options.threads = threads;
+  options.fold_ahead = ahead;
+  return built.problem->Fit(options);
+}
+
+// a and b the same doubles, bit for bit
+::testing::AssertionResult SameBits(double a, double b) {
+  if (std::memcmp(&a, &b, sizeof(double)) == 0) return ::testing::AssertionSuccess();
+  return ::testing::AssertionFailure() << a << " vs " << b << " (" << a - b << ")";
+}
+
+// steps: compared too (not across thread counts: at 2 threads trial points also simulate Jacobian
+// columns ahead, sysid/evaluation_cache.h)
+void ExpectSameFit(const FitResult& a, const FitResult& b, bool steps) {
+  EXPECT_EQ(a.outcome, b.outcome);
+  EXPECT_EQ(a.converged, b.converged);
+  EXPECT_EQ(a.iterations, b.iterations);
+  if (steps) {
+    EXPECT_EQ(a.simulation_steps, b.simulation_steps);
+  }
+  EXPECT_EQ(a.termination, b.termination);
+  EXPECT_EQ(a.covariance_jacobian_iteration, b.covariance_jacobian_iteration);
+  EXPECT_EQ(a.folds, b.folds);
+  EXPECT_EQ(a.reused_folds, b.reused_folds);
+  EXPECT_TRUE(SameBits(a.final_cost, b.final_cost));
+  EXPECT_EQ(a.warnings, b.warnings);
+  ASSERT_EQ(a.parameters.size(), b.parameters.size());
+  for (size_t i = 0; i < a.parameters.size(); ++i) {
+    EXPECT_TRUE(SameBits(a.parameters[i].value, b.parameters[i].value)) << a.parameters[i].name;
+    EXPECT_TRUE(SameBits(a.parameters[i].std_error, b.parameters[i].std_error))
+        << a.parameters[i].name;
+  }
+}
+
+class FoldAheadFitTest : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(FoldAheadFitTest, TheSameFitBitForBitAtOneAndTwoThreads) {
+  io::ExperimentConfig cfg = test::ShippedExperimentWithLog(GetParam(), 3, 1000, "fold_ahead");
+  const FitResult on = FitWith(cfg, true, 1);
+  const FitResult off = FitWith(cfg, false, 1);
+  const FitResult on2 = FitWith(cfg, true, 2);
+  std::printf(
+      "%s: %d iterations, %lld steps, folds %lld (%lld ahead) + %lld reused; off: %lld "
+      "(%lld ahead) + %lld; 2 threads: %lld (%lld ahead)\n  %s\n",
+      GetParam().c_str(), on.iterations, on.simulation_steps, on.folds, on.ahead_folds,
+      on.reused_folds, off.folds, off.ahead_folds, off.reused_folds, on2.folds, on2.ahead_folds,
+      on.termination.c_str());
+  EXPECT_EQ(on.segment_steps_used, 0);  // single shooting: compressed blocks
+  // every Jacobian of the solve folds its 3 blocks ahead
+  EXPECT_GE(on.ahead_folds, 3);
+  EXPECT_EQ(on.ahead_folds % 3, 0);
+  EXPECT_EQ(on2.ahead_folds, on.ahead_folds);
+  EXPECT_EQ(off.ahead_folds, 0);
+  ExpectSameFit(on, off, true);
+  ExpectSameFit(on2, off, false);
+  std::filesystem::remove_all(std::filesystem::path(cfg.data[0].path).parent_path());
+}
+
+INSTANTIATE_TEST_SUITE_P(Shipped, FoldAheadFitTest,
+                         ::testing::Values("spring_mass.yaml", "pendulum.yaml", "cartpole.yaml",
+                                           "double_pendulum.yaml", "arm7.yaml"),
+                         [](const ::testing::TestParamInfo<std::string>& p) {
+                           return p.param.substr(0, p.param.find('.'));
+                         });
+
+}  // namespace
+}  // namespace mjsysid
