@@ -1,5 +1,5 @@
-// A residual block handed to Ceres as its thin-QR triangle instead of row by row (single
-// shooting, docs/numerics.md "Memory").
+// A residual block handed to Ceres as its thin-QR triangle instead of row by row (single and
+// multiple shooting, docs/numerics.md "Memory").
 //
 // CompressedCost wraps a cost function with m rows over parameter blocks of ambient sizes n_1 ..
 // n_k (n = sum n_b) and stands for it with n + 1 rows. With Jacobians it evaluates the inner

@@ -304,13 +304,14 @@ FitResult Problem::Fit(const FitOptions& options) {
   std::vector<bool> relative;
   for (const FitParameter& p : I.params) relative.push_back(smooth && RelativeStep(p));
   VariableManifold variable_manifold(std::move(relative));
-  // single shooting: each segment's block to Ceres as its thin-QR triangle (memory: Ceres holds
-  // n + 1 rows per block, sysid/compressed_cost.h); declared before the problem, which uses it
+  // each segment's blocks to Ceres as their thin-QR triangles (memory: Ceres holds n + 1 rows
+  // per block, sysid/compressed_cost.h; multiple shooting too: a block keeps its parameter blocks,
+  // z, m, x_0 and x_next, so the Schur solver's structure is the same, with n + 1 rows per block);
+  // declared before the problem, which uses it
   CompressedBlocks compressed;
   compressed.reuse_folds = options.reuse_folds;
   compressed.epoch = &I.cost_inputs_epoch;  // (the epoch outlives the problem)
-  bool compress = options.compress_blocks && !I.shards;
-  for (const Segment& seg : I.segments) compress = compress && seg.next < 0;
+  const bool compress = options.compress_blocks && !I.shards;
   ceres::Problem problem(po);
   if (np) {
     problem.AddParameterBlock(I.z.data(), np);
@@ -567,8 +568,8 @@ FitResult Problem::Fit(const FitOptions& options) {
   // (sharded: the shards eliminate the states, the sharded problem is single-shooting shaped)
   for (const Segment& seg : I.segments) multiple = multiple || (seg.next >= 0 && !I.shards);
   // single shooting: the Jacobian only as the thin-QR triangle of [J r], block by block
-  // (sysid/estimate_jacobian.h); multiple shooting: the whole sparse Jacobian, whose state columns
-  // are eliminated below
+  // (sysid/estimate_jacobian.h); multiple shooting: the whole sparse Jacobian (compressed blocks:
+  // their n + 1 rows each), whose state columns are eliminated below
   double cost = 0;
   ceres::CRSMatrix crs;
   std::vector<double> residuals;
@@ -620,7 +621,9 @@ FitResult Problem::Fit(const FitOptions& options) {
       Eigen::SparseMatrix<double> B;
       SplitJacobian(crs, nvar, &A, &B);
       for (int g = 0; g < np; ++g) A.col(g) /= I.DpDz(g, I.z[g]);
-      result.uncertainty = AnalyzeUncertaintyReduced(A, B, cost, all_names, values, fixed, uo);
+      // the rows Ceres sees may be compressed blocks' (n + 1 each): the dof counts the real rows
+      result.uncertainty =
+          AnalyzeUncertaintyReduced(A, B, result.num_residuals, cost, all_names, values, fixed, uo);
       RowTriangle tri(nvar + 1);
       RowMatrix rows(std::min<Eigen::Index>(A.rows(), RowTriangle::kChunkRows), nvar + 1);
       for (Eigen::Index first = 0; first < A.rows(); first += rows.rows()) {

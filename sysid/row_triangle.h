@@ -1,6 +1,6 @@
 // The one QR fold of the code base: the thin-QR triangle of a tall matrix whose rows arrive in
 // blocks, without holding the rows. Users: the Jacobian at a fit's estimate
-// (sysid/estimate_jacobian.h), the compressed residual blocks of single shooting
+// (sysid/estimate_jacobian.h), the compressed residual blocks of one process
 // (sysid/compressed_cost.h) and of MPI ranks (sysid/mpi/shards.h).
 //
 // After blocks M_1 .. M_k (each rows_i x n, row-major) R() is upper triangular, min(rows, n) x n

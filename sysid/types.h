@@ -242,9 +242,10 @@ struct FitOptions {
   // auto's contact segments (sysid/multiple_shooting.h, OmitJumpingSensors): fit the touch,
   // accelerometer, force and torque sensors too (true), or leave them out with a warning (false)
   bool fit_jumping_sensors = false;
-  // single shooting: each segment's residual block handed to Ceres as its thin-QR triangle
-  // (sysid/compressed_cost.h: the same cost, gradient and Gauss-Newton matrix in n + 1 rows), not
-  // row by row; false: every row (the memory of Ceres' copies grows with the samples)
+  // each segment's residual blocks (single and multiple shooting; not under sysid/mpi/, which
+  // compresses its own) handed to Ceres as their thin-QR triangles (sysid/compressed_cost.h: the
+  // same cost, gradient and Gauss-Newton matrix in n + 1 rows), not row by row; false: every row
+  // (the memory of Ceres' copies grows with the samples)
   bool compress_blocks = true;
   // verbose: progress lines inside one long rollout or Jacobian column (sysid/progress.h
   // StepProgressLines) every tenth of its steps, at most one per this many seconds of it
@@ -267,8 +268,8 @@ struct FitOptions {
   // kPreviousJacobianSteps standard errors, so that the last Jacobian is not simulated; false:
   // only after each Jacobian
   bool gauss_newton_stop_before_jacobian = true;
-  // single shooting's compressed blocks: a block asked for its Jacobian at the inputs of its last
-  // fold writes that fold out instead of re-folding (sysid/compressed_cost.h; the same bits);
+  // the compressed blocks (compress_blocks): a block asked for its Jacobian at the inputs of its
+  // last fold writes that fold out instead of re-folding (sysid/compressed_cost.h; the same bits);
   // false: every request re-folds (the same fit, slower)
   bool reuse_folds = true;
   // single shooting's compressed blocks: after each Jacobian batch, the blocks' rows and folds
@@ -472,7 +473,7 @@ struct FitResult {
   // |x_{k+1,i} - x_{k,i}| / s_i. -1 and NaN: the Jacobian is the estimate's own.
   int covariance_jacobian_iteration = -1;
   double last_step_std_errors = std::numeric_limits<double>::quiet_NaN();
-  // single shooting's compressed blocks (FitOptions::reuse_folds): Jacobian requests answered
+  // the compressed blocks (FitOptions::reuse_folds): Jacobian requests answered
   // with a block's last fold instead of a re-fold, and the folds made (sysid/compressed_cost.h)
   long long reused_folds = 0;
   long long folds = 0;

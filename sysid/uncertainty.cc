@@ -119,11 +119,14 @@ Uncertainty AnalyzeUncertainty(const RowMatrix& J, double cost,
 }
 
 Uncertainty AnalyzeUncertaintyReduced(const RowMatrix& A, const Eigen::SparseMatrix<double>& B,
-                                      double cost, const std::vector<std::string>& names,
+                                      long long m, double cost,
+                                      const std::vector<std::string>& names,
                                       const Eigen::VectorXd& values, const std::vector<bool>& fixed,
                                       const UncertaintyOptions& options) {
-  if (B.cols() == 0) return AnalyzeUncertainty(A, cost, names, values, fixed, options);
-  const Eigen::Index m = A.rows();
+  if (B.cols() == 0) {
+    return AnalyzeUncertaintyCompressed(A, m, cost, names, values, fixed, options);
+  }
+  const Eigen::Index k = A.rows();
   // nuisance columns scaled to unit norm (a zero column stays zero and drops out of the rank)
   Eigen::VectorXd scale = Eigen::VectorXd::Ones(B.cols());
   for (Eigen::Index c = 0; c < B.cols(); ++c) {
@@ -132,7 +135,7 @@ Uncertainty AnalyzeUncertaintyReduced(const RowMatrix& A, const Eigen::SparseMat
   }
   Eigen::SparseMatrix<double> Bs = B * scale.asDiagonal();
   Bs.makeCompressed();
-  // sparse QR of the nuisance columns: B P = Q [R; 0]. The last m - rank(B) rows of Q^T A are A
+  // sparse QR of the nuisance columns: B P = Q [R; 0]. The last k - rank(B) rows of Q^T A are A
   // projected onto the complement of B's range, the Jacobian of the reduced problem (the Schur
   // complement A^T A - A^T B (B^T B)^+ B^T A is its normal matrix)
   // (SuiteSparseQR, multifrontal: the arm5 experiment's factorisation took 9 % of its 1-thread fit
@@ -143,8 +146,10 @@ Uncertainty AnalyzeUncertaintyReduced(const RowMatrix& A, const Eigen::SparseMat
   }
   const Eigen::Index rank_b = qr.rank();
   Eigen::MatrixXd QtA = qr.matrixQ().transpose() * Eigen::MatrixXd(A);
-  const RowMatrix reduced = QtA.bottomRows(m - rank_b);
-  return AnalyzeUncertainty(reduced, cost, names, values, fixed, options);
+  const RowMatrix reduced = QtA.bottomRows(k - rank_b);
+  // its normal matrix is the real rows' Schur complement; the dof counts the m - rank(B) real
+  // rows left after the elimination
+  return AnalyzeUncertaintyCompressed(reduced, m - rank_b, cost, names, values, fixed, options);
 }
 
 Uncertainty AnalyzeUncertaintyCompressed(const RowMatrix& R, long long m, double cost,

@@ -56,15 +56,19 @@ Uncertainty AnalyzeUncertainty(const RowMatrix& J, double cost,
                                const std::vector<bool>& fixed,
                                const UncertaintyOptions& options = UncertaintyOptions());
 
-// The same for the variables A (m x na, row-major: physical parameters, measurement terms) of a
-// Jacobian [A B] whose further columns B (m x nb, sparse: multiple-shooting initial states,
-// tangent space) are nuisance variables, without forming the m x (na + nb) matrix: B is
+// The same for the variables A (k x na, row-major: physical parameters, measurement terms) of a
+// Jacobian [A B] whose further columns B (k x nb, sparse: multiple-shooting initial states,
+// tangent space) are nuisance variables, without forming the k x (na + nb) matrix: B is
 // eliminated by a sparse QR (the Schur complement of the state block) and the reduced Jacobian
-// of A goes through AnalyzeUncertainty. Equals the na x na block of AnalyzeUncertainty([A B]) when
-// B has full column rank; dof = m - rank(B) - rank(reduced A). Everything returned has size na
-// (lost directions name variables of A only). Throws std::runtime_error when the QR fails.
+// of A goes through AnalyzeUncertaintyCompressed. The k rows may stand for m >= k real rows (any
+// rows with the real rows' [A B]^T [A B]: the compressed blocks' n + 1 rows each,
+// sysid/compressed_cost.h); m = k when they are the rows themselves. Equals the na x na block of
+// AnalyzeUncertainty([A B]) over the real rows when B has full column rank; dof = m - rank(B) -
+// rank(reduced A), s^2 = 2 cost / dof. Everything returned has size na (lost directions name
+// variables of A only). Throws std::runtime_error when the QR fails.
 Uncertainty AnalyzeUncertaintyReduced(const RowMatrix& A, const Eigen::SparseMatrix<double>& B,
-                                      double cost, const std::vector<std::string>& names,
+                                      long long m, double cost,
+                                      const std::vector<std::string>& names,
                                       const Eigen::VectorXd& values, const std::vector<bool>& fixed,
                                       const UncertaintyOptions& options = UncertaintyOptions());
 

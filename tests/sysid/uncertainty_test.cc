@@ -108,7 +108,7 @@ TEST(UncertaintyTest, ReducedEqualsDenseOnMultipleShootingStructure) {
   const RowMatrix A = full.leftCols(na);
   const Eigen::SparseMatrix<double> B = full.rightCols(nb).sparseView();
   const Uncertainty reduced = AnalyzeUncertaintyReduced(
-      A, B, cost, {"a", "b", "c"}, Eigen::VectorXd::Ones(na), std::vector<bool>(na, false));
+      A, B, m, cost, {"a", "b", "c"}, Eigen::VectorXd::Ones(na), std::vector<bool>(na, false));
   EXPECT_EQ(dense.rank, na + nb);
   EXPECT_EQ(reduced.rank, na);
   EXPECT_EQ(reduced.dof, dense.dof);
@@ -119,6 +119,60 @@ TEST(UncertaintyTest, ReducedEqualsDenseOnMultipleShootingStructure) {
   for (int j = 0; j < na; ++j) {
     EXPECT_NEAR(reduced.std_error[j], dense.std_error[j], 1e-8 * dense.std_error[j]) << j;
     EXPECT_TRUE(reduced.identifiable[j]);
+  }
+}
+
+// The same structure handed over compressed, as multiple shooting's compressed blocks are
+// (sysid/compressed_cost.h): each segment's rows [A_s B_s] (its 3 global and 4 state columns)
+// replaced by their thin-QR triangle (RowTriangle, 7 rows instead of 40), the 200 real rows
+// passed as m. Truth: the analysis of the 200 rows themselves. dof, rank and residual variance
+// must be the rows' exactly (integers; the same cost), covariance and standard errors to 1e-10
+// relative (a different QR of the same normal matrix: rounding only).
+TEST(UncertaintyTest, ReducedOfCompressedRowsEqualsRows) {
+  const int na = 3, nseg = 5, rows = 40, nx = 2, m = nseg * rows, nb = nseg * nx;
+  std::mt19937_64 rng(11);
+  std::normal_distribution<double> n(0, 1);
+  RowMatrix full = RowMatrix::Zero(m, na + nb);
+  for (int s = 0; s < nseg; ++s) {
+    for (int k = 0; k < rows; ++k) {
+      const int r = s * rows + k;
+      for (int j = 0; j < na; ++j) full(r, j) = n(rng);
+      for (int j = 0; j < nx; ++j) full(r, na + s * nx + j) = 10.0 * n(rng);
+    }
+    if (s + 1 < nseg) {
+      for (int j = 0; j < nx; ++j) full(s * rows + rows - nx + j, na + (s + 1) * nx + j) = -10.0;
+    }
+  }
+  const double cost = 0.37;
+  // per segment: the triangle of its rows over its own columns (globals, x_s, x_s+1), scattered
+  // back into the full column space
+  const int width = na + 2 * nx;
+  RowMatrix packed = RowMatrix::Zero(nseg * width, na + nb);
+  for (int s = 0; s < nseg; ++s) {
+    const int own = s + 1 < nseg ? 2 * nx : nx;
+    RowMatrix block(rows, na + own);
+    block << full.block(s * rows, 0, rows, na), full.block(s * rows, na + s * nx, rows, own);
+    RowTriangle tri(na + own);
+    tri.Add(block);
+    const Eigen::MatrixXd& R = tri.R();
+    packed.block(s * width, 0, R.rows(), na) = R.leftCols(na);
+    packed.block(s * width, na + s * nx, R.rows(), own) = R.rightCols(own);
+  }
+  const std::vector<std::string> names = {"a", "b", "c"};
+  const Eigen::VectorXd values = Eigen::VectorXd::Ones(na);
+  const std::vector<bool> fixed(na, false);
+  const Uncertainty truth = AnalyzeUncertaintyReduced(
+      full.leftCols(na), full.rightCols(nb).sparseView(), m, cost, names, values, fixed);
+  const Uncertainty compressed = AnalyzeUncertaintyReduced(
+      packed.leftCols(na), packed.rightCols(nb).sparseView(), m, cost, names, values, fixed);
+  EXPECT_EQ(compressed.rank, truth.rank);
+  EXPECT_EQ(compressed.dof, truth.dof);
+  EXPECT_EQ(truth.dof, m - nb - na);
+  EXPECT_EQ(compressed.residual_variance, truth.residual_variance);
+  EXPECT_LE((compressed.covariance - truth.covariance).cwiseAbs().maxCoeff(),
+            1e-10 * truth.covariance.cwiseAbs().maxCoeff());
+  for (int j = 0; j < na; ++j) {
+    EXPECT_NEAR(compressed.std_error[j], truth.std_error[j], 1e-10 * truth.std_error[j]) << j;
   }
 }
 
