@@ -41,8 +41,8 @@
 
 namespace mjsysid {
 
-class GaussNewtonStop;          // sysid/gn_convergence.h
-struct CompressedBlocks;        // sysid/compressed_cost.h
+class GaussNewtonStop;    // sysid/gn_convergence.h
+struct CompressedBlocks;  // sysid/compressed_cost.h
 
 // The state blocks of a fit (the segments' initial states, Ceres parameter blocks), stored
 // contiguously in block order. Ceres keeps the blocks of an elimination group in a

@@ -1,17 +1,17 @@
 // Compressed blocks folded ahead on worker threads (sysid/compressed_cost.h, "Folds ahead";
 // FitOptions::fold_ahead).
 //
-// Unit: a real nonlinear cost (r_i = a exp(-b t_i) + c t_i - y_i, m = 2500 rows > kChunkRows,
-// blocks of sizes 2 and 1, automatic derivatives; y from a = 2, b = 3, c = 0.5 with Gaussian
-// noise sigma 0.01, seed 5) as a FoldableCost that counts its calls. Folded ahead, by one thread or
-// by a 2-worker ThreadPool (several blocks at once), a block's Evaluate with Jacobians writes out
-// the same bits as a fold at Evaluate (tolerance 0) without calling the inner cost, notes the
-// inner cost's side effects once, at that first write-out, and counts one fold (ahead_folds 1);
-// rows that fail ahead leave no fold (Evaluate evaluates and fails as before); a block already
-// holding its fold at the values, or whose PrepareRows declines, is not folded ahead.
-// Whole fits: the shipped single-shooting experiments (their `simulate` block: truth, noise and
-// seed as shipped; 3 sequences of 1000 samples, so that 3 blocks share 2 workers) from the
-// shipped start, folds ahead on and off at 1 thread and on at 2 threads: estimates, standard
+// Unit: a real nonlinear cost (tests/sysid/decay_cost.h: r_i = a exp(-b t_i) + c t_i - y_i, m =
+// 2500 rows > kChunkRows, blocks of sizes 2 and 1, automatic derivatives; y from a = 2, b = 3, c =
+// 0.5 with Gaussian noise sigma 0.01, seed 5) as a FoldableCost that counts its calls. Folded
+// ahead, by one thread or by a 2-worker ThreadPool (several blocks at once), a block's Evaluate
+// with Jacobians writes out the same bits as a fold at Evaluate (tolerance 0) without calling the
+// inner cost, notes the inner cost's side effects once, at that first write-out, and counts one
+// fold (ahead_folds 1); rows that fail ahead leave no fold (Evaluate evaluates and fails as
+// before); a block already holding its fold at the values, or whose PrepareRows declines, is not
+// folded ahead. Whole fits: the shipped single-shooting experiments (their `simulate` block: truth,
+// noise and seed as shipped; 3 sequences of 1000 samples, so that 3 blocks share 2 workers) from
+// the shipped start, folds ahead on and off at 1 thread and on at 2 threads: estimates, standard
 // errors, final cost, iterations, status, warnings, folds and reused folds identical bit for bit
 // (tolerance 0), and the steps at 1 thread; on, the solve's Jacobians folded ahead, 3 blocks
 // each; off, none.
@@ -31,42 +31,15 @@
 #include "sysid/compressed_cost.h"
 #include "sysid/run/fit_experiment.h"
 #include "tests/experiment_log.h"
+#include "tests/sysid/decay_cost.h"
 
 namespace mjsysid {
 namespace {
 
-constexpr int kRows = 2500;
-
-// r_i = x0[0] exp(-x0[1] t_i) + x1[0] t_i - y_i (t_i = i / m)
-struct Decay {
-  std::vector<double> y;
-  template <typename T>
-  bool operator()(const T* x0, const T* x1, T* r) const {
-    for (int i = 0; i < kRows; ++i) {
-      const double t = static_cast<double>(i) / kRows;
-      r[i] = x0[0] * exp(-x0[1] * t) + x1[0] * t - y[i];
-    }
-    return true;
-  }
-};
-
-std::vector<double> DecayData(int seed) {
-  std::mt19937 rng(seed);
-  std::normal_distribution<double> noise(0.0, 0.01);
-  std::vector<double> y;
-  for (int i = 0; i < kRows; ++i) {
-    const double t = static_cast<double>(i) / kRows;
-    y.push_back(2.0 * std::exp(-3.0 * t) + 0.5 * t + noise(rng));
-  }
-  return y;
-}
-
 // the decay as a FoldableCost: Rows is the inner Evaluate; counts every call; fails while fail
 class Foldable : public FoldableCost {
  public:
-  explicit Foldable(int seed)
-      : inner_(new ceres::AutoDiffCostFunction<Decay, ceres::DYNAMIC, 2, 1>(
-            new Decay{DecayData(seed)}, kRows)) {
+  explicit Foldable(int seed) : inner_(test::NewDecayCost(test::DecayData(seed))) {
     set_num_residuals(inner_->num_residuals());
     *mutable_parameter_block_sizes() = inner_->parameter_block_sizes();
   }
@@ -88,22 +61,6 @@ class Foldable : public FoldableCost {
 
  private:
   std::unique_ptr<ceres::CostFunction> inner_;
-};
-
-// one evaluation's output: n + 1 residuals, the blocks' Jacobians row-major
-struct Out {
-  std::vector<double> r = std::vector<double>(4), j0 = std::vector<double>(8),
-                      j1 = std::vector<double>(4);
-  bool Eval(const ceres::CostFunction& cost, const double* x0, const double* x1) {
-    const double* p[2] = {x0, x1};
-    double* jac[2] = {j0.data(), j1.data()};
-    return cost.Evaluate(p, r.data(), jac);
-  }
-  bool SameBits(const Out& o) const {
-    return std::memcmp(r.data(), o.r.data(), sizeof(double) * r.size()) == 0 &&
-           std::memcmp(j0.data(), o.j0.data(), sizeof(double) * j0.size()) == 0 &&
-           std::memcmp(j1.data(), o.j1.data(), sizeof(double) * j1.size()) == 0;
-  }
 };
 
 // blocks compressed decays (seeds 5, 6, ..) at their own values x0 = (1.7 + 0.1 b, 2.6), x1 = 0.4
@@ -142,7 +99,7 @@ int FoldOn(ThreadPool* pool, CompressedBlocks* blocks) {
 TEST(FoldAheadTest, AFoldAheadIsWrittenOutAsTheFoldAtEvaluateWithItsNotesOnce) {
   Fixture plain(1), ahead(1);
   plain.blocks.members.clear();  // folded at Evaluate only
-  Out at_evaluate, written, again;
+  test::DecayOut at_evaluate, written, again;
   ASSERT_TRUE(at_evaluate.Eval(*plain.cost[0], plain.x0[0].data(), plain.x1[0].data()));
   EXPECT_EQ(plain.inner[0]->with_jacobians, 1);
 
@@ -181,7 +138,7 @@ TEST(FoldAheadTest, AFoldAheadIsWrittenOutAsTheFoldAtEvaluateWithItsNotesOnce) {
 TEST(FoldAheadTest, FailedOrDeclinedRowsLeaveTheBlockToEvaluate) {
   Fixture f(1);
   Foldable& inner = *f.inner[0];
-  Out out;
+  test::DecayOut out;
   // rows that fail ahead: no fold; Evaluate evaluates (and fails) as without folds ahead
   inner.fail = true;
   EXPECT_EQ(FoldSerially(&f.blocks), 1);
@@ -217,7 +174,7 @@ TEST(FoldAheadTest, FiveBlocksOnTwoWorkersGiveTheSerialBits) {
   EXPECT_EQ(FoldOn(&pool, &parallel.blocks), kBlocks);
   EXPECT_GE(parallel.blocks.scratch.size(), 2u);
   for (int b = 0; b < kBlocks; ++b) {
-    Out s, p;
+    test::DecayOut s, p;
     ASSERT_TRUE(s.Eval(*serial.cost[b], serial.x0[b].data(), serial.x1[b].data()));
     ASSERT_TRUE(p.Eval(*parallel.cost[b], parallel.x0[b].data(), parallel.x1[b].data()));
     EXPECT_TRUE(p.SameBits(s)) << "block " << b;

@@ -1,19 +1,19 @@
 // A compressed block's last fold written out instead of a re-fold (sysid/compressed_cost.h, "The
 // last fold"; FitOptions::reuse_folds).
 //
-// Unit: a real nonlinear cost (r_i = a exp(-b t_i) - y_i, m = 2500 rows > kChunkRows, blocks of
-// sizes 2 and 1, automatic derivatives) wrapped in a cost that counts the calls it forwards. A
-// second request with Jacobians at the same values returns the same bits as the first, and as a
-// re-fold (reuse off), without calling the inner cost; a value one ulp away, a residual-only
-// evaluation at another point in between, and an advanced epoch each call it again; a failed
-// evaluation keeps no fold.
-// Whole fits: the shipped experiments (their `simulate` block: truth, noise and seed as shipped;
-// 1 sequence of 1000 samples; single shooting as auto chooses it) from the shipped start and from
-// `initial: auto`, with the reuse on and off: estimates, standard errors, final cost, iterations,
-// status, simulator steps and the termination message identical bit for bit (tolerance 0), and
-// with the reuse on at least one Jacobian request (the statistical stop's test or the covariance)
-// answered by a last fold. cartpole with a shared control delay fitted too (from 4 ms; the log has
-// none): the same fit bit for bit.
+// Unit: a real nonlinear cost (tests/sysid/decay_cost.h: r_i = a exp(-b t_i) + c t_i - y_i, m =
+// 2500 rows > kChunkRows, blocks of sizes 2 and 1, automatic derivatives, noise seed 5) wrapped in
+// a cost that counts the calls it forwards. A second request with Jacobians at the same values
+// returns the same bits as the first, and as a re-fold (reuse off), without calling the inner cost;
+// a value one ulp away, a residual-only evaluation at another point in between, and an advanced
+// epoch each call it again; a failed evaluation keeps no fold. Whole fits: the shipped experiments
+// (their `simulate` block: truth, noise and seed as shipped; 1 sequence of 1000 samples; single
+// shooting as auto chooses it) from the shipped start and from `initial: auto`, with the reuse on
+// and off: estimates, standard errors, final cost, iterations, status, simulator steps and the
+// termination message identical bit for bit (tolerance 0), and with the reuse on at least one
+// Jacobian request (the statistical stop's test or the covariance) answered by a last fold.
+// cartpole with a shared control delay fitted too (from 4 ms; the log has none): the same fit bit
+// for bit.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -30,24 +30,10 @@
 #include "sysid/compressed_cost.h"
 #include "sysid/run/fit_experiment.h"
 #include "tests/experiment_log.h"
+#include "tests/sysid/decay_cost.h"
 
 namespace mjsysid {
 namespace {
-
-constexpr int kRows = 2500;
-
-// r_i = x0[0] exp(-x0[1] t_i) + x1[0] t_i - y_i (t_i = i / m)
-struct Decay {
-  std::vector<double> y;
-  template <typename T>
-  bool operator()(const T* x0, const T* x1, T* r) const {
-    for (int i = 0; i < kRows; ++i) {
-      const double t = static_cast<double>(i) / kRows;
-      r[i] = x0[0] * exp(-x0[1] * t) + x1[0] * t - y[i];
-    }
-    return true;
-  }
-};
 
 // forwards to inner, counting the calls with and without Jacobians; fails while fail is set
 class Counted : public ceres::CostFunction {
@@ -67,22 +53,6 @@ class Counted : public ceres::CostFunction {
   std::unique_ptr<ceres::CostFunction> inner_;
 };
 
-// one evaluation's output: n + 1 residuals, the blocks' Jacobians row-major
-struct Out {
-  std::vector<double> r = std::vector<double>(4), j0 = std::vector<double>(8),
-                      j1 = std::vector<double>(4);
-  bool Eval(const ceres::CostFunction& cost, const double* x0, const double* x1) {
-    const double* p[2] = {x0, x1};
-    double* jac[2] = {j0.data(), j1.data()};
-    return cost.Evaluate(p, r.data(), jac);
-  }
-  bool SameBits(const Out& o) const {
-    return std::memcmp(r.data(), o.r.data(), sizeof(double) * r.size()) == 0 &&
-           std::memcmp(j0.data(), o.j0.data(), sizeof(double) * j0.size()) == 0 &&
-           std::memcmp(j1.data(), o.j1.data(), sizeof(double) * j1.size()) == 0;
-  }
-};
-
 struct Fixture {
   CompressedBlocks blocks;
   std::uint64_t epoch = 0;
@@ -90,15 +60,7 @@ struct Fixture {
   std::unique_ptr<ceres::CostFunction> cost;
 
   Fixture() {
-    std::mt19937 rng(5);
-    std::normal_distribution<double> noise(0.0, 0.01);
-    Decay decay;
-    for (int i = 0; i < kRows; ++i) {
-      const double t = static_cast<double>(i) / kRows;
-      decay.y.push_back(2.0 * std::exp(-3.0 * t) + 0.5 * t + noise(rng));
-    }
-    counted = new Counted(
-        new ceres::AutoDiffCostFunction<Decay, ceres::DYNAMIC, 2, 1>(new Decay(decay), kRows));
+    counted = new Counted(test::NewDecayCost(test::DecayData(5)));
     blocks.epoch = &epoch;
     cost.reset(Compress(counted, &blocks));
   }
@@ -108,7 +70,7 @@ TEST(FoldReuseTest, TheSameValuesGiveTheLastFoldWithoutTheInnerCost) {
   Fixture f;
   ASSERT_NE(f.cost.get(), f.counted);
   const double x0[2] = {1.7, 2.6}, x1[1] = {0.4};
-  Out first, second, refold;
+  test::DecayOut first, second, refold;
   ASSERT_TRUE(first.Eval(*f.cost, x0, x1));
   EXPECT_EQ(f.counted->with_jacobians, 1);
   ASSERT_TRUE(second.Eval(*f.cost, x0, x1));
@@ -136,7 +98,7 @@ TEST(FoldReuseTest, TheSameValuesGiveTheLastFoldWithoutTheInnerCost) {
 TEST(FoldReuseTest, AnotherValueAPointInBetweenOrAnEpochReFolds) {
   Fixture f;
   double x0[2] = {1.7, 2.6}, x1[1] = {0.4};
-  Out first, again;
+  test::DecayOut first, again;
   ASSERT_TRUE(first.Eval(*f.cost, x0, x1));
   // one ulp in the second block
   x1[0] = std::nextafter(0.4, 1.0);
