@@ -75,16 +75,13 @@ TEST(UncertaintyTest, FixedAndZeroColumns) {
   EXPECT_NE(u.unidentifiable[0].find("no effect: b"), std::string::npos) << u.unidentifiable[0];
 }
 
-// Schur elimination of nuisance columns (AnalyzeUncertaintyReduced) against the dense analysis of
-// the whole Jacobian, on the structure of multiple shooting: 3 global columns in every row, 5
-// segments of 40 rows, each with its own 2 initial-state columns and (but the last) the next
-// segment's 2 columns in its last 2 rows (continuity, -w I). Entries: a fixed seed's normal
-// draws. Tolerance: 1e-8 relative on covariance and standard errors.
-TEST(UncertaintyTest, ReducedEqualsDenseOnMultipleShootingStructure) {
-  const int na = 3, nseg = 5, rows = 40, nx = 2, m = nseg * rows, nb = nseg * nx;
-  std::mt19937_64 rng(7);
-  std::normal_distribution<double> n(0, 1);
-  RowMatrix full = RowMatrix::Zero(m, na + nb);
+// A Jacobian with the structure of multiple shooting: na global columns in every row, nseg
+// segments of `rows` rows, each with its own nx initial-state columns (entries 10 x normal draws)
+// and (but the last) the next segment's nx columns in its last nx rows (continuity, -10 I); the
+// global entries normal draws
+RowMatrix MultipleShootingJacobian(int na, int nseg, int rows, int nx,
+                                   std::normal_distribution<double>& n, std::mt19937_64& rng) {
+  RowMatrix full = RowMatrix::Zero(nseg * rows, na + nseg * nx);
   for (int s = 0; s < nseg; ++s) {
     for (int k = 0; k < rows; ++k) {
       const int r = s * rows + k;
@@ -95,6 +92,19 @@ TEST(UncertaintyTest, ReducedEqualsDenseOnMultipleShootingStructure) {
       for (int j = 0; j < nx; ++j) full(s * rows + rows - nx + j, na + (s + 1) * nx + j) = -10.0;
     }
   }
+  return full;
+}
+
+// Schur elimination of nuisance columns (AnalyzeUncertaintyReduced) against the dense analysis of
+// the whole Jacobian, on the structure of multiple shooting: 3 global columns in every row, 5
+// segments of 40 rows, each with its own 2 initial-state columns and (but the last) the next
+// segment's 2 columns in its last 2 rows (continuity, -w I). Entries: a fixed seed's normal
+// draws. Tolerance: 1e-8 relative on covariance and standard errors.
+TEST(UncertaintyTest, ReducedEqualsDenseOnMultipleShootingStructure) {
+  const int na = 3, nseg = 5, rows = 40, nx = 2, m = nseg * rows, nb = nseg * nx;
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> n(0, 1);
+  RowMatrix full = MultipleShootingJacobian(na, nseg, rows, nx, n, rng);
   double cost = 0;
   for (int r = 0; r < m; ++r) {
     const double e = 0.1 * n(rng);
@@ -132,17 +142,7 @@ TEST(UncertaintyTest, ReducedOfCompressedRowsEqualsRows) {
   const int na = 3, nseg = 5, rows = 40, nx = 2, m = nseg * rows, nb = nseg * nx;
   std::mt19937_64 rng(11);
   std::normal_distribution<double> n(0, 1);
-  RowMatrix full = RowMatrix::Zero(m, na + nb);
-  for (int s = 0; s < nseg; ++s) {
-    for (int k = 0; k < rows; ++k) {
-      const int r = s * rows + k;
-      for (int j = 0; j < na; ++j) full(r, j) = n(rng);
-      for (int j = 0; j < nx; ++j) full(r, na + s * nx + j) = 10.0 * n(rng);
-    }
-    if (s + 1 < nseg) {
-      for (int j = 0; j < nx; ++j) full(s * rows + rows - nx + j, na + (s + 1) * nx + j) = -10.0;
-    }
-  }
+  RowMatrix full = MultipleShootingJacobian(na, nseg, rows, nx, n, rng);
   const double cost = 0.37;
   // per segment: the triangle of its rows over its own columns (globals, x_s, x_s+1), scattered
   // back into the full column space
