@@ -14,7 +14,7 @@
 // the shipped start, folds ahead on and off at 1 thread and on at 2 threads: estimates, standard
 // errors, final cost, iterations, status, warnings, folds and reused folds identical bit for bit
 // (tolerance 0), and the steps at 1 thread; on, the solve's Jacobians folded ahead, 3 blocks
-// each; off, none.
+// each; off, none. And one multiple-shooting fit (arm5, 5 segment blocks) the same way.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -239,6 +239,27 @@ TEST_P(FoldAheadFitTest, TheSameFitBitForBitAtOneAndTwoThreads) {
   // every Jacobian of the solve folds its 3 blocks ahead
   EXPECT_GE(on.ahead_folds, 3);
   EXPECT_EQ(on.ahead_folds % 3, 0);
+  EXPECT_EQ(on2.ahead_folds, on.ahead_folds);
+  EXPECT_EQ(off.ahead_folds, 0);
+  ExpectSameFit(on, off, true);
+  ExpectSameFit(on2, off, false);
+  std::filesystem::remove_all(std::filesystem::path(cfg.data[0].path).parent_path());
+}
+
+// Multiple shooting (experiments/arm5.yaml: segments of 200 steps with free initial states; its
+// `simulate` block's truth, noise and seed; 1 sequence of 1000 samples, so 5 compressed segment
+// blocks, each over z, its x_0 and the next x_0): the segments' folds are made ahead too, and the
+// fit is the same bit for bit on and off and at 2 threads.
+TEST(FoldAheadMultipleShootingTest, TheSameFitBitForBitAtOneAndTwoThreads) {
+  io::ExperimentConfig cfg = test::ShippedExperimentWithLog("arm5.yaml", 1, 1000, "fold_ahead_ms");
+  const FitResult on = FitWith(cfg, true, 1);
+  const FitResult off = FitWith(cfg, false, 1);
+  const FitResult on2 = FitWith(cfg, true, 2);
+  std::printf("arm5: %d iterations, folds %lld (%lld ahead); off %lld (%lld ahead)\n  %s\n",
+              on.iterations, on.folds, on.ahead_folds, off.folds, off.ahead_folds,
+              on.termination.c_str());
+  EXPECT_GT(on.segment_steps_used, 0);  // multiple shooting
+  EXPECT_GE(on.ahead_folds, 5);
   EXPECT_EQ(on2.ahead_folds, on.ahead_folds);
   EXPECT_EQ(off.ahead_folds, 0);
   ExpectSameFit(on, off, true);
