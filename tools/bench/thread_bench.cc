@@ -35,6 +35,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <ctime>
+#include <exception>
 #include <fstream>
 #include <map>
 #include <sstream>
@@ -250,4 +251,12 @@ int Main(int argc, char** argv) {
 }  // namespace
 }  // namespace mjsysid
 
-int main(int argc, char** argv) { return mjsysid::Main(argc, argv); }
+// bad input (an experiment or its log missing or invalid): its message and exit 2, not an abort
+int main(int argc, char** argv) {
+  try {
+    return mjsysid::Main(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bench_threads: %s\n", e.what());
+    return 2;
+  }
+}
