@@ -32,6 +32,7 @@
 #include "sysid/run/fit_experiment.h"
 #include "tests/experiment_log.h"
 #include "tests/sysid/decay_cost.h"
+#include "tests/sysid/same_fit.h"
 
 namespace mjsysid {
 namespace {
@@ -193,33 +194,12 @@ FitResult FitWith(const io::ExperimentConfig& cfg, bool ahead, int threads) {
   return built.problem->Fit(options);
 }
 
-// a and b the same doubles, bit for bit
-::testing::AssertionResult SameBits(double a, double b) {
-  if (std::memcmp(&a, &b, sizeof(double)) == 0) return ::testing::AssertionSuccess();
-  return ::testing::AssertionFailure() << a << " vs " << b << " (" << a - b << ")";
-}
-
 // steps: compared too (not across thread counts: at 2 threads trial points also simulate Jacobian
-// columns ahead, sysid/evaluation_cache.h)
+// columns ahead, sysid/evaluation_cache.h); and the folds made and reused
 void ExpectSameFit(const FitResult& a, const FitResult& b, bool steps) {
-  EXPECT_EQ(a.outcome, b.outcome);
-  EXPECT_EQ(a.converged, b.converged);
-  EXPECT_EQ(a.iterations, b.iterations);
-  if (steps) {
-    EXPECT_EQ(a.simulation_steps, b.simulation_steps);
-  }
-  EXPECT_EQ(a.termination, b.termination);
-  EXPECT_EQ(a.covariance_jacobian_iteration, b.covariance_jacobian_iteration);
+  test::ExpectSameFit(a, b, steps);
   EXPECT_EQ(a.folds, b.folds);
   EXPECT_EQ(a.reused_folds, b.reused_folds);
-  EXPECT_TRUE(SameBits(a.final_cost, b.final_cost));
-  EXPECT_EQ(a.warnings, b.warnings);
-  ASSERT_EQ(a.parameters.size(), b.parameters.size());
-  for (size_t i = 0; i < a.parameters.size(); ++i) {
-    EXPECT_TRUE(SameBits(a.parameters[i].value, b.parameters[i].value)) << a.parameters[i].name;
-    EXPECT_TRUE(SameBits(a.parameters[i].std_error, b.parameters[i].std_error))
-        << a.parameters[i].name;
-  }
 }
 
 class FoldAheadFitTest : public ::testing::TestWithParam<std::string> {};

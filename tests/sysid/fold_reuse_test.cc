@@ -31,6 +31,7 @@
 #include "sysid/run/fit_experiment.h"
 #include "tests/experiment_log.h"
 #include "tests/sysid/decay_cost.h"
+#include "tests/sysid/same_fit.h"
 
 namespace mjsysid {
 namespace {
@@ -154,12 +155,6 @@ FitResult FitWith(const io::ExperimentConfig& cfg, bool reuse) {
   return built.problem->Fit(options);
 }
 
-// a and b the same doubles, bit for bit
-::testing::AssertionResult SameBits(double a, double b) {
-  if (std::memcmp(&a, &b, sizeof(double)) == 0) return ::testing::AssertionSuccess();
-  return ::testing::AssertionFailure() << a << " vs " << b << " (" << a - b << ")";
-}
-
 class FoldReuseFitTest : public ::testing::TestWithParam<Case> {};
 
 TEST_P(FoldReuseFitTest, TheSameFitBitForBit) {
@@ -185,20 +180,7 @@ TEST_P(FoldReuseFitTest, TheSameFitBitForBit) {
   }
   EXPECT_EQ(off.reused_folds, 0);
   EXPECT_EQ(on.folds + on.reused_folds, off.folds);  // each reused fold is one fold fewer
-  EXPECT_EQ(on.outcome, off.outcome);
-  EXPECT_EQ(on.converged, off.converged);
-  EXPECT_EQ(on.iterations, off.iterations);
-  EXPECT_EQ(on.simulation_steps, off.simulation_steps);
-  EXPECT_EQ(on.termination, off.termination);
-  EXPECT_EQ(on.covariance_jacobian_iteration, off.covariance_jacobian_iteration);
-  EXPECT_TRUE(SameBits(on.final_cost, off.final_cost));
-  EXPECT_EQ(on.warnings, off.warnings);
-  ASSERT_EQ(on.parameters.size(), off.parameters.size());
-  for (size_t i = 0; i < on.parameters.size(); ++i) {
-    EXPECT_TRUE(SameBits(on.parameters[i].value, off.parameters[i].value)) << on.parameters[i].name;
-    EXPECT_TRUE(SameBits(on.parameters[i].std_error, off.parameters[i].std_error))
-        << on.parameters[i].name;
-  }
+  test::ExpectSameFit(on, off, true);
   std::filesystem::remove_all(std::filesystem::path(cfg.data[0].path).parent_path());
 }
 
