@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <exception>
 #include <limits>
+#include <numeric>
 #include <stdexcept>
 #include <thread>
 
@@ -339,14 +340,15 @@ void Simulator::CheckStep(const mjData& d, double t, int seq_index, int step,
 
 void Simulator::RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq, int seq_index,
                            RowMatrix* states, RowMatrix* sensors, RowMatrix* step,
-                           std::vector<int>* ncon, SolverStats* solver,
-                           std::atomic<int>* progress) const {
+                           std::vector<int>* ncon, SolverStats* solver, std::atomic<int>* progress,
+                           int k0, int k1) const {
   mjData* d = w.data.get();
   const int T = static_cast<int>(seq.ctrl.rows());
+  if (k1 < 0) k1 = T;
   const bool want_sensors = options_.sensors && sensors && dims_.ns > 0;
   // step the model, recording x_k (and the step state) before and y_k after each step
   Tenths tenths(step_progress_, "rollout", T);
-  for (int k = 0; k < T; ++k) {
+  for (int k = k0; k < k1; ++k) {
     CheckCancel();
     tenths.At(k);
     const double* u = seq.ctrl.row(k).data();
@@ -369,6 +371,13 @@ void Simulator::RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq
       for (int i = 0; i < dims_.ns; ++i) y[i] = d->sensordata[i];
     }
     if (ncon) (*ncon)[k] = d->ncon;
+  }
+  // a piece that is not the last: the state row the next piece starts from
+  if (k1 < T) {
+    GetPhysics(*m, *d, states->row(k1).data());
+    if (step) GetStepState(*m, dims_, *d, step->row(k1).data());
+    if (progress) progress->store(k1 + 1, std::memory_order_release);
+    return;
   }
   GetPhysics(*m, *d, states->row(T).data());
   if (step) GetStepState(*m, dims_, *d, step->row(T).data());
@@ -416,12 +425,70 @@ void Simulator::RolloutTask(Worker& w, const SequenceInput& seq, int seq_index, 
   });
 }
 
+void Simulator::RolloutPiece(Worker& w, const SequenceInput& seq, int seq_index, Trajectory* tr,
+                             std::atomic<int>* progress, int piece, int pieces) const {
+  const mjModel* m = model_.get();
+  const int k0 = static_cast<int>(static_cast<long long>(tr->T) * piece / pieces);
+  const int k1 = static_cast<int>(static_cast<long long>(tr->T) * (piece + 1) / pieces);
+  OnWorker(w, [&] {
+    try {
+      mjData* d = w.data.get();
+      if (piece == 0) {
+        // the first piece starts as a whole rollout does
+        SetInitialState(d, seq.x0);
+        if (dims_.ninput) {
+          CallMujoco(
+              [&] { mj_getState(m, d, tr->inputs.data(), static_cast<int>(dims_.input_sig)); });
+        }
+      } else {
+        // a later piece: once the piece before has recorded state row k0 (a failed one has thrown
+        // the batch's error), everything step k0 reads, as a perturbed step restores it
+        if (!WaitForRows(progress, k0 + 1)) return;
+        RestoreInputs(*m, dims_, *tr, d);
+        RestoreStep(*m, dims_, *tr, k0, seq.ctrl.row(k0).data(), d);
+      }
+      RolloutOne(w, m, seq, seq_index, &tr->states, &tr->sensors, &tr->step, &tr->ncon, &tr->solver,
+                 progress, k0, k1);
+    } catch (...) {
+      progress->store(kRolloutFailed, std::memory_order_release);
+      throw;
+    }
+  });
+}
+
+int Simulator::RolloutPieces(int n, int min_steps) const {
+  const int workers = pool_.size();
+  if (n <= workers || n % workers == 0) return 1;
+  const int pieces = workers / std::gcd(n, workers);
+  return min_steps / pieces >= kMinPieceSteps ? pieces : 1;
+}
+
 void Simulator::Rollout(const std::vector<SequenceInput>& sequences, std::vector<Trajectory>* out) {
-  // size outputs up front, then fill them in parallel across sequences
+  // size outputs up front, then fill them in parallel across sequences: task p n + i is piece p of
+  // sequence i (one piece each unless the workers would be left idle in the last round)
+  const int n = static_cast<int>(sequences.size());
+  int min_steps = std::numeric_limits<int>::max();
+  for (const SequenceInput& s : sequences) {
+    min_steps = std::min(min_steps, static_cast<int>(s.ctrl.rows()));
+  }
+  const int pieces = RolloutPieces(n, min_steps);
   Guarded([&] {
     SizeTrajectories(sequences, out);
-    pool_.ParallelFor(static_cast<int>(sequences.size()), [&](int worker, int i) {
-      RolloutTask(*workers_[worker], sequences[i], i, &(*out)[i], nullptr);
+    if (pieces == 1) {
+      pool_.ParallelFor(n, [&](int worker, int i) {
+        RolloutTask(*workers_[worker], sequences[i], i, &(*out)[i], nullptr);
+      });
+      return;
+    }
+    // state rows recorded per sequence: what a later piece waits for
+    std::vector<std::atomic<int>> progress(n);
+    for (auto& p : progress) p.store(0, std::memory_order_relaxed);
+    std::vector<int> after(static_cast<size_t>(n) * pieces, -1);
+    for (int t = n; t < n * pieces; ++t) after[t] = t - n;
+    pool_.SetNextAfter(std::move(after));
+    pool_.ParallelFor(n * pieces, [&](int worker, int t) {
+      const int i = t % n;
+      RolloutPiece(*workers_[worker], sequences[i], i, &(*out)[i], &progress[i], t / n, pieces);
     });
   });
 }

@@ -221,7 +221,12 @@ class Simulator {
   // the model's reference state: qpos0, zero velocity and activation
   InitialState ReferenceState() const;
 
-  // nominal rollouts, in parallel across sequences
+  // Nominal rollouts, in parallel across sequences. When there are more sequences than workers
+  // and they do not share the workers evenly (3 on 2), each rollout runs as RolloutPieces(n)
+  // consecutive pieces of about equal length, claimed piece by piece (every sequence's first piece,
+  // then every second one, ...); a piece continues from the state its predecessor recorded
+  // (RestoreStep: bit for bit the trajectory of one piece) on whichever worker is free, so that
+  // the workers share the last round: 3 rollouts on 2 workers take 1.5 rollout times, not 2.
   void Rollout(const std::vector<SequenceInput>& sequences, std::vector<Trajectory>* out);
   Trajectory Rollout(const SequenceInput& sequence);
   // Rollouts of the sequences at several parameter vectors in one parallel pass (task k n + i:
@@ -240,6 +245,12 @@ class Simulator {
                  std::vector<Sensitivity>* out);
   Sensitivity Jacobians(const SequenceInput& sequence, const Trajectory& nominal,
                         const JacobianOptions& options);
+
+  // The pieces each of a batch of n rollouts runs in (Rollout): q = W / gcd(n, W) on W workers
+  // when n > W and W does not divide n (so that n q pieces fill whole rounds), else 1; 1 also
+  // when the shortest of the sequences (min_steps) has fewer than kMinPieceSteps steps per piece.
+  static constexpr int kMinPieceSteps = 50;
+  int RolloutPieces(int n, int min_steps) const;
 
   // Rollout and then Jacobians, with the same results bit for bit, in one parallel pass where
   // that is faster: with more than one thread in directional mode (whatever the contacts), the
@@ -340,9 +351,12 @@ class Simulator {
   template <class Task>
   void OnWorker(Worker& w, Task&& task) const;
   void SetInitialState(mjData* d, const InitialState& x0) const;
+  // steps [k0, k1) of a rollout from the state in w's mjData (k1 = -1: to the end); a piece that
+  // ends before T also records the state row k1 the next piece starts from
   void RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq, int seq_index,
                   RowMatrix* states, RowMatrix* sensors, RowMatrix* step, std::vector<int>* ncon,
-                  SolverStats* solver, std::atomic<int>* progress = nullptr) const;
+                  SolverStats* solver, std::atomic<int>* progress = nullptr, int k0 = 0,
+                  int k1 = -1) const;
   // checks the inputs and sizes the trajectories of Rollout
   void SizeTrajectories(const std::vector<SequenceInput>& sequences,
                         std::vector<Trajectory>* out) const;
@@ -350,6 +364,11 @@ class Simulator {
   // (m: the model to step, default the private one)
   void RolloutTask(Worker& w, const SequenceInput& seq, int seq_index, Trajectory* tr,
                    std::atomic<int>* progress, const mjModel* m = nullptr) const;
+  // piece `piece` of `pieces` of a rollout task (Rollout): the first starts from x0, the others
+  // wait until progress shows the state they continue from (and stop, without error, when the
+  // piece before failed); progress as RolloutTask's
+  void RolloutPiece(Worker& w, const SequenceInput& seq, int seq_index, Trajectory* tr,
+                    std::atomic<int>* progress, int piece, int pieces) const;
   // Jacobians; rollouts (sized, not simulated yet) are simulated in the same pass when given.
   // ahead (optional): with ahead_end, only the columns [0, ahead_end[i]) are computed, into
   // ahead[i] (directional mode); without, the columns of ahead[i] that match are taken and the

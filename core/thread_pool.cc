@@ -7,14 +7,17 @@
 namespace mjsysid {
 
 long long ListScheduleMakespan(const std::vector<long long>& cost, const std::vector<int>& follows,
-                               int workers) {
+                               int workers, const std::vector<int>& after) {
   // the free time of each worker; a task goes to the one free first (the pool's atomic counter)
   std::vector<long long> free_at(std::max(workers, 1), 0);
   std::vector<long long> end(cost.size(), 0);
   long long span = 0;
   for (size_t i = 0; i < cost.size(); ++i) {
     auto w = std::min_element(free_at.begin(), free_at.end());
-    end[i] = *w + cost[i];
+    // a continuation holds its worker until the task it continues has ended
+    const int a = after.empty() ? -1 : after[i];
+    const long long start = a >= 0 && a < static_cast<int>(i) ? std::max(*w, end[a]) : *w;
+    end[i] = start + cost[i];
     // a follower waits for the task it trails: it ends after it
     const int j = follows.empty() ? -1 : follows[i];
     if (j >= 0 && j < static_cast<int>(i)) end[i] = std::max(end[i], end[j]);
@@ -141,17 +144,20 @@ void ThreadPool::WorkerLoop(int worker) {
 
 void ThreadPool::RecordBatch() {
   if (follows_.size() != cost_.size()) follows_.clear();
+  if (after_.size() != cost_.size()) after_.clear();
   ++load_.batches;
   for (long long c : cost_) load_.work += c;
   for (int w = 1; w <= PoolLoad::kModelWorkers; ++w) {
-    load_.span[w] += ListScheduleMakespan(cost_, follows_, w);
+    load_.span[w] += ListScheduleMakespan(cost_, follows_, w, after_);
   }
   follows_.clear();
+  after_.clear();
 }
 
 void ThreadPool::ParallelFor(int n, const std::function<void(int, int)>& fn) {
   if (n <= 0) {
     follows_.clear();
+    after_.clear();
     return;
   }
   const Clock::time_point start = Clock::now();

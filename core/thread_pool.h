@@ -43,9 +43,11 @@ namespace mjsysid {
 // are claimed in index order by whichever worker is free first (all start at 0), so task i starts
 // at the earliest finish of the tasks before it and ends cost[i] later; a task that follows
 // another step by step (follows[i] = j < i, -1: none; the directional columns behind their
-// rollout) also ends no earlier than task j. cost.size() tasks, follows empty or of that size.
+// rollout) also ends no earlier than task j; a task that continues another (after[i] = j < i, -1:
+// none; a rollout's later pieces) holds its worker until task j has ended and only then starts.
+// cost.size() tasks, follows and after empty or of that size.
 long long ListScheduleMakespan(const std::vector<long long>& cost, const std::vector<int>& follows,
-                               int workers);
+                               int workers, const std::vector<int>& after = {});
 
 // what the meter recorded over many batches (ThreadPool::load)
 struct PoolLoad {
@@ -112,6 +114,10 @@ class ThreadPool {
   void SetNextFollows(std::vector<int> follows) {
     if (meter_) follows_ = std::move(follows);
   }
+  // the same for tasks that continue another (after[i], see ListScheduleMakespan)
+  void SetNextAfter(std::vector<int> after) {
+    if (meter_) after_ = std::move(after);
+  }
 
   // Sets the meter (see Task model above; nullptr: none, the default). meter(worker) is called on
   // that worker's thread before and after each of its tasks.
@@ -152,6 +158,7 @@ class ThreadPool {
   std::function<long long(int)> meter_;
   std::vector<long long> cost_;  // per task of the running batch (each slot written by its task)
   std::vector<int> follows_;     // SetNextFollows
+  std::vector<int> after_;       // SetNextAfter
   PoolLoad load_;
 };
 

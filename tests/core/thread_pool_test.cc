@@ -55,6 +55,11 @@ TEST(ThreadPoolTest, ListScheduleMakespan) {
   EXPECT_EQ(ListScheduleMakespan({10, 10, 3}, {-1, -1, 0}, 2), 13);
   // more workers than tasks: the longest task
   EXPECT_EQ(ListScheduleMakespan({4, 7, 2}, {}, 4), 7);
+  // continuations start after the task they continue: 3 rollouts in 2 pieces on 2 workers, and a
+  // continuation whose worker waits for it
+  EXPECT_EQ(ListScheduleMakespan({5, 5, 5, 5, 5, 5}, {}, 2, {-1, -1, -1, 0, 1, 2}), 15);
+  EXPECT_EQ(ListScheduleMakespan({10, 1, 5}, {}, 2, {-1, -1, 0}), 15);
+  EXPECT_EQ(ListScheduleMakespan({10, 1, 5}, {}, 2), 10);
 }
 
 // a metered pool records every task's cost (the growth of its worker's counter) and the batch's
