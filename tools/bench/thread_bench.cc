@@ -7,7 +7,10 @@
 // (1, 2 then 2, 1, ...), so that a slow spell of the machine falls on both. Each fit is the
 // experiment's own (run::BuildProblem, the product's FitOptions, progress off). Per case and
 // thread count it prints the minimum and the median wall time of the fit (FitResult::seconds),
-// the ratios of the 1-thread to the n-thread minimum and median, and per fit (median) the time
+// the ratios of the 1-thread to the n-thread minimum and median, the median of the ratios of the
+// repeats' adjacent pairs ("x pair": fit i at 1 thread over fit i at n threads, run one right
+// after the other, so that a machine whose speed drifts between repeats moves both), and per
+// fit (median) the time
 // outside the simulators' batches (serial: residuals, Ceres, setup; FitLedger's batch seconds),
 // the ratio of the base's time inside them to this one's (median wall - median serial, "batch x":
 // to compare with the task model's bound, BENCHMARKS.md "Threads"),
@@ -198,9 +201,9 @@ int Main(int argc, char** argv) {
     }
   }
   std::printf("load average after: %s\n", LoadAverage().c_str());
-  std::printf("%-16s %3s %8s %8s %7s %7s %9s %7s %8s %9s %9s %8s %5s %10s %8s %8s\n", "case", "thr",
-              "min [s]", "med [s]", "x min", "x med", "serial s", "batch x", "batches", "wake s",
-              "wait s", "cpu s", "iter", "serial cpu", "model x", "bound x");
+  std::printf("%-16s %3s %8s %8s %7s %7s %7s %9s %7s %8s %9s %9s %8s %5s %10s %8s %8s\n", "case",
+              "thr", "min [s]", "med [s]", "x min", "x med", "x pair", "serial s", "batch x",
+              "batches", "wake s", "wait s", "cpu s", "iter", "serial cpu", "model x", "bound x");
   for (const std::string& name : cases) {
     const std::vector<std::vector<Sample>>& by_thread = samples[name];
     auto column = [](const std::vector<Sample>& v, double Sample::*field) {
@@ -219,14 +222,16 @@ int Main(int argc, char** argv) {
       const std::vector<double> wall = column(v, &Sample::wall);
       const double mn = *std::min_element(wall.begin(), wall.end()), med = Median(wall);
       const double serial = Median(column(v, &Sample::serial));
+      std::vector<double> pair;  // repeat by repeat: the base's fit over this one's
+      for (size_t r = 0; r < v.size(); ++r) pair.push_back(base[r] / wall[r]);
       // the task model's speed-up over the base (steps of the base's fit over this fit's steps on
       // the critical path at 2 workers), and with the base's serial CPU share added (Amdahl)
       const double model =
           Median(column(by_thread[0], &Sample::steps)) / Median(column(v, &Sample::critical_steps));
       std::printf(
-          "%-16s %3d %8.4f %8.4f %7.3f %7.3f %9.4f %7.3f %8.0f %9.4f %9.4f %8.4f %5d %9.2f%% %8.3f "
-          "%8.3f\n",
-          name.c_str(), threads[t], mn, med, base_min / mn, base_med / med, serial,
+          "%-16s %3d %8.4f %8.4f %7.3f %7.3f %7.3f %9.4f %7.3f %8.0f %9.4f %9.4f %8.4f %5d %9.2f%% "
+          "%8.3f %8.3f\n",
+          name.c_str(), threads[t], mn, med, base_min / mn, base_med / med, Median(pair), serial,
           base_batch / (med - serial), Median(column(v, &Sample::batches)),
           Median(column(v, &Sample::wake)), Median(column(v, &Sample::wait)),
           Median(column(v, &Sample::cpu)), v[0].iterations,
