@@ -407,34 +407,20 @@ void Simulator::SizeTrajectories(const std::vector<SequenceInput>& sequences,
 
 void Simulator::RolloutTask(Worker& w, const SequenceInput& seq, int seq_index, Trajectory* tr,
                             std::atomic<int>* progress, const mjModel* m) const {
-  if (!m) m = model_.get();
-  OnWorker(w, [&] {
-    try {
-      mjData* d = w.data.get();
-      SetInitialState(d, seq.x0);
-      if (dims_.ninput) {
-        CallMujoco(
-            [&] { mj_getState(m, d, tr->inputs.data(), static_cast<int>(dims_.input_sig)); });
-      }
-      RolloutOne(w, m, seq, seq_index, &tr->states, &tr->sensors, &tr->step, &tr->ncon, &tr->solver,
-                 progress);
-    } catch (...) {
-      if (progress) progress->store(kRolloutFailed, std::memory_order_release);
-      throw;
-    }
-  });
+  RolloutPiece(w, seq, seq_index, tr, progress, 0, 1, m);
 }
 
 void Simulator::RolloutPiece(Worker& w, const SequenceInput& seq, int seq_index, Trajectory* tr,
-                             std::atomic<int>* progress, int piece, int pieces) const {
-  const mjModel* m = model_.get();
+                             std::atomic<int>* progress, int piece, int pieces,
+                             const mjModel* m) const {
+  if (!m) m = model_.get();
   const int k0 = static_cast<int>(static_cast<long long>(tr->T) * piece / pieces);
   const int k1 = static_cast<int>(static_cast<long long>(tr->T) * (piece + 1) / pieces);
   OnWorker(w, [&] {
     try {
       mjData* d = w.data.get();
       if (piece == 0) {
-        // the first piece starts as a whole rollout does
+        // the first piece (or the whole rollout) starts from x0 and records the inputs
         SetInitialState(d, seq.x0);
         if (dims_.ninput) {
           CallMujoco(
@@ -450,7 +436,7 @@ void Simulator::RolloutPiece(Worker& w, const SequenceInput& seq, int seq_index,
       RolloutOne(w, m, seq, seq_index, &tr->states, &tr->sensors, &tr->step, &tr->ncon, &tr->solver,
                  progress, k0, k1);
     } catch (...) {
-      progress->store(kRolloutFailed, std::memory_order_release);
+      if (progress) progress->store(kRolloutFailed, std::memory_order_release);
       throw;
     }
   });

@@ -360,15 +360,17 @@ class Simulator {
   // checks the inputs and sizes the trajectories of Rollout
   void SizeTrajectories(const std::vector<SequenceInput>& sequences,
                         std::vector<Trajectory>* out) const;
-  // one rollout task; progress (optional): state rows recorded, kRolloutFailed when it throws
-  // (m: the model to step, default the private one)
+  // one rollout task (RolloutPiece's only piece); progress (optional): state rows recorded,
+  // kRolloutFailed when it throws (m: the model to step, default the private one)
   void RolloutTask(Worker& w, const SequenceInput& seq, int seq_index, Trajectory* tr,
                    std::atomic<int>* progress, const mjModel* m = nullptr) const;
   // piece `piece` of `pieces` of a rollout task (Rollout): the first starts from x0, the others
   // wait until progress shows the state they continue from (and stop, without error, when the
-  // piece before failed); progress as RolloutTask's
+  // piece before failed; progress required with more than one piece); progress and m as
+  // RolloutTask's
   void RolloutPiece(Worker& w, const SequenceInput& seq, int seq_index, Trajectory* tr,
-                    std::atomic<int>* progress, int piece, int pieces) const;
+                    std::atomic<int>* progress, int piece, int pieces,
+                    const mjModel* m = nullptr) const;
   // Jacobians; rollouts (sized, not simulated yet) are simulated in the same pass when given.
   // ahead (optional): with ahead_end, only the columns [0, ahead_end[i]) are computed, into
   // ahead[i] (directional mode); without, the columns of ahead[i] that match are taken and the
