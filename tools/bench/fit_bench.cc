@@ -20,8 +20,12 @@
 //   (tools/peer/mujoco_sysid_fit.py, run by tools/bench/run_fit_benchmarks.sh) in
 //   --peer-dir/<case>-<threads>t/ (parameters with `transform: log` optimised as log p, like ours)
 //   and mujoco.sysid/physical from <case>-phys-2t/ (physical units, the peer's own way).
-// Also, per case, the nominal step time t_step (a 1-thread rollout of every sequence) and, per
-// row, the ratio of the time per iteration to the floor (1 + np) * sum(T) * t_step / threads.
+// Also, per case, the nominal step time t_step (1-thread rollouts of every sequence with the model
+// file's parameter values) and, per row, the ratio of the time per iteration to the floor
+// (1 + np) * sum(T) * t_step / threads; for ours also the path floor: t_step measured the same
+// way at each iterate of the row's fit (the point whose Jacobian and trial the iteration
+// simulates, FitResult::trace) and averaged over the iterations, since a contact-rich model's
+// step cost depends on its parameters (box_floor: 1.6x between the start and the estimate).
 //
 // Output: a table on stdout, DIR/fit_bench.csv, DIR/fit_bench.json (rows, machine, versions,
 // command), DIR/fit_bench.md (the table in Markdown) and DIR/error_vs_time.svg (one panel per
@@ -82,6 +86,10 @@ struct Row {
   double max_rel_error = NAN, rms_rel_error = NAN;
   double t_step_us = NAN;    // nominal step time of the case
   double floor_ratio = NAN;  // (wall / iteration) / ((1 + np) * samples * t_step / threads)
+  // ours: the point each iteration of the fit simulates (b.parameters' order), and t_step
+  // averaged over them with the floor ratio it gives (the path floor)
+  std::vector<Eigen::VectorXd> path;
+  double path_t_step_us = NAN, path_floor_ratio = NAN;
   std::vector<std::pair<std::string, double>> estimates;
   // the load just before the row (MachineLoad): cores kept busy by other processes over one
   // second, the 1-minute load average, and whether the row ran idle (others <= 0.5 core per
@@ -109,6 +117,9 @@ struct Case {
   io::ExperimentConfig config;
   std::map<std::string, double> truth;
   double t_step = 0;  // seconds per nominal step (1 thread)
+  // the problem as built for the step times, and the step time at each point measured so far
+  std::shared_ptr<run::BuiltProblem> built;
+  std::map<std::vector<double>, double> t_step_at;
   long long samples = 0;
   int sequences = 0;
 };
@@ -128,10 +139,18 @@ void Errors(const Case& c, Row* row) {
   row->rms_rel_error = n ? std::sqrt(sum / n) : NAN;
 }
 
-void Floor(const Case& c, Row* row) {
+double StepTimeAt(Case* c, const Eigen::VectorXd& values);
+
+void Floor(Case* c, Row* row) {
   if (!(row->iterations > 0) || !std::isfinite(row->wall_s)) return;
-  const double floor = (1.0 + row->np) * static_cast<double>(c.samples) * c.t_step / row->threads;
-  row->floor_ratio = row->wall_s / row->iterations / floor;
+  const double per_t_step = (1.0 + row->np) * static_cast<double>(c->samples) / row->threads;
+  row->floor_ratio = row->wall_s / row->iterations / (per_t_step * c->t_step);
+  if (row->path.empty()) return;
+  double sum = 0;
+  for (const Eigen::VectorXd& p : row->path) sum += StepTimeAt(c, p);
+  const double t_step = sum / static_cast<double>(row->path.size());
+  row->path_t_step_us = t_step * 1e6;
+  row->path_floor_ratio = row->wall_s / row->iterations / (per_t_step * t_step);
 }
 
 // loads the case and simulates its log when it is missing
@@ -150,17 +169,24 @@ Case LoadCase(const std::string& experiments_dir, const std::string& name) {
   return c;
 }
 
-// nominal step time: 1-thread rollouts of every sequence at the initial values, >= 0.3 s
-void MeasureStep(Case* c) {
-  run::BuiltProblem b = run::BuildProblem(c->config, 1);
-  c->sequences = static_cast<int>(b.sequences.size());
-  c->samples = 0;
-  for (const FitSequence& s : b.sequences) c->samples += s.ctrl.rows();
+// seconds per step of 1-thread rollouts of every sequence on the full model, with the fitted
+// parameters at values (b.parameters' order) or, values nullptr, at the model file's values: the
+// fastest of passes over every sequence, repeated for at least min_seconds and min_reps passes
+double StepTime(const run::BuiltProblem& b, const Eigen::VectorXd* values, double min_seconds,
+                int min_reps) {
   double best = INFINITY;
   for (size_t mi = 0; mi < b.models.size(); ++mi) {
+    std::vector<ParameterSpec> specs;
+    std::vector<double> at;
+    for (size_t i = 0; values && i < b.parameters.size(); ++i) {
+      if (!b.parameters[i].AppliesTo(b.model_names[mi])) continue;
+      specs.push_back(b.parameters[i].target);
+      at.push_back((*values)[static_cast<Eigen::Index>(i)]);
+    }
     SimulatorOptions so;
     so.threads = 1;
-    Simulator sim(*b.models[mi], {}, so);
+    Simulator sim(*b.models[mi], specs, so);
+    if (!at.empty()) sim.SetParameters(Eigen::Map<const Eigen::VectorXd>(at.data(), at.size()));
     std::vector<SequenceInput> ins;
     for (const FitSequence& s : b.sequences) {
       if (s.model == b.model_names[mi]) ins.push_back({s.x0, s.ctrl});
@@ -176,9 +202,26 @@ void MeasureStep(Case* c) {
       sim.Rollout(ins, &trs);
       best = std::min(best, Seconds(t1) / static_cast<double>(sim.StepCount()));
       ++reps;
-    } while (Seconds(t0) < 0.3 || reps < 3);
+    } while (Seconds(t0) < min_seconds || reps < min_reps);
   }
-  c->t_step = best;
+  return best;
+}
+
+// the case's nominal step time (the model file's values, >= 0.3 s and 3 passes)
+void MeasureStep(Case* c) {
+  c->built = std::make_shared<run::BuiltProblem>(run::BuildProblem(c->config, 1));
+  c->sequences = static_cast<int>(c->built->sequences.size());
+  c->samples = 0;
+  for (const FitSequence& s : c->built->sequences) c->samples += s.ctrl.rows();
+  c->t_step = StepTime(*c->built, nullptr, 0.3, 3);
+}
+
+// the step time at the fitted parameters' values (>= 0.1 s and 3 passes), measured once per point
+double StepTimeAt(Case* c, const Eigen::VectorXd& values) {
+  const std::vector<double> key(values.data(), values.data() + values.size());
+  const auto it = c->t_step_at.find(key);
+  if (it != c->t_step_at.end()) return it->second;
+  return c->t_step_at[key] = StepTime(*c->built, &values, 0.1, 3);
 }
 
 // ours and the whole-rollout oracle: the product's own fit with one Jacobian setting
@@ -220,6 +263,10 @@ Row FitOurs(const Case& c, const std::string& method, JacobianMode mode, bool ce
     }
     for (size_t i = 0; i < b.parameters.size(); ++i) {
       row.estimates.emplace_back(r.parameters[i].name, r.parameters[i].value);
+    }
+    // iteration k (1-based) simulates its Jacobian and trial at the point after iteration k - 1
+    for (int k = 0; k < r.iterations && k < static_cast<int>(r.trace.size()); ++k) {
+      row.path.push_back(r.trace[k].parameters.head(row.np));
     }
   } catch (const std::exception& e) {
     row.status = "failed";
@@ -493,11 +540,12 @@ std::string LoadNote(const Row& r) {
 }
 
 void PrintRow(const Row& r) {
-  std::printf("%-16s %-28s %2d %-10s %9s %5d %12lld %11s %11s %10s %8s  %s\n", r.case_name.c_str(),
-              r.method.c_str(), r.threads, r.status.c_str(), Num(r.wall_s, "%.3f").c_str(),
-              r.iterations, r.steps, Num(r.final_cost, "%.6g").c_str(),
-              Num(r.max_rel_error, "%.2e").c_str(), Num(r.rms_rel_error, "%.2e").c_str(),
-              Num(r.floor_ratio, "%.2f").c_str(), r.note.c_str());
+  std::printf("%-16s %-28s %2d %-10s %9s %5d %12lld %11s %11s %10s %8s %8s  %s\n",
+              r.case_name.c_str(), r.method.c_str(), r.threads, r.status.c_str(),
+              Num(r.wall_s, "%.3f").c_str(), r.iterations, r.steps,
+              Num(r.final_cost, "%.6g").c_str(), Num(r.max_rel_error, "%.2e").c_str(),
+              Num(r.rms_rel_error, "%.2e").c_str(), Num(r.floor_ratio, "%.2f").c_str(),
+              Num(r.path_floor_ratio, "%.2f").c_str(), r.note.c_str());
   std::fflush(stdout);
 }
 
@@ -560,7 +608,7 @@ void WriteCsv(const std::string& path, const std::vector<Row>& rows) {
   std::ostringstream f;
   f << "case,method,threads,status,wall_s,iterations,sim_steps,np,sequences,samples,t_step_us,"
        "floor_ratio,initial_cost,final_cost,max_rel_error,rms_rel_error,note,others_cores,load1,"
-       "idle\n";
+       "idle,path_t_step_us,path_floor_ratio\n";
   for (const Row& r : rows) {
     std::string note = r.note;
     std::replace(note.begin(), note.end(), ',', ';');
@@ -571,7 +619,7 @@ void WriteCsv(const std::string& path, const std::vector<Row>& rows) {
       << Num(r.initial_cost, "%.10g") << ',' << Num(r.final_cost, "%.10g") << ','
       << Num(r.max_rel_error) << ',' << Num(r.rms_rel_error) << ',' << note << ','
       << Num(r.others_cores, "%.3f") << ',' << Num(r.load1, "%.2f") << ',' << (r.idle ? 1 : 0)
-      << '\n';
+      << ',' << Num(r.path_t_step_us) << ',' << Num(r.path_floor_ratio) << '\n';
   }
   io::WriteFileAtomically(path, f.str());
 }
@@ -581,13 +629,14 @@ void WriteMarkdown(const std::string& path, const std::vector<Row>& rows,
                    const std::vector<Ratio>& ratios) {
   std::ostringstream f;
   f << "| case | method | threads | status | wall [s] | iterations | sim steps | final cost | "
-       "max rel. error | time/iteration / floor | note |\n"
-    << "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n";
+       "max rel. error | time/iteration / floor | / path floor | note |\n"
+    << "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n";
   for (const Row& r : rows) {
     f << "| " << r.case_name << " | " << r.method << " | " << r.threads << " | " << r.status
       << " | " << Num(r.wall_s, "%.3f") << " | " << r.iterations << " | " << r.steps << " | "
       << Num(r.final_cost, "%.6g") << " | " << Num(r.max_rel_error, "%.2e") << " | "
-      << Num(r.floor_ratio, "%.2f") << " | " << r.note << " |\n";
+      << Num(r.floor_ratio, "%.2f") << " | " << Num(r.path_floor_ratio, "%.2f") << " | " << r.note
+      << " |\n";
   }
   f << "\nOurs against the best peer at equal threads (speed-up = peer wall / our wall):\n\n"
     << "| case | threads | ours (fastest) | wall [s] | iterations | best peer | wall [s] | "
@@ -638,6 +687,8 @@ void WriteJson(const std::string& path, const std::vector<Row>& rows,
                          {"samples", r.samples},
                          {"t_step_us", r.t_step_us},
                          {"floor_ratio", r.floor_ratio},
+                         {"path_t_step_us", r.path_t_step_us},
+                         {"path_floor_ratio", r.path_floor_ratio},
                          {"initial_cost", r.initial_cost},
                          {"final_cost", r.final_cost},
                          {"max_rel_error", r.max_rel_error},
@@ -808,9 +859,9 @@ int Main(int argc, char** argv) {
   std::printf("machine: %s, %u hardware threads; MuJoCo %s, Ceres %s, mjsysid %s (%s)\n",
               Machine().c_str(), std::thread::hardware_concurrency(), mj_versionString(),
               CERES_VERSION_STRING, MJSYSID_VERSION, MJSYSID_BUILD_TYPE);
-  std::printf("%-16s %-28s %2s %-10s %9s %5s %12s %11s %11s %10s %8s  %s\n", "case", "method", "th",
-              "status", "wall [s]", "iter", "sim steps", "final cost", "max rel err", "rms rel",
-              "/floor", "note");
+  std::printf("%-16s %-28s %2s %-10s %9s %5s %12s %11s %11s %10s %8s %8s  %s\n", "case", "method",
+              "th", "status", "wall [s]", "iter", "sim steps", "final cost", "max rel err",
+              "rms rel", "/floor", "/path", "note");
   std::vector<Row> rows;
   for (const std::string& name : cases) {
     Case c;
@@ -863,10 +914,17 @@ int Main(int argc, char** argv) {
       r.samples = c.samples;
       r.t_step_us = c.t_step * 1e6;
       Errors(c, &r);
-      Floor(c, &r);
+      Floor(&c, &r);
       PrintRow(r);
       if (print_ledger && std::isfinite(r.cpu_s)) {
         std::printf("  process CPU time during the fit: %.4f s\n", r.cpu_s);
+      }
+      if (print_ledger && !r.path.empty()) {
+        std::printf(
+            "  t_step on the path: first iterate %.3f us, last %.3f us, mean %.3f us (the "
+            "case's t_step %.3f us)\n",
+            StepTimeAt(&c, r.path.front()) * 1e6, StepTimeAt(&c, r.path.back()) * 1e6,
+            r.path_t_step_us, r.t_step_us);
       }
       if (print_ledger && !r.ledger.empty()) {
         std::printf("  ledger (model loading and log reading before the fit: %.4f s):\n%s",
