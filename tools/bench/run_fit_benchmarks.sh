@@ -10,7 +10,11 @@
 # bench_fit) it waits up to --idle-wait seconds (default 30) until other processes use at most
 # 0.5 core per thread of the row (busy time of /proc/stat over one second; the 1-minute load
 # average is recorded too but counts the previous row for a minute), and a row that still is not
-# idle says so in its note ("not idle: others used 1.20 cores, load average 2.31").
+# idle says so in its note ("not idle: others used 1.20 cores, load average 2.31"). bench_fit
+# also probes the host's speed before and after each of its rows (the case's nominal step time
+# against the fastest measured for the case: this virtual machine's speed changes from outside,
+# which the load cannot show) and measures a row again, up to 3 times, when the probe was more than
+# 8 % slow; a row that never had a steady host says "host slow: probe 1.62x the case's fastest".
 # Every row's wall time is the fastest of up to 5 runs of its fit, repeated while the runs add up
 # to less than --repeat-budget seconds (default 7.5; bench_fit --repeats/--repeat-budget, the peer
 # driver's the same rule): on this noisy virtual machine fits up to ~2.5 s get at least 3 runs,
