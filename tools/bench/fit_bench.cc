@@ -233,17 +233,21 @@ double HostSlowness(Case* c) {
   return now / c->t_step;
 }
 
-// the step time at the fitted parameters' values over the nominal step time, both measured (>= 0.1
-// s and 3 passes) next to each other, once per point
+// the step time at the fitted parameters' values over the nominal step time: the fastest of each
+// over three alternating rounds (nominal, at the values, ..., nominal; >= 0.04 s and 2 passes
+// each), so that a slow spell of the host has to cover every round of one to move the ratio;
+// measured once per point
 double RelativeStepTimeAt(Case* c, const Eigen::VectorXd& values) {
   const std::vector<double> key(values.data(), values.data() + values.size());
   const auto it = c->relative_t_step_at.find(key);
   if (it != c->relative_t_step_at.end()) return it->second;
-  const double before = StepTime(*c->built, nullptr, 0.1, 3);
-  const double at = StepTime(*c->built, &values, 0.1, 3);
-  const double after = StepTime(*c->built, nullptr, 0.1, 3);
-  c->t_step = std::min({c->t_step, before, after});
-  return c->relative_t_step_at[key] = at / std::min(before, after);
+  double nominal = StepTime(*c->built, nullptr, 0.04, 2), at = INFINITY;
+  for (int round = 0; round < 3; ++round) {
+    at = std::min(at, StepTime(*c->built, &values, 0.04, 2));
+    nominal = std::min(nominal, StepTime(*c->built, nullptr, 0.04, 2));
+  }
+  c->t_step = std::min(c->t_step, nominal);
+  return c->relative_t_step_at[key] = at / nominal;
 }
 
 // ours and the whole-rollout oracle: the product's own fit with one Jacobian setting
@@ -286,8 +290,11 @@ Row FitOurs(const Case& c, const std::string& method, JacobianMode mode, bool ce
     for (size_t i = 0; i < b.parameters.size(); ++i) {
       row.estimates.emplace_back(r.parameters[i].name, r.parameters[i].value);
     }
-    // iteration k (1-based) simulates its Jacobian and trial at the point after iteration k - 1
-    for (int k = 0; k < r.iterations && k < static_cast<int>(r.trace.size()); ++k) {
+    // iteration k (1-based) simulates its Jacobian and trial at the point after iteration k - 1;
+    // the path floor for the directional forward rows (issue 15's), whose points each cost
+    // seven short nominal and path passes (RelativeStepTimeAt)
+    const bool path = mode == JacobianMode::kDirectional && !central;
+    for (int k = 0; path && k < r.iterations && k < static_cast<int>(r.trace.size()); ++k) {
       row.path.push_back(r.trace[k].parameters.head(row.np));
     }
   } catch (const std::exception& e) {
