@@ -25,7 +25,7 @@
 // (1 + np) * sum(T) * t_step / threads; for ours also the path floor: t_step measured the same
 // way at each iterate of the row's fit (the point whose Jacobian and trial the iteration
 // simulates, FitResult::trace) and averaged over the iterations, since a contact-rich model's
-// step cost depends on its parameters (box_floor: 1.6x between the start and the estimate).
+// step cost depends on its parameters (box_floor: 1.5x between the start and the estimate).
 //
 // Output: a table on stdout, DIR/fit_bench.csv, DIR/fit_bench.json (rows, machine, versions,
 // command), DIR/fit_bench.md (the table in Markdown) and DIR/error_vs_time.svg (one panel per
@@ -550,15 +550,15 @@ std::pair<double, double> MachineLoad(double seconds) {
   return {others, load1};
 }
 
-// before a row of `threads` threads: waits up to wait_s seconds for the machine to be idle for it
-// (other processes using <= 0.5 core per thread of the row) and records the load in the row;
-// not idle after the wait: the row says so in its note and runs anyway
 // the host counts as steady around a row when its probe (HostSlowness) stays within 8 % of the
 // fastest; a row that was not is measured again after kHostWait seconds, up to kMaxAttempts in all
 constexpr double kSteadyHost = 1.08;
 constexpr int kMaxAttempts = 3;
 constexpr double kHostWait = 10;
 
+// before a row of `threads` threads: waits up to wait_s seconds for the machine to be idle for it
+// (other processes using <= 0.5 core per thread of the row) and records the load in the row;
+// not idle after the wait: the row says so in its note and runs anyway
 void WaitForIdle(int threads, double wait_s, Row* row) {
   const auto t0 = Clock::now();
   do {
@@ -917,10 +917,9 @@ int Main(int argc, char** argv) {
     const int max_it = cap.count(name) ? cap[name] : 0;
     const size_t first_row = rows.size();
     const double first_t_step_us = c.t_step * 1e6;
-    // a row measured here: the load checked (and waited for) first
-    // and the fastest of up to --repeats runs, repeated while their wall time adds up to less
-    // than --repeat-budget seconds (the same rule as the peer driver's --repeats)
-    // one measurement of a row: the load checked (and waited for) first, the fastest of its runs
+    // one measurement of a row: the load checked (and waited for) and the host probed first, the
+    // fastest of up to --repeats runs, repeated while their wall time adds up to less than
+    // --repeat-budget seconds (the same rule as the peer driver's --repeats), the host probed after
     auto measure_once = [&](int threads, const std::function<Row()>& fit) {
       Row before;
       WaitForIdle(threads, idle_wait, &before);
@@ -950,8 +949,8 @@ int Main(int argc, char** argv) {
       return r;
     };
     // a row measured while the host ran slow (HostSlowness above kSteadyHost before or after it)
-    // is measured again, up to kMaxAttempts times in all, kHostWait seconds apart; the fastest
-    // attempt stays, and says so when the host never was steady around it
+    // is measured again, up to kMaxAttempts times in all, kHostWait seconds apart; the first
+    // steady attempt stays, else the fastest, which then says the host was slow around it
     auto measure = [&](int threads, const std::function<Row()>& fit) {
       Row r = measure_once(threads, fit);
       for (int a = 1; a < kMaxAttempts && r.host_slowness > kSteadyHost; ++a) {
