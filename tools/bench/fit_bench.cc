@@ -22,10 +22,11 @@
 //   and mujoco.sysid/physical from <case>-phys-2t/ (physical units, the peer's own way).
 // Also, per case, the nominal step time t_step (1-thread rollouts of every sequence with the model
 // file's parameter values) and, per row, the ratio of the time per iteration to the floor
-// (1 + np) * sum(T) * t_step / threads; for ours also the path floor: t_step measured the same
-// way at each iterate of the row's fit (the point whose Jacobian and trial the iteration
-// simulates, FitResult::trace) and averaged over the iterations, since a contact-rich model's
-// step cost depends on its parameters (box_floor: 1.5x between the start and the estimate).
+// (1 + np) * sum(T) * t_step / threads; for ours directional forward also the path floor: the
+// step time at each iterate of the row's fit (the point whose Jacobian and trial the iteration
+// simulates, FitResult::trace) relative to the nominal one (RelativeStepTimeAt), averaged over
+// the iterations and times t_step, since a contact-rich model's step cost depends on its
+// parameters (box_floor: 1.5x between the start and the estimate).
 //
 // Output: a table on stdout, DIR/fit_bench.csv, DIR/fit_bench.json (rows, machine, versions,
 // command), DIR/fit_bench.md (the table in Markdown) and DIR/error_vs_time.svg (one panel per
