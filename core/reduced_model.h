@@ -20,8 +20,9 @@
 // kSensitivityGrowthLimit (1e-2 state units) before the Jacobians warn, which half the clearance
 // covers.
 //
-// Sensors are not part of the reduction: the residuals index sensordata at the model's addresses,
-// and the sensor stage is 2.6 % of a pendulum fit (BENCHMARKS.md, "Reduced model").
+// Sensors are not part of the reduction: the residuals index sensordata at the model's addresses.
+// A model whose sensors are all joint encoders skips MuJoCo's sensor stage in every step of the
+// Simulator instead, reduced or not (core/state_sensors.h).
 #pragma once
 
 #include <mujoco/mujoco.h>

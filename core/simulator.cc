@@ -175,6 +175,7 @@ Simulator::Simulator(const mjModel& m, const std::vector<ParameterSpec>& params,
     model_->opt.tolerance = std::min(model_->opt.tolerance, options_.solver_tolerance);
   }
   if (!options_.sensors) model_->opt.disableflags |= mjDSBL_SENSOR;
+  if (options_.sensors && options_.copy_state_sensors) state_sensors_ = PlanStateSensors(*model_);
   params_.Prepare(model_.get());
   scratch_ = MakeData(*model_);
   for (int w = 0; w < pool_.size(); ++w) {
@@ -332,6 +333,16 @@ namespace {
 
 }  // namespace
 
+void Simulator::Step(const mjModel* m, mjData* d, int skipstage) const {
+  if (state_sensors_.complete) {
+    // y_k from x_k, before the integrator moves it
+    CopyStateSensors(state_sensors_, d);
+    StepSkip(m, d, skipstage, true);
+  } else {
+    StepSkip(m, d, skipstage, !options_.sensors);
+  }
+}
+
 void Simulator::CheckStep(const mjData& d, double t, int seq_index, int step,
                           const char* what) const {
   // every step passes here: the message is built only when a warning is set
@@ -358,7 +369,7 @@ void Simulator::RolloutOne(Worker& w, const mjModel* m, const SequenceInput& seq
     // rows 0..k recorded, with the sensors and contacts of the steps before
     if (progress) progress->store(k + 1, std::memory_order_release);
     const double t = d->time;
-    StepSkip(m, d, mjSTAGE_NONE, !options_.sensors);
+    Step(m, d, mjSTAGE_NONE);
     ++w.steps;
     CheckStep(*d, t, seq_index, k, "simulation");
     CountSolve(*m, *d, solver);
@@ -615,7 +626,7 @@ void Simulator::DirectionalColumn(Worker& w, const RowMatrix& ctrl, int seq_inde
   auto side = [&](mjModel* m, double sign, int k, Eigen::VectorXd& dx, Eigen::VectorXd& dy) {
     RestoreStep(*m, dims_, nom, k, ctrl.row(k).data(), d);
     TangentPerturb(*m, d, w.s.data(), sign * h);
-    StepSkip(m, d, mjSTAGE_NONE, !options_.sensors);
+    Step(m, d, mjSTAGE_NONE);
     ++w.steps;
     CheckStep(*d, nom.step(k, 0), seq_index, k, "perturbed step");  // step state: time first
     CountSolve(*m, *d, &report->solver);
@@ -800,7 +811,7 @@ void Simulator::MatrixJacobian(const RowMatrix& ctrl, int seq_index, const Traje
         auto side = [&](mjModel* m, int skip, double sign, double h, Eigen::VectorXd& dx,
                         Eigen::VectorXd& dy) {
           RestoreStep(*m, dims_, nom, k, u, d);
-          StepSkip(m, d, skip, !options_.sensors);
+          Step(m, d, skip);
           ++w.steps;
           CheckStep(*d, t, seq_index, k, "perturbed step");
           CountSolve(*m, *d, &chunk_solver[kk]);

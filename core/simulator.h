@@ -63,6 +63,7 @@
 #include "core/reduced_model.h"
 #include "core/solver_stats.h"
 #include "core/state.h"
+#include "core/state_sensors.h"
 #include "core/thread_pool.h"
 
 namespace mjsysid {
@@ -96,6 +97,10 @@ struct SimulatorOptions {
   double solver_tolerance = 1e-10;
   bool fixed_solver_iterations = false;
   bool sensors = true;  // false: no sensor work anywhere (mjDSBL_SENSOR)
+  // When every sensor of the model is a joint encoder (jointpos/jointvel of hinge and slide joints,
+  // core/state_sensors.h), steps write them from the state and skip MuJoCo's sensor stage: the
+  // same bits (tested); false runs the sensor stage (the oracle of that test).
+  bool copy_state_sensors = true;
 };
 
 // Initial state of a sequence. Empty qvel/act mean zeros; empty qpos means the model's qpos0.
@@ -407,6 +412,9 @@ class Simulator {
   void Guarded(Call&& call);
   // throws Cancelled when the cancel flag is set
   void CheckCancel() const;
+  // one step of m from d skipping the stages before skipstage (StepSkip), the sensors computed by
+  // MuJoCo or, with a complete state_sensors_ plan, copied from d's state first
+  void Step(const mjModel* m, mjData* d, int skipstage) const;
   // throws SimulationError when the step just taken warned; t: the time at the start of the step
   void CheckStep(const mjData& d, double t, int seq_index, int step, const char* what) const;
 
@@ -416,7 +424,8 @@ class Simulator {
   SimulatorOptions options_;
   ThreadPool pool_;
   const std::atomic<bool>* cancel_ = nullptr;
-  DataPtr scratch_;  // for mj_setConst on model_
+  StateSensorPlan state_sensors_;  // complete only when copy_state_sensors applies
+  DataPtr scratch_;                // for mj_setConst on model_
   std::vector<std::unique_ptr<Worker>> workers_;
   ModelReduction reduction_;                        // given to SetReduction
   bool reduced_ = false;                            // reduction_ is switched off in model_

@@ -177,9 +177,10 @@ Case LoadCase(const std::string& experiments_dir, const std::string& name) {
   return c;
 }
 
-// seconds per step of 1-thread rollouts of every sequence on the full model, with the fitted
-// parameters at values (b.parameters' order) or, values nullptr, at the model file's values: the
-// fastest of passes over every sequence, repeated for at least min_seconds and min_reps passes
+// seconds per step of 1-thread rollouts (mj_step's calls, the sensor stage included) of every
+// sequence on the full model, with the fitted parameters at values (b.parameters' order) or,
+// values nullptr, at the model file's values: the fastest of passes over every sequence, repeated
+// for at least min_seconds and min_reps passes
 double StepTime(const run::BuiltProblem& b, const Eigen::VectorXd* values, double min_seconds,
                 int min_reps) {
   double best = INFINITY;
@@ -193,6 +194,8 @@ double StepTime(const run::BuiltProblem& b, const Eigen::VectorXd* values, doubl
     }
     SimulatorOptions so;
     so.threads = 1;
+    // the floor is mj_step's work: MuJoCo's sensor stage runs even where a fit copies encoders
+    so.copy_state_sensors = false;
     Simulator sim(*b.models[mi], specs, so);
     if (!at.empty()) sim.SetParameters(Eigen::Map<const Eigen::VectorXd>(at.data(), at.size()));
     std::vector<SequenceInput> ins;
