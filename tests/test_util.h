@@ -87,6 +87,24 @@ inline std::unique_ptr<Simulator> TrueSimulator(const mjModel& m, const std::vec
   return sim;
 }
 
+// rollouts and Jacobians (options jo) of simulators a and b on sequence in, compared bit for bit:
+// for two simulators that must compute the same numbers by different paths (reduced model,
+// encoder copies)
+inline void ExpectSameSimulation(Simulator& a, Simulator& b, const SequenceInput& in,
+                                 const JacobianOptions& jo) {
+  std::vector<Trajectory> ta, tb;
+  std::vector<Sensitivity> sa, sb;
+  a.RolloutAndJacobians({in}, jo, &ta, &sa);
+  b.RolloutAndJacobians({in}, jo, &tb, &sb);
+  EXPECT_TRUE(ta[0].states == tb[0].states);
+  EXPECT_TRUE(ta[0].sensors == tb[0].sensors);
+  EXPECT_EQ(ta[0].ncon, tb[0].ncon);
+  EXPECT_TRUE(sa[0].DyDp == sb[0].DyDp);
+  EXPECT_TRUE(sa[0].DxDp == sb[0].DxDp);
+  EXPECT_EQ(sa[0].kinks, sb[0].kinks);
+  EXPECT_GT(sa[0].DxDp.norm(), 0.0);
+}
+
 // sensors of m with the true parameter values, plus Gaussian noise sigma (all channels)
 inline RowMatrix Measure(const mjModel& m, const std::vector<Truth>& truth, const InitialState& x0,
                          const RowMatrix& ctrl, double sigma, int seed) {

@@ -94,16 +94,7 @@ int ExpectSameAsFull(const mjModel& m, const std::vector<ParameterSpec>& specs,
   JacobianOptions jo;
   jo.mode = mode;
   jo.initial_state = true;
-  std::vector<Trajectory> tf, tr;
-  std::vector<Sensitivity> sf, sr;
-  full.RolloutAndJacobians({in}, jo, &tf, &sf);
-  reduced.RolloutAndJacobians({in}, jo, &tr, &sr);
-  EXPECT_TRUE(tf[0].states == tr[0].states);
-  EXPECT_TRUE(tf[0].sensors == tr[0].sensors);
-  EXPECT_EQ(tf[0].ncon, tr[0].ncon);
-  EXPECT_TRUE(sf[0].DyDp == sr[0].DyDp);
-  EXPECT_TRUE(sf[0].DxDp == sr[0].DxDp);
-  EXPECT_EQ(sf[0].kinks, sr[0].kinks);
+  test::ExpectSameSimulation(full, reduced, in, jo);
   return reduced.ReductionTrips();
 }
 
