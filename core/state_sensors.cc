@@ -7,20 +7,16 @@ StateSensorPlan PlanStateSensors(const mjModel& m) {
   // sleeping sensors keep old values; a model without sensors has nothing to copy
   if (m.nsensor == 0 || (m.opt.enableflags & mjENBL_SLEEP)) return plan;
   for (int i = 0; i < m.nsensor; ++i) {
-    const int type = m.sensor_type[i];
+    const int type = m.sensor_type[i], j = m.sensor_objid[i];
     const bool encoder = type == mjSENS_JOINTPOS || type == mjSENS_JOINTVEL;
+    // hinge and slide joints only: one qpos and one dof
+    const bool one_dof = m.sensor_objtype[i] == mjOBJ_JOINT &&
+                         (m.jnt_type[j] == mjJNT_HINGE || m.jnt_type[j] == mjJNT_SLIDE);
     // a history buffer (delay, interval) may supply the value instead of the state
     const bool history = m.sensor_history && m.sensor_history[2 * i] > 0;
-    if (!encoder || history || m.sensor_objtype[i] != mjOBJ_JOINT || m.sensor_dim[i] != 1 ||
+    if (!encoder || !one_dof || history || m.sensor_dim[i] != 1 ||
         m.sensor_datatype[i] != mjDATATYPE_REAL) {
-      plan.copies.clear();
-      return plan;
-    }
-    // hinge and slide joints only: one qpos and one dof
-    const int j = m.sensor_objid[i];
-    if (m.jnt_type[j] != mjJNT_HINGE && m.jnt_type[j] != mjJNT_SLIDE) {
-      plan.copies.clear();
-      return plan;
+      return StateSensorPlan();
     }
     StateSensorPlan::Copy c;
     c.adr = m.sensor_adr[i];
