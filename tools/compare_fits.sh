@@ -25,7 +25,7 @@ fi
 mkdir -p "$out"
 # what differs between two runs of the same binary: clocks, ids, versions, dates, paths
 strip() {
-  grep -vE '(seconds|created|run_id|mjsysid_version|experiment|wake|wait|_time|identified):' "$1"
+  grep -vE '(seconds|wall_time_s|created|run_id|mjsysid_version|experiment|wake|wait|_time|identified):' "$1"
 }
 status=0
 for e in "${experiments[@]}"; do
