@@ -188,47 +188,70 @@ Sequence ImportCsv(const std::string& path, const mjModel& m, const std::string&
 
 namespace {
 
-Sequence ReadCsv(const std::string& path, const mjModel& m, const std::string& sequence_name,
-                 bool part, bool* has_ctrl) {
-  const std::string& file = path;
+// a group name mjsysid can store the sequence under (the log's rule, checked before any reading)
+void CheckSequenceName(const std::string& file, const std::string& sequence_name) {
   if (sequence_name.empty() || sequence_name == "." ||
       sequence_name.find('/') != std::string::npos) {
     Fail(file, "sequence name " + Quote(sequence_name) +
                    " is not a valid group name (non-empty, no '/', not '.')");
   }
-  std::ifstream in(path, std::ios::binary);
-  if (!in) Fail(file, std::string("cannot open: ") + std::strerror(errno));
-  CheckEncoding(in, file);
+}
 
-  // header: the first non-blank line
-  std::string line;
-  int line_no = 0;
-  auto next_line = [&]() -> bool {
-    while (std::getline(in, line)) {
-      ++line_no;
-      if (!line.empty() && line.back() == '\r') line.pop_back();
-      if (line_no == 1 && line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);
-      if (!Trim(line).empty()) return true;
+// the file's non-blank lines, CR of CRLF and a leading UTF-8 byte order mark removed, with their
+// 1-based line numbers (blank lines count, so messages match an editor's numbering)
+class LineReader {
+ public:
+  explicit LineReader(std::ifstream& in) : in_(in) {}
+
+  bool Next() {
+    while (std::getline(in_, line_)) {
+      ++line_no_;
+      if (!line_.empty() && line_.back() == '\r') line_.pop_back();
+      if (line_no_ == 1 && line_.rfind("\xEF\xBB\xBF", 0) == 0) line_.erase(0, 3);
+      if (!Trim(line_).empty()) return true;
     }
     return false;
-  };
-  if (!next_line()) Fail(file, "empty file (no header line)");
-  const std::string header_where = file + ":" + std::to_string(line_no);
-  const std::vector<std::string> header = SplitLine(line, header_where);
-  if (header.size() == 1 && line.find(';') != std::string::npos) {
-    Fail(header_where,
+  }
+  const std::string& line() const { return line_; }
+  int line_no() const { return line_no_; }
+
+ private:
+  std::ifstream& in_;
+  std::string line_;
+  int line_no_ = 0;
+};
+
+// the header row and where it is ("<file>:<line>"), for every message about columns
+struct Header {
+  std::vector<std::string> names;
+  std::string where;
+};
+
+// the first non-blank line as the header; a ';'-separated one is refused with a hint, since it
+// would otherwise be read as one unknown column
+Header ReadHeader(LineReader& lines, const std::string& file) {
+  if (!lines.Next()) Fail(file, "empty file (no header line)");
+  Header h;
+  h.where = file + ":" + std::to_string(lines.line_no());
+  h.names = SplitLine(lines.line(), h.where);
+  if (h.names.size() == 1 && lines.line().find(';') != std::string::npos) {
+    Fail(h.where,
          "the header has ';' separators and no ',': a CSV of a locale with decimal commas? "
          "(hint: export it with ',' separators and '.' decimals)");
   }
+  return h;
+}
 
-  // each header to its target
+// each header to what it feeds in the model: unknown, duplicate, empty and ambiguous names fail
+// at their column, unknown ones with the model's valid names as a hint
+std::vector<Target> MapColumns(const Header& header, const mjModel& m) {
   const Columns columns = ModelColumns(m);
   std::vector<Target> targets;
   std::map<std::string, int> seen;
-  for (size_t c = 0; c < header.size(); ++c) {
-    const std::string& h = header[c];
+  for (size_t c = 0; c < header.names.size(); ++c) {
+    const std::string& h = header.names[c];
     const std::string where =
-        header_where + ": column " + std::to_string(c + 1) + " (" + Quote(h) + ")";
+        header.where + ": column " + std::to_string(c + 1) + " (" + Quote(h) + ")";
     if (h.empty()) Fail(where, "empty column header");
     if (!seen.emplace(h, static_cast<int>(c + 1)).second) {
       Fail(where, "duplicate column (also column " + std::to_string(seen[h]) + ")");
@@ -251,65 +274,82 @@ Sequence ReadCsv(const std::string& path, const mjModel& m, const std::string& s
     }
     targets.push_back(it->second[0]);
   }
+  return targets;
+}
 
-  // required and all-or-nothing columns
-  const int nu = static_cast<int>(m.nu);
-  const int nsensor = static_cast<int>(m.nsensor);
-  std::vector<int> ctrl_col(nu, -1);
-  std::vector<std::vector<int>> sensor_col(nsensor);
-  for (int s = 0; s < nsensor; ++s) sensor_col[s].assign(m.sensor_dim[s], -1);
-  std::map<Kind, std::vector<int>> state_col = {{Kind::kQpos, std::vector<int>(m.nq, -1)},
-                                                {Kind::kQvel, std::vector<int>(m.nv, -1)},
-                                                {Kind::kAct, std::vector<int>(m.na, -1)}};
+// where each model quantity is in the file (-1: absent), and which sensors are present
+struct ColumnPlan {
   int time_col = -1;
+  std::vector<int> ctrl_col;                   // per actuator
+  std::vector<std::vector<int>> sensor_col;    // per sensor and component
+  std::map<Kind, std::vector<int>> state_col;  // per qpos, qvel, act component
+  std::vector<int> sensors;                    // present sensors, model order
+};
+
+// the file column of every model quantity, from the columns' targets
+ColumnPlan IndexColumns(const std::vector<Target>& targets, const mjModel& m) {
+  ColumnPlan p;
+  p.ctrl_col.assign(m.nu, -1);
+  p.sensor_col.resize(m.nsensor);
+  for (int s = 0; s < m.nsensor; ++s) p.sensor_col[s].assign(m.sensor_dim[s], -1);
+  p.state_col = {{Kind::kQpos, std::vector<int>(m.nq, -1)},
+                 {Kind::kQvel, std::vector<int>(m.nv, -1)},
+                 {Kind::kAct, std::vector<int>(m.na, -1)}};
   for (size_t c = 0; c < targets.size(); ++c) {
     const Target& t = targets[c];
     const int col = static_cast<int>(c);
     switch (t.kind) {
       case Kind::kTime:
-        time_col = col;
+        p.time_col = col;
         break;
       case Kind::kCtrl:
-        ctrl_col[t.index] = col;
+        p.ctrl_col[t.index] = col;
         break;
       case Kind::kSensor:
-        sensor_col[t.index][t.component] = col;
+        p.sensor_col[t.index][t.component] = col;
         break;
       default:
-        state_col[t.kind][t.index] = col;
+        p.state_col[t.kind][t.index] = col;
     }
   }
-  if (time_col < 0) Fail(header_where, "missing column 'time' (seconds)");
+  return p;
+}
+
+// the required and all-or-nothing columns: time; every actuator (of a part: all or none, which
+// *has_ctrl reports); every component of a sensor or state given at all; fills plan->sensors
+void CheckColumns(const mjModel& m, const std::string& header_where, bool part, bool* has_ctrl,
+                  ColumnPlan* plan) {
+  if (plan->time_col < 0) Fail(header_where, "missing column 'time' (seconds)");
+  const int nu = static_cast<int>(m.nu);
   int ctrl_given = 0;
-  for (int col : ctrl_col) ctrl_given += col >= 0 ? 1 : 0;
+  for (int col : plan->ctrl_col) ctrl_given += col >= 0 ? 1 : 0;
   *has_ctrl = ctrl_given > 0 || !part;
   for (int i = 0; i < nu && *has_ctrl; ++i) {
-    if (ctrl_col[i] >= 0) continue;
+    if (plan->ctrl_col[i] >= 0) continue;
     const char* n = mj_id2name(&m, mjOBJ_ACTUATOR, i);
     Fail(header_where, n ? "missing actuator column " + Quote(n) +
                                " (every actuator of the model needs a ctrl column)"
                          : "actuator " + std::to_string(i) +
                                " of the model has no name, so no column can hold its control");
   }
-  std::vector<int> sensors;  // present sensors, model order
-  for (int s = 0; s < nsensor; ++s) {
+  for (int s = 0; s < static_cast<int>(m.nsensor); ++s) {
     int given = 0;
-    for (int col : sensor_col[s]) given += col >= 0;
+    for (int col : plan->sensor_col[s]) given += col >= 0;
     if (given == 0) continue;
     const std::string name = mj_id2name(&m, mjOBJ_SENSOR, s);
     for (int j = 0; j < m.sensor_dim[s]; ++j) {
-      if (sensor_col[s][j] < 0) {
+      if (plan->sensor_col[s][j] < 0) {
         Fail(header_where, "sensor " + Quote(name) + " has " + std::to_string(m.sensor_dim[s]) +
                                " components but column " + Quote(Indexed(name, j)) +
                                " is missing (give all of them or none)");
       }
     }
-    sensors.push_back(s);
+    plan->sensors.push_back(s);
   }
   const std::pair<Kind, const char*> state_names[] = {
       {Kind::kQpos, "qpos"}, {Kind::kQvel, "qvel"}, {Kind::kAct, "act"}};
   for (const auto& [kind, base] : state_names) {
-    const std::vector<int>& cols = state_col[kind];
+    const std::vector<int>& cols = plan->state_col[kind];
     int given = 0;
     for (int col : cols) given += col >= 0;
     for (size_t j = 0; given > 0 && j < cols.size(); ++j) {
@@ -320,64 +360,81 @@ Sequence ReadCsv(const std::string& path, const mjModel& m, const std::string& s
       }
     }
   }
+}
 
-  // data rows, in file column order
-  const size_t ncols = header.size();
+// the data rows as numbers, row-major in file column order, and each row's line number
+struct Rows {
+  size_t ncols = 0;
   std::vector<double> values;
-  std::vector<int> row_lines;
-  while (next_line()) {
-    const std::string where_line = file + ":" + std::to_string(line_no);
-    const std::vector<std::string> fields = SplitLine(line, where_line);
+  std::vector<int> lines;
+  double at(Eigen::Index k, int col) const { return values[k * ncols + col]; }
+};
+
+// every line after the header, each with the header's number of fields; an empty or NaN cell of
+// a sensor or control is a value not measured (NaN), any other cell must be a finite number
+Rows ReadRows(LineReader& lines, std::ifstream& in, const Header& header,
+              const std::vector<Target>& targets, const std::string& file) {
+  Rows rows;
+  rows.ncols = header.names.size();
+  const size_t ncols = rows.ncols;
+  while (lines.Next()) {
+    const std::string where_line = file + ":" + std::to_string(lines.line_no());
+    const std::vector<std::string> fields = SplitLine(lines.line(), where_line);
     if (fields.size() != ncols) {
       Fail(where_line, std::to_string(fields.size()) + " fields, the header (line " +
-                           header_where.substr(file.size() + 1) + ") has " + std::to_string(ncols) +
+                           header.where.substr(file.size() + 1) + ") has " + std::to_string(ncols) +
                            (fields.size() > ncols ? " (decimal commas? numbers need a '.')" : ""));
     }
     for (size_t c = 0; c < ncols; ++c) {
       // sensors and controls: an empty cell or NaN is a value not measured (NaN)
       const bool may_miss = targets[c].kind == Kind::kSensor || targets[c].kind == Kind::kCtrl;
-      values.push_back(
-          may_miss
-              ? ParseNumberOrMissing(fields[c], where_line + ": column " + std::to_string(c + 1) +
-                                                    " (" + Quote(header[c]) + ")")
-              : ParseNumber(fields[c], where_line + ": column " + std::to_string(c + 1) + " (" +
-                                           Quote(header[c]) + ")"));
+      const std::string where =
+          where_line + ": column " + std::to_string(c + 1) + " (" + Quote(header.names[c]) + ")";
+      rows.values.push_back(may_miss ? ParseNumberOrMissing(fields[c], where)
+                                     : ParseNumber(fields[c], where));
     }
-    row_lines.push_back(line_no);
+    rows.lines.push_back(lines.line_no());
   }
   if (in.bad()) Fail(file, "read error");
-  const auto samples = static_cast<Eigen::Index>(row_lines.size());
-  if (samples == 0) Fail(file, "no data rows after the header");
-  auto at = [&](Eigen::Index k, int col) { return values[k * ncols + col]; };
+  if (rows.lines.empty()) Fail(file, "no data rows after the header");
+  return rows;
+}
 
-  // assemble the sequence
+// the sequence from the rows: time (strictly increasing, checked here with both lines named),
+// ctrl in actuator order (T x 0 without controls), the present sensors in model order, the
+// states that were given
+Sequence Assemble(const Rows& rows, const ColumnPlan& plan, const mjModel& m,
+                  const std::string& sequence_name, bool has_ctrl, const std::string& file) {
+  const auto samples = static_cast<Eigen::Index>(rows.lines.size());
+  const int nu = static_cast<int>(m.nu);
   Sequence seq;
   seq.name = sequence_name;
   seq.time.resize(samples);
   for (Eigen::Index k = 0; k < samples; ++k) {
-    seq.time[k] = at(k, time_col);
+    seq.time[k] = rows.at(k, plan.time_col);
     if (k > 0 && !(seq.time[k] > seq.time[k - 1])) {
-      Fail(file + ":" + std::to_string(row_lines[k]),
-           "column " + std::to_string(time_col + 1) + " ('time'): time " + FormatG17(seq.time[k]) +
-               " is not greater than " + FormatG17(seq.time[k - 1]) + " on line " +
-               std::to_string(row_lines[k - 1]) + " (time must be strictly increasing)");
+      Fail(file + ":" + std::to_string(rows.lines[k]),
+           "column " + std::to_string(plan.time_col + 1) + " ('time'): time " +
+               FormatG17(seq.time[k]) + " is not greater than " + FormatG17(seq.time[k - 1]) +
+               " on line " + std::to_string(rows.lines[k - 1]) +
+               " (time must be strictly increasing)");
     }
   }
-  seq.ctrl.resize(samples, *has_ctrl ? nu : 0);
-  for (int i = 0; i < nu && *has_ctrl; ++i) {
+  seq.ctrl.resize(samples, has_ctrl ? nu : 0);
+  for (int i = 0; i < nu && has_ctrl; ++i) {
     seq.actuator_names.push_back(mj_id2name(&m, mjOBJ_ACTUATOR, i));
-    for (Eigen::Index k = 0; k < samples; ++k) seq.ctrl(k, i) = at(k, ctrl_col[i]);
+    for (Eigen::Index k = 0; k < samples; ++k) seq.ctrl(k, i) = rows.at(k, plan.ctrl_col[i]);
   }
   int width = 0;
-  for (int s : sensors) width += m.sensor_dim[s];
+  for (int s : plan.sensors) width += m.sensor_dim[s];
   seq.sensordata.resize(samples, width);
   int offset = 0;
-  for (int s : sensors) {
+  for (int s : plan.sensors) {
     seq.sensor_names.push_back(mj_id2name(&m, mjOBJ_SENSOR, s));
     seq.sensor_dims.push_back(m.sensor_dim[s]);
     for (int j = 0; j < m.sensor_dim[s]; ++j) {
       for (Eigen::Index k = 0; k < samples; ++k) {
-        seq.sensordata(k, offset + j) = at(k, sensor_col[s][j]);
+        seq.sensordata(k, offset + j) = rows.at(k, plan.sensor_col[s][j]);
       }
     }
     offset += m.sensor_dim[s];
@@ -385,16 +442,36 @@ Sequence ReadCsv(const std::string& path, const mjModel& m, const std::string& s
   const std::pair<Kind, RowMatrix*> state_out[] = {
       {Kind::kQpos, &seq.qpos}, {Kind::kQvel, &seq.qvel}, {Kind::kAct, &seq.act}};
   for (const auto& [kind, mat] : state_out) {
-    const std::vector<int>& cols = state_col[kind];
+    const std::vector<int>& cols = plan.state_col.at(kind);
     if (cols.empty() || cols[0] < 0) continue;
     mat->resize(samples, static_cast<Eigen::Index>(cols.size()));
     for (size_t j = 0; j < cols.size(); ++j) {
       for (Eigen::Index k = 0; k < samples; ++k) {
-        (*mat)(k, static_cast<Eigen::Index>(j)) = at(k, cols[j]);
+        (*mat)(k, static_cast<Eigen::Index>(j)) = rows.at(k, cols[j]);
       }
     }
   }
   return seq;
+}
+
+Sequence ReadCsv(const std::string& path, const mjModel& m, const std::string& sequence_name,
+                 bool part, bool* has_ctrl) {
+  const std::string& file = path;
+  // the name first: nothing is read for a sequence that could not be stored
+  CheckSequenceName(file, sequence_name);
+  // open the file and refuse what is not comma-separated UTF-8/ASCII text
+  std::ifstream in(path, std::ios::binary);
+  if (!in) Fail(file, std::string("cannot open: ") + std::strerror(errno));
+  CheckEncoding(in, file);
+  // the header, each of its names mapped to the model, then the columns the model requires
+  LineReader lines(in);
+  const Header header = ReadHeader(lines, file);
+  const std::vector<Target> targets = MapColumns(header, m);
+  ColumnPlan plan = IndexColumns(targets, m);
+  CheckColumns(m, header.where, part, has_ctrl, &plan);
+  // the numbers, then the sequence in the model's order
+  const Rows rows = ReadRows(lines, in, header, targets, file);
+  return Assemble(rows, plan, m, sequence_name, *has_ctrl, file);
 }
 
 }  // namespace

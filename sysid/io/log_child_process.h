@@ -1,4 +1,4 @@
-// Reading a log in a forked child process (internal to sysid/io/log.cc).
+// Reading a log in a forked child process (internal to sysid/io/log_read.cc).
 //
 // HDF5 1.10 is not hardened against corrupt files: on some it crashes (SEGV inside the library),
 // on others it allocates gigabytes (docs/bad-input.md). A log is therefore read in a forked child,

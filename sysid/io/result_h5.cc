@@ -19,6 +19,7 @@
 #include "core/text.h"
 #include "sysid/io/atomic_file.h"
 #include "sysid/io/hdf5_util.h"
+#include "sysid/io/result_fields.h"
 #include "sysid/io/result_internal.h"
 #include "sysid/metrics.h"
 
@@ -27,6 +28,91 @@ namespace {
 
 // ---------------------------------------------------------------------------------------------
 // result.h5
+
+// the fields of result_fields.h that result.h5 does not keep as root attributes
+struct SkipFields {
+  template <class... A>
+  void Int(const FieldKey&, A&&...) {}
+  template <class... A>
+  void Number(const FieldKey&, A&&...) {}
+  template <class... A>
+  void Pair(const FieldKey&, A&&...) {}
+  template <class... A>
+  void Numbers(const FieldKey&, A&&...) {}
+  template <class... A>
+  void Status(const FieldKey&, A&&...) {}
+  template <class... A>
+  void Flags(const FieldKey&, A&&...) {}
+  template <class... A>
+  void Texts(const FieldKey&, A&&...) {}
+  template <class... A>
+  void TextMap(const FieldKey&, A&&...) {}
+  template <class... A>
+  void Map(const FieldKey&, A&&...) {}
+  template <class... A>
+  void List(const FieldKey&, A&&...) {}
+  template <class... A>
+  void FitMetrics(const FieldKey&, A&&...) {}
+};
+
+// the fields marked h5 (text and bool) as root attributes: those written only when set after the
+// others, so that the always-present attributes keep one order in every file
+class RootAttributeWriter : public SkipFields {
+ public:
+  RootAttributeWriter(hid_t root, const std::string& file) : root_(root), file_(file) {}
+
+  void Text(const FieldKey& k, const std::string& s) {
+    if (!k.h5) return;
+    if (k.presence != Presence::kWhenSet) {
+      h5::WriteStringAttr(root_, k.name, s, file_, "/");
+    } else if (!s.empty()) {
+      when_set_.emplace_back(k.name, s);
+    }
+  }
+  // 0 or 1
+  void Bool(const FieldKey& k, bool b) {
+    if (k.h5) h5::WriteIntAttr(root_, k.name, {b ? 1 : 0}, true, file_, "/");
+  }
+  void Finish() {
+    for (const auto& [name, s] : when_set_) h5::WriteStringAttr(root_, name, s, file_, "/");
+  }
+
+ private:
+  hid_t root_;
+  const std::string& file_;
+  std::vector<std::pair<const char*, std::string>> when_set_;
+};
+
+// the root attributes marked h5 read back (text: required unless written only when set; bool:
+// optional, 0 or 1)
+class RootAttributeReader : public SkipFields {
+ public:
+  RootAttributeReader(hid_t root, const std::string& file) : root_(root), file_(file) {}
+
+  void Text(const FieldKey& k, std::string& s) {
+    if (!k.h5) return;
+    if (k.presence == Presence::kWhenSet &&
+        h5::OpenAttrIfAny(root_, k.name, file_, "/").get() < 0) {
+      return;
+    }
+    s = h5::ReadScalarString(root_, k.name, file_, "/", "");
+  }
+  void Bool(const FieldKey& k, bool& b) {
+    if (!k.h5) return;
+    h5::Id attr = h5::OpenAttrIfAny(root_, k.name, file_, "/");
+    if (attr.get() < 0) return;
+    const std::string where = std::string("/ attribute '") + k.name + "'";
+    const std::vector<long long> v = h5::ReadInts(attr.get(), file_, where);
+    if (v.size() != 1 || (v[0] != 0 && v[0] != 1)) {
+      Fail(file_, where, "expected one value, 0 or 1");
+    }
+    b = v[0] == 1;
+  }
+
+ private:
+  hid_t root_;
+  const std::string& file_;
+};
 
 // a 1-D int32 dataset
 void WriteInts(hid_t group, const char* name, const std::vector<int>& values,
@@ -162,10 +248,10 @@ void WriteH5(const std::string& tmp, const FitResultFile& r, const std::string& 
         h5::Own(H5Gopen2(f.get(), "/", H5P_DEFAULT), H5Gclose, file, "/", "cannot open root");
     h5::WriteStringAttr(root.get(), "format", kFormat, file, "/");
     h5::WriteIntAttr(root.get(), "format_version", {kFormatVersion}, true, file, "/");
-    h5::WriteStringAttr(root.get(), "status", r.status, file, "/");
-    // whether std and ci95 mean something (0 or 1), as result.yaml's intervals_valid
-    h5::WriteIntAttr(root.get(), "intervals_valid", {r.intervals_valid ? 1 : 0}, true, file, "/");
-    if (!r.run_id.empty()) h5::WriteStringAttr(root.get(), "run_id", r.run_id, file, "/");
+    // status, intervals_valid (as result.yaml's), run_id (when the result has one)
+    RootAttributeWriter attributes(root.get(), file);
+    VisitResultFields(attributes, r);
+    attributes.Finish();
     WriteH5Parameters(root.get(), r, file);
     WriteH5Derived(root.get(), r, file);
 
@@ -377,26 +463,9 @@ SequenceResult ReadH5Sequence(hid_t sequences, const std::string& name, const st
   return s;
 }
 
-// intervals_valid (optional: files before it have none): 0 or 1, and the same as result.yaml's
-void ReadH5IntervalsValid(hid_t root, const std::string& file, FitResultFile* r) {
-  h5::Id attr = h5::OpenAttrIfAny(root, "intervals_valid", file, "/");
-  if (attr.get() < 0) return;
-  const std::string where = "/ attribute 'intervals_valid'";
-  const std::vector<long long> v = h5::ReadInts(attr.get(), file, where);
-  if (v.size() != 1 || (v[0] != 0 && v[0] != 1)) {
-    Fail(file, where, "expected one value, 0 or 1");
-  }
-  const bool valid = v[0] == 1;
-  if (valid != r->intervals_valid) {
-    Fail(file, where,
-         std::string("is ") + (valid ? "1" : "0") + " but result.yaml's intervals_valid is " +
-             (r->intervals_valid ? "true" : "false") + " (written by different fits?)");
-  }
-  r->intervals_valid = valid;
-}
+}  // namespace
 
 // `run_id` is the run id of result.h5 ("" when it has none)
-}  // namespace
 
 void ReadH5(const std::string& path, FitResultFile* r, std::string* run_id) {
   const std::string& file = path;
@@ -424,11 +493,19 @@ void ReadH5(const std::string& path, FitResultFile* r, std::string* run_id) {
                ")");
     }
   }
-  h5::ReadScalarString(root.get(), "status", file, "/", "");
-  if (h5::OpenAttrIfAny(root.get(), "run_id", file, "/").get() >= 0) {
-    *run_id = h5::ReadScalarString(root.get(), "run_id", file, "/", "");
+  // status (required, not compared), run_id (for the caller), intervals_valid (optional: files
+  // before it have none; the same as result.yaml's)
+  FitResultFile stored;
+  stored.intervals_valid = r->intervals_valid;
+  RootAttributeReader attributes(root.get(), file);
+  VisitResultFields(attributes, stored);
+  *run_id = stored.run_id;
+  if (stored.intervals_valid != r->intervals_valid) {
+    Fail(file, "/ attribute 'intervals_valid'",
+         std::string("is ") + (stored.intervals_valid ? "1" : "0") +
+             " but result.yaml's intervals_valid is " + (r->intervals_valid ? "true" : "false") +
+             " (written by different fits?)");
   }
-  ReadH5IntervalsValid(root.get(), file, r);
 
   // arrays
   ReadH5Parameters(root.get(), file, *r);

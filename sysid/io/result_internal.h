@@ -1,6 +1,7 @@
-// Internal to sysid/io/result*.cc: the format's constants and the checks shared by the writers
-// and the reader of result.yaml (result.cc) and result.h5 (result_h5.cc). Each throws
-// ResultError "<file>: <where>: <what>".
+// Internal to sysid/io/result*.cc: the format's constants, the checks shared by the writers and
+// the readers (result.cc), and the writers and readers of result.yaml (result_yaml_write.cc,
+// result_yaml_read.cc) and result.h5 (result_h5.cc), whose fields result_fields.h lists. Each
+// throws ResultError "<file>: <where>: <what>".
 #pragma once
 
 #include <hdf5.h>
@@ -32,6 +33,10 @@ void CheckSequence(const SequenceResult& s, const std::string& file,
                    const std::string& where = "/sequences");
 void CheckMatrices(const FitResultFile& r, const std::string& file);
 void CheckArrays(const FitResultFile& r, const std::string& file);
+
+// result.yaml's text, and result.yaml read from path (the checks of CheckParameters included)
+std::string EmitYaml(const FitResultFile& r);
+void ReadYaml(const std::string& path, FitResultFile* r);
 
 // result.h5 written to tmp (messages name file), and read back (with its run id)
 void WriteH5(const std::string& tmp, const FitResultFile& r, const std::string& file);

@@ -1,5 +1,5 @@
 // Reading YAML with positions: the typed, position-aware readers behind the experiment schema
-// (sysid/io/experiment.cc). Every failure is a ConfigError at the offending element
+// (sysid/io/experiment*.cc). Every failure is a ConfigError at the offending element
 // (file:line:column, 1-based) saying what was expected and what was found.
 // Internal to sysid/io: it exposes yaml-cpp types.
 #pragma once

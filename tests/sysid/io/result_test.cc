@@ -372,6 +372,57 @@ TEST_F(ResultTest, CovarianceJacobianRoundTripsAndIsAbsentWhenTheEstimates) {
   EXPECT_EQ(back.last_step_std_errors, 0.265);
 }
 
+// every field of the table in sysid/io/result_fields.h, the optional ones set to values other
+// than their defaults: written, read back and written again, result.yaml is the same text (a field
+// the reader missed would come back as its default) and result.h5 holds the same root attributes
+TEST_F(ResultTest, EveryFieldOfTheTableIsReadBackAsWritten) {
+  FitResultFile r = MultiStartResult();
+  r.run_id = "20261122T180501Z-12345-9f3a";
+  r.intervals_valid = false;  // not the default of a converged result without the key
+  r.segment_steps_used = 25;
+  r.segment_reason = "auto: growth beyond linear after 25 steps";
+  r.interval_check = "ran along 2 variables: the cost is rugged";
+  r.covariance_jacobian_iteration = 3;
+  r.last_step_std_errors = 0.125;
+  r.event_windows = {2, 76, 771, {"torso_gyro", "leg_vel"}};
+  DerivedQuantity mass;
+  mass.name = "payload.mass";
+  mass.unit = "kg";
+  mass.value = 1.0 / 3.0;
+  mass.std_error = kInf;
+  mass.ci95_low = -kInf;
+  mass.ci95_high = kInf;
+  mass.derived_from = "payload log-Cholesky variables, delta method";
+  mass.truth = 0.3;
+  DerivedQuantity com = mass;
+  com.name = "payload.com[0]";
+  com.unit = "m";
+  com.truth.reset();
+  r.derived = {mass, com};
+  r.reduction.recorded = true;
+  r.reduction.used = true;
+  r.reduction.collision_pairs = 12;
+  r.reduction.collision_pairs_off = 5;
+  r.reduction.geoms_off = 3;
+  r.reduction.disabled = {"island", "contact"};
+  r.reduction.guard_trips = 1;
+  WriteBoth(r);
+  const std::string first = ReadFile(Path("result.yaml"));
+
+  // (the files only: the identified models are not written here)
+  const FitResultFile back = ReadResultFiles(Path("result.yaml"), Path("result.h5"));
+  ExpectSame(back, r);
+  EXPECT_EQ(back.run_id, r.run_id);
+  EXPECT_FALSE(back.intervals_valid);
+  EXPECT_EQ(back.derived.size(), 2u);
+  EXPECT_TRUE(back.reduction.recorded);
+  WriteBoth(back);
+  EXPECT_EQ(ReadFile(Path("result.yaml")), first);
+  const FitResultFile again = ReadResultFiles(Path("result.yaml"), Path("result.h5"));
+  EXPECT_EQ(again.run_id, r.run_id);
+  EXPECT_FALSE(again.intervals_valid);
+}
+
 TEST_F(ResultTest, FitMetricsAreWrittenPerSequenceAndChannel) {
   // result.yaml lists the metrics of the fitted and the held-out sequences, each channel by name,
   // with the values the runner computed (read back with yaml-cpp, at full precision)

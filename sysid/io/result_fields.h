@@ -1,0 +1,167 @@
+// Internal to sysid/io/result*.cc: the one table of result.yaml's fields (and of the ones result.h5
+// keeps as root attributes). VisitResultFields lists every field once, in file order, with its key,
+// its type and when it is written; the YAML writer, the YAML reader and result.h5's root attributes
+// are visitors of it, so a new field is one line here.
+//
+// A visitor V has, for a key K (FieldKey) and a value of the result (const for writers):
+//   Text(K, std::string), Int(K, int), Number(K, double), Number(K, std::optional<double>: written
+//   when set), Bool(K, bool), Pair(K, low, high: [low, high]), Numbers(K, Eigen::VectorXd),
+//   Status(K, FitStatus: its name), Flags(K, at_lower, at_upper, identifiable: the flag names),
+//   Texts(K, Style, list of text), TextMap(K, Style, map of text), Map(K, Style, written, f: a
+//   nested map whose fields f(visitor) lists), List(K, Style of the entries, vector, f: one map per
+//   entry, f(visitor, entry) lists its fields), FitMetrics(K, result: written only, recomputed from
+//   result.h5 when read).
+#pragma once
+
+#include <Eigen/Core>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "sysid/io/result.h"
+
+namespace mjsysid::io::result_internal {
+
+// when a field is written, and whether a reader needs it
+enum class Presence {
+  kRequired,  // always written; a reader fails without it
+  kOptional,  // always written; a reader keeps the default without it (files of older versions)
+  kWhenSet,   // written only when set (non-empty text or list, a value, Map's `written`); optional
+};
+
+// how a list or map is laid out in result.yaml
+enum class Style {
+  kBlock,             // one entry per line
+  kFlow,              // [a, b] or {a: 1}
+  kBlockOrEmptyFlow,  // one entry per line; [] or {} when empty
+};
+
+struct FieldKey {
+  const char* name;
+  Presence presence = Presence::kRequired;
+  bool h5 = false;  // also a root attribute of result.h5
+};
+
+// a reader's note that an optional block was present (a writer's result is const)
+inline void MarkPresent(bool& flag) { flag = true; }
+inline void MarkPresent(const bool&) {}
+
+// one entry of `parameters`
+template <class V, class P>
+void VisitParameterFields(V& v, P& p) {
+  v.Text({"name"}, p.name);
+  v.Number({"value"}, p.value);
+  v.Number({"initial"}, p.initial);
+  v.Number({"std"}, p.std_error);
+  v.Pair({"ci95"}, p.ci95_low, p.ci95_high);
+  v.Flags({"flags"}, p.at_lower, p.at_upper, p.identifiable);
+  v.Number({"truth", Presence::kWhenSet}, p.truth);
+}
+
+// one entry of `derived` (sysid/derived_inertials.h)
+template <class V, class D>
+void VisitDerivedFields(V& v, D& d) {
+  v.Text({"name"}, d.name);
+  v.Text({"unit"}, d.unit);
+  v.Number({"value"}, d.value);
+  v.Number({"std"}, d.std_error);
+  v.Pair({"ci95"}, d.ci95_low, d.ci95_high);
+  v.Text({"derived_from"}, d.derived_from);
+  v.Number({"truth", Presence::kWhenSet}, d.truth);
+}
+
+// one entry of `starts.runs` (values in the order of `parameters`)
+template <class V, class S>
+void VisitStartFields(V& v, S& s) {
+  v.Numbers({"start"}, s.start);
+  v.Numbers({"estimate"}, s.estimate);
+  v.Number({"initial_cost"}, s.initial_cost);
+  v.Number({"final_cost"}, s.final_cost);
+  v.Status({"status"}, s.status);
+  v.Int({"iterations"}, s.iterations);
+  v.Text({"error", Presence::kWhenSet}, s.error);
+}
+
+// one entry of `starts.spread`
+template <class V, class S>
+void VisitSpreadFields(V& v, S& s) {
+  v.Text({"name"}, s.name);
+  v.Number({"min"}, s.min);
+  v.Number({"max"}, s.max);
+  v.Number({"relative"}, s.relative);
+}
+
+// every field of result.yaml after format and format_version, in file order
+template <class V, class R>
+void VisitResultFields(V& v, R& r) {
+  // summary
+  v.Text({"name"}, r.name);
+  v.Text({"experiment"}, r.experiment);
+  v.Text({"status", Presence::kRequired, true}, r.status);
+  v.Text({"termination"}, r.termination);
+  v.Text({"created"}, r.created);
+  v.Text({"mjsysid_version"}, r.mjsysid_version);
+  v.Text({"mujoco_version"}, r.mujoco_version);
+  v.Text({"jacobian_mode"}, r.jacobian_mode);
+  v.Text({"run_id", Presence::kWhenSet, true}, r.run_id);
+  // whether std and ci95 mean something (only for status converged); absent: valid when converged
+  v.Bool({"intervals_valid", Presence::kOptional, true}, r.intervals_valid);
+  v.Int({"iterations"}, r.iterations);
+  v.Number({"initial_cost"}, r.initial_cost);
+  v.Number({"final_cost"}, r.final_cost);
+  v.Number({"residual_variance"}, r.uncertainty.residual_variance);
+  v.Int({"num_residuals"}, r.num_residuals);
+  v.Number({"wall_time_s"}, r.seconds);
+  // multiple shooting as used (0: single shooting) and why
+  v.Int({"segment_steps_used", Presence::kOptional}, r.segment_steps_used);
+  v.Text({"segment_reason", Presence::kOptional}, r.segment_reason);
+  // whether the interval check ran and why (sysid/interval_check.h); absent: no uncertainty step
+  v.Text({"interval_check", Presence::kWhenSet}, r.interval_check);
+  // the statistical stop before the last Jacobian (sysid/gn_convergence.h): the covariance's
+  // Jacobian is the previous iterate's; absent: the estimate's own
+  v.Map({"covariance_jacobian", Presence::kWhenSet}, Style::kBlock,
+        r.covariance_jacobian_iteration >= 0, [&](auto& m) {
+          m.Int({"iteration"}, r.covariance_jacobian_iteration);
+          m.Number({"last_step_std_errors"}, r.last_step_std_errors);
+        });
+  // auto's contact segments: the cells next to contact events left out (sysid/event_windows.h)
+  v.Map({"event_windows", Presence::kWhenSet}, Style::kBlock, r.event_windows.masked > 0,
+        [&](auto& m) {
+          m.Int({"window"}, r.event_windows.window);
+          m.Int({"events"}, r.event_windows.events);
+          m.Int({"masked_cells"}, r.event_windows.masked);
+          m.Texts({"sensors"}, Style::kFlow, r.event_windows.sensors);
+        });
+  // solver settings, as text
+  v.TextMap({"solver"}, Style::kBlock, r.solver);
+  v.List({"parameters"}, Style::kBlock, r.parameters,
+         [](auto& e, auto& p) { VisitParameterFields(e, p); });
+  // quantities derived from the estimate (body_inertial: mass, com, principal moments)
+  v.List({"derived", Presence::kWhenSet}, Style::kBlock, r.derived,
+         [](auto& e, auto& d) { VisitDerivedFields(e, d); });
+  v.Texts({"unidentifiable"}, Style::kBlockOrEmptyFlow, r.uncertainty.unidentifiable);
+  v.Texts({"warnings"}, Style::kBlockOrEmptyFlow, r.warnings);
+  v.TextMap({"identified_models"}, Style::kBlockOrEmptyFlow, r.identified_models);
+  // per channel fit metrics (sysid/metrics.h) of the fitted and the held-out sequences
+  v.FitMetrics({"fit_metrics"}, r);
+  // multi-start: every start, the best, the spread
+  v.Map({"starts", Presence::kWhenSet}, Style::kBlock, !r.starts.empty(), [&](auto& m) {
+    m.Int({"best"}, r.best_start);
+    m.List({"runs"}, Style::kBlock, r.starts, [](auto& e, auto& s) { VisitStartFields(e, s); });
+    m.List({"spread"}, Style::kFlow, r.start_spread,
+           [](auto& e, auto& s) { VisitSpreadFields(e, s); });
+  });
+  // the reduced model (FitOptions::reduce_model, core/reduced_model.h)
+  v.Map({"reduced", Presence::kWhenSet}, Style::kFlow, r.reduction.recorded, [&](auto& m) {
+    MarkPresent(r.reduction.recorded);
+    m.Bool({"used"}, r.reduction.used);
+    m.Int({"collision_pairs"}, r.reduction.collision_pairs);
+    m.Int({"collision_pairs_off"}, r.reduction.collision_pairs_off);
+    m.Int({"geoms_off"}, r.reduction.geoms_off);
+    m.Texts({"disabled"}, Style::kFlow, r.reduction.disabled);
+    m.Int({"guard_trips"}, r.reduction.guard_trips);
+  });
+}
+
+}  // namespace mjsysid::io::result_internal
