@@ -2,15 +2,22 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <functional>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
+#include "sysid/fit_observer.h"
 #include "sysid/gn_convergence.h"
 
 namespace mjsysid {
+
+void ZeroJacobians(const ceres::CostFunction& cost, double** jacobians) {
+  const std::vector<int32_t>& sizes = cost.parameter_block_sizes();
+  for (size_t i = 0; i < sizes.size(); ++i) {
+    if (jacobians[i]) std::fill(jacobians[i], jacobians[i] + cost.num_residuals() * sizes[i], 0.0);
+  }
+}
 namespace {
 
 // rows r0 .. r0 + 2 of a row-major Jacobian block with `cols` columns (nullptr: none) replaced by
@@ -144,19 +151,11 @@ void SegmentCost::FillRows(const Blocks& blocks, const Trajectory& tr, const Sen
     dpdz[j] = I.DpDz(g, zv[g]);
   }
 
-  // zero the Jacobian blocks
-  if (want) {
-    for (int i = 0; i < static_cast<int>(parameter_block_sizes().size()); ++i) {
-      if (jacobians[i]) {
-        std::fill(jacobians[i], jacobians[i] + num_residuals() * parameter_block_sizes()[i], 0.0);
-      }
-    }
-  }
-  std::vector<double> pinv;  // P^+ at x_0: tangent columns to the ambient block
-  if (want && xb >= 0 && jacobians[xb]) {
-    pinv.resize(static_cast<size_t>(nx) * dims.nphys);
-    mo.manifold->PlusJacobianPseudoInverse(x0, pinv.data());
-  }
+  if (want) ZeroJacobians(*this, jacobians);
+  // P^+ at x_0: tangent columns to the ambient block
+  const std::vector<double> pinv = want && xb >= 0 && jacobians[xb]
+                                       ? mo.manifold->PlusJacobianPseudoInverse(x0)
+                                       : std::vector<double>();
 
   // sensor residuals (sysid/residual_model.h) of the segment's measured samples, each read at its
   // position on the grid (sysid/sample_grid.h), NaN cells masked out; chained to the blocks: z
@@ -418,12 +417,8 @@ ceres::CallbackReturnType ProgressCallback::operator()(const ceres::IterationSum
   info.parameters.resize(np + static_cast<int>(I.m.size()));
   for (int g = 0; g < np; ++g) info.parameters[g] = I.Physical(g, I.z[g]);
   for (size_t i = 0; i < I.m.size(); ++i) info.parameters[np + i] = I.m[i];
-  if (I.options.verbose) {
-    std::fprintf(stderr, "iter %3d  cost %.6e  |step| %.2e  |grad| %.2e  %s  %7.2f s\n",
-                 info.iteration, info.cost, info.step_norm, info.gradient_norm,
-                 info.successful ? "ok      " : "rejected", info.seconds);
-  }
   result_->trace.push_back(info);
+  if (I.options.observer) I.options.observer->OnIteration(info);
   if (I.options.on_iteration && info.successful) I.options.on_iteration(info);
   // auto multiple shooting: the single-shooting Jacobian stopped being local (Problem::Fit refits)
   if (I.stop_on_jacobian_warning && !I.jacobian_warnings.empty()) return ceres::SOLVER_ABORT;

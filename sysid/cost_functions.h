@@ -43,6 +43,9 @@
 
 namespace mjsysid {
 
+// sets every Jacobian block Ceres asked of cost (jacobians[i] not null) to zero
+void ZeroJacobians(const ceres::CostFunction& cost, double** jacobians);
+
 class SegmentCost : public FoldableCost {
  public:
   // the finite-difference step of a fitted control delay's column, in simulation steps

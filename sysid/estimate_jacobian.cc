@@ -8,6 +8,7 @@
 #include <map>
 #include <vector>
 
+#include "core/invariant.h"
 #include "core/state.h"
 #include "sysid/compressed_cost.h"
 #include "sysid/uncertainty.h"
@@ -17,10 +18,8 @@ namespace mjsysid {
 bool EvaluateTriangle(const ceres::Problem& problem, const std::vector<double*>& blocks,
                       EstimateTriangle* out) {
   // the columns: every parameter block in the caller's order, its tangent size wide
-  if (static_cast<int>(blocks.size()) != problem.NumParameterBlocks()) {
-    std::fprintf(stderr, "sysid: broken invariant: EvaluateTriangle needs every parameter block\n");
-    std::abort();
-  }
+  MJSYSID_DEMAND(static_cast<int>(blocks.size()) == problem.NumParameterBlocks(),
+                 "EvaluateTriangle needs every parameter block");
   std::map<const double*, int> first_column;
   int n = 0;
   for (double* b : blocks) {

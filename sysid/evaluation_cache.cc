@@ -1,10 +1,12 @@
 #include "sysid/evaluation_cache.h"
 
 #include <algorithm>
-#include <cstdio>
 #include <cstdlib>
 #include <exception>
+#include <string>
 #include <utility>
+
+#include "core/invariant.h"
 
 namespace mjsysid {
 
@@ -45,12 +47,11 @@ EvaluationCache::EvaluationCache(std::vector<Model> models,
 // a second thread would race on the entries and the simulators: a broken invariant, not an error
 void EvaluationCache::CheckThread(const char* where) const {
   if (std::this_thread::get_id() == owner_) return;
-  std::fprintf(stderr,
-               "mjsysid: broken invariant: EvaluationCache::%s called from a thread other than "
-               "the one that built the cache (the cache is single-threaded: Ceres must run with "
-               "num_threads = 1)\n",
-               where);
-  std::abort();
+  BrokenInvariant((std::string("EvaluationCache::") + where +
+                   " called from a thread other than the one that built the cache (the cache is "
+                   "single-threaded: Ceres must run with num_threads = 1)")
+                      .c_str(),
+                  __FILE__, __LINE__);
 }
 
 // [z, x_0, control delays]; z only when the fit has parameters; the delays its grid's controls

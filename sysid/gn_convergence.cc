@@ -4,14 +4,17 @@
 #include <Eigen/QR>
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
+#include <limits>
 #include <utility>
 
 #include "core/text.h"
+#include "sysid/fit_observer.h"
 #include "sysid/types.h"
 
 namespace mjsysid {
 namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // the largest |step_i| / s_i over the variables with a standard error (held ones, NaN: left out)
 double StepInStandardErrors(const Eigen::VectorXd& step, const Eigen::VectorXd& std_error) {
@@ -118,12 +121,12 @@ GaussNewtonTest TestPreviousJacobian(const EstimateTriangle& t,
 
 GaussNewtonStop::GaussNewtonStop(const ceres::Problem* problem, std::vector<double*> blocks,
                                  double fraction, const UncertaintyOptions& uncertainty,
-                                 bool verbose, FitLedger* ledger)
+                                 FitObserver* observer, FitLedger* ledger)
     : problem_(problem),
       blocks_(std::move(blocks)),
       fraction_(fraction),
       uncertainty_(uncertainty),
-      verbose_(verbose),
+      observer_(observer),
       ledger_(ledger) {}
 
 ceres::CallbackReturnType GaussNewtonStop::operator()(const ceres::IterationSummary& summary) {
@@ -155,12 +158,14 @@ ceres::CallbackReturnType GaussNewtonStop::operator()(const ceres::IterationSumm
   }
   FillBounds();
   last_ = TestGaussNewtonStep(triangle_, bounds_, fraction_, uncertainty_);
-  if (verbose_) {
+  if (observer_) {
     if (last_.applies) {
-      std::fprintf(stderr, "          Gauss-Newton step / std error: largest %.3g (stop at %.3g)\n",
-                   last_.max_ratio, fraction_);
+      observer_->OnStepTest(last_.max_ratio, false,
+                            "Gauss-Newton step / std error: largest " +
+                                FormatDigits(last_.max_ratio, 3) + " (stop at " +
+                                FormatDigits(fraction_, 3) + ")");
     } else {
-      std::fprintf(stderr, "          Gauss-Newton stop not tested: %s\n", last_.why_not.c_str());
+      observer_->OnStepTest(kNaN, false, "Gauss-Newton stop not tested: " + last_.why_not);
     }
   }
   if (!last_.passed) return ceres::SOLVER_CONTINUE;
@@ -211,11 +216,11 @@ bool GaussNewtonStop::TestBeforeJacobian() {
   if (last_.applies && last_.std_error.size() == n) {
     const double ratio = StepInStandardErrors(step, last_.std_error);  // held at x_k: left out
     if (ratio > 2 * kPreviousJacobianSteps) {
-      if (verbose_) {
-        std::fprintf(stderr,
-                     "          before its Jacobian: last step %.3g std errors of the previous "
-                     "point, not tested (beyond %.3g)\n",
-                     ratio, 2 * kPreviousJacobianSteps);
+      if (observer_) {
+        observer_->OnStepTest(kNaN, true,
+                              "before its Jacobian: last step " + FormatDigits(ratio, 3) +
+                                  " std errors of the previous point, not tested (beyond " +
+                                  FormatDigits(2 * kPreviousJacobianSteps, 3) + ")");
       }
       return false;
     }
@@ -229,11 +234,12 @@ bool GaussNewtonStop::TestBeforeJacobian() {
   FillBounds();
   early_ = TestPreviousJacobian(triangle_, bounds_, step, fraction_, kPreviousJacobianSteps,
                                 uncertainty_);
-  if (verbose_ && early_.applies) {
-    std::fprintf(stderr,
-                 "          before its Jacobian: Gauss-Newton step / std error %.3g, last step "
-                 "%.3g std errors (stop at %.3g and %.3g)\n",
-                 early_.max_ratio, early_.step_ratio, fraction_, kPreviousJacobianSteps);
+  if (observer_ && early_.applies) {
+    observer_->OnStepTest(
+        early_.max_ratio, true,
+        "before its Jacobian: Gauss-Newton step / std error " + FormatDigits(early_.max_ratio, 3) +
+            ", last step " + FormatDigits(early_.step_ratio, 3) + " std errors (stop at " +
+            FormatDigits(fraction_, 3) + " and " + FormatDigits(kPreviousJacobianSteps, 3) + ")");
   }
   before_jacobian_ = early_.passed;
   return before_jacobian_;

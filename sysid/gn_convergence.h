@@ -71,6 +71,8 @@
 
 namespace mjsysid {
 
+class FitObserver;  // sysid/fit_observer.h
+
 // one column's bounds in tangent space (-inf / +inf: none) and its current value
 struct ColumnBounds {
   double value = 0;
@@ -114,11 +116,12 @@ class GaussNewtonStop : public ceres::IterationCallback {
  public:
   // problem: the fit's (borrowed; every parameter block is in blocks, in the order added, as
   // EvaluateTriangle needs); fraction > 0
-  // verbose: one line per test on stderr (the ratio, or why the test did not apply); ledger (the
+  // observer (borrowed, may be nullptr): each test as an OnStepTest event (the ratio, or why the
+  // test did not apply); ledger (the
   // fit's, borrowed, may be nullptr): the test's evaluation is charged to the phase current
   // there (it simulates nothing), not as a Jacobian of the solve
   GaussNewtonStop(const ceres::Problem* problem, std::vector<double*> blocks, double fraction,
-                  const UncertaintyOptions& uncertainty, bool verbose = false,
+                  const UncertaintyOptions& uncertainty, FitObserver* observer = nullptr,
                   FitLedger* ledger = nullptr);
   ceres::CallbackReturnType operator()(const ceres::IterationSummary& summary) override;
   // the test before the Jacobians of an accepted point (see Before the last Jacobian), at the
@@ -142,7 +145,7 @@ class GaussNewtonStop : public ceres::IterationCallback {
   std::vector<double*> blocks_;
   double fraction_;
   UncertaintyOptions uncertainty_;
-  bool verbose_;
+  FitObserver* observer_;
   FitLedger* ledger_;
   bool fired_ = false;
   int tests_ = 0;

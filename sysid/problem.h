@@ -121,22 +121,6 @@ class Problem {
   void ShardStart(std::function<std::vector<bool>(const Impl&)> owned);
 
  private:
-  struct Prepared {
-    std::vector<Trajectory> initial;  // rollouts at the initial values
-    std::vector<std::string> names;   // parameters, measurement terms, then control delays
-    std::vector<std::pair<double, double>> mbounds;  // bounds of the m block (terms, delays)
-    std::vector<double> minitial;                    // their initial values
-    std::string jacobian_mode;
-    int segment_steps = 0;       // multiple shooting as chosen (0: single shooting)
-    std::string segment_reason;  // why (FitResult::segment_reason)
-    double probe_rate = 0;       // growth rate per step of the auto probe
-    double probe_growth = 0;     // its largest growth beyond linear (HorizonChoice::growth)
-    FitResult::EventWindows event_windows;  // auto's contact segments (sysid/event_windows.h)
-    bool contact_segments = false;          // auto chose contact segments (HorizonChoice)
-  };
-  // validates the inputs, builds the simulators, variables and segments
-  void Prepare(const FitOptions& options, Prepared* out);
-
   std::unique_ptr<Impl> impl_;
 };
 

@@ -289,10 +289,47 @@ struct Problem::Impl {
   // evaluation at the estimate, and when FitOptions::fold_ahead is off): the evaluation callback
   // folds them ahead after each Jacobian batch (sysid/compressed_cost.h FoldAhead)
   CompressedBlocks* compressed = nullptr;
-  // verbose fits: the progress lines inside long rollouts (sysid/progress.h), on every simulator
-  // (created once, reset by each Fit; Prepare installs it)
-  std::unique_ptr<StepProgressLines> step_progress;
+  // fits with an observer: the progress events inside long rollouts (sysid/progress.h), on every
+  // simulator (created once, reset by each pass; PrepareFit installs it)
+  std::unique_ptr<StepProgressEvents> step_progress;
 };
+
+// Why the fit runs in the segments it runs in, as parts (FitResult::segment_reason is their text,
+// SegmentReasonText): the choice of the segment length, where later segments start, the
+// continuity weights, and the first solve with the segment states held (auto's contact segments).
+// A refit in segments (sysid/fit/policy.cc) replaces the choice with its own reason.
+struct SegmentRecord {
+  std::string choice;        // why this length (HorizonChoice::reason, or the refit's reason)
+  std::string start_source;  // where later segments start ("": no later segment)
+  std::string weights;       // the continuity weights ("": no segment joins the next)
+  int held_iterations = -1;  // iterations of the solve with the states held (-1: none ran)
+  double held_initial_cost = 0, held_final_cost = 0;
+};
+// "CHOICE; segment states from SOURCE; WEIGHTS; first N iterations with the segment states held
+// on the data (cost A -> B)", the parts present
+std::string SegmentReasonText(const SegmentRecord& r);
+
+// What PrepareFit decided besides the prepared state: the rollouts at the initial values, the
+// variables' names, bounds and starts, the Jacobian mode and the segments chosen
+struct FitPlan {
+  std::vector<Trajectory> initial;  // rollouts at the initial values
+  std::vector<std::string> names;   // parameters, measurement terms, then control delays
+  std::vector<std::pair<double, double>> mbounds;  // bounds of the m block (terms, delays)
+  std::vector<double> minitial;                    // their initial values
+  std::string jacobian_mode;
+  int segment_steps = 0;    // multiple shooting as chosen (0: single shooting)
+  SegmentRecord segments;   // why (FitResult::segment_reason)
+  double probe_rate = 0;    // growth rate per step of the auto probe
+  double probe_growth = 0;  // its largest growth beyond linear (HorizonChoice::growth)
+  FitResult::EventWindows event_windows;  // auto's contact segments (sysid/event_windows.h)
+  bool contact_segments = false;          // auto chose contact segments (HorizonChoice)
+};
+
+// Validates the inputs (names, shapes, bounds, the data every parameter must move) and builds what
+// a fit runs on (sysid/problem_prepare.cc): the simulators with their parameters, the variables,
+// the sample grids, the segments, the initial rollouts and Jacobians and the evaluation cache.
+// Throws std::invalid_argument / ParameterError on bad input.
+FitPlan PrepareFit(Problem::Impl* impl, const FitOptions& options);
 
 // throws ParameterError naming the first parameter g with !moves[g] (its Jacobian column is zero
 // in every sequence at the initial values): what Prepare checks, or the caller of a sharded start
@@ -303,5 +340,12 @@ void CheckParametersMove(const Problem::Impl& I, const std::vector<bool>& moves)
 // rolls out the others (those with an empty trajectory in initial; no Jacobians), and leaves the
 // simulators at the initial parameters
 void RolloutUnowned(Problem::Impl* impl, std::vector<Trajectory>* initial);
+
+// initial: auto (FitParameter::initial_auto): the equation-error start of each model's `auto`
+// parameters from its sequences' logged qpos and qvel (sysid/equation_error.h); a parameter that
+// cannot be solved starts at its model's value. The marks are cleared, so that a refit (auto
+// multiple shooting) starts from the same values. Returns one line per model, for the warnings.
+// threads: the fit's (FitOptions::threads), for the samples' inverse dynamics.
+std::vector<std::string> SolveAutoStarts(Problem::Impl* impl, int threads);
 
 }  // namespace mjsysid

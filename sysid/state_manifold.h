@@ -12,6 +12,7 @@
 #include <mujoco/mujoco.h>
 
 #include <Eigen/Core>
+#include <vector>
 
 #include "core/state.h"
 
@@ -31,6 +32,11 @@ class StateManifold : public ceres::Manifold {
 
   // P^+ (nx x nphys, row-major) at x: the pseudo-inverse of PlusJacobian
   void PlusJacobianPseudoInverse(const double* x, double* pinv) const;
+  std::vector<double> PlusJacobianPseudoInverse(const double* x) const {
+    std::vector<double> pinv(static_cast<size_t>(TangentSize()) * AmbientSize());
+    PlusJacobianPseudoInverse(x, pinv.data());
+    return pinv;
+  }
 
  private:
   const mjModel* m_;

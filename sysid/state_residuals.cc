@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "core/text.h"
+#include "sysid/cost_functions.h"
 #include "sysid/problem_impl.h"
 
 namespace mjsysid {
@@ -312,18 +313,11 @@ bool StateCost::EvaluateOrThrow(double const* const* parameters, double* residua
   const Trajectory& tr = I.CostEntry(segment_, zv, x0, want, &sens).tr;
   const Sensitivity& s = *sens;
   const int ncol = want ? s.ncol : 0;
-  if (want) {
-    for (int i = 0; i < static_cast<int>(parameter_block_sizes().size()); ++i) {
-      if (jacobians[i]) {
-        std::fill(jacobians[i], jacobians[i] + num_residuals() * parameter_block_sizes()[i], 0.0);
-      }
-    }
-  }
-  std::vector<double> pinv;  // P^+ at x_0: tangent columns to the ambient block
-  if (want && xb >= 0 && jacobians[xb]) {
-    pinv.resize(static_cast<size_t>(nx) * dims.nphys);
-    mo.manifold->PlusJacobianPseudoInverse(x0, pinv.data());
-  }
+  if (want) ZeroJacobians(*this, jacobians);
+  // P^+ at x_0: tangent columns to the ambient block
+  const std::vector<double> pinv = want && xb >= 0 && jacobians[xb]
+                                       ? mo.manifold->PlusJacobianPseudoInverse(x0)
+                                       : std::vector<double>();
 
   // scratch, sized once: the state at a sample, its tangent rows S (nx x ncol), one channel's
   // e and de/dx, one residual's row over the core's columns

@@ -31,6 +31,8 @@
 
 namespace mjsysid {
 
+class FitObserver;  // sysid/fit_observer.h
+
 // the optimiser's variable of a physical value p: z = p, log p, or p / scale
 enum class Transform { kNone, kLog, kScale };
 
@@ -228,7 +230,12 @@ struct FitOptions {
   // are compared with their chi-square expectation to decide FitStatus::kModelMismatch
   std::vector<std::string> sensors_with_sigma;
   UncertaintyOptions uncertainty;
-  bool verbose = false;  // one progress line per iteration on stderr
+  // the front end's choice to show progress (the experiment's solver.verbose): the runner
+  // (sysid/run/) passes its observer only when set; Problem::Fit itself reads `observer` alone
+  bool verbose = false;
+  // receives the fit's events (sysid/fit_observer.h; borrowed, nullptr: none); the library never
+  // prints
+  FitObserver* observer = nullptr;
   std::function<void(const IterationInfo&)> on_iteration;  // e.g. checkpoint the iterate
   const std::atomic<bool>* interrupt = nullptr;  // set to stop after the current iteration
   FitStates states;                              // logged states fitted as data (none by default)
@@ -247,8 +254,8 @@ struct FitOptions {
   // same cost, gradient and Gauss-Newton matrix in n + 1 rows), not row by row; false: every row
   // (the memory of Ceres' copies grows with the samples)
   bool compress_blocks = true;
-  // verbose: progress lines inside one long rollout or Jacobian column (sysid/progress.h
-  // StepProgressLines) every tenth of its steps, at most one per this many seconds of it
+  // with an observer: progress events inside one long rollout or Jacobian column
+  // (FitObserver::OnProgress) every tenth of its steps, at most one per this many seconds of it
   double progress_seconds = 2.0;
   // auto's contact segments (sysid/event_windows.h): the cells of velocity- and
   // acceleration-level sensors within this many samples of a contact event are left out of the

@@ -15,6 +15,7 @@
 #include "sysid/io/experiment.h"
 #include "sysid/metrics.h"
 #include "sysid/run/fit_experiment.h"
+#include "sysid/run/fit_table.h"
 #include "sysid/run/output_folder.h"
 #include "sysid/run/resume.h"
 #include "tools/sysid_cli.h"
@@ -45,6 +46,7 @@ struct FitArgs {
   std::string out;
   int threads = -1;
   bool quiet = false;
+  bool verbose = false;
   bool force = false;
   std::string resume;   // --resume DIR
   int starts = 0;       // --starts N (0: solver.starts)
@@ -111,14 +113,18 @@ void PrintStarts(const mjsysid::io::FitResultFile& f) {
   }
 }
 
-// prints the estimates against the start (and the truth, for simulated data)
-void PrintEstimates(const mjsysid::io::FitResultFile& f) {
-  std::printf("%s: %s after %d iterations (%s), cost %.6g -> %.6g, %.2f s\n", f.name.c_str(),
-              f.status.c_str(), f.iterations, f.termination.c_str(), f.initial_cost, f.final_cost,
-              f.seconds);
-  if (!f.segment_reason.empty()) std::printf("  %s\n", f.segment_reason.c_str());
-  if (f.reduction.recorded) {
-    std::printf("  reduced model: %s\n", mjsysid::ReductionText(f.reduction).c_str());
+// prints one summary line and the estimates against the start (and the truth, for simulated
+// data); verbose: also why the solver stopped, why the segments, what the reduced model left out
+// (all three are in result.yaml)
+void PrintEstimates(const mjsysid::io::FitResultFile& f, bool verbose) {
+  std::printf("%s: %s after %d iterations, cost %.6g -> %.6g, %.2f s\n", f.name.c_str(),
+              f.status.c_str(), f.iterations, f.initial_cost, f.final_cost, f.seconds);
+  if (verbose) {
+    std::printf("  stopped: %s\n", f.termination.c_str());
+    if (!f.segment_reason.empty()) std::printf("  segments: %s\n", f.segment_reason.c_str());
+    if (f.reduction.recorded) {
+      std::printf("  reduced model: %s\n", mjsysid::ReductionText(f.reduction).c_str());
+    }
   }
   std::printf("  %-24s %14s %14s %14s %12s  %-29s %s\n", "parameter", "initial", "estimate",
               "truth", "std", "95% interval", "flags");
@@ -186,15 +192,27 @@ int RunFitHere(const FitArgs& args,
   options.out_dir = args.resume.empty() ? args.out : args.resume;
   options.resume = !args.resume.empty();
   options.threads = args.threads;
+  // the fit's progress as one table on stderr (sysid/run/fit_table.h)
+  mjsysid::run::FitTable table(
+      [](const std::string& line) {
+        std::fprintf(stderr, "%s\n", line.c_str());
+        std::fflush(stderr);
+      },
+      args.verbose);
+  options.observer = &table;
   options.verbose = !args.quiet;
   options.interrupt = &g_interrupted;
   options.force = args.force;
-  options.on_estimates = PrintEstimates;
+  options.on_estimates = [&table, &args](const mjsysid::io::FitResultFile& f) {
+    table.Flush();  // the last iteration's row before the estimates
+    PrintEstimates(f, args.verbose);
+  };
   options.starts = args.starts;
   options.seed = args.seed;
   CatchStopSignals(true);
   const mjsysid::run::FitRunOutcome out = mjsysid::run::RunFit(config, options);
   CatchStopSignals(false);
+  table.Flush();
   const io::FitResultFile& f = out.file;
   // the data's warnings were printed before the fit (FitRunOutcome::printed_warnings)
   for (size_t i = static_cast<size_t>(out.printed_warnings); i < f.warnings.size(); ++i)
@@ -273,7 +291,10 @@ Command AddFit(CLI::App* app) {
                   "output folder (default: the experiment's `output`, results/<name>)");
   sub->add_option("--threads", args->threads, "simulation threads (default: solver.threads)")
       ->check(WholeNumberAtLeast(0));
-  sub->add_flag("--quiet", args->quiet, "no progress line per iteration");
+  sub->add_flag("--quiet", args->quiet, "no progress table (warnings and the summary only)");
+  sub->add_flag("--verbose", args->verbose,
+                "explain the statistical stop's test under each iteration of the table, and say "
+                "why the solver stopped, why these segments and what the reduced model left out");
   sub->add_flag("--force", args->force,
                 "replace an existing --out folder that is not an mjsysid result folder (its files "
                 "are deleted)");

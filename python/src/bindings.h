@@ -15,14 +15,22 @@
 
 #include <atomic>
 #include <csignal>
+#include <cstdio>
 #include <functional>
 #include <optional>
+#include <string>
 
 #include "sysid/types.h"
 
 namespace mjsysid::python {
 
 namespace nb = nanobind;
+
+// one line of the progress table (sysid/run/fit_table.h) on the process's stderr, as `sysid fit`
+inline void WriteStderrLine(const std::string& line) {
+  std::fprintf(stderr, "%s\n", line.c_str());
+  std::fflush(stderr);
+}
 
 class FitGuard {
  public:

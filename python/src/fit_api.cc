@@ -19,6 +19,7 @@
 #include "bindings.h"
 #include "core/mujoco_env.h"
 #include "sysid/problem.h"
+#include "sysid/run/fit_table.h"
 
 namespace mjsysid::python {
 namespace {
@@ -407,11 +408,15 @@ FitResult Fit(nb::object model, nb::object parameters, nb::object sequences, nb:
   FitGuard guard(std::move(callback));
   fit_options.interrupt = guard.interrupt();
   fit_options.on_iteration = guard.OnIteration(nullptr);
+  // options["verbose"]: the progress table on stderr (sysid/run/fit_table.h)
+  run::FitTable table(WriteStderrLine, false);
+  if (fit_options.verbose) fit_options.observer = &table;
   FitResult result;
   {
     nb::gil_scoped_release release;
     result = problem.Fit(fit_options);
   }
+  table.Flush();
   guard.RaiseCallbackError();
   return result;
 }

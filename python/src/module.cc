@@ -28,6 +28,7 @@
 #include "sysid/io/log.h"
 #include "sysid/io/result.h"
 #include "sysid/run/fit_experiment.h"
+#include "sysid/run/fit_table.h"
 #include "sysid/run/output_folder.h"
 #include "sysid/sim/simulate.h"
 #include "tools/report/report.h"
@@ -138,11 +139,15 @@ ExperimentFit FitExperiment(nb::handle experiment, std::optional<std::string> ou
   FitGuard guard(std::move(callback));
   options.interrupt = guard.interrupt();
   options.on_iteration = guard.OnIteration(nullptr);
+  // the data's warnings and, verbose, the progress table on stderr (sysid/run/fit_table.h)
+  run::FitTable table(WriteStderrLine, false);
+  options.observer = &table;
   run::FitRunOutcome outcome;
   {
     nb::gil_scoped_release release;
     outcome = run::RunFit(config, options);
   }
+  table.Flush();
   guard.RaiseCallbackError();
   ExperimentFit fit;
   static_cast<io::FitResultFile&>(fit) = std::move(outcome.file);

@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <map>
 
+#include "core/invariant.h"
 #include "sysid/compressed_cost.h"
 #include "sysid/cost_functions.h"
 #include "sysid/mpi/state_projection.h"
@@ -187,10 +188,7 @@ class TreeCost : public ceres::CostFunction {
     const ShardedResiduals::Root& g = shards_->root();
     const int n = shards_->n();
     if (!g.ok) return false;
-    if (jacobians && !g.jacobians) {
-      std::fprintf(stderr, "sysid: broken invariant: Jacobians asked without the callback\n");
-      std::abort();
-    }
+    MJSYSID_DEMAND(!jacobians || g.jacobians, "Jacobians asked without the callback");
     // as a compressed block (sysid/compressed_cost.h): z columns, then m columns
     if (!g.jacobians) {
       WriteNorm(n, g.sum_squares, residuals);
@@ -511,11 +509,8 @@ void ShardedResiduals::CollectStates(Problem::Impl* impl) {
   size_t at = 0;
   for (size_t b = 0; b < I.states.size(); ++b) {
     const StateBlocks::View<double> x = I.states[b];
-    if (at + x.size() > receive_.size()) {
-      std::fprintf(stderr,
-                   "sysid: broken invariant: the ranks sent fewer states than the fit has\n");
-      std::abort();
-    }
+    MJSYSID_DEMAND(at + x.size() <= receive_.size(),
+                   "the ranks sent fewer states than the fit has");
     std::copy(receive_.begin() + at, receive_.begin() + at + x.size(), x.begin());
     at += x.size();
   }
@@ -623,9 +618,9 @@ int ServeFit(const io::ExperimentConfig* config, int threads, const std::string&
       try {
         impl = (start ? start : bp.problem)->PrepareOnly(options);
       } catch (const std::exception& e) {
-        std::fprintf(stderr, "sysid: %s: preparing the refit failed: %s\n", RankName(rank).c_str(),
-                     e.what());
-        MPI_Abort(MPI_COMM_WORLD, 1);
+        // rank 0 prepared the same input with the same options
+        BrokenInvariant((RankName(rank) + ": preparing the refit failed: " + e.what()).c_str(),
+                        __FILE__, __LINE__);
       }
       ranges = LeafRanges(*impl, Size());
       share = Share();

@@ -495,6 +495,7 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
       CreateStagingFolder(out.out_dir, /*keep_checkpoint=*/base.has_value());
   FitOptions options = bp.options;
   options.verbose = ro.verbose && options.verbose;
+  options.observer = options.verbose ? ro.observer : nullptr;
   options.interrupt = ro.interrupt;
 
   // what every result file says about the run
@@ -595,15 +596,16 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
     } catch (const io::ResultError& e) {
       if (checkpoint_failed.empty()) {
         checkpoint_failed = e.what();
-        std::fprintf(stderr, "sysid fit: warning: checkpoint not written: %s\n", e.what());
+        if (ro.observer) ro.observer->OnWarning(std::string("checkpoint not written: ") + e.what());
       }
     }
     if (ro.on_iteration) ro.on_iteration(it);
   };
 
   // fit
-  for (const std::string& w : bp.warnings)
-    std::fprintf(stderr, "sysid fit: warning: %s\n", w.c_str());
+  for (const std::string& w : bp.warnings) {
+    if (ro.observer) ro.observer->OnWarning(w);
+  }
   try {
     if (starts > 1) {
       static_cast<FitResult&>(file) =

@@ -33,6 +33,7 @@
 #include <vector>
 
 #include "core/mujoco_env.h"
+#include "sysid/fit_observer.h"
 #include "sysid/io/experiment.h"
 #include "sysid/io/result.h"
 #include "sysid/problem.h"
@@ -64,9 +65,13 @@ struct BuiltProblem {
 BuiltProblem BuildProblem(const io::ExperimentConfig& config, int threads = -1);
 
 struct FitRunOptions {
-  std::string out_dir;                           // "" = config.output
-  int threads = -1;                              // < 0: the config's solver.threads
-  bool verbose = true;                           // progress lines on stderr
+  std::string out_dir;  // "" = config.output
+  int threads = -1;     // < 0: the config's solver.threads
+  // the fit's events (sysid/fit_observer.h; borrowed, nullptr: none): the data's warnings before
+  // the fit and a checkpoint that cannot be written always, the fit's progress when verbose and
+  // the experiment's solver.verbose are both set
+  FitObserver* observer = nullptr;
+  bool verbose = true;
   const std::atomic<bool>* interrupt = nullptr;  // set (e.g. by SIGINT) to stop after an iteration
   bool force = false;   // replace an existing output folder that is not an mjsysid result
   bool resume = false;  // continue from the folder's checkpoint (sysid/run/resume.h)
@@ -87,8 +92,8 @@ struct FitRunOutcome {
   io::FitResultFile file;  // the fit (a FitResult) and what the run adds
   std::string out_dir;
   int exit_code = 0;  // ExitCodeOf(file.outcome)
-  // the first file.warnings that RunFit already printed to stderr before the fit (the data's
-  // warnings, shown early); a front end prints the rest
+  // the first file.warnings that RunFit already reported (FitObserver::OnWarning) before the fit
+  // (the data's warnings, shown early); a front end shows the rest
   int printed_warnings = 0;
 };
 

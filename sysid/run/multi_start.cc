@@ -4,7 +4,6 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <exception>
 #include <limits>
 #include <mutex>
@@ -12,6 +11,7 @@
 #include <thread>
 
 #include "core/text.h"
+#include "sysid/fit_observer.h"
 
 namespace mjsysid::run {
 namespace {
@@ -116,13 +116,14 @@ FitResult FitFromStarts(const BuiltProblem& bp, const FitOptions& options, int n
   FitOptions per_fit = options;
   per_fit.threads = std::max(1, threads / concurrent);
   per_fit.verbose = false;
+  per_fit.observer = nullptr;  // the starts run side by side: only OnStartDone reports
   per_fit.on_iteration = nullptr;
 
   std::vector<FitResult> fits(static_cast<size_t>(n));
   std::vector<StartResult> records(static_cast<size_t>(n));
   std::vector<std::exception_ptr> errors(static_cast<size_t>(n));
   std::atomic<int> next{0}, finished{0};
-  std::mutex print;
+  std::mutex report;
   auto work = [&]() {
     for (int k = next++; k < n; k = next++) {
       StartResult& rec = records[static_cast<size_t>(k)];
@@ -158,19 +159,11 @@ FitResult FitFromStarts(const BuiltProblem& bp, const FitOptions& options, int n
         rec.initial_cost = rec.final_cost = kInf;
         rec.status = FitStatus::kNotConverged;
       }
-      // one line per finished start
+      // one event per finished start, one at a time
       const int done = ++finished;
-      if (progress) {
-        const std::lock_guard<std::mutex> lock(print);
-        if (rec.error.empty()) {
-          std::fprintf(
-              stderr, "sysid fit: start %d (%d/%d done): %s, cost %s -> %s, %d iterations\n", k,
-              done, n, FitStatusName(rec.status), FormatDigits(rec.initial_cost, 6).c_str(),
-              FormatDigits(rec.final_cost, 6).c_str(), rec.iterations);
-        } else {
-          std::fprintf(stderr, "sysid fit: start %d (%d/%d done): failed: %s\n", k, done, n,
-                       rec.error.c_str());
-        }
+      if (progress && options.observer) {
+        const std::lock_guard<std::mutex> lock(report);
+        options.observer->OnStartDone(k, done, n, rec);
       }
     }
   };

@@ -55,10 +55,11 @@ RowMatrix SpreadStarts(const std::vector<FitParameter>& parameters, int n, std::
 double Chi2Quantile(double dof, double z);
 
 // The fits of bp from n starts (n >= 2), options as for one fit (options.threads: all the fits'
-// threads together). progress: one line per finished start on stderr. Throws what a single fit
-// throws when every start fails. on_problem (FitRunOptions::on_problem: a fit sharded across MPI
-// ranks, sysid/mpi/): called with each start's Problem before its fit; the starts then run one
-// after another, each with all the threads.
+// threads together). progress: OnStartDone to options.observer per finished start (from the
+// worker threads, one at a time). Throws what a single fit throws when every start fails.
+// on_problem (FitRunOptions::on_problem: a fit sharded across MPI ranks, sysid/mpi/): called with
+// each start's Problem before its fit; the starts then run one after another, each with all the
+// threads.
 FitResult FitFromStarts(const BuiltProblem& bp, const FitOptions& options, int n,
                         std::uint64_t seed, bool progress,
                         const std::function<void(Problem&, FitOptions*)>& on_problem = {});

@@ -27,6 +27,7 @@
 #include "sysid/fit_ledger.h"
 #include "sysid/gn_convergence.h"
 #include "sysid/run/fit_experiment.h"
+#include "sysid/run/fit_table.h"
 #include "tests/experiment_log.h"
 #include "tests/sysid/linear_least_squares.h"
 
@@ -168,16 +169,17 @@ INSTANTIATE_TEST_SUITE_P(
 // standard error) after a last step of 0.84 standard errors, beyond kPreviousJacobianSteps; with
 // J_5 the predicted step is 4.4 % (measured), so stopping there would end 0.044 standard errors
 // from the fit without the test. Refused, the fit simulates J_5 and goes on as without it (the
-// verbose lines of the test before the Jacobian tell the refusal).
+// observer's events of the test before the Jacobian tell the refusal).
 TEST(PreviousJacobianFitTest, ALargeLastStepIsRefused) {
   io::ExperimentConfig cfg = test::ShippedExperimentWithLog("arm7.yaml", 1, kSteps, "gn_previous");
   run::BuiltProblem built = run::BuildProblem(cfg, 1);
   FitOptions options = built.options;
-  options.verbose = true;
+  std::string lines;  // the statistical stop's tests, as the verbose table explains them
+  run::FitTable table([&lines](const std::string& line) { lines += line + "\n"; }, true);
+  options.observer = &table;
   options.threads = 1;
-  ::testing::internal::CaptureStderr();
   const FitResult on = built.problem->Fit(options);
-  const std::string lines = ::testing::internal::GetCapturedStderr();
+  table.Flush();
   const FitResult off = FitWith(cfg, false, kFraction);
   // the tests before a Jacobian that passed condition 2 and were refused by condition 3
   int refused = 0;

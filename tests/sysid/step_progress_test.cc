@@ -1,12 +1,12 @@
 // Progress inside one long rollout (core/simulator.h StepProgress, sysid/progress.h
-// StepProgressLines). Core: a rollout of 1000 steps calls the hook at steps 0, 100, .., 900 and a
+// StepProgressEvents). Core: a rollout of 1000 steps calls the hook at steps 0, 100, .., 900 and a
 // directional Jacobian (with the initial state's columns) once per column at the same steps; no
-// hook, no call. Fit: a verbose fit of one long pendulum sequence (experiments/pendulum.yaml's
-// truth, noise and seed; 1 x 60,000 steps, 1 iteration) prints "sim" lines inside the start's
-// rollout and Jacobian, before its first iteration line, when every tenth may print
-// (progress_seconds 0); the shipped short sequences (3 x 2000 steps, a few milliseconds each) print
-// none at the default 2 s. No timing is asserted: the short case needs each rollout to stay below 2
-// s, which it does by three orders of magnitude.
+// hook, no call. Fit: a fit of one long pendulum sequence with an observer
+// (experiments/pendulum.yaml's truth, noise and seed; 1 x 60,000 steps, 1 iteration) reports "sim"
+// lines inside the start's rollout and Jacobian, before its first iteration row, when every tenth
+// may report (progress_seconds 0); the shipped short sequences (3 x 2000 steps, a few milliseconds
+// each) report none at the default 2 s. No timing is asserted: the short case needs each rollout to
+// stay below 2 s, which it does by three orders of magnitude.
 #include <gtest/gtest.h>
 
 #include <mutex>
@@ -20,6 +20,7 @@
 #include "sysid/io/log.h"
 #include "sysid/progress.h"
 #include "sysid/run/fit_experiment.h"
+#include "sysid/run/fit_table.h"
 #include "sysid/sim/simulate.h"
 #include "tests/experiment_log.h"
 #include "tests/file_util.h"
@@ -75,24 +76,27 @@ TEST(StepProgressTest, TenthsOfRolloutsAndJacobianColumns) {
   EXPECT_EQ(static_cast<int>(recorder.calls.size()), 10 * columns);
 }
 
-// the stderr of a verbose fit of experiments/pendulum.yaml with `sequences` x `steps` samples
-std::string FitStderr(int sequences, int steps, double progress_seconds) {
+// the progress table (sysid/run/fit_table.h) of a fit of experiments/pendulum.yaml with
+// `sequences` x `steps` samples, its lines joined; nothing is printed
+std::string FitTableText(int sequences, int steps, double progress_seconds) {
   io::ExperimentConfig cfg =
       test::ShippedExperimentWithLog("pendulum.yaml", sequences, steps, "step_progress");
   run::BuiltProblem built = run::BuildProblem(cfg, 1);
   FitOptions options = built.options;
-  options.verbose = true;
+  std::string text;
+  run::FitTable table([&text](const std::string& line) { text += line + "\n"; }, false);
+  options.observer = &table;
   options.threads = 1;
   options.max_iterations = 1;
   options.progress_seconds = progress_seconds;
-  testing::internal::CaptureStderr();
   built.problem->Fit(options);
-  return testing::internal::GetCapturedStderr();
+  table.Flush();
+  return text;
 }
 
-TEST(StepProgressTest, LongRolloutsPrintTenthsShortOnesNothing) {
-  const std::string long_fit = FitStderr(1, 60000, 0);
-  const size_t first_iteration = long_fit.find("iter   0");
+TEST(StepProgressTest, LongRolloutsReportTenthsShortOnesNothing) {
+  const std::string long_fit = FitTableText(1, 60000, 0);
+  const size_t first_iteration = long_fit.find("\n   0  ");
   ASSERT_NE(first_iteration, std::string::npos);
   const size_t rollout = long_fit.find("sim    rollout 10 % of 60000 steps");
   const size_t column = long_fit.find("sim    Jacobian column 90 % of 60000 steps");
@@ -101,8 +105,8 @@ TEST(StepProgressTest, LongRolloutsPrintTenthsShortOnesNothing) {
   EXPECT_LT(rollout, first_iteration);
   EXPECT_LT(column, first_iteration);
 
-  const std::string short_fit = FitStderr(3, 2000, 2.0);
-  EXPECT_NE(short_fit.find("iter   0"), std::string::npos);
+  const std::string short_fit = FitTableText(3, 2000, 2.0);
+  EXPECT_NE(short_fit.find("\n   0  "), std::string::npos);
   EXPECT_EQ(short_fit.find("sim    "), std::string::npos) << short_fit;
 }
 

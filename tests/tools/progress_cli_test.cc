@@ -67,11 +67,13 @@ TEST(ProgressCliTest, LongRunsPrintProgressFromTheStart) {
   const CliRun fit = SysidStderr("fit " + exp + " --out " + dir + "/out --threads 1");
   const std::vector<std::string> lines = Lines(fit.output);
   const int start = FirstLine(lines, "start  rollout and Jacobian of 1 sequence, 20000 steps");
-  const int iter0 = FirstLine(lines, "iter   0");
-  const int iter2 = FirstLine(lines, "iter   2");
+  const int header = FirstLine(lines, "iter           cost");
+  const int iter0 = FirstLine(lines, "   0  ");
+  const int iter2 = FirstLine(lines, "   2  ");
   const int unc = FirstLine(lines, "unc    Jacobian at the estimate (uncertainty)");
   EXPECT_EQ(start, 0) << fit.output;
-  EXPECT_GT(iter0, start) << fit.output;
+  EXPECT_GT(header, start) << fit.output;
+  EXPECT_EQ(iter0, header + 1) << fit.output;
   EXPECT_GT(iter2, iter0) << fit.output;
   EXPECT_GT(unc, iter2) << fit.output;
   EXPECT_GT(FirstLine(lines, "unc    interval check"), unc) << fit.output;

@@ -1,0 +1,134 @@
+// One pass of a fit (sysid/fit/pass.h): the sequence of stages, the start (stage 1) and the
+// decision (stage 9).
+#include "sysid/fit/pass.h"
+
+#include <algorithm>
+#include <string>
+#include <vector>
+
+#include "core/text.h"
+#include "sysid/fit_status.h"
+#include "sysid/progress.h"
+
+namespace mjsysid {
+
+FitPass::FitPass(Problem::Impl* impl, const FitOptions& options)
+    : I_(*impl),
+      options_(options),
+      start_(std::chrono::steady_clock::now()),
+      ledger_(
+          [impl] {
+            long long steps = 0;
+            for (const auto& mo : impl->models) steps += mo.sim ? mo.sim->StepCount() : 0;
+            return steps;
+          },
+          [impl] {
+            // the task model's critical path at 2 workers (core/thread_pool.h)
+            long long steps = 0;
+            for (const auto& mo : impl->models) {
+              steps += mo.sim ? mo.sim->ParallelLoad().span[2] : 0;
+            }
+            return steps;
+          }) {
+  // the time inside the simulators' batches (serial time = the rest)
+  ledger_.MeasureBatches([impl] {
+    PoolTime sum;
+    for (const auto& mo : impl->models) {
+      if (mo.sim) sum += mo.sim->ParallelTime();
+    }
+    return sum;
+  });
+  I_.ledger = &ledger_;
+}
+
+FitPass::~FitPass() {
+  I_.ledger = nullptr;
+  I_.compressed = nullptr;
+}
+
+double FitPass::Seconds() const { return SecondsSince(start_); }
+
+const std::string& FitPass::first_jacobian_warning() const {
+  return I_.jacobian_warnings.begin()->second;
+}
+
+FitPass::Stop FitPass::Solve() {
+  Start();
+  BuildCeres();
+  Configure();
+  return RunSolver() ? Stop::kNone : Stop::kJacobianWarning;
+}
+
+void FitPass::Assess() {
+  RecordSolve();
+  Uncertainty();
+  if (evaluated_) CheckIntervals();
+  FinalSignals();
+  Decide();
+}
+
+// 1. the equation-error starts, the prepared fit, and what the result knows before the solve
+void FitPass::Start() {
+  ledger_.Enter(kPhaseAutoStart);
+  I_.fit_start = start_;
+  // the progress events inside long rollouts (PrepareFit installs them on the simulators)
+  if (!I_.step_progress) {
+    I_.step_progress = std::make_unique<StepProgressEvents>(start_, 0, nullptr);
+  }
+  I_.step_progress->Reset(start_, options_.progress_seconds, options_.observer);
+  start_notes_ = SolveAutoStarts(&I_, options_.threads);
+  ledger_.Enter(kPhasePrepare);
+  plan_ = PrepareFit(&I_, options_);
+  ledger_.Enter(kPhaseSetup);
+  np_ = static_cast<int>(I_.params.size());
+  nm_ = static_cast<int>(I_.m.size());
+  result_.jacobian_mode = plan_.jacobian_mode;
+  result_.segment_steps_used = plan_.segment_steps;
+  result_.segment_reason = SegmentReasonText(plan_.segments);
+  result_.event_windows = plan_.event_windows;
+  result_.warnings = I_.prepare_warnings;
+  result_.warnings.insert(result_.warnings.end(), start_notes_.begin(), start_notes_.end());
+  // a start on a bound: the first step may leave the bound at once or never (a projected
+  // gradient pointing outwards)
+  for (const FitParameter& p : I_.params) {
+    if (p.initial == p.lower || p.initial == p.upper) {
+      result_.warnings.push_back("parameter '" + p.name + "' starts on its " +
+                                 (p.initial == p.lower ? "lower" : "upper") + " bound " +
+                                 FormatDigits(p.initial, 3) +
+                                 ": start inside the bounds, or the fit may not leave it");
+    }
+  }
+}
+
+// 9. the verdict (sysid/fit_status.h) from the accepted steps, the Jacobian warnings and the
+// chi-square; the step count, the reduced model, the ledger and the time
+void FitPass::Decide() {
+  int accepted_steps = held_accepted_;
+  for (size_t i = 1; i < summary_.iterations.size(); ++i) {
+    accepted_steps += summary_.iterations[i].step_is_successful ? 1 : 0;
+  }
+  DecideFitStatus(options_, accepted_steps, !I_.jacobian_warnings.empty(), &result_,
+                  cost_not_local_, jacobian_warned_at_estimate_);
+  for (const auto& mo : I_.models) result_.simulation_steps += mo.sim->StepCount();
+  // what the reduced models switched off, summed over the models
+  FitResult::Reduction& r = result_.reduction;
+  r = FitResult::Reduction();
+  r.recorded = true;
+  r.used = options_.reduce_model;
+  for (const auto& mo : I_.models) {
+    const ModelReduction& mr = mo.sim->reduction();
+    r.collision_pairs += mr.candidate_pairs;
+    r.collision_pairs_off += mr.pairs_off;
+    r.geoms_off += static_cast<int>(mr.geoms_off.size());
+    r.guard_trips += mo.sim->ReductionTrips();
+    for (const std::string& name : DisabledNames(mr.disable)) {
+      if (std::find(r.disabled.begin(), r.disabled.end(), name) == r.disabled.end()) {
+        r.disabled.push_back(name);
+      }
+    }
+  }
+  result_.ledger = ledger_.Finish();
+  result_.seconds = Seconds();
+}
+
+}  // namespace mjsysid

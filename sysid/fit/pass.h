@@ -1,0 +1,131 @@
+// One pass of a fit: the problem prepared once, solved once, and its estimate assessed, as a
+// sequence of named stages (Ceres' Minimize): Solve runs stages 1-4, Assess stages 5-9.
+// Problem::Fit (sysid/fit/policy.cc) runs a pass and, for auto multiple shooting, may run a second
+// one in segments; it combines their records.
+//
+// The stages, in order, each a member function in its own file:
+//   1. Start        (pass.cc)             the equation-error starts (`initial: auto`), PrepareFit,
+//                                         the result's first fields and warnings
+//   2. BuildCeres   (pass_build.cc)       the parameter blocks with bounds and manifolds, a
+//   residual
+//                                         block per segment (compressed), the priors
+//   3. Configure    (pass_build.cc)       the solver's options, callbacks, the statistical stop
+//   4. RunSolver    (pass_solve.cc)       the solve with the segment states held (auto's contact
+//                                         segments), then the solve; stops early when auto's
+//                                         single shooting meets a Jacobian warning (Stop)
+//   5. RecordSolve  (pass_solve.cc)       costs, iterations, termination, the solve's warnings, the
+//                                         estimate's values and bound flags
+//   6. Uncertainty  (pass_uncertainty.cc) the Jacobian at the estimate and the covariance
+//   7. CheckIntervals (pass_intervals.cc) the cost one standard error away against the Jacobian's
+//                                         quadratic model
+//   8. FinalSignals (pass_signals.cc)     derived inertials, bound and identifiability warnings,
+//                                         the simulated signals at the start and the estimate
+//   9. Decide       (pass.cc)             the status (sysid/fit_status.h), steps, ledger, time
+//
+// Ownership: a pass borrows the problem's state (Problem::Impl) for its lifetime and owns the
+// Ceres problem and what the solve needs around it; the Impl's borrowed pointers to the pass's
+// ledger and compressed blocks are cleared when the pass ends. Not thread-safe: one pass at a time
+// per Problem, on one thread (the simulators are parallel inside).
+#pragma once
+
+#include <ceres/ceres.h>
+
+#include <chrono>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "sysid/compressed_cost.h"
+#include "sysid/cost_functions.h"
+#include "sysid/fit_ledger.h"
+#include "sysid/gn_convergence.h"
+#include "sysid/problem_impl.h"
+#include "sysid/variable_manifold.h"
+
+namespace mjsysid {
+
+class FitPass {
+ public:
+  // why a pass ended before its result was assembled
+  enum class Stop {
+    kNone,             // the pass ran every stage
+    kJacobianWarning,  // auto's single shooting met a Jacobian warning (refit in segments)
+  };
+
+  FitPass(Problem::Impl* impl, const FitOptions& options);
+  ~FitPass();
+  FitPass(const FitPass&) = delete;
+  FitPass& operator=(const FitPass&) = delete;
+
+  // runs stages 1-4; kJacobianWarning when the solve stopped for one (the result then holds the
+  // trace alone; Assess may still follow)
+  Stop Solve();
+  // runs stages 5-9 after Solve: the result is complete
+  void Assess();
+
+  // the result (complete after Assess)
+  FitResult& result() { return result_; }
+  const FitPlan& plan() const { return plan_; }
+  // the first Jacobian warning of the solve (Stop::kJacobianWarning)
+  const std::string& first_jacobian_warning() const;
+  // seconds since the pass began
+  double Seconds() const;
+
+ private:
+  void Start();
+  void BuildCeres();
+  void Configure();
+  bool RunSolver();  // false: stopped for a Jacobian warning
+  void RecordSolve();
+  void Uncertainty();
+  void CheckIntervals();
+  void FinalSignals();
+  void Decide();
+
+  // stage 8's parts
+  void DerivedQuantities();
+  void SequenceSignals(size_t q, double* worst_gap, std::string* worst_gap_where);
+  // the cost with variable v of FitResult::parameters moved by delta (physical units): false
+  // outside its bounds or when the residuals cannot be evaluated
+  bool CostAt(int v, double delta, double* cost);
+  bool OnBound(int v, double value, bool lower) const;
+
+  Problem::Impl& I_;
+  const FitOptions& options_;
+  const std::chrono::steady_clock::time_point start_;
+  FitLedger ledger_;
+  FitResult result_;
+  FitPlan plan_;
+  std::vector<std::string> start_notes_;  // the equation-error starts, one line per model
+  int np_ = 0;                            // physical parameters
+  int nm_ = 0;                            // measurement terms and control delays (the m block)
+
+  // the Ceres problem and what it borrows (declared before it: destroyed after it)
+  std::unique_ptr<PrefetchCallback> prefetch_;
+  std::unique_ptr<VariableManifold> variable_manifold_;
+  CompressedBlocks compressed_;
+  bool compress_ = false;
+  std::unique_ptr<ceres::Problem> problem_;
+  std::vector<double*> blocks_;  // every parameter block, in the order added
+  ceres::Solver::Options solver_;
+  UncertaintyOptions uncertainty_;
+  std::unique_ptr<ProgressCallback> progress_;
+  std::unique_ptr<GaussNewtonStop> gn_stop_;
+  bool gn_valid_ = false;  // the statistical stop's test is valid for this fit
+
+  // the solve (stage 4)
+  ceres::Solver::Summary summary_;
+  int held_accepted_ = 0;           // accepted steps of the solve with the states held
+  double held_initial_cost_ = -1;   // its initial cost (-1: it did not run)
+  bool previous_jacobian_ = false;  // the stop fired before the estimate's Jacobian
+
+  // the estimate (stages 6-7)
+  ceres::Problem::EvaluateOptions evaluate_;
+  bool evaluated_ = false;  // the residuals and Jacobian at the estimate were evaluated
+  bool multiple_ = false;   // segments joined by continuity rows (here, not sharded)
+  Eigen::MatrixXd r_aug_;   // the triangle [R q; 0 rho] of [J_p r] (physical units)
+  bool cost_not_local_ = false;
+  bool jacobian_warned_at_estimate_ = false;
+};
+
+}  // namespace mjsysid

@@ -1,0 +1,118 @@
+// Stage 7 of a fit pass (sysid/fit/pass.h): the intervals' quadratic model against the cost.
+#include <cmath>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "core/text.h"
+#include "sysid/fit/pass.h"
+#include "sysid/fit_observer.h"
+#include "sysid/interval_check.h"
+#include "sysid/progress.h"
+
+namespace mjsysid {
+
+// 7. The cost one standard error away from the estimate against the Jacobian's prediction:
+// contacts can make the cost jump far inside an interval (sysid/interval_check.h). Along the
+// simulator parameters only where the rollouts at the estimate can make the cost rugged
+// (RuggedReason) or the standard error is wide; the measurement terms and control delays always.
+// The triangle's rows give the same model 0.5 |r + J_v d|^2 as the residual rows. What ran and why
+// goes to FitResult::interval_check (never silent); a cost that jumps marks the intervals not
+// valid.
+void FitPass::CheckIntervals() {
+  ledger_.Enter(kPhaseIntervalCheck);
+  if (options_.observer) {
+    options_.observer->OnStage(FitStage::kIntervalCheck, "interval check",
+                               SecondsSince(I_.fit_start));
+  }
+  CostSmoothness smoothness;
+  smoothness.all_rollouts = !I_.shards;
+  smoothness.jacobian_warnings = static_cast<int>(I_.jacobian_warnings.size());
+  smoothness.robust_loss = options_.loss != LossType::kNone;
+  smoothness.fitted_delays = static_cast<int>(I_.control_delay_index.size());
+  for (const TermIndex& t : I_.term_index) smoothness.fitted_delays += t.delay >= 0 ? 1 : 0;
+  for (size_t g = 0; g < I_.segments.size() && smoothness.all_rollouts; ++g) {
+    const EvaluationCache::Entry& e = I_.cache->Cached(static_cast<int>(g));
+    if (e.key.empty() || e.failed) {
+      smoothness.all_rollouts = false;
+      break;
+    }
+    smoothness.steps += e.tr.T;
+    for (int n : e.tr.ncon) smoothness.contact_steps += n > 0 ? 1 : 0;
+    smoothness.row_changes += e.tr.solver.row_changes;
+    smoothness.friction_changes += e.tr.solver.friction_changes;
+    const mjModel& mm = I_.models[I_.segments[g].model].sim->model();
+    smoothness.pgs_constraints |= mm.opt.solver == mjSOL_PGS && e.tr.solver.solved > 0;
+    if (e.has_jacobians && !e.jacobians_failed) smoothness.kinks += e.s.kinks;
+  }
+  const std::string rugged = RuggedReason(smoothness);
+  const int nvar = np_ + nm_;
+  const Eigen::VectorXd& se = result_.uncertainty.std_error;
+  Eigen::VectorXd se_checked = se;
+  int skipped = 0;
+  for (int v = 0; v < np_ && rugged.empty(); ++v) {
+    if (!std::isfinite(se[v]) || !(se[v] > 0)) continue;
+    if (!CheckAlongSmooth(result_.parameters[v].value, se[v])) {
+      ++skipped;
+      se_checked[v] = std::numeric_limits<double>::quiet_NaN();
+    }
+  }
+  const IntervalCheck ic =
+      CheckIntervalScale(r_aug_.col(nvar), r_aug_.leftCols(nvar), se_checked, plan_.names,
+                         [this](int v, double delta, double* c) { return CostAt(v, delta, c); });
+  const std::string wide = FormatDigits(100 * kSmoothRelativeStd, 3) + " % of the value";
+  if (!rugged.empty()) {
+    result_.interval_check =
+        "ran: " + std::to_string(ic.checked) + " cost evaluations (" + rugged + ")";
+  } else if (skipped == 0) {
+    result_.interval_check = "ran: " + std::to_string(ic.checked) +
+                             " cost evaluations (smooth rollouts, standard errors above " + wide +
+                             ")";
+  } else {
+    result_.interval_check =
+        "skipped along " + std::to_string(skipped) + " of the " + std::to_string(np_) +
+        " simulator parameters (standard error <= " + wide +
+        "): the rollouts at the estimate have no contact, no constraint row that comes, goes or "
+        "changes state, no kink and no Jacobian warning (a smooth cost); " +
+        std::to_string(ic.checked) + " cost evaluations along the other variables";
+  }
+  if (!ic.local) {
+    cost_not_local_ = true;
+    result_.warnings.push_back(
+        "the cost is not smooth at the scale of the intervals: " + ic.worst +
+        "; contacts, impacts or stick-slip make the rollouts jump when a parameter moves by less "
+        "than its standard error, so the Jacobian describes the cost only very locally and the "
+        "intervals are not valid (docs/numerics.md, \"Contact: a rugged cost\")");
+  }
+}
+
+// A fit parameter's +- delta in one batch of rollouts (2 n tasks instead of two batches of n; 3
+// sequences on 2 workers: 3 rounds instead of 4); each evaluation then finds its rollouts in the
+// cache. The variable is restored after the evaluation.
+bool FitPass::CostAt(int v, double delta, double* cost) {
+  const ParameterEstimate& e = result_.parameters[v];
+  const double value = e.value + delta;
+  const double lo = v < np_ ? I_.params[v].lower : plan_.mbounds[v - np_].first;
+  const double hi = v < np_ ? I_.params[v].upper : plan_.mbounds[v - np_].second;
+  if (e.at_lower || e.at_upper || value < lo || value > hi) return false;
+  if (v < np_ && delta > 0) {
+    const double minus = e.value - delta;
+    std::vector<double> zp = I_.z, zm = I_.z;
+    zp[v] = I_.params[v].ToVariable(value);
+    zm[v] = I_.params[v].ToVariable(minus);
+    if (minus >= lo && minus <= hi && std::isfinite(zp[v]) && std::isfinite(zm[v])) {
+      std::vector<const double*> x0(I_.segments.size());
+      for (size_t s = 0; s < I_.segments.size(); ++s) x0[s] = I_.X0(static_cast<int>(s));
+      I_.cache->PrefetchPoints({zp.data(), zm.data()}, x0);
+    }
+  }
+  double* slot = v < np_ ? &I_.z[v] : &I_.m[v - np_];
+  const double saved = *slot;
+  *slot = v < np_ ? I_.params[v].ToVariable(value) : value;
+  const bool ok =
+      std::isfinite(*slot) && problem_->Evaluate(evaluate_, cost, nullptr, nullptr, nullptr);
+  *slot = saved;
+  return ok;
+}
+
+}  // namespace mjsysid

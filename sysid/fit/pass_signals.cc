@@ -1,0 +1,221 @@
+// Stage 8 of a fit pass (sysid/fit/pass.h): what the estimate means beyond its values: derived
+// inertials, bound and identifiability warnings, and the simulated signals at the start and at the
+// estimate, sequence by sequence.
+#include <string>
+#include <vector>
+
+#include "core/text.h"
+#include "sysid/derived_inertials.h"
+#include "sysid/fit/pass.h"
+#include "sysid/residual_model.h"
+#include "sysid/state_residuals.h"
+
+namespace mjsysid {
+namespace {
+
+// multiple shooting: a continuity gap (tangent space: m, rad, m/s, rad/s) above this at the
+// estimate is reported as segments that do not join
+constexpr double kContinuityGapWarning = 1e-3;
+
+// Reduces the sequence's matrices (T x nsensordata, the model's layout) to the columns of the
+// fitted sensors, in the order given, and fills their names, dimensions and the sample times.
+void KeepFittedColumns(const mjModel& m, const std::vector<std::string>& fitted,
+                       const FitSequence& sq, SequenceResult* sr) {
+  std::vector<int> cols;
+  for (const std::string& name : fitted) {
+    const int id = mj_name2id(&m, mjOBJ_SENSOR, name.c_str());
+    sr->sensor_names.push_back(name);
+    sr->sensor_dims.push_back(m.sensor_dim[id]);
+    for (int c = 0; c < m.sensor_dim[id]; ++c) cols.push_back(m.sensor_adr[id] + c);
+  }
+  const Eigen::Index T = sr->measured.rows();
+  for (RowMatrix* mat : {&sr->measured, &sr->simulated_initial, &sr->simulated_final}) {
+    RowMatrix kept(T, static_cast<Eigen::Index>(cols.size()));
+    for (size_t c = 0; c < cols.size(); ++c) kept.col(c) = mat->col(cols[c]);
+    *mat = std::move(kept);
+  }
+  sr->missing.assign(cols.size(), 0);
+  for (size_t c = 0; c < cols.size(); ++c) {
+    sr->missing[c] = static_cast<int>(sr->measured.col(c).array().isNaN().count());
+  }
+  if (sq.time.size() == T) {
+    sr->time = sq.time;
+  } else {
+    sr->time = Eigen::VectorXd::LinSpaced(T, 0, static_cast<double>(T - 1)) * m.opt.timestep;
+    sr->time.array() += sq.x0.time;
+  }
+}
+
+// Rows [first, first + count) of *out: the simulated sensors (a rollout's T x ns rows from step
+// k0) at those measured samples' positions, interpolated between steps like the residuals
+void SensorsAtSamples(const RowMatrix& sensors, const SampleGrid& grid, int k0, int first,
+                      int count, double dt, RowMatrix* out) {
+  const int T = static_cast<int>(sensors.rows());
+  for (int k = first; k < first + count; ++k) {
+    const DelayedSample at(grid.position[k] - k0, T, 0.0, dt);
+    for (Eigen::Index c = 0; c < sensors.cols(); ++c) {
+      (*out)(k, c) = at.Value({sensors.data() + c, sensors.cols()});
+    }
+  }
+}
+
+}  // namespace
+
+// 8. Derived quantities and warnings, then every sequence's signals at the start and at the
+// estimate (segment-wise in multiple shooting) with the largest continuity gap: segments that do
+// not join describe no single trajectory, which the user must be told (docs/stress.md).
+void FitPass::FinalSignals() {
+  ledger_.Enter(kPhaseSignals);
+  DerivedQuantities();
+  for (const auto& p : result_.parameters) {
+    if (p.at_lower || p.at_upper) {
+      result_.warnings.push_back("parameter '" + p.name + "' stopped on its " +
+                                 (p.at_lower ? "lower" : "upper") +
+                                 " bound: not estimated (no interval); the data may prefer a "
+                                 "value outside the bounds");
+    }
+  }
+  for (const std::string& line : result_.uncertainty.unidentifiable) {
+    result_.warnings.push_back("unidentifiable: " + line);
+  }
+  // the controls at the fitted delays (the interval check evaluated others)
+  if (nm_) I_.SyncControlDelays(I_.m.data());
+  if (I_.shards) I_.shards->CollectStates(&I_);
+  RolloutUnowned(&I_, &plan_.initial);
+  double worst_gap = 0;
+  std::string worst_gap_where;
+  for (size_t q = 0; q < I_.sequences.size(); ++q) SequenceSignals(q, &worst_gap, &worst_gap_where);
+  if (worst_gap > kContinuityGapWarning) {
+    result_.warnings.push_back(
+        std::string("multiple shooting: segments do not join at the estimate (largest continuity "
+                    "gap ") +
+        FormatDigits(worst_gap, 3) + " in state units, " + worst_gap_where +
+        "): it describes no single trajectory; try shorter segments, a larger continuity_weight "
+        "or a start closer to the data");
+  }
+}
+
+// the physical quantities of bodies fitted through body_inertial (mass, centre of mass,
+// principal moments) with delta-method intervals from the parameters' covariance
+void FitPass::DerivedQuantities() {
+  Eigen::VectorXd values(np_), se(np_);
+  for (int v = 0; v < np_; ++v) {
+    values[v] = result_.parameters[v].value;
+    se[v] = result_.parameters[v].std_error;
+  }
+  Eigen::MatrixXd cov;
+  if (result_.uncertainty.covariance.rows() >= np_) {
+    cov = result_.uncertainty.covariance.topLeftCorner(np_, np_);
+  }
+  for (const auto& mo : I_.models) {
+    const std::string prefix = I_.models.size() > 1 ? mo.name + "/" : "";
+    for (DerivedQuantity& d :
+         DeriveInertials(*mo.model, mo.name, I_.params, values, se, cov, prefix)) {
+      result_.derived.push_back(std::move(d));
+    }
+  }
+}
+
+// Sequence q's SequenceResult: measured, simulated at the start and at the estimate (measurement
+// terms applied), the fitted states likewise, and the samples not measured (warned); the largest
+// continuity gap at the estimate so far in *worst_gap
+void FitPass::SequenceSignals(size_t q, double* worst_gap, std::string* worst_gap_where) {
+  const FitSequence& sq = I_.sequences[q];
+  const Problem::Impl::Model& mo = I_.models[I_.ModelIndex(sq.model)];
+  const std::vector<Trajectory>& initial = plan_.initial;
+  SequenceResult sr;
+  sr.name = sq.name;
+  sr.model = sq.model;
+  sr.measured = sq.measured;
+  const SampleGrid& grid = I_.grids[q];
+  const double dt = mo.sim->model().opt.timestep;
+  sr.simulated_initial.resize(sq.measured.rows(), sq.measured.cols());
+  SensorsAtSamples(initial[q].sensors, grid, 0, 0, static_cast<int>(sq.measured.rows()), dt,
+                   &sr.simulated_initial);
+  sr.simulated_final.resize(sq.measured.rows(), sq.measured.cols());
+  if (np_) ApplyVariables(I_.params, mo.global, I_.z.data(), mo.sim.get());
+  const double* zv = np_ ? I_.z.data() : nullptr;
+  for (size_t s = 0; s < I_.segments.size(); ++s) {
+    const Segment& seg = I_.segments[s];
+    if (seg.seq != static_cast<int>(q)) continue;
+    const double* x0 = I_.X0(static_cast<int>(s));
+    if (seg.k0 == 0) sr.x0_final = Eigen::Map<const Eigen::VectorXd>(x0, mo.sim->dims().nphys);
+    try {
+      // the rollout at the estimate, from the evaluation cache (the evaluation at the estimate
+      // ran it; simulated here only if that evaluation failed)
+      const EvaluationCache::Entry& cached = I_.cache->Evaluate(static_cast<int>(s), zv, x0, false);
+      if (cached.failed) throw std::runtime_error(cached.error);
+      const Trajectory& tr = cached.tr;
+      int first = 0, count = 0;
+      I_.SamplesOf(static_cast<int>(s), &first, &count);
+      SensorsAtSamples(tr.sensors, grid, seg.k0, first, count, dt, &sr.simulated_final);
+      if (seg.next >= 0) {
+        const int nx = mo.sim->dims().nx;
+        Eigen::VectorXd gap(nx);
+        TangentDifference(mo.sim->model(), I_.states[seg.next].data(), tr.states.row(seg.T).data(),
+                          1.0, gap.data());
+        if (gap.lpNorm<Eigen::Infinity>() > *worst_gap) {
+          *worst_gap = gap.lpNorm<Eigen::Infinity>();
+          *worst_gap_where = "sequence '" + sq.name + "' at step " + std::to_string(seg.k0 + seg.T);
+        }
+      }
+      // apply the measurement terms to the fitted columns
+      for (const Channel& ch : I_.channels[q]) {
+        if (ch.measurement < 0) continue;
+        const MeasurementTerms terms = I_.Terms(ch.measurement, nm_ ? I_.m.data() : nullptr);
+        const Signal simulated{tr.sensors.data() + ch.column, tr.sensors.cols()};
+        for (int k = first; k < first + count; ++k) {
+          const DelayedSample at(grid.position[k] - seg.k0, tr.T, terms.delay, dt);
+          sr.simulated_final(k, ch.column) = terms.Apply(at.Value(simulated));
+        }
+      }
+    } catch (const std::exception& e) {
+      result_.warnings.push_back("sequence '" + sq.name +
+                                 "': final simulation failed: " + e.what());
+    }
+  }
+  KeepFittedColumns(mo.sim->model(), I_.fitted[q], sq, &sr);
+  // fitted states: logged, at the initial values, at the estimate, weighted residuals
+  if (!I_.state_channels[q].empty()) {
+    const std::vector<StateChannel>& chans = I_.state_channels[q];
+    const int T = static_cast<int>(sq.measured.rows());
+    InitStateResult(chans, sq, &sr);
+    StatesAtSamples(mo.sim->model(), chans, sq, initial[q].states, grid.position, 0, 0, T,
+                    &sr.state_simulated_initial, nullptr);
+    for (size_t s = 0; s < I_.segments.size(); ++s) {
+      const Segment& seg = I_.segments[s];
+      if (seg.seq != static_cast<int>(q)) continue;
+      const EvaluationCache::Entry& cached =
+          I_.cache->Evaluate(static_cast<int>(s), zv, I_.X0(static_cast<int>(s)), false);
+      if (cached.failed) continue;  // warned above
+      int first = 0, count = 0;
+      I_.SamplesOf(static_cast<int>(s), &first, &count);
+      StatesAtSamples(mo.sim->model(), chans, sq, cached.tr.states, grid.position, seg.k0, first,
+                      count, &sr.state_simulated_final, &sr.state_residual_final);
+    }
+    for (size_t i = 0; i < chans.size(); ++i) {
+      if (I_.state_missing[q][i] == 0) continue;
+      result_.warnings.push_back("sequence '" + sq.name + "': state '" + chans[i].name +
+                                 "': " + std::to_string(I_.state_missing[q][i]) + " of " +
+                                 std::to_string(T) +
+                                 " samples not measured (NaN), masked out of the fit");
+    }
+  }
+  // masked samples, sensor by sensor; event windows are said once (FitResult::event_windows), not
+  // as unmeasured samples
+  for (size_t i = 0, col = 0; i < sr.sensor_names.size(); col += sr.sensor_dims[i++]) {
+    int missing = 0;
+    for (int c = 0; c < sr.sensor_dims[i]; ++c) missing += sr.missing[col + c];
+    for (int c = 0; c < sr.sensor_dims[i] && q < I_.event_masked.size(); ++c) {
+      if (col + c < I_.event_masked[q].size()) missing -= I_.event_masked[q][col + c];
+    }
+    if (missing == 0) continue;
+    result_.warnings.push_back("sequence '" + sq.name + "': sensor '" + sr.sensor_names[i] +
+                               "': " + std::to_string(missing) + " of " +
+                               std::to_string(sr.measured.rows() * sr.sensor_dims[i]) +
+                               " values not measured (NaN), masked out of the fit");
+  }
+  result_.sequences.push_back(std::move(sr));
+}
+
+}  // namespace mjsysid

@@ -1,0 +1,108 @@
+// Stages 4 and 5 of a fit pass (sysid/fit/pass.h): the solve and what the result records of it.
+#include <limits>
+#include <map>
+#include <string>
+
+#include "sysid/fit/pass.h"
+#include "sysid/multiple_shooting.h"
+
+namespace mjsysid {
+
+// 4. The solve. Auto's contact segments first solve with the segment states held on the data
+// (sysid/multiple_shooting.h, SolveWithStatesHeld): its accepted steps count as the fit's and its
+// initial cost is the fit's. During the solve the trial points' first columns are computed on idle
+// workers and the compressed blocks are folded ahead (sysid/compressed_cost.h). Returns false when
+// auto's single shooting met a Jacobian warning (the progress callback ended the solve): the
+// policy refits in segments and this pass ends here.
+bool FitPass::RunSolver() {
+  I_.rejected_evaluations = 0;
+  I_.jacobian_warnings.clear();
+  ++I_.cost_inputs_epoch;  // (jacobian_warnings cleared)
+  ledger_.solving = true;
+  if (plan_.contact_segments && options_.hold_states_first && !I_.shards) {
+    const ceres::Solver::Summary held = SolveWithStatesHeld(I_, problem_.get(), solver_);
+    for (size_t i = 1; i < held.iterations.size(); ++i) {
+      held_accepted_ += held.iterations[i].step_is_successful ? 1 : 0;
+    }
+    held_initial_cost_ = held.initial_cost;
+    plan_.segments.held_iterations = static_cast<int>(held.iterations.size()) - 1;
+    plan_.segments.held_initial_cost = held.initial_cost;
+    plan_.segments.held_final_cost = held.final_cost;
+    result_.segment_reason = SegmentReasonText(plan_.segments);
+  }
+  I_.cache->SetColumnsAhead(true);
+  I_.compressed = compress_ && options_.fold_ahead ? &compressed_ : nullptr;
+  ceres::Solve(solver_, problem_.get(), &summary_);
+  I_.cache->SetColumnsAhead(false);
+  I_.gn_stop = nullptr;
+  I_.SetPreviousJacobian(false);
+  // fired before the last Jacobian: the estimate is evaluated with the previous iterate's
+  // Jacobian too (else, e.g. interrupted at that point, with its own)
+  previous_jacobian_ = gn_stop_->fired_before_jacobian() && !result_.interrupted;
+  ledger_.solving = false;
+  // the columns computed ahead of points that were not taken (the last trial's at least)
+  ledger_.Move(kPhaseTrials, kPhaseAheadUnused, I_.cache->AheadStepsUnused());
+  return !(I_.stop_on_jacobian_warning && !I_.jacobian_warnings.empty() && !result_.interrupted);
+}
+
+// 5. What the solve gave: costs, iterations, whether it converged (Ceres or the statistical stop)
+// and why it stopped, the residual count, the solve's warnings, and the estimate's values with
+// their starts and bound flags (no interval yet).
+void FitPass::RecordSolve() {
+  result_.initial_cost = held_initial_cost_ >= 0 ? held_initial_cost_ : summary_.initial_cost;
+  result_.final_cost = summary_.final_cost;
+  result_.iterations = static_cast<int>(summary_.iterations.size()) - 1;
+  result_.gauss_newton_converged = gn_stop_->fired() && !result_.interrupted;
+  result_.converged =
+      (summary_.termination_type == ceres::CONVERGENCE || result_.gauss_newton_converged) &&
+      !result_.interrupted;
+  result_.termination = result_.gauss_newton_converged ? gn_stop_->Message() : summary_.message;
+  if (previous_jacobian_) {
+    result_.covariance_jacobian_iteration = gn_stop_->previous_iteration();
+    result_.last_step_std_errors = gn_stop_->last().step_ratio;
+  }
+  // sharded (sysid/mpi/): the uncompressed rows, with the priors'; compressed blocks: the rows
+  // they stand for
+  int prior_rows = 0;
+  for (const FitParameter& p : I_.params) prior_rows += p.has_prior ? 1 : 0;
+  result_.num_residuals = I_.shards
+                              ? static_cast<int>(I_.shards->NumResiduals()) + prior_rows
+                              : summary_.num_residuals + static_cast<int>(compressed_.hidden_rows);
+  if (summary_.termination_type == ceres::FAILURE) {
+    result_.warnings.push_back("Ceres failed: " + summary_.message);
+  }
+  if (I_.rejected_evaluations > 0) {
+    result_.warnings.push_back(std::to_string(I_.rejected_evaluations) +
+                               " evaluation(s) rejected (trial points where the simulation "
+                               "diverged or was not finite; the trust region shrank); first: " +
+                               I_.first_rejection);
+  }
+  if (!I_.jacobian_warnings.empty()) {
+    const auto& [segment, what] = *I_.jacobian_warnings.begin();
+    const Segment& seg = I_.segments[segment];
+    result_.warnings.push_back(
+        "Jacobian not reliable in " + std::to_string(I_.jacobian_warnings.size()) + " of " +
+        std::to_string(I_.segments.size()) + " segment(s); first: sequence '" +
+        I_.sequences[seg.seq].name + "' from step " + std::to_string(seg.k0) + ": " + what);
+  }
+  const int nvar = np_ + nm_;
+  result_.parameters.resize(nvar);
+  for (int v = 0; v < nvar; ++v) {
+    ParameterEstimate& e = result_.parameters[v];
+    e.name = plan_.names[v];
+    e.value = v < np_ ? I_.Physical(v, I_.z[v]) : I_.m[v - np_];
+    e.initial = v < np_ ? I_.params[v].initial : plan_.minitial[v - np_];
+    e.at_lower = OnBound(v, e.value, true);
+    e.at_upper = OnBound(v, e.value, false);
+    e.std_error = e.ci95_low = e.ci95_high = std::numeric_limits<double>::quiet_NaN();
+  }
+}
+
+// whether variable v's value is on its lower or upper bound (sysid/types.h OnBound)
+bool FitPass::OnBound(int v, double value, bool lower) const {
+  const double lo = v < np_ ? I_.params[v].lower : plan_.mbounds[v - np_].first;
+  const double hi = v < np_ ? I_.params[v].upper : plan_.mbounds[v - np_].second;
+  return mjsysid::OnBound(value, lower ? lo : hi, lower);
+}
+
+}  // namespace mjsysid
