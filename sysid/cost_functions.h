@@ -24,7 +24,7 @@
 //   notes its Jacobian warning.
 // - PrefetchCallback: before each Ceres evaluation, every segment at the new point in batches
 //   (EvaluationCache::Prefetch); after a Jacobian batch, the compressed blocks' folds ahead on the
-//   simulator's workers (FoldAhead; FitOptions::fold_ahead).
+//   simulator's workers (FoldAhead; FitOptions::advanced.fold_ahead).
 // - ProgressCallback: one IterationInfo per iteration into FitResult::trace, the progress line,
 //   FitOptions::on_iteration and FitOptions::interrupt.
 //
@@ -51,7 +51,7 @@ class SegmentCost : public FoldableCost {
   // the finite-difference step of a fitted control delay's column, in simulation steps
   static constexpr double kControlDelayStep = 0.005;
 
-  // impl is borrowed and must hold the prepared fit (Problem::Prepare)
+  // impl is borrowed and must hold the prepared fit (PrepareFit)
   SegmentCost(Problem::Impl* impl, int segment);
 
   bool Evaluate(double const* const* parameters, double* residuals,

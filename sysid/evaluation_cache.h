@@ -36,7 +36,7 @@
 // Failure. A rollout or Jacobian that throws (SimulationError: a MuJoCo warning or a non-finite
 // value; MujocoError) is caught: the Entry records failed (or jacobians_failed) with the message,
 // so that the cost function rejects the trial point (the trust region shrinks) instead of the fit
-// ending. Arguments are not checked: they come from Problem::Prepare.
+// ending. Arguments are not checked: they come from PrepareFit.
 //
 // Threads: single-threaded, enforced. Every call must come from the thread that constructed the
 // cache; a call from any other thread is a broken invariant and aborts with a message. Problem
@@ -123,7 +123,7 @@ class EvaluationCache {
   // A nullptr x0[segment] leaves that segment out (a distributed worker's share, sysid/mpi/).
   void Prefetch(const double* z, const std::vector<const double*>& x0, bool jacobians);
 
-  // Stores a rollout computed elsewhere at z and x0 (Problem::Prepare's rollouts at the initial
+  // Stores a rollout computed elsewhere at z and x0 (PrepareFit's rollouts at the initial
   // values) with its Jacobians when s holds every parameter column (segments without x_0 columns).
   // DxDp is dropped unless the segment reads it (continuity or fitted states).
   void Seed(int segment, const double* z, const double* x0, Trajectory tr, Sensitivity s);

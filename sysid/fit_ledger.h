@@ -21,7 +21,7 @@
 //
 // Steps come from a counter the caller supplies (the sum of Simulator::StepCount over the fit's
 // simulators, which may not exist yet when the ledger starts: then it returns 0); it grows, except
-// that a reading below the last one means the counter restarted from 0 (Problem::Prepare builds
+// that a reading below the last one means the counter restarted from 0 (PrepareFit builds
 // new simulators when a Problem is fitted again: a refit, another start). Time is
 // std::chrono::steady_clock. Not thread-safe: the fit's own thread only (as the evaluation cache,
 // sysid/evaluation_cache.h).

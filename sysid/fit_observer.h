@@ -14,8 +14,9 @@
 // written) and, for several starts, OnStartDone per finished start. FitResult::warnings holds the
 // fit's own warnings.
 // OnProgress comes inside a long rollout or Jacobian column (every tenth of its steps, at most one
-// per FitOptions::progress_seconds), from the simulator's worker threads: it must be thread-safe.
-// Every other event comes from the thread that called Fit. `seconds` is the time since Fit began.
+// per FitOptions::advanced.progress_seconds), from the simulator's worker threads: it must be
+// thread-safe. Every other event comes from the thread that called Fit. `seconds` is the time since
+// Fit began.
 #pragma once
 
 #include <string>

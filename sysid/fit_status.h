@@ -1,5 +1,5 @@
 // The verdict on a finished fit: the FitStatus (sysid/types.h) of a FitResult, decided once after
-// the solve by Problem::Fit (sysid/problem.cc).
+// the solve by a fit pass (sysid/fit/pass.cc, Decide).
 //
 // Contract: result holds the solve's outcome (converged = the optimiser's convergence,
 // interrupted, initial and final cost, the estimates with their starts, the uncertainty at the

@@ -32,8 +32,8 @@
 // it from other callbacks' stops). Problem::Fit installs it only where the test is valid: single
 // shooting (no continuity rows, no states eliminated elsewhere), no robust loss, no fitted
 // control delay (their columns are rollouts, not cached), and auto's horizon probe measured
-// bounded growth (sysid/problem.cc: on a chaotic system's rugged cost every local minimum passes
-// the test); elsewhere Ceres' tolerances decide.
+// bounded growth (sysid/fit/pass_build.cc: on a chaotic system's rugged cost every local minimum
+// passes the test); elsewhere Ceres' tolerances decide.
 //
 // Before the last Jacobian (TestBeforeJacobian). When Ceres accepts a step x_k -> x_{k+1} it asks
 // for the Jacobians at x_{k+1}; the test above would then confirm a converged point with a

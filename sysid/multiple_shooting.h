@@ -1,4 +1,4 @@
-// Multiple shooting, the parts of a fit that Problem (sysid/problem.cc) delegates: how long the
+// Multiple shooting, the parts of a fit that a fit pass (sysid/fit/pass.h) delegates: how long the
 // segments are (FitOptions::segment_steps, auto by default), where their initial states start,
 // which Ceres linear solver runs, and the split of the Jacobian for the uncertainty with the
 // segment states eliminated. The rules and their measurements are in docs/numerics.md

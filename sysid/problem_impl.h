@@ -1,6 +1,6 @@
-// The state behind Problem (sysid/problem.h): its inputs, the fit Problem::Prepare derives from
+// The state behind Problem (sysid/problem.h): its inputs, the fit PrepareFit derives from
 // them (simulators, channels, segments, variables, the evaluation cache) and what the cost
-// functions met during a fit. Shared by the orchestration (sysid/problem.cc) and the Ceres cost
+// functions met during a fit. Shared by the fit pass (sysid/fit/) and the Ceres cost
 // functions (sysid/cost_functions.h); not part of the public API.
 //
 // Variables, as Ceres sees them (parameter blocks, in this order): z (np: one per FitParameter,
@@ -286,8 +286,8 @@ struct Problem::Impl {
     return e;
   }
   // the running solve's compressed blocks (Fit's own, borrowed; nullptr outside the solve and the
-  // evaluation at the estimate, and when FitOptions::fold_ahead is off): the evaluation callback
-  // folds them ahead after each Jacobian batch (sysid/compressed_cost.h FoldAhead)
+  // evaluation at the estimate, and when FitOptions::advanced.fold_ahead is off): the evaluation
+  // callback folds them ahead after each Jacobian batch (sysid/compressed_cost.h FoldAhead)
   CompressedBlocks* compressed = nullptr;
   // fits with an observer: the progress events inside long rollouts (sysid/progress.h), on every
   // simulator (created once, reset by each pass; PrepareFit installs it)

@@ -2,9 +2,9 @@
 // StepProgress hook (core/simulator.h) into FitObserver::OnProgress events (sysid/fit_observer.h)
 // when another tenth of a task's steps is done and at least min_seconds have passed since the task
 // started or reported last: every ~10 % of a sequence's steps or every ~min_seconds
-// (FitOptions::progress_seconds, 2 s), whichever is rarer, so a task shorter than min_seconds
-// reports nothing. Each worker thread keeps its own task's clock (thread_local: no lock; the clock
-// is read once per tenth); the observer is called from the workers.
+// (FitOptions::advanced.progress_seconds, 2 s), whichever is rarer, so a task shorter than
+// min_seconds reports nothing. Each worker thread keeps its own task's clock (thread_local: no
+// lock; the clock is read once per tenth); the observer is called from the workers.
 #pragma once
 
 #include <chrono>

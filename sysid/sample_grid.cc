@@ -93,7 +93,7 @@ void HoldControls(const SampleGrid& g, const RowMatrix& ctrl, const std::vector<
       const double at = n - shift;
       while (v + 1 < nv && cpos[valid[v + 1]] <= at + SampleGrid::kOnGridTolerance) ++v;
       if (nv == 0) {
-        (*out)(n - first, i) = 0;  // Problem::Prepare rejects a control with no valid value before
+        (*out)(n - first, i) = 0;  // PrepareFit rejects a control with no valid value before
       } else if (!linear) {
         // zero-order hold: the average of the held command over the step [at, at + 1], i.e.
         // the command in force at its start weighted by the fraction of the step until the next

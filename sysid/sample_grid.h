@@ -1,5 +1,5 @@
 // The simulation grid of one logged sequence: a log's samples come at their own times (any rate,
-// jitter, gaps), the simulation runs on the model's timestep. Built by Problem::Prepare from
+// jitter, gaps), the simulation runs on the model's timestep. Built by PrepareFit from
 // FitSequence; read by the evaluation cache (the controls of each step) and the cost function
 // (where each measured sample is read). Eigen only.
 //

@@ -103,7 +103,7 @@ void StatesAtSamples(const mjModel& m, const std::vector<StateChannel>& channels
 // (nphys, on its StateManifold). Jacobians as SegmentCost's (sysid/cost_functions.h).
 class StateCost : public ceres::CostFunction {
  public:
-  // impl is borrowed and must hold the prepared fit (Problem::Prepare)
+  // impl is borrowed and must hold the prepared fit (PrepareFit)
   StateCost(Problem::Impl* impl, int segment);
 
   bool Evaluate(double const* const* parameters, double* residuals,

@@ -39,8 +39,8 @@ enum class Transform { kNone, kLog, kScale };
 // "none", "huber", "cauchy" (the YAML spelling)
 const char* LossTypeName(LossType loss);
 
-// The verdict on a fit, decided once after the solve (sysid/problem.cc) and written, printed and
-// turned into the exit code everywhere else by these values and names (docs/cli.md):
+// The verdict on a fit, decided once after the solve (sysid/fit/pass.cc, Decide) and written,
+// printed and turned into the exit code everywhere else by these values and names (docs/cli.md):
 // - kConverged: the optimiser converged, the Jacobian at the estimate is reliable and, with sigmas
 //   given, the weighted residuals are as large as the noise explains; the intervals are valid.
 // - kNotConverged: the optimiser stopped without converging (iteration limit, failure).
@@ -249,14 +249,6 @@ struct FitOptions {
   // auto's contact segments (sysid/multiple_shooting.h, OmitJumpingSensors): fit the touch,
   // accelerometer, force and torque sensors too (true), or leave them out with a warning (false)
   bool fit_jumping_sensors = false;
-  // each segment's residual blocks (single and multiple shooting; not under sysid/mpi/, which
-  // compresses its own) handed to Ceres as their thin-QR triangles (sysid/compressed_cost.h: the
-  // same cost, gradient and Gauss-Newton matrix in n + 1 rows), not row by row; false: every row
-  // (the memory of Ceres' copies grows with the samples)
-  bool compress_blocks = true;
-  // with an observer: progress events inside one long rollout or Jacobian column
-  // (FitObserver::OnProgress) every tenth of its steps, at most one per this many seconds of it
-  double progress_seconds = 2.0;
   // auto's contact segments (sysid/event_windows.h): the cells of velocity- and
   // acceleration-level sensors within this many samples of a contact event are left out of the
   // fit (0, the default: none)
@@ -268,22 +260,36 @@ struct FitOptions {
   // the solve's statistical stop (sysid/gn_convergence.h): converged once the predicted
   // Gauss-Newton step is at most this fraction of every standard error, where the test is valid
   // (single shooting, no robust loss, no fitted control delay, segment_steps auto with its probe's
-  // growth at most kRefitGrowth: sysid/problem.cc); 0: off, Ceres' tolerances alone
+  // growth at most kRefitGrowth: sysid/fit/pass_build.cc); 0: off, Ceres' tolerances alone
   double gauss_newton_stop = 0.03;
-  // the statistical stop also before a point's Jacobians (sysid/gn_convergence.h, "Before the
-  // last Jacobian"): with the previous iterate's Jacobian when the last step was within
-  // kPreviousJacobianSteps standard errors, so that the last Jacobian is not simulated; false:
-  // only after each Jacobian
-  bool gauss_newton_stop_before_jacobian = true;
-  // the compressed blocks (compress_blocks): a block asked for its Jacobian at the inputs of its
-  // last fold writes that fold out instead of re-folding (sysid/compressed_cost.h; the same bits);
-  // false: every request re-folds (the same fit, slower)
-  bool reuse_folds = true;
-  // single shooting's compressed blocks: after each Jacobian batch, the blocks' rows and folds
-  // made on the simulator's workers, one task per block, before Ceres asks for them one by one
-  // (sysid/compressed_cost.h, "Folds ahead"; the same bits at any thread count); false: each block
-  // folded when Ceres asks (the same fit)
-  bool fold_ahead = true;
+
+  // How the fit is computed, not what it computes: switches that keep the estimate (the same bits,
+  // or the same fit) and exist for benchmarks and tests; the defaults are what a user wants.
+  struct Advanced {
+    // each segment's residual blocks (single and multiple shooting; not under sysid/mpi/, which
+    // compresses its own) handed to Ceres as their thin-QR triangles (sysid/compressed_cost.h: the
+    // same cost, gradient and Gauss-Newton matrix in n + 1 rows), not row by row; false: every row
+    // (the memory of Ceres' copies grows with the samples)
+    bool compress_blocks = true;
+    // the compressed blocks (compress_blocks above): a block asked for its Jacobian at the inputs
+    // of its last fold writes that fold out instead of re-folding (sysid/compressed_cost.h; the
+    // same bits); false: every request re-folds (the same fit, slower)
+    bool reuse_folds = true;
+    // single shooting's compressed blocks: after each Jacobian batch, the blocks' rows and folds
+    // made on the simulator's workers, one task per block, before Ceres asks for them one by one
+    // (sysid/compressed_cost.h, "Folds ahead"; the same bits at any thread count); false: each
+    // block folded when Ceres asks (the same fit)
+    bool fold_ahead = true;
+    // the statistical stop also before a point's Jacobians (sysid/gn_convergence.h, "Before the
+    // last Jacobian"): with the previous iterate's Jacobian when the last step was within
+    // kPreviousJacobianSteps standard errors, so that the last Jacobian is not simulated; false:
+    // only after each Jacobian
+    bool gauss_newton_stop_before_jacobian = true;
+    // with an observer: progress events inside one long rollout or Jacobian column
+    // (FitObserver::OnProgress) every tenth of its steps, at most one per this many seconds of it
+    double progress_seconds = 2.0;
+  };
+  Advanced advanced;
 };
 
 // a value is on its bound (lower or upper; an infinite bound: never) within 1e-6 relative:
@@ -474,17 +480,17 @@ struct FitResult {
   // fraction of every standard error of the Gauss-Newton optimum
   bool gauss_newton_converged = false;
   // the statistical stop fired before the estimate's Jacobian (FitOptions::
-  // gauss_newton_stop_before_jacobian): the covariance, standard errors and result's jacobian come
-  // from the previous iterate's Jacobian (iteration covariance_jacobian_iteration) with the
-  // residuals, cost and s^2 at the estimate; last_step_std_errors: the last step's largest
+  // advanced.gauss_newton_stop_before_jacobian): the covariance, standard errors and result's
+  // jacobian come from the previous iterate's Jacobian (iteration covariance_jacobian_iteration)
+  // with the residuals, cost and s^2 at the estimate; last_step_std_errors: the last step's largest
   // |x_{k+1,i} - x_{k,i}| / s_i. -1 and NaN: the Jacobian is the estimate's own.
   int covariance_jacobian_iteration = -1;
   double last_step_std_errors = std::numeric_limits<double>::quiet_NaN();
-  // the compressed blocks (FitOptions::reuse_folds): Jacobian requests answered
+  // the compressed blocks (FitOptions::advanced.reuse_folds): Jacobian requests answered
   // with a block's last fold instead of a re-fold, and the folds made (sysid/compressed_cost.h)
   long long reused_folds = 0;
   long long folds = 0;
-  // of the folds, those made ahead on the simulator's workers (FitOptions::fold_ahead)
+  // of the folds, those made ahead on the simulator's workers (FitOptions::advanced.fold_ahead)
   long long ahead_folds = 0;
 };
 

@@ -33,19 +33,7 @@
 
 namespace {
 
-using mjsysid::cli::AddCheck;
-using mjsysid::cli::AddFit;
-using mjsysid::cli::AddImport;
-using mjsysid::cli::AddReport;
-using mjsysid::cli::AddRollout;
-using mjsysid::cli::AddSimulate;
-using mjsysid::cli::Command;
-using mjsysid::cli::InputError;
-using mjsysid::cli::Join;
-using mjsysid::cli::kExitBadInput;
-using mjsysid::cli::kExitCodesFooter;
-using mjsysid::cli::kExitFailed;
-using mjsysid::cli::kExitOk;
+namespace cli = mjsysid::cli;
 
 // errors -> exit codes
 
@@ -58,21 +46,21 @@ int RunGuarded(const std::string& name, const std::function<int()>& run) {
   try {
     return run();
   } catch (const mjsysid::io::ConfigError& e) {
-    return fail(e.what(), kExitBadInput);
+    return fail(e.what(), cli::kExitBadInput);
   } catch (const mjsysid::io::LogError& e) {
-    return fail(e.what(), kExitBadInput);
+    return fail(e.what(), cli::kExitBadInput);
   } catch (const mjsysid::ModelLoadError& e) {
-    return fail(e.what(), kExitBadInput);
+    return fail(e.what(), cli::kExitBadInput);
   } catch (const mjsysid::ParameterError& e) {
-    return fail(e.what(), kExitBadInput);
-  } catch (const InputError& e) {
-    return fail(e.what(), kExitBadInput);
+    return fail(e.what(), cli::kExitBadInput);
+  } catch (const cli::InputError& e) {
+    return fail(e.what(), cli::kExitBadInput);
   } catch (const mjsysid::run::OutputError& e) {
-    return fail(e.what(), kExitBadInput);
+    return fail(e.what(), cli::kExitBadInput);
   } catch (const mjsysid::SimulationError& e) {
-    return fail(e.what(), kExitFailed);
+    return fail(e.what(), cli::kExitFailed);
   } catch (const std::exception& e) {
-    return fail(e.what(), kExitFailed);
+    return fail(e.what(), cli::kExitFailed);
   }
 }
 
@@ -97,27 +85,27 @@ int main(int argc, char** argv) {
                          "  sysid report results/pendulum\n"
                          "  sysid check experiments/pendulum.yaml\n"
                          "  sysid rollout models/pendulum.xml --steps 500\n") +
-             kExitCodesFooter);
+             cli::kExitCodesFooter);
 
   // subcommands, in the order --help lists them
-  std::vector<Command> commands;
-  commands.push_back(AddSimulate(&app));
-  commands.push_back(AddFit(&app));
-  commands.push_back(AddReport(&app));
-  commands.push_back(AddImport(&app));
-  commands.push_back(AddCheck(&app));
-  commands.push_back(AddRollout(&app));
+  std::vector<cli::Command> commands;
+  commands.push_back(cli::AddSimulate(&app));
+  commands.push_back(cli::AddFit(&app));
+  commands.push_back(cli::AddReport(&app));
+  commands.push_back(cli::AddImport(&app));
+  commands.push_back(cli::AddCheck(&app));
+  commands.push_back(cli::AddRollout(&app));
 
   // an unknown subcommand is named (CLI11 would say "A subcommand is required")
   if (argc > 1 && argv[1][0] != '-') {
     std::vector<std::string> names;
-    for (const Command& c : commands) names.push_back(c.app->get_name());
+    for (const cli::Command& c : commands) names.push_back(c.app->get_name());
     if (std::find(names.begin(), names.end(), argv[1]) == names.end()) {
       std::string shown(argv[1]);
       if (shown.size() > 40) shown = shown.substr(0, 40) + "...";
       std::fprintf(stderr, "sysid: unknown subcommand '%s'; the subcommands: %s (sysid --help)\n",
-                   shown.c_str(), Join(names).c_str());
-      return kExitBadInput;
+                   shown.c_str(), cli::Join(names).c_str());
+      return cli::kExitBadInput;
     }
   }
   try {
@@ -126,19 +114,20 @@ int main(int argc, char** argv) {
     if (e.get_exit_code() == 0) return app.exit(e);  // --help, --version
     // one line, "sysid SUBCOMMAND: message", as every other error
     const bool sub =
-        argc > 1 && std::any_of(commands.begin(), commands.end(),
-                                [&](const Command& c) { return c.app->get_name() == argv[1]; });
+        argc > 1 && std::any_of(commands.begin(), commands.end(), [&](const cli::Command& c) {
+          return c.app->get_name() == argv[1];
+        });
     std::fprintf(stderr, "sysid%s%s: %s (hint: sysid%s%s --help)\n", sub ? " " : "",
                  sub ? argv[1] : "", e.what(), sub ? " " : "", sub ? argv[1] : "");
-    return kExitBadInput;
+    return cli::kExitBadInput;
   }
-  for (const Command& c : commands) {
+  for (const cli::Command& c : commands) {
     if (!*c.app) continue;
 #ifdef MJSYSID_WITH_MPI
     // under mpirun `fit` and `simulate` are sharded: every other subcommand runs on rank 0 alone
     // (one writer of its outputs)
     if (mjsysid::mpi::Rank() > 0 && c.app->get_name() != "fit" && c.app->get_name() != "simulate") {
-      return kExitOk;
+      return cli::kExitOk;
     }
 #endif
     const int code = RunGuarded(c.app->get_name(), c.run);
@@ -147,7 +136,7 @@ int main(int argc, char** argv) {
     // disk, file size limit) and left a file it could not close: a failed run ends, its output
     // flushed, without the libraries' exit handlers (measured: exit 139 instead of 1 or 2).
     // Sanitizer builds keep them, for LeakSanitizer.
-    if (code != kExitOk) {
+    if (code != cli::kExitOk) {
 #ifdef MJSYSID_WITH_MPI
       mjsysid::mpi::Finalize();  // the other ranks left the fit: MPI ends cleanly
 #endif
@@ -157,5 +146,5 @@ int main(int argc, char** argv) {
 #endif
     return code;
   }
-  return kExitBadInput;
+  return cli::kExitBadInput;
 }

@@ -75,7 +75,7 @@ void FitPass::Start() {
   if (!I_.step_progress) {
     I_.step_progress = std::make_unique<StepProgressEvents>(start_, 0, nullptr);
   }
-  I_.step_progress->Reset(start_, options_.progress_seconds, options_.observer);
+  I_.step_progress->Reset(start_, options_.advanced.progress_seconds, options_.observer);
   start_notes_ = SolveAutoStarts(&I_, options_.threads);
   ledger_.Enter(kPhasePrepare);
   plan_ = PrepareFit(&I_, options_);

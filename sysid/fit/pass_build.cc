@@ -33,9 +33,9 @@ void FitPass::BuildCeres() {
   std::vector<bool> relative;
   for (const FitParameter& p : I_.params) relative.push_back(smooth && RelativeStep(p));
   variable_manifold_ = std::make_unique<VariableManifold>(std::move(relative));
-  compressed_.reuse_folds = options_.reuse_folds;
+  compressed_.reuse_folds = options_.advanced.reuse_folds;
   compressed_.epoch = &I_.cost_inputs_epoch;  // (the epoch outlives the problem)
-  compress_ = options_.compress_blocks && !I_.shards;
+  compress_ = options_.advanced.compress_blocks && !I_.shards;
   problem_ = std::make_unique<ceres::Problem>(po);
   ceres::Problem& problem = *problem_;
   double* z = I_.z.data();
@@ -160,7 +160,8 @@ void FitPass::Configure() {
                                                uncertainty_, options_.observer, &ledger_);
   if (gn_valid_) so.callbacks.push_back(gn_stop_.get());
   // and before a point's Jacobians (the evaluation callback asks it, sysid/cost_functions.h)
-  I_.gn_stop = gn_valid_ && options_.gauss_newton_stop_before_jacobian ? gn_stop_.get() : nullptr;
+  I_.gn_stop =
+      gn_valid_ && options_.advanced.gauss_newton_stop_before_jacobian ? gn_stop_.get() : nullptr;
   I_.SetPreviousJacobian(false);
 }
 

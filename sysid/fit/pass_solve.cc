@@ -31,7 +31,7 @@ bool FitPass::RunSolver() {
     result_.segment_reason = SegmentReasonText(plan_.segments);
   }
   I_.cache->SetColumnsAhead(true);
-  I_.compressed = compress_ && options_.fold_ahead ? &compressed_ : nullptr;
+  I_.compressed = compress_ && options_.advanced.fold_ahead ? &compressed_ : nullptr;
   ceres::Solve(solver_, problem_.get(), &summary_);
   I_.cache->SetColumnsAhead(false);
   I_.gn_stop = nullptr;

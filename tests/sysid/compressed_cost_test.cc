@@ -1,5 +1,6 @@
 // The residual blocks of single and multiple shooting handed to Ceres as their thin-QR triangles
-// (sysid/compressed_cost.h, FitOptions::compress_blocks) against the same blocks row by row.
+// (sysid/compressed_cost.h, FitOptions::advanced.compress_blocks) against the same blocks row by
+// row.
 //
 // Unit: a linear cost with known rows (m = 2500 > kChunkRows, so the fold takes three chunks)
 // gives, compressed, the cost 0.5 |r|^2, the gradient J^T r and the Gauss-Newton matrix J^T J of
@@ -138,7 +139,7 @@ FitResult FitOnce(const io::ExperimentConfig& cfg, bool compress, const Case& c)
   options.verbose = false;
   options.threads = 1;
   options.segment_steps = c.segment_steps;
-  options.compress_blocks = compress;
+  options.advanced.compress_blocks = compress;
   return built.problem->Fit(options);
 }
 

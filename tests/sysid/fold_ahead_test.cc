@@ -1,5 +1,5 @@
 // Compressed blocks folded ahead on worker threads (sysid/compressed_cost.h, "Folds ahead";
-// FitOptions::fold_ahead).
+// FitOptions::advanced.fold_ahead).
 //
 // Unit: a real nonlinear cost (tests/sysid/decay_cost.h: r_i = a exp(-b t_i) + c t_i - y_i, m =
 // 2500 rows > kChunkRows, blocks of sizes 2 and 1, automatic derivatives; y from a = 2, b = 3, c =
@@ -190,7 +190,7 @@ FitResult FitWith(const io::ExperimentConfig& cfg, bool ahead, int threads) {
   FitOptions options = built.options;
   options.verbose = false;
   options.threads = threads;
-  options.fold_ahead = ahead;
+  options.advanced.fold_ahead = ahead;
   return built.problem->Fit(options);
 }
 

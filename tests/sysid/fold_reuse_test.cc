@@ -1,5 +1,5 @@
 // A compressed block's last fold written out instead of a re-fold (sysid/compressed_cost.h, "The
-// last fold"; FitOptions::reuse_folds).
+// last fold"; FitOptions::advanced.reuse_folds).
 //
 // Unit: a real nonlinear cost (tests/sysid/decay_cost.h: r_i = a exp(-b t_i) + c t_i - y_i, m =
 // 2500 rows > kChunkRows, blocks of sizes 2 and 1, automatic derivatives, noise seed 5) wrapped in
@@ -151,7 +151,7 @@ FitResult FitWith(const io::ExperimentConfig& cfg, bool reuse) {
   FitOptions options = built.options;
   options.verbose = false;
   options.threads = 1;
-  options.reuse_folds = reuse;
+  options.advanced.reuse_folds = reuse;
   return built.problem->Fit(options);
 }
 

@@ -1,5 +1,5 @@
 // The statistical stop before the last Jacobian (sysid/gn_convergence.h, "Before the last
-// Jacobian"; FitOptions::gauss_newton_stop_before_jacobian).
+// Jacobian"; FitOptions::advanced.gauss_newton_stop_before_jacobian).
 //
 // TestPreviousJacobian on linear least squares (tests/sysid/linear_least_squares.h: truth
 // 1, 2, 3, J 400 x 3 Gaussian seed 7, noise sigma 0.1 seed 11), where J_k = J_{k+1}: at the
@@ -82,7 +82,7 @@ FitResult FitWith(const io::ExperimentConfig& cfg, bool before_jacobian, double 
   options.verbose = false;
   options.threads = 1;
   options.gauss_newton_stop = fraction;
-  options.gauss_newton_stop_before_jacobian = before_jacobian;
+  options.advanced.gauss_newton_stop_before_jacobian = before_jacobian;
   return built.problem->Fit(options);
 }
 

@@ -88,7 +88,7 @@ std::string FitTableText(int sequences, int steps, double progress_seconds) {
   options.observer = &table;
   options.threads = 1;
   options.max_iterations = 1;
-  options.progress_seconds = progress_seconds;
+  options.advanced.progress_seconds = progress_seconds;
   built.problem->Fit(options);
   table.Flush();
   return text;

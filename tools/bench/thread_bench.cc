@@ -84,7 +84,7 @@ Sample FitOnce(const io::ExperimentConfig& config, int threads, bool fold_ahead)
   run::BuiltProblem b = run::BuildProblem(config, threads);
   FitOptions o = b.options;
   o.threads = threads;
-  o.fold_ahead = fold_ahead;
+  o.advanced.fold_ahead = fold_ahead;
   o.verbose = false;
   o.on_iteration = nullptr;
   const double cpu0 = ProcessCpuSeconds(), thread0 = ThreadCpuSeconds();
@@ -170,8 +170,9 @@ int Main(int argc, char** argv) {
   app.add_option("--experiments", experiments, "folder of the experiment files")
       ->capture_default_str();
   bool fold_ahead = true;
-  app.add_option("--fold-ahead", fold_ahead,
-                 "FitOptions::fold_ahead (false: each compressed block folded when Ceres asks)")
+  app.add_option(
+         "--fold-ahead", fold_ahead,
+         "FitOptions::advanced.fold_ahead (false: each compressed block folded when Ceres asks)")
       ->capture_default_str();
   int handoff = 0;
   app.add_option("--handoff", handoff,
