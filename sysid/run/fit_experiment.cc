@@ -1,24 +1,25 @@
+// run::RunFit (sysid/run/fit_experiment.h) as a sequence of stages, and the helpers of the result
+// files; run::BuildProblem is in build_problem.cc.
 #include "sysid/run/fit_experiment.h"
 
 #include <mujoco/mujoco.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <optional>
 #include <system_error>
-#include <thread>
 
 #include "core/identified_model.h"
 #include "core/text.h"
 #include "mjsysid/version.h"
 #include "sysid/derived_inertials.h"
 #include "sysid/io/atomic_file.h"
-#include "sysid/io/log.h"
 #include "sysid/metrics.h"
 #include "sysid/run/multi_start.h"
 #include "sysid/run/output_folder.h"
