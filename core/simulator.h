@@ -234,11 +234,12 @@ class Simulator {
   // Nominal rollouts at the current parameters: out is resized to sequences.size() and (*out)[i]
   // shaped as Trajectory states (sequence i: T = its ctrl rows). In parallel across sequences. When
   // there are more sequences than workers and they do not share the workers evenly (3 on 2), each
-  // rollout runs as RolloutPieces(n) consecutive pieces of about equal length, claimed piece by
-  // piece (every sequence's first piece, then every second one, ...); a piece continues from the
-  // state its predecessor recorded (RestoreStep: bit for bit the trajectory of one piece) on
-  // whichever worker is free, so that the workers share the last round: 3 rollouts on 2 workers
-  // take 1.5 rollout times, not 2.
+  // rollout runs as q consecutive pieces (q = W / gcd(n, W) for n sequences on W workers, when
+  // every piece has at least 50 steps: core/simulator_internal.h, RolloutPieces) of about equal
+  // length, claimed piece by piece (every sequence's first piece, then every second one, ...); a
+  // piece continues from the state its predecessor recorded (RestoreStep: bit for bit the
+  // trajectory of one piece) on whichever worker is free, so that the workers share the last round:
+  // 3 rollouts on 2 workers take 1.5 rollout times, not 2.
   void Rollout(const std::vector<SequenceInput>& sequences, std::vector<Trajectory>* out);
   Trajectory Rollout(const SequenceInput& sequence);
   // Rollouts of the sequences at several parameter vectors in one parallel pass (task k n + i:
