@@ -92,8 +92,8 @@ struct SimulatorOptions {
   // steps: min(model tolerance, solver_tolerance). Newton converges quadratically, so at 1e-10 the
   // solution error left is far below what a 1e-6 finite difference resolves (tested), and the
   // solver stops after the 1-5 iterations it needs. fixed_solver_iterations = true sets tolerance
-  // 0 instead (opt.iterations every step, bit-for-bit the same count): exact but up to 25x slower
-  // on contact-rich models (measured: humanoid 1036 vs 40 us/step).
+  // 0 instead (opt.iterations every step, bit-for-bit the same count): exact but far slower on
+  // contact-rich models (docs/numerics.md, "Solver tolerance and iteration cap").
   double solver_tolerance = 1e-10;
   bool fixed_solver_iterations = false;
   bool sensors = true;  // false: no sensor work anywhere (mjDSBL_SENSOR)
@@ -218,20 +218,28 @@ class Simulator {
   const SimulatorOptions& options() const { return options_; }
   int threads() const { return pool_.size(); }
 
-  // current parameter values (length np)
+  // --- Parameters ---------------------------------------------------------------------------
+  // current parameter values: length np, in ParameterSet order and the kinds' units
+  // (core/parameters.h)
   Eigen::VectorXd GetParameters() const;
-  // writes parameter values into the private model (mj_setConst where needed)
+  // Writes parameter values (length np, as GetParameters) into the private model (mj_setConst
+  // where needed). Wrong length: std::invalid_argument; a value MuJoCo rejects: MujocoError, with
+  // the previous values restored.
   void SetParameters(const Eigen::VectorXd& values);
 
   // the model's reference state: qpos0, zero velocity and activation
   InitialState ReferenceState() const;
 
-  // Nominal rollouts, in parallel across sequences. When there are more sequences than workers
-  // and they do not share the workers evenly (3 on 2), each rollout runs as RolloutPieces(n)
-  // consecutive pieces of about equal length, claimed piece by piece (every sequence's first piece,
-  // then every second one, ...); a piece continues from the state its predecessor recorded
-  // (RestoreStep: bit for bit the trajectory of one piece) on whichever worker is free, so that
-  // the workers share the last round: 3 rollouts on 2 workers take 1.5 rollout times, not 2.
+  // --- Rollouts -----------------------------------------------------------------------------
+  // Nominal rollouts at the current parameters: out is resized to sequences.size() and (*out)[i]
+  // shaped as Trajectory states (sequence i: T = its ctrl rows). In parallel across sequences. When
+  // there are more sequences than workers and they do not share the workers evenly (3 on 2), each
+  // rollout runs as q consecutive pieces (q = W / gcd(n, W) for n sequences on W workers, when
+  // every piece has at least 50 steps: core/simulator_internal.h, RolloutPieces) of about equal
+  // length, claimed piece by piece (every sequence's first piece, then every second one, ...); a
+  // piece continues from the state its predecessor recorded (RestoreStep: bit for bit the
+  // trajectory of one piece) on whichever worker is free, so that the workers share the last round:
+  // 3 rollouts on 2 workers take 1.5 rollout times, not 2.
   void Rollout(const std::vector<SequenceInput>& sequences, std::vector<Trajectory>* out);
   Trajectory Rollout(const SequenceInput& sequence);
   // Rollouts of the sequences at several parameter vectors in one parallel pass (task k n + i:
@@ -244,18 +252,18 @@ class Simulator {
                  const std::vector<Eigen::VectorXd>& values,
                  std::vector<std::vector<Trajectory>>* out);
 
-  // Jacobians around nominal trajectories computed by Rollout with the current parameters
+  // --- Jacobians ----------------------------------------------------------------------------
+  // Jacobians around nominal trajectories computed by Rollout with the current parameters: out is
+  // resized to sequences.size(), (*out)[i] shaped as Sensitivity states (ncol = np, + nx with
+  // options.initial_state; DxDp empty without options.state_jacobians, DyDp with 0 rows without
+  // sensors). A nominal that does not match its sequence, or a mode the model refuses:
+  // std::invalid_argument; a parameter whose column is zero everywhere (zero_column_is_error):
+  // ParameterError; simulation failures as Rollout.
   void Jacobians(const std::vector<SequenceInput>& sequences,
                  const std::vector<Trajectory>& nominal, const JacobianOptions& options,
                  std::vector<Sensitivity>* out);
   Sensitivity Jacobians(const SequenceInput& sequence, const Trajectory& nominal,
                         const JacobianOptions& options);
-
-  // The pieces each of a batch of n rollouts runs in (Rollout): q = W / gcd(n, W) on W workers
-  // when n > W and W does not divide n (so that n q pieces fill whole rounds), else 1; 1 also
-  // when the shortest of the sequences (min_steps) has fewer than kMinPieceSteps steps per piece.
-  static constexpr int kMinPieceSteps = 50;
-  int RolloutPieces(int n, int min_steps) const;
 
   // Rollout and then Jacobians, with the same results bit for bit, in one parallel pass where
   // that is faster: with more than one thread in directional mode (whatever the contacts), the
@@ -265,6 +273,7 @@ class Simulator {
                            const JacobianOptions& options, std::vector<Trajectory>* nominal,
                            std::vector<Sensitivity>* out);
 
+  // --- Speculative columns (filled into workers that a batch of rollouts leaves idle) --------
   // Rollout, and in the same parallel pass the first columns[i] (at most ncol) directional
   // Jacobian columns of sequence i behind its rollout, step by step (as RolloutAndJacobians), into
   // ahead[i]: speculative columns that fill the workers a batch of rollouts leaves idle (3
@@ -283,6 +292,7 @@ class Simulator {
                  const std::vector<Trajectory>& nominal, const JacobianOptions& options,
                  std::vector<ColumnsAhead>* ahead, std::vector<Sensitivity>* out);
 
+  // --- Jacobian mode and steps --------------------------------------------------------------
   // the mode kAuto resolves to for these options (deterministic: counts only). contact_fraction:
   // the share of time steps with contacts near (there forward matrix mode differences both
   // sides); < 0: 1 if the model can have contacts, else 0. Jacobians() passes the share measured
@@ -297,9 +307,12 @@ class Simulator {
   // whether the model can have contacts (two colliding geoms or an explicit pair, contacts on)
   bool ContactsPossible() const;
 
-  // parameter steps h_j used for the current values
+  // parameter steps h_j used for the current values: length np, absolute, in the parameters'
+  // units. parameter_steps of another length than np, or a step that is not positive:
+  // std::invalid_argument.
   Eigen::VectorXd ParameterSteps(const JacobianOptions& options) const;
 
+  // --- Cancel and progress ------------------------------------------------------------------
   // While *flag is true, Rollout and Jacobians stop within one time step of every worker and
   // throw Cancelled (e.g. a user's interrupt during a long Jacobian); nullptr: never (default).
   // The flag must outlive its use here.
@@ -307,6 +320,7 @@ class Simulator {
   // the progress hook of long step loops (StepProgress); nullptr: none (default)
   void SetStepProgress(StepProgress* hook) { step_progress_ = hook; }
 
+  // --- Load accounting (the fit's ledger, benchmarks) ----------------------------------------
   // Step calls made since construction or ResetStepCount(), over all workers: every mj_step of
   // a rollout or a perturbed step (also those skipping stages) counts 1, a call of
   // mjd_transitionFD counts 1 + nx (its nominal and perturbed state steps). Not thread-safe
@@ -322,6 +336,7 @@ class Simulator {
   // PoolTime); reset with ResetStepCount
   const PoolTime& ParallelTime() const { return pool_.time(); }
 
+  // --- The workers, lent to the caller between batches -------------------------------------
   // Runs fn(worker, i) for every i in [0, n) on the simulator's workers (ThreadPool::ParallelFor:
   // the calling thread is worker 0; with one thread, in order on it): the caller's own work
   // between the simulator's batches (the fit's residual blocks' folds, sysid/compressed_cost.h),
@@ -331,6 +346,7 @@ class Simulator {
     pool_.ParallelFor(n, fn);
   }
 
+  // --- Reduced model -------------------------------------------------------------------------
   // The reduced model (core/reduced_model.h): switches r off in the private model (r from
   // AnalyzeReduction on this simulator's model and its nominal rollouts). Rollout, Jacobians and
   // RolloutAndJacobians then check the guard after every nominal step; when it trips (a pair
@@ -346,8 +362,12 @@ class Simulator {
   int ReductionTrips() const { return reduction_trips_; }
 
  private:
-  struct Worker;
-  struct TaskReport;
+  // Implementation: simulator.cc (construction, parameters, per-step helpers),
+  // simulator_rollout.cc, simulator_mode.cc, simulator_jacobians.cc, simulator_columns.cc,
+  // simulator_matrix.cc, simulator_ahead.cc (speculative columns); shared private pieces in
+  // core/simulator_internal.h.
+  struct Worker;      // per-worker mjData, model copies and scratch
+  struct TaskReport;  // what one Jacobian column task reports besides its column
   void CheckInputs(const std::vector<SequenceInput>& sequences) const;
   // mj_resetData and cleared warning counters: after a MuJoCo error d is usable again
   void ResetData(mjData* d) const;
@@ -406,6 +426,20 @@ class Simulator {
                        const std::vector<int>* col_end = nullptr,
                        std::vector<long long>* task_steps = nullptr);
   void CheckZeroColumns(const std::vector<Sensitivity>& out) const;
+  // ChooseJacobianMode, and std::invalid_argument for a mode this model cannot use (matrix with
+  // RK4 or delays, directional with delays)
+  JacobianMode CheckedJacobianMode(const JacobianOptions& opt, double contact_fraction) const;
+  // out sized and zeroed for Jacobians of these sequences (nominal checked against them)
+  void SizeSensitivities(const std::vector<SequenceInput>& sequences,
+                         const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
+                         JacobianMode mode, int ncol, std::vector<Sensitivity>* out) const;
+  // matrix mode: each worker's model copies with one parameter at p + steps and p - steps
+  void PrepareMatrixModels(const Eigen::VectorXd& steps);
+  // matrix mode: the blocks of time step k, step kk of the chunk c (simulator_matrix.cc)
+  struct MatrixChunk;
+  void MatrixStep(Worker& w, const RowMatrix& ctrl, int seq_index, const Trajectory& nom,
+                  const JacobianOptions& opt, const Eigen::VectorXd& steps,
+                  const std::vector<int>& order, int k, int kk, MatrixChunk* c) const;
   // runs call(); when the reduction's guard tripped during it, drops the reduction and runs it
   // again
   template <class Call>

@@ -1,9 +1,9 @@
-// Rollouts in pieces (core/simulator.h, Rollout and RolloutPieces): when a batch has more
-// sequences than workers and they do not divide evenly, each rollout runs as consecutive pieces
-// that continue from the recorded state. The trajectories must be those of one piece bit for bit
-// on every kind of state a step reads (contacts and free joints, activations, history buffers of
-// delays and sensors), failures and cancellation must behave as in a whole rollout, and the task
-// model must see the shorter makespan.
+// Rollouts in pieces (core/simulator.h Rollout; core/simulator_internal.h RolloutPieces): when a
+// batch has more sequences than workers and they do not divide evenly, each rollout runs as
+// consecutive pieces that continue from the recorded state. The trajectories must be those of one
+// piece bit for bit on every kind of state a step reads (contacts and free joints, activations,
+// history buffers of delays and sensors), failures and cancellation must behave as in a whole
+// rollout, and the task model must see the shorter makespan.
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -13,6 +13,7 @@
 
 #include "core/mujoco_env.h"
 #include "core/simulator.h"
+#include "core/simulator_internal.h"
 #include "tests/test_util.h"
 
 namespace mjsysid {
@@ -63,21 +64,23 @@ TEST(RolloutPiecesTest, PiecesOnlyWhereTheLastRoundWouldLeaveWorkersIdle) {
         }
         expected = threads / g;
       }
-      EXPECT_EQ(sim.RolloutPieces(n, 10000), expected) << threads << " threads, " << n;
+      EXPECT_EQ(internal::RolloutPieces(n, sim.threads(), 10000), expected)
+          << threads << " threads, " << n;
       // too short for pieces of kMinPieceSteps
-      EXPECT_EQ(sim.RolloutPieces(n, Simulator::kMinPieceSteps * expected - 1), 1)
+      EXPECT_EQ(internal::RolloutPieces(n, sim.threads(), internal::kMinPieceSteps * expected - 1),
+                1)
           << threads << " threads, " << n;
     }
   }
   SimulatorOptions so;
   so.threads = 2;
   Simulator two(*model, {}, so);
-  EXPECT_EQ(two.RolloutPieces(3, 1000), 2);
-  EXPECT_EQ(two.RolloutPieces(2, 1000), 1);
+  EXPECT_EQ(internal::RolloutPieces(3, two.threads(), 1000), 2);
+  EXPECT_EQ(internal::RolloutPieces(2, two.threads(), 1000), 1);
   so.threads = 4;
   Simulator four(*model, {}, so);
-  EXPECT_EQ(four.RolloutPieces(6, 1000), 2);  // 12 pieces: 3 full rounds
-  EXPECT_EQ(four.RolloutPieces(5, 1000), 4);  // 20 pieces: 5 full rounds
+  EXPECT_EQ(internal::RolloutPieces(6, four.threads(), 1000), 2);  // 12 pieces: 3 full rounds
+  EXPECT_EQ(internal::RolloutPieces(5, four.threads(), 1000), 4);  // 20 pieces: 5 full rounds
 }
 
 // Every model kind of state: 3 sequences on 2 workers (2 pieces each) and 5 on 3 (3 pieces each)
@@ -102,7 +105,8 @@ TEST(RolloutPiecesTest, PiecesGiveTheWholeRolloutBitForBit) {
       SimulatorOptions so;
       so.threads = threads;
       Simulator sim(*model, {}, so);
-      ASSERT_EQ(sim.RolloutPieces(n, 200), threads) << name;  // 2 or 3 pieces of >= 66 steps
+      ASSERT_EQ(internal::RolloutPieces(n, sim.threads(), 200), threads)
+          << name;  // 2 or 3 pieces of >= 66 steps
       std::vector<Trajectory> got;
       sim.Rollout(seqs, &got);
       ASSERT_EQ(got.size(), expected.size());

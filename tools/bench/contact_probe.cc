@@ -197,55 +197,51 @@ void PrintRolloutStats(const std::vector<Trajectory>& tr) {
       with_contact, changes, solver.solved, solver.capped);
 }
 
-int Main(int argc, char** argv) {
-  CLI::App app{"probe a contact-rich experiment: cost cuts and Jacobians"};
+// the command line
+struct Args {
   std::string exp_path, at = "truth";
   bool jacobians = false, fixed = false, elliptic = false;
   int scan = 0, iterations = -1, noslip = -1, segments = 0, line = 0;
   bool write_log = false;
   double span = 1e-3, tolerance = 1e-10;
   std::string integrator;
-  app.add_option("experiment", exp_path, "EXP.yaml")->required();
-  app.add_option("--at", at, "truth | start | comma-separated values");
-  app.add_flag("--jacobians", jacobians, "compare the core's Jacobians with central differences");
-  app.add_option("--scan", scan, "points per parameter of a 1-D cost cut (0: none)");
-  app.add_option("--span", span, "relative half-width of the cut");
-  app.add_option("--tolerance", tolerance, "the core's solver tolerance (min with the model's)");
-  app.add_flag("--fixed-iterations", fixed, "tolerance 0: opt.iterations every step");
-  app.add_option("--iterations", iterations, "opt.iterations");
-  app.add_option("--noslip", noslip, "opt.noslip_iterations");
-  app.add_flag("--elliptic", elliptic, "elliptic friction cones");
-  app.add_option("--integrator", integrator, "euler | implicitfast | rk4 | implicit");
-  app.add_option("--segments", segments, "restart rollouts from the log's states every N steps");
-  app.add_option("--line", line, "points of the per-sensor cost from the start to the truth");
-  app.add_flag("--write-log", write_log, "simulate the experiment's log when it is missing");
-  CLI11_PARSE(app, argc, argv);
+};
 
-  const io::ExperimentConfig cfg = io::LoadExperiment(exp_path);
-  for (const io::DataFile& d : cfg.data) {
-    if (write_log && !std::filesystem::exists(d.path)) {
-      std::filesystem::create_directories(std::filesystem::path(d.path).parent_path());
-      io::WriteLog(d.path, sim::SimulateExperiment(cfg));
-      std::printf("wrote %s (simulated from the truth)\n", d.path.c_str());
-    }
-  }
-  run::BuiltProblem built = run::BuildProblem(cfg, 1);
-  if (built.models.size() != 1) throw std::invalid_argument("one model only");
-  mjModel& m = *built.models[0];
-  if (iterations > 0) m.opt.iterations = iterations;
-  if (noslip >= 0) m.opt.noslip_iterations = noslip;
-  if (elliptic) m.opt.cone = mjCONE_ELLIPTIC;
-  if (integrator == "euler") m.opt.integrator = mjINT_EULER;
-  if (integrator == "implicitfast") m.opt.integrator = mjINT_IMPLICITFAST;
-  if (integrator == "implicit") m.opt.integrator = mjINT_IMPLICIT;
-  if (integrator == "rk4") m.opt.integrator = mjINT_RK4;
-  SimulatorOptions so;
-  so.threads = 2;
-  so.solver_tolerance = tolerance;
-  so.fixed_solver_iterations = fixed;
-  Probe probe(built, m, so, segments);
+void AddOptions(CLI::App* app, Args* a) {
+  app->add_option("experiment", a->exp_path, "EXP.yaml")->required();
+  app->add_option("--at", a->at, "truth | start | comma-separated values");
+  app->add_flag("--jacobians", a->jacobians,
+                "compare the core's Jacobians with central differences");
+  app->add_option("--scan", a->scan, "points per parameter of a 1-D cost cut (0: none)");
+  app->add_option("--span", a->span, "relative half-width of the cut");
+  app->add_option("--tolerance", a->tolerance,
+                  "the core's solver tolerance (min with the model's)");
+  app->add_flag("--fixed-iterations", a->fixed, "tolerance 0: opt.iterations every step");
+  app->add_option("--iterations", a->iterations, "opt.iterations");
+  app->add_option("--noslip", a->noslip, "opt.noslip_iterations");
+  app->add_flag("--elliptic", a->elliptic, "elliptic friction cones");
+  app->add_option("--integrator", a->integrator, "euler | implicitfast | rk4 | implicit");
+  app->add_option("--segments", a->segments,
+                  "restart rollouts from the log's states every N steps");
+  app->add_option("--line", a->line, "points of the per-sensor cost from the start to the truth");
+  app->add_flag("--write-log", a->write_log, "simulate the experiment's log when it is missing");
+}
 
-  // the point: the truth, the start, or given values
+// the solver options of the command line written into the model
+void ApplySolverOptions(const Args& a, mjModel* mp) {
+  mjModel& m = *mp;
+  if (a.iterations > 0) m.opt.iterations = a.iterations;
+  if (a.noslip >= 0) m.opt.noslip_iterations = a.noslip;
+  if (a.elliptic) m.opt.cone = mjCONE_ELLIPTIC;
+  if (a.integrator == "euler") m.opt.integrator = mjINT_EULER;
+  if (a.integrator == "implicitfast") m.opt.integrator = mjINT_IMPLICITFAST;
+  if (a.integrator == "implicit") m.opt.integrator = mjINT_IMPLICIT;
+  if (a.integrator == "rk4") m.opt.integrator = mjINT_RK4;
+}
+
+// the point: the truth, the start, or given values
+Eigen::VectorXd ThePoint(const run::BuiltProblem& built, const io::ExperimentConfig& cfg,
+                         const std::string& at) {
   const int np = static_cast<int>(built.parameters.size());
   Eigen::VectorXd p(np);
   for (int j = 0; j < np; ++j) {
@@ -260,100 +256,104 @@ int Main(int argc, char** argv) {
     std::string item;
     for (int j = 0; j < np && std::getline(ss, item, ','); ++j) p[j] = std::stod(item);
   }
+  return p;
+}
 
-  std::vector<Trajectory> nominal;
-  const Eigen::VectorXd r0 = probe.Residuals(p, &nominal);
-  std::printf("%s at", exp_path.c_str());
-  for (int j = 0; j < np; ++j) std::printf(" %s=%.8g", built.parameters[j].name.c_str(), p[j]);
-  std::printf("\n  cost %.10g, sum(r^2)/m %.6g (m = %lld)\n", 0.5 * r0.squaredNorm(),
-              r0.squaredNorm() / static_cast<double>(r0.size()), static_cast<long long>(r0.size()));
-  PrintRolloutStats(nominal);
-
-  if (jacobians) {
-    // whole-rollout central differences of the residuals at several relative steps
-    const std::vector<double> steps = {1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8};
-    std::vector<Eigen::MatrixXd> fd;
-    for (double h : steps) {
-      Eigen::MatrixXd J(r0.size(), np);
-      for (int j = 0; j < np; ++j) {
-        Eigen::VectorXd pp = p, pm = p;
-        pp[j] *= 1 + h;
-        pm[j] *= 1 - h;
-        std::vector<Trajectory> tmp;
-        J.col(j) = (probe.Residuals(pp, &tmp) - probe.Residuals(pm, &tmp)) / (2 * h * p[j]);
-      }
-      fd.push_back(J);
+// the core's Jacobians in each mode against whole-rollout central differences of the residuals
+// at several relative steps, as gradients of the cost and per-parameter relative differences
+void CompareJacobians(Probe* probe, const run::BuiltProblem& built, const Eigen::VectorXd& p,
+                      const Eigen::VectorXd& r0, std::vector<Trajectory>* nominal_out) {
+  const int np = static_cast<int>(p.size());
+  std::vector<Trajectory>& nominal = *nominal_out;
+  // whole-rollout central differences of the residuals at several relative steps
+  const std::vector<double> steps = {1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8};
+  std::vector<Eigen::MatrixXd> fd;
+  for (double h : steps) {
+    Eigen::MatrixXd J(r0.size(), np);
+    for (int j = 0; j < np; ++j) {
+      Eigen::VectorXd pp = p, pm = p;
+      pp[j] *= 1 + h;
+      pm[j] *= 1 - h;
+      std::vector<Trajectory> tmp;
+      J.col(j) = (probe->Residuals(pp, &tmp) - probe->Residuals(pm, &tmp)) / (2 * h * p[j]);
     }
-    probe.Residuals(p, &nominal);
-    std::printf("  d cost / d log p (whole-rollout central, relative step h):\n");
-    for (size_t i = 0; i < steps.size(); ++i) {
-      const Eigen::VectorXd g = fd[i].transpose() * r0;
-      std::printf("    h %-6.0e", steps[i]);
-      for (int j = 0; j < np; ++j) std::printf(" %14.6g", g[j] * p[j]);
+    fd.push_back(J);
+  }
+  probe->Residuals(p, &nominal);
+  std::printf("  d cost / d log p (whole-rollout central, relative step h):\n");
+  for (size_t i = 0; i < steps.size(); ++i) {
+    const Eigen::VectorXd g = fd[i].transpose() * r0;
+    std::printf("    h %-6.0e", steps[i]);
+    for (int j = 0; j < np; ++j) std::printf(" %14.6g", g[j] * p[j]);
+    std::printf("\n");
+  }
+  const struct {
+    JacobianMode mode;
+    bool central;
+  } modes[] = {{JacobianMode::kDirectional, false},
+               {JacobianMode::kDirectional, true},
+               {JacobianMode::kMatrix, false},
+               {JacobianMode::kMatrix, true}};
+  for (const auto& md : modes) {
+    JacobianOptions jo;
+    jo.mode = md.mode;
+    jo.central = md.central;
+    jo.state_jacobians = false;
+    int kinks = 0;
+    std::vector<std::string> warnings;
+    const Eigen::MatrixXd J = probe->ResidualJacobian(nominal, jo, &kinks, &warnings);
+    const Eigen::VectorXd g = J.transpose() * r0;
+    std::printf("  core %s %s: kinks %d, d cost / d log p", JacobianModeName(md.mode),
+                md.central ? "central" : "forward", kinks);
+    for (int j = 0; j < np; ++j) std::printf(" %14.6g", g[j] * p[j]);
+    std::printf("\n    |J - J_fd(h)| / |J_fd(h)| per parameter, h = 1e-2 .. 1e-8:\n");
+    for (int j = 0; j < np; ++j) {
+      std::printf("    %-18s", built.parameters[j].name.c_str());
+      for (const Eigen::MatrixXd& F : fd)
+        std::printf(" %9.2e", (J.col(j) - F.col(j)).norm() / F.col(j).norm());
       std::printf("\n");
     }
-    const struct {
-      JacobianMode mode;
-      bool central;
-    } modes[] = {{JacobianMode::kDirectional, false},
-                 {JacobianMode::kDirectional, true},
-                 {JacobianMode::kMatrix, false},
-                 {JacobianMode::kMatrix, true}};
-    for (const auto& md : modes) {
-      JacobianOptions jo;
-      jo.mode = md.mode;
-      jo.central = md.central;
-      jo.state_jacobians = false;
-      int kinks = 0;
-      std::vector<std::string> warnings;
-      const Eigen::MatrixXd J = probe.ResidualJacobian(nominal, jo, &kinks, &warnings);
-      const Eigen::VectorXd g = J.transpose() * r0;
-      std::printf("  core %s %s: kinks %d, d cost / d log p", JacobianModeName(md.mode),
-                  md.central ? "central" : "forward", kinks);
-      for (int j = 0; j < np; ++j) std::printf(" %14.6g", g[j] * p[j]);
-      std::printf("\n    |J - J_fd(h)| / |J_fd(h)| per parameter, h = 1e-2 .. 1e-8:\n");
-      for (int j = 0; j < np; ++j) {
-        std::printf("    %-18s", built.parameters[j].name.c_str());
-        for (const Eigen::MatrixXd& F : fd)
-          std::printf(" %9.2e", (J.col(j) - F.col(j)).norm() / F.col(j).norm());
-        std::printf("\n");
-      }
-      for (const std::string& w : warnings) std::printf("    warning: %s\n", w.c_str());
-    }
+    for (const std::string& w : warnings) std::printf("    warning: %s\n", w.c_str());
   }
+}
 
-  // the cost per sensor along the line from the start (t = 0) to the truth (t = 1)
-  if (line > 1) {
-    Eigen::VectorXd start(np), truth(np);
-    for (int j = 0; j < np; ++j) {
-      start[j] = truth[j] = built.parameters[j].initial;
-      for (const io::NamedValue& v : cfg.simulate.truth)
-        if (v.name == built.parameters[j].name) truth[j] = v.value;
-    }
-    const size_t ns = probe.sensor_names().size();
-    std::vector<std::vector<double>> c(ns, std::vector<double>(line));
-    std::vector<long long> rows;
-    std::vector<double> cost;
-    for (int i = 0; i < line; ++i) {
-      const double t = static_cast<double>(i) / (line - 1);
-      probe.CostPerSensor(start + t * (truth - start), &cost, &rows);
-      for (size_t k = 0; k < ns; ++k) c[k][i] = cost[k];
-    }
-    std::printf(
-        "  line start -> truth, %d points, segments %d (sensor: sum(r^2)/m at start, at "
-        "truth; total variation / net fall):\n",
-        line, segments);
-    for (size_t k = 0; k < ns; ++k) {
-      double tv = 0;
-      for (int i = 1; i < line; ++i) tv += std::abs(c[k][i] - c[k][i - 1]);
-      const double fall = std::abs(c[k][0] - c[k][line - 1]);
-      const double m_rows = static_cast<double>(std::max(rows[k], 1LL));
-      std::printf("    %-18s %11.4g %11.4g %9.3g\n", probe.sensor_names()[k].c_str(),
-                  2 * c[k][0] / m_rows, 2 * c[k][line - 1] / m_rows, fall > 0 ? tv / fall : 0.0);
-    }
+// the cost per sensor along the line from the start (t = 0) to the truth (t = 1)
+void CostLine(Probe* probe, const run::BuiltProblem& built, const io::ExperimentConfig& cfg,
+              int line, int segments) {
+  const int np = static_cast<int>(built.parameters.size());
+  Eigen::VectorXd start(np), truth(np);
+  for (int j = 0; j < np; ++j) {
+    start[j] = truth[j] = built.parameters[j].initial;
+    for (const io::NamedValue& v : cfg.simulate.truth)
+      if (v.name == built.parameters[j].name) truth[j] = v.value;
   }
+  const size_t ns = probe->sensor_names().size();
+  std::vector<std::vector<double>> c(ns, std::vector<double>(line));
+  std::vector<long long> rows;
+  std::vector<double> cost;
+  for (int i = 0; i < line; ++i) {
+    const double t = static_cast<double>(i) / (line - 1);
+    probe->CostPerSensor(start + t * (truth - start), &cost, &rows);
+    for (size_t k = 0; k < ns; ++k) c[k][i] = cost[k];
+  }
+  std::printf(
+      "  line start -> truth, %d points, segments %d (sensor: sum(r^2)/m at start, at "
+      "truth; total variation / net fall):\n",
+      line, segments);
+  for (size_t k = 0; k < ns; ++k) {
+    double tv = 0;
+    for (int i = 1; i < line; ++i) tv += std::abs(c[k][i] - c[k][i - 1]);
+    const double fall = std::abs(c[k][0] - c[k][line - 1]);
+    const double m_rows = static_cast<double>(std::max(rows[k], 1LL));
+    std::printf("    %-18s %11.4g %11.4g %9.3g\n", probe->sensor_names()[k].c_str(),
+                2 * c[k][0] / m_rows, 2 * c[k][line - 1] / m_rows, fall > 0 ? tv / fall : 0.0);
+  }
+}
 
-  // 1-D cuts of the cost through p
+// 1-D cuts of the cost through p, with their roughness
+void CostCuts(Probe* probe, const run::BuiltProblem& built, const Eigen::VectorXd& p,
+              const Eigen::VectorXd& r0, int scan, double span) {
+  const int np = static_cast<int>(p.size());
   for (int j = 0; j < np && scan > 1; ++j) {
     std::printf("  cut along %s (relative offset d, cost, cost - cost(p)):\n",
                 built.parameters[j].name.c_str());
@@ -363,7 +363,7 @@ int Main(int argc, char** argv) {
       Eigen::VectorXd q = p;
       q[j] *= 1 + d[i];
       std::vector<Trajectory> tmp;
-      c[i] = 0.5 * probe.Residuals(q, &tmp).squaredNorm();
+      c[i] = 0.5 * probe->Residuals(q, &tmp).squaredNorm();
       std::printf("    %+.4e %.10g %+.4e\n", d[i], c[i], c[i] - 0.5 * r0.squaredNorm());
     }
     // roughness: second differences against the mean curvature
@@ -375,6 +375,45 @@ int Main(int argc, char** argv) {
     }
     std::printf("    second differences: mean %.4g, largest |.| %.4g\n", mean, worst);
   }
+}
+
+int Main(int argc, char** argv) {
+  CLI::App app{"probe a contact-rich experiment: cost cuts and Jacobians"};
+  Args a;
+  AddOptions(&app, &a);
+  CLI11_PARSE(app, argc, argv);
+
+  const io::ExperimentConfig cfg = io::LoadExperiment(a.exp_path);
+  for (const io::DataFile& d : cfg.data) {
+    if (a.write_log && !std::filesystem::exists(d.path)) {
+      std::filesystem::create_directories(std::filesystem::path(d.path).parent_path());
+      io::WriteLog(d.path, sim::SimulateExperiment(cfg));
+      std::printf("wrote %s (simulated from the truth)\n", d.path.c_str());
+    }
+  }
+  run::BuiltProblem built = run::BuildProblem(cfg, 1);
+  if (built.models.size() != 1) throw std::invalid_argument("one model only");
+  mjModel& m = *built.models[0];
+  ApplySolverOptions(a, &m);
+  SimulatorOptions so;
+  so.threads = 2;
+  so.solver_tolerance = a.tolerance;
+  so.fixed_solver_iterations = a.fixed;
+  Probe probe(built, m, so, a.segments);
+
+  const Eigen::VectorXd p = ThePoint(built, cfg, a.at);
+  const int np = static_cast<int>(p.size());
+  std::vector<Trajectory> nominal;
+  const Eigen::VectorXd r0 = probe.Residuals(p, &nominal);
+  std::printf("%s at", a.exp_path.c_str());
+  for (int j = 0; j < np; ++j) std::printf(" %s=%.8g", built.parameters[j].name.c_str(), p[j]);
+  std::printf("\n  cost %.10g, sum(r^2)/m %.6g (m = %lld)\n", 0.5 * r0.squaredNorm(),
+              r0.squaredNorm() / static_cast<double>(r0.size()), static_cast<long long>(r0.size()));
+  PrintRolloutStats(nominal);
+
+  if (a.jacobians) CompareJacobians(&probe, built, p, r0, &nominal);
+  if (a.line > 1) CostLine(&probe, built, cfg, a.line, a.segments);
+  CostCuts(&probe, built, p, r0, a.scan, a.span);
   return 0;
 }
 

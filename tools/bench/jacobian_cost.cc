@@ -358,17 +358,18 @@ struct Settings {
   SimulatorOptions sim;            // threads = 1
 };
 
-// all rows of one model
-std::vector<Row> BenchModel(const std::string& name, const std::string& path,
-                            const Settings& settings) {
-  std::vector<Row> rows;
-  ModelPtr m = LoadModel(path);
-  const ModelCase mc = CaseFor(name, *m, settings.quick);
-  const int T = settings.steps > 0 ? settings.steps : mc.T, nv = static_cast<int>(m->nv);
-  SequenceInput seq;
-  seq.ctrl = SineControls(*m, T, settings.amplitude);
-  const std::vector<SequenceInput> seqs = {seq};  // from the model's reference state
+// forward-difference numbers of one parameter kind, for the crossover summary
+struct Summary {
+  std::string kind;
+  int stage;
+  double directional, matrix, marginal, skip_step, matrix_est, marginal_est;
+};
 
+// the model's line, the nominal step time and the constraint solver; returns the solver's name
+// for the rows
+std::string PrintModel(const std::string& name, const mjModel* m, const SequenceInput& seq, int T,
+                       const Settings& settings) {
+  const int nv = static_cast<int>(m->nv);
   // baseline: one nominal step of a Simulator without parameters (each row below divides by the
   // nominal rollout of its own Simulator, timed next to the Jacobian)
   const int base_repeats = std::max(settings.repeats, 5);
@@ -390,128 +391,130 @@ std::vector<Row> BenchModel(const std::string& name, const std::string& path,
     std::printf("constraint solver: %s, at most %d iterations, %.2f iterations per nominal step\n",
                 solver.c_str(), o.iterations, MeanSolverIterations(sim.model(), seq.ctrl));
   }
-  PrintHeader();
+  return solver;
+}
 
-  // forward-difference numbers per kind, for the summary
-  struct Summary {
-    std::string kind;
-    int stage;
-    double directional, matrix, marginal, skip_step, matrix_est, marginal_est;
-  };
-  std::vector<Summary> summary;
-  for (const KindCase& kc : KindsFor(mc)) {
-    if (!settings.kinds.empty() &&
-        std::find(settings.kinds.begin(), settings.kinds.end(), kc.kind) == settings.kinds.end()) {
-      continue;
-    }
-    ParameterSpec spec1{kc.kind, kc.object[0], "", kc.index, ""};
-    ParameterSpec spec2{kc.kind, kc.object[1], "", kc.index, ""};
-    try {
-      Simulator sim1(*m, {spec1}, settings.sim);
-      Simulator sim2(*m, {spec1, spec2}, settings.sim);
-      const int stage = sim1.parameters()[0].stage();
-      std::vector<Trajectory> nom1, nom2;
-      sim1.Rollout(seqs, &nom1);
-      sim2.Rollout(seqs, &nom2);
-      // estimates with the contact share of the nominal trajectory, as Jacobians() uses it
-      const double contacts = ContactFraction(nom1);
-      std::vector<Sensitivity> sens;
-      std::vector<Trajectory> scratch;
-      // the nominal rollout of sim1, timed before every timed Jacobian, so that each ratio
-      // compares two times taken a moment apart (the machine's speed drifts)
-      auto rollout = [&] {
-        const double t0 = Now();
-        sim1.Rollout(seqs, &scratch);
-        return SecondsSince(t0);
-      };
-      auto timed = [&](const std::function<void()>& fn) {
-        const double t0 = Now();
-        fn();
-        return SecondsSince(t0);
-      };
-      // one row from per-repeat rollout and Jacobian times: cost = median of their ratios
-      Row row;
-      row.model = name, row.nv = nv, row.kind = kc.kind, row.stage = stage, row.T = T;
-      row.solver = solver;
-      auto emit = [&](const std::string& mode, const std::string& diff,
-                      const std::vector<double>& t_rollout, const std::vector<double>& t_jac,
-                      double estimate) {
-        std::vector<double> ratio;
-        for (size_t r = 0; r < t_jac.size(); ++r) ratio.push_back(t_jac[r] / t_rollout[r]);
-        row.mode = mode, row.differences = diff;
-        row.step_us = Median(t_rollout) / T * 1e6;
-        row.jacobian_ms = Median(t_jac) * 1e3;
-        row.cost = Median(ratio);
-        row.estimate = estimate;
-        PrintRow(row);
-        rows.push_back(row);
-        return row.cost;
-      };
-      Summary sum{kc.kind, stage, 0, 0, 0, 0, 0, 0};
-      const bool history = sim1.model().nhistory > 0;
+// the rows of one parameter kind (two objects of it): directional and whole-rollout columns, the
+// matrix mode with one and two parameters, and matrix mode's perturbed step alone; its forward
+// numbers into *summary (kinds of a model with native delays: whole rollouts only, no summary)
+void BenchKind(const std::string& name, const mjModel* m, const KindCase& kc,
+               const std::vector<SequenceInput>& seqs, int T, const std::string& solver,
+               const Settings& settings, std::vector<Row>* rows_out,
+               std::vector<Summary>* summary) {
+  const int nv = static_cast<int>(m->nv);
+  std::vector<Row>& rows = *rows_out;
+  ParameterSpec spec1{kc.kind, kc.object[0], "", kc.index, ""};
+  ParameterSpec spec2{kc.kind, kc.object[1], "", kc.index, ""};
+  try {
+    Simulator sim1(*m, {spec1}, settings.sim);
+    Simulator sim2(*m, {spec1, spec2}, settings.sim);
+    const int stage = sim1.parameters()[0].stage();
+    std::vector<Trajectory> nom1, nom2;
+    sim1.Rollout(seqs, &nom1);
+    sim2.Rollout(seqs, &nom2);
+    // estimates with the contact share of the nominal trajectory, as Jacobians() uses it
+    const double contacts = ContactFraction(nom1);
+    std::vector<Sensitivity> sens;
+    std::vector<Trajectory> scratch;
+    // the nominal rollout of sim1, timed before every timed Jacobian, so that each ratio
+    // compares two times taken a moment apart (the machine's speed drifts)
+    auto rollout = [&] {
+      const double t0 = Now();
+      sim1.Rollout(seqs, &scratch);
+      return SecondsSince(t0);
+    };
+    auto timed = [&](const std::function<void()>& fn) {
+      const double t0 = Now();
+      fn();
+      return SecondsSince(t0);
+    };
+    // one row from per-repeat rollout and Jacobian times: cost = median of their ratios
+    Row row;
+    row.model = name, row.nv = nv, row.kind = kc.kind, row.stage = stage, row.T = T;
+    row.solver = solver;
+    auto emit = [&](const std::string& mode, const std::string& diff,
+                    const std::vector<double>& t_rollout, const std::vector<double>& t_jac,
+                    double estimate) {
+      std::vector<double> ratio;
+      for (size_t r = 0; r < t_jac.size(); ++r) ratio.push_back(t_jac[r] / t_rollout[r]);
+      row.mode = mode, row.differences = diff;
+      row.step_us = Median(t_rollout) / T * 1e6;
+      row.jacobian_ms = Median(t_jac) * 1e3;
+      row.cost = Median(ratio);
+      row.estimate = estimate;
+      PrintRow(row);
+      rows.push_back(row);
+      return row.cost;
+    };
+    Summary sum{kc.kind, stage, 0, 0, 0, 0, 0, 0};
+    const bool history = sim1.model().nhistory > 0;
 
-      for (bool central : {false, true}) {
-        const char* diff = central ? "central" : "forward";
-        JacobianOptions opt;
-        opt.central = central;
-        // directional and whole rollout: one column, one warmup call (a model with history
-        // buffers has whole-rollout Jacobians only: docs/numerics.md, native delays)
-        for (JacobianMode mode : {JacobianMode::kDirectional, JacobianMode::kWholeRollout}) {
-          if (history && mode != JacobianMode::kWholeRollout) continue;
-          opt.mode = mode;
-          auto jac = [&] { sim1.Jacobians(seqs, nom1, opt, &sens); };
-          jac();
-          std::vector<double> tr, tj;
-          for (int r = 0; r < settings.repeats; ++r) {
-            tr.push_back(rollout());
-            tj.push_back(timed(jac));
-          }
-          const double cost = emit(JacobianModeName(mode), diff, tr, tj,
-                                   sim1.JacobianCostPerStep(mode, opt, contacts));
-          if (!central && mode == JacobianMode::kDirectional) sum.directional = cost;
-        }
-        if (history) continue;
-        // matrix: 1 and 2 parameters, interleaved, and the median of the paired differences;
-        // the difference is small next to the shared mjd_transitionFD, so more pairs while cheap
-        opt.mode = JacobianMode::kMatrix;
-        std::vector<double> tr, t1, dt;
-        const double pairs_start = Now();
-        for (int r = 0; r < settings.repeats || (r < 5 * settings.repeats &&
-                                                 SecondsSince(pairs_start) < settings.pair_budget);
-             ++r) {
+    for (bool central : {false, true}) {
+      const char* diff = central ? "central" : "forward";
+      JacobianOptions opt;
+      opt.central = central;
+      // directional and whole rollout: one column, one warmup call (a model with history
+      // buffers has whole-rollout Jacobians only: docs/numerics.md, native delays)
+      for (JacobianMode mode : {JacobianMode::kDirectional, JacobianMode::kWholeRollout}) {
+        if (history && mode != JacobianMode::kWholeRollout) continue;
+        opt.mode = mode;
+        auto jac = [&] { sim1.Jacobians(seqs, nom1, opt, &sens); };
+        jac();
+        std::vector<double> tr, tj;
+        for (int r = 0; r < settings.repeats; ++r) {
           tr.push_back(rollout());
-          const double a = timed([&] { sim1.Jacobians(seqs, nom1, opt, &sens); });
-          const double b = timed([&] { sim2.Jacobians(seqs, nom2, opt, &sens); });
-          t1.push_back(a);
-          dt.push_back(b - a);
+          tj.push_back(timed(jac));
         }
-        const double est1 = sim1.JacobianCostPerStep(JacobianMode::kMatrix, opt, contacts);
-        const double est2 = sim2.JacobianCostPerStep(JacobianMode::kMatrix, opt, contacts);
-        const double matrix = emit("matrix", diff, tr, t1, est1);
-        const double marginal = emit("matrix_marginal", diff, tr, dt, est2 - est1);
-        if (!central) {
-          sum.matrix = matrix, sum.marginal = marginal;
-          sum.matrix_est = est1, sum.marginal_est = est2 - est1;
-        }
+        const double cost = emit(JacobianModeName(mode), diff, tr, tj,
+                                 sim1.JacobianCostPerStep(mode, opt, contacts));
+        if (!central && mode == JacobianMode::kDirectional) sum.directional = cost;
       }
-      if (history) continue;  // no matrix mode: no crossover
-      // the perturbed step of matrix mode alone (forward differences: one per parameter)
-      SkipStep skip(sim1, nom1[0], seqs[0].ctrl);
-      std::vector<double> tr, ts;
-      for (int r = 0; r < settings.repeats; ++r) {
+      if (history) continue;
+      // matrix: 1 and 2 parameters, interleaved, and the median of the paired differences;
+      // the difference is small next to the shared mjd_transitionFD, so more pairs while cheap
+      opt.mode = JacobianMode::kMatrix;
+      std::vector<double> tr, t1, dt;
+      const double pairs_start = Now();
+      for (int r = 0; r < settings.repeats || (r < 5 * settings.repeats &&
+                                               SecondsSince(pairs_start) < settings.pair_budget);
+           ++r) {
         tr.push_back(rollout());
-        ts.push_back(skip.Once());
+        const double a = timed([&] { sim1.Jacobians(seqs, nom1, opt, &sens); });
+        const double b = timed([&] { sim2.Jacobians(seqs, nom2, opt, &sens); });
+        t1.push_back(a);
+        dt.push_back(b - a);
       }
-      sum.skip_step = emit("skip_step", "forward", tr, ts, sum.marginal_est);
-      summary.push_back(sum);
-    } catch (const std::exception& e) {
-      std::printf("%-19s failed: %s\n", kc.kind.c_str(), e.what());
+      const double est1 = sim1.JacobianCostPerStep(JacobianMode::kMatrix, opt, contacts);
+      const double est2 = sim2.JacobianCostPerStep(JacobianMode::kMatrix, opt, contacts);
+      const double matrix = emit("matrix", diff, tr, t1, est1);
+      const double marginal = emit("matrix_marginal", diff, tr, dt, est2 - est1);
+      if (!central) {
+        sum.matrix = matrix, sum.marginal = marginal;
+        sum.matrix_est = est1, sum.marginal_est = est2 - est1;
+      }
     }
+    if (history) return;  // no matrix mode: no crossover
+    // the perturbed step of matrix mode alone (forward differences: one per parameter)
+    SkipStep skip(sim1, nom1[0], seqs[0].ctrl);
+    std::vector<double> tr, ts;
+    for (int r = 0; r < settings.repeats; ++r) {
+      tr.push_back(rollout());
+      ts.push_back(skip.Once());
+    }
+    sum.skip_step = emit("skip_step", "forward", tr, ts, sum.marginal_est);
+    summary->push_back(sum);
+  } catch (const std::exception& e) {
+    std::printf("%-19s failed: %s\n", kc.kind.c_str(), e.what());
   }
+}
 
-  // what kAuto picks (counts only), and where matrix mode starts to win (forward differences):
-  // directional costs d per column, matrix b + c per column with b its cost without parameter
-  // columns and c the skip step, so matrix wins for np > b / (d - c) parameters of one kind
+// what kAuto picks (counts only) for one body mass, alone and with the initial state, and the two
+// modes' costs with the initial-state columns that check the choice
+void CheckAutoChoice(const std::string& name, const mjModel* m, const ModelCase& mc,
+                     const std::vector<SequenceInput>& seqs, int T, const std::string& solver,
+                     const Settings& settings, std::vector<Row>* rows_out) {
+  const int nv = static_cast<int>(m->nv);
+  std::vector<Row>& rows = *rows_out;
   if (!mc.body[0].empty() && m->nhistory == 0) {
     Simulator sim(*m, {{"body_mass", mc.body[0], "", 0, ""}}, settings.sim);
     // kAuto as Simulator::Jacobians decides it: with the contact share of the trajectories
@@ -554,6 +557,12 @@ std::vector<Row> BenchModel(const std::string& name, const std::string& path,
                   row.mode.c_str(), row.cost * ncol, row.estimate * ncol);
     }
   }
+}
+
+// where matrix mode starts to win (forward differences): directional costs d per column, matrix
+// b + c per column with b its cost without parameter columns and c the skip step, so matrix wins
+// for np > b / (d - c) parameters of one kind
+void PrintCrossovers(const std::vector<Summary>& summary) {
   std::printf(
       "matrix vs directional, forward differences: b = matrix cost without parameter columns "
       "(matrix - skip_step), crossover = b / (directional - skip_step) parameters of the kind "
@@ -573,6 +582,30 @@ std::vector<Row> BenchModel(const std::string& name, const std::string& path,
                 s.skip_step, crossover(b, s.directional - s.skip_step).c_str(),
                 crossover(b_est, 1 - s.marginal_est).c_str());
   }
+}
+
+// all rows of one model
+std::vector<Row> BenchModel(const std::string& name, const std::string& path,
+                            const Settings& settings) {
+  std::vector<Row> rows;
+  ModelPtr m = LoadModel(path);
+  const ModelCase mc = CaseFor(name, *m, settings.quick);
+  const int T = settings.steps > 0 ? settings.steps : mc.T;
+  SequenceInput seq;
+  seq.ctrl = SineControls(*m, T, settings.amplitude);
+  const std::vector<SequenceInput> seqs = {seq};  // from the model's reference state
+  const std::string solver = PrintModel(name, m.get(), seq, T, settings);
+  PrintHeader();
+  std::vector<Summary> summary;
+  for (const KindCase& kc : KindsFor(mc)) {
+    if (!settings.kinds.empty() &&
+        std::find(settings.kinds.begin(), settings.kinds.end(), kc.kind) == settings.kinds.end()) {
+      continue;
+    }
+    BenchKind(name, m.get(), kc, seqs, T, solver, settings, &rows, &summary);
+  }
+  CheckAutoChoice(name, m.get(), mc, seqs, T, solver, settings, &rows);
+  PrintCrossovers(summary);
   return rows;
 }
 
@@ -631,7 +664,8 @@ int Main(int argc, char** argv) {
   std::printf(
       "cost = Jacobian time / (T * nominal step time), the step timed next to it: steps per "
       "column per time step; estimate = Simulator::JacobianCostPerStep.\n"
-      "matrix_marginal = matrix mode with 2 parameters of the kind minus with 1 (median of paired "
+      "matrix_marginal = matrix mode with 2 parameters of the kind minus with 1 (median of "
+      "paired "
       "differences); skip_step = matrix mode's perturbed step for the parameter alone "
       "(mj_setState + StepSkip from its stage).\n");
   const auto start = std::chrono::steady_clock::now();
