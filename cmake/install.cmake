@@ -42,12 +42,14 @@ install(TARGETS ${_mjsysid_libraries} EXPORT mjsysidTargets
   ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
   LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
 
-# headers: every header of core/ and sysid/ but the internal ones of the Ceres problem and of
-# the HDF5 files (they include Ceres internals or hdf5.h, private dependencies)
+# headers: every header of core/ and sysid/ but the internal ones of the Ceres problem (the fit
+# pass's stages in sysid/fit/ among them) and of the HDF5 files (they include the problem's state
+# or hdf5.h, private dependencies)
 foreach(_dir core sysid)
   install(DIRECTORY "${PROJECT_SOURCE_DIR}/${_dir}/"
     DESTINATION "${CMAKE_INSTALL_INCLUDEDIR}/${_dir}"
     FILES_MATCHING PATTERN "*.h"
+    PATTERN "fit" EXCLUDE
     PATTERN "problem_impl.h" EXCLUDE
     PATTERN "cost_functions.h" EXCLUDE
     PATTERN "state_residuals.h" EXCLUDE

@@ -339,9 +339,10 @@ class Simulator {
   // --- The workers, lent to the caller between batches -------------------------------------
   // Runs fn(worker, i) for every i in [0, n) on the simulator's workers (ThreadPool::ParallelFor:
   // the calling thread is worker 0; with one thread, in order on it): the caller's own work
-  // between the simulator's batches (the fit's residual blocks' folds, sysid/compressed_cost.h),
-  // a batch of ParallelTime and, without steps, of ParallelLoad. fn must not call this simulator
-  // (its workers' mjData are not fn's); the first exception thrown by fn is rethrown.
+  // between the simulator's batches (the fit's residual blocks' folds,
+  // sysid/solve/compressed_cost.h), a batch of ParallelTime and, without steps, of ParallelLoad. fn
+  // must not call this simulator (its workers' mjData are not fn's); the first exception thrown by
+  // fn is rethrown.
   void ParallelFor(int n, const std::function<void(int worker, int i)>& fn) {
     pool_.ParallelFor(n, fn);
   }

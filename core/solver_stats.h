@@ -28,7 +28,7 @@ struct SolverStats {
   // satisfied, a contact's friction sticking or slipping); friction_changes: the friction-loss
   // rows (dof and tendon) between sticking (quadratic) and slipping (linear), a force continuous
   // in the velocity (a kink). Both 0: the constraint forces followed one smooth branch
-  // (sysid/interval_check.h). PGS keeps no row states: only the number of rows is compared.
+  // (sysid/assess/interval_check.h). PGS keeps no row states: only the number of rows is compared.
   int row_changes = 0;
   int friction_changes = 0;
   int last_nefc = -1;                       // the step before's rows (-1: no step counted yet)

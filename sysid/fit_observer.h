@@ -43,7 +43,7 @@ class FitObserver {
   virtual void OnStage(FitStage /*stage*/, const std::string& /*text*/, double /*seconds*/) {}
   // one optimiser iteration (as appended to FitResult::trace)
   virtual void OnIteration(const IterationInfo& /*info*/) {}
-  // the statistical stop's test (sysid/gn_convergence.h): the predicted Gauss-Newton step in
+  // the statistical stop's test (sysid/solve/gn_convergence.h): the predicted Gauss-Newton step in
   // standard errors (largest over the variables; NaN: not tested) and one line saying what was
   // tested or why not. before_jacobian false: of the iterate just reported (with its Jacobian);
   // true: of the next iterate, before its Jacobian (with the previous one), reported before it

@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "sysid/equation_error.h"
+#include "sysid/data/equation_error.h"
 #include "sysid/problem_impl.h"
 
 namespace mjsysid {

@@ -31,9 +31,9 @@
 //
 // Jacobians come from the core (analytic to Ceres, no Ceres numeric differentiation), except a
 // fitted control delay's column: a central difference of two whole rollouts with the controls
-// held again (sysid/cost_functions.h); residual-only evaluations run only the nominal rollout. An
-// evaluation whose simulation warns or is not finite returns false, so the trust region shrinks
-// instead of the fit failing.
+// held again (sysid/solve/cost_functions.h); residual-only evaluations run only the nominal
+// rollout. An evaluation whose simulation warns or is not finite returns false, so the trust region
+// shrinks instead of the fit failing.
 //
 // Errors: bad input (unknown names, shapes, NaN in data, a parameter that has no effect on the
 // data, infeasible bounds) throws std::invalid_argument or ParameterError before Ceres starts.
@@ -53,8 +53,8 @@
 #include "core/mujoco_env.h"
 #include "core/parameters.h"
 #include "core/simulator.h"
+#include "sysid/assess/uncertainty.h"
 #include "sysid/types.h"
-#include "sysid/uncertainty.h"
 
 namespace ceres {
 class Problem;

@@ -1,7 +1,7 @@
 // The state behind Problem (sysid/problem.h): its inputs, the fit PrepareFit derives from
 // them (simulators, channels, segments, variables, the evaluation cache) and what the cost
 // functions met during a fit. Shared by the fit pass (sysid/fit/) and the Ceres cost
-// functions (sysid/cost_functions.h); not part of the public API.
+// functions (sysid/solve/cost_functions.h); not part of the public API.
 //
 // Variables, as Ceres sees them (parameter blocks, in this order): z (np: one per FitParameter,
 // FitParameter::ToVariable of its physical value), m (the fitted measurement terms, in
@@ -10,11 +10,12 @@
 // [qpos, qvel, act] of the free initial states, one per sequence with estimate_initial_state and
 // one per multiple-shooting segment after the first).
 //
-// Threads: single-threaded like its EvaluationCache (sysid/evaluation_cache.h), which aborts on a
-// call from another thread; the diagnostics below are written only by SegmentCost after it has
-// called the cache. The one exception: the compressed blocks' folds ahead (sysid/compressed_cost.h)
-// run SegmentCost::Rows on the simulator's workers, reading the prepared fit and a cache entry
-// while the fit thread waits for them in the same batch; nothing is written there.
+// Threads: single-threaded like its EvaluationCache (sysid/solve/evaluation_cache.h), which aborts
+// on a call from another thread; the diagnostics below are written only by SegmentCost after it has
+// called the cache. The one exception: the compressed blocks' folds ahead
+// (sysid/solve/compressed_cost.h) run SegmentCost::Rows on the simulator's workers, reading the
+// prepared fit and a cache entry while the fit thread waits for them in the same batch; nothing is
+// written there.
 #pragma once
 
 #include <chrono>
@@ -29,20 +30,20 @@
 #include <vector>
 
 #include "core/simulator.h"
-#include "sysid/evaluation_cache.h"
-#include "sysid/fit_ledger.h"
+#include "sysid/data/sample_grid.h"
 #include "sysid/problem.h"
-#include "sysid/progress.h"
-#include "sysid/residual_model.h"
-#include "sysid/sample_grid.h"
-#include "sysid/state_manifold.h"
-#include "sysid/state_residuals.h"
+#include "sysid/solve/evaluation_cache.h"
+#include "sysid/solve/fit_ledger.h"
+#include "sysid/solve/progress.h"
+#include "sysid/solve/residual_model.h"
+#include "sysid/solve/state_manifold.h"
+#include "sysid/solve/state_residuals.h"
 #include "sysid/types.h"
 
 namespace mjsysid {
 
-class GaussNewtonStop;    // sysid/gn_convergence.h
-struct CompressedBlocks;  // sysid/compressed_cost.h
+class GaussNewtonStop;    // sysid/solve/gn_convergence.h
+struct CompressedBlocks;  // sysid/solve/compressed_cost.h
 
 // The state blocks of a fit (the segments' initial states, Ceres parameter blocks), stored
 // contiguously in block order. Ceres keeps the blocks of an elimination group in a
@@ -122,15 +123,15 @@ struct Problem::Impl {
   // per sequence and fitted channel (as `channels`): the samples not measured (NaN, masked)
   std::vector<std::vector<int>> missing;
   std::vector<std::string> prepare_warnings;  // what Prepare noticed (held NaN controls)
-  // per sequence: its fitted states (FitOptions::states, sysid/state_residuals.h) and, per
+  // per sequence: its fitted states (FitOptions::states, sysid/solve/state_residuals.h) and, per
   // channel, the samples not measured (NaN, masked)
   std::vector<std::vector<StateChannel>> state_channels;
   std::vector<std::vector<int>> state_missing;
   // multiple shooting: per model, per tangent coordinate (nx): the continuity rows' weights
-  // (sysid/multiple_shooting.h, ContinuityWeights)
+  // (sysid/solve/multiple_shooting.h, ContinuityWeights)
   std::vector<std::vector<double>> continuity_weights;
   // per sequence and fitted channel (as `channels`): the cells of `missing` that are event
-  // windows (sysid/event_windows.h), not unmeasured samples
+  // windows (sysid/data/event_windows.h), not unmeasured samples
   std::vector<std::vector<int>> event_masked;
   // the measured cells the event windows set to NaN: (sequence, row, column, value), so that the
   // next Prepare starts from the data as given
@@ -197,7 +198,7 @@ struct Problem::Impl {
   }
 
   // the measured samples of a segment: [*first, *first + *count) of its sequence, and the steps
-  // its rollout holds (sysid/sample_grid.h)
+  // its rollout holds (sysid/data/sample_grid.h)
   void SamplesOf(int segment, int* first, int* count) const {
     const Segment& seg = segments[segment];
     grids[seg.seq].SamplesOf(seg.k0, seg.T, first, count);
@@ -225,7 +226,7 @@ struct Problem::Impl {
   // as given), each fitted one shifted by `shift` when it is m[shifted]
   std::vector<double> ControlDelays(int q, const double* mv, int shifted = -1,
                                     double shift = 0) const;
-  // Holds sequence q's controls on its grid again (sysid/sample_grid.h HoldControls) when the
+  // Holds sequence q's controls on its grid again (sysid/data/sample_grid.h HoldControls) when the
   // fitted delays in mv differ from those its controls were held with; the evaluation cache keys
   // its rollouts by them (SampleGrid::delay), so changed controls are simulated anew
   void SyncControlDelays(int q, const double* mv);
@@ -238,7 +239,7 @@ struct Problem::Impl {
   std::function<std::vector<bool>(const Impl&)> owned_sequences;
   std::vector<bool> moves;
 
-  // when Fit began (the progress lines' clock, sysid/progress.h)
+  // when Fit began (the progress lines' clock, sysid/solve/progress.h)
   std::chrono::steady_clock::time_point fit_start = std::chrono::steady_clock::now();
 
   // x_0 of a segment in the current variables (its state block, or the sequence's given x0)
@@ -249,7 +250,7 @@ struct Problem::Impl {
   // the running fit's ledger (Fit's own, borrowed; nullptr outside Fit): the evaluation callback
   // charges the solve's simulation to it
   FitLedger* ledger = nullptr;
-  // the statistical stop before the last Jacobian (sysid/gn_convergence.h, GaussNewtonStop::
+  // the statistical stop before the last Jacobian (sysid/solve/gn_convergence.h, GaussNewtonStop::
   // TestBeforeJacobian): the fit's stop where it may run it (borrowed, nullptr: not), and while
   // previous_jacobian is set the cost functions answer a Jacobian request at the current point
   // with the simulator's sensitivities at the previous iterate (EvaluationCache::Previous; the
@@ -264,7 +265,7 @@ struct Problem::Impl {
     previous_jacobian = on;
   }
   // the epoch of what the cost functions read besides their parameter values, for the compressed
-  // blocks' last folds (sysid/compressed_cost.h CompressedBlocks::epoch): advanced when
+  // blocks' last folds (sysid/solve/compressed_cost.h CompressedBlocks::epoch): advanced when
   // previous_jacobian changes, when a sequence's controls are held at other delays
   // (SyncControlDelays) and when jacobian_warnings loses entries a fold's evaluation noted (a
   // written-out fold notes none)
@@ -287,10 +288,10 @@ struct Problem::Impl {
   }
   // the running solve's compressed blocks (Fit's own, borrowed; nullptr outside the solve and the
   // evaluation at the estimate, and when FitOptions::advanced.fold_ahead is off): the evaluation
-  // callback folds them ahead after each Jacobian batch (sysid/compressed_cost.h FoldAhead)
+  // callback folds them ahead after each Jacobian batch (sysid/solve/compressed_cost.h FoldAhead)
   CompressedBlocks* compressed = nullptr;
-  // fits with an observer: the progress events inside long rollouts (sysid/progress.h), on every
-  // simulator (created once, reset by each pass; PrepareFit installs it)
+  // fits with an observer: the progress events inside long rollouts (sysid/solve/progress.h), on
+  // every simulator (created once, reset by each pass; PrepareFit installs it)
   std::unique_ptr<StepProgressEvents> step_progress;
 };
 
@@ -321,7 +322,7 @@ struct FitPlan {
   SegmentRecord segments;   // why (FitResult::segment_reason)
   double probe_rate = 0;    // growth rate per step of the auto probe
   double probe_growth = 0;  // its largest growth beyond linear (HorizonChoice::growth)
-  FitResult::EventWindows event_windows;  // auto's contact segments (sysid/event_windows.h)
+  FitResult::EventWindows event_windows;  // auto's contact segments (sysid/data/event_windows.h)
   bool contact_segments = false;          // auto chose contact segments (HorizonChoice)
 };
 
@@ -342,8 +343,8 @@ void CheckParametersMove(const Problem::Impl& I, const std::vector<bool>& moves)
 void RolloutUnowned(Problem::Impl* impl, std::vector<Trajectory>* initial);
 
 // initial: auto (FitParameter::initial_auto): the equation-error start of each model's `auto`
-// parameters from its sequences' logged qpos and qvel (sysid/equation_error.h); a parameter that
-// cannot be solved starts at its model's value. The marks are cleared, so that a refit (auto
+// parameters from its sequences' logged qpos and qvel (sysid/data/equation_error.h); a parameter
+// that cannot be solved starts at its model's value. The marks are cleared, so that a refit (auto
 // multiple shooting) starts from the same values. Returns one line per model, for the warnings.
 // threads: the fit's (FitOptions::threads), for the samples' inverse dynamics.
 std::vector<std::string> SolveAutoStarts(Problem::Impl* impl, int threads);

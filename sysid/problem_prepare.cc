@@ -3,7 +3,7 @@
 // checked, the simulators with their parameters, the measurement-term and control-delay variables,
 // the sequences (channels, controls, sample grids with the fitted control delays applied, initial
 // states), the initial rollouts and Jacobians, the segments of single or multiple shooting (the
-// auto horizon, sysid/multiple_shooting.h) and the evaluation cache. The fit (sysid/fit/) and
+// auto horizon, sysid/solve/multiple_shooting.h) and the evaluation cache. The fit (sysid/fit/) and
 // CheckJacobians run on the result.
 #include <ceres/ceres.h>
 #include <ceres/gradient_checker.h>
@@ -22,23 +22,23 @@
 
 #include "core/invariant.h"
 #include "core/text.h"
-#include "sysid/contact_channels.h"
-#include "sysid/cost_functions.h"
-#include "sysid/derived_inertials.h"
-#include "sysid/equation_error.h"
-#include "sysid/evaluation_cache.h"
-#include "sysid/event_windows.h"
+#include "sysid/assess/derived_inertials.h"
+#include "sysid/assess/fit_status.h"
+#include "sysid/assess/interval_check.h"
+#include "sysid/data/contact_channels.h"
+#include "sysid/data/equation_error.h"
+#include "sysid/data/event_windows.h"
 #include "sysid/fit_observer.h"
-#include "sysid/fit_status.h"
-#include "sysid/interval_check.h"
-#include "sysid/multiple_shooting.h"
 #include "sysid/problem.h"
 #include "sysid/problem_impl.h"
-#include "sysid/progress.h"
-#include "sysid/residual_model.h"
-#include "sysid/state_manifold.h"
-#include "sysid/state_residuals.h"
-#include "sysid/variable_manifold.h"
+#include "sysid/solve/cost_functions.h"
+#include "sysid/solve/evaluation_cache.h"
+#include "sysid/solve/multiple_shooting.h"
+#include "sysid/solve/progress.h"
+#include "sysid/solve/residual_model.h"
+#include "sysid/solve/state_manifold.h"
+#include "sysid/solve/state_residuals.h"
+#include "sysid/solve/variable_manifold.h"
 
 namespace mjsysid {
 
@@ -383,7 +383,7 @@ void PrepareSequences(Problem::Impl& I, const FitOptions& options) {
                                  I.m.empty() ? sq.ctrl_delay : I.ControlDelays(iq, I.m.data()),
                                  m.opt.timestep, where);
     SetInitialState(I, iq, m, d, where);
-    // logged states fitted as data (sysid/state_residuals.h)
+    // logged states fitted as data (sysid/solve/state_residuals.h)
     if (options.states.any()) {
       I.state_channels[q] = BuildStateChannels(m, options.states, "model '" + mo.name + "': ");
       I.state_missing[q] = CheckLoggedStates(m, I.state_channels[q],
@@ -486,7 +486,7 @@ void InitialRollouts(Problem::Impl& I, const FitOptions& options, FitPlan* out,
     }
     if (options.reduce_model) ReduceModel(trs, mo.sim.get());
     if (fitted_here && reduce_first) mo.sim->Jacobians(ins, trs, jo, &sens);
-    // fitted sensors that jump at contact events (sysid/contact_channels.h)
+    // fitted sensors that jump at contact events (sysid/data/contact_channels.h)
     std::vector<std::string> fitted;
     for (int q : which) {
       for (const std::string& name : I.fitted[q]) {
@@ -513,7 +513,7 @@ void InitialRollouts(Problem::Impl& I, const FitOptions& options, FitPlan* out,
   if (!I.owned_sequences) CheckParametersMove(I, moves);
 }
 
-// 6. the segments (auto's horizon, sysid/multiple_shooting.h) and their state blocks, started
+// 6. the segments (auto's horizon, sysid/solve/multiple_shooting.h) and their state blocks, started
 // from the data where it determines the state; auto's contact segments leave out the sensors
 // that jump and the cells next to contact events; the continuity weights
 void BuildSegments(Problem::Impl& I, const FitOptions& options, FitPlan* out) {
@@ -579,7 +579,7 @@ void BuildSegments(Problem::Impl& I, const FitOptions& options, FitPlan* out) {
       I.segments[s].next = I.segments[s + 1].block;
     }
   }
-  // the continuity rows' weights, scaled to the sensors (sysid/multiple_shooting.h)
+  // the continuity rows' weights, scaled to the sensors (sysid/solve/multiple_shooting.h)
   bool joined = false;
   for (const Segment& seg : I.segments) joined = joined || seg.next >= 0;
   std::string weights;
@@ -623,7 +623,7 @@ FitPlan PrepareFit(Problem::Impl* impl, const FitOptions& options) {
   FitPlan plan;
   I.cache.reset();  // it borrows the simulators rebuilt below
   I.options = options;
-  RestoreEventWindows(I);  // a previous fit's event windows (sysid/event_windows.h)
+  RestoreEventWindows(I);  // a previous fit's event windows (sysid/data/event_windows.h)
   if (I.models.empty()) throw std::invalid_argument("no model: call AddModel first");
   if (I.sequences.empty()) throw std::invalid_argument("no sequence: call AddSequence first");
   CheckParameters(I);

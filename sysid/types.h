@@ -26,8 +26,8 @@
 #include "core/parameters.h"
 #include "core/simulator.h"
 #include "core/state.h"
-#include "sysid/residual_model.h"  // LossType, the robust loss of each residual
-#include "sysid/uncertainty.h"
+#include "sysid/assess/uncertainty.h"
+#include "sysid/solve/residual_model.h"  // LossType, the robust loss of each residual
 
 namespace mjsysid {
 
@@ -49,7 +49,7 @@ const char* LossTypeName(LossType loss);
 // - kJacobianUnreliable: the core flagged the Jacobian as not reliable (e.g. a horizon too long
 //   for single shooting) and the cost fell by less than a few %; or the optimiser converged but
 //   the cost at the estimate +- one standard error is far from the Jacobian's prediction (a cost
-//   that jumps within the intervals, sysid/interval_check.h).
+//   that jumps within the intervals, sysid/assess/interval_check.h).
 // - kDidNotMove: no estimated value left its start (no step was accepted).
 // - kInterrupted: a stop signal ended the fit.
 // Every value but kConverged marks the intervals not valid.
@@ -107,7 +107,7 @@ struct FitParameter {
   double prior_mean = 0, prior_sigma = 1;  // Gaussian prior residual (p - mean) / sigma
   std::vector<std::string> models;         // models it applies to; empty = all
   // `initial: auto`: Problem::Fit starts it at the equation-error estimate from the logged qpos
-  // and qvel (sysid/equation_error.h; kinds that enter the inverse dynamics linearly), else at
+  // and qvel (sysid/data/equation_error.h; kinds that enter the inverse dynamics linearly), else at
   // the model's value; `initial` is ignored (NaN from the experiment file) and then set
   bool initial_auto = false;
 };
@@ -126,19 +126,19 @@ struct FitMeasurement {
   Term bias{0.0, false};
 };
 
-// how the logged controls of one actuator reach the simulation steps (sysid/sample_grid.h):
+// how the logged controls of one actuator reach the simulation steps (sysid/data/sample_grid.h):
 // zero-order hold (a digital controller's) or linear interpolation
 enum class ControlHold { kZeroOrder, kLinear };
 
 // "zoh", "linear" (the YAML spelling)
 const char* ControlHoldName(ControlHold hold);
 
-// A transport delay of the logged controls fitted as a variable (sysid/sample_grid.h: the
+// A transport delay of the logged controls fitted as a variable (sysid/data/sample_grid.h: the
 // controls are shifted by it before the hold): one actuator's (actuator named) or shared by every
 // actuator not given its own (actuator ""), in every sequence whose model has the actuator; it
 // replaces FitSequence::ctrl_delay for those actuators. Seconds, lower >= 0. Estimated like a
 // parameter, named "controls.delay" (shared) or "controls.delay.<actuator>"; its Jacobian column
-// is a central difference of whole rollouts (sysid/cost_functions.h).
+// is a central difference of whole rollouts (sysid/solve/cost_functions.h).
 struct FitControlDelay {
   std::string actuator;  // "" = every actuator without its own
   double initial = 0;
@@ -152,8 +152,8 @@ struct FitControlDelay {
 
 // One recorded sequence of one model. Its measured samples come at `time` (any rate, jitter,
 // gaps: the simulation runs on the model's timestep from time[0] and each sample is compared with
-// the simulation interpolated at its own time, sysid/sample_grid.h); NaN in measured means "not
-// measured" (masked out of the residuals). The controls come at ctrl_time (their own rate) or,
+// the simulation interpolated at its own time, sysid/data/sample_grid.h); NaN in measured means
+// "not measured" (masked out of the residuals). The controls come at ctrl_time (their own rate) or,
 // without it, at the sample times.
 struct FitSequence {
   FitSequence() = default;
@@ -184,10 +184,11 @@ struct FitSequence {
   bool no_sensors = false;
 };
 
-// Logged states fitted as data next to the sensors (sysid/state_residuals.h): the positions and
-// velocities of joints and the activations of actuators, in tangent space (a ball or free joint's
-// orientation as the 3-vector of mju_subQuat, rad). Each part fits the named joints (actuators
-// for act; empty = every joint or actuator with one, in model order) with a noise level sigma
+// Logged states fitted as data next to the sensors (sysid/solve/state_residuals.h): the positions
+// and velocities of joints and the activations of actuators, in tangent space (a ball or free
+// joint's orientation as the 3-vector of mju_subQuat, rad). Each part fits the named joints
+// (actuators for act; empty = every joint or actuator with one, in model order) with a noise level
+// sigma
 // (> 0, the part's units: m or rad, m/s or rad/s, activation units): one sigma shared, or one per
 // name. Every fitted state counts in the chi-square test of FitStatus::kModelMismatch.
 struct FitStates {
@@ -244,20 +245,21 @@ struct FitOptions {
   bool reduce_model = true;
   // multiple shooting: continuity_weight relative to the sensors (the default: a gap of a fraction
   // f of a state coordinate's spread costs as much as a sensor residual of f of its sensor's
-  // spread; sysid/multiple_shooting.h, ContinuityWeights), or absolute (false: the weight itself)
+  // spread; sysid/solve/multiple_shooting.h, ContinuityWeights), or absolute (false: the weight
+  // itself)
   bool continuity_relative = true;
-  // auto's contact segments (sysid/multiple_shooting.h, OmitJumpingSensors): fit the touch,
+  // auto's contact segments (sysid/solve/multiple_shooting.h, OmitJumpingSensors): fit the touch,
   // accelerometer, force and torque sensors too (true), or leave them out with a warning (false)
   bool fit_jumping_sensors = false;
-  // auto's contact segments (sysid/event_windows.h): the cells of velocity- and
+  // auto's contact segments (sysid/data/event_windows.h): the cells of velocity- and
   // acceleration-level sensors within this many samples of a contact event are left out of the
   // fit (0, the default: none)
   int event_window = 0;
-  // auto's contact segments (sysid/multiple_shooting.h, SolveWithStatesHeld): a first solve with
-  // the segment states held on the data, then the solve with them free (false: the free solve
+  // auto's contact segments (sysid/solve/multiple_shooting.h, SolveWithStatesHeld): a first solve
+  // with the segment states held on the data, then the solve with them free (false: the free solve
   // only)
   bool hold_states_first = true;
-  // the solve's statistical stop (sysid/gn_convergence.h): converged once the predicted
+  // the solve's statistical stop (sysid/solve/gn_convergence.h): converged once the predicted
   // Gauss-Newton step is at most this fraction of every standard error, where the test is valid
   // (single shooting, no robust loss, no fitted control delay, segment_steps auto with its probe's
   // growth at most kRefitGrowth: sysid/fit/pass_build.cc); 0: off, Ceres' tolerances alone
@@ -267,21 +269,21 @@ struct FitOptions {
   // or the same fit) and exist for benchmarks and tests; the defaults are what a user wants.
   struct Advanced {
     // each segment's residual blocks (single and multiple shooting; not under sysid/mpi/, which
-    // compresses its own) handed to Ceres as their thin-QR triangles (sysid/compressed_cost.h: the
-    // same cost, gradient and Gauss-Newton matrix in n + 1 rows), not row by row; false: every row
-    // (the memory of Ceres' copies grows with the samples)
+    // compresses its own) handed to Ceres as their thin-QR triangles
+    // (sysid/solve/compressed_cost.h: the same cost, gradient and Gauss-Newton matrix in n + 1
+    // rows), not row by row; false: every row (the memory of Ceres' copies grows with the samples)
     bool compress_blocks = true;
     // the compressed blocks (compress_blocks above): a block asked for its Jacobian at the inputs
-    // of its last fold writes that fold out instead of re-folding (sysid/compressed_cost.h; the
-    // same bits); false: every request re-folds (the same fit, slower)
+    // of its last fold writes that fold out instead of re-folding (sysid/solve/compressed_cost.h;
+    // the same bits); false: every request re-folds (the same fit, slower)
     bool reuse_folds = true;
     // single shooting's compressed blocks: after each Jacobian batch, the blocks' rows and folds
     // made on the simulator's workers, one task per block, before Ceres asks for them one by one
-    // (sysid/compressed_cost.h, "Folds ahead"; the same bits at any thread count); false: each
-    // block folded when Ceres asks (the same fit)
+    // (sysid/solve/compressed_cost.h, "Folds ahead"; the same bits at any thread count); false:
+    // each block folded when Ceres asks (the same fit)
     bool fold_ahead = true;
-    // the statistical stop also before a point's Jacobians (sysid/gn_convergence.h, "Before the
-    // last Jacobian"): with the previous iterate's Jacobian when the last step was within
+    // the statistical stop also before a point's Jacobians (sysid/solve/gn_convergence.h, "Before
+    // the last Jacobian"): with the previous iterate's Jacobian when the last step was within
     // kPreviousJacobianSteps standard errors, so that the last Jacobian is not simulated; false:
     // only after each Jacobian
     bool gauss_newton_stop_before_jacobian = true;
@@ -294,7 +296,7 @@ struct FitOptions {
 
 // a value is on its bound (lower or upper; an infinite bound: never) within 1e-6 relative:
 // ParameterEstimate::at_lower / at_upper, and the statistical stop's active set
-// (sysid/gn_convergence.h)
+// (sysid/solve/gn_convergence.h)
 inline bool OnBound(double value, double bound, bool lower) {
   const double tol = 1e-6 * std::max(1.0, std::abs(value));
   return std::isfinite(bound) && (lower ? value - bound : bound - value) <= tol;
@@ -311,8 +313,8 @@ struct ParameterEstimate {
   std::optional<double> truth;  // the true value when known (synthetic data), for reports
 };
 
-// how well a simulation reproduces one measured column (sysid/metrics.h), at the start and at the
-// estimate: NRMSE = RMS(simulated - measured) / std(measured) and % fit = 100 (1 - NRMSE)
+// how well a simulation reproduces one measured column (sysid/assess/metrics.h), at the start and
+// at the estimate: NRMSE = RMS(simulated - measured) / std(measured) and % fit = 100 (1 - NRMSE)
 struct ChannelFit {
   std::string channel;  // "sensor" (1-D) or "sensor[i]"
   double nrmse_initial = 0, nrmse_final = 0;
@@ -329,7 +331,8 @@ struct SequenceResult {
   RowMatrix simulated_initial;            // T x sum(sensor_dims), at the initial parameters
   RowMatrix simulated_final;  // T x sum(sensor_dims), at the estimate (measurement terms on)
   Eigen::VectorXd x0_final;   // estimated initial physics vector (or the given one); may be empty
-  // one per column above (sysid/metrics.h ChannelFits; filled by the runner and the result reader)
+  // one per column above (sysid/assess/metrics.h ChannelFits; filled by the runner and the result
+  // reader)
   std::vector<ChannelFit> channel_fits;
   // per column of measured: the samples not measured (NaN in measured, masked out of the fit)
   std::vector<int> missing;
@@ -383,8 +386,8 @@ struct DerivedQuantity {
   std::optional<double> truth;  // the true value when known (synthetic data), for reports
 };
 
-// one phase of a fit in its ledger (sysid/fit_ledger.h): how often it was entered, the simulator
-// step calls (Simulator::StepCount) and the wall seconds spent in it
+// one phase of a fit in its ledger (sysid/solve/fit_ledger.h): how often it was entered, the
+// simulator step calls (Simulator::StepCount) and the wall seconds spent in it
 struct LedgerRow {
   std::string phase;
   int entries = 0;
@@ -424,8 +427,8 @@ struct FitResult {
   int num_residuals = 0;
   Uncertainty uncertainty;  // over FitResult::parameters (order as there)
   // dr/dp at the estimate (physical units) as its thin-QR triangle R: min(num_residuals, np) x
-  // np, upper triangular, R^T R = J^T J (the per-sample rows are not kept: sysid/uncertainty.h
-  // RowTriangle)
+  // np, upper triangular, R^T R = J^T J (the per-sample rows are not kept:
+  // sysid/assess/uncertainty.h RowTriangle)
   RowMatrix jacobian;
   std::vector<IterationInfo> trace;
   std::vector<SequenceResult> sequences;
@@ -445,8 +448,8 @@ struct FitResult {
   // (e.g. "single shooting: sensitivity bounded (max h*|S| 3.1e-05 <= 0.01)")
   int segment_steps_used = 0;
   std::string segment_reason;
-  // physical quantities derived from the estimate (sysid/derived_inertials.h): per body fitted
-  // through body_inertial its mass, centre of mass and principal moments, with delta-method
+  // physical quantities derived from the estimate (sysid/assess/derived_inertials.h): per body
+  // fitted through body_inertial its mass, centre of mass and principal moments, with delta-method
   // intervals; empty when nothing is derived
   std::vector<DerivedQuantity> derived;
   // the reduced model (FitOptions::reduce_model, core/reduced_model.h), summed over the models:
@@ -461,13 +464,14 @@ struct FitResult {
     int guard_trips = 0;
   };
   Reduction reduction;
-  // the fit's steps and seconds by phase (sysid/fit_ledger.h); rows add up to simulation_steps
+  // the fit's steps and seconds by phase (sysid/solve/fit_ledger.h); rows add up to
+  // simulation_steps
   std::vector<LedgerRow> ledger;
-  // whether the interval check (sysid/interval_check.h) ran, along which variables and why, one
-  // line; empty when the uncertainty step did not run
+  // whether the interval check (sysid/assess/interval_check.h) ran, along which variables and why,
+  // one line; empty when the uncertainty step did not run
   std::string interval_check;
-  // auto's contact segments: the event windows left out of the fit (sysid/event_windows.h; all 0
-  // when none); sensors: those with masked cells
+  // auto's contact segments: the event windows left out of the fit (sysid/data/event_windows.h; all
+  // 0 when none); sensors: those with masked cells
   struct EventWindows {
     int window = 0;  // half-width in samples (FitOptions::event_window)
     int events = 0;  // contact-count changes found in the data
@@ -476,7 +480,7 @@ struct FitResult {
   };
   EventWindows event_windows;
   // the solve ended on the statistical stop (FitOptions::gauss_newton_stop,
-  // sysid/gn_convergence.h): converged with the point, possibly the start, already within the
+  // sysid/solve/gn_convergence.h): converged with the point, possibly the start, already within the
   // fraction of every standard error of the Gauss-Newton optimum
   bool gauss_newton_converged = false;
   // the statistical stop fired before the estimate's Jacobian (FitOptions::
@@ -487,7 +491,8 @@ struct FitResult {
   int covariance_jacobian_iteration = -1;
   double last_step_std_errors = std::numeric_limits<double>::quiet_NaN();
   // the compressed blocks (FitOptions::advanced.reuse_folds): Jacobian requests answered
-  // with a block's last fold instead of a re-fold, and the folds made (sysid/compressed_cost.h)
+  // with a block's last fold instead of a re-fold, and the folds made
+  // (sysid/solve/compressed_cost.h)
   long long reused_folds = 0;
   long long folds = 0;
   // of the folds, those made ahead on the simulator's workers (FitOptions::advanced.fold_ahead)

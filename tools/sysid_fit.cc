@@ -12,8 +12,8 @@
 #include <string>
 #include <vector>
 
+#include "sysid/assess/metrics.h"
 #include "sysid/io/experiment.h"
-#include "sysid/metrics.h"
 #include "sysid/run/fit_experiment.h"
 #include "sysid/run/fit_table.h"
 #include "sysid/run/output_folder.h"
@@ -69,8 +69,8 @@ std::string Percent(double x) {
   return buf;
 }
 
-// per sequence the worst and the median channel's % fit (sysid/metrics.h), at the start and at the
-// estimate; fitted sequences first, then the held-out ones (`validation:`)
+// per sequence the worst and the median channel's % fit (sysid/assess/metrics.h), at the start and
+// at the estimate; fitted sequences first, then the held-out ones (`validation:`)
 void PrintFitQuality(const mjsysid::io::FitResultFile& f) {
   if (f.sequences.empty() && f.validation.empty()) return;
   std::printf(

@@ -8,10 +8,10 @@
 #include <string>
 #include <vector>
 
-#include "sysid/cost_functions.h"
 #include "sysid/problem.h"
 #include "sysid/problem_impl.h"
-#include "sysid/state_residuals.h"
+#include "sysid/solve/cost_functions.h"
+#include "sysid/solve/state_residuals.h"
 
 namespace mjsysid {
 
@@ -93,7 +93,7 @@ JacobianCheck Problem::CheckJacobians(const FitOptions& options) {
     std::vector<size_t> all(blocks.size());
     for (size_t b = 0; b < blocks.size(); ++b) all[b] = b;
     if (cost.num_residuals() > 0 && !blocks.empty()) probe(&cost, all, "sensor and continuity");
-    // the fitted states: the z block and the segment's x_0 block (sysid/state_residuals.h)
+    // the fitted states: the z block and the segment's x_0 block (sysid/solve/state_residuals.h)
     if (seg.state_rows) {
       StateCost state_cost(&I, static_cast<int>(s));
       std::vector<size_t> which;

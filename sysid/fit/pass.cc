@@ -7,8 +7,8 @@
 #include <vector>
 
 #include "core/text.h"
-#include "sysid/fit_status.h"
-#include "sysid/progress.h"
+#include "sysid/assess/fit_status.h"
+#include "sysid/solve/progress.h"
 
 namespace mjsysid {
 
@@ -100,7 +100,7 @@ void FitPass::Start() {
   }
 }
 
-// 9. the verdict (sysid/fit_status.h) from the accepted steps, the Jacobian warnings and the
+// 9. the verdict (sysid/assess/fit_status.h) from the accepted steps, the Jacobian warnings and the
 // chi-square; the step count, the reduced model, the ledger and the time
 void FitPass::Decide() {
   int accepted_steps = held_accepted_;

@@ -20,7 +20,8 @@
 //                                         quadratic model
 //   8. FinalSignals (pass_signals.cc)     derived inertials, bound and identifiability warnings,
 //                                         the simulated signals at the start and the estimate
-//   9. Decide       (pass.cc)             the status (sysid/fit_status.h), steps, ledger, time
+//   9. Decide       (pass.cc)             the status (sysid/assess/fit_status.h), steps, ledger,
+//   time
 //
 // Ownership: a pass borrows the problem's state (Problem::Impl) for its lifetime and owns the
 // Ceres problem and what the solve needs around it; the Impl's borrowed pointers to the pass's
@@ -35,12 +36,12 @@
 #include <string>
 #include <vector>
 
-#include "sysid/compressed_cost.h"
-#include "sysid/cost_functions.h"
-#include "sysid/fit_ledger.h"
-#include "sysid/gn_convergence.h"
 #include "sysid/problem_impl.h"
-#include "sysid/variable_manifold.h"
+#include "sysid/solve/compressed_cost.h"
+#include "sysid/solve/cost_functions.h"
+#include "sysid/solve/fit_ledger.h"
+#include "sysid/solve/gn_convergence.h"
+#include "sysid/solve/variable_manifold.h"
 
 namespace mjsysid {
 

@@ -4,10 +4,10 @@
 #include <limits>
 #include <vector>
 
-#include "sysid/contact_channels.h"
+#include "sysid/data/contact_channels.h"
 #include "sysid/fit/pass.h"
-#include "sysid/multiple_shooting.h"
-#include "sysid/state_residuals.h"
+#include "sysid/solve/multiple_shooting.h"
+#include "sysid/solve/state_residuals.h"
 
 namespace mjsysid {
 namespace {
@@ -17,10 +17,10 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 }  // namespace
 
 // 2. The Ceres problem: the z block (with its bounds in z and, where the nominal rollouts are
-// smooth, the relative step of log variables, sysid/variable_manifold.h), the m block, and per
-// segment its sensor and continuity rows and its fitted states, each handed to Ceres as its thin-QR
-// triangle (sysid/compressed_cost.h: Ceres then holds n + 1 rows per block) unless the residuals
-// are evaluated by shards (sysid/mpi/); then the priors.
+// smooth, the relative step of log variables, sysid/solve/variable_manifold.h), the m block, and
+// per segment its sensor and continuity rows and its fitted states, each handed to Ceres as its
+// thin-QR triangle (sysid/solve/compressed_cost.h: Ceres then holds n + 1 rows per block) unless
+// the residuals are evaluated by shards (sysid/mpi/); then the priors.
 void FitPass::BuildCeres() {
   ceres::Problem::Options po;
   po.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
@@ -84,7 +84,7 @@ void FitPass::BuildCeres() {
     } else {
       delete cost;  // e.g. a model without sensors fitted from its states alone
     }
-    // the fitted states (sysid/state_residuals.h): the z and x_0 blocks
+    // the fitted states (sysid/solve/state_residuals.h): the z and x_0 blocks
     if (seg.state_rows) {
       std::vector<double*> state_blocks;
       if (np_) state_blocks.push_back(z);
@@ -113,9 +113,9 @@ void FitPass::BuildCeres() {
 }
 
 // 3. The solver: Levenberg-Marquardt with the linear solver the problem's shape calls for
-// (sysid/multiple_shooting.h), one thread (the evaluation cache is single-threaded by contract,
-// sysid/evaluation_cache.h; the simulators are parallel inside), and the callbacks: the progress
-// (trace, observer, interruption) and, where its test is valid, the statistical stop.
+// (sysid/solve/multiple_shooting.h), one thread (the evaluation cache is single-threaded by
+// contract, sysid/solve/evaluation_cache.h; the simulators are parallel inside), and the callbacks:
+// the progress (trace, observer, interruption) and, where its test is valid, the statistical stop.
 void FitPass::Configure() {
   ceres::Solver::Options& so = solver_;
   so.minimizer_type = ceres::TRUST_REGION;
@@ -145,7 +145,7 @@ void FitPass::Configure() {
   const double h = options_.jacobian.relative_step;
   uncertainty_.jacobian_accuracy =
       std::max(uncertainty_.jacobian_accuracy, options_.jacobian.central ? h * h : h);
-  // the statistical stop (sysid/gn_convergence.h) where its test is valid: single shooting on
+  // the statistical stop (sysid/solve/gn_convergence.h) where its test is valid: single shooting on
   // this process, no robust loss, no fitted control delay (their columns are rollouts), and only
   // where auto's probe measured bounded growth (at most kRefitGrowth beyond linear). On a chaotic
   // system the single-shooting cost is rugged and every local minimum is a stationary point that
@@ -159,7 +159,7 @@ void FitPass::Configure() {
   gn_stop_ = std::make_unique<GaussNewtonStop>(problem_.get(), blocks_, options_.gauss_newton_stop,
                                                uncertainty_, options_.observer, &ledger_);
   if (gn_valid_) so.callbacks.push_back(gn_stop_.get());
-  // and before a point's Jacobians (the evaluation callback asks it, sysid/cost_functions.h)
+  // and before a point's Jacobians (the evaluation callback asks it, sysid/solve/cost_functions.h)
   I_.gn_stop =
       gn_valid_ && options_.advanced.gauss_newton_stop_before_jacobian ? gn_stop_.get() : nullptr;
   I_.SetPreviousJacobian(false);

@@ -5,15 +5,15 @@
 #include <vector>
 
 #include "core/text.h"
+#include "sysid/assess/interval_check.h"
 #include "sysid/fit/pass.h"
 #include "sysid/fit_observer.h"
-#include "sysid/interval_check.h"
-#include "sysid/progress.h"
+#include "sysid/solve/progress.h"
 
 namespace mjsysid {
 
 // 7. The cost one standard error away from the estimate against the Jacobian's prediction:
-// contacts can make the cost jump far inside an interval (sysid/interval_check.h). Along the
+// contacts can make the cost jump far inside an interval (sysid/assess/interval_check.h). Along the
 // simulator parameters only where the rollouts at the estimate can make the cost rugged
 // (RuggedReason) or the standard error is wide; the measurement terms and control delays always.
 // The triangle's rows give the same model 0.5 |r + J_v d|^2 as the residual rows. What ran and why

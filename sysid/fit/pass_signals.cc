@@ -5,10 +5,10 @@
 #include <vector>
 
 #include "core/text.h"
-#include "sysid/derived_inertials.h"
+#include "sysid/assess/derived_inertials.h"
 #include "sysid/fit/pass.h"
-#include "sysid/residual_model.h"
-#include "sysid/state_residuals.h"
+#include "sysid/solve/residual_model.h"
+#include "sysid/solve/state_residuals.h"
 
 namespace mjsysid {
 namespace {

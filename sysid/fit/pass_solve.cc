@@ -4,16 +4,16 @@
 #include <string>
 
 #include "sysid/fit/pass.h"
-#include "sysid/multiple_shooting.h"
+#include "sysid/solve/multiple_shooting.h"
 
 namespace mjsysid {
 
 // 4. The solve. Auto's contact segments first solve with the segment states held on the data
-// (sysid/multiple_shooting.h, SolveWithStatesHeld): its accepted steps count as the fit's and its
-// initial cost is the fit's. During the solve the trial points' first columns are computed on idle
-// workers and the compressed blocks are folded ahead (sysid/compressed_cost.h). Returns false when
-// auto's single shooting met a Jacobian warning (the progress callback ended the solve): the
-// policy refits in segments and this pass ends here.
+// (sysid/solve/multiple_shooting.h, SolveWithStatesHeld): its accepted steps count as the fit's and
+// its initial cost is the fit's. During the solve the trial points' first columns are computed on
+// idle workers and the compressed blocks are folded ahead (sysid/solve/compressed_cost.h). Returns
+// false when auto's single shooting met a Jacobian warning (the progress callback ended the solve):
+// the policy refits in segments and this pass ends here.
 bool FitPass::RunSolver() {
   I_.rejected_evaluations = 0;
   I_.jacobian_warnings.clear();

@@ -5,12 +5,12 @@
 #include <string>
 #include <vector>
 
-#include "sysid/estimate_jacobian.h"
+#include "sysid/assess/estimate_jacobian.h"
+#include "sysid/assess/uncertainty.h"
 #include "sysid/fit/pass.h"
 #include "sysid/fit_observer.h"
-#include "sysid/multiple_shooting.h"
-#include "sysid/progress.h"
-#include "sysid/uncertainty.h"
+#include "sysid/solve/multiple_shooting.h"
+#include "sysid/solve/progress.h"
 
 namespace mjsysid {
 namespace {
@@ -21,10 +21,10 @@ constexpr double kZ95 = 1.959963984540054;
 
 // 6. The Jacobian at the estimate in physical units (tangent space for states) and the covariance
 // of the estimated variables. Single shooting takes the Jacobian only as the thin-QR triangle of
-// [J r], block by block (sysid/estimate_jacobian.h); multiple shooting the whole sparse Jacobian,
-// whose state columns are eliminated (Schur complement, AnalyzeUncertaintyReduced). Variables
-// stopped on a bound are not estimated. An interrupt stops the evaluation at once (the simulators
-// check the flag every step): the result keeps the estimate without intervals. Under the
+// [J r], block by block (sysid/assess/estimate_jacobian.h); multiple shooting the whole sparse
+// Jacobian, whose state columns are eliminated (Schur complement, AnalyzeUncertaintyReduced).
+// Variables stopped on a bound are not estimated. An interrupt stops the evaluation at once (the
+// simulators check the flag every step): the result keeps the estimate without intervals. Under the
 // statistical stop that fired before the last Jacobian the previous iterate's Jacobian is used
 // with the residuals at the estimate.
 void FitPass::Uncertainty() {

@@ -14,9 +14,9 @@
 
 #include "sysid/fit/pass.h"
 #include "sysid/fit_observer.h"
-#include "sysid/multiple_shooting.h"
 #include "sysid/problem.h"
-#include "sysid/progress.h"
+#include "sysid/solve/multiple_shooting.h"
+#include "sysid/solve/progress.h"
 
 namespace mjsysid {
 namespace {

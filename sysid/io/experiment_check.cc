@@ -111,7 +111,7 @@ void ValidateExperimentAgainstModel(const ExperimentConfig& config, const mjMode
   CheckSize(sim.initial_state.qvel, static_cast<long long>(m.nv),
             sim.initial_state.marks.Of("qvel"), "simulate.initial_state.qvel", label + " (nv)");
 
-  // states: the joints and actuators named (sysid/state_residuals.h)
+  // states: the joints and actuators named (sysid/solve/state_residuals.h)
   const FitStates& st = config.options.states;
   for (const auto& [part, joints] :
        {std::pair<const char*, const FitStates::Part*>{"qpos", &st.qpos}, {"qvel", &st.qvel}}) {

@@ -73,7 +73,8 @@ ParameterSpec Parser::ParseParameter(const Field& f, const ExperimentConfig& c) 
   // value, bounds, transform
   r.Require("initial", "the starting value of the fit, or auto");
   const Field fi = r.Get("initial");
-  // `auto`: the equation-error start (sysid/equation_error.h), decided by the fit; NaN until then
+  // `auto`: the equation-error start (sysid/data/equation_error.h), decided by the fit; NaN until
+  // then
   p.initial_auto = fi.node.IsScalar() && fi.node.Scalar() == "auto";
   p.initial = p.initial_auto ? std::numeric_limits<double>::quiet_NaN() : Finite(fi);
   if (r.Has("bounds")) {
@@ -208,7 +209,7 @@ void Parser::ParseSolver(const Field& f, ExperimentConfig* c) const {
   if (r.Has("verbose")) o->verbose = Bool(r.Get("verbose"));
   // the reduced model (core/reduced_model.h)
   if (r.Has("reduce_model")) o->reduce_model = Bool(r.Get("reduce_model"));
-  // the statistical stop (sysid/gn_convergence.h): a fraction of a standard error, 0 = off
+  // the statistical stop (sysid/solve/gn_convergence.h): a fraction of a standard error, 0 = off
   if (r.Has("gauss_newton_stop")) {
     o->gauss_newton_stop = NonNegative(r.Get("gauss_newton_stop"));
   }
@@ -261,7 +262,7 @@ void Parser::ParseMultipleShooting(const Field& f, ExperimentConfig* c) const {
       }
       c->options.fit_jumping_sensors = v == "fit";
     }
-    // event_window: samples either side of a contact event left out (sysid/event_windows.h)
+    // event_window: samples either side of a contact event left out (sysid/data/event_windows.h)
     if (s.Has("event_window")) {
       c->options.event_window = static_cast<int>(Integer(s.Get("event_window"), 0, 1000));
     }

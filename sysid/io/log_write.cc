@@ -33,19 +33,9 @@ using namespace log_internal;  // NOLINT(build/namespaces): the log format's own
 
 // the shared hdf5 helpers (sysid/io/hdf5_util.h); they throw h5::Error, which the API functions
 // below turn into LogError
-using h5::Check;
 using h5::FailH5;
 using h5::Own;
 using H5Id = h5::Id;
-using h5::Array;
-using h5::AttributeNames;
-using h5::Elements;
-using h5::LinkNames;
-using h5::OpenAttrIfAny;
-using h5::ReadInts;
-using h5::ReadScalarString;
-using h5::ReadStrings;
-using h5::ToMatrix;
 using h5::WriteDataset;
 using h5::WriteIntAttr;
 using h5::WriteStringArrayAttr;

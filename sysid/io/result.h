@@ -12,12 +12,13 @@
 //     truth?}), unidentifiable (list of text), warnings (list of text), identified_models (map
 //     model -> file), run_id (when the result has one), fit_metrics (list of {sequence, role: fit
 //     | validation, channels: [{channel, fit_initial, fit_final, nrmse_initial, nrmse_final}]},
-//     sysid/metrics.h; written for readers of the file, recomputed from result.h5 by ReadResult),
-//     starts (multi-start only, sysid/run/multi_start.h: {best, runs: [{start: [...], estimate:
+//     sysid/assess/metrics.h; written for readers of the file, recomputed from result.h5 by
+//     ReadResult), starts (multi-start only, sysid/run/multi_start.h: {best, runs: [{start: [...],
+//     estimate:
 //     [...], initial_cost, final_cost, status, iterations, error?}], spread: [{name, min, max,
 //     relative}]}; values in the order of `parameters`; read back), derived (only when the fit
-//     derived quantities, sysid/derived_inertials.h: [{name, unit, value, std, ci95: [lo, hi],
-//     derived_from, truth?}]; read back), reduced (the reduced model, core/reduced_model.h:
+//     derived quantities, sysid/assess/derived_inertials.h: [{name, unit, value, std, ci95: [lo,
+//     hi], derived_from, truth?}]; read back), reduced (the reduced model, core/reduced_model.h:
 //     {used, collision_pairs, collision_pairs_off, geoms_off, disabled: [island, contact],
 //     guard_trips}; optional when read)
 //   std and ci95 bounds that are infinite are written as .inf / -.inf; flags are any of

@@ -59,7 +59,7 @@ void VisitParameterFields(V& v, P& p) {
   v.Number({"truth", Presence::kWhenSet}, p.truth);
 }
 
-// one entry of `derived` (sysid/derived_inertials.h)
+// one entry of `derived` (sysid/assess/derived_inertials.h)
 template <class V, class D>
 void VisitDerivedFields(V& v, D& d) {
   v.Text({"name"}, d.name);
@@ -116,16 +116,17 @@ void VisitResultFields(V& v, R& r) {
   // multiple shooting as used (0: single shooting) and why
   v.Int({"segment_steps_used", Presence::kOptional}, r.segment_steps_used);
   v.Text({"segment_reason", Presence::kOptional}, r.segment_reason);
-  // whether the interval check ran and why (sysid/interval_check.h); absent: no uncertainty step
+  // whether the interval check ran and why (sysid/assess/interval_check.h); absent: no uncertainty
+  // step
   v.Text({"interval_check", Presence::kWhenSet}, r.interval_check);
-  // the statistical stop before the last Jacobian (sysid/gn_convergence.h): the covariance's
+  // the statistical stop before the last Jacobian (sysid/solve/gn_convergence.h): the covariance's
   // Jacobian is the previous iterate's; absent: the estimate's own
   v.Map({"covariance_jacobian", Presence::kWhenSet}, Style::kBlock,
         r.covariance_jacobian_iteration >= 0, [&](auto& m) {
           m.Int({"iteration"}, r.covariance_jacobian_iteration);
           m.Number({"last_step_std_errors"}, r.last_step_std_errors);
         });
-  // auto's contact segments: the cells next to contact events left out (sysid/event_windows.h)
+  // auto's contact segments: the cells next to contact events left out (sysid/data/event_windows.h)
   v.Map({"event_windows", Presence::kWhenSet}, Style::kBlock, r.event_windows.masked > 0,
         [&](auto& m) {
           m.Int({"window"}, r.event_windows.window);
@@ -143,7 +144,7 @@ void VisitResultFields(V& v, R& r) {
   v.Texts({"unidentifiable"}, Style::kBlockOrEmptyFlow, r.uncertainty.unidentifiable);
   v.Texts({"warnings"}, Style::kBlockOrEmptyFlow, r.warnings);
   v.TextMap({"identified_models"}, Style::kBlockOrEmptyFlow, r.identified_models);
-  // per channel fit metrics (sysid/metrics.h) of the fitted and the held-out sequences
+  // per channel fit metrics (sysid/assess/metrics.h) of the fitted and the held-out sequences
   v.FitMetrics({"fit_metrics"}, r);
   // multi-start: every start, the best, the spread
   v.Map({"starts", Presence::kWhenSet}, Style::kBlock, !r.starts.empty(), [&](auto& m) {

@@ -17,11 +17,11 @@
 #include <vector>
 
 #include "core/text.h"
+#include "sysid/assess/metrics.h"
 #include "sysid/io/atomic_file.h"
 #include "sysid/io/hdf5_util.h"
 #include "sysid/io/result_fields.h"
 #include "sysid/io/result_internal.h"
-#include "sysid/metrics.h"
 
 namespace mjsysid::io::result_internal {
 namespace {

@@ -1,8 +1,8 @@
 // The one check of a logged sequence's time base, applied alike by `sysid import`, `sysid check`
 // and `sysid fit` (through ValidateLogAgainstModel, sysid/io/log.h). A log's samples may come at
 // any times (their own rate, jitter, gaps): the fit simulates on the model's timestep and reads
-// each sample at its own time (sysid/sample_grid.h), so the time base is not required to match the
-// model's grid. What is checked:
+// each sample at its own time (sysid/data/sample_grid.h), so the time base is not required to match
+// the model's grid. What is checked:
 //
 // Errors (LogError, naming file, dataset and row): fewer than 2 samples; a time that is not finite
 // or not greater than the one before; a median sample period below 1/100 of the model timestep

@@ -13,13 +13,13 @@
 #include <map>
 
 #include "core/invariant.h"
-#include "sysid/compressed_cost.h"
-#include "sysid/cost_functions.h"
 #include "sysid/mpi/state_projection.h"
-#include "sysid/multiple_shooting.h"
 #include "sysid/run/fit_experiment.h"
 #include "sysid/run/multi_start.h"
-#include "sysid/state_residuals.h"
+#include "sysid/solve/compressed_cost.h"
+#include "sysid/solve/cost_functions.h"
+#include "sysid/solve/multiple_shooting.h"
+#include "sysid/solve/state_residuals.h"
 
 namespace mjsysid::mpi {
 namespace {
@@ -189,7 +189,7 @@ class TreeCost : public ceres::CostFunction {
     const int n = shards_->n();
     if (!g.ok) return false;
     MJSYSID_DEMAND(!jacobians || g.jacobians, "Jacobians asked without the callback");
-    // as a compressed block (sysid/compressed_cost.h): z columns, then m columns
+    // as a compressed block (sysid/solve/compressed_cost.h): z columns, then m columns
     if (!g.jacobians) {
       WriteNorm(n, g.sum_squares, residuals);
       return true;

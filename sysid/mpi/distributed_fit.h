@@ -31,7 +31,7 @@
 // rank (the warm start of the next points); rank 0 collects them once after the fit
 // (CollectStates: command kStates, MPI_Gatherv in rank order) for the result.
 //
-// `segment_steps: auto` (sysid/multiple_shooting.h): every rank rolls out and probes every
+// `segment_steps: auto` (sysid/solve/multiple_shooting.h): every rank rolls out and probes every
 // sequence at the initial values in Prepare (one nominal and one probe rollout of each, no
 // Jacobians), so every rank chooses the segments one process chooses, without a collective call
 // before the ranks agree that they are ready. Its refits in segments (the single-shooting

@@ -26,7 +26,7 @@
 #include <vector>
 
 #include "core/state.h"
-#include "sysid/row_triangle.h"
+#include "sysid/solve/row_triangle.h"
 
 namespace mjsysid::mpi {
 
@@ -48,7 +48,7 @@ T ReduceTree(int lo, int hi, const Known& known, const Merge& merge) {
 // the R_aug of [a; b] (both (n + 1) x (n + 1) R_aug blocks; one RowTriangle fold of the two)
 Eigen::MatrixXd MergeBlocks(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b);
 
-// a segment's rows [J r] folded by the RowTriangle of sysid/row_triangle.h (width n + 1)
+// a segment's rows [J r] folded by the RowTriangle of sysid/solve/row_triangle.h (width n + 1)
 class CompressedBlock {
  public:
   // n: the fitted variables (columns of every J added)

@@ -5,8 +5,8 @@
 #include <cmath>
 #include <string>
 
-#include "sysid/cost_functions.h"
-#include "sysid/state_residuals.h"
+#include "sysid/solve/cost_functions.h"
+#include "sysid/solve/state_residuals.h"
 
 namespace mjsysid::mpi {
 namespace {

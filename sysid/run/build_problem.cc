@@ -279,7 +279,7 @@ void Controls(const io::ExperimentConfig& cfg, const mjModel& m, const io::Seque
 
 // Sequence: takes a logged sequence of model mi (log read from path; post: sensor_time post);
 // gives its FitSequence through the stages above. Any sample period: each sample is fitted at its
-// own time (sysid/sample_grid.h).
+// own time (sysid/data/sample_grid.h).
 FitSequence SequenceOf(const io::ExperimentConfig& cfg, size_t mi, const io::Sequence& whole,
                        const std::string& path, bool post, BuiltProblem* out) {
   const mjModel& m = *out->models[mi];

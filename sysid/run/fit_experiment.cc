@@ -17,9 +17,9 @@
 #include "core/identified_model.h"
 #include "core/text.h"
 #include "mjsysid/version.h"
-#include "sysid/derived_inertials.h"
+#include "sysid/assess/derived_inertials.h"
+#include "sysid/assess/metrics.h"
 #include "sysid/io/atomic_file.h"
-#include "sysid/metrics.h"
 #include "sysid/run/multi_start.h"
 #include "sysid/run/output_folder.h"
 #include "sysid/run/resume.h"
@@ -226,8 +226,8 @@ std::map<std::string, double> TruthOf(const io::ExperimentConfig& cfg) {
   return truth;
 }
 
-// the true value of each derived quantity (sysid/derived_inertials.h) whose body has a truth for
-// every body_inertial parameter (simulate.truth): the same derivation at the true values
+// the true value of each derived quantity (sysid/assess/derived_inertials.h) whose body has a truth
+// for every body_inertial parameter (simulate.truth): the same derivation at the true values
 void SetDerivedTruth(const BuiltProblem& bp, const std::map<std::string, double>& truth,
                      std::vector<DerivedQuantity>* derived) {
   if (derived->empty()) return;
@@ -359,8 +359,11 @@ FitResult FitProblem(const io::ExperimentConfig& run_cfg, const Starts& starts,
                      const FitRunOptions& ro, BuiltProblem* bp, FitOptions* options) {
   try {
     if (starts.count > 1) {
-      return FitFromStarts(*bp, *options, starts.count, starts.seed, /*progress=*/true,
-                           ro.on_problem);
+      // one line per finished start even without progress (as the data's warnings): the starts
+      // report to the runner's observer, never the fits inside them
+      FitOptions multi = *options;
+      multi.observer = ro.observer;
+      return FitFromStarts(*bp, multi, starts.count, starts.seed, /*progress=*/true, ro.on_problem);
     }
     if (ro.on_problem) ro.on_problem(*bp->problem, options);
     return bp->problem->Fit(*options);

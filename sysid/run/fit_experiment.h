@@ -20,7 +20,7 @@
 //   interruption (FitRunOptions::interrupt) writes the complete results of the last good iterate
 //   the same way. A failed write (io::FileError / io::ResultError naming the file and the reason)
 //   leaves DIR as it was. It never throws for a fit that merely fails to converge: see
-//   FitRunOutcome. Every fitted sequence gets its per-channel metrics (sysid/metrics.h); the
+//   FitRunOutcome. Every fitted sequence gets its per-channel metrics (sysid/assess/metrics.h); the
 //   `validation:` sequences are simulated at the start and at the estimate
 //   (sysid/run/validation.h) into FitResult::validation. With solver.starts (or
 //   FitRunOptions::starts) > 1 the fit is sysid/run/multi_start.h's, without checkpoints.

@@ -8,7 +8,7 @@
 //      1   1.102000e+01    4.10e-01   2.10e+01       0.03      0.05 s
 //      2   1.102000e+01    1.20e-03   2.00e+00         -       0.07 s  rejected
 // step/std: the predicted Gauss-Newton step in standard errors where the statistical stop tested
-// it (sysid/gn_convergence.h; with the iterate's own Jacobian, or before it with the previous
+// it (sysid/solve/gn_convergence.h; with the iterate's own Jacobian, or before it with the previous
 // one), "-" where not. A stage opens with a line of its own
 //   "start  rollout and Jacobian of 3 sequences, 6000 steps                   0.01 s"
 // ("start", "refit", "unc" for the uncertainty step and the interval check, "sim" for progress

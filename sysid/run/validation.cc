@@ -4,9 +4,9 @@
 #include <stdexcept>
 
 #include "core/simulator.h"
-#include "sysid/metrics.h"
-#include "sysid/residual_model.h"
-#include "sysid/sample_grid.h"
+#include "sysid/assess/metrics.h"
+#include "sysid/data/sample_grid.h"
+#include "sysid/solve/residual_model.h"
 
 namespace mjsysid::run {
 namespace {
@@ -85,7 +85,7 @@ SequenceResult SimulateHeldOut(const mjModel& m, const std::vector<FitParameter>
   }
 
   // the log's samples and controls on the simulation grid, as the fit reads them
-  // (sysid/sample_grid.h: any sample rate, controls held or interpolated, transport delay)
+  // (sysid/data/sample_grid.h: any sample rate, controls held or interpolated, transport delay)
   const double dt = m.opt.timestep;
   const SampleGrid grid = BuildSampleGrid(
       sequence.time, static_cast<int>(T), sequence.x0.time, sequence.ctrl, sequence.ctrl_time,

@@ -1,12 +1,12 @@
 // Held-out validation: a logged sequence that is not fitted, simulated at the start and at the
-// estimate so that the per-channel fit metrics (sysid/metrics.h) show whether the model
+// estimate so that the per-channel fit metrics (sysid/assess/metrics.h) show whether the model
 // generalises beyond the data it was fitted to.
 //
 // Contract: the sequence is simulated in one piece (single shooting, whatever the fit's
 // multiple-shooting setting) from its logged initial state (initial states are never estimated for
 // it), with the parameters that apply to its model written by core's Simulator, and the measurement
 // terms (gain, bias, delay of each sensor: the estimate where fitted, the experiment's value
-// otherwise) applied as in the fit's residuals (sysid/residual_model.h). The result holds the
+// otherwise) applied as in the fit's residuals (sysid/solve/residual_model.h). The result holds the
 // fitted sensors' columns, like a fitted sequence's SequenceResult, with channel_fits filled.
 // Failure: a simulation that fails at one of the two points (SimulationError, MujocoError, a
 // parameter write the model refuses) leaves that simulation NaN (its % fit NaN) and appends a

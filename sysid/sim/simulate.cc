@@ -15,9 +15,9 @@
 #include "core/simulator.h"
 #include "core/text.h"
 #include "mjsysid/version.h"
-#include "sysid/residual_model.h"
-#include "sysid/sample_grid.h"
+#include "sysid/data/sample_grid.h"
 #include "sysid/sim/excitation.h"
+#include "sysid/solve/residual_model.h"
 
 namespace mjsysid::sim {
 namespace {

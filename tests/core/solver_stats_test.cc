@@ -1,9 +1,9 @@
 // SolverStats::row_changes and friction_changes (core/solver_stats.h) on real rollouts: what tells
-// the interval check (sysid/interval_check.h) that a rollout's constraint forces switched branch.
-// Truth by construction: a ball dropped on the floor (contact rows come at the impact), a hinge
-// swinging into its limit (a limit row comes), a hinge with friction loss under a slow sine torque
-// (its friction row sticks and slips, no row comes or goes), the same hinge without friction loss
-// and limits (no row at all).
+// the interval check (sysid/assess/interval_check.h) that a rollout's constraint forces switched
+// branch. Truth by construction: a ball dropped on the floor (contact rows come at the impact), a
+// hinge swinging into its limit (a limit row comes), a hinge with friction loss under a slow sine
+// torque (its friction row sticks and slips, no row comes or goes), the same hinge without friction
+// loss and limits (no row at all).
 #include "core/solver_stats.h"
 
 #include <gtest/gtest.h>

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "sysid/uncertainty.h"
+#include "sysid/assess/uncertainty.h"
 #include "tests/stress/stress_util.h"
 
 namespace mjsysid {

@@ -183,7 +183,7 @@ TEST_P(RobustSuiteTest, EndsHonestly) {
   for (const std::string& w : out.file.warnings) {
     std::printf("[ robust ] %s:   warning: %s\n", name.c_str(), w.c_str());
   }
-  // fitted sensors that jump at contact events are named (sysid/contact_channels.h): the
+  // fitted sensors that jump at contact events are named (sysid/data/contact_channels.h): the
   // finger's and hopper's touch sensors, the hopper's, walker's and crate's accelerometers; the
   // contact-free cart-pole and acrobot have none
   int jumping = 0;
@@ -195,7 +195,7 @@ TEST_P(RobustSuiteTest, EndsHonestly) {
   EXPECT_EQ(jumping, kJumping.at(name)) << "sensors named as jumping at contact events";
   // auto (no override): the cases whose contacts change at events (finger, hopper, walker) get
   // contact segments started on the logged states and leave those sensors out of the fit, saying
-  // so (sysid/multiple_shooting.h); the crate's contacts chatter (~20 % of the steps) and the
+  // so (sysid/solve/multiple_shooting.h); the crate's contacts chatter (~20 % of the steps) and the
   // contact-free cases have none: they keep single shooting
   if (segment_steps == -2) {
     int omitted = 0;
@@ -207,7 +207,7 @@ TEST_P(RobustSuiteTest, EndsHonestly) {
     const bool contact_segments =
         out.file.segment_reason.find("change their contact count") != std::string::npos;
     EXPECT_EQ(contact_segments, events) << out.file.segment_reason;
-    // and start with the segment states held on the data (sysid/multiple_shooting.h,
+    // and start with the segment states held on the data (sysid/solve/multiple_shooting.h,
     // SolveWithStatesHeld), saying so
     const bool held = out.file.segment_reason.find("held on the data") != std::string::npos;
     EXPECT_EQ(held, events) << out.file.segment_reason;

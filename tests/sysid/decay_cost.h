@@ -1,4 +1,4 @@
-// The compressed blocks' unit-test cost (tests of sysid/compressed_cost.h: fold reuse, folds
+// The compressed blocks' unit-test cost (tests of sysid/solve/compressed_cost.h: fold reuse, folds
 // ahead): a real nonlinear residual r_i = x0[0] exp(-x0[1] t_i) + x1[0] t_i - y_i, t_i = i / m,
 // m = kDecayRows = 2500 rows (more than RowTriangle::kChunkRows), blocks of sizes 2 and 1, its
 // data y from a = 2, b = 3, c = 0.5 with Gaussian noise sigma 0.01 (DecayData(seed)); and one

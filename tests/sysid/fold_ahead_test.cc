@@ -1,4 +1,4 @@
-// Compressed blocks folded ahead on worker threads (sysid/compressed_cost.h, "Folds ahead";
+// Compressed blocks folded ahead on worker threads (sysid/solve/compressed_cost.h, "Folds ahead";
 // FitOptions::advanced.fold_ahead).
 //
 // Unit: a real nonlinear cost (tests/sysid/decay_cost.h: r_i = a exp(-b t_i) + c t_i - y_i, m =
@@ -28,8 +28,8 @@
 #include <vector>
 
 #include "core/thread_pool.h"
-#include "sysid/compressed_cost.h"
 #include "sysid/run/fit_experiment.h"
+#include "sysid/solve/compressed_cost.h"
 #include "tests/experiment_log.h"
 #include "tests/sysid/decay_cost.h"
 #include "tests/sysid/same_fit.h"
@@ -195,7 +195,7 @@ FitResult FitWith(const io::ExperimentConfig& cfg, bool ahead, int threads) {
 }
 
 // steps: compared too (not across thread counts: at 2 threads trial points also simulate Jacobian
-// columns ahead, sysid/evaluation_cache.h); and the folds made and reused
+// columns ahead, sysid/solve/evaluation_cache.h); and the folds made and reused
 void ExpectSameFit(const FitResult& a, const FitResult& b, bool steps) {
   test::ExpectSameFit(a, b, steps);
   EXPECT_EQ(a.folds, b.folds);

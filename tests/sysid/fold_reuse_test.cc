@@ -1,5 +1,5 @@
-// A compressed block's last fold written out instead of a re-fold (sysid/compressed_cost.h, "The
-// last fold"; FitOptions::advanced.reuse_folds).
+// A compressed block's last fold written out instead of a re-fold (sysid/solve/compressed_cost.h,
+// "The last fold"; FitOptions::advanced.reuse_folds).
 //
 // Unit: a real nonlinear cost (tests/sysid/decay_cost.h: r_i = a exp(-b t_i) + c t_i - y_i, m =
 // 2500 rows > kChunkRows, blocks of sizes 2 and 1, automatic derivatives, noise seed 5) wrapped in
@@ -27,8 +27,8 @@
 #include <string>
 #include <vector>
 
-#include "sysid/compressed_cost.h"
 #include "sysid/run/fit_experiment.h"
+#include "sysid/solve/compressed_cost.h"
 #include "tests/experiment_log.h"
 #include "tests/sysid/decay_cost.h"
 #include "tests/sysid/same_fit.h"

@@ -1,4 +1,4 @@
-// The statistical stop before the last Jacobian (sysid/gn_convergence.h, "Before the last
+// The statistical stop before the last Jacobian (sysid/solve/gn_convergence.h, "Before the last
 // Jacobian"; FitOptions::advanced.gauss_newton_stop_before_jacobian).
 //
 // TestPreviousJacobian on linear least squares (tests/sysid/linear_least_squares.h: truth
@@ -24,10 +24,10 @@
 #include <string>
 #include <vector>
 
-#include "sysid/fit_ledger.h"
-#include "sysid/gn_convergence.h"
 #include "sysid/run/fit_experiment.h"
 #include "sysid/run/fit_table.h"
+#include "sysid/solve/fit_ledger.h"
+#include "sysid/solve/gn_convergence.h"
 #include "tests/experiment_log.h"
 #include "tests/sysid/linear_least_squares.h"
 

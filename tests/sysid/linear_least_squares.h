@@ -1,6 +1,6 @@
-// A linear least-squares problem for the statistical stop's tests (sysid/gn_convergence.h), where
-// the Gauss-Newton step is exact: y = J x* + noise, truth x*_i = 1 + i, J m x n Gaussian (seed
-// 7), noise sigma 0.1 (seed 11); the least-squares solution xhat and its standard errors
+// A linear least-squares problem for the statistical stop's tests (sysid/solve/gn_convergence.h),
+// where the Gauss-Newton step is exact: y = J x* + noise, truth x*_i = 1 + i, J m x n Gaussian
+// (seed 7), noise sigma 0.1 (seed 11); the least-squares solution xhat and its standard errors
 // sqrt(s^2 (J'J)^-1_ii), s^2 = |J xhat - y|^2 / (m - n).
 #pragma once
 
@@ -10,9 +10,9 @@
 #include <vector>
 
 #include "core/state.h"
-#include "sysid/estimate_jacobian.h"
-#include "sysid/gn_convergence.h"
-#include "sysid/row_triangle.h"
+#include "sysid/assess/estimate_jacobian.h"
+#include "sysid/solve/gn_convergence.h"
+#include "sysid/solve/row_triangle.h"
 
 namespace mjsysid::test {
 

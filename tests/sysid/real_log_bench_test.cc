@@ -1,4 +1,4 @@
-// Real robot logs, as a robot writes them, fitted as they come (sysid/sample_grid.h): a finer
+// Real robot logs, as a robot writes them, fitted as they come (sysid/data/sample_grid.h): a finer
 // simulation (0.5 ms) of the true model plays the robot. Its controller updates at 50-100 Hz, each
 // command held until the next and reaching the motors late (a transport delay); its sensors are
 // logged at 100-250 Hz at jittered instants, with dropped rows, NaN cells, encoder quantization

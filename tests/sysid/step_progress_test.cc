@@ -1,4 +1,4 @@
-// Progress inside one long rollout (core/simulator.h StepProgress, sysid/progress.h
+// Progress inside one long rollout (core/simulator.h StepProgress, sysid/solve/progress.h
 // StepProgressEvents). Core: a rollout of 1000 steps calls the hook at steps 0, 100, .., 900 and a
 // directional Jacobian (with the initial state's columns) once per column at the same steps; no
 // hook, no call. Fit: a fit of one long pendulum sequence with an observer
@@ -18,10 +18,10 @@
 #include "core/simulator.h"
 #include "sysid/io/experiment.h"
 #include "sysid/io/log.h"
-#include "sysid/progress.h"
 #include "sysid/run/fit_experiment.h"
 #include "sysid/run/fit_table.h"
 #include "sysid/sim/simulate.h"
+#include "sysid/solve/progress.h"
 #include "tests/experiment_log.h"
 #include "tests/file_util.h"
 

@@ -11,8 +11,8 @@
 #include <string>
 
 #include "core/mujoco_env.h"
+#include "sysid/data/sample_grid.h"
 #include "sysid/io/log.h"
-#include "sysid/sample_grid.h"
 #include "tests/cli_util.h"
 #include "tests/file_util.h"
 #include "tests/log_builder.h"
@@ -36,7 +36,7 @@ class ControlDelayCliTest : public ::testing::Test {
  protected:
   // truth: hinge damping 0.12 (the model says 0.05), from the reference state; a multi-sine
   // commanded at 50 Hz (every 10th step of 2 ms), held, reaching the motor 13 ms (6.5 steps)
-  // late: the steps' controls are the fit's own zero-order hold (sysid/sample_grid.h) of the
+  // late: the steps' controls are the fit's own zero-order hold (sysid/data/sample_grid.h) of the
   // commands at that delay; 1500 steps, sensors at every step, noise 1e-3 (seed 5)
   void SetUp() override {
     dir_ = test::FreshTempDir("ctrl_delay");

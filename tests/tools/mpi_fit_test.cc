@@ -84,8 +84,8 @@ void ExpectRanksAgree(const std::vector<io::FitResultFile>& got, double se_fract
 // the pendulum of experiments/pendulum.yaml with 4 sequences of 1500 steps (truth damping 0.08,
 // friction loss 0.03, bob mass 1.2; start 0.2, 0.01, 0.8; noise 1e-3 rad, 1e-2 rad/s, seed 1)
 // extra: top-level keys; solver: more solver keys ("loss: {...}, "). The statistical stop
-// (solver.gauss_newton_stop, sysid/gn_convergence.h) is off: a sharded fit does not make it, and
-// the fit of one process is compared with the sharded ones to 1e-6 standard errors
+// (solver.gauss_newton_stop, sysid/solve/gn_convergence.h) is off: a sharded fit does not make it,
+// and the fit of one process is compared with the sharded ones to 1e-6 standard errors
 std::string Experiment(int steps, const std::string& extra = "", const std::string& solver = "") {
   return std::string("name: pendulum_mpi\nmodel: ") + MJSYSID_MODELS_DIR +
          "/pendulum.xml\n"

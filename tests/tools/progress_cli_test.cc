@@ -1,5 +1,5 @@
-// The progress lines of a long run come from the start (sysid/progress.h): `sysid fit` prints the
-// start's rollout and Jacobian before its first iteration line and the uncertainty step after
+// The progress lines of a long run come from the start (sysid/solve/progress.h): `sysid fit` prints
+// the start's rollout and Jacobian before its first iteration line and the uncertainty step after
 // its last one; `sysid simulate` names each model's rollouts before they run; --quiet silences
 // them. Real binary, real files: the pendulum experiment with one 20,000-step sequence (truth
 // and noise of experiments/pendulum.yaml), 2 iterations. No timing is asserted, only the order.

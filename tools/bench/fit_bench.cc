@@ -8,7 +8,7 @@
 // - ours/<mode>/<differences>/<threads>t: Problem::Fit with the core Jacobians, mode directional
 //   or matrix, forward or central differences, 1 or 2 simulator threads;
 // - ours/directional/forward+auto/<threads>t: ours from the equation-error start (every
-//   parameter `initial: auto`, sysid/equation_error.h), 1 and 2 threads, method `auto`;
+//   parameter `initial: auto`, sysid/data/equation_error.h), 1 and 2 threads, method `auto`;
 // - oracle/whole/forward/2t: Problem::Fit with whole-rollout finite differences (kWholeRollout);
 // - full-model/directional/forward/<threads>t: ours without the reduced model
 //   (solver.reduce_model: false, core/reduced_model.h), method `full` (issue 15 item 6):
@@ -55,7 +55,7 @@
 #include "core/mujoco_env.h"
 #include "core/simulator.h"
 #include "mjsysid/version.h"
-#include "sysid/fit_ledger.h"
+#include "sysid/solve/fit_ledger.h"
 
 namespace mjsysid {
 namespace bench {
@@ -109,7 +109,7 @@ void AddOptions(CLI::App* app, Options* o) {
   app->add_option("--max-iterations", o->caps, "per-case iteration cap, e.g. humanoid=10");
   app->add_flag(
       "--ledger", o->print_ledger,
-      "print under each row of ours its fit's steps and time by phase (sysid/fit_ledger.h)");
+      "print under each row of ours its fit's steps and time by phase (sysid/solve/fit_ledger.h)");
 }
 
 std::vector<std::string> Split(const std::string& s) {

@@ -15,9 +15,9 @@
 #include <vector>
 
 #include "core/simulator.h"
-#include "sysid/fit_ledger.h"
 #include "sysid/io/experiment.h"
 #include "sysid/run/fit_experiment.h"
+#include "sysid/solve/fit_ledger.h"
 
 namespace mjsysid {
 namespace bench {
@@ -54,8 +54,8 @@ struct Row {
   // as ever measured for the case; attempts: how often the row was measured (kMaxAttempts)
   double host_slowness = NAN;
   int attempts = 1;
-  // ours: the fit's ledger (sysid/fit_ledger.h) and the seconds of run::BuildProblem before it
-  // (model loading, log reading, not part of wall_s)
+  // ours: the fit's ledger (sysid/solve/fit_ledger.h) and the seconds of run::BuildProblem before
+  // it (model loading, log reading, not part of wall_s)
   std::vector<LedgerRow> ledger;
   double build_s = NAN;
   // CPU seconds of the whole process (all threads) during the fit: less sensitive than wall time
@@ -118,8 +118,8 @@ Row MeasureRow(Case* c, int threads, const Repeats& r, const std::function<Row()
 // the methods (fit_bench_methods.cc)
 
 // ours and the whole-rollout oracle: the product's own fit with one Jacobian setting
-// auto_start: every parameter `initial: auto` (the equation-error start, sysid/equation_error.h)
-// reduce: the reduced model (FitOptions::reduce_model)
+// auto_start: every parameter `initial: auto` (the equation-error start,
+// sysid/data/equation_error.h) reduce: the reduced model (FitOptions::reduce_model)
 Row FitOurs(const Case& c, const std::string& method, JacobianMode mode, bool central, int threads,
             int max_iterations, bool auto_start = false, bool reduce = true);
 // the hand-written baseline: Ceres numeric differentiation of whole rollouts

@@ -6,9 +6,9 @@
 // unidentifiable rows highlighted; the unidentifiable combinations listed), starts (multi-start
 // only: every start's status, costs, start and estimate, and the spread), warnings, cost,
 // parameters over the iterations, fit quality (per sequence and channel: % fit and NRMSE at the
-// start and at the estimate, sysid/metrics.h; fitted and held-out sequences), sequences, validation
-// sequences (not fitted), motion (when given: an animated WebP data URI). Every text from the
-// result is HTML-escaped.
+// start and at the estimate, sysid/assess/metrics.h; fitted and held-out sequences), sequences,
+// validation sequences (not fitted), motion (when given: an animated WebP data URI). Every text
+// from the result is HTML-escaped.
 #pragma once
 
 #include <string>

@@ -177,7 +177,7 @@ void DrawSequence(Canvas& c, const SequenceResult& s, bool held_out) {
               {"simulated, initial parameters", kBefore, 6, false},
               {"simulated, fitted parameters", kAfter, 0, false}});
 
-  // each panel's label with its % fit at the start and at the estimate (sysid/metrics.h)
+  // each panel's label with its % fit at the start and at the estimate (sysid/assess/metrics.h)
   std::vector<std::string> labels = ColumnLabels(s);
   for (size_t j = 0; j < labels.size() && j < s.channel_fits.size(); ++j) {
     const ChannelFit& f = s.channel_fits[j];

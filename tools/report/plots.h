@@ -25,7 +25,7 @@ Figure CostFigure(const io::FitResultFile& result);
 Figure ParametersFigure(const io::FitResultFile& result);
 
 // one panel per sensor column: measured, simulated with the initial and the fitted parameters,
-// each panel labelled with its % fit at both (sysid/metrics.h); held_out: a `validation:`
+// each panel labelled with its % fit at both (sysid/assess/metrics.h); held_out: a `validation:`
 // sequence, its header starting "validation (not fitted)"
 Figure SequenceFigure(const SequenceResult& sequence, bool held_out = false);
 

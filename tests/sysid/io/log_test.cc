@@ -777,9 +777,9 @@ TEST_F(ValidateTest, StateWidths) {
   ExpectMentions(ValidateError(log), {"data.h5", "/run1/act", "na = 0"});
 }
 
-// Any sample period is accepted (each sample is fitted at its own time, sysid/sample_grid.h); the
-// time base's warnings name where the period varies or a gap is long; a period below 1/100 of the
-// timestep is a unit error (sysid/io/time_base.h)
+// Any sample period is accepted (each sample is fitted at its own time, sysid/data/sample_grid.h);
+// the time base's warnings name where the period varies or a gap is long; a period below 1/100 of
+// the timestep is a unit error (sysid/io/time_base.h)
 TEST_F(ValidateTest, AnySamplePeriodWithWarningsAndUnitErrors) {
   Log log = PendulumLog();
   std::vector<std::string> warnings;

@@ -15,7 +15,7 @@
 #include <utility>
 #include <vector>
 
-#include "sysid/metrics.h"
+#include "sysid/assess/metrics.h"
 #include "tests/file_util.h"
 #include "tests/temp_dir_test.h"
 
@@ -340,8 +340,8 @@ TEST_F(ResultTest, RoundTripKeepsTheStartsOfAMultiStartFit) {
   ExpectSame(ReadResult(Dir()), r);
 }
 
-// the event windows of a contact fit (sysid/event_windows.h): written only when cells were left
-// out, read back as written
+// the event windows of a contact fit (sysid/data/event_windows.h): written only when cells were
+// left out, read back as written
 TEST_F(ResultTest, EventWindowsRoundTripAndAreAbsentWhenNone) {
   FitResultFile r = FullResult();
   WriteBoth(r);
@@ -357,7 +357,8 @@ TEST_F(ResultTest, EventWindowsRoundTripAndAreAbsentWhenNone) {
 }
 
 // where the covariance's Jacobian was taken (the statistical stop before the last Jacobian,
-// sysid/gn_convergence.h): written only when it was the previous iterate's, read back as written
+// sysid/solve/gn_convergence.h): written only when it was the previous iterate's, read back as
+// written
 TEST_F(ResultTest, CovarianceJacobianRoundTripsAndIsAbsentWhenTheEstimates) {
   FitResultFile r = FullResult();
   WriteBoth(r);

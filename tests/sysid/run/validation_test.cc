@@ -1,6 +1,6 @@
 // Held-out validation sequences (experiment `validation:`, sysid/run/validation.h): read and
 // checked like fitted ones, never fitted, simulated at the start and at the estimate, with
-// per-channel % fit (sysid/metrics.h) in the result, its files and the report.
+// per-channel % fit (sysid/assess/metrics.h) in the result, its files and the report.
 //
 // Data: experiments/pendulum.yaml simulated (truth damping 0.08, frictionloss 0.03, bob_mass 1.2;
 // start 0.2, 0.01, 0.8; three 2000-step sequences seq0..seq2 of multi-sine torque; noise angle
@@ -13,8 +13,8 @@
 #include <filesystem>
 #include <string>
 
+#include "sysid/assess/metrics.h"
 #include "sysid/io/log.h"
-#include "sysid/metrics.h"
 #include "sysid/run/fit_experiment.h"
 #include "sysid/sim/simulate.h"
 #include "tests/file_util.h"

@@ -1,0 +1,41 @@
+// The verdict on a finished fit: the FitStatus (sysid/types.h) of a FitResult, decided once after
+// the solve by a fit pass (sysid/fit/pass.cc, Decide).
+//
+// Contract: result holds the solve's outcome (converged = the optimiser's convergence,
+// interrupted, initial and final cost, the estimates with their starts, the uncertainty at the
+// estimate, the sequences' measured and final simulated columns). DecideFitStatus sets
+// result->outcome, intervals_valid, chi2_ratio and sensor_chi2_ratio, and appends the warning that
+// says what went wrong. The first that applies, in this order:
+// - interrupted: result->interrupted.
+// - did_not_move: no accepted step changed any estimated value, unless the solve's statistical
+//   stop found the start already converged (result->gauss_newton_converged).
+// - jacobian_unreliable: the core flagged a Jacobian during the solve (jacobian_warned) and the
+//   cost fell by less than 5 %.
+// - not_converged: the optimiser did not converge.
+// - model_mismatch: options.sensors_with_sigma not empty and the weighted residual variance of
+//   those sensors' columns at the estimate, sum(r^2) / (m - p) with p the rank of the Jacobian at
+//   the estimate, overall or per sensor (its share of m - p), above both the chi-square quantile
+//   at a one-sided false-alarm rate of 1e-6 and 2. The raw weighted residuals are tested (a
+//   robust loss declares outliers, it does not make a wrong model explain the data).
+// - jacobian_unreliable also when the fit would be converged but the core flagged the Jacobian at
+//   the estimate itself (jacobian_warned_at_estimate: h*|S| past kSensitivityGrowthLimit, the
+//   finite differences there are not local, so neither are intervals built from them), or
+//   cost_not_local: the cost at the estimate +- one standard error is not what the Jacobian
+//   predicts (sysid/assess/interval_check.h). Both need no sigmas.
+// - converged otherwise; intervals_valid only then (and when the uncertainty step ran).
+#pragma once
+
+#include "sysid/types.h"
+
+namespace mjsysid {
+
+// accepted_steps: the solve's successful iterations; jacobian_warned: the core flagged some
+// segment's Jacobian as not reliable during the solve; cost_not_local: CheckIntervalScale found
+// the cost at the estimate +- one standard error far from the Jacobian's quadratic model;
+// jacobian_warned_at_estimate: the core flagged the Jacobian evaluated at the estimate (the one the
+// intervals come from)
+void DecideFitStatus(const FitOptions& options, int accepted_steps, bool jacobian_warned,
+                     FitResult* result, bool cost_not_local = false,
+                     bool jacobian_warned_at_estimate = false);
+
+}  // namespace mjsysid

@@ -1,0 +1,58 @@
+#include "sysid/assess/metrics.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace mjsysid {
+namespace {
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+}  // namespace
+
+double Nrmse(const Eigen::Ref<const Eigen::VectorXd>& measured,
+             const Eigen::Ref<const Eigen::VectorXd>& simulated) {
+  if (measured.size() == 0 || measured.size() != simulated.size()) return kNaN;
+  // |y - yhat| / |y - mean(y)|: the same as RMS error over the population std
+  const double spread = (measured.array() - measured.mean()).matrix().norm();
+  if (!(spread > 0)) return kNaN;
+  return (measured - simulated).norm() / spread;
+}
+
+double FitPercent(double nrmse) { return 100.0 * (1.0 - nrmse); }
+
+std::vector<ChannelFit> ChannelFits(const SequenceResult& s) {
+  std::vector<ChannelFit> out;
+  Eigen::Index col = 0;
+  for (size_t i = 0; i < s.sensor_names.size() && i < s.sensor_dims.size(); ++i) {
+    for (int c = 0; c < s.sensor_dims[i]; ++c, ++col) {
+      if (col >= s.measured.cols()) return out;
+      ChannelFit f;
+      f.channel = s.sensor_dims[i] == 1 ? s.sensor_names[i]
+                                        : s.sensor_names[i] + "[" + std::to_string(c) + "]";
+      const Eigen::VectorXd y = s.measured.col(col);
+      // a simulation that is missing (e.g. failed) gives NaN, not a number for another column
+      f.nrmse_initial =
+          s.simulated_initial.cols() > col ? Nrmse(y, s.simulated_initial.col(col)) : kNaN;
+      f.nrmse_final = s.simulated_final.cols() > col ? Nrmse(y, s.simulated_final.col(col)) : kNaN;
+      f.fit_initial = FitPercent(f.nrmse_initial);
+      f.fit_final = FitPercent(f.nrmse_final);
+      out.push_back(std::move(f));
+    }
+  }
+  return out;
+}
+
+FitSummary SummarizeFits(const std::vector<ChannelFit>& fits, bool initial) {
+  std::vector<double> v;
+  for (const ChannelFit& f : fits) {
+    const double x = initial ? f.fit_initial : f.fit_final;
+    if (std::isfinite(x)) v.push_back(x);
+  }
+  if (v.empty()) return {kNaN, kNaN};
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  const double median = n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+  return {v.front(), median};
+}
+
+}  // namespace mjsysid
