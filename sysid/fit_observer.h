@@ -33,9 +33,6 @@ enum class FitStage {
   kIntervalCheck,  // the intervals' quadratic model against the cost
 };
 
-// "start", "refit", "uncertainty", "interval check"
-const char* FitStageName(FitStage stage);
-
 class FitObserver {
  public:
   virtual ~FitObserver() = default;

@@ -76,7 +76,7 @@ void FitPass::Start() {
     I_.step_progress = std::make_unique<StepProgressEvents>(start_, 0, nullptr);
   }
   I_.step_progress->Reset(start_, options_.advanced.progress_seconds, options_.observer);
-  start_notes_ = SolveAutoStarts(&I_, options_.threads);
+  const std::vector<std::string> start_notes = SolveAutoStarts(&I_, options_.threads);
   ledger_.Enter(kPhasePrepare);
   plan_ = PrepareFit(&I_, options_);
   ledger_.Enter(kPhaseSetup);
@@ -87,7 +87,7 @@ void FitPass::Start() {
   result_.segment_reason = SegmentReasonText(plan_.segments);
   result_.event_windows = plan_.event_windows;
   result_.warnings = I_.prepare_warnings;
-  result_.warnings.insert(result_.warnings.end(), start_notes_.begin(), start_notes_.end());
+  result_.warnings.insert(result_.warnings.end(), start_notes.begin(), start_notes.end());
   // a start on a bound: the first step may leave the bound at once or never (a projected
   // gradient pointing outwards)
   for (const FitParameter& p : I_.params) {

@@ -97,9 +97,8 @@ class FitPass {
   FitLedger ledger_;
   FitResult result_;
   FitPlan plan_;
-  std::vector<std::string> start_notes_;  // the equation-error starts, one line per model
-  int np_ = 0;                            // physical parameters
-  int nm_ = 0;                            // measurement terms and control delays (the m block)
+  int np_ = 0;  // physical parameters
+  int nm_ = 0;  // measurement terms and control delays (the m block)
 
   // the Ceres problem and what it borrows (declared before it: destroyed after it)
   std::unique_ptr<PrefetchCallback> prefetch_;
