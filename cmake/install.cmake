@@ -43,15 +43,19 @@ install(TARGETS ${_mjsysid_libraries} EXPORT mjsysidTargets
   LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
 
 # headers: every header of core/ and sysid/ but the internal ones of the Ceres problem (the fit
-# pass's stages in sysid/fit/ among them) and of the HDF5 files (they include the problem's state
-# or hdf5.h, private dependencies)
+# pass's stages in sysid/fit/, the fit state sysid/solve/fit_state.h and the headers that include
+# it) and of the HDF5 files (hdf5.h, a private dependency)
 foreach(_dir core sysid)
   install(DIRECTORY "${PROJECT_SOURCE_DIR}/${_dir}/"
     DESTINATION "${CMAKE_INSTALL_INCLUDEDIR}/${_dir}"
     FILES_MATCHING PATTERN "*.h"
     PATTERN "fit" EXCLUDE
-    PATTERN "problem_impl.h" EXCLUDE
+    PATTERN "fit_state.h" EXCLUDE
     PATTERN "cost_functions.h" EXCLUDE
+    PATTERN "multiple_shooting.h" EXCLUDE
+    PATTERN "event_windows.h" EXCLUDE
+    PATTERN "distributed_fit.h" EXCLUDE
+    PATTERN "state_projection.h" EXCLUDE
     PATTERN "state_residuals.h" EXCLUDE
     PATTERN "hdf5_util.h" EXCLUDE
     PATTERN "result_internal.h" EXCLUDE)

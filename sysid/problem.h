@@ -64,6 +64,8 @@ class EvaluationCallback;
 namespace mjsysid {
 
 class ResidualShards;  // below
+struct FitParts;       // the fit state's parts (sysid/solve/fit_state.h)
+struct PreparedFit;
 
 // result of Problem::CheckJacobians
 struct JacobianCheck {
@@ -105,22 +107,11 @@ class Problem {
   // Fit with the segment residuals evaluated by shards (borrowed; nullptr: here, as usual); see
   // ResidualShards.
   void DistributeResiduals(ResidualShards* shards);
-  struct Impl;  // the state behind the API (sysid/problem_impl.h, for the cost functions)
-  // Validates and prepares the fit as Fit does, without solving, and returns the prepared state
-  // (owned by this Problem): for a worker that evaluates a share of the segments (sysid/mpi/).
-  // Throws like Fit on bad input.
-  Impl* PrepareOnly(const FitOptions& options);
-  // A sharded start (sysid/mpi/): Prepare rolls out and differentiates at the initial values only
-  // the sequences owned(impl) marks (one bool per sequence, called once the simulators and sample
-  // grids are built; empty: all), and does not itself check that every parameter moves the data:
-  // it leaves Impl::moves (per parameter: some owned sequence sees it) for the caller to combine
-  // over all shards and pass to CheckParametersMove (sysid/problem_impl.h). Fit rolls out the
-  // other sequences at the initial values for the result only (rollouts, no Jacobians). With free
-  // states (multiple shooting, estimated initial states) Prepare rolls out the other sequences
-  // too (no Jacobians), so that every shard starts every segment state as one process does.
-  void ShardStart(std::function<std::vector<bool>(const Impl&)> owned);
 
  private:
+  struct Impl;  // the state behind the API (sysid/problem.cc)
+  // the fit state's parts, for the fit's internals (sysid/fit/prepare.h)
+  friend FitParts PartsOf(Problem* problem);
   std::unique_ptr<Impl> impl_;
 };
 
@@ -137,7 +128,7 @@ class ResidualShards {
   virtual ~ResidualShards() = default;
   // called once by Fit after Prepare with its prepared state; blocks: z (np) if the fit has
   // parameters, then m
-  virtual void AddResidualBlocks(Problem::Impl* impl, ceres::Problem* problem,
+  virtual void AddResidualBlocks(const FitParts& parts, ceres::Problem* problem,
                                  const std::vector<double*>& blocks) = 0;
   virtual ceres::EvaluationCallback* Callback() = 0;
   virtual long long NumResiduals() const = 0;
@@ -146,11 +137,12 @@ class ResidualShards {
   // degrees of freedom subtract them, as the one-process fit's with the states in its Jacobian
   virtual int EliminatedColumns() const { return 0; }
   // called by Fit after the evaluation at the estimate: brings every sequence's eliminated states
-  // into impl->states (for the result's segment states, continuity gaps and final signals)
-  virtual void CollectStates(Problem::Impl* /*impl*/) {}
-  // the sequences whose start this process simulates (Problem::ShardStart; empty: all). Called by
-  // Prepare; the caller of Fit then owns the check of Impl::moves (AddResidualBlocks' place).
-  virtual std::vector<bool> OwnedSequences(const Problem::Impl& /*impl*/) const { return {}; }
+  // into parts.vars->states (for the result's segment states, continuity gaps and final signals)
+  virtual void CollectStates(const FitParts& /*parts*/) {}
+  // the sequences whose start this process simulates (ShardStart, sysid/fit/prepare.h; empty:
+  // all). Called by PrepareFit; the caller of Fit then owns the check of PreparedFit::moves
+  // (AddResidualBlocks' place).
+  virtual std::vector<bool> OwnedSequences(const PreparedFit& /*fit*/) const { return {}; }
 };
 
 }  // namespace mjsysid

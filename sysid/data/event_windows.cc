@@ -29,18 +29,18 @@ static int SensorOfColumn(const mjModel& m, int column) {
   return id;
 }
 
-EventWindowMask MaskEventWindows(Problem::Impl& I, const std::vector<Trajectory>& initial,
+EventWindowMask MaskEventWindows(PreparedFit& fit, const std::vector<Trajectory>& initial,
                                  int window) {
   EventWindowMask out;
-  I.event_masked.assign(I.sequences.size(), {});
-  for (size_t q = 0; q < I.sequences.size(); ++q) {
-    I.event_masked[q].assign(I.channels[q].size(), 0);
+  fit.event_masked.assign(fit.sequences.size(), {});
+  for (size_t q = 0; q < fit.sequences.size(); ++q) {
+    fit.event_masked[q].assign(fit.channels[q].size(), 0);
   }
   if (window <= 0) return out;
   const double nan = std::numeric_limits<double>::quiet_NaN();
-  for (size_t q = 0; q < I.sequences.size(); ++q) {
-    FitSequence& sq = I.sequences[q];
-    const mjModel& m = I.models[I.ModelIndex(sq.model)].sim->model();
+  for (size_t q = 0; q < fit.sequences.size(); ++q) {
+    FitSequence& sq = fit.sequences[q];
+    const mjModel& m = fit.models[fit.ModelIndex(sq.model)].sim->model();
     const int T = static_cast<int>(sq.measured.rows());
     out.samples += T;
     // the contact count at each sample: of the logged positions, else of the initial rollout at
@@ -58,7 +58,7 @@ EventWindowMask MaskEventWindows(Problem::Impl& I, const std::vector<Trajectory>
     } else {
       const Trajectory& tr = initial[q];
       if (tr.ncon.empty()) continue;  // not simulated here: no events known
-      const std::vector<double>& position = I.grids[q].position;
+      const std::vector<double>& position = fit.grids[q].position;
       for (int k = 0; k < T; ++k) {
         const int step = std::min(static_cast<int>(std::lround(position[k])),
                                   static_cast<int>(tr.ncon.size()) - 1);
@@ -74,8 +74,8 @@ EventWindowMask MaskEventWindows(Problem::Impl& I, const std::vector<Trajectory>
       for (int j = std::max(0, k - window); j < std::min(T, k + window); ++j) in_window[j] = true;
     }
     // the velocity- and acceleration-level channels, masked there (never down to no sample)
-    for (size_t c = 0; c < I.channels[q].size(); ++c) {
-      const int column = I.channels[q][c].column;
+    for (size_t c = 0; c < fit.channels[q].size(); ++c) {
+      const int column = fit.channels[q][c].column;
       const int id = SensorOfColumn(m, column);
       if (m.sensor_needstage[id] < mjSTAGE_VEL) continue;
       int left = 0, masked = 0;
@@ -86,11 +86,11 @@ EventWindowMask MaskEventWindows(Problem::Impl& I, const std::vector<Trajectory>
       if (masked == 0 || left == 0) continue;
       for (int k = 0; k < T; ++k) {
         if (!in_window[k] || std::isnan(sq.measured(k, column))) continue;
-        I.event_cells.emplace_back(static_cast<int>(q), k, column, sq.measured(k, column));
+        fit.event_cells.emplace_back(static_cast<int>(q), k, column, sq.measured(k, column));
         sq.measured(k, column) = nan;
       }
-      I.missing[q][c] += masked;
-      I.event_masked[q][c] += masked;
+      fit.missing[q][c] += masked;
+      fit.event_masked[q][c] += masked;
       out.masked += masked;
       const char* name = mj_id2name(&m, mjOBJ_SENSOR, id);
       const std::string sensor = name ? name : "sensor " + std::to_string(id);
@@ -103,10 +103,10 @@ EventWindowMask MaskEventWindows(Problem::Impl& I, const std::vector<Trajectory>
   return out;
 }
 
-void RestoreEventWindows(Problem::Impl& I) {
-  for (const auto& [q, k, column, value] : I.event_cells)
-    I.sequences[q].measured(k, column) = value;
-  I.event_cells.clear();
+void RestoreEventWindows(PreparedFit& fit) {
+  for (const auto& [q, k, column, value] : fit.event_cells)
+    fit.sequences[q].measured(k, column) = value;
+  fit.event_cells.clear();
 }
 
 }  // namespace mjsysid

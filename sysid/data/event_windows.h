@@ -24,7 +24,7 @@
 #include <vector>
 
 #include "core/simulator.h"
-#include "sysid/problem_impl.h"
+#include "sysid/solve/fit_state.h"
 
 namespace mjsysid {
 
@@ -41,15 +41,15 @@ struct EventWindowMask {
   std::string Summary() const;  // "event windows: N events (from ...), +-w samples: M cells of ..."
 };
 
-// Sets the window's cells of I.sequences[q].measured to NaN, counts them in I.missing and
-// I.event_masked (per sequence and channel, as I.channels; shapes: I
-// prepared up to the channels; initial: the rollouts at the initial values, one per sequence, rows
+// Sets the window's cells of fit.sequences[q].measured to NaN, counts them in fit.missing and
+// fit.event_masked (per sequence and channel, as fit.channels; shapes: fit prepared up to the
+// channels; initial: the rollouts at the initial values, one per sequence, rows
 // may be empty). window <= 0 masks nothing. A channel is never masked down to no measured sample
 // (its cells are kept then).
-// The masked cells are recorded (I.event_cells); RestoreEventWindows puts their values back (at
+// The masked cells are recorded (fit.event_cells); RestoreEventWindows puts their values back (at
 // the start of every Prepare, so that each fit of a Problem decides its own mask from the data).
-EventWindowMask MaskEventWindows(Problem::Impl& I, const std::vector<Trajectory>& initial,
+EventWindowMask MaskEventWindows(PreparedFit& fit, const std::vector<Trajectory>& initial,
                                  int window);
-void RestoreEventWindows(Problem::Impl& I);
+void RestoreEventWindows(PreparedFit& fit);
 
 }  // namespace mjsysid

@@ -1,5 +1,7 @@
 // Problem::CheckJacobians: every residual block's analytic Jacobian at the initial point against
 // Ceres' central differences (ceres::GradientChecker, whole rollouts).
+#include "sysid/fit/check_jacobians.h"
+
 #include <ceres/ceres.h>
 #include <ceres/gradient_checker.h>
 
@@ -8,19 +10,20 @@
 #include <string>
 #include <vector>
 
-#include "sysid/problem.h"
-#include "sysid/problem_impl.h"
+#include "sysid/fit/prepare.h"
 #include "sysid/solve/cost_functions.h"
 #include "sysid/solve/state_residuals.h"
 
 namespace mjsysid {
 
-JacobianCheck Problem::CheckJacobians(const FitOptions& options) {
-  Impl& I = *impl_;
-  SolveAutoStarts(&I, options.threads);  // `initial: auto`: checked at the start the fit would take
-  const FitPlan prepared = PrepareFit(&I, options);
-  const int np = static_cast<int>(I.params.size());
-  const int nm = static_cast<int>(I.m.size());
+JacobianCheck CheckJacobiansAt(const FitParts& parts, const FitOptions& options) {
+  PreparedFit& fit = *parts.fit;
+  const FitVariables& vars = *parts.vars;
+  SolveAutoStarts(&fit,
+                  options.threads);  // `initial: auto`: checked at the start the fit would take
+  const FitPlan prepared = PrepareFit(parts, options);
+  const int np = static_cast<int>(fit.params.size());
+  const int nm = static_cast<int>(vars.m.size());
   JacobianCheck check;
   std::map<std::string, double> worst;
   std::vector<std::string> order = prepared.names;
@@ -31,27 +34,27 @@ JacobianCheck Problem::CheckJacobians(const FitOptions& options) {
   ceres::NumericDiffOptions nd;
   nd.relative_step_size = 1e-6;
   nd.ridders_relative_initial_step_size = 1e-5;
-  for (size_t s = 0; s < I.segments.size(); ++s) {
-    const Segment& seg = I.segments[s];
-    const Impl::Model& mo = I.models[seg.model];
-    SegmentCost cost(&I, static_cast<int>(s));
+  for (size_t s = 0; s < fit.segments.size(); ++s) {
+    const Segment& seg = fit.segments[s];
+    const FitModel& mo = fit.models[seg.model];
+    SegmentCost cost(parts, static_cast<int>(s));
     std::vector<const double*> blocks;
     std::vector<const ceres::Manifold*> manifolds;
     std::vector<std::vector<std::string>> labels;
     if (np) {
-      blocks.push_back(I.z.data());
+      blocks.push_back(vars.z.data());
       manifolds.push_back(nullptr);
       labels.emplace_back(prepared.names.begin(), prepared.names.begin() + np);
     }
     if (nm) {
-      blocks.push_back(I.m.data());
+      blocks.push_back(vars.m.data());
       manifolds.push_back(nullptr);
       labels.emplace_back(prepared.names.begin() + np, prepared.names.end());
     }
-    const std::string seq_name = I.sequences[seg.seq].name;
+    const std::string seq_name = fit.sequences[seg.seq].name;
     for (int b : {seg.block, seg.next}) {
       if (b < 0) continue;
-      blocks.push_back(I.states[b].data());
+      blocks.push_back(vars.states[b].data());
       manifolds.push_back(mo.manifold.get());
       const std::string label = "x0 of " + seq_name + (b == seg.block ? "" : " (next segment)");
       labels.emplace_back(mo.sim->dims().nx, label);
@@ -95,7 +98,7 @@ JacobianCheck Problem::CheckJacobians(const FitOptions& options) {
     if (cost.num_residuals() > 0 && !blocks.empty()) probe(&cost, all, "sensor and continuity");
     // the fitted states: the z block and the segment's x_0 block (sysid/solve/state_residuals.h)
     if (seg.state_rows) {
-      StateCost state_cost(&I, static_cast<int>(s));
+      StateCost state_cost(parts, static_cast<int>(s));
       std::vector<size_t> which;
       if (np) which.push_back(0);
       if (seg.block >= 0) which.push_back((np ? 1 : 0) + (nm ? 1 : 0));

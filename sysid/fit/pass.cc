@@ -12,44 +12,48 @@
 
 namespace mjsysid {
 
-FitPass::FitPass(Problem::Impl* impl, const FitOptions& options)
-    : I_(*impl),
+FitPass::FitPass(const FitParts& parts, const FitOptions& options)
+    : parts_(parts),
+      fit_(*parts.fit),
+      vars_(*parts.vars),
+      diag_(*parts.diag),
+      solve_(*parts.solve),
       options_(options),
       start_(std::chrono::steady_clock::now()),
       ledger_(
-          [impl] {
+          [fit = parts.fit] {
             long long steps = 0;
-            for (const auto& mo : impl->models) steps += mo.sim ? mo.sim->StepCount() : 0;
+            for (const auto& mo : fit->models) steps += mo.sim ? mo.sim->StepCount() : 0;
             return steps;
           },
-          [impl] {
+          [fit = parts.fit] {
             // the task model's critical path at 2 workers (core/thread_pool.h)
             long long steps = 0;
-            for (const auto& mo : impl->models) {
+            for (const auto& mo : fit->models) {
               steps += mo.sim ? mo.sim->ParallelLoad().span[2] : 0;
             }
             return steps;
           }) {
   // the time inside the simulators' batches (serial time = the rest)
-  ledger_.MeasureBatches([impl] {
+  ledger_.MeasureBatches([fit = parts.fit] {
     PoolTime sum;
-    for (const auto& mo : impl->models) {
+    for (const auto& mo : fit->models) {
       if (mo.sim) sum += mo.sim->ParallelTime();
     }
     return sum;
   });
-  I_.ledger = &ledger_;
+  solve_.ledger = &ledger_;
 }
 
 FitPass::~FitPass() {
-  I_.ledger = nullptr;
-  I_.compressed = nullptr;
+  solve_.ledger = nullptr;
+  solve_.compressed = nullptr;
 }
 
 double FitPass::Seconds() const { return SecondsSince(start_); }
 
 const std::string& FitPass::first_jacobian_warning() const {
-  return I_.jacobian_warnings.begin()->second;
+  return diag_.jacobian_warnings.begin()->second;
 }
 
 FitPass::Stop FitPass::Solve() {
@@ -70,27 +74,27 @@ void FitPass::Assess() {
 // 1. the equation-error starts, the prepared fit, and what the result knows before the solve
 void FitPass::Start() {
   ledger_.Enter(kPhaseAutoStart);
-  I_.fit_start = start_;
+  solve_.fit_start = start_;
   // the progress events inside long rollouts (PrepareFit installs them on the simulators)
-  if (!I_.step_progress) {
-    I_.step_progress = std::make_unique<StepProgressEvents>(start_, 0, nullptr);
+  if (!solve_.step_progress) {
+    solve_.step_progress = std::make_unique<StepProgressEvents>(start_, 0, nullptr);
   }
-  I_.step_progress->Reset(start_, options_.advanced.progress_seconds, options_.observer);
-  const std::vector<std::string> start_notes = SolveAutoStarts(&I_, options_.threads);
+  solve_.step_progress->Reset(start_, options_.advanced.progress_seconds, options_.observer);
+  const std::vector<std::string> start_notes = SolveAutoStarts(&fit_, options_.threads);
   ledger_.Enter(kPhasePrepare);
-  plan_ = PrepareFit(&I_, options_);
+  plan_ = PrepareFit(parts_, options_);
   ledger_.Enter(kPhaseSetup);
-  np_ = static_cast<int>(I_.params.size());
-  nm_ = static_cast<int>(I_.m.size());
+  np_ = static_cast<int>(fit_.params.size());
+  nm_ = static_cast<int>(vars_.m.size());
   result_.jacobian_mode = plan_.jacobian_mode;
   result_.segment_steps_used = plan_.segment_steps;
   result_.segment_reason = SegmentReasonText(plan_.segments);
   result_.event_windows = plan_.event_windows;
-  result_.warnings = I_.prepare_warnings;
+  result_.warnings = fit_.prepare_warnings;
   result_.warnings.insert(result_.warnings.end(), start_notes.begin(), start_notes.end());
   // a start on a bound: the first step may leave the bound at once or never (a projected
   // gradient pointing outwards)
-  for (const FitParameter& p : I_.params) {
+  for (const FitParameter& p : fit_.params) {
     if (p.initial == p.lower || p.initial == p.upper) {
       result_.warnings.push_back("parameter '" + p.name + "' starts on its " +
                                  (p.initial == p.lower ? "lower" : "upper") + " bound " +
@@ -107,15 +111,15 @@ void FitPass::Decide() {
   for (size_t i = 1; i < summary_.iterations.size(); ++i) {
     accepted_steps += summary_.iterations[i].step_is_successful ? 1 : 0;
   }
-  DecideFitStatus(options_, accepted_steps, !I_.jacobian_warnings.empty(), &result_,
+  DecideFitStatus(options_, accepted_steps, !diag_.jacobian_warnings.empty(), &result_,
                   cost_not_local_, jacobian_warned_at_estimate_);
-  for (const auto& mo : I_.models) result_.simulation_steps += mo.sim->StepCount();
+  for (const auto& mo : fit_.models) result_.simulation_steps += mo.sim->StepCount();
   // what the reduced models switched off, summed over the models
   FitResult::Reduction& r = result_.reduction;
   r = FitResult::Reduction();
   r.recorded = true;
   r.used = options_.reduce_model;
-  for (const auto& mo : I_.models) {
+  for (const auto& mo : fit_.models) {
     const ModelReduction& mr = mo.sim->reduction();
     r.collision_pairs += mr.candidate_pairs;
     r.collision_pairs_off += mr.pairs_off;

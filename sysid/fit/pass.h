@@ -23,10 +23,10 @@
 //   9. Decide       (pass.cc)             the status (sysid/assess/fit_status.h), steps, ledger,
 //   time
 //
-// Ownership: a pass borrows the problem's state (Problem::Impl) for its lifetime and owns the
-// Ceres problem and what the solve needs around it; the Impl's borrowed pointers to the pass's
-// ledger and compressed blocks are cleared when the pass ends. Not thread-safe: one pass at a time
-// per Problem, on one thread (the simulators are parallel inside).
+// Ownership: a pass borrows the fit state's parts (sysid/solve/fit_state.h) for its lifetime and
+// owns the Ceres problem and what the solve needs around it; the solve context's borrowed pointers
+// to the pass's ledger and compressed blocks are cleared when the pass ends. Not thread-safe: one
+// pass at a time per Problem, on one thread (the simulators are parallel inside).
 #pragma once
 
 #include <ceres/ceres.h>
@@ -36,10 +36,11 @@
 #include <string>
 #include <vector>
 
-#include "sysid/problem_impl.h"
+#include "sysid/fit/prepare.h"
 #include "sysid/solve/compressed_cost.h"
 #include "sysid/solve/cost_functions.h"
 #include "sysid/solve/fit_ledger.h"
+#include "sysid/solve/fit_state.h"
 #include "sysid/solve/gn_convergence.h"
 #include "sysid/solve/variable_manifold.h"
 
@@ -53,7 +54,8 @@ class FitPass {
     kJacobianWarning,  // auto's single shooting met a Jacobian warning (refit in segments)
   };
 
-  FitPass(Problem::Impl* impl, const FitOptions& options);
+  // parts: borrowed for the pass's lifetime
+  FitPass(const FitParts& parts, const FitOptions& options);
   ~FitPass();
   FitPass(const FitPass&) = delete;
   FitPass& operator=(const FitPass&) = delete;
@@ -91,7 +93,11 @@ class FitPass {
   bool CostAt(int v, double delta, double* cost);
   bool OnBound(int v, double value, bool lower) const;
 
-  Problem::Impl& I_;
+  const FitParts parts_;
+  PreparedFit& fit_;
+  FitVariables& vars_;
+  FitDiagnostics& diag_;
+  SolveContext& solve_;
   const FitOptions& options_;
   const std::chrono::steady_clock::time_point start_;
   FitLedger ledger_;

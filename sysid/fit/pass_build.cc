@@ -24,28 +24,28 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 void FitPass::BuildCeres() {
   ceres::Problem::Options po;
   po.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  prefetch_ = std::make_unique<PrefetchCallback>(&I_);
-  po.evaluation_callback = I_.shards ? I_.shards->Callback() : prefetch_.get();
+  prefetch_ = std::make_unique<PrefetchCallback>(parts_);
+  po.evaluation_callback = fit_.shards ? fit_.shards->Callback() : prefetch_.get();
   // log variables of kinds that enter the dynamics linearly take the relative step where the
   // nominal rollouts are smooth (no contact: with contacts the residuals are not near-linear in p
   // either)
   const bool smooth = ContactFraction(plan_.initial) == 0;
   std::vector<bool> relative;
-  for (const FitParameter& p : I_.params) relative.push_back(smooth && RelativeStep(p));
+  for (const FitParameter& p : fit_.params) relative.push_back(smooth && RelativeStep(p));
   variable_manifold_ = std::make_unique<VariableManifold>(std::move(relative));
   compressed_.reuse_folds = options_.advanced.reuse_folds;
-  compressed_.epoch = &I_.cost_inputs_epoch;  // (the epoch outlives the problem)
-  compress_ = options_.advanced.compress_blocks && !I_.shards;
+  compressed_.epoch = &solve_.cost_inputs_epoch;  // (the epoch outlives the problem)
+  compress_ = options_.advanced.compress_blocks && !fit_.shards;
   problem_ = std::make_unique<ceres::Problem>(po);
   ceres::Problem& problem = *problem_;
-  double* z = I_.z.data();
-  double* m = I_.m.data();
+  double* z = vars_.z.data();
+  double* m = vars_.m.data();
   if (np_) {
     problem.AddParameterBlock(z, np_);
     if (variable_manifold_->any_relative()) problem.SetManifold(z, variable_manifold_.get());
     for (int g = 0; g < np_; ++g) {
-      const FitParameter& p = I_.params[g];
-      const double zl = I_.ToZ(g, p.lower), zu = I_.ToZ(g, p.upper);
+      const FitParameter& p = fit_.params[g];
+      const double zl = fit_.ToZ(g, p.lower), zu = fit_.ToZ(g, p.upper);
       const double lo = p.transform == Transform::kScale ? std::min(zl, zu) : zl;
       const double hi = p.transform == Transform::kScale ? std::max(zl, zu) : zu;
       if (std::isfinite(lo) && p.lower > -kInf) problem.SetParameterLowerBound(z, g, lo);
@@ -64,20 +64,20 @@ void FitPass::BuildCeres() {
     }
   }
   // segment residuals evaluated elsewhere (sysid/mpi/): their blocks replace the segments'
-  if (I_.shards) {
+  if (fit_.shards) {
     std::vector<double*> blocks;
     if (np_) blocks.push_back(z);
     if (nm_) blocks.push_back(m);
-    I_.shards->AddResidualBlocks(&I_, &problem, blocks);
+    fit_.shards->AddResidualBlocks(parts_, &problem, blocks);
   }
-  for (size_t s = 0; s < I_.segments.size() && !I_.shards; ++s) {
-    const Segment& seg = I_.segments[s];
+  for (size_t s = 0; s < fit_.segments.size() && !fit_.shards; ++s) {
+    const Segment& seg = fit_.segments[s];
     std::vector<double*> blocks;
     if (np_) blocks.push_back(z);
     if (nm_) blocks.push_back(m);
-    if (seg.block >= 0) blocks.push_back(I_.states[seg.block].data());
-    if (seg.next >= 0) blocks.push_back(I_.states[seg.next].data());
-    auto* cost = new SegmentCost(&I_, static_cast<int>(s));
+    if (seg.block >= 0) blocks.push_back(vars_.states[seg.block].data());
+    if (seg.next >= 0) blocks.push_back(vars_.states[seg.next].data());
+    auto* cost = new SegmentCost(parts_, static_cast<int>(s));
     if (cost->num_residuals() > 0 && !blocks.empty()) {
       problem.AddResidualBlock(compress_ ? Compress(cost, &compressed_, blocks) : cost, nullptr,
                                blocks);
@@ -88,8 +88,8 @@ void FitPass::BuildCeres() {
     if (seg.state_rows) {
       std::vector<double*> state_blocks;
       if (np_) state_blocks.push_back(z);
-      if (seg.block >= 0) state_blocks.push_back(I_.states[seg.block].data());
-      auto* state_cost = new StateCost(&I_, static_cast<int>(s));
+      if (seg.block >= 0) state_blocks.push_back(vars_.states[seg.block].data());
+      auto* state_cost = new StateCost(parts_, static_cast<int>(s));
       if (state_cost->num_residuals() > 0 && !state_blocks.empty()) {
         problem.AddResidualBlock(compress_ ? Compress(state_cost, &compressed_) : state_cost,
                                  nullptr, state_blocks);
@@ -97,18 +97,19 @@ void FitPass::BuildCeres() {
         delete state_cost;
       }
     }
-    if (seg.block >= 0 && problem.HasParameterBlock(I_.states[seg.block].data())) {
-      problem.SetManifold(I_.states[seg.block].data(), I_.models[seg.model].manifold.get());
+    if (seg.block >= 0 && problem.HasParameterBlock(vars_.states[seg.block].data())) {
+      problem.SetManifold(vars_.states[seg.block].data(), fit_.models[seg.model].manifold.get());
     }
   }
   for (int g = 0; g < np_; ++g) {
-    if (I_.params[g].has_prior) problem.AddResidualBlock(new PriorCost(&I_, g), nullptr, z);
+    if (fit_.params[g].has_prior) problem.AddResidualBlock(new PriorCost(&fit_, g), nullptr, z);
   }
   // every parameter block, in the order added: the estimate's triangle and the statistical stop
   if (np_) blocks_.push_back(z);
   if (nm_) blocks_.push_back(m);
-  for (size_t b = 0; b < I_.states.size(); ++b) {
-    if (problem.HasParameterBlock(I_.states[b].data())) blocks_.push_back(I_.states[b].data());
+  for (size_t b = 0; b < vars_.states.size(); ++b) {
+    if (problem.HasParameterBlock(vars_.states[b].data()))
+      blocks_.push_back(vars_.states[b].data());
   }
 }
 
@@ -122,10 +123,10 @@ void FitPass::Configure() {
   so.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
   int tangent = np_ + nm_;
   // (sharded: the states are eliminated by the shards, Ceres sees z and m)
-  for (size_t b = 0; b < I_.states.size(); ++b) {
-    tangent += I_.shards ? 0 : static_cast<int>(I_.states[b].size());
+  for (size_t b = 0; b < vars_.states.size(); ++b) {
+    tangent += fit_.shards ? 0 : static_cast<int>(vars_.states[b].size());
   }
-  ChooseLinearSolver(I_, tangent, &so);
+  ChooseLinearSolver(fit_, vars_, tangent, &so);
   so.max_num_iterations = options_.max_iterations;
   so.function_tolerance = options_.function_tolerance;
   so.gradient_tolerance = options_.gradient_tolerance;
@@ -137,7 +138,7 @@ void FitPass::Configure() {
   so.line_search_interpolation_type = ceres::QUADRATIC;
   so.update_state_every_iteration = true;
   so.logging_type = ceres::SILENT;
-  progress_ = std::make_unique<ProgressCallback>(&I_, &result_, start_);
+  progress_ = std::make_unique<ProgressCallback>(parts_, &result_, start_);
   so.callbacks.push_back(progress_.get());
   // the rank tolerance follows the finite differences' accuracy (relative step h: O(h)
   // forward, O(h^2) central) unless the user's rank_tolerance is larger
@@ -152,17 +153,17 @@ void FitPass::Configure() {
   // passes the test: there the fit must run to Ceres' tolerances (or its iteration cap), so that
   // auto still refits it in multiple shooting (tests/stress/horizon_stress_test.cc). A set
   // segment_steps runs no probe: no evidence, no statistical stop.
-  gn_valid_ = options_.gauss_newton_stop > 0 && !I_.shards && options_.loss == LossType::kNone &&
-              I_.control_delay_index.empty() && !blocks_.empty() && options_.segment_steps < 0 &&
+  gn_valid_ = options_.gauss_newton_stop > 0 && !fit_.shards && options_.loss == LossType::kNone &&
+              fit_.control_delay_index.empty() && !blocks_.empty() && options_.segment_steps < 0 &&
               plan_.probe_growth <= kRefitGrowth;
-  for (const Segment& seg : I_.segments) gn_valid_ = gn_valid_ && seg.next < 0;
+  for (const Segment& seg : fit_.segments) gn_valid_ = gn_valid_ && seg.next < 0;
   gn_stop_ = std::make_unique<GaussNewtonStop>(problem_.get(), blocks_, options_.gauss_newton_stop,
                                                uncertainty_, options_.observer, &ledger_);
   if (gn_valid_) so.callbacks.push_back(gn_stop_.get());
   // and before a point's Jacobians (the evaluation callback asks it, sysid/solve/cost_functions.h)
-  I_.gn_stop =
+  solve_.gn_stop =
       gn_valid_ && options_.advanced.gauss_newton_stop_before_jacobian ? gn_stop_.get() : nullptr;
-  I_.SetPreviousJacobian(false);
+  solve_.SetPreviousJacobian(false);
 }
 
 }  // namespace mjsysid

@@ -23,16 +23,16 @@ void FitPass::CheckIntervals() {
   ledger_.Enter(kPhaseIntervalCheck);
   if (options_.observer) {
     options_.observer->OnStage(FitStage::kIntervalCheck, "interval check",
-                               SecondsSince(I_.fit_start));
+                               SecondsSince(solve_.fit_start));
   }
   CostSmoothness smoothness;
-  smoothness.all_rollouts = !I_.shards;
-  smoothness.jacobian_warnings = static_cast<int>(I_.jacobian_warnings.size());
+  smoothness.all_rollouts = !fit_.shards;
+  smoothness.jacobian_warnings = static_cast<int>(diag_.jacobian_warnings.size());
   smoothness.robust_loss = options_.loss != LossType::kNone;
-  smoothness.fitted_delays = static_cast<int>(I_.control_delay_index.size());
-  for (const TermIndex& t : I_.term_index) smoothness.fitted_delays += t.delay >= 0 ? 1 : 0;
-  for (size_t g = 0; g < I_.segments.size() && smoothness.all_rollouts; ++g) {
-    const EvaluationCache::Entry& e = I_.cache->Cached(static_cast<int>(g));
+  smoothness.fitted_delays = static_cast<int>(fit_.control_delay_index.size());
+  for (const TermIndex& t : fit_.term_index) smoothness.fitted_delays += t.delay >= 0 ? 1 : 0;
+  for (size_t g = 0; g < fit_.segments.size() && smoothness.all_rollouts; ++g) {
+    const EvaluationCache::Entry& e = solve_.cache->Cached(static_cast<int>(g));
     if (e.key.empty() || e.failed) {
       smoothness.all_rollouts = false;
       break;
@@ -41,7 +41,7 @@ void FitPass::CheckIntervals() {
     for (int n : e.tr.ncon) smoothness.contact_steps += n > 0 ? 1 : 0;
     smoothness.row_changes += e.tr.solver.row_changes;
     smoothness.friction_changes += e.tr.solver.friction_changes;
-    const mjModel& mm = I_.models[I_.segments[g].model].sim->model();
+    const mjModel& mm = fit_.models[fit_.segments[g].model].sim->model();
     smoothness.pgs_constraints |= mm.opt.solver == mjSOL_PGS && e.tr.solver.solved > 0;
     if (e.has_jacobians && !e.jacobians_failed) smoothness.kinks += e.s.kinks;
   }
@@ -92,23 +92,24 @@ void FitPass::CheckIntervals() {
 bool FitPass::CostAt(int v, double delta, double* cost) {
   const ParameterEstimate& e = result_.parameters[v];
   const double value = e.value + delta;
-  const double lo = v < np_ ? I_.params[v].lower : plan_.mbounds[v - np_].first;
-  const double hi = v < np_ ? I_.params[v].upper : plan_.mbounds[v - np_].second;
+  const double lo = v < np_ ? fit_.params[v].lower : plan_.mbounds[v - np_].first;
+  const double hi = v < np_ ? fit_.params[v].upper : plan_.mbounds[v - np_].second;
   if (e.at_lower || e.at_upper || value < lo || value > hi) return false;
   if (v < np_ && delta > 0) {
     const double minus = e.value - delta;
-    std::vector<double> zp = I_.z, zm = I_.z;
-    zp[v] = I_.params[v].ToVariable(value);
-    zm[v] = I_.params[v].ToVariable(minus);
+    std::vector<double> zp = vars_.z, zm = vars_.z;
+    zp[v] = fit_.params[v].ToVariable(value);
+    zm[v] = fit_.params[v].ToVariable(minus);
     if (minus >= lo && minus <= hi && std::isfinite(zp[v]) && std::isfinite(zm[v])) {
-      std::vector<const double*> x0(I_.segments.size());
-      for (size_t s = 0; s < I_.segments.size(); ++s) x0[s] = I_.X0(static_cast<int>(s));
-      I_.cache->PrefetchPoints({zp.data(), zm.data()}, x0);
+      std::vector<const double*> x0(fit_.segments.size());
+      for (size_t s = 0; s < fit_.segments.size(); ++s)
+        x0[s] = fit_.X0(vars_.states, static_cast<int>(s));
+      solve_.cache->PrefetchPoints({zp.data(), zm.data()}, x0);
     }
   }
-  double* slot = v < np_ ? &I_.z[v] : &I_.m[v - np_];
+  double* slot = v < np_ ? &vars_.z[v] : &vars_.m[v - np_];
   const double saved = *slot;
-  *slot = v < np_ ? I_.params[v].ToVariable(value) : value;
+  *slot = v < np_ ? fit_.params[v].ToVariable(value) : value;
   const bool ok =
       std::isfinite(*slot) && problem_->Evaluate(evaluate_, cost, nullptr, nullptr, nullptr);
   *slot = saved;

@@ -79,12 +79,13 @@ void FitPass::FinalSignals() {
     result_.warnings.push_back("unidentifiable: " + line);
   }
   // the controls at the fitted delays (the interval check evaluated others)
-  if (nm_) I_.SyncControlDelays(I_.m.data());
-  if (I_.shards) I_.shards->CollectStates(&I_);
-  RolloutUnowned(&I_, &plan_.initial);
+  if (nm_) solve_.SyncControlDelays(&fit_, vars_.m.data());
+  if (fit_.shards) fit_.shards->CollectStates(parts_);
+  RolloutUnowned(&fit_, &plan_.initial);
   double worst_gap = 0;
   std::string worst_gap_where;
-  for (size_t q = 0; q < I_.sequences.size(); ++q) SequenceSignals(q, &worst_gap, &worst_gap_where);
+  for (size_t q = 0; q < fit_.sequences.size(); ++q)
+    SequenceSignals(q, &worst_gap, &worst_gap_where);
   if (worst_gap > kContinuityGapWarning) {
     result_.warnings.push_back(
         std::string("multiple shooting: segments do not join at the estimate (largest continuity "
@@ -107,10 +108,10 @@ void FitPass::DerivedQuantities() {
   if (result_.uncertainty.covariance.rows() >= np_) {
     cov = result_.uncertainty.covariance.topLeftCorner(np_, np_);
   }
-  for (const auto& mo : I_.models) {
-    const std::string prefix = I_.models.size() > 1 ? mo.name + "/" : "";
+  for (const auto& mo : fit_.models) {
+    const std::string prefix = fit_.models.size() > 1 ? mo.name + "/" : "";
     for (DerivedQuantity& d :
-         DeriveInertials(*mo.model, mo.name, I_.params, values, se, cov, prefix)) {
+         DeriveInertials(*mo.model, mo.name, fit_.params, values, se, cov, prefix)) {
       result_.derived.push_back(std::move(d));
     }
   }
@@ -120,49 +121,50 @@ void FitPass::DerivedQuantities() {
 // terms applied), the fitted states likewise, and the samples not measured (warned); the largest
 // continuity gap at the estimate so far in *worst_gap
 void FitPass::SequenceSignals(size_t q, double* worst_gap, std::string* worst_gap_where) {
-  const FitSequence& sq = I_.sequences[q];
-  const Problem::Impl::Model& mo = I_.models[I_.ModelIndex(sq.model)];
+  const FitSequence& sq = fit_.sequences[q];
+  const FitModel& mo = fit_.models[fit_.ModelIndex(sq.model)];
   const std::vector<Trajectory>& initial = plan_.initial;
   SequenceResult sr;
   sr.name = sq.name;
   sr.model = sq.model;
   sr.measured = sq.measured;
-  const SampleGrid& grid = I_.grids[q];
+  const SampleGrid& grid = fit_.grids[q];
   const double dt = mo.sim->model().opt.timestep;
   sr.simulated_initial.resize(sq.measured.rows(), sq.measured.cols());
   SensorsAtSamples(initial[q].sensors, grid, 0, 0, static_cast<int>(sq.measured.rows()), dt,
                    &sr.simulated_initial);
   sr.simulated_final.resize(sq.measured.rows(), sq.measured.cols());
-  if (np_) ApplyVariables(I_.params, mo.global, I_.z.data(), mo.sim.get());
-  const double* zv = np_ ? I_.z.data() : nullptr;
-  for (size_t s = 0; s < I_.segments.size(); ++s) {
-    const Segment& seg = I_.segments[s];
+  if (np_) ApplyVariables(fit_.params, mo.global, vars_.z.data(), mo.sim.get());
+  const double* zv = np_ ? vars_.z.data() : nullptr;
+  for (size_t s = 0; s < fit_.segments.size(); ++s) {
+    const Segment& seg = fit_.segments[s];
     if (seg.seq != static_cast<int>(q)) continue;
-    const double* x0 = I_.X0(static_cast<int>(s));
+    const double* x0 = fit_.X0(vars_.states, static_cast<int>(s));
     if (seg.k0 == 0) sr.x0_final = Eigen::Map<const Eigen::VectorXd>(x0, mo.sim->dims().nphys);
     try {
       // the rollout at the estimate, from the evaluation cache (the evaluation at the estimate
       // ran it; simulated here only if that evaluation failed)
-      const EvaluationCache::Entry& cached = I_.cache->Evaluate(static_cast<int>(s), zv, x0, false);
+      const EvaluationCache::Entry& cached =
+          solve_.cache->Evaluate(static_cast<int>(s), zv, x0, false);
       if (cached.failed) throw std::runtime_error(cached.error);
       const Trajectory& tr = cached.tr;
       int first = 0, count = 0;
-      I_.SamplesOf(static_cast<int>(s), &first, &count);
+      fit_.SamplesOf(static_cast<int>(s), &first, &count);
       SensorsAtSamples(tr.sensors, grid, seg.k0, first, count, dt, &sr.simulated_final);
       if (seg.next >= 0) {
         const int nx = mo.sim->dims().nx;
         Eigen::VectorXd gap(nx);
-        TangentDifference(mo.sim->model(), I_.states[seg.next].data(), tr.states.row(seg.T).data(),
-                          1.0, gap.data());
+        TangentDifference(mo.sim->model(), vars_.states[seg.next].data(),
+                          tr.states.row(seg.T).data(), 1.0, gap.data());
         if (gap.lpNorm<Eigen::Infinity>() > *worst_gap) {
           *worst_gap = gap.lpNorm<Eigen::Infinity>();
           *worst_gap_where = "sequence '" + sq.name + "' at step " + std::to_string(seg.k0 + seg.T);
         }
       }
       // apply the measurement terms to the fitted columns
-      for (const Channel& ch : I_.channels[q]) {
+      for (const Channel& ch : fit_.channels[q]) {
         if (ch.measurement < 0) continue;
-        const MeasurementTerms terms = I_.Terms(ch.measurement, nm_ ? I_.m.data() : nullptr);
+        const MeasurementTerms terms = fit_.Terms(ch.measurement, nm_ ? vars_.m.data() : nullptr);
         const Signal simulated{tr.sensors.data() + ch.column, tr.sensors.cols()};
         for (int k = first; k < first + count; ++k) {
           const DelayedSample at(grid.position[k] - seg.k0, tr.T, terms.delay, dt);
@@ -174,29 +176,29 @@ void FitPass::SequenceSignals(size_t q, double* worst_gap, std::string* worst_ga
                                  "': final simulation failed: " + e.what());
     }
   }
-  KeepFittedColumns(mo.sim->model(), I_.fitted[q], sq, &sr);
+  KeepFittedColumns(mo.sim->model(), fit_.fitted[q], sq, &sr);
   // fitted states: logged, at the initial values, at the estimate, weighted residuals
-  if (!I_.state_channels[q].empty()) {
-    const std::vector<StateChannel>& chans = I_.state_channels[q];
+  if (!fit_.state_channels[q].empty()) {
+    const std::vector<StateChannel>& chans = fit_.state_channels[q];
     const int T = static_cast<int>(sq.measured.rows());
     InitStateResult(chans, sq, &sr);
     StatesAtSamples(mo.sim->model(), chans, sq, initial[q].states, grid.position, 0, 0, T,
                     &sr.state_simulated_initial, nullptr);
-    for (size_t s = 0; s < I_.segments.size(); ++s) {
-      const Segment& seg = I_.segments[s];
+    for (size_t s = 0; s < fit_.segments.size(); ++s) {
+      const Segment& seg = fit_.segments[s];
       if (seg.seq != static_cast<int>(q)) continue;
-      const EvaluationCache::Entry& cached =
-          I_.cache->Evaluate(static_cast<int>(s), zv, I_.X0(static_cast<int>(s)), false);
+      const EvaluationCache::Entry& cached = solve_.cache->Evaluate(
+          static_cast<int>(s), zv, fit_.X0(vars_.states, static_cast<int>(s)), false);
       if (cached.failed) continue;  // warned above
       int first = 0, count = 0;
-      I_.SamplesOf(static_cast<int>(s), &first, &count);
+      fit_.SamplesOf(static_cast<int>(s), &first, &count);
       StatesAtSamples(mo.sim->model(), chans, sq, cached.tr.states, grid.position, seg.k0, first,
                       count, &sr.state_simulated_final, &sr.state_residual_final);
     }
     for (size_t i = 0; i < chans.size(); ++i) {
-      if (I_.state_missing[q][i] == 0) continue;
+      if (fit_.state_missing[q][i] == 0) continue;
       result_.warnings.push_back("sequence '" + sq.name + "': state '" + chans[i].name +
-                                 "': " + std::to_string(I_.state_missing[q][i]) + " of " +
+                                 "': " + std::to_string(fit_.state_missing[q][i]) + " of " +
                                  std::to_string(T) +
                                  " samples not measured (NaN), masked out of the fit");
     }
@@ -206,8 +208,8 @@ void FitPass::SequenceSignals(size_t q, double* worst_gap, std::string* worst_ga
   for (size_t i = 0, col = 0; i < sr.sensor_names.size(); col += sr.sensor_dims[i++]) {
     int missing = 0;
     for (int c = 0; c < sr.sensor_dims[i]; ++c) missing += sr.missing[col + c];
-    for (int c = 0; c < sr.sensor_dims[i] && q < I_.event_masked.size(); ++c) {
-      if (col + c < I_.event_masked[q].size()) missing -= I_.event_masked[q][col + c];
+    for (int c = 0; c < sr.sensor_dims[i] && q < fit_.event_masked.size(); ++c) {
+      if (col + c < fit_.event_masked[q].size()) missing -= fit_.event_masked[q][col + c];
     }
     if (missing == 0) continue;
     result_.warnings.push_back("sequence '" + sq.name + "': sensor '" + sr.sensor_names[i] +

@@ -15,12 +15,12 @@ namespace mjsysid {
 // false when auto's single shooting met a Jacobian warning (the progress callback ended the solve):
 // the policy refits in segments and this pass ends here.
 bool FitPass::RunSolver() {
-  I_.rejected_evaluations = 0;
-  I_.jacobian_warnings.clear();
-  ++I_.cost_inputs_epoch;  // (jacobian_warnings cleared)
+  diag_.rejected_evaluations = 0;
+  diag_.jacobian_warnings.clear();
+  ++solve_.cost_inputs_epoch;  // (jacobian_warnings cleared)
   ledger_.solving = true;
-  if (plan_.contact_segments && options_.hold_states_first && !I_.shards) {
-    const ceres::Solver::Summary held = SolveWithStatesHeld(I_, problem_.get(), solver_);
+  if (plan_.contact_segments && options_.hold_states_first && !fit_.shards) {
+    const ceres::Solver::Summary held = SolveWithStatesHeld(vars_, problem_.get(), solver_);
     for (size_t i = 1; i < held.iterations.size(); ++i) {
       held_accepted_ += held.iterations[i].step_is_successful ? 1 : 0;
     }
@@ -30,19 +30,20 @@ bool FitPass::RunSolver() {
     plan_.segments.held_final_cost = held.final_cost;
     result_.segment_reason = SegmentReasonText(plan_.segments);
   }
-  I_.cache->SetColumnsAhead(true);
-  I_.compressed = compress_ && options_.advanced.fold_ahead ? &compressed_ : nullptr;
+  solve_.cache->SetColumnsAhead(true);
+  solve_.compressed = compress_ && options_.advanced.fold_ahead ? &compressed_ : nullptr;
   ceres::Solve(solver_, problem_.get(), &summary_);
-  I_.cache->SetColumnsAhead(false);
-  I_.gn_stop = nullptr;
-  I_.SetPreviousJacobian(false);
+  solve_.cache->SetColumnsAhead(false);
+  solve_.gn_stop = nullptr;
+  solve_.SetPreviousJacobian(false);
   // fired before the last Jacobian: the estimate is evaluated with the previous iterate's
   // Jacobian too (else, e.g. interrupted at that point, with its own)
   previous_jacobian_ = gn_stop_->fired_before_jacobian() && !result_.interrupted;
   ledger_.solving = false;
   // the columns computed ahead of points that were not taken (the last trial's at least)
-  ledger_.Move(kPhaseTrials, kPhaseAheadUnused, I_.cache->AheadStepsUnused());
-  return !(I_.stop_on_jacobian_warning && !I_.jacobian_warnings.empty() && !result_.interrupted);
+  ledger_.Move(kPhaseTrials, kPhaseAheadUnused, solve_.cache->AheadStepsUnused());
+  return !(solve_.stop_on_jacobian_warning && !diag_.jacobian_warnings.empty() &&
+           !result_.interrupted);
 }
 
 // 5. What the solve gave: costs, iterations, whether it converged (Ceres or the statistical stop)
@@ -64,34 +65,34 @@ void FitPass::RecordSolve() {
   // sharded (sysid/mpi/): the uncompressed rows, with the priors'; compressed blocks: the rows
   // they stand for
   int prior_rows = 0;
-  for (const FitParameter& p : I_.params) prior_rows += p.has_prior ? 1 : 0;
-  result_.num_residuals = I_.shards
-                              ? static_cast<int>(I_.shards->NumResiduals()) + prior_rows
+  for (const FitParameter& p : fit_.params) prior_rows += p.has_prior ? 1 : 0;
+  result_.num_residuals = fit_.shards
+                              ? static_cast<int>(fit_.shards->NumResiduals()) + prior_rows
                               : summary_.num_residuals + static_cast<int>(compressed_.hidden_rows);
   if (summary_.termination_type == ceres::FAILURE) {
     result_.warnings.push_back("Ceres failed: " + summary_.message);
   }
-  if (I_.rejected_evaluations > 0) {
-    result_.warnings.push_back(std::to_string(I_.rejected_evaluations) +
+  if (diag_.rejected_evaluations > 0) {
+    result_.warnings.push_back(std::to_string(diag_.rejected_evaluations) +
                                " evaluation(s) rejected (trial points where the simulation "
                                "diverged or was not finite; the trust region shrank); first: " +
-                               I_.first_rejection);
+                               diag_.first_rejection);
   }
-  if (!I_.jacobian_warnings.empty()) {
-    const auto& [segment, what] = *I_.jacobian_warnings.begin();
-    const Segment& seg = I_.segments[segment];
+  if (!diag_.jacobian_warnings.empty()) {
+    const auto& [segment, what] = *diag_.jacobian_warnings.begin();
+    const Segment& seg = fit_.segments[segment];
     result_.warnings.push_back(
-        "Jacobian not reliable in " + std::to_string(I_.jacobian_warnings.size()) + " of " +
-        std::to_string(I_.segments.size()) + " segment(s); first: sequence '" +
-        I_.sequences[seg.seq].name + "' from step " + std::to_string(seg.k0) + ": " + what);
+        "Jacobian not reliable in " + std::to_string(diag_.jacobian_warnings.size()) + " of " +
+        std::to_string(fit_.segments.size()) + " segment(s); first: sequence '" +
+        fit_.sequences[seg.seq].name + "' from step " + std::to_string(seg.k0) + ": " + what);
   }
   const int nvar = np_ + nm_;
   result_.parameters.resize(nvar);
   for (int v = 0; v < nvar; ++v) {
     ParameterEstimate& e = result_.parameters[v];
     e.name = plan_.names[v];
-    e.value = v < np_ ? I_.Physical(v, I_.z[v]) : I_.m[v - np_];
-    e.initial = v < np_ ? I_.params[v].initial : plan_.minitial[v - np_];
+    e.value = v < np_ ? fit_.Physical(v, vars_.z[v]) : vars_.m[v - np_];
+    e.initial = v < np_ ? fit_.params[v].initial : plan_.minitial[v - np_];
     e.at_lower = OnBound(v, e.value, true);
     e.at_upper = OnBound(v, e.value, false);
     e.std_error = e.ci95_low = e.ci95_high = std::numeric_limits<double>::quiet_NaN();
@@ -100,8 +101,8 @@ void FitPass::RecordSolve() {
 
 // whether variable v's value is on its lower or upper bound (sysid/types.h OnBound)
 bool FitPass::OnBound(int v, double value, bool lower) const {
-  const double lo = v < np_ ? I_.params[v].lower : plan_.mbounds[v - np_].first;
-  const double hi = v < np_ ? I_.params[v].upper : plan_.mbounds[v - np_].second;
+  const double lo = v < np_ ? fit_.params[v].lower : plan_.mbounds[v - np_].first;
+  const double hi = v < np_ ? fit_.params[v].upper : plan_.mbounds[v - np_].second;
   return mjsysid::OnBound(value, lower ? lo : hi, lower);
 }
 

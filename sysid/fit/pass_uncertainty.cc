@@ -29,37 +29,37 @@ constexpr double kZ95 = 1.959963984540054;
 // with the residuals at the estimate.
 void FitPass::Uncertainty() {
   auto interrupted_now = [&] { return options_.interrupt && options_.interrupt->load(); };
-  for (auto& mo : I_.models) mo.sim->SetCancelFlag(options_.interrupt);
+  for (auto& mo : fit_.models) mo.sim->SetCancelFlag(options_.interrupt);
   evaluate_.num_threads = 1;  // as the solve
   // (sharded: the shards eliminate the states, the sharded problem is single-shooting shaped)
-  for (const Segment& seg : I_.segments) multiple_ = multiple_ || (seg.next >= 0 && !I_.shards);
+  for (const Segment& seg : fit_.segments) multiple_ = multiple_ || (seg.next >= 0 && !fit_.shards);
   double cost = 0;
   ceres::CRSMatrix crs;
   std::vector<double> residuals;
   EstimateTriangle triangle;
   // the core's Jacobian warnings of this evaluation alone: the Jacobian the intervals come from
   std::map<int, std::string> solve_warnings;
-  std::swap(solve_warnings, I_.jacobian_warnings);
-  if (!solve_warnings.empty()) ++I_.cost_inputs_epoch;  // the estimate's folds note theirs anew
+  std::swap(solve_warnings, diag_.jacobian_warnings);
+  if (!solve_warnings.empty()) ++solve_.cost_inputs_epoch;  // the estimate's folds note theirs anew
   if (options_.observer && !interrupted_now()) {
     options_.observer->OnStage(FitStage::kUncertainty, "Jacobian at the estimate (uncertainty)",
-                               SecondsSince(I_.fit_start));
+                               SecondsSince(solve_.fit_start));
   }
   ledger_.Enter(kPhaseEstimate);
-  I_.SetPreviousJacobian(previous_jacobian_);
+  solve_.SetPreviousJacobian(previous_jacobian_);
   const bool evaluated =
       !interrupted_now() &&
       (multiple_ ? problem_->Evaluate(evaluate_, &cost, &residuals, nullptr, &crs)
                  : EvaluateTriangle(*problem_, blocks_, &triangle));
   ledger_.Enter(kPhaseCovariance);
-  I_.SetPreviousJacobian(false);
-  I_.compressed = nullptr;
+  solve_.SetPreviousJacobian(false);
+  solve_.compressed = nullptr;
   result_.reused_folds = compressed_.reused_folds;
   result_.folds = compressed_.folds;
   result_.ahead_folds = compressed_.ahead_folds;
-  jacobian_warned_at_estimate_ = evaluated && !I_.jacobian_warnings.empty();
-  I_.jacobian_warnings.insert(solve_warnings.begin(), solve_warnings.end());
-  for (auto& mo : I_.models) mo.sim->SetCancelFlag(nullptr);
+  jacobian_warned_at_estimate_ = evaluated && !diag_.jacobian_warnings.empty();
+  diag_.jacobian_warnings.insert(solve_warnings.begin(), solve_warnings.end());
+  for (auto& mo : fit_.models) mo.sim->SetCancelFlag(nullptr);
   if (interrupted_now()) {
     result_.interrupted = true;
     result_.converged = false;
@@ -88,7 +88,7 @@ void FitPass::Uncertainty() {
     RowMatrix A;
     Eigen::SparseMatrix<double> B;
     SplitJacobian(crs, nvar, &A, &B);
-    for (int g = 0; g < np_; ++g) A.col(g) /= I_.DpDz(g, I_.z[g]);
+    for (int g = 0; g < np_; ++g) A.col(g) /= fit_.DpDz(g, vars_.z[g]);
     // the rows Ceres sees may be compressed blocks' (n + 1 each): the dof counts the real rows
     result_.uncertainty = AnalyzeUncertaintyReduced(A, B, result_.num_residuals, cost, all_names,
                                                     values, fixed, uncertainty_);
@@ -103,12 +103,12 @@ void FitPass::Uncertainty() {
   } else {
     // the physical units of the parameter columns: a column scaling of J is one of R
     const int n = triangle.n;
-    for (int g = 0; g < np_; ++g) triangle.r_aug.col(g) /= I_.DpDz(g, I_.z[g]);
+    for (int g = 0; g < np_; ++g) triangle.r_aug.col(g) /= fit_.DpDz(g, vars_.z[g]);
     for (int c = nvar; c < n; ++c) all_names.push_back("x0[" + std::to_string(c - nvar) + "]");
     cost = triangle.cost;
     // residual rows less the states the shards eliminated (they enter the dof as columns)
     const long long residual_rows =
-        result_.num_residuals - (I_.shards ? I_.shards->EliminatedColumns() : 0);
+        result_.num_residuals - (fit_.shards ? fit_.shards->EliminatedColumns() : 0);
     result_.uncertainty = AnalyzeUncertaintyCompressed(
         triangle.r_aug.leftCols(n), residual_rows, cost, all_names, values, fixed, uncertainty_);
     // [J_p r]'s triangle: the parameter columns come first, so R's leading block is J_p's

@@ -8,13 +8,14 @@
 //     when it converges, else the single-shooting fit stays, saying so.
 // The passes' records are combined as records: the refit's segment choice replaced by the
 // policy's reason, traces, steps, seconds and ledger rows joined.
+#include "sysid/fit/policy.h"
+
 #include <algorithm>
 #include <limits>
 #include <string>
 
 #include "sysid/fit/pass.h"
 #include "sysid/fit_observer.h"
-#include "sysid/problem.h"
 #include "sysid/solve/multiple_shooting.h"
 #include "sysid/solve/progress.h"
 
@@ -22,14 +23,14 @@ namespace mjsysid {
 namespace {
 
 // a pass in segments of `steps` with the policy's reason as its segment choice
-FitResult Refit(Problem::Impl* impl, const FitOptions& options, int steps,
+FitResult Refit(const FitParts& parts, const FitOptions& options, int steps,
                 const std::string& reason, double seconds) {
   FitOptions segmented = options;
   segmented.segment_steps = steps;
   if (options.observer) {
     options.observer->OnStage(FitStage::kRefit, reason, seconds);
   }
-  FitPass pass(impl, segmented);
+  FitPass pass(parts, segmented);
   pass.Solve();  // (segment_steps set: never stops for a Jacobian warning)
   pass.Assess();
   SegmentRecord record = pass.plan().segments;
@@ -45,9 +46,8 @@ void PrefixLedger(const std::string& what, FitResult* r) {
 
 }  // namespace
 
-FitResult Problem::Fit(const FitOptions& options) {
-  Impl& I = *impl_;
-  FitPass pass(&I, options);
+FitResult FitWithPolicy(const FitParts& parts, const FitOptions& options) {
+  FitPass pass(parts, options);
   if (pass.Solve() == FitPass::Stop::kJacobianWarning) {
     // single shooting's Jacobian stopped being local: the refit in segments is the result
     std::string reason;
@@ -55,7 +55,7 @@ FitResult Problem::Fit(const FitOptions& options) {
         SegmentStepsAfterWarning(pass.first_jacobian_warning(), pass.plan().probe_rate, &reason);
     if (steps > 0) {
       const double first_seconds = pass.Seconds();
-      FitResult refit = Refit(&I, options, steps, reason, first_seconds);
+      FitResult refit = Refit(parts, options, steps, reason, first_seconds);
       refit.seconds += first_seconds;
       refit.trace.insert(refit.trace.begin(), pass.result().trace.begin(),
                          pass.result().trace.end());
@@ -70,12 +70,12 @@ FitResult Problem::Fit(const FitOptions& options) {
   }
   // single shooting that did not converge on a system whose probe grew well beyond linear
   int shortest = std::numeric_limits<int>::max();
-  for (const SampleGrid& g : I.grids) shortest = std::min(shortest, g.steps);
+  for (const SampleGrid& g : parts.fit->grids) shortest = std::min(shortest, g.steps);
   std::string reason;
   const int steps =
       SegmentStepsAfterFailure(pass.plan().probe_growth, pass.plan().probe_rate, shortest, &reason);
   if (steps <= 0) return std::move(result);
-  FitResult refit = Refit(&I, options, steps, reason, result.seconds);
+  FitResult refit = Refit(parts, options, steps, reason, result.seconds);
   if (refit.outcome == FitStatus::kConverged) {
     refit.seconds += result.seconds;
     refit.simulation_steps += result.simulation_steps;

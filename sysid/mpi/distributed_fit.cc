@@ -13,6 +13,7 @@
 #include <map>
 
 #include "core/invariant.h"
+#include "sysid/fit/prepare.h"
 #include "sysid/mpi/state_projection.h"
 #include "sysid/run/fit_experiment.h"
 #include "sysid/run/multi_start.h"
@@ -68,9 +69,9 @@ namespace {
 
 // out = the reply header (kReplyHeader) and, when ok, the maximal tree nodes inside the leaves
 // [first, last) of a tree over [0, leaves), each reduced from share's leaf values
-void Reply(const Problem::Impl& I, bool ok, int warned, int first, int last, int leaves,
+void Reply(const FitDiagnostics& diag, bool ok, int warned, int first, int last, int leaves,
            bool jacobians, const Share& share, std::vector<double>* out) {
-  const int step = warned >= 0 ? WarningStep(I.jacobian_warnings.at(warned)) : -1;
+  const int step = warned >= 0 ? WarningStep(diag.jacobian_warnings.at(warned)) : -1;
   out->assign({ok ? 1.0 : 0.0, static_cast<double>(warned), static_cast<double>(step), 0.0});
   if (!ok) return;
   const std::vector<std::pair<int, int>> nodes = CanonicalNodes(first, last, leaves);
@@ -93,46 +94,49 @@ void Reply(const Problem::Impl& I, bool ok, int warned, int first, int last, int
 
 // EvaluateShare (below) with free states (BySequence): the leaves [first, last) are whole
 // sequences, each solved for its states and reduced by StateProjection
-void EvaluateSequences(Problem::Impl* impl, int first, int last, bool jacobians, Share* share,
+void EvaluateSequences(const FitParts& parts, int first, int last, bool jacobians, Share* share,
                        std::vector<double>* out) {
-  Problem::Impl& I = *impl;
-  if (!share->projection) share->projection = std::make_unique<StateProjection>(impl);
-  const int leaves = static_cast<int>(I.sequences.size());
+  const PreparedFit& fit = *parts.fit;
+  const FitDiagnostics& diag = *parts.diag;
+  if (!share->projection) share->projection = std::make_unique<StateProjection>(parts);
+  const int leaves = static_cast<int>(fit.sequences.size());
   share->sums.assign(std::max(last - first, 0), 0.0);
   share->blocks.resize(std::max(last - first, 0));
   bool ok = true;
   int warned = -1;
   for (int q = first; q < last && ok; ++q) {
     ok = share->projection->Solve(q, jacobians, &share->blocks[q - first], &share->sums[q - first]);
-    for (size_t s = 0; s < I.segments.size() && warned < 0; ++s) {
-      if (I.segments[s].seq == q && I.jacobian_warnings.count(static_cast<int>(s))) {
+    for (size_t s = 0; s < fit.segments.size() && warned < 0; ++s) {
+      if (fit.segments[s].seq == q && diag.jacobian_warnings.count(static_cast<int>(s))) {
         warned = static_cast<int>(s);
       }
     }
   }
-  Reply(I, ok, warned, first, last, leaves, jacobians, *share, out);
+  Reply(diag, ok, warned, first, last, leaves, jacobians, *share, out);
 }
 
-// One rank's share at the variables in impl (z, m): its segments [first, last) simulated
+// One rank's share at the variables (z, m): its segments [first, last) simulated
 // (batched), their sensor and state residuals evaluated and, with Jacobians, compressed one
 // segment at a time; then the values of the maximal tree nodes of its range (shards.h). out:
 // [ok, warned segment (-1: none), number of nodes, then per node: lo, hi and its value (sum r^2,
 // or R_aug column-major with Jacobians)].
-void EvaluateShare(Problem::Impl* impl, int first, int last, bool jacobians, Share* share,
+void EvaluateShare(const FitParts& parts, int first, int last, bool jacobians, Share* share,
                    std::vector<double>* out) {
-  Problem::Impl& I = *impl;
-  if (BySequence(I)) return EvaluateSequences(impl, first, last, jacobians, share, out);
-  const int np = static_cast<int>(I.z.size()), nm = static_cast<int>(I.m.size());
-  const int n = np + nm, size = static_cast<int>(I.segments.size());
+  const PreparedFit& fit = *parts.fit;
+  const FitVariables& vars = *parts.vars;
+  const FitDiagnostics& diag = *parts.diag;
+  if (BySequence(fit)) return EvaluateSequences(parts, first, last, jacobians, share, out);
+  const int np = static_cast<int>(vars.z.size()), nm = static_cast<int>(vars.m.size());
+  const int n = np + nm, size = static_cast<int>(fit.segments.size());
   // the owned segments at the new point, in the simulators' batches
-  std::vector<const double*> x0(I.segments.size(), nullptr);
-  for (int s = first; s < last; ++s) x0[s] = I.X0(s);
-  I.cache->Prefetch(np ? I.z.data() : nullptr, x0, jacobians);
+  std::vector<const double*> x0(fit.segments.size(), nullptr);
+  for (int s = first; s < last; ++s) x0[s] = fit.X0(vars.states, s);
+  parts.solve->cache->Prefetch(np ? vars.z.data() : nullptr, x0, jacobians);
   bool ok = true;
   int warned = -1;
   std::vector<const double*> params;
-  if (np) params.push_back(I.z.data());
-  if (nm) params.push_back(I.m.data());
+  if (np) params.push_back(vars.z.data());
+  if (nm) params.push_back(vars.m.data());
   share->costs.resize(std::max(last - first, 0));
   share->sums.assign(std::max(last - first, 0), 0.0);
   share->blocks.resize(std::max(last - first, 0));
@@ -140,8 +144,8 @@ void EvaluateShare(Problem::Impl* impl, int first, int last, bool jacobians, Sha
     // the sensor rows (all blocks) and the fitted-state rows (z only)
     auto& costs = share->costs[s - first];
     if (!costs[0]) {
-      costs[0] = std::make_unique<SegmentCost>(impl, s);
-      if (I.segments[s].state_rows) costs[1] = std::make_unique<StateCost>(impl, s);
+      costs[0] = std::make_unique<SegmentCost>(parts, s);
+      if (fit.segments[s].state_rows) costs[1] = std::make_unique<StateCost>(parts, s);
     }
     share->block.Reset(n);
     for (const auto& cost : costs) {
@@ -168,9 +172,9 @@ void EvaluateShare(Problem::Impl* impl, int first, int last, bool jacobians, Sha
       }
     }
     if (jacobians) share->blocks[s - first] = share->block.Augmented();
-    if (warned < 0 && I.jacobian_warnings.count(s)) warned = s;
+    if (warned < 0 && diag.jacobian_warnings.count(s)) warned = s;
   }
-  Reply(I, ok, warned, first, last, size, jacobians, *share, out);
+  Reply(diag, ok, warned, first, last, size, jacobians, *share, out);
 }
 
 // The one residual block of the segments on rank 0: the root of the tree, n + 1 rows on the
@@ -205,16 +209,17 @@ class TreeCost : public ceres::CostFunction {
 // The state blocks of the sequences [first, last), concatenated in block order (the blocks of a
 // sequence follow those of the one before), gathered to rank 0: every rank's in rank order is
 // every block in order
-std::vector<double> OwnStates(const Problem::Impl& I, int first, int last) {
+std::vector<double> OwnStates(const PreparedFit& fit, const FitVariables& vars, int first,
+                              int last) {
   std::vector<double> out;
-  for (const Segment& seg : I.segments) {
+  for (const Segment& seg : fit.segments) {
     if (seg.block < 0 || seg.seq < first || seg.seq >= last) continue;
-    out.insert(out.end(), I.states[seg.block].begin(), I.states[seg.block].end());
+    out.insert(out.end(), vars.states[seg.block].begin(), vars.states[seg.block].end());
   }
   return out;
 }
-void SendStates(const Problem::Impl& I, int first, int last) {
-  std::vector<double> send = OwnStates(I, first, last);
+void SendStates(const PreparedFit& fit, const FitVariables& vars, int first, int last) {
+  std::vector<double> send = OwnStates(fit, vars, first, last);
   int count = static_cast<int>(send.size());
   MPI_Gather(&count, 1, MPI_INT, nullptr, 0, MPI_INT, 0, MPI_COMM_WORLD);
   MPI_Gatherv(send.data(), count, MPI_DOUBLE, nullptr, nullptr, nullptr, MPI_DOUBLE, 0,
@@ -284,49 +289,54 @@ bool AgreeReady(bool ok, const std::string& message, std::string* failure) {
   return false;
 }
 
-void AgreeMoves(const Problem::Impl& impl) {
+void AgreeMoves(const PreparedFit& fit) {
   // or over the ranks (max of 0/1)
-  std::vector<int> mine(impl.params.size(), 0), all(impl.params.size(), 0);
-  for (size_t g = 0; g < mine.size() && g < impl.moves.size(); ++g) mine[g] = impl.moves[g];
+  std::vector<int> mine(fit.params.size(), 0), all(fit.params.size(), 0);
+  for (size_t g = 0; g < mine.size() && g < fit.moves.size(); ++g) mine[g] = fit.moves[g];
   MPI_Allreduce(mine.data(), all.data(), static_cast<int>(mine.size()), MPI_INT, MPI_MAX,
                 MPI_COMM_WORLD);
-  CheckParametersMove(impl, std::vector<bool>(all.begin(), all.end()));
+  CheckParametersMove(fit, std::vector<bool>(all.begin(), all.end()));
 }
 
-std::vector<int> SequenceRanges(const Problem::Impl& impl, int ranks) {
+std::vector<int> SequenceRanges(const PreparedFit& fit, int ranks) {
   std::vector<double> cost;
-  for (size_t q = 0; q < impl.sequences.size(); ++q) {
-    const Problem::Impl::Model& mo = impl.models[impl.ModelIndex(impl.sequences[q].model)];
+  for (size_t q = 0; q < fit.sequences.size(); ++q) {
+    const FitModel& mo = fit.models[fit.ModelIndex(fit.sequences[q].model)];
     const int columns = mo.sim->parameters().size() + 1;  // + the rollout
-    cost.push_back(static_cast<double>(impl.grids[q].steps) * columns);
+    cost.push_back(static_cast<double>(fit.grids[q].steps) * columns);
   }
   return ShardRanges(cost, ranks);
 }
 
-std::vector<bool> OwnedSequences(const Problem::Impl& impl, int rank, int ranks) {
-  const std::vector<int> ranges = SequenceRanges(impl, ranks);
-  std::vector<bool> owned(impl.sequences.size(), false);
+std::vector<bool> OwnedSequences(const PreparedFit& fit, int rank, int ranks) {
+  const std::vector<int> ranges = SequenceRanges(fit, ranks);
+  std::vector<bool> owned(fit.sequences.size(), false);
   for (int q = ranges[rank]; q < ranges[rank + 1]; ++q) owned[q] = true;
   return owned;
 }
 
-bool BySequence(const Problem::Impl& impl) { return !impl.states.empty(); }
-
-int Leaves(const Problem::Impl& impl) {
-  return static_cast<int>(BySequence(impl) ? impl.sequences.size() : impl.segments.size());
+bool BySequence(const PreparedFit& fit) {
+  for (const Segment& seg : fit.segments) {
+    if (seg.block >= 0) return true;  // a free state (a state block)
+  }
+  return false;
 }
 
-std::vector<int> LeafRanges(const Problem::Impl& impl, int ranks) {
-  return BySequence(impl) ? SequenceRanges(impl, ranks) : SegmentRanges(impl, ranks);
+int Leaves(const PreparedFit& fit) {
+  return static_cast<int>(BySequence(fit) ? fit.sequences.size() : fit.segments.size());
 }
 
-std::vector<int> SegmentRanges(const Problem::Impl& impl, int ranks) {
+std::vector<int> LeafRanges(const PreparedFit& fit, int ranks) {
+  return BySequence(fit) ? SequenceRanges(fit, ranks) : SegmentRanges(fit, ranks);
+}
+
+std::vector<int> SegmentRanges(const PreparedFit& fit, int ranks) {
   // the first segment of each rank's first sequence (segments are in sequence order)
-  const std::vector<int> sequences = SequenceRanges(impl, ranks);
+  const std::vector<int> sequences = SequenceRanges(fit, ranks);
   std::vector<int> ranges;
   int s = 0;
   for (int q : sequences) {
-    while (s < static_cast<int>(impl.segments.size()) && impl.segments[s].seq < q) ++s;
+    while (s < static_cast<int>(fit.segments.size()) && fit.segments[s].seq < q) ++s;
     ranges.push_back(s);
   }
   return ranges;
@@ -338,21 +348,23 @@ std::vector<int> SegmentRanges(const Problem::Impl& impl, int ranks) {
 ShardedResiduals::ShardedResiduals() : share_(std::make_unique<Share>()) {}
 ShardedResiduals::~ShardedResiduals() = default;
 
-std::vector<bool> ShardedResiduals::OwnedSequences(const Problem::Impl& impl) const {
-  return mpi::OwnedSequences(impl, Rank(), Size());
+std::vector<bool> ShardedResiduals::OwnedSequences(const PreparedFit& fit) const {
+  return mpi::OwnedSequences(fit, Rank(), Size());
 }
 
-void ShardedResiduals::AddResidualBlocks(Problem::Impl* impl, ceres::Problem* problem,
+void ShardedResiduals::AddResidualBlocks(const FitParts& parts, ceres::Problem* problem,
                                          const std::vector<double*>& blocks) {
   const bool first = !agreed_, refit = agreed_ && !new_problem_;
   new_problem_ = false;
-  n_ = static_cast<int>(impl->z.size() + impl->m.size());
+  const PreparedFit& fit = *parts.fit;
+  const FitVariables& vars = *parts.vars;
+  n_ = static_cast<int>(vars.z.size() + vars.m.size());
   if (refit) {
     // a refit of the same input (auto's segments, Problem::Fit calling itself): the workers
     // prepare again with its segment length; they agreed on the input before
     command_.assign(kHeader + n_, 0.0);
     command_[0] = kPrepare;
-    command_[1] = impl->options.segment_steps;
+    command_[1] = fit.options.segment_steps;
     MPI_Bcast(command_.data(), static_cast<int>(command_.size()), MPI_DOUBLE, 0, MPI_COMM_WORLD);
   }
   if (first) {
@@ -364,7 +376,7 @@ void ShardedResiduals::AddResidualBlocks(Problem::Impl* impl, ceres::Problem* pr
     }
     // the checks over every rank's sequences: a failure ends every rank here (ParameterError)
     try {
-      AgreeMoves(*impl);
+      AgreeMoves(fit);
     } catch (...) {
       done_ = true;
       throw;
@@ -377,26 +389,25 @@ void ShardedResiduals::AddResidualBlocks(Problem::Impl* impl, ceres::Problem* pr
     // fails this start only)
     command_.assign(kHeader + n_, 0.0);
     command_[0] = kStart;
-    for (size_t j = 0; j < impl->params.size(); ++j)
-      command_[kHeader + j] = impl->params[j].initial;
+    for (size_t j = 0; j < fit.params.size(); ++j) command_[kHeader + j] = fit.params[j].initial;
     MPI_Bcast(command_.data(), static_cast<int>(command_.size()), MPI_DOUBLE, 0, MPI_COMM_WORLD);
     std::string failure;
     if (!AgreeReady(true, "", &failure)) throw RankError(failure);
-    AgreeMoves(*impl);
+    AgreeMoves(fit);
   }
   share_ = std::make_unique<Share>();
-  impl_ = impl;
-  const int np = static_cast<int>(impl->z.size()), nm = static_cast<int>(impl->m.size());
+  parts_ = parts;
+  const int np = static_cast<int>(vars.z.size()), nm = static_cast<int>(vars.m.size());
   n_ = np + nm;
-  ranges_ = LeafRanges(*impl, Size());
+  ranges_ = LeafRanges(fit, Size());
   rows_ = 0;
   eliminated_ = 0;
-  for (size_t s = 0; s < impl->segments.size(); ++s) {
-    const Segment& seg = impl->segments[s];
-    if (seg.block >= 0) eliminated_ += impl->models[seg.model].sim->dims().nx;
-    rows_ += SegmentCost(impl, static_cast<int>(s)).num_residuals();
-    if (impl->segments[s].state_rows) {
-      rows_ += StateCost(impl, static_cast<int>(s)).num_residuals();
+  for (size_t s = 0; s < fit.segments.size(); ++s) {
+    const Segment& seg = fit.segments[s];
+    if (seg.block >= 0) eliminated_ += fit.models[seg.model].sim->dims().nx;
+    rows_ += SegmentCost(parts, static_cast<int>(s)).num_residuals();
+    if (fit.segments[s].state_rows) {
+      rows_ += StateCost(parts, static_cast<int>(s)).num_residuals();
     }
   }
   problem->AddResidualBlock(new TreeCost(this, np, nm), nullptr, blocks);
@@ -404,18 +415,19 @@ void ShardedResiduals::AddResidualBlocks(Problem::Impl* impl, ceres::Problem* pr
 
 void ShardedResiduals::PrepareForEvaluation(bool evaluate_jacobians,
                                             bool /*new_evaluation_point*/) {
-  Problem::Impl& I = *impl_;
-  const int size = Size(), segments = Leaves(I);
+  const FitVariables& vars = *parts_.vars;
+  FitDiagnostics& diag = *parts_.diag;
+  const int size = Size(), segments = Leaves(*parts_.fit);
   // the command and the values, from the parameter blocks Ceres has updated
   auto t0 = std::chrono::steady_clock::now();
   command_.assign({kEvaluate, evaluate_jacobians ? 1.0 : 0.0});
-  command_.insert(command_.end(), I.z.begin(), I.z.end());
-  command_.insert(command_.end(), I.m.begin(), I.m.end());
+  command_.insert(command_.end(), vars.z.begin(), vars.z.end());
+  command_.insert(command_.end(), vars.m.begin(), vars.m.end());
   MPI_Bcast(command_.data(), static_cast<int>(command_.size()), MPI_DOUBLE, 0, MPI_COMM_WORLD);
   stats_.seconds_mpi += Seconds(t0);
   // rank 0's own share
   t0 = std::chrono::steady_clock::now();
-  EvaluateShare(impl_, ranges_[0], ranges_[1], evaluate_jacobians, share_.get(), &send_);
+  EvaluateShare(parts_, ranges_[0], ranges_[1], evaluate_jacobians, share_.get(), &send_);
   stats_.seconds_own_share += Seconds(t0);
   // every rank's tree nodes (their sizes first)
   t0 = std::chrono::steady_clock::now();
@@ -449,16 +461,16 @@ void ShardedResiduals::PrepareForEvaluation(bool evaluate_jacobians,
     const double* in = receive_.data() + displs_[r];
     if (in[0] != 1.0) {
       root_.ok = false;
-      I.NoteRejection("the simulation of a sequence of rank " + std::to_string(r) +
-                      " failed or was not finite at the trial point");
+      diag.NoteRejection("the simulation of a sequence of rank " + std::to_string(r) +
+                         " failed or was not finite at the trial point");
       continue;
     }
     const int warned = static_cast<int>(in[1]), step = static_cast<int>(in[2]);
     if (warned >= 0 && r > 0) {
       // the step it names, for auto's refit in segments (SegmentStepsAfterWarning)
-      I.NoteJacobianWarning(warned, "the core flagged this sequence's Jacobian on rank " +
-                                        std::to_string(r) +
-                                        (step >= 0 ? " from step " + std::to_string(step) : ""));
+      diag.NoteJacobianWarning(warned, "the core flagged this sequence's Jacobian on rank " +
+                                           std::to_string(r) +
+                                           (step >= 0 ? " from step " + std::to_string(step) : ""));
     }
     const double* node = in + kReplyHeader;
     for (int k = 0; k < static_cast<int>(in[3]); ++k, node += 2 + width) {
@@ -489,15 +501,16 @@ void ShardedResiduals::PrepareForEvaluation(bool evaluate_jacobians,
   }
 }
 
-void ShardedResiduals::CollectStates(Problem::Impl* impl) {
-  Problem::Impl& I = *impl;
-  if (!BySequence(I) || done_ || !agreed_) return;
+void ShardedResiduals::CollectStates(const FitParts& parts) {
+  const PreparedFit& fit = *parts.fit;
+  FitVariables& vars = *parts.vars;
+  if (!BySequence(fit) || done_ || !agreed_) return;
   const int size = Size();
   command_.assign(kHeader + n_, 0.0);
   command_[0] = kStates;
   MPI_Bcast(command_.data(), static_cast<int>(command_.size()), MPI_DOUBLE, 0, MPI_COMM_WORLD);
   // rank 0's own blocks, then the others' (SendStates)
-  std::vector<double> mine = OwnStates(I, ranges_[0], ranges_[1]);
+  std::vector<double> mine = OwnStates(fit, vars, ranges_[0], ranges_[1]);
   int count = static_cast<int>(mine.size());
   counts_.assign(size, 0);
   MPI_Gather(&count, 1, MPI_INT, counts_.data(), 1, MPI_INT, 0, MPI_COMM_WORLD);
@@ -507,8 +520,8 @@ void ShardedResiduals::CollectStates(Problem::Impl* impl) {
   MPI_Gatherv(mine.data(), count, MPI_DOUBLE, receive_.data(), counts_.data(), displs_.data(),
               MPI_DOUBLE, 0, MPI_COMM_WORLD);
   size_t at = 0;
-  for (size_t b = 0; b < I.states.size(); ++b) {
-    const StateBlocks::View<double> x = I.states[b];
+  for (size_t b = 0; b < vars.states.size(); ++b) {
+    const StateBlocks::View<double> x = vars.states[b];
     MJSYSID_DEMAND(at + x.size() <= receive_.size(),
                    "the ranks sent fewer states than the fit has");
     std::copy(receive_.begin() + at, receive_.begin() + at + x.size(), x.begin());
@@ -550,7 +563,7 @@ int ServeFit(const io::ExperimentConfig* config, int threads, const std::string&
   run::BuiltProblem bp;
   FitOptions options, base;        // as prepared now; as the experiment says
   std::unique_ptr<Problem> start;  // the current start's Problem (--starts), after the first
-  Problem::Impl* impl = nullptr;
+  FitParts parts{};                // the current start's, prepared (parts.fit null: none)
   if (config && error.empty()) {
     try {
       bp = run::BuildProblem(*config, threads);
@@ -559,21 +572,22 @@ int ServeFit(const io::ExperimentConfig* config, int threads, const std::string&
       base = options;
       // a sharded start: this rank's sequences only
       const int rank = Rank(), ranks = Size();
-      bp.problem->ShardStart(
-          [rank, ranks](const Problem::Impl& I) { return OwnedSequences(I, rank, ranks); });
-      impl = bp.problem->PrepareOnly(options);
+      ShardStart(bp.problem.get(), [rank, ranks](const PreparedFit& fit) {
+        return OwnedSequences(fit, rank, ranks);
+      });
+      parts = PrepareOnly(bp.problem.get(), options);
     } catch (const std::exception& e) {
       error = e.what();
     }
   }
   if (!AgreeReady(error.empty(), error, nullptr)) return 0;  // rank 0 reports it
   try {
-    AgreeMoves(*impl);
+    AgreeMoves(*parts.fit);
   } catch (const std::exception&) {
     return 0;  // the same failure on rank 0, which reports it
   }
-  const int rank = Rank(), n = static_cast<int>(impl->z.size() + impl->m.size());
-  std::vector<int> ranges = LeafRanges(*impl, Size());
+  const int rank = Rank(), n = static_cast<int>(parts.vars->z.size() + parts.vars->m.size());
+  std::vector<int> ranges = LeafRanges(*parts.fit, Size());
   std::vector<double> command(kHeader + n), send;
   Share share;
   // evaluate at every point rank 0 sends, until it finishes
@@ -581,34 +595,35 @@ int ServeFit(const io::ExperimentConfig* config, int threads, const std::string&
     MPI_Bcast(command.data(), kHeader + n, MPI_DOUBLE, 0, MPI_COMM_WORLD);
     if (command[0] == kFinish) break;
     if (command[0] == kStates) {
-      SendStates(*impl, ranges[rank], ranges[rank + 1]);
+      SendStates(*parts.fit, *parts.vars, ranges[rank], ranges[rank + 1]);
       continue;
     }
     if (command[0] == kStart) {
       // the next start: bp's Problem at the start values, prepared; then the agreement
       std::string not_ready;
-      Problem::Impl* next = nullptr;
+      FitParts next{};
       try {
         Eigen::VectorXd values(static_cast<Eigen::Index>(bp.parameters.size()));
         for (Eigen::Index j = 0; j < values.size(); ++j) values[j] = command[kHeader + j];
         start = run::ProblemFrom(bp, values);
         const int ranks = Size();
-        start->ShardStart(
-            [rank, ranks](const Problem::Impl& I) { return OwnedSequences(I, rank, ranks); });
+        ShardStart(start.get(), [rank, ranks](const PreparedFit& fit) {
+          return OwnedSequences(fit, rank, ranks);
+        });
         options = base;
-        next = start->PrepareOnly(options);
+        next = PrepareOnly(start.get(), options);
       } catch (const std::exception& e) {
         not_ready = e.what();
       }
-      impl = nullptr;  // the previous start's Problem is gone
+      parts = FitParts{};  // the previous start's Problem is gone
       if (!AgreeReady(not_ready.empty(), not_ready, nullptr)) continue;  // rank 0 records it
       try {
-        AgreeMoves(*next);
+        AgreeMoves(*next.fit);
       } catch (const std::exception&) {
         continue;  // the same failure on rank 0
       }
-      impl = next;
-      ranges = LeafRanges(*impl, Size());
+      parts = next;
+      ranges = LeafRanges(*parts.fit, Size());
       share = Share();
       continue;
     }
@@ -616,20 +631,20 @@ int ServeFit(const io::ExperimentConfig* config, int threads, const std::string&
       // auto's refit in segments: the same input prepared again with rank 0's segment length
       options.segment_steps = static_cast<int>(command[1]);
       try {
-        impl = (start ? start : bp.problem)->PrepareOnly(options);
+        parts = PrepareOnly((start ? start : bp.problem).get(), options);
       } catch (const std::exception& e) {
         // rank 0 prepared the same input with the same options
         BrokenInvariant((RankName(rank) + ": preparing the refit failed: " + e.what()).c_str(),
                         __FILE__, __LINE__);
       }
-      ranges = LeafRanges(*impl, Size());
+      ranges = LeafRanges(*parts.fit, Size());
       share = Share();
       continue;
     }
-    std::copy(command.begin() + kHeader, command.begin() + kHeader + impl->z.size(),
-              impl->z.begin());
-    std::copy(command.begin() + kHeader + impl->z.size(), command.end(), impl->m.begin());
-    EvaluateShare(impl, ranges[rank], ranges[rank + 1], command[1] == 1.0, &share, &send);
+    std::vector<double>& z = parts.vars->z;
+    std::copy(command.begin() + kHeader, command.begin() + kHeader + z.size(), z.begin());
+    std::copy(command.begin() + kHeader + z.size(), command.end(), parts.vars->m.begin());
+    EvaluateShare(parts, ranges[rank], ranges[rank + 1], command[1] == 1.0, &share, &send);
     const int head[2] = {static_cast<int>(send.size()), g_stop ? 1 : 0};
     MPI_Gather(head, 2, MPI_INT, nullptr, 0, MPI_INT, 0, MPI_COMM_WORLD);
     MPI_Gatherv(send.data(), head[0], MPI_DOUBLE, nullptr, nullptr, nullptr, MPI_DOUBLE, 0,

@@ -1,15 +1,15 @@
 // `mpirun -n N sysid fit EXP.yaml`: a fit whose sequences are sharded across MPI ranks.
 //
 // Roles. Every rank reads and validates the experiment and its logs (run::BuildProblem) and
-// prepares the fit (Problem::PrepareOnly) with a sharded start (Problem::ShardStart): the initial
-// rollouts and Jacobians of its own sequences only, so the start costs one whole-data Jacobian
-// spread over the ranks, not one per rank. Then all ranks agree that every one of them is ready
-// (AgreeReady) before any evaluation, so bad input on any rank (a log it cannot read) ends the run
-// on every rank before the fit, with that rank's message naming it and its host; and they combine
-// the checks that need every sequence (AgreeMoves: a parameter without effect on all the data),
-// which then fail on every rank with the same message. Rank 0 runs
-// Ceres through the ordinary Problem::Fit with a ShardedResiduals (sysid/problem.h's
-// ResidualShards): one residual block for all segments. The other ranks loop in ServeFit.
+// prepares the fit (PrepareOnly, sysid/fit/prepare.h) with a sharded start (ShardStart): the
+// initial rollouts and Jacobians of its own sequences only, so the start costs one whole-data
+// Jacobian spread over the ranks, not one per rank. Then all ranks agree that every one of them is
+// ready (AgreeReady) before any evaluation, so bad input on any rank (a log it cannot read) ends
+// the run on every rank before the fit, with that rank's message naming it and its host; and they
+// combine the checks that need every sequence (AgreeMoves: a parameter without effect on all the
+// data), which then fail on every rank with the same message. Rank 0 runs Ceres through the
+// ordinary Problem::Fit with a ShardedResiduals (sysid/problem.h's ResidualShards): one residual
+// block for all segments. The other ranks loop in ServeFit.
 //
 // One evaluation (ShardedResiduals::PrepareForEvaluation, Ceres' EvaluationCallback): rank 0
 // broadcasts [command, jacobians?, z (np), m (nm)] (n = np + nm values after the header); every
@@ -69,7 +69,7 @@
 #include "sysid/io/experiment.h"
 #include "sysid/mpi/shards.h"
 #include "sysid/problem.h"
-#include "sysid/problem_impl.h"
+#include "sysid/solve/fit_state.h"
 
 namespace mjsysid::mpi {
 
@@ -96,26 +96,26 @@ class RankError : public std::invalid_argument {
 // *failure = the message of the lowest failing rank, prefixed with RankName
 bool AgreeReady(bool ok, const std::string& message, std::string* failure);
 
-// every rank, once, after AgreeReady succeeded: combines Problem::Impl::moves over the ranks (a
+// every rank, once, after AgreeReady succeeded: combines PreparedFit::moves over the ranks (a
 // parameter moves the data when it moves the sequences of some rank: a logical or) and throws
 // ParameterError, the same on every rank, for a parameter that moves none (CheckParametersMove)
-void AgreeMoves(const Problem::Impl& impl);
+void AgreeMoves(const PreparedFit& fit);
 
 // the contiguous sequence ranges of the ranks (ShardRanges: ranks + 1 entries), by simulation
 // steps x Jacobian columns; needs the simulators and sample grids only (a sharded start's
-// Problem::ShardStart calls it before the initial rollouts)
-std::vector<int> SequenceRanges(const Problem::Impl& impl, int ranks);
+// ShardStart calls it before the initial rollouts)
+std::vector<int> SequenceRanges(const PreparedFit& fit, int ranks);
 // the sequences of `rank` (SequenceRanges), one bool per sequence
-std::vector<bool> OwnedSequences(const Problem::Impl& impl, int rank, int ranks);
+std::vector<bool> OwnedSequences(const PreparedFit& fit, int rank, int ranks);
 // the contiguous segment ranges of a prepared fit's ranks: the segments of SequenceRanges' whole
 // sequences (ranks + 1 entries)
-std::vector<int> SegmentRanges(const Problem::Impl& impl, int ranks);
+std::vector<int> SegmentRanges(const PreparedFit& fit, int ranks);
 // The leaves of the tree: whole sequences when the fit has free states (multiple shooting,
 // estimated initial states; each sequence's states eliminated on its rank, state_projection.h),
 // else segments (single shooting: one per sequence). LeafRanges: their ranges per rank.
-bool BySequence(const Problem::Impl& impl);
-int Leaves(const Problem::Impl& impl);
-std::vector<int> LeafRanges(const Problem::Impl& impl, int ranks);
+bool BySequence(const PreparedFit& fit);
+int Leaves(const PreparedFit& fit);
+std::vector<int> LeafRanges(const PreparedFit& fit, int ranks);
 
 struct Share;  // the buffers of one rank's evaluation (distributed_fit.cc)
 
@@ -135,15 +135,15 @@ class ShardedResiduals : public ResidualShards, public ceres::EvaluationCallback
 
   // ResidualShards: agrees with the other ranks that every one is ready (throws RankError when one
   // is not), then adds the one block of every segment
-  void AddResidualBlocks(Problem::Impl* impl, ceres::Problem* problem,
+  void AddResidualBlocks(const FitParts& parts, ceres::Problem* problem,
                          const std::vector<double*>& blocks) override;
   ceres::EvaluationCallback* Callback() override { return this; }
   long long NumResiduals() const override { return rows_; }
   int EliminatedColumns() const override { return eliminated_; }
   // rank 0's states of every sequence from their owners (the last Jacobian evaluation's)
-  void CollectStates(Problem::Impl* impl) override;
+  void CollectStates(const FitParts& parts) override;
   // rank 0's share of the start (OwnedSequences)
-  std::vector<bool> OwnedSequences(const Problem::Impl& impl) const override;
+  std::vector<bool> OwnedSequences(const PreparedFit& fit) const override;
   // EvaluationCallback: every rank at the current values
   void PrepareForEvaluation(bool evaluate_jacobians, bool new_evaluation_point) override;
 
@@ -177,7 +177,7 @@ class ShardedResiduals : public ResidualShards, public ceres::EvaluationCallback
   int n() const { return n_; }
 
  private:
-  Problem::Impl* impl_ = nullptr;
+  FitParts parts_{};  // the prepared fit of the current Problem (AddResidualBlocks)
   int n_ = 0;
   long long rows_ = 0;
   int eliminated_ = 0;  // tangent columns of the free states

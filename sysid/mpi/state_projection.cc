@@ -13,63 +13,64 @@ namespace {
 
 // the segments [*first, *last) of sequence q (segments are in sequence order) and the state
 // blocks of q in order (each free segment's x_0 block)
-void SequenceParts(const Problem::Impl& I, int q, int* first, int* last, std::vector<int>* blocks) {
-  const int size = static_cast<int>(I.segments.size());
+void SequenceParts(const PreparedFit& fit, int q, int* first, int* last, std::vector<int>* blocks) {
+  const int size = static_cast<int>(fit.segments.size());
   *first = 0;
-  while (*first < size && I.segments[*first].seq < q) ++*first;
+  while (*first < size && fit.segments[*first].seq < q) ++*first;
   *last = *first;
   blocks->clear();
-  while (*last < size && I.segments[*last].seq == q) {
-    if (I.segments[*last].block >= 0) blocks->push_back(I.segments[*last].block);
+  while (*last < size && fit.segments[*last].seq == q) {
+    if (fit.segments[*last].block >= 0) blocks->push_back(fit.segments[*last].block);
     ++*last;
   }
 }
 
 }  // namespace
 
-StateProjection::StateProjection(Problem::Impl* impl) : impl_(impl) {
-  costs_.resize(impl->segments.size());
-  solved_.resize(impl->sequences.size());
+StateProjection::StateProjection(const FitParts& parts) : parts_(parts) {
+  costs_.resize(parts_.fit->segments.size());
+  solved_.resize(parts_.fit->sequences.size());
 }
 
 StateProjection::~StateProjection() = default;
 
 int StateProjection::StateColumns(int q) const {
-  const Problem::Impl& I = *impl_;
   int first = 0, last = 0;
   std::vector<int> blocks;
-  SequenceParts(I, q, &first, &last, &blocks);
+  SequenceParts(*parts_.fit, q, &first, &last, &blocks);
   if (blocks.empty()) return 0;
-  return static_cast<int>(blocks.size()) * I.models[I.segments[first].model].sim->dims().nx;
+  return static_cast<int>(blocks.size()) *
+         parts_.fit->models[parts_.fit->segments[first].model].sim->dims().nx;
 }
 
 bool StateProjection::Evaluate(int q, const std::vector<std::vector<double>>& x, bool jacobians,
                                double* sum) {
-  Problem::Impl& I = *impl_;
-  const int np = static_cast<int>(I.z.size()), nm = static_cast<int>(I.m.size());
+  const int np = static_cast<int>(parts_.vars->z.size()),
+            nm = static_cast<int>(parts_.vars->m.size());
   int first = 0, last = 0;
   std::vector<int> blocks;
-  SequenceParts(I, q, &first, &last, &blocks);
-  const Problem::Impl::Model& mo = I.models[I.segments[first].model];
+  SequenceParts(*parts_.fit, q, &first, &last, &blocks);
+  const FitModel& mo = parts_.fit->models[parts_.fit->segments[first].model];
   const int nx = mo.sim->dims().nx, nphys = mo.sim->dims().nphys;
   const int k = static_cast<int>(blocks.size()) * nx, n = np + nm;
   // the column of each state block of q, and its values
   auto column_of = [&](int b) { return static_cast<int>(b - blocks.front()) * nx; };
   auto values_of = [&](int b) { return x[b - blocks.front()].data(); };
   // q's segments at the point, in the simulators' batches
-  std::vector<const double*> x0(I.segments.size(), nullptr);
+  std::vector<const double*> x0(parts_.fit->segments.size(), nullptr);
   for (int s = first; s < last; ++s) {
-    x0[s] = I.segments[s].block >= 0 ? values_of(I.segments[s].block) : I.X0(s);
+    x0[s] = parts_.fit->segments[s].block >= 0 ? values_of(parts_.fit->segments[s].block)
+                                               : parts_.fit->X0(parts_.vars->states, s);
   }
-  I.cache->Prefetch(np ? I.z.data() : nullptr, x0, jacobians);
+  parts_.solve->cache->Prefetch(np ? parts_.vars->z.data() : nullptr, x0, jacobians);
   *sum = 0;
   if (jacobians) block_.Reset(k + n);
   for (int s = first; s < last; ++s) {
-    const Segment& seg = I.segments[s];
+    const Segment& seg = parts_.fit->segments[s];
     auto& costs = costs_[s];
     if (!costs[0]) {
-      costs[0] = std::make_unique<SegmentCost>(impl_, s);
-      if (seg.state_rows) costs[1] = std::make_unique<StateCost>(impl_, s);
+      costs[0] = std::make_unique<SegmentCost>(parts_, s);
+      if (seg.state_rows) costs[1] = std::make_unique<StateCost>(parts_, s);
     }
     for (int c = 0; c < 2; ++c) {
       const ceres::CostFunction* cost = costs[c].get();
@@ -82,8 +83,8 @@ bool StateProjection::Evaluate(int q, const std::vector<std::vector<double>>& x,
       Jm_.resize(rows, nm);
       Jx0_.resize(rows, nphys);
       Jxn_.resize(rows, nphys);
-      if (np) params.push_back(I.z.data()), jac.push_back(Jz_.data());
-      if (nm && c == 0) params.push_back(I.m.data()), jac.push_back(Jm_.data());
+      if (np) params.push_back(parts_.vars->z.data()), jac.push_back(Jz_.data());
+      if (nm && c == 0) params.push_back(parts_.vars->m.data()), jac.push_back(Jm_.data());
       if (seg.block >= 0) params.push_back(values_of(seg.block)), jac.push_back(Jx0_.data());
       if (seg.next >= 0 && c == 0) {
         params.push_back(values_of(seg.next)), jac.push_back(Jxn_.data());
@@ -91,7 +92,7 @@ bool StateProjection::Evaluate(int q, const std::vector<std::vector<double>>& x,
       r_.resize(rows);
       if (!cost->Evaluate(params.data(), r_.data(), jacobians ? jac.data() : nullptr) ||
           !r_.allFinite()) {
-        return false;  // noted by the cost function (Problem::Impl::EvaluateOrReject)
+        return false;  // noted by the cost function (FitDiagnostics::EvaluateOrReject)
       }
       *sum += r_.squaredNorm();
       if (!jacobians) continue;
@@ -113,17 +114,16 @@ bool StateProjection::Evaluate(int q, const std::vector<std::vector<double>>& x,
 }
 
 bool StateProjection::Solve(int q, bool jacobians, Eigen::MatrixXd* reduced, double* sum) {
-  Problem::Impl& I = *impl_;
-  const int n = static_cast<int>(I.z.size() + I.m.size());
+  const int n = static_cast<int>(parts_.vars->z.size() + parts_.vars->m.size());
   int first = 0, last = 0;
   std::vector<int> blocks;
-  SequenceParts(I, q, &first, &last, &blocks);
+  SequenceParts(*parts_.fit, q, &first, &last, &blocks);
   const int k = StateColumns(q);
   // 1. the warm start; the last solve when it had the same point and warm start
   std::vector<std::vector<double>> x, trial;
-  for (int b : blocks) x.emplace_back(I.states[b].begin(), I.states[b].end());
-  std::vector<double> key(I.z.begin(), I.z.end());
-  key.insert(key.end(), I.m.begin(), I.m.end());
+  for (int b : blocks) x.emplace_back(parts_.vars->states[b].begin(), parts_.vars->states[b].end());
+  std::vector<double> key(parts_.vars->z.begin(), parts_.vars->z.end());
+  key.insert(key.end(), parts_.vars->m.begin(), parts_.vars->m.end());
   for (const std::vector<double>& xb : x) key.insert(key.end(), xb.begin(), xb.end());
   Solved& done = solved_[q];
   if (k > 0 && done.key == key) {
@@ -131,7 +131,7 @@ bool StateProjection::Solve(int q, bool jacobians, Eigen::MatrixXd* reduced, dou
     if (!jacobians) return true;
     *reduced = done.reduced;
     for (size_t i = 0; i < blocks.size(); ++i) {
-      std::copy(done.x[i].begin(), done.x[i].end(), I.states[blocks[i]].begin());
+      std::copy(done.x[i].begin(), done.x[i].end(), parts_.vars->states[blocks[i]].begin());
     }
     return true;
   }
@@ -140,21 +140,22 @@ bool StateProjection::Solve(int q, bool jacobians, Eigen::MatrixXd* reduced, dou
   if (k == 0 && !jacobians) return true;
   // 3. Gauss-Newton on the states alone, each step halved until the cost falls
   EliminatedBlock e = EliminateStates(block_.Augmented(), k);
-  const StateManifold* manifold = I.models[I.segments[first].model].manifold.get();
+  const StateManifold* manifold =
+      parts_.fit->models[parts_.fit->segments[first].model].manifold.get();
   const int nx = k > 0 ? k / static_cast<int>(blocks.size()) : 0;
   for (int step = 0; step < kMaxSteps && k > 0; ++step) {
     if (e.q_x.squaredNorm() <= kTolerance * *sum) break;
     if ((e.R_xx.diagonal().array() == 0).any()) {
-      I.NoteRejection("a segment state of sequence '" + I.sequences[q].name +
-                      "' has no effect on its residuals (singular state block)");
+      parts_.diag->NoteRejection("a segment state of sequence '" + parts_.fit->sequences[q].name +
+                                 "' has no effect on its residuals (singular state block)");
       return false;
     }
     const Eigen::VectorXd dx = e.StateStep(Eigen::VectorXd::Zero(n));
     bool lower = false;
     double trial_sum = 0;
     // a failed trial of the inner search is not a point Ceres rejected: its diagnostics restored
-    const int rejected = I.rejected_evaluations;
-    const std::string first_rejection = I.first_rejection;
+    const int rejected = parts_.diag->rejected_evaluations;
+    const std::string first_rejection = parts_.diag->first_rejection;
     for (int h = 0, scale = 1; h <= kHalvings && !lower; ++h, scale *= 2) {
       trial = x;
       const Eigen::VectorXd delta = dx / scale;
@@ -163,8 +164,8 @@ bool StateProjection::Solve(int q, bool jacobians, Eigen::MatrixXd* reduced, dou
       }
       lower = Evaluate(q, trial, false, &trial_sum) && trial_sum < *sum;
     }
-    I.rejected_evaluations = rejected;
-    I.first_rejection = first_rejection;
+    parts_.diag->rejected_evaluations = rejected;
+    parts_.diag->first_rejection = first_rejection;
     if (!lower) break;
     x.swap(trial);
     if (!Evaluate(q, x, true, sum)) return false;
@@ -180,7 +181,7 @@ bool StateProjection::Solve(int q, bool jacobians, Eigen::MatrixXd* reduced, dou
   if (!jacobians) return true;
   *reduced = done.reduced;
   for (size_t i = 0; i < blocks.size(); ++i) {
-    std::copy(x[i].begin(), x[i].end(), I.states[blocks[i]].begin());
+    std::copy(x[i].begin(), x[i].end(), parts_.vars->states[blocks[i]].begin());
   }
   return true;
 }

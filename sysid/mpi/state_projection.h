@@ -35,7 +35,7 @@
 //
 // Failure: a simulation that fails or is not finite, or a singular R_xx (a state column the
 // residuals do not see), fails the evaluation (Solve returns false: rank 0 rejects the point).
-// Threads: as Problem::Impl (the caller's thread); the segments of a sequence are simulated in
+// Threads: as the fit state (the caller's thread); the segments of a sequence are simulated in
 // the simulators' batches (EvaluationCache::Prefetch).
 #pragma once
 
@@ -47,7 +47,7 @@
 #include <vector>
 
 #include "sysid/mpi/shards.h"
-#include "sysid/problem_impl.h"
+#include "sysid/solve/fit_state.h"
 
 namespace mjsysid::mpi {
 
@@ -57,14 +57,15 @@ class StateProjection {
   static constexpr int kHalvings = 4;
   static constexpr double kTolerance = 1e-12;
 
-  // impl: the prepared fit (borrowed; its states hold the warm starts)
-  explicit StateProjection(Problem::Impl* impl);
+  // parts: the prepared fit's (borrowed; its state blocks hold the warm starts)
+  explicit StateProjection(const FitParts& parts);
   ~StateProjection();
 
-  // the states of sequence q solved at impl's z and m (steps 1-4 above). Residuals only: *sum =
-  // |r|^2. With jacobians: also *reduced ((n + 1) x (n + 1), upper triangular, column-major) and
-  // impl->states of q updated. False when an evaluation failed (noted in impl's diagnostics:
-  // Problem::Impl::NoteRejection, by the cost functions or here for a singular R_xx).
+  // the states of sequence q solved at the variables' z and m (steps 1-4 above). Residuals only:
+  // *sum = |r|^2. With jacobians: also *reduced ((n + 1) x (n + 1), upper triangular,
+  // column-major) and the state blocks of q updated. False when an evaluation failed (noted in
+  // the diagnostics: FitDiagnostics::NoteRejection, by the cost functions or here for a singular
+  // R_xx).
   bool Solve(int q, bool jacobians, Eigen::MatrixXd* reduced, double* sum);
 
   // the tangent columns of q's free states (k)
@@ -83,7 +84,7 @@ class StateProjection {
     double sum = 0;
   };
 
-  Problem::Impl* impl_;
+  FitParts parts_;
   std::vector<Solved> solved_;  // per sequence
   // per segment: its sensor and continuity cost and its fitted-state cost (or nullptr)
   std::vector<std::array<std::unique_ptr<ceres::CostFunction>, 2>> costs_;

@@ -42,12 +42,17 @@ void MixRotationRows(const double* A, bool transpose, int r0, double* block, int
 
 // residual count: one row per measured (not NaN) cell of the segment's samples x channels, nx
 // continuity rows; blocks z, m, x_0, x_next when present
-SegmentCost::SegmentCost(Problem::Impl* impl, int segment) : impl_(impl), segment_(segment) {
-  const Segment& seg = impl->segments[segment];
-  const StateDims& dims = impl->models[seg.model].sim->dims();
-  set_num_residuals(impl->MeasuredRows(segment) + (seg.next >= 0 ? dims.nx : 0));
-  if (!impl->z.empty()) mutable_parameter_block_sizes()->push_back(impl->z.size());
-  if (!impl->m.empty()) mutable_parameter_block_sizes()->push_back(impl->m.size());
+SegmentCost::SegmentCost(const FitParts& parts, int segment)
+    : fit_(parts.fit),
+      vars_(parts.vars),
+      diag_(parts.diag),
+      solve_(parts.solve),
+      segment_(segment) {
+  const Segment& seg = fit_->segments[segment];
+  const StateDims& dims = fit_->models[seg.model].sim->dims();
+  set_num_residuals(fit_->MeasuredRows(segment) + (seg.next >= 0 ? dims.nx : 0));
+  if (!vars_->z.empty()) mutable_parameter_block_sizes()->push_back(vars_->z.size());
+  if (!vars_->m.empty()) mutable_parameter_block_sizes()->push_back(vars_->m.size());
   if (seg.block >= 0) mutable_parameter_block_sizes()->push_back(dims.nphys);
   if (seg.next >= 0) mutable_parameter_block_sizes()->push_back(dims.nphys);
 }
@@ -55,40 +60,38 @@ SegmentCost::SegmentCost(Problem::Impl* impl, int segment) : impl_(impl), segmen
 // a divergent or warning trial point is rejected, not an error: the trust region shrinks
 bool SegmentCost::Evaluate(double const* const* parameters, double* residuals,
                            double** jacobians) const {
-  return impl_->EvaluateOrReject("non-finite residual",
+  return diag_->EvaluateOrReject("non-finite residual",
                                  [&] { return EvaluateOrThrow(parameters, residuals, jacobians); });
 }
 
 // the blocks present, in the order the constructor declared them
 SegmentCost::Blocks SegmentCost::Unpack(double const* const* parameters) const {
-  const Problem::Impl& I = *impl_;
-  const Segment& seg = I.segments[segment_];
+  const Segment& seg = fit_->segments[segment_];
   Blocks k;
   int b = 0;
-  if (!I.z.empty()) k.zv = parameters[k.zb = b++];
-  if (!I.m.empty()) k.mv = parameters[k.mb = b++];
-  k.x0 = seg.block >= 0 ? parameters[k.xb = b++] : I.fixed_x0[seg.seq].data();
+  if (!vars_->z.empty()) k.zv = parameters[k.zb = b++];
+  if (!vars_->m.empty()) k.mv = parameters[k.mb = b++];
+  k.x0 = seg.block >= 0 ? parameters[k.xb = b++] : fit_->fixed_x0[seg.seq].data();
   if (seg.next >= 0) k.xn = parameters[k.nb = b++];
   return k;
 }
 
 bool SegmentCost::EvaluateOrThrow(double const* const* parameters, double* residuals,
                                   double** jacobians) const {
-  Problem::Impl& I = *impl_;
-  const Segment& seg = I.segments[segment_];
+  const Segment& seg = fit_->segments[segment_];
   const Blocks k = Unpack(parameters);
   // the controls at the fitted control delays in mv (a no-op when unchanged)
-  if (k.mv) I.SyncControlDelays(seg.seq, k.mv);
+  if (k.mv) solve_->SyncControlDelays(fit_, seg.seq, k.mv);
 
   // rollout (and Jacobians only when asked for), from the cache when Prefetch or an earlier
   // evaluation at this point computed them; a failed one is rejected in Evaluate
   const bool want = jacobians != nullptr;
   const Sensitivity* sens = nullptr;
-  const Trajectory& tr = I.CostEntry(segment_, k.zv, k.x0, want, &sens).tr;
-  if (want && !sens->warnings.empty()) I.NoteJacobianWarning(segment_, sens->warnings[0]);
+  const Trajectory& tr = solve_->CostEntry(segment_, k.zv, k.x0, want, &sens).tr;
+  if (want && !sens->warnings.empty()) diag_->NoteJacobianWarning(segment_, sens->warnings[0]);
   FillRows(k, tr, sens, residuals, jacobians);
   // fitted control delays: whole-rollout central differences
-  if (want && k.mb >= 0 && jacobians[k.mb] && I.HasControlDelay(seg.seq)) {
+  if (want && k.mb >= 0 && jacobians[k.mb] && fit_->HasControlDelay(seg.seq)) {
     ControlDelayColumns(k.zv, k.mv, k.x0, k.xn, jacobians[k.mb]);
   }
   return Finite(residuals);
@@ -103,11 +106,11 @@ bool SegmentCost::Finite(const double* residuals) const {
 
 // ready: the entry CostEntry would give with Jacobians, without simulating or syncing controls
 bool SegmentCost::PrepareRows(double const* const* parameters) const {
-  const Problem::Impl& I = *impl_;
   ready_ = nullptr;
-  if (I.previous_jacobian || I.HasControlDelay(I.segments[segment_].seq)) return false;
+  if (solve_->previous_jacobian || fit_->HasControlDelay(fit_->segments[segment_].seq))
+    return false;
   const Blocks k = Unpack(parameters);
-  ready_ = I.cache->Ready(segment_, k.zv, k.x0, true);
+  ready_ = solve_->cache->Ready(segment_, k.zv, k.x0, true);
   if (ready_ == nullptr) return false;
   ready_warning_ = ready_->s.warnings.empty() ? std::string() : ready_->s.warnings[0];
   return true;
@@ -121,19 +124,16 @@ bool SegmentCost::Rows(double const* const* parameters, double* residuals,
 }
 
 void SegmentCost::NoteRows() const {
-  if (!ready_warning_.empty()) impl_->NoteJacobianWarning(segment_, ready_warning_);
+  if (!ready_warning_.empty()) diag_->NoteJacobianWarning(segment_, ready_warning_);
 }
 
 void SegmentCost::FillRows(const Blocks& blocks, const Trajectory& tr, const Sensitivity* sens,
                            double* residuals, double** jacobians) const {
-  const Problem::Impl& I = *impl_;
-  const Segment& seg = I.segments[segment_];
-  const FitSequence& sq = I.sequences[seg.seq];
-  const Problem::Impl::Model& mo = I.models[seg.model];
+  const auto [seg, sq, mo] = fit_->SegmentRefs(segment_);
   const Simulator& sim = *mo.sim;
   const StateDims& dims = sim.dims();
   const int nx = dims.nx, npm = sim.parameters().size();
-  const auto& chans = I.channels[seg.seq];
+  const auto& chans = fit_->channels[seg.seq];
   const int nch = static_cast<int>(chans.size());
   const double dt = sim.model().opt.timestep;
   const double *zv = blocks.zv, *mv = blocks.mv, *x0 = blocks.x0, *xn = blocks.xn;
@@ -148,7 +148,7 @@ void SegmentCost::FillRows(const Blocks& blocks, const Trajectory& tr, const Sen
   std::vector<double> dpdz(want && zb >= 0 && jacobians[zb] ? npm : 0);
   for (size_t j = 0; j < dpdz.size(); ++j) {
     const int g = mo.global[j];
-    dpdz[j] = I.DpDz(g, zv[g]);
+    dpdz[j] = fit_->DpDz(g, zv[g]);
   }
 
   if (want) ZeroJacobians(*this, jacobians);
@@ -161,8 +161,8 @@ void SegmentCost::FillRows(const Blocks& blocks, const Trajectory& tr, const Sen
   // its position on the grid (sysid/data/sample_grid.h), NaN cells masked out; chained to the
   // blocks: z through dp/dz, the measurement terms directly, x_0 through P^+
   int first = 0, count = 0;
-  I.SamplesOf(segment_, &first, &count);
-  const std::vector<double>& position = I.grids[seg.seq].position;
+  fit_->SamplesOf(segment_, &first, &count);
+  const std::vector<double>& position = fit_->grids[seg.seq].position;
   int row = -1;
   for (int k = first; k < first + count; ++k) {
     // where the sample is read without a delay: once per sample, shared by its channels that have
@@ -174,25 +174,25 @@ void SegmentCost::FillRows(const Blocks& blocks, const Trajectory& tr, const Sen
       if (std::isnan(measured)) continue;
       ++row;
       const MeasurementTerms terms =
-          ch.measurement >= 0 ? I.Terms(ch.measurement, mv) : MeasurementTerms();
+          ch.measurement >= 0 ? fit_->Terms(ch.measurement, mv) : MeasurementTerms();
       const DelayedSample at =
           ch.measurement >= 0 ? DelayedSample(position[k] - seg.k0, tr.T, terms.delay, dt) : at0;
       const SensorResidual r =
           EvaluateSensorResidual(at, {tr.sensors.data() + ch.column, tr.sensors.cols()}, measured,
-                                 ch.weight, terms, I.options.loss, I.options.loss_scale);
+                                 ch.weight, terms, fit_->options.loss, fit_->options.loss_scale);
       residuals[row] = r.value;
       if (!want) continue;
       InterpolatedRow(at, s.DyDp.data(), ns, ch.column, ncol, row_t.data());
       if (zb >= 0 && jacobians[zb]) {
-        const int nz = static_cast<int>(I.z.size());
+        const int nz = static_cast<int>(vars_->z.size());
         for (int j = 0; j < npm; ++j) {
           const int g = mo.global[j];
           jacobians[zb][row * nz + g] = r.d_simulated * row_t[j] * dpdz[j];
         }
       }
       if (mb >= 0 && jacobians[mb] && ch.measurement >= 0) {
-        const int nm = static_cast<int>(I.m.size());
-        const TermIndex& ix = I.term_index[ch.measurement];
+        const int nm = static_cast<int>(vars_->m.size());
+        const TermIndex& ix = fit_->term_index[ch.measurement];
         if (ix.delay >= 0) jacobians[mb][row * nm + ix.delay] = r.d_delay;
         if (ix.gain >= 0) jacobians[mb][row * nm + ix.gain] = r.d_gain;
         if (ix.bias >= 0) jacobians[mb][row * nm + ix.bias] = r.d_bias;
@@ -214,7 +214,7 @@ void SegmentCost::FillRows(const Blocks& blocks, const Trajectory& tr, const Sen
   // free joint's orientation d = log(q_next^-1 q_end) are then mixed by Jr^-1(d) (end state)
   // and Jr^-1(d)^T (next state) (InverseRightJacobianSO3, core/state.h)
   if (seg.next >= 0) {
-    const std::vector<double>& w = I.continuity_weights[seg.model];  // per tangent row
+    const std::vector<double>& w = fit_->continuity_weights[seg.model];  // per tangent row
     const int r0 = row + 1;
     std::vector<double> d(nx);
     TangentDifference(sim.model(), xn, tr.states.row(seg.T).data(), 1.0, d.data());
@@ -222,7 +222,7 @@ void SegmentCost::FillRows(const Blocks& blocks, const Trajectory& tr, const Sen
     if (want) {
       const auto S = s.DxDp.middleRows(static_cast<Eigen::Index>(seg.T) * nx, nx);
       if (zb >= 0 && jacobians[zb]) {
-        const int nz = static_cast<int>(I.z.size());
+        const int nz = static_cast<int>(vars_->z.size());
         for (int i = 0; i < nx; ++i) {
           for (int j = 0; j < npm; ++j) {
             const int g = mo.global[j];
@@ -256,7 +256,7 @@ void SegmentCost::FillRows(const Blocks& blocks, const Trajectory& tr, const Sen
         double A[9];
         InverseRightJacobianSO3(d.data() + k, 1.0, A);
         MixRotationRows(A, false, r0 + k, zb >= 0 ? jacobians[zb] : nullptr,
-                        static_cast<int>(I.z.size()));
+                        static_cast<int>(vars_->z.size()));
         MixRotationRows(A, false, r0 + k, xb >= 0 ? jacobians[xb] : nullptr, dims.nphys);
         MixRotationRows(A, true, r0 + k, nb >= 0 ? jacobians[nb] : nullptr, dims.nphys);
       }
@@ -266,26 +266,25 @@ void SegmentCost::FillRows(const Blocks& blocks, const Trajectory& tr, const Sen
 
 void SegmentCost::Residuals(const Trajectory& tr, const double* mv, const double* xn,
                             double* out) const {
-  const Problem::Impl& I = *impl_;
-  const Segment& seg = I.segments[segment_];
-  const FitSequence& sq = I.sequences[seg.seq];
-  const Simulator& sim = *I.models[seg.model].sim;
+  const Segment& seg = fit_->segments[segment_];
+  const FitSequence& sq = fit_->sequences[seg.seq];
+  const Simulator& sim = *fit_->models[seg.model].sim;
   const double dt = sim.model().opt.timestep;
   // sensor rows: measured cells in sample-major order, as EvaluateOrThrow
   int first = 0, count = 0;
-  I.SamplesOf(segment_, &first, &count);
-  const std::vector<double>& position = I.grids[seg.seq].position;
+  fit_->SamplesOf(segment_, &first, &count);
+  const std::vector<double>& position = fit_->grids[seg.seq].position;
   int row = 0;
   for (int k = first; k < first + count; ++k) {
-    for (const Channel& ch : I.channels[seg.seq]) {
+    for (const Channel& ch : fit_->channels[seg.seq]) {
       const double measured = sq.measured(k, ch.column);
       if (std::isnan(measured)) continue;
       const MeasurementTerms terms =
-          ch.measurement >= 0 ? I.Terms(ch.measurement, mv) : MeasurementTerms();
+          ch.measurement >= 0 ? fit_->Terms(ch.measurement, mv) : MeasurementTerms();
       const DelayedSample at(position[k] - seg.k0, tr.T, terms.delay, dt);
       out[row++] =
           EvaluateSensorResidual(at, {tr.sensors.data() + ch.column, tr.sensors.cols()}, measured,
-                                 ch.weight, terms, I.options.loss, I.options.loss_scale)
+                                 ch.weight, terms, fit_->options.loss, fit_->options.loss_scale)
               .value;
     }
   }
@@ -293,7 +292,7 @@ void SegmentCost::Residuals(const Trajectory& tr, const double* mv, const double
   if (seg.next >= 0) {
     const int nx = sim.dims().nx;
     TangentDifference(sim.model(), xn, tr.states.row(seg.T).data(), 1.0, out + row);
-    for (int i = 0; i < nx; ++i) out[row + i] *= I.continuity_weights[seg.model][i];
+    for (int i = 0; i < nx; ++i) out[row + i] *= fit_->continuity_weights[seg.model][i];
   }
 }
 
@@ -301,18 +300,17 @@ void SegmentCost::Residuals(const Trajectory& tr, const double* mv, const double
 // one batch from the segment's x_0 at the current parameters, the residuals differenced
 void SegmentCost::ControlDelayColumns(const double* zv, const double* mv, const double* x0,
                                       const double* xn, double* jm) const {
-  Problem::Impl& I = *impl_;
-  const Segment& seg = I.segments[segment_];
-  const FitSequence& sq = I.sequences[seg.seq];
-  Problem::Impl::Model& mo = I.models[seg.model];
+  const Segment& seg = fit_->segments[segment_];
+  const FitSequence& sq = fit_->sequences[seg.seq];
+  FitModel& mo = fit_->models[seg.model];
   Simulator& sim = *mo.sim;
   const StateDims& dims = sim.dims();
   const double dt = sim.model().opt.timestep;
-  const SampleGrid& grid = I.grids[seg.seq];
+  const SampleGrid& grid = fit_->grids[seg.seq];
   const int steps = grid.SimulatedSteps(seg.k0, seg.T);
-  const int nm = static_cast<int>(I.m.size()), nr = num_residuals();
+  const int nm = static_cast<int>(vars_->m.size()), nr = num_residuals();
   const double h = kControlDelayStep * dt;
-  if (zv) ApplyVariables(I.params, mo.global, zv, &sim);
+  if (zv) ApplyVariables(fit_->params, mo.global, zv, &sim);
   std::vector<SequenceInput> ins(2);
   for (SequenceInput& in : ins) {
     in.x0.qpos = Eigen::Map<const Eigen::VectorXd>(x0, dims.nq);
@@ -323,12 +321,12 @@ void SegmentCost::ControlDelayColumns(const double* zv, const double* mv, const 
   std::vector<Trajectory> trs;
   std::vector<double> plus(nr), minus(nr);
   std::vector<int> done;
-  for (const int v : I.ctrl_delay_var[seg.seq]) {
+  for (const int v : fit_->ctrl_delay_var[seg.seq]) {
     if (v < 0 || std::find(done.begin(), done.end(), v) != done.end()) continue;
     done.push_back(v);
     for (int side = 0; side < 2; ++side) {
-      HoldControls(grid, sq.ctrl, sq.ctrl_hold, I.ControlDelays(seg.seq, mv, v, side ? -h : h), dt,
-                   &ins[side].ctrl, seg.k0, steps);
+      HoldControls(grid, sq.ctrl, sq.ctrl_hold, fit_->ControlDelays(seg.seq, mv, v, side ? -h : h),
+                   dt, &ins[side].ctrl, seg.k0, steps);
     }
     sim.Rollout(ins, &trs);  // throws on a divergent rollout: the trial point is rejected
     Residuals(trs[0], mv, xn, plus.data());
@@ -340,21 +338,21 @@ void SegmentCost::ControlDelayColumns(const double* zv, const double* mv, const 
 // -----------------------------------------------------------------------------------------------
 // priors
 
-PriorCost::PriorCost(const Problem::Impl* impl, int g) : impl_(impl), g_(g) {
+PriorCost::PriorCost(const PreparedFit* fit, int g) : fit_(fit), g_(g) {
   set_num_residuals(1);
-  mutable_parameter_block_sizes()->push_back(impl->z.size());
+  mutable_parameter_block_sizes()->push_back(static_cast<int>(fit->params.size()));
 }
 
 // (p - mean) / sigma on the z block, one nonzero derivative
 bool PriorCost::Evaluate(double const* const* parameters, double* residuals,
                          double** jacobians) const {
-  const FitParameter& p = impl_->params[g_];
+  const FitParameter& p = fit_->params[g_];
   const double zg = parameters[0][g_];
   double derivative = 0;
-  residuals[0] = PriorResidual(impl_->Physical(g_, zg), p.prior_mean, p.prior_sigma,
-                               impl_->DpDz(g_, zg), &derivative);
+  residuals[0] = PriorResidual(fit_->Physical(g_, zg), p.prior_mean, p.prior_sigma,
+                               fit_->DpDz(g_, zg), &derivative);
   if (jacobians && jacobians[0]) {
-    std::fill(jacobians[0], jacobians[0] + impl_->z.size(), 0.0);
+    std::fill(jacobians[0], jacobians[0] + fit_->params.size(), 0.0);
     jacobians[0][g_] = derivative;
   }
   return std::isfinite(residuals[0]);
@@ -366,46 +364,46 @@ bool PriorCost::Evaluate(double const* const* parameters, double* residuals,
 // every segment at the point Ceres is about to evaluate (Ceres has written it into z, m and the
 // state blocks); the cache compares keys itself, so unchanged segments are kept
 void PrefetchCallback::PrepareForEvaluation(bool evaluate_jacobians, bool new_evaluation_point) {
-  Problem::Impl& I = *impl_;
   // the statistical stop before the last Jacobian (sysid/solve/gn_convergence.h): Ceres asks for
   // the Jacobians at the point it just accepted (HandleSuccessfulStep: not a new point); the test
   // on [J_k r_{k+1}] runs first, the cost functions answering with J_k. Fired: Ceres' request is
   // answered the same way and the stop's callback ends the solve, nothing simulated; else the
   // Jacobians are simulated as always. (An evaluation within the test: all cached.)
-  if (I.previous_jacobian) return;
-  const bool solving = I.ledger && I.ledger->solving;
-  bool previous = evaluate_jacobians && !new_evaluation_point && solving && I.gn_stop;
-  for (size_t s = 0; s < I.segments.size() && previous; ++s) {  // J_k of every segment held
-    const EvaluationCache::Entry& e = I.cache->Cached(static_cast<int>(s));
-    previous = !e.failed && (e.has_jacobians || I.cache->Previous(static_cast<int>(s)));
+  if (solve_->previous_jacobian) return;
+  const bool solving = solve_->ledger && solve_->ledger->solving;
+  bool previous = evaluate_jacobians && !new_evaluation_point && solving && solve_->gn_stop;
+  for (size_t s = 0; s < fit_->segments.size() && previous; ++s) {  // J_k of every segment held
+    const EvaluationCache::Entry& e = solve_->cache->Cached(static_cast<int>(s));
+    previous = !e.failed && (e.has_jacobians || solve_->cache->Previous(static_cast<int>(s)));
   }
   if (previous) {
-    I.SetPreviousJacobian(true);
-    if (I.gn_stop->TestBeforeJacobian()) return;
-    I.SetPreviousJacobian(false);
+    solve_->SetPreviousJacobian(true);
+    if (solve_->gn_stop->TestBeforeJacobian()) return;
+    solve_->SetPreviousJacobian(false);
   }
-  if (!I.m.empty()) I.SyncControlDelays(I.m.data());  // the controls at the fitted delays
-  std::vector<const double*> x0(I.segments.size());
-  for (size_t s = 0; s < I.segments.size(); ++s) x0[s] = I.X0(static_cast<int>(s));
+  if (!vars_->m.empty())
+    solve_->SyncControlDelays(fit_, vars_->m.data());  // the controls at the fitted delays
+  std::vector<const double*> x0(fit_->segments.size());
+  for (size_t s = 0; s < fit_->segments.size(); ++s)
+    x0[s] = fit_->X0(vars_->states, static_cast<int>(s));
   const bool charge = solving;
-  if (charge) I.ledger->Enter(evaluate_jacobians ? kPhaseJacobians : kPhaseTrials);
-  I.cache->Prefetch(I.z.empty() ? nullptr : I.z.data(), x0, evaluate_jacobians);
+  if (charge) solve_->ledger->Enter(evaluate_jacobians ? kPhaseJacobians : kPhaseTrials);
+  solve_->cache->Prefetch(vars_->z.empty() ? nullptr : vars_->z.data(), x0, evaluate_jacobians);
   // the compressed blocks' folds at this point on the simulator's workers, one task per block
   // (Ceres' Evaluate calls then write them out); the pool of the first model (every simulator has
   // the fit's threads; the tasks do not simulate)
-  if (evaluate_jacobians && I.compressed && !I.models.empty() && I.models[0].sim) {
-    if (charge) I.ledger->Enter(kPhaseFolds);
-    Simulator& sim = *I.models[0].sim;
+  if (evaluate_jacobians && solve_->compressed && !fit_->models.empty() && fit_->models[0].sim) {
+    if (charge) solve_->ledger->Enter(kPhaseFolds);
+    Simulator& sim = *fit_->models[0].sim;
     FoldAhead(
-        I.compressed, sim.threads(),
+        solve_->compressed, sim.threads(),
         [&sim](int n, const std::function<void(int, int)>& task) { sim.ParallelFor(n, task); });
   }
-  if (charge) I.ledger->Enter(kPhaseSolver);
+  if (charge) solve_->ledger->Enter(kPhaseSolver);
 }
 
 // the iterate in physical units; progress line, trace, checkpoint callback, interruption
 ceres::CallbackReturnType ProgressCallback::operator()(const ceres::IterationSummary& summary) {
-  const Problem::Impl& I = *impl_;
   IterationInfo info;
   info.iteration = summary.iteration;
   info.cost = summary.cost;
@@ -413,16 +411,17 @@ ceres::CallbackReturnType ProgressCallback::operator()(const ceres::IterationSum
   info.gradient_norm = summary.gradient_max_norm;
   info.successful = summary.step_is_successful || summary.iteration == 0;
   info.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-  const int np = static_cast<int>(I.params.size());
-  info.parameters.resize(np + static_cast<int>(I.m.size()));
-  for (int g = 0; g < np; ++g) info.parameters[g] = I.Physical(g, I.z[g]);
-  for (size_t i = 0; i < I.m.size(); ++i) info.parameters[np + i] = I.m[i];
+  const int np = static_cast<int>(fit_->params.size());
+  info.parameters.resize(np + static_cast<int>(vars_->m.size()));
+  for (int g = 0; g < np; ++g) info.parameters[g] = fit_->Physical(g, vars_->z[g]);
+  for (size_t i = 0; i < vars_->m.size(); ++i) info.parameters[np + i] = vars_->m[i];
   result_->trace.push_back(info);
-  if (I.options.observer) I.options.observer->OnIteration(info);
-  if (I.options.on_iteration && info.successful) I.options.on_iteration(info);
+  if (fit_->options.observer) fit_->options.observer->OnIteration(info);
+  if (fit_->options.on_iteration && info.successful) fit_->options.on_iteration(info);
   // auto multiple shooting: the single-shooting Jacobian stopped being local (Problem::Fit refits)
-  if (I.stop_on_jacobian_warning && !I.jacobian_warnings.empty()) return ceres::SOLVER_ABORT;
-  if (I.options.interrupt && I.options.interrupt->load()) {
+  if (solve_->stop_on_jacobian_warning && !diag_->jacobian_warnings.empty())
+    return ceres::SOLVER_ABORT;
+  if (fit_->options.interrupt && fit_->options.interrupt->load()) {
     result_->interrupted = true;
     return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
   }

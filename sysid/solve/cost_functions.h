@@ -1,5 +1,5 @@
 // The Ceres side of a fit: the cost functions of the residual blocks and the callbacks around the
-// solve, all reading and writing the fit state Problem::Impl (sysid/problem_impl.h).
+// solve, reading the parts of the fit state (sysid/solve/fit_state.h) they are given.
 //
 // - SegmentCost: the residuals of one segment, its sensor samples (sysid/solve/residual_model.h)
 // and,
@@ -31,7 +31,7 @@
 //
 // Failure: a segment whose simulation throws, warns or is not finite at the point evaluated
 // returns false (Ceres rejects the trial point and shrinks the trust region) and is counted in
-// Problem::Impl's diagnostics. Threads: as Problem::Impl, one thread (Ceres num_threads = 1), but
+// FitDiagnostics. Threads: as the fit state, one thread (Ceres num_threads = 1), but
 // SegmentCost::Rows, which reads the fit and writes only its outputs (the folds ahead's tasks).
 #pragma once
 
@@ -39,8 +39,8 @@
 
 #include <chrono>
 
-#include "sysid/problem_impl.h"
 #include "sysid/solve/compressed_cost.h"
+#include "sysid/solve/fit_state.h"
 
 namespace mjsysid {
 
@@ -52,8 +52,9 @@ class SegmentCost : public FoldableCost {
   // the finite-difference step of a fitted control delay's column, in simulation steps
   static constexpr double kControlDelayStep = 0.005;
 
-  // impl is borrowed and must hold the prepared fit (PrepareFit)
-  SegmentCost(Problem::Impl* impl, int segment);
+  // parts are borrowed and must hold the prepared fit (PrepareFit); the segment's controls are
+  // held at the fitted delays of the m block it is evaluated at (SolveContext::SyncControlDelays)
+  SegmentCost(const FitParts& parts, int segment);
 
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override;
@@ -87,7 +88,10 @@ class SegmentCost : public FoldableCost {
   void ControlDelayColumns(const double* zv, const double* mv, const double* x0, const double* xn,
                            double* jm) const;
 
-  Problem::Impl* impl_;
+  PreparedFit* fit_;
+  const FitVariables* vars_;  // the blocks' sizes
+  FitDiagnostics* diag_;
+  SolveContext* solve_;
   int segment_;
   // PrepareRows: the cache's entry Rows reads, and the Jacobian warning NoteRows notes ("": none)
   mutable const EvaluationCache::Entry* ready_ = nullptr;
@@ -96,36 +100,48 @@ class SegmentCost : public FoldableCost {
 
 class PriorCost : public ceres::CostFunction {
  public:
-  // the prior of parameter g (FitParameter::has_prior); impl is borrowed
-  PriorCost(const Problem::Impl* impl, int g);
+  // the prior of parameter g (FitParameter::has_prior); fit is borrowed
+  PriorCost(const PreparedFit* fit, int g);
 
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override;
 
  private:
-  const Problem::Impl* impl_;
+  const PreparedFit* fit_;
   int g_;
 };
 
 class PrefetchCallback : public ceres::EvaluationCallback {
  public:
-  explicit PrefetchCallback(Problem::Impl* impl) : impl_(impl) {}
+  // parts are borrowed
+  explicit PrefetchCallback(const FitParts& parts)
+      : fit_(parts.fit), vars_(parts.vars), solve_(parts.solve) {}
   void PrepareForEvaluation(bool evaluate_jacobians, bool new_evaluation_point) override;
 
  private:
-  Problem::Impl* impl_;
+  PreparedFit* fit_;
+  const FitVariables* vars_;
+  SolveContext* solve_;
 };
 
 class ProgressCallback : public ceres::IterationCallback {
  public:
   // result: where the trace and the interruption flag go; start: the fit's start (for seconds)
-  ProgressCallback(const Problem::Impl* impl, FitResult* result,
+  ProgressCallback(const FitParts& parts, FitResult* result,
                    std::chrono::steady_clock::time_point start)
-      : impl_(impl), result_(result), start_(start) {}
+      : fit_(parts.fit),
+        vars_(parts.vars),
+        diag_(parts.diag),
+        solve_(parts.solve),
+        result_(result),
+        start_(start) {}
   ceres::CallbackReturnType operator()(const ceres::IterationSummary& summary) override;
 
  private:
-  const Problem::Impl* impl_;
+  const PreparedFit* fit_;
+  const FitVariables* vars_;
+  const FitDiagnostics* diag_;
+  const SolveContext* solve_;
   FitResult* result_;
   std::chrono::steady_clock::time_point start_;
 };

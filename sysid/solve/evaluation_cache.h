@@ -5,7 +5,7 @@
 // keyed by the values it was simulated at: key = [z (np: the optimiser's parameter variables, the
 // whole vector, absent when the fit has none), x_0 (nphys: the segment's initial physics vector
 // [qpos, qvel, act]), with grids the delays (nu, s) its sequence's controls were held with
-// (SampleGrid::delay; a fitted control delay changes them, Problem::Impl::SyncControlDelays)]. An
+// (SampleGrid::delay; a fitted control delay changes them, SolveContext::SyncControlDelays)]. An
 // Entry holds the Trajectory (core/simulator.h: T + 1 states, T sensor rows, row-major) and, once
 // asked for, its Sensitivity: ncol = the model's simulator parameters (ParameterSet order, physical
 // units) followed, when the segment's x_0 is a variable (Segment::block >= 0), by its nx tangent

@@ -24,33 +24,35 @@ namespace mjsysid {
 // chain of segments every other block), and the reduced system of the
 // global variables and the remaining states is solved dense (<= 200 tangent dimensions) or
 // sparse (SuiteSparse). Single shooting keeps dense QR (sparse normal Cholesky past 200).
-void ChooseLinearSolver(Problem::Impl& I, int tangent, ceres::Solver::Options* so) {
+void ChooseLinearSolver(const PreparedFit& fit, FitVariables& vars, int tangent,
+                        ceres::Solver::Options* so) {
   bool multiple = false;
-  for (const Segment& seg : I.segments) multiple = multiple || seg.next >= 0;
+  for (const Segment& seg : fit.segments) multiple = multiple || seg.next >= 0;
   // sharded (sysid/mpi/): the states are eliminated by the shards, Ceres sees z and m (tangent)
-  if (!multiple || I.shards) {
+  if (!multiple || fit.shards) {
     so->linear_solver_type = tangent <= 200 ? ceres::DENSE_QR : ceres::SPARSE_NORMAL_CHOLESKY;
     return;
   }
   // the state blocks of a sequence in segment order form a chain (a segment's residual holds its
   // own block and the next one): every other one of it is eliminated
-  std::vector<bool> eliminated(I.states.size(), false);
+  std::vector<bool> eliminated(vars.states.size(), false);
   int position = 0, seq = -1;
-  for (const Segment& seg : I.segments) {
+  for (const Segment& seg : fit.segments) {
     if (seg.seq != seq) seq = seg.seq, position = 0;
     if (seg.block >= 0) eliminated[seg.block] = position++ % 2 == 0;
   }
   // Ceres orders the blocks of one group by memory address: z, m and the kept states each get
-  // their own group (the states are contiguous in block order, sysid/problem_impl.h StateBlocks),
-  // so the reduced system's column order, and every sum over it, is the same in every run
+  // their own group (the states are contiguous in block order, sysid/solve/fit_state.h
+  // StateBlocks), so the reduced system's column order, and every sum over it, is the same in every
+  // run
   auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
   int reduced = tangent;
-  for (size_t b = 0; b < I.states.size(); ++b) {
-    ordering->AddElementToGroup(I.states[b].data(), eliminated[b] ? 0 : 3);
-    if (eliminated[b]) reduced -= static_cast<int>(I.states[b].size());
+  for (size_t b = 0; b < vars.states.size(); ++b) {
+    ordering->AddElementToGroup(vars.states[b].data(), eliminated[b] ? 0 : 3);
+    if (eliminated[b]) reduced -= static_cast<int>(vars.states[b].size());
   }
-  if (!I.z.empty()) ordering->AddElementToGroup(I.z.data(), 1);
-  if (!I.m.empty()) ordering->AddElementToGroup(I.m.data(), 2);
+  if (!vars.z.empty()) ordering->AddElementToGroup(vars.z.data(), 1);
+  if (!vars.m.empty()) ordering->AddElementToGroup(vars.m.data(), 2);
   so->linear_solver_ordering = ordering;
   so->linear_solver_type = reduced <= 200 ? ceres::DENSE_SCHUR : ceres::SPARSE_SCHUR;
 }
@@ -97,17 +99,17 @@ constexpr double kSegmentGrowth = 2;
 // on the simulation grid's controls, at the current parameters. Simulated in one batch per model
 // (in parallel across sequences, as the fit's rollouts); a batch that throws is simulated again
 // one sequence at a time, and a probe that still throws stays empty (T = 0: it decides nothing).
-static std::vector<Trajectory> ProbeRollouts(Problem::Impl& I, std::vector<double>* h_out) {
-  std::vector<Trajectory> probes(I.sequences.size());
-  h_out->assign(I.sequences.size(), 0.0);
-  for (size_t mi = 0; mi < I.models.size(); ++mi) {
-    Simulator& sim = *I.models[mi].sim;
+static std::vector<Trajectory> ProbeRollouts(const PreparedFit& fit, std::vector<double>* h_out) {
+  std::vector<Trajectory> probes(fit.sequences.size());
+  h_out->assign(fit.sequences.size(), 0.0);
+  for (size_t mi = 0; mi < fit.models.size(); ++mi) {
+    Simulator& sim = *fit.models[mi].sim;
     std::vector<SequenceInput> ins;
     std::vector<size_t> which;
-    for (size_t q = 0; q < I.sequences.size(); ++q) {
-      const FitSequence& sq = I.sequences[q];
-      if (I.ModelIndex(sq.model) != static_cast<int>(mi)) continue;
-      SequenceInput in{sq.x0, I.grids[q].ctrl};  // the controls on the simulation grid
+    for (size_t q = 0; q < fit.sequences.size(); ++q) {
+      const FitSequence& sq = fit.sequences[q];
+      if (fit.ModelIndex(sq.model) != static_cast<int>(mi)) continue;
+      SequenceInput in{sq.x0, fit.grids[q].ctrl};  // the controls on the simulation grid
       if (in.x0.qvel.size() != sim.model().nv) in.x0.qvel = Eigen::VectorXd::Zero(sim.model().nv);
       (*h_out)[q] = kProbeStep * (1 + in.x0.qvel.lpNorm<Eigen::Infinity>());
       in.x0.qvel.array() += (*h_out)[q];
@@ -132,7 +134,7 @@ static std::vector<Trajectory> ProbeRollouts(Problem::Impl& I, std::vector<doubl
   return probes;
 }
 
-HorizonChoice ChooseHorizon(Problem::Impl& I, const std::vector<Trajectory>& initial,
+HorizonChoice ChooseHorizon(const PreparedFit& fit, const std::vector<Trajectory>& initial,
                             const FitOptions& options) {
   HorizonChoice out;
   if (options.segment_steps >= 0) {
@@ -146,10 +148,10 @@ HorizonChoice ChooseHorizon(Problem::Impl& I, const std::vector<Trajectory>& ini
   int first = -1;                // the earliest k*
   std::string where;             // its sequence
   std::vector<double> hs;
-  const std::vector<Trajectory> probes = ProbeRollouts(I, &hs);
-  for (size_t q = 0; q < I.sequences.size(); ++q) {
-    const FitSequence& sq = I.sequences[q];
-    const Simulator& sim = *I.models[I.ModelIndex(sq.model)].sim;
+  const std::vector<Trajectory> probes = ProbeRollouts(fit, &hs);
+  for (size_t q = 0; q < fit.sequences.size(); ++q) {
+    const FitSequence& sq = fit.sequences[q];
+    const Simulator& sim = *fit.models[fit.ModelIndex(sq.model)].sim;
     const mjModel& m = sim.model();
     const StateDims& d = sim.dims();
     const double h = hs[q];
@@ -183,14 +185,14 @@ HorizonChoice ChooseHorizon(Problem::Impl& I, const std::vector<Trajectory>& ini
   // events (impacts, touch-downs) rather than chatter: at most kContactEventRate of the steps
   const bool events = changes > 0 && changes <= kContactEventRate * static_cast<double>(steps);
   std::string contact_source;
-  for (size_t q = 0; events && q < I.sequences.size() && contact_source.empty(); ++q) {
-    if (I.grids[q].steps < 2 * kContactSegmentSteps ||
+  for (size_t q = 0; events && q < fit.sequences.size() && contact_source.empty(); ++q) {
+    if (fit.grids[q].steps < 2 * kContactSegmentSteps ||
         initial[q].states.rows() <= kContactSegmentSteps) {
       continue;  // too short, or not simulated here (a sharded start)
     }
     std::vector<double> x;
     const std::string source =
-        SegmentStart(I, static_cast<int>(q), kContactSegmentSteps, initial[q], &x);
+        SegmentStart(fit, static_cast<int>(q), kContactSegmentSteps, initial[q], &x);
     if (source != "the rollout") contact_source = source;
   }
   const std::string contacts = "the rollouts change their contact count " +
@@ -230,16 +232,16 @@ HorizonChoice ChooseHorizon(Problem::Impl& I, const std::vector<Trajectory>& ini
 }
 
 // Auto's contact segments: the sensors that jump at contact events left out (see the header)
-std::vector<std::string> OmitJumpingSensors(Problem::Impl& I) {
+std::vector<std::string> OmitJumpingSensors(PreparedFit& fit) {
   std::vector<std::string> omitted;  // "model/sensor (type)" once each
-  for (size_t q = 0; q < I.sequences.size(); ++q) {
-    const mjModel& m = I.models[I.ModelIndex(I.sequences[q].model)].sim->model();
-    std::vector<bool> jumps(I.channels[q].size(), false);
+  for (size_t q = 0; q < fit.sequences.size(); ++q) {
+    const mjModel& m = fit.models[fit.ModelIndex(fit.sequences[q].model)].sim->model();
+    std::vector<bool> jumps(fit.channels[q].size(), false);
     bool any_kept = false;
-    for (size_t c = 0; c < I.channels[q].size(); ++c) {
+    for (size_t c = 0; c < fit.channels[q].size(); ++c) {
       // the sensor of the column
       int id = 0;
-      while (id + 1 < m.nsensor && m.sensor_adr[id + 1] <= I.channels[q][c].column) ++id;
+      while (id + 1 < m.nsensor && m.sensor_adr[id + 1] <= fit.channels[q][c].column) ++id;
       jumps[c] = JumpingSensorType(m, id) != nullptr;
       any_kept = any_kept || !jumps[c];
     }
@@ -248,13 +250,13 @@ std::vector<std::string> OmitJumpingSensors(Problem::Impl& I) {
     std::vector<int> missing;
     for (size_t c = 0; c < jumps.size(); ++c) {
       if (jumps[c]) continue;
-      channels.push_back(I.channels[q][c]);
-      missing.push_back(I.missing[q][c]);
+      channels.push_back(fit.channels[q][c]);
+      missing.push_back(fit.missing[q][c]);
     }
-    I.channels[q] = std::move(channels);
-    I.missing[q] = std::move(missing);
+    fit.channels[q] = std::move(channels);
+    fit.missing[q] = std::move(missing);
     std::vector<std::string> fitted;
-    for (const std::string& name : I.fitted[q]) {
+    for (const std::string& name : fit.fitted[q]) {
       const int id = mj_name2id(&m, mjOBJ_SENSOR, name.c_str());
       const char* type = id >= 0 ? JumpingSensorType(m, id) : nullptr;
       if (!type) {
@@ -264,7 +266,7 @@ std::vector<std::string> OmitJumpingSensors(Problem::Impl& I) {
       const std::string what = "'" + name + "' (" + type + ")";
       if (std::find(omitted.begin(), omitted.end(), what) == omitted.end()) omitted.push_back(what);
     }
-    I.fitted[q] = std::move(fitted);
+    fit.fitted[q] = std::move(fitted);
   }
   std::vector<std::string> warnings;
   for (const std::string& what : omitted) {
@@ -279,11 +281,11 @@ std::vector<std::string> OmitJumpingSensors(Problem::Impl& I) {
 }
 
 // Auto's contact segments, first stage (see the header)
-ceres::Solver::Summary SolveWithStatesHeld(Problem::Impl& I, ceres::Problem* problem,
+ceres::Solver::Summary SolveWithStatesHeld(FitVariables& vars, ceres::Problem* problem,
                                            ceres::Solver::Options so) {
   std::vector<double*> held;
-  for (size_t b = 0; b < I.states.size(); ++b) {
-    double* x = I.states[b].data();
+  for (size_t b = 0; b < vars.states.size(); ++b) {
+    double* x = vars.states[b].data();
     if (!problem->HasParameterBlock(x)) continue;
     problem->SetParameterBlockConstant(x);
     held.push_back(x);
@@ -297,15 +299,15 @@ ceres::Solver::Summary SolveWithStatesHeld(Problem::Impl& I, ceres::Problem* pro
 }
 
 // Continuity weights (see the header)
-std::vector<std::vector<double>> ContinuityWeights(const Problem::Impl& I,
+std::vector<std::vector<double>> ContinuityWeights(const PreparedFit& fit,
                                                    const std::vector<Trajectory>& initial,
                                                    const FitOptions& options,
                                                    std::string* summary) {
   constexpr double kSpreadFloor = 1e-3;  // of the largest spread of the same part
-  std::vector<std::vector<double>> out(I.models.size());
+  std::vector<std::vector<double>> out(fit.models.size());
   double lo = std::numeric_limits<double>::infinity(), hi = 0, shown_scale = 0;
-  for (size_t mi = 0; mi < I.models.size(); ++mi) {
-    const Simulator& sim = *I.models[mi].sim;
+  for (size_t mi = 0; mi < fit.models.size(); ++mi) {
+    const Simulator& sim = *fit.models[mi].sim;
     const mjModel& m = sim.model();
     const StateDims& dims = sim.dims();
     out[mi].assign(dims.nx, options.continuity_weight);
@@ -315,10 +317,11 @@ std::vector<std::vector<double>> ContinuityWeights(const Problem::Impl& I,
     // s_i: running sums of tangent coordinate i (from the sequence's first state) over samples
     Eigen::VectorXd sum = Eigen::VectorXd::Zero(dims.nx), sum2 = sum, d(dims.nx);
     double n = 0;
-    for (size_t q = 0; q < I.sequences.size(); ++q) {
-      const FitSequence& sq = I.sequences[q];
-      if (I.ModelIndex(sq.model) != static_cast<int>(mi) || initial[q].states.rows() == 0) continue;
-      for (const Channel& ch : I.channels[q]) {
+    for (size_t q = 0; q < fit.sequences.size(); ++q) {
+      const FitSequence& sq = fit.sequences[q];
+      if (fit.ModelIndex(sq.model) != static_cast<int>(mi) || initial[q].states.rows() == 0)
+        continue;
+      for (const Channel& ch : fit.channels[q]) {
         double s1 = 0, s2 = 0, c = 0;
         for (Eigen::Index k = 0; k < sq.measured.rows(); ++k) {
           const double y = sq.measured(k, ch.column);
@@ -328,7 +331,7 @@ std::vector<std::vector<double>> ContinuityWeights(const Problem::Impl& I,
         if (c > 1) scaled.push_back(ch.weight * std::sqrt(std::max(0.0, s2 / c - s1 * s1 / c / c)));
       }
       const Trajectory& tr = initial[q];
-      const std::vector<double>& position = I.grids[q].position;
+      const std::vector<double>& position = fit.grids[q].position;
       const bool logged = sq.qpos.cols() == m.nq && sq.qvel.cols() == m.nv;
       Eigen::VectorXd x(tr.states.cols());
       const Eigen::VectorXd x_ref = tr.states.row(0).transpose();
@@ -434,16 +437,16 @@ int SegmentStepsAfterFailure(double growth, double rate, int shortest_steps, std
 // the fitted jointpos/jointvel sensors when every joint is a hinge or slide with one of each
 // (sensors without measurement terms), else the rollout at the initial values. act is always the
 // rollout's. Returns where it came from.
-std::string SegmentStart(const Problem::Impl& I, int q, int k0, const Trajectory& rollout,
+std::string SegmentStart(const PreparedFit& fit, int q, int k0, const Trajectory& rollout,
                          std::vector<double>* x) {
-  const FitSequence& sq = I.sequences[q];
-  const Simulator& sim = *I.models[I.ModelIndex(sq.model)].sim;
+  const FitSequence& sq = fit.sequences[q];
+  const Simulator& sim = *fit.models[fit.ModelIndex(sq.model)].sim;
   const mjModel& m = sim.model();
   const auto row = rollout.states.row(k0);
   x->assign(row.data(), row.data() + row.size());
   const int nq = m.nq, nv = m.nv;
   // the measured sample at step k0, if one lies on it (off-grid logs: often none)
-  const std::vector<double>& position = I.grids[q].position;
+  const std::vector<double>& position = fit.grids[q].position;
   const auto at = std::lower_bound(position.begin(), position.end(), static_cast<double>(k0));
   if (at == position.end() || *at != static_cast<double>(k0)) return "the rollout";
   const Eigen::Index i = at - position.begin();
@@ -454,9 +457,9 @@ std::string SegmentStart(const Problem::Impl& I, int q, int k0, const Trajectory
     return "logged qpos/qvel";
   }
   std::vector<int> pos_col(m.njnt, -1), vel_col(m.njnt, -1);
-  for (const std::string& name : I.fitted[q]) {
+  for (const std::string& name : fit.fitted[q]) {
     bool has_terms = false;
-    for (const FitMeasurement& me : I.measurements) has_terms = has_terms || me.sensor == name;
+    for (const FitMeasurement& me : fit.measurements) has_terms = has_terms || me.sensor == name;
     const int id = mj_name2id(&m, mjOBJ_SENSOR, name.c_str());
     if (has_terms || id < 0 || m.sensor_objtype[id] != mjOBJ_JOINT) continue;
     if (m.sensor_type[id] == mjSENS_JOINTPOS) pos_col[m.sensor_objid[id]] = m.sensor_adr[id];

@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "core/simulator.h"
-#include "sysid/problem_impl.h"
+#include "sysid/solve/fit_state.h"
 
 namespace mjsysid {
 
@@ -28,8 +28,8 @@ struct HorizonChoice {
 // FitOptions::segment_steps >= 0: as set. Auto (-1): a probe per sequence at the current
 // parameters (one more rollout each, from x0 with the velocities raised by a tiny step; initial:
 // the nominal rollouts): exponential growth beyond linear past x100 gives segments, else single
-// shooting. I's simulators must hold the initial parameter values.
-HorizonChoice ChooseHorizon(Problem::Impl& I, const std::vector<Trajectory>& initial,
+// shooting. fit's simulators must hold the initial parameter values.
+HorizonChoice ChooseHorizon(const PreparedFit& fit, const std::vector<Trajectory>& initial,
                             const FitOptions& options);
 
 // Auto on contacts: when no exponential growth decides, but the rollouts at the initial values
@@ -53,13 +53,13 @@ constexpr double kContactEventRate = 0.1;
 
 // Auto's contact segments (HorizonChoice::contacts) and FitOptions::fit_jumping_sensors false:
 // the fitted touch, accelerometer, force and torque sensors (JumpingSensorType,
-// sysid/data/contact_channels.h) are left out of the fit (their channels removed from I.channels,
-// I.missing and I.fitted: not fitted, not in the chi-square test, not in the result's
+// sysid/data/contact_channels.h) are left out of the fit (their channels removed from fit.channels,
+// fit.missing and fit.fitted: not fitted, not in the chi-square test, not in the result's
 // sequences), unless that would leave a sequence without a fitted sensor. Returns one warning per
 // sensor left out. Measured (docs/stress.md): the finger's fingertip touch sensor alone turned a
 // 1.0 % fit into 68 %; the hopper's foot touch and torso accelerometer ended with weighted
 // residual variances of 2.3e3 and 415 against 3-95 for its other sensors.
-std::vector<std::string> OmitJumpingSensors(Problem::Impl& I);
+std::vector<std::string> OmitJumpingSensors(PreparedFit& fit);
 
 // Auto after single shooting's Jacobian warned (a core Sensitivity warning "... from step k* ..."):
 // the segment length min(k*/2, ln 2 / rate), at least 10, and the reason; 0 when the warning
@@ -80,7 +80,7 @@ int SegmentStepsAfterFailure(double growth, double rate, int shortest_steps, std
 // x (nphys) = the initial state of sequence q's segment at sample k0 > 0: logged states
 // (FitSequence::states), else jointpos/jointvel sensors, else rollout.states.row(k0); act from
 // the rollout. Returns where it came from (for the reason).
-std::string SegmentStart(const Problem::Impl& I, int q, int k0, const Trajectory& rollout,
+std::string SegmentStart(const PreparedFit& fit, int q, int k0, const Trajectory& rollout,
                          std::vector<double>* x);
 
 // The continuity weights (FitOptions::continuity_weight, continuity_relative), per model and
@@ -95,15 +95,16 @@ std::string SegmentStart(const Problem::Impl& I, int q, int k0, const Trajectory
 // columns or no spread: w_i = continuity_weight. With 1 % sensor noise S is ~100, so a joint
 // angle swinging over 1 rad gets w ~ 100 (measured best on the finger and hopper, docs/stress.md;
 // the absolute 1 left gaps of 7.6 and 54). *summary: one line for FitResult::segment_reason.
-std::vector<std::vector<double>> ContinuityWeights(const Problem::Impl& I,
+std::vector<std::vector<double>> ContinuityWeights(const PreparedFit& fit,
                                                    const std::vector<Trajectory>& initial,
                                                    const FitOptions& options, std::string* summary);
 
-// Ceres' linear solver for I's variables (tangent: their total tangent size): single shooting
+// Ceres' linear solver for the variables (tangent: their total tangent size): single shooting
 // dense QR (sparse normal Cholesky past 200); multiple shooting DENSE_SCHUR / SPARSE_SCHUR with
 // every other state block of each sequence eliminated first (so->linear_solver_ordering); a
-// sharded fit (Impl::shards: the states eliminated by the shards) as single shooting
-void ChooseLinearSolver(Problem::Impl& I, int tangent, ceres::Solver::Options* so);
+// sharded fit (PreparedFit::shards: the states eliminated by the shards) as single shooting
+void ChooseLinearSolver(const PreparedFit& fit, FitVariables& vars, int tangent,
+                        ceres::Solver::Options* so);
 
 // Auto's contact segments, first stage: the solve with every segment state held where it started
 // (on the logged states: SegmentStart), so that the parameters alone fit each segment's prediction
@@ -111,7 +112,7 @@ void ChooseLinearSolver(Problem::Impl& I, int tangent, ceres::Solver::Options* s
 // docs/stress.md); the states are released after it, for the solve that follows. `so`: the main
 // solve's options (its iteration cap and tolerances); the held solve uses dense QR on the
 // parameters. Returns the held solve's summary; *problem is left with every state variable.
-ceres::Solver::Summary SolveWithStatesHeld(Problem::Impl& I, ceres::Problem* problem,
+ceres::Solver::Summary SolveWithStatesHeld(FitVariables& vars, ceres::Problem* problem,
                                            ceres::Solver::Options so);
 
 // Ceres' CRS Jacobian -> A (rows x nvar, dense: the first nvar columns) and B (rows x the rest,

@@ -6,8 +6,8 @@
 #include <stdexcept>
 
 #include "core/text.h"
-#include "sysid/problem_impl.h"
 #include "sysid/solve/cost_functions.h"
+#include "sysid/solve/fit_state.h"
 
 namespace mjsysid {
 namespace {
@@ -272,45 +272,47 @@ void StatesAtSamples(const mjModel& m, const std::vector<StateChannel>& channels
 // -----------------------------------------------------------------------------------------------
 // the cost function
 
-StateCost::StateCost(Problem::Impl* impl, int segment) : impl_(impl), segment_(segment) {
-  const Segment& seg = impl->segments[segment];
-  const StateDims& dims = impl->models[seg.model].sim->dims();
+StateCost::StateCost(const FitParts& parts, int segment)
+    : fit_(parts.fit),
+      vars_(parts.vars),
+      diag_(parts.diag),
+      solve_(parts.solve),
+      segment_(segment) {
+  const Segment& seg = fit_->segments[segment];
+  const StateDims& dims = fit_->models[seg.model].sim->dims();
   int first = 0, count = 0;
-  impl->SamplesOf(segment, &first, &count);
+  fit_->SamplesOf(segment, &first, &count);
   set_num_residuals(
-      StateRows(impl->state_channels[seg.seq], impl->sequences[seg.seq], first, count));
-  if (!impl->z.empty()) mutable_parameter_block_sizes()->push_back(impl->z.size());
+      StateRows(fit_->state_channels[seg.seq], fit_->sequences[seg.seq], first, count));
+  if (!vars_->z.empty()) mutable_parameter_block_sizes()->push_back(vars_->z.size());
   if (seg.block >= 0) mutable_parameter_block_sizes()->push_back(dims.nphys);
 }
 
 bool StateCost::Evaluate(double const* const* parameters, double* residuals,
                          double** jacobians) const {
-  return impl_->EvaluateOrReject("non-finite state residual",
+  return diag_->EvaluateOrReject("non-finite state residual",
                                  [&] { return EvaluateOrThrow(parameters, residuals, jacobians); });
 }
 
 bool StateCost::EvaluateOrThrow(double const* const* parameters, double* residuals,
                                 double** jacobians) const {
-  Problem::Impl& I = *impl_;
-  const Segment& seg = I.segments[segment_];
-  const FitSequence& sq = I.sequences[seg.seq];
-  const Problem::Impl::Model& mo = I.models[seg.model];
+  const auto [seg, sq, mo] = fit_->SegmentRefs(segment_);
   const Simulator& sim = *mo.sim;
   const StateDims& dims = sim.dims();
   const int nx = dims.nx, npm = sim.parameters().size();
-  const std::vector<StateChannel>& chans = I.state_channels[seg.seq];
+  const std::vector<StateChannel>& chans = fit_->state_channels[seg.seq];
 
   // unpack blocks: z, then x_0 when it is a variable
   int b = 0;
-  const double* zv = I.z.empty() ? nullptr : parameters[b++];
-  const int zb = I.z.empty() ? -1 : b - 1;
-  const double* x0 = seg.block >= 0 ? parameters[b++] : I.fixed_x0[seg.seq].data();
+  const double* zv = vars_->z.empty() ? nullptr : parameters[b++];
+  const int zb = vars_->z.empty() ? -1 : b - 1;
+  const double* x0 = seg.block >= 0 ? parameters[b++] : fit_->fixed_x0[seg.seq].data();
   const int xb = seg.block >= 0 ? b - 1 : -1;
 
   // the segment's rollout and Jacobians from the evaluation cache (shared with SegmentCost)
   const bool want = jacobians != nullptr;
   const Sensitivity* sens = nullptr;
-  const Trajectory& tr = I.CostEntry(segment_, zv, x0, want, &sens).tr;
+  const Trajectory& tr = solve_->CostEntry(segment_, zv, x0, want, &sens).tr;
   const Sensitivity& s = *sens;
   const int ncol = want ? s.ncol : 0;
   if (want) ZeroJacobians(*this, jacobians);
@@ -328,11 +330,11 @@ bool StateCost::EvaluateOrThrow(double const* const* parameters, double* residua
   // dp/dz of the model's parameters at this point, once per evaluation (not per row)
   std::vector<double> dpdz(want && zv ? npm : 0);
   for (int j = 0; j < static_cast<int>(dpdz.size()); ++j) {
-    dpdz[j] = I.DpDz(mo.global[j], zv[mo.global[j]]);
+    dpdz[j] = fit_->DpDz(mo.global[j], zv[mo.global[j]]);
   }
   int first = 0, count = 0;
-  I.SamplesOf(segment_, &first, &count);
-  const std::vector<double>& position = I.grids[seg.seq].position;
+  fit_->SamplesOf(segment_, &first, &count);
+  const std::vector<double>& position = fit_->grids[seg.seq].position;
   int row = 0;
   for (int k = first; k < first + count; ++k) {
     const double q = position[k] - seg.k0;
@@ -354,7 +356,7 @@ bool StateCost::EvaluateOrThrow(double const* const* parameters, double* residua
       const int rows = ch.rows();
       for (int r = 0; r < rows; ++r, ++row) {
         double d_e = 1;
-        residuals[row] = RobustResidual(I.options.loss, I.options.loss_scale, e[r], &d_e);
+        residuals[row] = RobustResidual(fit_->options.loss, fit_->options.loss_scale, e[r], &d_e);
         if (!want) continue;
         // d r / d column = rho' * sum_t de(r, t) S(tangent + t, column)
         for (int j = 0; j < ncol; ++j) {
@@ -363,7 +365,7 @@ bool StateCost::EvaluateOrThrow(double const* const* parameters, double* residua
           row_t[j] = d_e * v;
         }
         if (zb >= 0 && jacobians[zb]) {
-          const int nz = static_cast<int>(I.z.size());
+          const int nz = static_cast<int>(vars_->z.size());
           for (int j = 0; j < npm; ++j) {
             const int g = mo.global[j];
             jacobians[zb][row * nz + g] = row_t[j] * dpdz[j];

@@ -33,10 +33,16 @@
 #include <vector>
 
 #include "core/state.h"
-#include "sysid/problem.h"  // Problem::Impl (sysid/problem_impl.h)
 #include "sysid/types.h"
 
 namespace mjsysid {
+
+// the fit state's parts (sysid/solve/fit_state.h)
+struct PreparedFit;
+struct FitVariables;
+struct FitDiagnostics;
+struct SolveContext;
+struct FitParts;
 
 // one fitted state of a model: a joint's position or velocity or an actuator's activation
 struct StateChannel {
@@ -104,8 +110,8 @@ void StatesAtSamples(const mjModel& m, const std::vector<StateChannel>& channels
 // (nphys, on its StateManifold). Jacobians as SegmentCost's (sysid/solve/cost_functions.h).
 class StateCost : public ceres::CostFunction {
  public:
-  // impl is borrowed and must hold the prepared fit (PrepareFit)
-  StateCost(Problem::Impl* impl, int segment);
+  // parts are borrowed and must hold the prepared fit (PrepareFit)
+  StateCost(const FitParts& parts, int segment);
 
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override;
@@ -114,7 +120,10 @@ class StateCost : public ceres::CostFunction {
   bool EvaluateOrThrow(double const* const* parameters, double* residuals,
                        double** jacobians) const;
 
-  Problem::Impl* impl_;
+  const PreparedFit* fit_;
+  const FitVariables* vars_;  // the blocks' sizes
+  FitDiagnostics* diag_;
+  SolveContext* solve_;
   int segment_;
 };
 

@@ -1,5 +1,5 @@
 // A multiple-shooting fit with parallel segment Jacobians is the same bits run to run and with
-// any thread count (the state blocks' order, sysid/problem_impl.h StateBlocks): the pendulum
+// any thread count (the state blocks' order, sysid/solve/fit_state.h StateBlocks): the pendulum
 // experiment (3 sequences x 2000 steps, truth and noise of experiments/pendulum.yaml) in segments
 // of 100 steps, fitted twice with 2 simulator threads and once with 1; every estimate and
 // standard error in result.yaml (written with 17 significant digits, so a double round-trips)

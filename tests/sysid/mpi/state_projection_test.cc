@@ -14,8 +14,8 @@
 #include <vector>
 
 #include "core/mujoco_env.h"
+#include "sysid/fit/prepare.h"
 #include "sysid/problem.h"
-#include "sysid/problem_impl.h"
 #include "tests/test_util.h"
 
 namespace mjsysid {
@@ -43,9 +43,10 @@ TEST(StateProjectionTest, ReducedBlockIsTheProjectedCost) {
   FitOptions options;
   options.segment_steps = 100;
   options.threads = 1;
-  Problem::Impl* impl = problem.PrepareOnly(options);
-  ASSERT_EQ(impl->states.size(), 5u);
-  mpi::StateProjection projection(impl);
+  const FitParts parts = PrepareOnly(&problem, options);
+  FitVariables& vars = *parts.vars;
+  ASSERT_EQ(vars.states.size(), 5u);
+  mpi::StateProjection projection(parts);
   ASSERT_EQ(projection.StateColumns(0), 10);
   const int n = 2;
 
@@ -60,36 +61,35 @@ TEST(StateProjectionTest, ReducedBlockIsTheProjectedCost) {
   // central differences of f with step 1e-5 in z (log), each solved from the committed states:
   // within 1e-5 of the gradient's norm (measured 1e-6: the differences' truncation)
   const Eigen::VectorXd gradient = 2 * R.leftCols(n).transpose() * R.col(n);
-  const std::vector<double> z0 = impl->z;
+  const std::vector<double> z0 = vars.z;
   for (int j = 0; j < n; ++j) {
     SCOPED_TRACE("z[" + std::to_string(j) + "]");
     const double h = 1e-5;
     double up = 0, down = 0;
     Eigen::MatrixXd unused;
-    impl->z = z0;
-    impl->z[j] += h;
+    vars.z = z0;
+    vars.z[j] += h;
     ASSERT_TRUE(projection.Solve(0, false, &unused, &up));
-    impl->z = z0;
-    impl->z[j] -= h;
+    vars.z = z0;
+    vars.z[j] -= h;
     ASSERT_TRUE(projection.Solve(0, false, &unused, &down));
     const double difference = (up - down) / (2 * h);
     EXPECT_NEAR(difference, gradient[j], 1e-5 * gradient.norm()) << "gradient " << gradient[j];
   }
-  impl->z = z0;
+  vars.z = z0;
 
   // solved: solving again from the committed states keeps them and the cost (1e-12; measured:
   // the same bits, the predicted decrease below the tolerance at once)
   std::vector<std::vector<double>> solved;
-  for (size_t b = 0; b < impl->states.size(); ++b) {
-    solved.emplace_back(impl->states[b].begin(), impl->states[b].end());
+  for (size_t b = 0; b < vars.states.size(); ++b) {
+    solved.emplace_back(vars.states[b].begin(), vars.states[b].end());
   }
   double again = 0;
   ASSERT_TRUE(projection.Solve(0, true, &R, &again));
   EXPECT_NEAR(again, sum, 1e-12 * sum);
   for (size_t b = 0; b < solved.size(); ++b) {
     for (size_t i = 0; i < solved[b].size(); ++i) {
-      EXPECT_NEAR(impl->states[b].data()[i], solved[b][i], 1e-12)
-          << "block " << b << " entry " << i;
+      EXPECT_NEAR(vars.states[b].data()[i], solved[b][i], 1e-12) << "block " << b << " entry " << i;
     }
   }
 }

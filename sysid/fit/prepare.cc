@@ -1,10 +1,12 @@
-// PrepareFit (sysid/problem_impl.h): validates the inputs (names, shapes, bounds, the data that
+// PrepareFit (sysid/fit/prepare.h): validates the inputs (names, shapes, bounds, the data that
 // every parameter must move) and builds what a fit runs on, in seven stages: the parameters
 // checked, the simulators with their parameters, the measurement-term and control-delay variables,
 // the sequences (channels, controls, sample grids with the fitted control delays applied, initial
 // states), the initial rollouts and Jacobians, the segments of single or multiple shooting (the
 // auto horizon, sysid/solve/multiple_shooting.h) and the evaluation cache. The fit (sysid/fit/) and
 // CheckJacobians run on the result.
+#include "sysid/fit/prepare.h"
+
 #include <ceres/ceres.h>
 #include <ceres/gradient_checker.h>
 
@@ -29,8 +31,6 @@
 #include "sysid/data/equation_error.h"
 #include "sysid/data/event_windows.h"
 #include "sysid/fit_observer.h"
-#include "sysid/problem.h"
-#include "sysid/problem_impl.h"
 #include "sysid/solve/cost_functions.h"
 #include "sysid/solve/evaluation_cache.h"
 #include "sysid/solve/multiple_shooting.h"
@@ -45,8 +45,8 @@ namespace mjsysid {
 // -----------------------------------------------------------------------------------------------
 // fitted control delays
 
-std::vector<double> Problem::Impl::ControlDelays(int q, const double* mv, int shifted,
-                                                 double shift) const {
+std::vector<double> PreparedFit::ControlDelays(int q, const double* mv, int shifted,
+                                               double shift) const {
   const FitSequence& sq = sequences[q];
   const std::vector<int>& var = ctrl_delay_var[q];
   std::vector<double> delay = sq.ctrl_delay;
@@ -57,29 +57,53 @@ std::vector<double> Problem::Impl::ControlDelays(int q, const double* mv, int sh
   return delay;
 }
 
-void Problem::Impl::SyncControlDelays(int q, const double* mv) {
-  if (mv == nullptr || !HasControlDelay(q)) return;
+bool PreparedFit::HoldControlsAt(int q, const double* mv) {
+  if (mv == nullptr || !HasControlDelay(q)) return false;
   SampleGrid& grid = grids[q];
   const std::vector<double> delay = ControlDelays(q, mv);
-  if (delay == grid.delay) return;
+  if (delay == grid.delay) return false;
   const FitSequence& sq = sequences[q];
   const double dt = models[ModelIndex(sq.model)].sim->model().opt.timestep;
   HoldControls(grid, sq.ctrl, sq.ctrl_hold, delay, dt, &grid.ctrl);
   grid.delay = delay;
-  ++cost_inputs_epoch;  // the cost functions read the controls
+  return true;
 }
 
 // -----------------------------------------------------------------------------------------------
 // building
 
-void CheckParametersMove(const Problem::Impl& I, const std::vector<bool>& moves) {
-  for (size_t g = 0; g < I.params.size(); ++g) {
+void CheckParametersMove(const PreparedFit& fit, const std::vector<bool>& moves) {
+  for (size_t g = 0; g < fit.params.size(); ++g) {
     if (g >= moves.size() || !moves[g]) {
-      throw ParameterError("parameter '" + I.params[g].name +
+      throw ParameterError("parameter '" + fit.params[g].name +
                            "' has no effect on the simulated states or sensors of any sequence "
                            "(its Jacobian column is exactly zero): remove it or add data that "
                            "excites it");
     }
+  }
+}
+
+// A sharded start (ShardStart) simulated only the owned sequences at the initial values:
+// the others' rollouts there (no Jacobians), for the result's initial signals. Leaves the
+// simulators at the initial parameters.
+void RolloutUnowned(PreparedFit* fit_ptr, std::vector<Trajectory>* initial) {
+  PreparedFit& fit = *fit_ptr;
+  std::vector<double> z0(fit.params.size());
+  for (size_t g = 0; g < z0.size(); ++g)
+    z0[g] = fit.ToZ(static_cast<int>(g), fit.params[g].initial);
+  for (auto& mo : fit.models) {
+    std::vector<SequenceInput> ins;
+    std::vector<int> which;
+    for (size_t q = 0; q < fit.sequences.size(); ++q) {
+      if (fit.sequences[q].model != mo.name || (*initial)[q].states.rows() > 0) continue;
+      ins.push_back({fit.sequences[q].x0, fit.grids[q].ctrl});
+      which.push_back(static_cast<int>(q));
+    }
+    if (ins.empty()) continue;
+    ApplyVariables(fit.params, mo.global, z0.data(), mo.sim.get());
+    std::vector<Trajectory> trs;
+    mo.sim->Rollout(ins, &trs);
+    for (size_t i = 0; i < which.size(); ++i) (*initial)[which[i]] = std::move(trs[i]);
   }
 }
 
@@ -89,8 +113,8 @@ void CheckParametersMove(const Problem::Impl& I, const std::vector<bool>& moves)
 namespace {
 
 // 1. parameters: bounds, transforms and initial values consistent, models named
-void CheckParameters(const Problem::Impl& I) {
-  for (const FitParameter& p : I.params) {
+void CheckParameters(const PreparedFit& fit) {
+  for (const FitParameter& p : fit.params) {
     const std::string where = "parameter '" + p.name + "': ";
     if (!std::isfinite(p.initial)) throw std::invalid_argument(where + "initial value not finite");
     if (!(p.lower < p.upper)) throw std::invalid_argument(where + "lower bound >= upper bound");
@@ -110,20 +134,21 @@ void CheckParameters(const Problem::Impl& I) {
     if (p.has_prior && !(p.prior_sigma > 0)) {
       throw std::invalid_argument(where + "prior sigma must be positive");
     }
-    for (const std::string& mname : p.models) I.ModelIndex(mname);
+    for (const std::string& mname : p.models) fit.ModelIndex(mname);
   }
 }
 
 // 2. simulators: each model with the parameters that apply to it; z at the initial values
-void BuildSimulators(Problem::Impl& I, const FitOptions& options) {
-  const int np = static_cast<int>(I.params.size());
+void BuildSimulators(PreparedFit& fit, FitVariables& vars, SolveContext& solve,
+                     const FitOptions& options) {
+  const int np = static_cast<int>(fit.params.size());
   SimulatorOptions so;
   so.threads = options.threads;
-  for (auto& mo : I.models) {
+  for (auto& mo : fit.models) {
     std::vector<ParameterSpec> specs;
     mo.global.clear();
     for (int g = 0; g < np; ++g) {
-      const FitParameter& p = I.params[g];
+      const FitParameter& p = fit.params[g];
       if (!p.models.empty() &&
           std::find(p.models.begin(), p.models.end(), mo.name) == p.models.end()) {
         continue;
@@ -139,44 +164,44 @@ void BuildSimulators(Problem::Impl& I, const FitOptions& options) {
       throw ParameterError("model '" + mo.name + "': " + e.what());
     }
     mo.manifold = std::make_unique<StateManifold>(&mo.sim->model());
-    mo.sim->SetStepProgress(options.observer ? I.step_progress.get() : nullptr);
+    mo.sim->SetStepProgress(options.observer ? solve.step_progress.get() : nullptr);
   }
-  I.z.resize(np);
-  for (int g = 0; g < np; ++g) I.z[g] = I.ToZ(g, I.params[g].initial);
+  vars.z.resize(np);
+  for (int g = 0; g < np; ++g) vars.z[g] = fit.ToZ(g, fit.params[g].initial);
 }
 
 // 3. the m block: the fitted measurement terms, then the fitted control delays (seconds, >= 0);
 // the names of every variable, the m block's bounds and starts
-void BuildTermVariables(Problem::Impl& I, FitPlan* out) {
-  I.m.clear();
-  I.term_index.assign(I.measurements.size(), TermIndex());
+void BuildTermVariables(PreparedFit& fit, FitVariables& vars, FitPlan* out) {
+  vars.m.clear();
+  fit.term_index.assign(fit.measurements.size(), TermIndex());
   out->names.clear();
-  for (const FitParameter& p : I.params) out->names.push_back(p.name);
+  for (const FitParameter& p : fit.params) out->names.push_back(p.name);
   out->mbounds.clear();
   out->minitial.clear();
   auto push = [&](double initial, double lower, double upper, std::string name) {
-    I.m.push_back(initial);
+    vars.m.push_back(initial);
     out->mbounds.emplace_back(lower, upper);
     out->minitial.push_back(initial);
     out->names.push_back(std::move(name));
   };
-  for (size_t i = 0; i < I.measurements.size(); ++i) {
-    const FitMeasurement& me = I.measurements[i];
+  for (size_t i = 0; i < fit.measurements.size(); ++i) {
+    const FitMeasurement& me = fit.measurements[i];
     auto add = [&](const FitMeasurement::Term& t, int* index, const char* what) {
       if (!t.fit) return;
       if (t.initial < t.lower || t.initial > t.upper) {
         throw std::invalid_argument("measurement " + std::string(what) + " of sensor '" +
                                     me.sensor + "': initial value outside its bounds");
       }
-      *index = static_cast<int>(I.m.size());
+      *index = static_cast<int>(vars.m.size());
       push(t.initial, t.lower, t.upper, me.sensor + "." + what);
     };
-    add(me.delay, &I.term_index[i].delay, "delay");
-    add(me.gain, &I.term_index[i].gain, "gain");
-    add(me.bias, &I.term_index[i].bias, "bias");
+    add(me.delay, &fit.term_index[i].delay, "delay");
+    add(me.gain, &fit.term_index[i].gain, "gain");
+    add(me.bias, &fit.term_index[i].bias, "bias");
   }
-  I.control_delay_index.clear();
-  for (const FitControlDelay& cd : I.control_delays) {
+  fit.control_delay_index.clear();
+  for (const FitControlDelay& cd : fit.control_delays) {
     const std::string where = "control delay '" + cd.Name() + "': ";
     if (!std::isfinite(cd.initial)) throw std::invalid_argument(where + "initial value not finite");
     if (!(cd.lower >= 0)) throw std::invalid_argument(where + "lower bound must be >= 0 (seconds)");
@@ -185,7 +210,7 @@ void BuildTermVariables(Problem::Impl& I, FitPlan* out) {
       throw std::invalid_argument(where + "initial value " + FormatDigits(cd.initial, 6) +
                                   " outside its bounds");
     }
-    I.control_delay_index.push_back(static_cast<int>(I.m.size()));
+    fit.control_delay_index.push_back(static_cast<int>(vars.m.size()));
     push(cd.initial, cd.lower, cd.upper, cd.Name());
   }
 }
@@ -224,9 +249,9 @@ void CheckSequenceShapes(const FitSequence& sq, const StateDims& d, const std::s
 // 4b. sequence q's fitted sensor columns (channels, weights, measurement terms) and their
 // unmeasured samples: NaN is not measured (masked, counted), Inf an error, a column with nothing
 // left an error
-void BuildChannels(Problem::Impl& I, const FitOptions& options, int q, const std::string& where) {
-  const FitSequence& sq = I.sequences[q];
-  const Problem::Impl::Model& mo = I.models[I.ModelIndex(sq.model)];
+void BuildChannels(PreparedFit& fit, const FitOptions& options, int q, const std::string& where) {
+  const FitSequence& sq = fit.sequences[q];
+  const FitModel& mo = fit.models[fit.ModelIndex(sq.model)];
   const mjModel& m = mo.sim->model();
   const int T = static_cast<int>(sq.measured.rows());
   std::vector<std::string> used = sq.sensors;
@@ -252,8 +277,8 @@ void BuildChannels(Problem::Impl& I, const FitOptions& options, int q, const std
       throw std::invalid_argument("sensor '" + sname + "': weight must be positive");
     }
     int meas = -1;
-    for (size_t i = 0; i < I.measurements.size(); ++i) {
-      if (I.measurements[i].sensor == sname) meas = static_cast<int>(i);
+    for (size_t i = 0; i < fit.measurements.size(); ++i) {
+      if (fit.measurements[i].sensor == sname) meas = static_cast<int>(i);
     }
     for (int c = 0; c < m.sensor_dim[id]; ++c) {
       const int col = m.sensor_adr[id] + c;
@@ -273,18 +298,18 @@ void BuildChannels(Problem::Impl& I, const FitOptions& options, int q, const std
                                     " has no measured sample (all " + std::to_string(T) +
                                     " are NaN): nothing to fit");
       }
-      I.channels[q].push_back({col, weight, meas});
-      I.missing[q].push_back(missing);
+      fit.channels[q].push_back({col, weight, meas});
+      fit.missing[q].push_back(missing);
     }
-    if (std::find(I.fitted[q].begin(), I.fitted[q].end(), sname) == I.fitted[q].end()) {
-      I.fitted[q].push_back(sname);
+    if (std::find(fit.fitted[q].begin(), fit.fitted[q].end(), sname) == fit.fitted[q].end()) {
+      fit.fitted[q].push_back(sname);
     }
   }
 }
 
 // 4c. controls: Inf is an error; NaN is held from the last valid value (warned), an error before
 // the first one
-void CheckControls(Problem::Impl& I, const FitSequence& sq, int nu, const std::string& where) {
+void CheckControls(PreparedFit& fit, const FitSequence& sq, int nu, const std::string& where) {
   const int Tc = static_cast<int>(sq.ctrl.rows());
   std::string held;
   int held_rows = 0;
@@ -309,36 +334,36 @@ void CheckControls(Problem::Impl& I, const FitSequence& sq, int nu, const std::s
     }
   }
   if (held_rows > 0) {
-    I.prepare_warnings.push_back(where + std::to_string(held_rows) +
-                                 " NaN control value(s) held from the last valid " + "one (rows " +
-                                 held + (held_rows > 5 ? ", ..." : "") + ")");
+    fit.prepare_warnings.push_back(where + std::to_string(held_rows) +
+                                   " NaN control value(s) held from the last valid " +
+                                   "one (rows " + held + (held_rows > 5 ? ", ..." : "") + ")");
   }
 }
 
 // 4d. the fitted control delay each actuator of sequence q follows (its own, else the shared
 // one), if any; marks the delays used
-void AssignControlDelays(Problem::Impl& I, int q, const mjModel& m, std::vector<bool>* used) {
-  I.ctrl_delay_var[q].assign(m.nu, -1);
+void AssignControlDelays(PreparedFit& fit, int q, const mjModel& m, std::vector<bool>* used) {
+  fit.ctrl_delay_var[q].assign(m.nu, -1);
   for (int i = 0; i < m.nu; ++i) {
     const char* actuator = mj_id2name(&m, mjOBJ_ACTUATOR, i);
     int shared = -1, own = -1;
-    for (size_t c = 0; c < I.control_delays.size(); ++c) {
-      const std::string& name = I.control_delays[c].actuator;
+    for (size_t c = 0; c < fit.control_delays.size(); ++c) {
+      const std::string& name = fit.control_delays[c].actuator;
       if (name.empty()) shared = static_cast<int>(c);
       if (!name.empty() && actuator && name == actuator) own = static_cast<int>(c);
     }
     const int c = own >= 0 ? own : shared;
     if (c < 0) continue;
-    I.ctrl_delay_var[q][i] = I.control_delay_index[c];
+    fit.ctrl_delay_var[q][i] = fit.control_delay_index[c];
     (*used)[c] = true;
   }
 }
 
 // 4e. sequence q's given initial state completed from the model (qpos0, rest) and stored as a
 // physics vector
-void SetInitialState(Problem::Impl& I, int q, const mjModel& m, const StateDims& d,
+void SetInitialState(PreparedFit& fit, int q, const mjModel& m, const StateDims& d,
                      const std::string& where) {
-  FitSequence& sq = I.sequences[q];
+  FitSequence& sq = fit.sequences[q];
   InitialState x0 = sq.x0;
   if (x0.qpos.size() == 0) x0.qpos = Eigen::Map<const Eigen::VectorXd>(m.qpos0, d.nq);
   if (x0.qvel.size() == 0) x0.qvel = Eigen::VectorXd::Zero(d.nv);
@@ -346,52 +371,52 @@ void SetInitialState(Problem::Impl& I, int q, const mjModel& m, const StateDims&
   if (x0.qpos.size() != d.nq || x0.qvel.size() != d.nv || x0.act.size() != d.na) {
     throw std::invalid_argument(where + "initial state sizes differ from nq/nv/na");
   }
-  I.fixed_x0[q].resize(d.nphys);
-  Eigen::Map<Eigen::VectorXd>(I.fixed_x0[q].data(), d.nq) = x0.qpos;
-  Eigen::Map<Eigen::VectorXd>(I.fixed_x0[q].data() + d.nq, d.nv) = x0.qvel;
-  Eigen::Map<Eigen::VectorXd>(I.fixed_x0[q].data() + d.nq + d.nv, d.na) = x0.act;
+  fit.fixed_x0[q].resize(d.nphys);
+  Eigen::Map<Eigen::VectorXd>(fit.fixed_x0[q].data(), d.nq) = x0.qpos;
+  Eigen::Map<Eigen::VectorXd>(fit.fixed_x0[q].data() + d.nq, d.nv) = x0.qvel;
+  Eigen::Map<Eigen::VectorXd>(fit.fixed_x0[q].data() + d.nq + d.nv, d.na) = x0.act;
   sq.x0 = x0;
 }
 
 // 4. every sequence: shapes, channels, controls, delays, its simulation grid, initial state and
 // fitted states; then every fitted control delay and measurement term must be used somewhere
-void PrepareSequences(Problem::Impl& I, const FitOptions& options) {
-  const size_t n = I.sequences.size();
-  I.channels.assign(n, {});
-  I.fitted.assign(n, {});
-  I.fixed_x0.assign(n, {});
-  I.grids.assign(n, {});
-  I.missing.assign(n, {});
-  I.state_channels.assign(n, {});
-  I.state_missing.assign(n, {});
-  I.ctrl_delay_var.assign(n, {});
-  I.prepare_warnings.clear();
-  std::vector<bool> delay_used(I.control_delays.size(), false);
+void PrepareSequences(PreparedFit& fit, FitVariables& vars, const FitOptions& options) {
+  const size_t n = fit.sequences.size();
+  fit.channels.assign(n, {});
+  fit.fitted.assign(n, {});
+  fit.fixed_x0.assign(n, {});
+  fit.grids.assign(n, {});
+  fit.missing.assign(n, {});
+  fit.state_channels.assign(n, {});
+  fit.state_missing.assign(n, {});
+  fit.ctrl_delay_var.assign(n, {});
+  fit.prepare_warnings.clear();
+  std::vector<bool> delay_used(fit.control_delays.size(), false);
   for (size_t q = 0; q < n; ++q) {
-    FitSequence& sq = I.sequences[q];
-    const Problem::Impl::Model& mo = I.models[I.ModelIndex(sq.model)];
+    FitSequence& sq = fit.sequences[q];
+    const FitModel& mo = fit.models[fit.ModelIndex(sq.model)];
     const StateDims& d = mo.sim->dims();
     const mjModel& m = mo.sim->model();
     const std::string where = "sequence '" + sq.name + "': ";
     const int iq = static_cast<int>(q);
     CheckSequenceShapes(sq, d, where);
-    BuildChannels(I, options, iq, where);
-    CheckControls(I, sq, d.nu, where);
-    AssignControlDelays(I, iq, m, &delay_used);
-    I.grids[q] = BuildSampleGrid(sq.time, static_cast<int>(sq.measured.rows()), sq.x0.time, sq.ctrl,
-                                 sq.ctrl_time, sq.ctrl_hold,
-                                 I.m.empty() ? sq.ctrl_delay : I.ControlDelays(iq, I.m.data()),
-                                 m.opt.timestep, where);
-    SetInitialState(I, iq, m, d, where);
+    BuildChannels(fit, options, iq, where);
+    CheckControls(fit, sq, d.nu, where);
+    AssignControlDelays(fit, iq, m, &delay_used);
+    fit.grids[q] = BuildSampleGrid(
+        sq.time, static_cast<int>(sq.measured.rows()), sq.x0.time, sq.ctrl, sq.ctrl_time,
+        sq.ctrl_hold, vars.m.empty() ? sq.ctrl_delay : fit.ControlDelays(iq, vars.m.data()),
+        m.opt.timestep, where);
+    SetInitialState(fit, iq, m, d, where);
     // logged states fitted as data (sysid/solve/state_residuals.h)
     if (options.states.any()) {
-      I.state_channels[q] = BuildStateChannels(m, options.states, "model '" + mo.name + "': ");
-      I.state_missing[q] = CheckLoggedStates(m, I.state_channels[q],
-                                             static_cast<int>(sq.measured.rows()), where, &sq);
+      fit.state_channels[q] = BuildStateChannels(m, options.states, "model '" + mo.name + "': ");
+      fit.state_missing[q] = CheckLoggedStates(m, fit.state_channels[q],
+                                               static_cast<int>(sq.measured.rows()), where, &sq);
     }
   }
-  for (size_t c = 0; c < I.control_delays.size(); ++c) {
-    const FitControlDelay& cd = I.control_delays[c];
+  for (size_t c = 0; c < fit.control_delays.size(); ++c) {
+    const FitControlDelay& cd = fit.control_delays[c];
     if (!delay_used[c]) {
       throw std::invalid_argument(
           "control delay '" + cd.Name() + "': " +
@@ -400,16 +425,17 @@ void PrepareSequences(Problem::Impl& I, const FitOptions& options) {
                : "no sequence's model has an actuator named '" + cd.actuator + "'"));
     }
   }
-  if (!I.control_delays.empty() && options.states.any()) {
+  if (!fit.control_delays.empty() && options.states.any()) {
     throw std::invalid_argument(
         "a fitted control delay with fitted states (FitOptions::states) is not supported yet: "
         "give the delay, or fit the sensors alone");
   }
-  for (const FitMeasurement& me : I.measurements) {
+  for (const FitMeasurement& me : fit.measurements) {
     bool found = false;
-    for (const auto& ch : I.channels) {
+    for (const auto& ch : fit.channels) {
       for (const auto& c : ch)
-        found = found || (c.measurement >= 0 && I.measurements[c.measurement].sensor == me.sensor);
+        found =
+            found || (c.measurement >= 0 && fit.measurements[c.measurement].sensor == me.sensor);
     }
     if (!found) {
       throw std::invalid_argument("measurement terms for sensor '" + me.sensor +
@@ -434,25 +460,27 @@ void ReduceModel(const std::vector<Trajectory>& rollouts, Simulator* sim) {
 
 // 5. the rollouts at the initial parameters (of the owned sequences: a sharded start) and their
 // Jacobians, each model reduced; the fitted sensors that jump at contact events warned; per
-// parameter whether it moves the data (I.moves, checked here unless a sharded start combines it
+// parameter whether it moves the data (fit.moves, checked here unless a sharded start combines it
 // over the shards)
-void InitialRollouts(Problem::Impl& I, const FitOptions& options, FitPlan* out,
+void InitialRollouts(PreparedFit& fit, FitVariables& vars, SolveContext& solve,
+                     const FitOptions& options, FitPlan* out,
                      std::vector<Sensitivity>* initial_sensitivity) {
   std::vector<Trajectory>& initial = out->initial;
-  initial.assign(I.sequences.size(), Trajectory());
-  initial_sensitivity->assign(I.sequences.size(), Sensitivity());  // parameter columns
-  std::vector<bool> moves(I.params.size(), false);
-  const std::vector<bool> owned = I.owned_sequences ? I.owned_sequences(I) : std::vector<bool>();
+  initial.assign(fit.sequences.size(), Trajectory());
+  initial_sensitivity->assign(fit.sequences.size(), Sensitivity());  // parameter columns
+  std::vector<bool> moves(fit.params.size(), false);
+  const std::vector<bool> owned =
+      fit.owned_sequences ? fit.owned_sequences(fit) : std::vector<bool>();
   // a share without sequences of a model still names the mode
-  if (I.owned_sequences) out->jacobian_mode = JacobianModeName(options.jacobian.mode);
-  for (auto& mo : I.models) {
-    ApplyVariables(I.params, mo.global, I.z.data(), mo.sim.get());
+  if (fit.owned_sequences) out->jacobian_mode = JacobianModeName(options.jacobian.mode);
+  for (auto& mo : fit.models) {
+    ApplyVariables(fit.params, mo.global, vars.z.data(), mo.sim.get());
     std::vector<SequenceInput> ins;
     std::vector<int> which;
-    for (size_t q = 0; q < I.sequences.size(); ++q) {
-      if (I.sequences[q].model != mo.name) continue;
+    for (size_t q = 0; q < fit.sequences.size(); ++q) {
+      if (fit.sequences[q].model != mo.name) continue;
       if (!owned.empty() && !owned[q]) continue;
-      ins.push_back({I.sequences[q].x0, I.grids[q].ctrl});
+      ins.push_back({fit.sequences[q].x0, fit.grids[q].ctrl});
       which.push_back(static_cast<int>(q));
     }
     if (ins.empty()) continue;
@@ -464,8 +492,8 @@ void InitialRollouts(Problem::Impl& I, const FitOptions& options, FitPlan* out,
           (mo.sim->parameters().size() == 0 ? "rollout of " : "rollout and Jacobian of ") +
               std::to_string(ins.size()) + " sequence" + (ins.size() > 1 ? "s" : "") + ", " +
               std::to_string(steps) + " steps" +
-              (I.models.size() > 1 ? " (model " + mo.name + ")" : ""),
-          SecondsSince(I.fit_start));
+              (fit.models.size() > 1 ? " (model " + mo.name + ")" : ""),
+          SecondsSince(solve.fit_start));
     }
     std::vector<Trajectory> trs;
     JacobianOptions jo = options.jacobian;
@@ -489,12 +517,13 @@ void InitialRollouts(Problem::Impl& I, const FitOptions& options, FitPlan* out,
     // fitted sensors that jump at contact events (sysid/data/contact_channels.h)
     std::vector<std::string> fitted;
     for (int q : which) {
-      for (const std::string& name : I.fitted[q]) {
+      for (const std::string& name : fit.fitted[q]) {
         if (std::find(fitted.begin(), fitted.end(), name) == fitted.end()) fitted.push_back(name);
       }
     }
     for (std::string& w : DiscontinuousChannelWarnings(mo.sim->model(), fitted, trs)) {
-      I.prepare_warnings.push_back((I.models.size() > 1 ? "model '" + mo.name + "': " : "") + w);
+      fit.prepare_warnings.push_back((fit.models.size() > 1 ? "model '" + mo.name + "': " : "") +
+                                     w);
     }
     for (size_t i = 0; i < which.size(); ++i) initial[which[i]] = std::move(trs[i]);
     if (!fitted_here) continue;
@@ -509,59 +538,60 @@ void InitialRollouts(Problem::Impl& I, const FitOptions& options, FitPlan* out,
     for (size_t i = 0; i < which.size(); ++i) (*initial_sensitivity)[which[i]] = std::move(sens[i]);
   }
   // a sharded start leaves the check to its caller, with moves combined over every shard
-  I.moves = moves;
-  if (!I.owned_sequences) CheckParametersMove(I, moves);
+  fit.moves = moves;
+  if (!fit.owned_sequences) CheckParametersMove(fit, moves);
 }
 
 // 6. the segments (auto's horizon, sysid/solve/multiple_shooting.h) and their state blocks, started
 // from the data where it determines the state; auto's contact segments leave out the sensors
 // that jump and the cells next to contact events; the continuity weights
-void BuildSegments(Problem::Impl& I, const FitOptions& options, FitPlan* out) {
+void BuildSegments(PreparedFit& fit, FitVariables& vars, SolveContext& solve,
+                   const FitOptions& options, FitPlan* out) {
   std::vector<Trajectory>& initial = out->initial;
-  I.segments.clear();
-  I.states.clear();
+  fit.segments.clear();
+  vars.states.clear();
   // auto under a sharded start (sysid/mpi/): every shard probes every sequence, as one process
-  if (I.owned_sequences && options.segment_steps < 0) RolloutUnowned(&I, &initial);
-  const HorizonChoice horizon = ChooseHorizon(I, initial, options);
+  if (fit.owned_sequences && options.segment_steps < 0) RolloutUnowned(&fit, &initial);
+  const HorizonChoice horizon = ChooseHorizon(fit, initial, options);
   out->segment_steps = horizon.steps;
   out->segments = SegmentRecord();
   out->segments.choice = horizon.reason;
   out->probe_rate = horizon.rate;
   out->probe_growth = horizon.growth;
   out->contact_segments = horizon.contacts;
-  I.stop_on_jacobian_warning = options.segment_steps < 0 && horizon.steps == 0;
+  solve.stop_on_jacobian_warning = options.segment_steps < 0 && horizon.steps == 0;
   // a sharded start with free states (sysid/mpi/state_projection.h): every shard starts every
   // sequence's states from the data as one process does, so the other sequences are rolled out
   // at the initial values too (no Jacobians)
-  if (I.owned_sequences && (horizon.steps > 0 || options.estimate_initial_state)) {
-    RolloutUnowned(&I, &initial);
+  if (fit.owned_sequences && (horizon.steps > 0 || options.estimate_initial_state)) {
+    RolloutUnowned(&fit, &initial);
   }
   if (horizon.contacts && !options.fit_jumping_sensors) {
-    for (std::string& w : OmitJumpingSensors(I)) I.prepare_warnings.push_back(std::move(w));
+    for (std::string& w : OmitJumpingSensors(fit)) fit.prepare_warnings.push_back(std::move(w));
   }
   const EventWindowMask events =
-      MaskEventWindows(I, initial, horizon.contacts ? options.event_window : 0);
+      MaskEventWindows(fit, initial, horizon.contacts ? options.event_window : 0);
   if (events.masked > 0) {
     out->event_windows = {options.event_window, events.events, events.masked, events.sensors};
-    I.prepare_warnings.push_back(events.Summary());
+    fit.prepare_warnings.push_back(events.Summary());
   }
-  for (size_t q = 0; q < I.sequences.size(); ++q) {
-    const int T = I.grids[q].steps;  // simulation steps
+  for (size_t q = 0; q < fit.sequences.size(); ++q) {
+    const int T = fit.grids[q].steps;  // simulation steps
     const int len = horizon.steps > 0 ? horizon.steps : T;
-    const size_t first = I.segments.size();
+    const size_t first = fit.segments.size();
     for (int k0 = 0; k0 < T; k0 += len) {
       Segment seg;
       seg.seq = static_cast<int>(q);
-      seg.model = I.ModelIndex(I.sequences[q].model);
+      seg.model = fit.ModelIndex(fit.sequences[q].model);
       seg.k0 = k0;
       seg.T = std::min(len, T - k0);
-      seg.state_rows = !I.state_channels[q].empty();
+      seg.state_rows = !fit.state_channels[q].empty();
       const bool free = k0 > 0 || options.estimate_initial_state;
       // RolloutUnowned above simulated every sequence a free state starts from
       MJSYSID_DEMAND(!free || initial[q].states.rows() > 0,
                      "a free state without its start rollout");
       if (free) {
-        seg.block = static_cast<int>(I.states.size());
+        seg.block = static_cast<int>(vars.states.size());
         std::vector<double> x;
         if (k0 == 0) {
           // the sequence's given x0 (the estimate's start)
@@ -569,37 +599,37 @@ void BuildSegments(Problem::Impl& I, const FitOptions& options, FitPlan* out) {
           x.assign(row.data(), row.data() + row.size());
         } else {
           // later segments from the data where they determine the state, else the rollout
-          out->segments.start_source = SegmentStart(I, static_cast<int>(q), k0, initial[q], &x);
+          out->segments.start_source = SegmentStart(fit, static_cast<int>(q), k0, initial[q], &x);
         }
-        I.states.push_back(std::move(x));
+        vars.states.push_back(std::move(x));
       }
-      I.segments.push_back(seg);
+      fit.segments.push_back(seg);
     }
-    for (size_t s = first; s + 1 < I.segments.size(); ++s) {
-      I.segments[s].next = I.segments[s + 1].block;
+    for (size_t s = first; s + 1 < fit.segments.size(); ++s) {
+      fit.segments[s].next = fit.segments[s + 1].block;
     }
   }
   // the continuity rows' weights, scaled to the sensors (sysid/solve/multiple_shooting.h)
   bool joined = false;
-  for (const Segment& seg : I.segments) joined = joined || seg.next >= 0;
+  for (const Segment& seg : fit.segments) joined = joined || seg.next >= 0;
   std::string weights;
-  I.continuity_weights = ContinuityWeights(I, initial, options, &weights);
+  fit.continuity_weights = ContinuityWeights(fit, initial, options, &weights);
   if (joined) out->segments.weights = weights;
 }
 
 // 7. the evaluation cache, seeded with the initial rollouts (and Jacobians) of whole sequences
-void SeedCache(Problem::Impl& I, const FitOptions& options, std::vector<Trajectory>& initial,
-               std::vector<Sensitivity>& initial_sensitivity) {
+void SeedCache(PreparedFit& fit, FitVariables& vars, SolveContext& solve, const FitOptions& options,
+               std::vector<Trajectory>& initial, std::vector<Sensitivity>& initial_sensitivity) {
   std::vector<EvaluationCache::Model> simulated;
-  for (const Problem::Impl::Model& mo : I.models) simulated.push_back({mo.sim.get(), mo.global});
-  I.cache = std::make_unique<EvaluationCache>(std::move(simulated), &I.params, &I.sequences,
-                                              &I.segments, options.jacobian, &I.grids);
-  for (size_t s = 0; s < I.segments.size(); ++s) {
-    const Segment& seg = I.segments[s];
+  for (const FitModel& mo : fit.models) simulated.push_back({mo.sim.get(), mo.global});
+  solve.cache = std::make_unique<EvaluationCache>(std::move(simulated), &fit.params, &fit.sequences,
+                                                  &fit.segments, options.jacobian, &fit.grids);
+  for (size_t s = 0; s < fit.segments.size(); ++s) {
+    const Segment& seg = fit.segments[s];
     if (seg.block >= 0 || seg.next >= 0 || seg.T != initial[seg.seq].T) continue;
-    I.cache->Seed(static_cast<int>(s), I.z.empty() ? nullptr : I.z.data(),
-                  I.X0(static_cast<int>(s)), initial[seg.seq],
-                  std::move(initial_sensitivity[seg.seq]));
+    solve.cache->Seed(static_cast<int>(s), vars.z.empty() ? nullptr : vars.z.data(),
+                      fit.X0(vars.states, static_cast<int>(s)), initial[seg.seq],
+                      std::move(initial_sensitivity[seg.seq]));
   }
 }
 
@@ -618,22 +648,24 @@ std::string SegmentReasonText(const SegmentRecord& r) {
   return text;
 }
 
-FitPlan PrepareFit(Problem::Impl* impl, const FitOptions& options) {
-  Problem::Impl& I = *impl;
+FitPlan PrepareFit(const FitParts& parts, const FitOptions& options) {
+  PreparedFit& fit = *parts.fit;
+  FitVariables& vars = *parts.vars;
+  SolveContext& solve = *parts.solve;
   FitPlan plan;
-  I.cache.reset();  // it borrows the simulators rebuilt below
-  I.options = options;
-  RestoreEventWindows(I);  // a previous fit's event windows (sysid/data/event_windows.h)
-  if (I.models.empty()) throw std::invalid_argument("no model: call AddModel first");
-  if (I.sequences.empty()) throw std::invalid_argument("no sequence: call AddSequence first");
-  CheckParameters(I);
-  BuildSimulators(I, options);
-  BuildTermVariables(I, &plan);
-  PrepareSequences(I, options);
+  solve.cache.reset();  // it borrows the simulators rebuilt below
+  fit.options = options;
+  RestoreEventWindows(fit);  // a previous fit's event windows (sysid/data/event_windows.h)
+  if (fit.models.empty()) throw std::invalid_argument("no model: call AddModel first");
+  if (fit.sequences.empty()) throw std::invalid_argument("no sequence: call AddSequence first");
+  CheckParameters(fit);
+  BuildSimulators(fit, vars, solve, options);
+  BuildTermVariables(fit, vars, &plan);
+  PrepareSequences(fit, vars, options);
   std::vector<Sensitivity> initial_sensitivity;
-  InitialRollouts(I, options, &plan, &initial_sensitivity);
-  BuildSegments(I, options, &plan);
-  SeedCache(I, options, plan.initial, initial_sensitivity);
+  InitialRollouts(fit, vars, solve, options, &plan, &initial_sensitivity);
+  BuildSegments(fit, vars, solve, options, &plan);
+  SeedCache(fit, vars, solve, options, plan.initial, initial_sensitivity);
   return plan;
 }
 

@@ -1,0 +1,91 @@
+// Stage 1 of a fit pass (sysid/fit/pass.h): the equation-error starts and PrepareFit, which
+// validates the inputs and builds the prepared fit (sysid/solve/fit_state.h) in seven stages
+// (sysid/fit/prepare.cc); and the entry points of a sharded fit's workers (sysid/mpi/), which
+// prepare a Problem without fitting it.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "core/simulator.h"
+#include "sysid/problem.h"
+#include "sysid/solve/fit_state.h"
+#include "sysid/types.h"
+
+namespace mjsysid {
+
+// Why the fit runs in the segments it runs in, as parts (FitResult::segment_reason is their text,
+// SegmentReasonText): the choice of the segment length, where later segments start, the
+// continuity weights, and the first solve with the segment states held (auto's contact segments).
+// A refit in segments (sysid/fit/policy.cc) replaces the choice with its own reason.
+struct SegmentRecord {
+  std::string choice;        // why this length (HorizonChoice::reason, or the refit's reason)
+  std::string start_source;  // where later segments start ("": no later segment)
+  std::string weights;       // the continuity weights ("": no segment joins the next)
+  int held_iterations = -1;  // iterations of the solve with the states held (-1: none ran)
+  double held_initial_cost = 0, held_final_cost = 0;
+};
+// "CHOICE; segment states from SOURCE; WEIGHTS; first N iterations with the segment states held
+// on the data (cost A -> B)", the parts present
+std::string SegmentReasonText(const SegmentRecord& r);
+
+// What PrepareFit decided besides the prepared state: the rollouts at the initial values, the
+// variables' names, bounds and starts, the Jacobian mode and the segments chosen
+struct FitPlan {
+  std::vector<Trajectory> initial;  // rollouts at the initial values
+  std::vector<std::string> names;   // parameters, measurement terms, then control delays
+  std::vector<std::pair<double, double>> mbounds;  // bounds of the m block (terms, delays)
+  std::vector<double> minitial;                    // their initial values
+  std::string jacobian_mode;
+  int segment_steps = 0;    // multiple shooting as chosen (0: single shooting)
+  SegmentRecord segments;   // why (FitResult::segment_reason)
+  double probe_rate = 0;    // growth rate per step of the auto probe
+  double probe_growth = 0;  // its largest growth beyond linear (HorizonChoice::growth)
+  FitResult::EventWindows event_windows;  // auto's contact segments (sysid/data/event_windows.h)
+  bool contact_segments = false;          // auto chose contact segments (HorizonChoice)
+};
+
+// Validates the inputs (names, shapes, bounds, the data every parameter must move) and builds what
+// a fit runs on (sysid/fit/prepare.cc): the simulators with their parameters, the variables,
+// the sample grids, the segments, the initial rollouts and Jacobians and the evaluation cache.
+// Throws std::invalid_argument / ParameterError on bad input.
+FitPlan PrepareFit(const FitParts& parts, const FitOptions& options);
+
+// throws ParameterError naming the first parameter g with !moves[g] (its Jacobian column is zero
+// in every sequence at the initial values): what Prepare checks, or the caller of a sharded start
+// with moves combined over every shard
+void CheckParametersMove(const PreparedFit& fit, const std::vector<bool>& moves);
+
+// A sharded start (ShardStart) simulated only the owned sequences at the initial values:
+// rolls out the others (those with an empty trajectory in initial; no Jacobians), and leaves the
+// simulators at the initial parameters
+void RolloutUnowned(PreparedFit* fit, std::vector<Trajectory>* initial);
+
+// initial: auto (FitParameter::initial_auto): the equation-error start of each model's `auto`
+// parameters from its sequences' logged qpos and qvel (sysid/data/equation_error.h); a parameter
+// that cannot be solved starts at its model's value. The marks are cleared, so that a refit (auto
+// multiple shooting) starts from the same values. Returns one line per model, for the warnings.
+// threads: the fit's (FitOptions::threads), for the samples' inverse dynamics.
+std::vector<std::string> SolveAutoStarts(PreparedFit* fit, int threads);
+
+// The parts of problem's fit state (borrowed: valid while problem lives)
+FitParts PartsOf(Problem* problem);
+
+// Validates and prepares the fit as Problem::Fit does, without solving: for a worker that
+// evaluates a share of the segments (sysid/mpi/). Returns problem's parts. Throws like Fit on bad
+// input.
+FitParts PrepareOnly(Problem* problem, const FitOptions& options);
+
+// A sharded start (sysid/mpi/): PrepareFit rolls out and differentiates at the initial values
+// only the sequences owned(fit) marks (one bool per sequence, called once the simulators and
+// sample grids are built; empty: all), and does not itself check that every parameter moves the
+// data: it leaves PreparedFit::moves (per parameter: some owned sequence sees it) for the caller
+// to combine over all shards and pass to CheckParametersMove. The fit rolls out the other
+// sequences at the initial values for the result only (rollouts, no Jacobians). With free states
+// (multiple shooting, estimated initial states) PrepareFit rolls out the other sequences too (no
+// Jacobians), so that every shard starts every segment state as one process does.
+void ShardStart(Problem* problem, std::function<std::vector<bool>(const PreparedFit&)> owned);
+
+}  // namespace mjsysid
