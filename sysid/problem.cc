@@ -11,6 +11,7 @@
 #include "sysid/fit/check_jacobians.h"
 #include "sysid/fit/policy.h"
 #include "sysid/fit/prepare.h"
+#include "sysid/fit/segment_evaluator.h"
 #include "sysid/solve/fit_state.h"
 
 namespace mjsysid {
@@ -66,8 +67,8 @@ void Problem::AddControlDelay(const FitControlDelay& delay) {
 void Problem::DistributeResiduals(ResidualShards* shards) {
   impl_->fit.shards = shards;
   if (shards) {
-    impl_->fit.owned_sequences = [shards](const PreparedFit& fit) {
-      return shards->OwnedSequences(fit);
+    impl_->fit.owned_sequences = [shards](const std::vector<double>& work) {
+      return shards->OwnedSequences(work);
     };
   }
 }
@@ -86,13 +87,14 @@ JacobianCheck Problem::CheckJacobians(const FitOptions& options) {
 // -----------------------------------------------------------------------------------------------
 // a sharded fit's workers (sysid/fit/prepare.h)
 
-FitParts PrepareOnly(Problem* problem, const FitOptions& options) {
+SegmentEvaluator PrepareOnly(Problem* problem, const FitOptions& options) {
   const FitParts parts = PartsOf(problem);
   PrepareFit(parts, options);
-  return parts;
+  return SegmentEvaluator(parts);
 }
 
-void ShardStart(Problem* problem, std::function<std::vector<bool>(const PreparedFit&)> owned) {
+void ShardStart(Problem* problem,
+                std::function<std::vector<bool>(const std::vector<double>& work)> owned) {
   PartsOf(problem).fit->owned_sequences = std::move(owned);
 }
 

@@ -63,9 +63,9 @@ class EvaluationCallback;
 
 namespace mjsysid {
 
-class ResidualShards;  // below
-struct FitParts;       // the fit state's parts (sysid/solve/fit_state.h)
-struct PreparedFit;
+class ResidualShards;    // below
+struct FitParts;         // the fit state's parts (sysid/solve/fit_state.h)
+class SegmentEvaluator;  // a shard's view of them (sysid/fit/segment_evaluator.h)
 
 // result of Problem::CheckJacobians
 struct JacobianCheck {
@@ -126,9 +126,9 @@ class Problem {
 class ResidualShards {
  public:
   virtual ~ResidualShards() = default;
-  // called once by Fit after Prepare with its prepared state; blocks: z (np) if the fit has
-  // parameters, then m
-  virtual void AddResidualBlocks(const FitParts& parts, ceres::Problem* problem,
+  // called once by Fit after it prepared the fit, with its segments (borrowed for the fit);
+  // blocks: z (np) if the fit has parameters, then m
+  virtual void AddResidualBlocks(const SegmentEvaluator& segments, ceres::Problem* problem,
                                  const std::vector<double*>& blocks) = 0;
   virtual ceres::EvaluationCallback* Callback() = 0;
   virtual long long NumResiduals() const = 0;
@@ -137,12 +137,12 @@ class ResidualShards {
   // degrees of freedom subtract them, as the one-process fit's with the states in its Jacobian
   virtual int EliminatedColumns() const { return 0; }
   // called by Fit after the evaluation at the estimate: brings every sequence's eliminated states
-  // into parts.vars->states (for the result's segment states, continuity gaps and final signals)
-  virtual void CollectStates(const FitParts& /*parts*/) {}
-  // the sequences whose start this process simulates (ShardStart, sysid/fit/prepare.h; empty:
-  // all). Called by PrepareFit; the caller of Fit then owns the check of PreparedFit::moves
-  // (AddResidualBlocks' place).
-  virtual std::vector<bool> OwnedSequences(const PreparedFit& /*fit*/) const { return {}; }
+  // into segments.states() (for the result's segment states, continuity gaps and final signals)
+  virtual void CollectStates(SegmentEvaluator& /*segments*/) {}
+  // the sequences whose start this process simulates, given each sequence's work (ShardStart,
+  // sysid/fit/prepare.h; empty: all). Called by Fit's preparation; the caller of Fit then owns
+  // the check that every parameter moves the data (AddResidualBlocks' place).
+  virtual std::vector<bool> OwnedSequences(const std::vector<double>& /*work*/) const { return {}; }
 };
 
 }  // namespace mjsysid

@@ -37,6 +37,7 @@
 #include <vector>
 
 #include "sysid/fit/prepare.h"
+#include "sysid/fit/segment_evaluator.h"
 #include "sysid/solve/compressed_cost.h"
 #include "sysid/solve/cost_functions.h"
 #include "sysid/solve/fit_ledger.h"

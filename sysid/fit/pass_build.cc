@@ -68,7 +68,7 @@ void FitPass::BuildCeres() {
     std::vector<double*> blocks;
     if (np_) blocks.push_back(z);
     if (nm_) blocks.push_back(m);
-    fit_.shards->AddResidualBlocks(parts_, &problem, blocks);
+    fit_.shards->AddResidualBlocks(SegmentEvaluator(parts_), &problem, blocks);
   }
   for (size_t s = 0; s < fit_.segments.size() && !fit_.shards; ++s) {
     const Segment& seg = fit_.segments[s];

@@ -80,7 +80,10 @@ void FitPass::FinalSignals() {
   }
   // the controls at the fitted delays (the interval check evaluated others)
   if (nm_) solve_.SyncControlDelays(&fit_, vars_.m.data());
-  if (fit_.shards) fit_.shards->CollectStates(parts_);
+  if (fit_.shards) {
+    SegmentEvaluator segments(parts_);
+    fit_.shards->CollectStates(segments);
+  }
   RolloutUnowned(&fit_, &plan_.initial);
   double worst_gap = 0;
   std::string worst_gap_where;

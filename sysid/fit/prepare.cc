@@ -469,8 +469,12 @@ void InitialRollouts(PreparedFit& fit, FitVariables& vars, SolveContext& solve,
   initial.assign(fit.sequences.size(), Trajectory());
   initial_sensitivity->assign(fit.sequences.size(), Sensitivity());  // parameter columns
   std::vector<bool> moves(fit.params.size(), false);
+  std::vector<double> work;
+  for (size_t q = 0; q < fit.sequences.size(); ++q) {
+    work.push_back(fit.SequenceWork(static_cast<int>(q)));
+  }
   const std::vector<bool> owned =
-      fit.owned_sequences ? fit.owned_sequences(fit) : std::vector<bool>();
+      fit.owned_sequences ? fit.owned_sequences(work) : std::vector<bool>();
   // a share without sequences of a model still names the mode
   if (fit.owned_sequences) out->jacobian_mode = JacobianModeName(options.jacobian.mode);
   for (auto& mo : fit.models) {

@@ -1,10 +1,9 @@
 // Stage 1 of a fit pass (sysid/fit/pass.h): the equation-error starts and PrepareFit, which
 // validates the inputs and builds the prepared fit (sysid/solve/fit_state.h) in seven stages
-// (sysid/fit/prepare.cc); and the entry points of a sharded fit's workers (sysid/mpi/), which
-// prepare a Problem without fitting it.
+// (sysid/fit/prepare.cc). A sharded fit's workers prepare a Problem without fitting it through
+// sysid/fit/segment_evaluator.h.
 #pragma once
 
-#include <functional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -72,20 +71,5 @@ std::vector<std::string> SolveAutoStarts(PreparedFit* fit, int threads);
 
 // The parts of problem's fit state (borrowed: valid while problem lives)
 FitParts PartsOf(Problem* problem);
-
-// Validates and prepares the fit as Problem::Fit does, without solving: for a worker that
-// evaluates a share of the segments (sysid/mpi/). Returns problem's parts. Throws like Fit on bad
-// input.
-FitParts PrepareOnly(Problem* problem, const FitOptions& options);
-
-// A sharded start (sysid/mpi/): PrepareFit rolls out and differentiates at the initial values
-// only the sequences owned(fit) marks (one bool per sequence, called once the simulators and
-// sample grids are built; empty: all), and does not itself check that every parameter moves the
-// data: it leaves PreparedFit::moves (per parameter: some owned sequence sees it) for the caller
-// to combine over all shards and pass to CheckParametersMove. The fit rolls out the other
-// sequences at the initial values for the result only (rollouts, no Jacobians). With free states
-// (multiple shooting, estimated initial states) PrepareFit rolls out the other sequences too (no
-// Jacobians), so that every shard starts every segment state as one process does.
-void ShardStart(Problem* problem, std::function<std::vector<bool>(const PreparedFit&)> owned);
 
 }  // namespace mjsysid

@@ -11,16 +11,14 @@
 #include <cstdio>
 #include <cstdlib>
 #include <map>
+#include <optional>
 
 #include "core/invariant.h"
-#include "sysid/fit/prepare.h"
 #include "sysid/mpi/state_projection.h"
 #include "sysid/run/fit_experiment.h"
 #include "sysid/run/multi_start.h"
 #include "sysid/solve/compressed_cost.h"
-#include "sysid/solve/cost_functions.h"
 #include "sysid/solve/multiple_shooting.h"
-#include "sysid/solve/state_residuals.h"
 
 namespace mjsysid::mpi {
 namespace {
@@ -69,9 +67,9 @@ namespace {
 
 // out = the reply header (kReplyHeader) and, when ok, the maximal tree nodes inside the leaves
 // [first, last) of a tree over [0, leaves), each reduced from share's leaf values
-void Reply(const FitDiagnostics& diag, bool ok, int warned, int first, int last, int leaves,
+void Reply(const SegmentEvaluator& segments, bool ok, int warned, int first, int last, int leaves,
            bool jacobians, const Share& share, std::vector<double>* out) {
-  const int step = warned >= 0 ? WarningStep(diag.jacobian_warnings.at(warned)) : -1;
+  const int step = warned >= 0 ? WarningStep(*segments.JacobianWarning(warned)) : -1;
   out->assign({ok ? 1.0 : 0.0, static_cast<double>(warned), static_cast<double>(step), 0.0});
   if (!ok) return;
   const std::vector<std::pair<int, int>> nodes = CanonicalNodes(first, last, leaves);
@@ -92,27 +90,23 @@ void Reply(const FitDiagnostics& diag, bool ok, int warned, int first, int last,
   }
 }
 
-// EvaluateShare (below) with free states (BySequence): the leaves [first, last) are whole
-// sequences, each solved for its states and reduced by StateProjection
-void EvaluateSequences(const FitParts& parts, int first, int last, bool jacobians, Share* share,
-                       std::vector<double>* out) {
-  const PreparedFit& fit = *parts.fit;
-  const FitDiagnostics& diag = *parts.diag;
-  if (!share->projection) share->projection = std::make_unique<StateProjection>(parts);
-  const int leaves = static_cast<int>(fit.sequences.size());
+// EvaluateShare (below) with free states (SegmentEvaluator::free_states): the leaves [first, last)
+// are whole sequences, each solved for its states and reduced by StateProjection
+void EvaluateSequences(const SegmentEvaluator& segments, int first, int last, bool jacobians,
+                       Share* share, std::vector<double>* out) {
+  if (!share->projection) share->projection = std::make_unique<StateProjection>(segments);
+  const int leaves = segments.num_sequences();
   share->sums.assign(std::max(last - first, 0), 0.0);
   share->blocks.resize(std::max(last - first, 0));
   bool ok = true;
   int warned = -1;
   for (int q = first; q < last && ok; ++q) {
     ok = share->projection->Solve(q, jacobians, &share->blocks[q - first], &share->sums[q - first]);
-    for (size_t s = 0; s < fit.segments.size() && warned < 0; ++s) {
-      if (fit.segments[s].seq == q && diag.jacobian_warnings.count(static_cast<int>(s))) {
-        warned = static_cast<int>(s);
-      }
+    for (int s = 0; s < segments.num_segments() && warned < 0; ++s) {
+      if (segments.segment(s).seq == q && segments.JacobianWarning(s)) warned = s;
     }
   }
-  Reply(diag, ok, warned, first, last, leaves, jacobians, *share, out);
+  Reply(segments, ok, warned, first, last, leaves, jacobians, *share, out);
 }
 
 // One rank's share at the variables (z, m): its segments [first, last) simulated
@@ -120,23 +114,22 @@ void EvaluateSequences(const FitParts& parts, int first, int last, bool jacobian
 // segment at a time; then the values of the maximal tree nodes of its range (shards.h). out:
 // [ok, warned segment (-1: none), number of nodes, then per node: lo, hi and its value (sum r^2,
 // or R_aug column-major with Jacobians)].
-void EvaluateShare(const FitParts& parts, int first, int last, bool jacobians, Share* share,
+void EvaluateShare(SegmentEvaluator& segments, int first, int last, bool jacobians, Share* share,
                    std::vector<double>* out) {
-  const PreparedFit& fit = *parts.fit;
-  const FitVariables& vars = *parts.vars;
-  const FitDiagnostics& diag = *parts.diag;
-  if (BySequence(fit)) return EvaluateSequences(parts, first, last, jacobians, share, out);
-  const int np = static_cast<int>(vars.z.size()), nm = static_cast<int>(vars.m.size());
-  const int n = np + nm, size = static_cast<int>(fit.segments.size());
+  if (segments.free_states()) {
+    return EvaluateSequences(segments, first, last, jacobians, share, out);
+  }
+  const int np = segments.np(), nm = segments.nm();
+  const int n = np + nm, size = segments.num_segments();
   // the owned segments at the new point, in the simulators' batches
-  std::vector<const double*> x0(fit.segments.size(), nullptr);
-  for (int s = first; s < last; ++s) x0[s] = fit.X0(vars.states, s);
-  parts.solve->cache->Prefetch(np ? vars.z.data() : nullptr, x0, jacobians);
+  std::vector<const double*> x0(size, nullptr);
+  for (int s = first; s < last; ++s) x0[s] = segments.X0(s);
+  segments.Prefetch(x0, jacobians);
   bool ok = true;
   int warned = -1;
   std::vector<const double*> params;
-  if (np) params.push_back(vars.z.data());
-  if (nm) params.push_back(vars.m.data());
+  if (np) params.push_back(segments.z().data());
+  if (nm) params.push_back(segments.m().data());
   share->costs.resize(std::max(last - first, 0));
   share->sums.assign(std::max(last - first, 0), 0.0);
   share->blocks.resize(std::max(last - first, 0));
@@ -144,8 +137,8 @@ void EvaluateShare(const FitParts& parts, int first, int last, bool jacobians, S
     // the sensor rows (all blocks) and the fitted-state rows (z only)
     auto& costs = share->costs[s - first];
     if (!costs[0]) {
-      costs[0] = std::make_unique<SegmentCost>(parts, s);
-      if (fit.segments[s].state_rows) costs[1] = std::make_unique<StateCost>(parts, s);
+      costs[0] = segments.SensorCost(s);
+      costs[1] = segments.StateCost(s);
     }
     share->block.Reset(n);
     for (const auto& cost : costs) {
@@ -172,9 +165,9 @@ void EvaluateShare(const FitParts& parts, int first, int last, bool jacobians, S
       }
     }
     if (jacobians) share->blocks[s - first] = share->block.Augmented();
-    if (warned < 0 && diag.jacobian_warnings.count(s)) warned = s;
+    if (warned < 0 && segments.JacobianWarning(s)) warned = s;
   }
-  Reply(diag, ok, warned, first, last, size, jacobians, *share, out);
+  Reply(segments, ok, warned, first, last, size, jacobians, *share, out);
 }
 
 // The one residual block of the segments on rank 0: the root of the tree, n + 1 rows on the
@@ -209,17 +202,18 @@ class TreeCost : public ceres::CostFunction {
 // The state blocks of the sequences [first, last), concatenated in block order (the blocks of a
 // sequence follow those of the one before), gathered to rank 0: every rank's in rank order is
 // every block in order
-std::vector<double> OwnStates(const PreparedFit& fit, const FitVariables& vars, int first,
-                              int last) {
+std::vector<double> OwnStates(const SegmentEvaluator& segments, int first, int last) {
   std::vector<double> out;
-  for (const Segment& seg : fit.segments) {
+  for (int s = 0; s < segments.num_segments(); ++s) {
+    const Segment& seg = segments.segment(s);
     if (seg.block < 0 || seg.seq < first || seg.seq >= last) continue;
-    out.insert(out.end(), vars.states[seg.block].begin(), vars.states[seg.block].end());
+    const auto x = segments.states()[seg.block];
+    out.insert(out.end(), x.begin(), x.end());
   }
   return out;
 }
-void SendStates(const PreparedFit& fit, const FitVariables& vars, int first, int last) {
-  std::vector<double> send = OwnStates(fit, vars, first, last);
+void SendStates(const SegmentEvaluator& segments, int first, int last) {
+  std::vector<double> send = OwnStates(segments, first, last);
   int count = static_cast<int>(send.size());
   MPI_Gather(&count, 1, MPI_INT, nullptr, 0, MPI_INT, 0, MPI_COMM_WORLD);
   MPI_Gatherv(send.data(), count, MPI_DOUBLE, nullptr, nullptr, nullptr, MPI_DOUBLE, 0,
@@ -289,54 +283,48 @@ bool AgreeReady(bool ok, const std::string& message, std::string* failure) {
   return false;
 }
 
-void AgreeMoves(const PreparedFit& fit) {
+void AgreeMoves(const SegmentEvaluator& segments) {
   // or over the ranks (max of 0/1)
-  std::vector<int> mine(fit.params.size(), 0), all(fit.params.size(), 0);
-  for (size_t g = 0; g < mine.size() && g < fit.moves.size(); ++g) mine[g] = fit.moves[g];
+  const std::vector<bool>& moves = segments.moves();
+  std::vector<int> mine(segments.np(), 0), all(segments.np(), 0);
+  for (size_t g = 0; g < mine.size() && g < moves.size(); ++g) mine[g] = moves[g];
   MPI_Allreduce(mine.data(), all.data(), static_cast<int>(mine.size()), MPI_INT, MPI_MAX,
                 MPI_COMM_WORLD);
-  CheckParametersMove(fit, std::vector<bool>(all.begin(), all.end()));
+  segments.CheckMoves(std::vector<bool>(all.begin(), all.end()));
 }
 
-std::vector<int> SequenceRanges(const PreparedFit& fit, int ranks) {
-  std::vector<double> cost;
-  for (size_t q = 0; q < fit.sequences.size(); ++q) {
-    const FitModel& mo = fit.models[fit.ModelIndex(fit.sequences[q].model)];
-    const int columns = mo.sim->parameters().size() + 1;  // + the rollout
-    cost.push_back(static_cast<double>(fit.grids[q].steps) * columns);
-  }
-  return ShardRanges(cost, ranks);
+std::vector<int> SequenceRanges(const std::vector<double>& work, int ranks) {
+  return ShardRanges(work, ranks);
 }
 
-std::vector<bool> OwnedSequences(const PreparedFit& fit, int rank, int ranks) {
-  const std::vector<int> ranges = SequenceRanges(fit, ranks);
-  std::vector<bool> owned(fit.sequences.size(), false);
+std::vector<int> SequenceRanges(const SegmentEvaluator& segments, int ranks) {
+  std::vector<double> work;
+  for (int q = 0; q < segments.num_sequences(); ++q) work.push_back(segments.SequenceWork(q));
+  return SequenceRanges(work, ranks);
+}
+
+std::vector<bool> OwnedSequences(const std::vector<double>& work, int rank, int ranks) {
+  const std::vector<int> ranges = SequenceRanges(work, ranks);
+  std::vector<bool> owned(work.size(), false);
   for (int q = ranges[rank]; q < ranges[rank + 1]; ++q) owned[q] = true;
   return owned;
 }
 
-bool BySequence(const PreparedFit& fit) {
-  for (const Segment& seg : fit.segments) {
-    if (seg.block >= 0) return true;  // a free state (a state block)
-  }
-  return false;
+int Leaves(const SegmentEvaluator& segments) {
+  return segments.free_states() ? segments.num_sequences() : segments.num_segments();
 }
 
-int Leaves(const PreparedFit& fit) {
-  return static_cast<int>(BySequence(fit) ? fit.sequences.size() : fit.segments.size());
+std::vector<int> LeafRanges(const SegmentEvaluator& segments, int ranks) {
+  return segments.free_states() ? SequenceRanges(segments, ranks) : SegmentRanges(segments, ranks);
 }
 
-std::vector<int> LeafRanges(const PreparedFit& fit, int ranks) {
-  return BySequence(fit) ? SequenceRanges(fit, ranks) : SegmentRanges(fit, ranks);
-}
-
-std::vector<int> SegmentRanges(const PreparedFit& fit, int ranks) {
+std::vector<int> SegmentRanges(const SegmentEvaluator& segments, int ranks) {
   // the first segment of each rank's first sequence (segments are in sequence order)
-  const std::vector<int> sequences = SequenceRanges(fit, ranks);
+  const std::vector<int> sequences = SequenceRanges(segments, ranks);
   std::vector<int> ranges;
   int s = 0;
   for (int q : sequences) {
-    while (s < static_cast<int>(fit.segments.size()) && fit.segments[s].seq < q) ++s;
+    while (s < segments.num_segments() && segments.segment(s).seq < q) ++s;
     ranges.push_back(s);
   }
   return ranges;
@@ -348,23 +336,21 @@ std::vector<int> SegmentRanges(const PreparedFit& fit, int ranks) {
 ShardedResiduals::ShardedResiduals() : share_(std::make_unique<Share>()) {}
 ShardedResiduals::~ShardedResiduals() = default;
 
-std::vector<bool> ShardedResiduals::OwnedSequences(const PreparedFit& fit) const {
-  return mpi::OwnedSequences(fit, Rank(), Size());
+std::vector<bool> ShardedResiduals::OwnedSequences(const std::vector<double>& work) const {
+  return mpi::OwnedSequences(work, Rank(), Size());
 }
 
-void ShardedResiduals::AddResidualBlocks(const FitParts& parts, ceres::Problem* problem,
+void ShardedResiduals::AddResidualBlocks(const SegmentEvaluator& segments, ceres::Problem* problem,
                                          const std::vector<double*>& blocks) {
   const bool first = !agreed_, refit = agreed_ && !new_problem_;
   new_problem_ = false;
-  const PreparedFit& fit = *parts.fit;
-  const FitVariables& vars = *parts.vars;
-  n_ = static_cast<int>(vars.z.size() + vars.m.size());
+  n_ = segments.np() + segments.nm();
   if (refit) {
     // a refit of the same input (auto's segments, Problem::Fit calling itself): the workers
     // prepare again with its segment length; they agreed on the input before
     command_.assign(kHeader + n_, 0.0);
     command_[0] = kPrepare;
-    command_[1] = fit.options.segment_steps;
+    command_[1] = segments.segment_steps();
     MPI_Bcast(command_.data(), static_cast<int>(command_.size()), MPI_DOUBLE, 0, MPI_COMM_WORLD);
   }
   if (first) {
@@ -376,7 +362,7 @@ void ShardedResiduals::AddResidualBlocks(const FitParts& parts, ceres::Problem* 
     }
     // the checks over every rank's sequences: a failure ends every rank here (ParameterError)
     try {
-      AgreeMoves(fit);
+      AgreeMoves(segments);
     } catch (...) {
       done_ = true;
       throw;
@@ -389,45 +375,42 @@ void ShardedResiduals::AddResidualBlocks(const FitParts& parts, ceres::Problem* 
     // fails this start only)
     command_.assign(kHeader + n_, 0.0);
     command_[0] = kStart;
-    for (size_t j = 0; j < fit.params.size(); ++j) command_[kHeader + j] = fit.params[j].initial;
+    const std::vector<double> initial = segments.InitialValues();
+    std::copy(initial.begin(), initial.end(), command_.begin() + kHeader);
     MPI_Bcast(command_.data(), static_cast<int>(command_.size()), MPI_DOUBLE, 0, MPI_COMM_WORLD);
     std::string failure;
     if (!AgreeReady(true, "", &failure)) throw RankError(failure);
-    AgreeMoves(fit);
+    AgreeMoves(segments);
   }
   share_ = std::make_unique<Share>();
-  parts_ = parts;
-  const int np = static_cast<int>(vars.z.size()), nm = static_cast<int>(vars.m.size());
+  segments_.emplace(segments);
+  const int np = segments.np(), nm = segments.nm();
   n_ = np + nm;
-  ranges_ = LeafRanges(fit, Size());
+  ranges_ = LeafRanges(segments, Size());
   rows_ = 0;
   eliminated_ = 0;
-  for (size_t s = 0; s < fit.segments.size(); ++s) {
-    const Segment& seg = fit.segments[s];
-    if (seg.block >= 0) eliminated_ += fit.models[seg.model].sim->dims().nx;
-    rows_ += SegmentCost(parts, static_cast<int>(s)).num_residuals();
-    if (fit.segments[s].state_rows) {
-      rows_ += StateCost(parts, static_cast<int>(s)).num_residuals();
-    }
+  for (int s = 0; s < segments.num_segments(); ++s) {
+    if (segments.segment(s).block >= 0) eliminated_ += segments.dims(s).nx;
+    rows_ += segments.SensorCost(s)->num_residuals();
+    if (const auto state_cost = segments.StateCost(s)) rows_ += state_cost->num_residuals();
   }
   problem->AddResidualBlock(new TreeCost(this, np, nm), nullptr, blocks);
 }
 
 void ShardedResiduals::PrepareForEvaluation(bool evaluate_jacobians,
                                             bool /*new_evaluation_point*/) {
-  const FitVariables& vars = *parts_.vars;
-  FitDiagnostics& diag = *parts_.diag;
-  const int size = Size(), segments = Leaves(*parts_.fit);
+  SegmentEvaluator& shard = *segments_;
+  const int size = Size(), segments = Leaves(shard);
   // the command and the values, from the parameter blocks Ceres has updated
   auto t0 = std::chrono::steady_clock::now();
   command_.assign({kEvaluate, evaluate_jacobians ? 1.0 : 0.0});
-  command_.insert(command_.end(), vars.z.begin(), vars.z.end());
-  command_.insert(command_.end(), vars.m.begin(), vars.m.end());
+  command_.insert(command_.end(), shard.z().begin(), shard.z().end());
+  command_.insert(command_.end(), shard.m().begin(), shard.m().end());
   MPI_Bcast(command_.data(), static_cast<int>(command_.size()), MPI_DOUBLE, 0, MPI_COMM_WORLD);
   stats_.seconds_mpi += Seconds(t0);
   // rank 0's own share
   t0 = std::chrono::steady_clock::now();
-  EvaluateShare(parts_, ranges_[0], ranges_[1], evaluate_jacobians, share_.get(), &send_);
+  EvaluateShare(shard, ranges_[0], ranges_[1], evaluate_jacobians, share_.get(), &send_);
   stats_.seconds_own_share += Seconds(t0);
   // every rank's tree nodes (their sizes first)
   t0 = std::chrono::steady_clock::now();
@@ -461,16 +444,16 @@ void ShardedResiduals::PrepareForEvaluation(bool evaluate_jacobians,
     const double* in = receive_.data() + displs_[r];
     if (in[0] != 1.0) {
       root_.ok = false;
-      diag.NoteRejection("the simulation of a sequence of rank " + std::to_string(r) +
-                         " failed or was not finite at the trial point");
+      shard.NoteRejection("the simulation of a sequence of rank " + std::to_string(r) +
+                          " failed or was not finite at the trial point");
       continue;
     }
     const int warned = static_cast<int>(in[1]), step = static_cast<int>(in[2]);
     if (warned >= 0 && r > 0) {
       // the step it names, for auto's refit in segments (SegmentStepsAfterWarning)
-      diag.NoteJacobianWarning(warned, "the core flagged this sequence's Jacobian on rank " +
-                                           std::to_string(r) +
-                                           (step >= 0 ? " from step " + std::to_string(step) : ""));
+      shard.NoteJacobianWarning(
+          warned, "the core flagged this sequence's Jacobian on rank " + std::to_string(r) +
+                      (step >= 0 ? " from step " + std::to_string(step) : ""));
     }
     const double* node = in + kReplyHeader;
     for (int k = 0; k < static_cast<int>(in[3]); ++k, node += 2 + width) {
@@ -501,16 +484,14 @@ void ShardedResiduals::PrepareForEvaluation(bool evaluate_jacobians,
   }
 }
 
-void ShardedResiduals::CollectStates(const FitParts& parts) {
-  const PreparedFit& fit = *parts.fit;
-  FitVariables& vars = *parts.vars;
-  if (!BySequence(fit) || done_ || !agreed_) return;
+void ShardedResiduals::CollectStates(SegmentEvaluator& segments) {
+  if (!segments.free_states() || done_ || !agreed_) return;
   const int size = Size();
   command_.assign(kHeader + n_, 0.0);
   command_[0] = kStates;
   MPI_Bcast(command_.data(), static_cast<int>(command_.size()), MPI_DOUBLE, 0, MPI_COMM_WORLD);
   // rank 0's own blocks, then the others' (SendStates)
-  std::vector<double> mine = OwnStates(fit, vars, ranges_[0], ranges_[1]);
+  std::vector<double> mine = OwnStates(segments, ranges_[0], ranges_[1]);
   int count = static_cast<int>(mine.size());
   counts_.assign(size, 0);
   MPI_Gather(&count, 1, MPI_INT, counts_.data(), 1, MPI_INT, 0, MPI_COMM_WORLD);
@@ -520,8 +501,8 @@ void ShardedResiduals::CollectStates(const FitParts& parts) {
   MPI_Gatherv(mine.data(), count, MPI_DOUBLE, receive_.data(), counts_.data(), displs_.data(),
               MPI_DOUBLE, 0, MPI_COMM_WORLD);
   size_t at = 0;
-  for (size_t b = 0; b < vars.states.size(); ++b) {
-    const StateBlocks::View<double> x = vars.states[b];
+  for (size_t b = 0; b < segments.states().size(); ++b) {
+    const StateBlocks::View<double> x = segments.states()[b];
     MJSYSID_DEMAND(at + x.size() <= receive_.size(),
                    "the ranks sent fewer states than the fit has");
     std::copy(receive_.begin() + at, receive_.begin() + at + x.size(), x.begin());
@@ -563,7 +544,7 @@ int ServeFit(const io::ExperimentConfig* config, int threads, const std::string&
   run::BuiltProblem bp;
   FitOptions options, base;        // as prepared now; as the experiment says
   std::unique_ptr<Problem> start;  // the current start's Problem (--starts), after the first
-  FitParts parts{};                // the current start's, prepared (parts.fit null: none)
+  std::optional<SegmentEvaluator> segments;  // the current start's, prepared
   if (config && error.empty()) {
     try {
       bp = run::BuildProblem(*config, threads);
@@ -572,22 +553,22 @@ int ServeFit(const io::ExperimentConfig* config, int threads, const std::string&
       base = options;
       // a sharded start: this rank's sequences only
       const int rank = Rank(), ranks = Size();
-      ShardStart(bp.problem.get(), [rank, ranks](const PreparedFit& fit) {
-        return OwnedSequences(fit, rank, ranks);
+      ShardStart(bp.problem.get(), [rank, ranks](const std::vector<double>& work) {
+        return OwnedSequences(work, rank, ranks);
       });
-      parts = PrepareOnly(bp.problem.get(), options);
+      segments.emplace(PrepareOnly(bp.problem.get(), options));
     } catch (const std::exception& e) {
       error = e.what();
     }
   }
   if (!AgreeReady(error.empty(), error, nullptr)) return 0;  // rank 0 reports it
   try {
-    AgreeMoves(*parts.fit);
+    AgreeMoves(*segments);
   } catch (const std::exception&) {
     return 0;  // the same failure on rank 0, which reports it
   }
-  const int rank = Rank(), n = static_cast<int>(parts.vars->z.size() + parts.vars->m.size());
-  std::vector<int> ranges = LeafRanges(*parts.fit, Size());
+  const int rank = Rank(), n = segments->np() + segments->nm();
+  std::vector<int> ranges = LeafRanges(*segments, Size());
   std::vector<double> command(kHeader + n), send;
   Share share;
   // evaluate at every point rank 0 sends, until it finishes
@@ -595,35 +576,35 @@ int ServeFit(const io::ExperimentConfig* config, int threads, const std::string&
     MPI_Bcast(command.data(), kHeader + n, MPI_DOUBLE, 0, MPI_COMM_WORLD);
     if (command[0] == kFinish) break;
     if (command[0] == kStates) {
-      SendStates(*parts.fit, *parts.vars, ranges[rank], ranges[rank + 1]);
+      SendStates(*segments, ranges[rank], ranges[rank + 1]);
       continue;
     }
     if (command[0] == kStart) {
       // the next start: bp's Problem at the start values, prepared; then the agreement
       std::string not_ready;
-      FitParts next{};
+      std::optional<SegmentEvaluator> next;
       try {
         Eigen::VectorXd values(static_cast<Eigen::Index>(bp.parameters.size()));
         for (Eigen::Index j = 0; j < values.size(); ++j) values[j] = command[kHeader + j];
         start = run::ProblemFrom(bp, values);
         const int ranks = Size();
-        ShardStart(start.get(), [rank, ranks](const PreparedFit& fit) {
-          return OwnedSequences(fit, rank, ranks);
+        ShardStart(start.get(), [rank, ranks](const std::vector<double>& work) {
+          return OwnedSequences(work, rank, ranks);
         });
         options = base;
         next = PrepareOnly(start.get(), options);
       } catch (const std::exception& e) {
         not_ready = e.what();
       }
-      parts = FitParts{};  // the previous start's Problem is gone
+      segments.reset();  // the previous start's Problem is gone
       if (!AgreeReady(not_ready.empty(), not_ready, nullptr)) continue;  // rank 0 records it
       try {
-        AgreeMoves(*next.fit);
+        AgreeMoves(*next);
       } catch (const std::exception&) {
         continue;  // the same failure on rank 0
       }
-      parts = next;
-      ranges = LeafRanges(*parts.fit, Size());
+      segments = next;
+      ranges = LeafRanges(*segments, Size());
       share = Share();
       continue;
     }
@@ -631,20 +612,18 @@ int ServeFit(const io::ExperimentConfig* config, int threads, const std::string&
       // auto's refit in segments: the same input prepared again with rank 0's segment length
       options.segment_steps = static_cast<int>(command[1]);
       try {
-        parts = PrepareOnly((start ? start : bp.problem).get(), options);
+        segments.emplace(PrepareOnly((start ? start : bp.problem).get(), options));
       } catch (const std::exception& e) {
         // rank 0 prepared the same input with the same options
         BrokenInvariant((RankName(rank) + ": preparing the refit failed: " + e.what()).c_str(),
                         __FILE__, __LINE__);
       }
-      ranges = LeafRanges(*parts.fit, Size());
+      ranges = LeafRanges(*segments, Size());
       share = Share();
       continue;
     }
-    std::vector<double>& z = parts.vars->z;
-    std::copy(command.begin() + kHeader, command.begin() + kHeader + z.size(), z.begin());
-    std::copy(command.begin() + kHeader + z.size(), command.end(), parts.vars->m.begin());
-    EvaluateShare(parts, ranges[rank], ranges[rank + 1], command[1] == 1.0, &share, &send);
+    segments->SetVariables(command.data() + kHeader);
+    EvaluateShare(*segments, ranges[rank], ranges[rank + 1], command[1] == 1.0, &share, &send);
     const int head[2] = {static_cast<int>(send.size()), g_stop ? 1 : 0};
     MPI_Gather(head, 2, MPI_INT, nullptr, 0, MPI_INT, 0, MPI_COMM_WORLD);
     MPI_Gatherv(send.data(), head[0], MPI_DOUBLE, nullptr, nullptr, nullptr, MPI_DOUBLE, 0,

@@ -62,14 +62,15 @@
 
 #include <atomic>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
+#include "sysid/fit/segment_evaluator.h"
 #include "sysid/io/experiment.h"
 #include "sysid/mpi/shards.h"
 #include "sysid/problem.h"
-#include "sysid/solve/fit_state.h"
 
 namespace mjsysid::mpi {
 
@@ -96,26 +97,25 @@ class RankError : public std::invalid_argument {
 // *failure = the message of the lowest failing rank, prefixed with RankName
 bool AgreeReady(bool ok, const std::string& message, std::string* failure);
 
-// every rank, once, after AgreeReady succeeded: combines PreparedFit::moves over the ranks (a
-// parameter moves the data when it moves the sequences of some rank: a logical or) and throws
-// ParameterError, the same on every rank, for a parameter that moves none (CheckParametersMove)
-void AgreeMoves(const PreparedFit& fit);
-
-// the contiguous sequence ranges of the ranks (ShardRanges: ranks + 1 entries), by simulation
-// steps x Jacobian columns; needs the simulators and sample grids only (a sharded start's
-// ShardStart calls it before the initial rollouts)
-std::vector<int> SequenceRanges(const PreparedFit& fit, int ranks);
+// every rank, once, after AgreeReady succeeded: combines the parameters' moves (SegmentEvaluator::
+// moves) over the ranks (a parameter moves the data when it moves the sequences of some rank: a
+// logical or) and throws ParameterError, the same on every rank, for a parameter that moves none
+void AgreeMoves(const SegmentEvaluator& segments);
+// the contiguous sequence ranges of the ranks (ShardRanges: ranks + 1 entries), by each
+// sequence's work (simulation steps x Jacobian columns, SegmentEvaluator::SequenceWork); a sharded
+// start's ShardStart calls it with the work before the initial rollouts
+std::vector<int> SequenceRanges(const std::vector<double>& work, int ranks);
+std::vector<int> SequenceRanges(const SegmentEvaluator& segments, int ranks);
 // the sequences of `rank` (SequenceRanges), one bool per sequence
-std::vector<bool> OwnedSequences(const PreparedFit& fit, int rank, int ranks);
+std::vector<bool> OwnedSequences(const std::vector<double>& work, int rank, int ranks);
 // the contiguous segment ranges of a prepared fit's ranks: the segments of SequenceRanges' whole
 // sequences (ranks + 1 entries)
-std::vector<int> SegmentRanges(const PreparedFit& fit, int ranks);
+std::vector<int> SegmentRanges(const SegmentEvaluator& segments, int ranks);
 // The leaves of the tree: whole sequences when the fit has free states (multiple shooting,
 // estimated initial states; each sequence's states eliminated on its rank, state_projection.h),
 // else segments (single shooting: one per sequence). LeafRanges: their ranges per rank.
-bool BySequence(const PreparedFit& fit);
-int Leaves(const PreparedFit& fit);
-std::vector<int> LeafRanges(const PreparedFit& fit, int ranks);
+int Leaves(const SegmentEvaluator& segments);
+std::vector<int> LeafRanges(const SegmentEvaluator& segments, int ranks);
 
 struct Share;  // the buffers of one rank's evaluation (distributed_fit.cc)
 
@@ -135,15 +135,15 @@ class ShardedResiduals : public ResidualShards, public ceres::EvaluationCallback
 
   // ResidualShards: agrees with the other ranks that every one is ready (throws RankError when one
   // is not), then adds the one block of every segment
-  void AddResidualBlocks(const FitParts& parts, ceres::Problem* problem,
+  void AddResidualBlocks(const SegmentEvaluator& segments, ceres::Problem* problem,
                          const std::vector<double*>& blocks) override;
   ceres::EvaluationCallback* Callback() override { return this; }
   long long NumResiduals() const override { return rows_; }
   int EliminatedColumns() const override { return eliminated_; }
   // rank 0's states of every sequence from their owners (the last Jacobian evaluation's)
-  void CollectStates(const FitParts& parts) override;
+  void CollectStates(SegmentEvaluator& segments) override;
   // rank 0's share of the start (OwnedSequences)
-  std::vector<bool> OwnedSequences(const PreparedFit& fit) const override;
+  std::vector<bool> OwnedSequences(const std::vector<double>& work) const override;
   // EvaluationCallback: every rank at the current values
   void PrepareForEvaluation(bool evaluate_jacobians, bool new_evaluation_point) override;
 
@@ -177,7 +177,8 @@ class ShardedResiduals : public ResidualShards, public ceres::EvaluationCallback
   int n() const { return n_; }
 
  private:
-  FitParts parts_{};  // the prepared fit of the current Problem (AddResidualBlocks)
+  // the segments of the current Problem (AddResidualBlocks)
+  std::optional<SegmentEvaluator> segments_;
   int n_ = 0;
   long long rows_ = 0;
   int eliminated_ = 0;  // tangent columns of the free states

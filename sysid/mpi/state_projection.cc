@@ -5,31 +5,31 @@
 #include <cmath>
 #include <string>
 
-#include "sysid/solve/cost_functions.h"
-#include "sysid/solve/state_residuals.h"
+#include "sysid/solve/state_manifold.h"
 
 namespace mjsysid::mpi {
 namespace {
 
 // the segments [*first, *last) of sequence q (segments are in sequence order) and the state
 // blocks of q in order (each free segment's x_0 block)
-void SequenceParts(const PreparedFit& fit, int q, int* first, int* last, std::vector<int>* blocks) {
-  const int size = static_cast<int>(fit.segments.size());
+void SequenceParts(const SegmentEvaluator& segments, int q, int* first, int* last,
+                   std::vector<int>* blocks) {
+  const int size = segments.num_segments();
   *first = 0;
-  while (*first < size && fit.segments[*first].seq < q) ++*first;
+  while (*first < size && segments.segment(*first).seq < q) ++*first;
   *last = *first;
   blocks->clear();
-  while (*last < size && fit.segments[*last].seq == q) {
-    if (fit.segments[*last].block >= 0) blocks->push_back(fit.segments[*last].block);
+  while (*last < size && segments.segment(*last).seq == q) {
+    if (segments.segment(*last).block >= 0) blocks->push_back(segments.segment(*last).block);
     ++*last;
   }
 }
 
 }  // namespace
 
-StateProjection::StateProjection(const FitParts& parts) : parts_(parts) {
-  costs_.resize(parts_.fit->segments.size());
-  solved_.resize(parts_.fit->sequences.size());
+StateProjection::StateProjection(const SegmentEvaluator& segments) : segments_(segments) {
+  costs_.resize(segments_.num_segments());
+  solved_.resize(segments_.num_sequences());
 }
 
 StateProjection::~StateProjection() = default;
@@ -37,40 +37,38 @@ StateProjection::~StateProjection() = default;
 int StateProjection::StateColumns(int q) const {
   int first = 0, last = 0;
   std::vector<int> blocks;
-  SequenceParts(*parts_.fit, q, &first, &last, &blocks);
+  SequenceParts(segments_, q, &first, &last, &blocks);
   if (blocks.empty()) return 0;
-  return static_cast<int>(blocks.size()) *
-         parts_.fit->models[parts_.fit->segments[first].model].sim->dims().nx;
+  return static_cast<int>(blocks.size()) * segments_.dims(first).nx;
 }
 
 bool StateProjection::Evaluate(int q, const std::vector<std::vector<double>>& x, bool jacobians,
                                double* sum) {
-  const int np = static_cast<int>(parts_.vars->z.size()),
-            nm = static_cast<int>(parts_.vars->m.size());
+  const int np = segments_.np(), nm = segments_.nm();
   int first = 0, last = 0;
   std::vector<int> blocks;
-  SequenceParts(*parts_.fit, q, &first, &last, &blocks);
-  const FitModel& mo = parts_.fit->models[parts_.fit->segments[first].model];
-  const int nx = mo.sim->dims().nx, nphys = mo.sim->dims().nphys;
+  SequenceParts(segments_, q, &first, &last, &blocks);
+  const StateManifold& manifold = segments_.manifold(first);
+  const int nx = segments_.dims(first).nx, nphys = segments_.dims(first).nphys;
   const int k = static_cast<int>(blocks.size()) * nx, n = np + nm;
   // the column of each state block of q, and its values
   auto column_of = [&](int b) { return static_cast<int>(b - blocks.front()) * nx; };
   auto values_of = [&](int b) { return x[b - blocks.front()].data(); };
   // q's segments at the point, in the simulators' batches
-  std::vector<const double*> x0(parts_.fit->segments.size(), nullptr);
+  std::vector<const double*> x0(segments_.num_segments(), nullptr);
   for (int s = first; s < last; ++s) {
-    x0[s] = parts_.fit->segments[s].block >= 0 ? values_of(parts_.fit->segments[s].block)
-                                               : parts_.fit->X0(parts_.vars->states, s);
+    const int block = segments_.segment(s).block;
+    x0[s] = block >= 0 ? values_of(block) : segments_.X0(s);
   }
-  parts_.solve->cache->Prefetch(np ? parts_.vars->z.data() : nullptr, x0, jacobians);
+  segments_.Prefetch(x0, jacobians);
   *sum = 0;
   if (jacobians) block_.Reset(k + n);
   for (int s = first; s < last; ++s) {
-    const Segment& seg = parts_.fit->segments[s];
+    const Segment& seg = segments_.segment(s);
     auto& costs = costs_[s];
     if (!costs[0]) {
-      costs[0] = std::make_unique<SegmentCost>(parts_, s);
-      if (seg.state_rows) costs[1] = std::make_unique<StateCost>(parts_, s);
+      costs[0] = segments_.SensorCost(s);
+      costs[1] = segments_.StateCost(s);
     }
     for (int c = 0; c < 2; ++c) {
       const ceres::CostFunction* cost = costs[c].get();
@@ -83,8 +81,8 @@ bool StateProjection::Evaluate(int q, const std::vector<std::vector<double>>& x,
       Jm_.resize(rows, nm);
       Jx0_.resize(rows, nphys);
       Jxn_.resize(rows, nphys);
-      if (np) params.push_back(parts_.vars->z.data()), jac.push_back(Jz_.data());
-      if (nm && c == 0) params.push_back(parts_.vars->m.data()), jac.push_back(Jm_.data());
+      if (np) params.push_back(segments_.z().data()), jac.push_back(Jz_.data());
+      if (nm && c == 0) params.push_back(segments_.m().data()), jac.push_back(Jm_.data());
       if (seg.block >= 0) params.push_back(values_of(seg.block)), jac.push_back(Jx0_.data());
       if (seg.next >= 0 && c == 0) {
         params.push_back(values_of(seg.next)), jac.push_back(Jxn_.data());
@@ -100,7 +98,7 @@ bool StateProjection::Evaluate(int q, const std::vector<std::vector<double>>& x,
       J_ = RowMatrix::Zero(rows, k + n);
       auto tangent = [&](int b, const RowMatrix& Ja) {
         P_.resize(nphys, nx);
-        mo.manifold->PlusJacobian(values_of(b), P_.data());
+        manifold.PlusJacobian(values_of(b), P_.data());
         J_.middleCols(column_of(b), nx) = Ja * P_;
       };
       if (seg.block >= 0) tangent(seg.block, Jx0_);
@@ -114,16 +112,16 @@ bool StateProjection::Evaluate(int q, const std::vector<std::vector<double>>& x,
 }
 
 bool StateProjection::Solve(int q, bool jacobians, Eigen::MatrixXd* reduced, double* sum) {
-  const int n = static_cast<int>(parts_.vars->z.size() + parts_.vars->m.size());
+  const int n = segments_.np() + segments_.nm();
   int first = 0, last = 0;
   std::vector<int> blocks;
-  SequenceParts(*parts_.fit, q, &first, &last, &blocks);
+  SequenceParts(segments_, q, &first, &last, &blocks);
   const int k = StateColumns(q);
   // 1. the warm start; the last solve when it had the same point and warm start
   std::vector<std::vector<double>> x, trial;
-  for (int b : blocks) x.emplace_back(parts_.vars->states[b].begin(), parts_.vars->states[b].end());
-  std::vector<double> key(parts_.vars->z.begin(), parts_.vars->z.end());
-  key.insert(key.end(), parts_.vars->m.begin(), parts_.vars->m.end());
+  for (int b : blocks) x.emplace_back(segments_.states()[b].begin(), segments_.states()[b].end());
+  std::vector<double> key(segments_.z().begin(), segments_.z().end());
+  key.insert(key.end(), segments_.m().begin(), segments_.m().end());
   for (const std::vector<double>& xb : x) key.insert(key.end(), xb.begin(), xb.end());
   Solved& done = solved_[q];
   if (k > 0 && done.key == key) {
@@ -131,7 +129,7 @@ bool StateProjection::Solve(int q, bool jacobians, Eigen::MatrixXd* reduced, dou
     if (!jacobians) return true;
     *reduced = done.reduced;
     for (size_t i = 0; i < blocks.size(); ++i) {
-      std::copy(done.x[i].begin(), done.x[i].end(), parts_.vars->states[blocks[i]].begin());
+      std::copy(done.x[i].begin(), done.x[i].end(), segments_.states()[blocks[i]].begin());
     }
     return true;
   }
@@ -140,32 +138,29 @@ bool StateProjection::Solve(int q, bool jacobians, Eigen::MatrixXd* reduced, dou
   if (k == 0 && !jacobians) return true;
   // 3. Gauss-Newton on the states alone, each step halved until the cost falls
   EliminatedBlock e = EliminateStates(block_.Augmented(), k);
-  const StateManifold* manifold =
-      parts_.fit->models[parts_.fit->segments[first].model].manifold.get();
+  const StateManifold& manifold = segments_.manifold(first);
   const int nx = k > 0 ? k / static_cast<int>(blocks.size()) : 0;
   for (int step = 0; step < kMaxSteps && k > 0; ++step) {
     if (e.q_x.squaredNorm() <= kTolerance * *sum) break;
     if ((e.R_xx.diagonal().array() == 0).any()) {
-      parts_.diag->NoteRejection("a segment state of sequence '" + parts_.fit->sequences[q].name +
-                                 "' has no effect on its residuals (singular state block)");
+      segments_.NoteRejection("a segment state of sequence '" + segments_.sequence_name(q) +
+                              "' has no effect on its residuals (singular state block)");
       return false;
     }
     const Eigen::VectorXd dx = e.StateStep(Eigen::VectorXd::Zero(n));
     bool lower = false;
     double trial_sum = 0;
     // a failed trial of the inner search is not a point Ceres rejected: its diagnostics restored
-    const int rejected = parts_.diag->rejected_evaluations;
-    const std::string first_rejection = parts_.diag->first_rejection;
+    const SegmentEvaluator::Rejections rejected = segments_.rejections();
     for (int h = 0, scale = 1; h <= kHalvings && !lower; ++h, scale *= 2) {
       trial = x;
       const Eigen::VectorXd delta = dx / scale;
       for (size_t i = 0; i < blocks.size(); ++i) {
-        manifold->Plus(x[i].data(), delta.data() + i * nx, trial[i].data());
+        manifold.Plus(x[i].data(), delta.data() + i * nx, trial[i].data());
       }
       lower = Evaluate(q, trial, false, &trial_sum) && trial_sum < *sum;
     }
-    parts_.diag->rejected_evaluations = rejected;
-    parts_.diag->first_rejection = first_rejection;
+    segments_.RestoreRejections(rejected);
     if (!lower) break;
     x.swap(trial);
     if (!Evaluate(q, x, true, sum)) return false;
@@ -181,7 +176,7 @@ bool StateProjection::Solve(int q, bool jacobians, Eigen::MatrixXd* reduced, dou
   if (!jacobians) return true;
   *reduced = done.reduced;
   for (size_t i = 0; i < blocks.size(); ++i) {
-    std::copy(x[i].begin(), x[i].end(), parts_.vars->states[blocks[i]].begin());
+    std::copy(x[i].begin(), x[i].end(), segments_.states()[blocks[i]].begin());
   }
   return true;
 }

@@ -46,8 +46,8 @@
 #include <memory>
 #include <vector>
 
+#include "sysid/fit/segment_evaluator.h"
 #include "sysid/mpi/shards.h"
-#include "sysid/solve/fit_state.h"
 
 namespace mjsysid::mpi {
 
@@ -57,8 +57,8 @@ class StateProjection {
   static constexpr int kHalvings = 4;
   static constexpr double kTolerance = 1e-12;
 
-  // parts: the prepared fit's (borrowed; its state blocks hold the warm starts)
-  explicit StateProjection(const FitParts& parts);
+  // segments: the prepared fit's (its state blocks hold the warm starts)
+  explicit StateProjection(const SegmentEvaluator& segments);
   ~StateProjection();
 
   // the states of sequence q solved at the variables' z and m (steps 1-4 above). Residuals only:
@@ -84,7 +84,7 @@ class StateProjection {
     double sum = 0;
   };
 
-  FitParts parts_;
+  SegmentEvaluator segments_;
   std::vector<Solved> solved_;  // per sequence
   // per segment: its sensor and continuity cost and its fitted-state cost (or nullptr)
   std::vector<std::array<std::unique_ptr<ceres::CostFunction>, 2>> costs_;

@@ -42,6 +42,7 @@
 #include "sysid/solve/fit_ledger.h"
 #include "sysid/solve/progress.h"
 #include "sysid/solve/residual_model.h"
+#include "sysid/solve/state_blocks.h"
 #include "sysid/solve/state_manifold.h"
 #include "sysid/solve/state_residuals.h"
 #include "sysid/types.h"
@@ -51,48 +52,6 @@ namespace mjsysid {
 class GaussNewtonStop;    // sysid/solve/gn_convergence.h
 struct CompressedBlocks;  // sysid/solve/compressed_cost.h
 class ResidualShards;     // sysid/problem.h
-
-// The state blocks of a fit (the segments' initial states, Ceres parameter blocks), stored
-// contiguously in block order. Ceres keeps the blocks of an elimination group in a
-// std::set<double*>, i.e. ordered by address, and orders the Schur elimination and the residual
-// blocks by it: with one allocation per block that order followed the heap (other threads'
-// allocations, the thread count), and so did the rounding of every sum over segments (measured:
-// the pendulum in 100-step segments, iteration 0's cost 1 ulp apart between 1 and 2 threads,
-// the finger 29 vs 49 iterations). Contiguous storage makes it the block order, always.
-// Pointers (data()) stay valid until the next push_back or clear.
-class StateBlocks {
- public:
-  template <class T>
-  struct View {
-    T* p;
-    int n;
-    T* data() const { return p; }
-    size_t size() const { return static_cast<size_t>(n); }
-    T* begin() const { return p; }
-    T* end() const { return p + n; }
-  };
-  void clear() {
-    values_.clear();
-    first_.clear();
-  }
-  size_t size() const { return first_.size(); }
-  bool empty() const { return first_.empty(); }
-  // appends a block with the values x
-  void push_back(const std::vector<double>& x) {
-    first_.push_back(values_.size());
-    values_.insert(values_.end(), x.begin(), x.end());
-  }
-  View<double> operator[](size_t i) { return {values_.data() + first_[i], Size(i)}; }
-  View<const double> operator[](size_t i) const { return {values_.data() + first_[i], Size(i)}; }
-
- private:
-  int Size(size_t i) const {
-    const size_t end = i + 1 < first_.size() ? first_[i + 1] : values_.size();
-    return static_cast<int>(end - first_[i]);
-  }
-  std::vector<double> values_;  // every block, in order
-  std::vector<size_t> first_;   // per block: its first value
-};
 
 // One model of a fit: as added, and its simulator as prepared
 struct FitModel {
@@ -111,9 +70,9 @@ struct PreparedFit {
   std::vector<FitSequence> sequences;
   std::vector<FitControlDelay> control_delays;
   ResidualShards* shards = nullptr;  // segment residuals evaluated elsewhere (sysid/mpi/)
-  // a sharded start (Problem::ShardStart): the sequences PrepareFit simulates at the initial
-  // values (empty function or result: all)
-  std::function<std::vector<bool>(const PreparedFit&)> owned_sequences;
+  // a sharded start (ShardStart, sysid/fit/prepare.h): the sequences PrepareFit simulates at the
+  // initial values, given each sequence's work (SequenceWork; empty function or result: all)
+  std::function<std::vector<bool>(const std::vector<double>& work)> owned_sequences;
 
   // derived (PrepareFit)
   FitOptions options;
@@ -202,6 +161,14 @@ struct PreparedFit {
   Refs SegmentRefs(int segment) const {
     const Segment& seg = segments[segment];
     return {seg, sequences[seg.seq], models[seg.model]};
+  }
+
+  // the work of sequence q's rollout with Jacobians: its simulation steps x (its model's
+  // parameters + 1), for sharing the sequences out (sysid/mpi/); needs the simulators and grids
+  double SequenceWork(int q) const {
+    const FitModel& mo = models[ModelIndex(sequences[q].model)];
+    const int columns = mo.sim->parameters().size() + 1;  // + the rollout
+    return static_cast<double>(grids[q].steps) * columns;
   }
 
   // x_0 of a segment at the state blocks `states` (its block, or the sequence's given x0)

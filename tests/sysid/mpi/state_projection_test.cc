@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "core/mujoco_env.h"
-#include "sysid/fit/prepare.h"
+#include "sysid/fit/segment_evaluator.h"
 #include "sysid/problem.h"
 #include "tests/test_util.h"
 
@@ -43,10 +43,10 @@ TEST(StateProjectionTest, ReducedBlockIsTheProjectedCost) {
   FitOptions options;
   options.segment_steps = 100;
   options.threads = 1;
-  const FitParts parts = PrepareOnly(&problem, options);
-  FitVariables& vars = *parts.vars;
-  ASSERT_EQ(vars.states.size(), 5u);
-  mpi::StateProjection projection(parts);
+  SegmentEvaluator segments = PrepareOnly(&problem, options);
+  ASSERT_EQ(segments.states().size(), 5u);
+  ASSERT_EQ(segments.nm(), 0);
+  mpi::StateProjection projection(segments);
   ASSERT_EQ(projection.StateColumns(0), 10);
   const int n = 2;
 
@@ -61,35 +61,37 @@ TEST(StateProjectionTest, ReducedBlockIsTheProjectedCost) {
   // central differences of f with step 1e-5 in z (log), each solved from the committed states:
   // within 1e-5 of the gradient's norm (measured 1e-6: the differences' truncation)
   const Eigen::VectorXd gradient = 2 * R.leftCols(n).transpose() * R.col(n);
-  const std::vector<double> z0 = vars.z;
+  const std::vector<double> z0 = segments.z();
   for (int j = 0; j < n; ++j) {
     SCOPED_TRACE("z[" + std::to_string(j) + "]");
     const double h = 1e-5;
     double up = 0, down = 0;
     Eigen::MatrixXd unused;
-    vars.z = z0;
-    vars.z[j] += h;
+    std::vector<double> z = z0;
+    z[j] += h;
+    segments.SetVariables(z.data());
     ASSERT_TRUE(projection.Solve(0, false, &unused, &up));
-    vars.z = z0;
-    vars.z[j] -= h;
+    z[j] = z0[j] - h;
+    segments.SetVariables(z.data());
     ASSERT_TRUE(projection.Solve(0, false, &unused, &down));
     const double difference = (up - down) / (2 * h);
     EXPECT_NEAR(difference, gradient[j], 1e-5 * gradient.norm()) << "gradient " << gradient[j];
   }
-  vars.z = z0;
+  segments.SetVariables(z0.data());
 
   // solved: solving again from the committed states keeps them and the cost (1e-12; measured:
   // the same bits, the predicted decrease below the tolerance at once)
   std::vector<std::vector<double>> solved;
-  for (size_t b = 0; b < vars.states.size(); ++b) {
-    solved.emplace_back(vars.states[b].begin(), vars.states[b].end());
+  for (size_t b = 0; b < segments.states().size(); ++b) {
+    solved.emplace_back(segments.states()[b].begin(), segments.states()[b].end());
   }
   double again = 0;
   ASSERT_TRUE(projection.Solve(0, true, &R, &again));
   EXPECT_NEAR(again, sum, 1e-12 * sum);
   for (size_t b = 0; b < solved.size(); ++b) {
     for (size_t i = 0; i < solved[b].size(); ++i) {
-      EXPECT_NEAR(vars.states[b].data()[i], solved[b][i], 1e-12) << "block " << b << " entry " << i;
+      EXPECT_NEAR(segments.states()[b].data()[i], solved[b][i], 1e-12)
+          << "block " << b << " entry " << i;
     }
   }
 }
