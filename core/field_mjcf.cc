@@ -2,6 +2,8 @@
 
 #include <mujoco/mjxmacro.h>
 
+#include <type_traits>
+
 namespace mjsysid {
 namespace {
 
@@ -58,10 +60,25 @@ bool WriteAsKind(mjsElement* e, const mjModel& m, int id, int index, double valu
   return KindWriter(kKind)(e, m, id, index, value);
 }
 
-// shorthands for the template arguments
-#define MJS_ROW(S, as, attr, array, n) \
-  CopyRow<S, as, decltype(&S::attr), &S::attr, &mjModel::array, n>
+// shorthands for the template arguments (a row: as many values as the attribute holds)
+#define MJS_ROW(S, as, attr, array) \
+  CopyRow<S, as, decltype(&S::attr), &S::attr, &mjModel::array, std::extent_v<decltype(S::attr)>>
 #define MJS_SCALAR(S, as, attr, array) CopyScalar<S, as, &S::attr, &mjModel::array>
+
+// One-line rows of the table, by writer: `array` the mjModel array (its name is the row's key),
+// `object` the mjtObj without mjOBJ_, S the spec type without mjs (Geom: mjsGeom, mjs_asGeom).
+// Not formatted: clang-format reads the braces as blocks.
+// clang-format off
+#define KIND_ROW(array, object, doc, kind) \
+  FieldMjcfInfo{#array, mjOBJ_##object, doc, nullptr, WriteAsKind<ParameterKind::kind>}
+#define SCALAR_ROW(array, object, doc, S, attr) \
+  FieldMjcfInfo{#array, mjOBJ_##object, doc, nullptr, MJS_SCALAR(mjs##S, mjs_as##S, attr, array)}
+#define COPY_ROW(array, object, doc, S, attr) \
+  FieldMjcfInfo{#array, mjOBJ_##object, doc, nullptr, MJS_ROW(mjs##S, mjs_as##S, attr, array)}
+#define DOF_ROW(array, doc, kind)                       \
+  FieldMjcfInfo{#array, mjOBJ_JOINT, doc, JointOfDof, \
+                WriteDofArray<&mjModel::array, ParameterKind::kind>}
+// clang-format on
 
 // the number of columns of an mjModel array, from MuJoCo's own table; 0 when unknown
 int Columns(const mjModel* m, const std::string& array) {
@@ -86,73 +103,49 @@ int Columns(const mjModel* m, const std::string& array) {
 const std::vector<FieldMjcfInfo>& FieldMjcfTable() {
   static const std::vector<FieldMjcfInfo> table = {
       // bodies: the explicit inertial clause (as the body kinds), gravity compensation
-      {"body_ipos", mjOBJ_BODY, "explicit `<inertial>` (as `body_mass`)", nullptr,
-       WriteAsKind<ParameterKind::kBodyMass>},
-      {"body_mass", mjOBJ_BODY, "explicit `<inertial>` (as `body_mass`)", nullptr,
-       WriteAsKind<ParameterKind::kBodyMass>},
-      {"body_inertia", mjOBJ_BODY, "explicit `<inertial>` (as `body_mass`)", nullptr,
-       WriteAsKind<ParameterKind::kBodyMass>},
-      {"body_gravcomp", mjOBJ_BODY, "`gravcomp` of the `<body>`", nullptr,
-       MJS_SCALAR(mjsBody, mjs_asBody, gravcomp, body_gravcomp)},
+      KIND_ROW(body_ipos, BODY, "explicit `<inertial>` (as `body_mass`)", kBodyMass),
+      KIND_ROW(body_mass, BODY, "explicit `<inertial>` (as `body_mass`)", kBodyMass),
+      KIND_ROW(body_inertia, BODY, "explicit `<inertial>` (as `body_mass`)", kBodyMass),
+      SCALAR_ROW(body_gravcomp, BODY, "`gravcomp` of the `<body>`", Body, gravcomp),
       // joints and their dofs (one attribute per joint: every dof must agree)
-      {"jnt_stiffness", mjOBJ_JOINT, "`stiffness` of the `<joint>`", nullptr,
-       WriteAsKind<ParameterKind::kJointStiffness>},
-      {"dof_frictionloss", mjOBJ_JOINT, "`frictionloss` of the dof's `<joint>`", JointOfDof,
-       WriteDofArray<&mjModel::dof_frictionloss, ParameterKind::kJointFrictionLoss>},
-      {"dof_armature", mjOBJ_JOINT, "`armature` of the dof's `<joint>`", JointOfDof,
-       WriteDofArray<&mjModel::dof_armature, ParameterKind::kJointArmature>},
-      {"dof_damping", mjOBJ_JOINT, "`damping` of the dof's `<joint>`", JointOfDof,
-       WriteDofArray<&mjModel::dof_damping, ParameterKind::kJointDamping>},
+      KIND_ROW(jnt_stiffness, JOINT, "`stiffness` of the `<joint>`", kJointStiffness),
+      DOF_ROW(dof_frictionloss, "`frictionloss` of the dof's `<joint>`", kJointFrictionLoss),
+      DOF_ROW(dof_armature, "`armature` of the dof's `<joint>`", kJointArmature),
+      DOF_ROW(dof_damping, "`damping` of the dof's `<joint>`", kJointDamping),
       // geoms
-      {"geom_solmix", mjOBJ_GEOM, "`solmix` of the `<geom>`", nullptr,
-       MJS_SCALAR(mjsGeom, mjs_asGeom, solmix, geom_solmix)},
-      {"geom_solref", mjOBJ_GEOM, "`solref` of the `<geom>`", nullptr,
-       WriteAsKind<ParameterKind::kGeomSolref>},
-      {"geom_solimp", mjOBJ_GEOM, "`solimp` of the `<geom>`", nullptr,
-       WriteAsKind<ParameterKind::kGeomSolimp>},
-      {"geom_friction", mjOBJ_GEOM, "`friction` of the `<geom>`", nullptr,
-       WriteAsKind<ParameterKind::kGeomFriction>},
-      {"geom_margin", mjOBJ_GEOM, "`margin` of the `<geom>`", nullptr,
-       MJS_SCALAR(mjsGeom, mjs_asGeom, margin, geom_margin)},
-      {"geom_gap", mjOBJ_GEOM, "`gap` of the `<geom>`", nullptr,
-       MJS_SCALAR(mjsGeom, mjs_asGeom, gap, geom_gap)},
+      SCALAR_ROW(geom_solmix, GEOM, "`solmix` of the `<geom>`", Geom, solmix),
+      KIND_ROW(geom_solref, GEOM, "`solref` of the `<geom>`", kGeomSolref),
+      KIND_ROW(geom_solimp, GEOM, "`solimp` of the `<geom>`", kGeomSolimp),
+      KIND_ROW(geom_friction, GEOM, "`friction` of the `<geom>`", kGeomFriction),
+      SCALAR_ROW(geom_margin, GEOM, "`margin` of the `<geom>`", Geom, margin),
+      SCALAR_ROW(geom_gap, GEOM, "`gap` of the `<geom>`", Geom, gap),
       // explicit contact pairs (values MuJoCo took from the geoms become explicit)
-      {"pair_solref", mjOBJ_PAIR, "`solref` of the `<pair>`", nullptr,
-       WriteAsKind<ParameterKind::kPairSolref>},
-      {"pair_solreffriction", mjOBJ_PAIR, "`solreffriction` of the `<pair>`", nullptr,
-       MJS_ROW(mjsPair, mjs_asPair, solreffriction, pair_solreffriction, mjNREF)},
-      {"pair_solimp", mjOBJ_PAIR, "`solimp` of the `<pair>`", nullptr,
-       WriteAsKind<ParameterKind::kPairSolimp>},
-      {"pair_margin", mjOBJ_PAIR, "`margin` of the `<pair>`", nullptr,
-       MJS_SCALAR(mjsPair, mjs_asPair, margin, pair_margin)},
-      {"pair_gap", mjOBJ_PAIR, "`gap` of the `<pair>`", nullptr,
-       MJS_SCALAR(mjsPair, mjs_asPair, gap, pair_gap)},
-      {"pair_friction", mjOBJ_PAIR, "`friction` of the `<pair>`", nullptr,
-       WriteAsKind<ParameterKind::kPairFriction>},
+      KIND_ROW(pair_solref, PAIR, "`solref` of the `<pair>`", kPairSolref),
+      COPY_ROW(pair_solreffriction, PAIR, "`solreffriction` of the `<pair>`", Pair, solreffriction),
+      KIND_ROW(pair_solimp, PAIR, "`solimp` of the `<pair>`", kPairSolimp),
+      SCALAR_ROW(pair_margin, PAIR, "`margin` of the `<pair>`", Pair, margin),
+      SCALAR_ROW(pair_gap, PAIR, "`gap` of the `<pair>`", Pair, gap),
+      KIND_ROW(pair_friction, PAIR, "`friction` of the `<pair>`", kPairFriction),
       // tendons
-      {"tendon_stiffness", mjOBJ_TENDON, "`stiffness` of the tendon", nullptr,
-       WriteAsKind<ParameterKind::kTendonStiffness>},
-      {"tendon_damping", mjOBJ_TENDON, "`damping` of the tendon", nullptr,
-       WriteAsKind<ParameterKind::kTendonDamping>},
-      {"tendon_armature", mjOBJ_TENDON, "`armature` of the tendon", nullptr,
-       MJS_SCALAR(mjsTendon, mjs_asTendon, armature, tendon_armature)},
-      {"tendon_frictionloss", mjOBJ_TENDON, "`frictionloss` of the tendon", nullptr,
-       WriteAsKind<ParameterKind::kTendonFrictionLoss>},
-      {"tendon_lengthspring", mjOBJ_TENDON, "`springlength` of the tendon", nullptr,
-       WriteAsKind<ParameterKind::kTendonLengthSpring>},
+      KIND_ROW(tendon_stiffness, TENDON, "`stiffness` of the tendon", kTendonStiffness),
+      KIND_ROW(tendon_damping, TENDON, "`damping` of the tendon", kTendonDamping),
+      SCALAR_ROW(tendon_armature, TENDON, "`armature` of the tendon", Tendon, armature),
+      KIND_ROW(tendon_frictionloss, TENDON, "`frictionloss` of the tendon", kTendonFrictionLoss),
+      KIND_ROW(tendon_lengthspring, TENDON, "`springlength` of the tendon", kTendonLengthSpring),
       // actuators
-      {"actuator_dynprm", mjOBJ_ACTUATOR, "`dynprm` of the actuator", nullptr,
-       MJS_ROW(mjsActuator, mjs_asActuator, dynprm, actuator_dynprm, mjNDYN)},
-      {"actuator_gainprm", mjOBJ_ACTUATOR, "`gainprm` of the actuator", nullptr,
-       WriteAsKind<ParameterKind::kActuatorGain>},
-      {"actuator_biasprm", mjOBJ_ACTUATOR, "`biasprm` of the actuator", nullptr,
-       WriteAsKind<ParameterKind::kActuatorBias>},
+      COPY_ROW(actuator_dynprm, ACTUATOR, "`dynprm` of the actuator", Actuator, dynprm),
+      KIND_ROW(actuator_gainprm, ACTUATOR, "`gainprm` of the actuator", kActuatorGain),
+      KIND_ROW(actuator_biasprm, ACTUATOR, "`biasprm` of the actuator", kActuatorBias),
       {"actuator_gear", mjOBJ_ACTUATOR, "`gear` of the actuator (its first output)",
        ActuatorOfOutput, WriteAsKind<ParameterKind::kActuatorGear>},
   };
   return table;
 }
 
+#undef KIND_ROW
+#undef SCALAR_ROW
+#undef COPY_ROW
+#undef DOF_ROW
 #undef MJS_ROW
 #undef MJS_SCALAR
 

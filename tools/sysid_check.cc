@@ -1,7 +1,6 @@
 // sysid check EXP.yaml: check an experiment, its models, data and Jacobians without fitting.
 #include <cstdio>
 #include <filesystem>
-#include <memory>
 #include <string>
 #include <system_error>
 #include <vector>
@@ -18,14 +17,32 @@
 namespace mjsysid::cli {
 namespace {
 
-namespace fs = std::filesystem;
-
 struct CheckArgs {
   std::string experiment;
   bool jacobians = true;
   double tolerance = 1e-4;
   bool strict = false;
 };
+
+// the --help page of `sysid check`: description, arguments (into args) and footer
+void DeclareCheck(CLI::App* sub, CheckArgs* args) {
+  sub->description(
+      "Check an experiment without fitting: the YAML file, its model(s) (exist, compile, names and "
+      "parameters resolve) and its data files (readable, consistent with the models)");
+  sub->add_option("experiment", args->experiment,
+                  "YAML experiment file (docs/experiment-schema.md)")
+      ->required();
+  sub->add_flag("!--no-jacobians", args->jacobians,
+                "skip the Jacobian check (core vs ceres::GradientChecker at the initial values)");
+  sub->add_option("--tolerance", args->tolerance,
+                  "largest acceptable column-scaled relative Jacobian error")
+      ->check(FiniteNumber())
+      ->capture_default_str();
+  sub->add_flag("--strict", args->strict, "exit 1 when the Jacobian error exceeds --tolerance");
+  sub->footer(
+      "Prints a summary and OK, or the first error. With data, also checks the Jacobians of every "
+      "residual block at the initial values and prints the worst relative error per parameter.\n");
+}
 
 // checks the experiment file, its models and its data files; prints a summary and OK
 int RunCheck(const CheckArgs& args) {
@@ -65,7 +82,7 @@ int RunCheck(const CheckArgs& args) {
   // data files: present, readable, consistent with the models
   for (const io::DataFile& data : config.data) {
     std::error_code ec;
-    if (!fs::exists(data.path, ec)) {
+    if (!std::filesystem::exists(data.path, ec)) {
       throw io::ConfigError(data.mark, "data file not found: " + data.path,
                             "`sysid simulate " + args.experiment + "` writes it");
     }
@@ -144,27 +161,6 @@ int RunCheck(const CheckArgs& args) {
 
 }  // namespace
 
-Command AddCheck(CLI::App* app) {
-  auto args = std::make_shared<CheckArgs>();
-  CLI::App* sub = app->add_subcommand(
-      "check",
-      "Check an experiment without fitting: the YAML file, its model(s) (exist, compile, names "
-      "and parameters resolve) and its data files (readable, consistent with the models)");
-  sub->add_option("experiment", args->experiment,
-                  "YAML experiment file (docs/experiment-schema.md)")
-      ->required();
-  sub->add_flag("!--no-jacobians", args->jacobians,
-                "skip the Jacobian check (core vs ceres::GradientChecker at the initial values)");
-  sub->add_option("--tolerance", args->tolerance,
-                  "largest acceptable column-scaled relative Jacobian error")
-      ->check(FiniteNumber())
-      ->capture_default_str();
-  sub->add_flag("--strict", args->strict, "exit 1 when the Jacobian error exceeds --tolerance");
-  sub->footer(std::string("Prints a summary and OK, or the first error. With data, also checks "
-                          "the Jacobians of every residual block at the initial values and prints "
-                          "the worst relative error per parameter.\n") +
-              kExitCodesFooter);
-  return {sub, [args] { return RunCheck(*args); }};
-}
+Command AddCheck(CLI::App* app) { return AddSubcommand(app, "check", DeclareCheck, RunCheck); }
 
 }  // namespace mjsysid::cli

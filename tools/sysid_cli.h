@@ -8,6 +8,7 @@
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <functional>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -34,6 +35,20 @@ struct Command {
   CLI::App* app;
   std::function<int()> run;
 };
+
+// Adds the subcommand `name` to app: declare(sub, args) writes its --help page (description,
+// arguments into a new Args, footer), the exit codes end the footer, and the returned Command
+// runs run(*args).
+template <typename Args>
+Command AddSubcommand(CLI::App* app, const std::string& name, void (*declare)(CLI::App*, Args*),
+                      int (*run)(const Args&)) {
+  auto args = std::make_shared<Args>();
+  CLI::App* sub = app->add_subcommand(name);
+  sub->footer("");  // not the parent's, which CLI11 copies into a new subcommand
+  declare(sub, args.get());
+  sub->footer(sub->get_footer() + kExitCodesFooter);
+  return {sub, [args, run] { return run(*args); }};
+}
 
 // seconds since start
 double Seconds(std::chrono::steady_clock::time_point start);

@@ -7,7 +7,6 @@
 #include <cstdlib>
 #include <exception>
 #include <functional>
-#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -52,6 +51,41 @@ struct FitArgs {
   int starts = 0;       // --starts N (0: solver.starts)
   long long seed = -1;  // --seed S (< 0: solver.seed)
 };
+
+// the --help page of `sysid fit`: description, arguments (into args) and footer
+void DeclareFit(CLI::App* sub, FitArgs* args) {
+  sub->description("Fit the experiment's parameters to its data files (Ceres, analytic Jacobians)");
+  sub->add_option("experiment", args->experiment,
+                  "YAML experiment file (with --resume: default the checkpoint's)");
+  sub->add_option("--out", args->out,
+                  "output folder (default: the experiment's `output`, results/<name>)");
+  sub->add_option("--threads", args->threads, "simulation threads (default: solver.threads)")
+      ->check(WholeNumberAtLeast(0));
+  sub->add_flag("--quiet", args->quiet, "no progress table (warnings and the summary only)");
+  sub->add_flag("--verbose", args->verbose,
+                "explain the statistical stop's test under each iteration of the table, and say "
+                "why the solver stopped, why these segments and what the reduced model left out");
+  sub->add_flag("--force", args->force,
+                "replace an existing --out folder that is not an mjsysid result folder (its files "
+                "are deleted)");
+  sub->add_option("--starts", args->starts,
+                  "fit from N starts spread in the bounds, in parallel; keep the best, report the "
+                  "spread and flag local minima (default: solver.starts, 1)")
+      ->check(WholeNumberAtLeast(1));
+  sub->add_option("--seed", args->seed, "seed of the spread starts (default: solver.seed, 0)")
+      ->check(WholeNumberAtLeast(0));
+  sub->add_option("--resume", args->resume,
+                  "continue the fit of DIR from its checkpoint (DIR.partial/checkpoint.yaml of a "
+                  "killed run, or DIR's interrupted result); writes into DIR");
+  sub->footer(
+      "Writes DIR/result.yaml (values, std, 95% intervals, flags, costs, versions), DIR/result.h5 "
+      "(trace, Jacobian, covariance, signals) and DIR/<model>_identified.xml, all with one run id, "
+      "into DIR.partial (with checkpoint.yaml after every successful iteration), which replaces "
+      "DIR once complete. Ctrl-C, SIGTERM or SIGHUP stops after the current iteration and writes "
+      "the results of the last good iterate; a second one exits at once and leaves DIR as it was. "
+      "Exit code 1 when the fit did not converge. Under `mpirun -n N` (or srun) the sequences are "
+      "sharded across the ranks and rank 0 writes (docs/cluster.md).\n");
+}
 
 std::string Flags(const mjsysid::ParameterEstimate& p) {
   std::vector<std::string> f;
@@ -281,44 +315,6 @@ int RunFit(const FitArgs& args) {
 
 }  // namespace
 
-Command AddFit(CLI::App* app) {
-  auto args = std::make_shared<FitArgs>();
-  CLI::App* sub = app->add_subcommand(
-      "fit", "Fit the experiment's parameters to its data files (Ceres, analytic Jacobians)");
-  sub->add_option("experiment", args->experiment,
-                  "YAML experiment file (with --resume: default the checkpoint's)");
-  sub->add_option("--out", args->out,
-                  "output folder (default: the experiment's `output`, results/<name>)");
-  sub->add_option("--threads", args->threads, "simulation threads (default: solver.threads)")
-      ->check(WholeNumberAtLeast(0));
-  sub->add_flag("--quiet", args->quiet, "no progress table (warnings and the summary only)");
-  sub->add_flag("--verbose", args->verbose,
-                "explain the statistical stop's test under each iteration of the table, and say "
-                "why the solver stopped, why these segments and what the reduced model left out");
-  sub->add_flag("--force", args->force,
-                "replace an existing --out folder that is not an mjsysid result folder (its files "
-                "are deleted)");
-  sub->add_option("--starts", args->starts,
-                  "fit from N starts spread in the bounds, in parallel; keep the best, report the "
-                  "spread and flag local minima (default: solver.starts, 1)")
-      ->check(WholeNumberAtLeast(1));
-  sub->add_option("--seed", args->seed, "seed of the spread starts (default: solver.seed, 0)")
-      ->check(WholeNumberAtLeast(0));
-  sub->add_option("--resume", args->resume,
-                  "continue the fit of DIR from its checkpoint (DIR.partial/checkpoint.yaml of a "
-                  "killed run, or DIR's interrupted result); writes into DIR");
-  sub->footer(
-      std::string("Writes DIR/result.yaml (values, std, 95% intervals, flags, costs, versions), "
-                  "DIR/result.h5 (trace, Jacobian, covariance, signals) and "
-                  "DIR/<model>_identified.xml, all with one run id, into DIR.partial (with "
-                  "checkpoint.yaml after every successful iteration), which replaces DIR once "
-                  "complete. Ctrl-C, SIGTERM or SIGHUP stops after the current iteration and "
-                  "writes the results of the last good iterate; a second one exits at once and "
-                  "leaves DIR as it was. Exit code 1 when the fit did not converge. Under "
-                  "`mpirun -n N` (or srun) the sequences are sharded across the ranks and rank 0 "
-                  "writes (docs/cluster.md).\n") +
-      kExitCodesFooter);
-  return {sub, [args] { return RunFit(*args); }};
-}
+Command AddFit(CLI::App* app) { return AddSubcommand(app, "fit", DeclareFit, RunFit); }
 
 }  // namespace mjsysid::cli

@@ -9,7 +9,6 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
-#include <memory>
 #include <stdexcept>
 #include <string>
 #include <system_error>
@@ -34,6 +33,33 @@ struct ImportArgs {
   bool force = false;   // overwrite an --out that is not an mjsysid log
   std::string mapping;  // ROS bags / MCAP: topic -> actuators, sensors, joints (YAML)
 };
+
+// the --help page of `sysid import`: description, arguments (into args) and footer
+void DeclareImport(CLI::App* sub, ImportArgs* args) {
+  sub->description(
+      "Convert CSV logs (header row of names), ROS bags or MCAP files into an HDF5 log that `fit` "
+      "reads");
+  sub->add_option("model", args->model, "MJCF model the logs were recorded on")->required();
+  sub->add_option("csv", args->csv,
+                  "CSV files, ROS bags or MCAP files, one sequence each (named after the file); "
+                  "[NAME=]A.csv+B.csv+...: one sequence from several CSV files, each with its "
+                  "own time column (controls in one, sensors at their own rates)")
+      ->required();
+  sub->add_option("--out", args->out, "HDF5 log to write (atomically)")->required();
+  sub->add_option("--sensor-time", args->sensor_time,
+                  "pre: sensors read before the step (y_k at x_k); post: after it")
+      ->check(CLI::IsMember({"pre", "post"}))
+      ->capture_default_str();
+  sub->add_flag("--force", args->force, "overwrite an existing --out that is not an mjsysid log");
+  sub->add_option("--mapping", args->mapping,
+                  "ROS bags (.bag, ROS 2 folders, .db3) and MCAP files: YAML mapping of topics "
+                  "to actuators, sensors and joints (docs/cli.md)");
+  sub->footer(
+      "CSV columns: time, one per actuator (its name), one per sensor component (NAME or NAME[i]), "
+      "optional qpos[i], qvel[i], act[i]; any order. Checked against the model before writing. ROS "
+      "bags and MCAP files (with --mapping) are read by the Python package mjsysid (rosbags) in "
+      "the project venv.\n");
+}
 
 // a ROS 1 bag, a ROS 2 storage file, an MCAP file or a ROS 2 bag folder (metadata.yaml)
 bool IsBag(const std::string& path) {
@@ -166,34 +192,6 @@ int RunImport(const ImportArgs& args) {
 
 }  // namespace
 
-Command AddImport(CLI::App* app) {
-  auto args = std::make_shared<ImportArgs>();
-  CLI::App* sub = app->add_subcommand(
-      "import",
-      "Convert CSV logs (header row of names), ROS bags or MCAP files into an HDF5 log that "
-      "`fit` reads");
-  sub->add_option("model", args->model, "MJCF model the logs were recorded on")->required();
-  sub->add_option("csv", args->csv,
-                  "CSV files, ROS bags or MCAP files, one sequence each (named after the file); "
-                  "[NAME=]A.csv+B.csv+...: one sequence from several CSV files, each with its "
-                  "own time column (controls in one, sensors at their own rates)")
-      ->required();
-  sub->add_option("--out", args->out, "HDF5 log to write (atomically)")->required();
-  sub->add_option("--sensor-time", args->sensor_time,
-                  "pre: sensors read before the step (y_k at x_k); post: after it")
-      ->check(CLI::IsMember({"pre", "post"}))
-      ->capture_default_str();
-  sub->add_flag("--force", args->force, "overwrite an existing --out that is not an mjsysid log");
-  sub->add_option("--mapping", args->mapping,
-                  "ROS bags (.bag, ROS 2 folders, .db3) and MCAP files: YAML mapping of topics "
-                  "to actuators, sensors and joints (docs/cli.md)");
-  sub->footer(std::string("CSV columns: time, one per actuator (its name), one per sensor "
-                          "component (NAME or NAME[i]), optional qpos[i], qvel[i], act[i]; "
-                          "any order. Checked against the model before writing. ROS bags and "
-                          "MCAP files (with --mapping) are read by the Python package mjsysid "
-                          "(rosbags) in the project venv.\n") +
-              kExitCodesFooter);
-  return {sub, [args] { return RunImport(*args); }};
-}
+Command AddImport(CLI::App* app) { return AddSubcommand(app, "import", DeclareImport, RunImport); }
 
 }  // namespace mjsysid::cli

@@ -1,8 +1,9 @@
 // sysid: the mjsysid command line (docs/cli.md).
 //
 // Each subcommand is a function RunX(const XArgs&) and one registration function AddX(app) that
-// declares its arguments and returns the subcommand with a closure calling RunX; main() parses,
-// runs the chosen one and maps exceptions to exit codes:
+// declares its arguments (mostly through cli::AddSubcommand and a DeclareX) and returns the
+// subcommand with a closure calling RunX; main() parses, runs the chosen one and maps exceptions
+// to exit codes:
 //   0 success
 //   1 the run failed (a simulation failed, MuJoCo raised an error)
 //   2 bad input (command line, experiment file, model, parameters, data files)

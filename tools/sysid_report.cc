@@ -1,7 +1,6 @@
 // sysid report DIR: plot a fit's results into DIR/report.html.
 #include <cstdio>
 #include <filesystem>
-#include <memory>
 #include <optional>
 #include <string>
 #include <system_error>
@@ -20,6 +19,20 @@ struct ReportArgs {
   std::string dir;
   bool no_video = false;
 };
+
+// the --help page of `sysid report`: description, arguments (into args) and footer
+void DeclareReport(CLI::App* sub, ReportArgs* args) {
+  sub->description("Plot a fit's results: measured vs simulated signals, parameters, cost trace");
+  sub->add_option("dir", args->dir, "output folder of `sysid fit` (result.yaml, result.h5)")
+      ->required();
+  sub->add_flag("--no-video", args->no_video,
+                "no motion clip (by default the first sequence is re-simulated at the initial "
+                "and the fitted values and rendered offscreen, side by side)");
+  sub->footer(
+      "Writes DIR/report.html (self-contained: no network), DIR/cost.png, DIR/parameters.png, "
+      "DIR/seq_<name>.png and DIR/motion.webp (the initial and fitted simulation, animated; needs "
+      "the experiment file and its logs, and OSMesa; without them the page says why).\n");
+}
 
 int RunReport(const ReportArgs& args) {
   // no fit may replace the folder while the report writes into it (a folder whose parent is not
@@ -58,21 +71,6 @@ int RunReport(const ReportArgs& args) {
 
 }  // namespace
 
-Command AddReport(CLI::App* app) {
-  auto args = std::make_shared<ReportArgs>();
-  CLI::App* sub = app->add_subcommand(
-      "report", "Plot a fit's results: measured vs simulated signals, parameters, cost trace");
-  sub->add_option("dir", args->dir, "output folder of `sysid fit` (result.yaml, result.h5)")
-      ->required();
-  sub->add_flag("--no-video", args->no_video,
-                "no motion clip (by default the first sequence is re-simulated at the initial "
-                "and the fitted values and rendered offscreen, side by side)");
-  sub->footer(std::string("Writes DIR/report.html (self-contained: no network), DIR/cost.png, "
-                          "DIR/parameters.png, DIR/seq_<name>.png and DIR/motion.webp (the "
-                          "initial and fitted simulation, animated; needs the experiment file "
-                          "and its logs, and OSMesa; without them the page says why).\n") +
-              kExitCodesFooter);
-  return {sub, [args] { return RunReport(*args); }};
-}
+Command AddReport(CLI::App* app) { return AddSubcommand(app, "report", DeclareReport, RunReport); }
 
 }  // namespace mjsysid::cli

@@ -1,7 +1,6 @@
 // sysid rollout MODEL.xml: roll a model out under a sine control and print its sensors.
 #include <cmath>
 #include <cstdio>
-#include <memory>
 #include <string>
 
 #include "core/mujoco_env.h"
@@ -16,6 +15,20 @@ struct RolloutArgs {
   int steps = 1000;
   double amplitude = 1.0;
 };
+
+// the --help page of `sysid rollout`: description and arguments (into args)
+void DeclareRollout(CLI::App* sub, RolloutArgs* args) {
+  sub->description(
+      "Roll a model out from its reference state under a sine control and print the final sensor "
+      "readings");
+  sub->add_option("model", args->model_path, "MJCF (or MJB) model file")->required();
+  sub->add_option("--steps", args->steps, "number of steps")
+      ->check(WholeNumberAtLeast(1))
+      ->capture_default_str();
+  sub->add_option("--amplitude", args->amplitude, "control amplitude, in control units")
+      ->check(FiniteNumber())
+      ->capture_default_str();
+}
 
 // rolls a model out from its reference state under a sinusoidal control and prints a summary
 int RunRollout(const RolloutArgs& args) {
@@ -51,20 +64,7 @@ int RunRollout(const RolloutArgs& args) {
 }  // namespace
 
 Command AddRollout(CLI::App* app) {
-  auto args = std::make_shared<RolloutArgs>();
-  CLI::App* sub = app->add_subcommand(
-      "rollout",
-      "Roll a model out from its reference state under a sine control and print the "
-      "final sensor readings");
-  sub->add_option("model", args->model_path, "MJCF (or MJB) model file")->required();
-  sub->add_option("--steps", args->steps, "number of steps")
-      ->check(WholeNumberAtLeast(1))
-      ->capture_default_str();
-  sub->add_option("--amplitude", args->amplitude, "control amplitude, in control units")
-      ->check(FiniteNumber())
-      ->capture_default_str();
-  sub->footer(kExitCodesFooter);
-  return {sub, [args] { return RunRollout(*args); }};
+  return AddSubcommand(app, "rollout", DeclareRollout, RunRollout);
 }
 
 }  // namespace mjsysid::cli

@@ -66,11 +66,11 @@ void FitLedger::Enter(const std::string& phase) {
   rows_.push_back(row);
 }
 
-void FitLedger::Move(const std::string& from, const std::string& to, long long steps) {
+void FitLedger::Move(FitPhase from, FitPhase to, long long steps) {
   if (steps <= 0) return;
-  auto row = [&](const std::string& phase) -> LedgerRow* {
+  auto row = [&](FitPhase phase) -> LedgerRow* {
     for (LedgerRow& r : rows_) {
-      if (r.phase == phase) return &r;
+      if (r.phase == FitPhaseName(phase)) return &r;
     }
     return nullptr;
   };
@@ -80,7 +80,7 @@ void FitLedger::Move(const std::string& from, const std::string& to, long long s
   LedgerRow* target = row(to);
   if (!target) {
     LedgerRow added;
-    added.phase = to;
+    added.phase = FitPhaseName(to);
     added.entries = 1;
     rows_.push_back(added);
     target = &rows_.back();

@@ -29,6 +29,7 @@
 
 #include <chrono>
 #include <functional>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -38,23 +39,46 @@
 namespace mjsysid {
 
 // The phases of Problem::Fit, in the order a fit meets them (one definition for the fit, the
-// evaluation callback and the benchmark)
-inline constexpr const char* kPhaseAutoStart = "equation-error start (initial: auto)";
-inline constexpr const char* kPhasePrepare = "input checks: initial rollouts + Jacobians";
-inline constexpr const char* kPhaseSetup = "setup: Ceres problem";
-inline constexpr const char* kPhaseJacobians = "solve: Jacobians";
-inline constexpr const char* kPhaseTrials = "solve: trial rollouts (steps, line search)";
-inline constexpr const char* kPhaseSolver = "solve: residuals, Ceres linear algebra";
-// the compressed blocks' rows and folds made ahead on the simulator's workers after a Jacobian
-// batch (sysid/solve/compressed_cost.h, "Folds ahead"; a batch: not serial)
-inline constexpr const char* kPhaseFolds = "solve: folds ahead (rows + thin QR)";
-// of the trial rollouts' steps, the Jacobian columns computed ahead of points Ceres then did not
-// take (sysid/solve/evaluation_cache.h, "Columns ahead"; more than one thread only)
-inline constexpr const char* kPhaseAheadUnused = "solve: columns ahead, not used";
-inline constexpr const char* kPhaseEstimate = "uncertainty: evaluation at the estimate";
-inline constexpr const char* kPhaseCovariance = "uncertainty: covariance";
-inline constexpr const char* kPhaseIntervalCheck = "interval check (cost at +-1 std)";
-inline constexpr const char* kPhaseSignals = "final signals, derived, status";
+// evaluation callback and the benchmark). Unscoped, so that the fit's stages name them kPhaseX.
+enum FitPhase {
+  kPhaseAutoStart,
+  kPhasePrepare,
+  kPhaseSetup,
+  kPhaseJacobians,
+  kPhaseTrials,
+  kPhaseSolver,
+  // the compressed blocks' rows and folds made ahead on the simulator's workers after a Jacobian
+  // batch (sysid/solve/compressed_cost.h, "Folds ahead"; a batch: not serial)
+  kPhaseFolds,
+  // of the trial rollouts' steps, the Jacobian columns computed ahead of points Ceres then did not
+  // take (sysid/solve/evaluation_cache.h, "Columns ahead"; more than one thread only)
+  kPhaseAheadUnused,
+  kPhaseEstimate,
+  kPhaseCovariance,
+  kPhaseIntervalCheck,
+  kPhaseSignals,
+};
+
+// the name of a phase's ledger row (LedgerRow::phase), as FormatLedger prints it
+constexpr const char* FitPhaseName(FitPhase phase) {
+  // in the order of FitPhase
+  constexpr const char* kNames[] = {
+      "equation-error start (initial: auto)",
+      "input checks: initial rollouts + Jacobians",
+      "setup: Ceres problem",
+      "solve: Jacobians",
+      "solve: trial rollouts (steps, line search)",
+      "solve: residuals, Ceres linear algebra",
+      "solve: folds ahead (rows + thin QR)",
+      "solve: columns ahead, not used",
+      "uncertainty: evaluation at the estimate",
+      "uncertainty: covariance",
+      "interval check (cost at +-1 std)",
+      "final signals, derived, status",
+  };
+  static_assert(std::size(kNames) == kPhaseSignals + 1, "a name per phase");
+  return kNames[phase];
+}
 
 class FitLedger {
  public:
@@ -69,11 +93,12 @@ class FitLedger {
 
   // charges what happened since the last Enter to the phase then current; phase becomes current
   void Enter(const std::string& phase);
+  void Enter(FitPhase phase) { Enter(FitPhaseName(phase)); }
   // the phase entered last ("" before the first Enter)
   const std::string& current() const { return current_; }
   // moves steps (not their critical steps: the batch's makespan stays where it ran) from row
   // `from` to row `to` (added, 1 entry, when new); nothing when from has no row or steps <= 0
-  void Move(const std::string& from, const std::string& to, long long steps);
+  void Move(FitPhase from, FitPhase to, long long steps);
   // charges the current phase and returns every row (order of first entry)
   std::vector<LedgerRow> Finish();
 

@@ -86,9 +86,9 @@ FitResult FitWith(const io::ExperimentConfig& cfg, bool before_jacobian, double 
   return built.problem->Fit(options);
 }
 
-long long PhaseSteps(const FitResult& r, const char* phase) {
+long long PhaseSteps(const FitResult& r, FitPhase phase) {
   for (const LedgerRow& row : r.ledger) {
-    if (row.phase == phase) return row.steps;
+    if (row.phase == FitPhaseName(phase)) return row.steps;
   }
   return 0;
 }

@@ -87,21 +87,21 @@ TEST(FitLedgerTest, SpringMassFitLedgerAddsUpAndTheEstimateCostsNoSteps) {
     by_phase[row.phase] = row;
   }
   EXPECT_EQ(steps, r.simulation_steps);
-  for (const char* phase : {kPhasePrepare, kPhaseJacobians, kPhaseTrials, kPhaseSolver,
-                            kPhaseEstimate, kPhaseIntervalCheck, kPhaseSignals}) {
-    EXPECT_EQ(by_phase.count(phase), 1u) << phase;
+  for (FitPhase phase : {kPhasePrepare, kPhaseJacobians, kPhaseTrials, kPhaseSolver, kPhaseEstimate,
+                         kPhaseIntervalCheck, kPhaseSignals}) {
+    EXPECT_EQ(by_phase.count(FitPhaseName(phase)), 1u) << FitPhaseName(phase);
   }
   // the input checks: one rollout and two directional columns of 1000 steps (the horizon probe
   // adds its own); their Jacobian is the solve's first, so the solve's Jacobians cost only
   // columns at accepted points: 2 x 1000 steps each
-  EXPECT_GE(by_phase[kPhasePrepare].steps, 3000);
-  EXPECT_EQ(by_phase[kPhaseJacobians].steps % 2000, 0);
-  EXPECT_EQ(by_phase[kPhaseTrials].steps % 1000, 0);
-  EXPECT_EQ(by_phase[kPhaseEstimate].steps, 0);  // the last iterate, from the cache
-  EXPECT_EQ(by_phase[kPhaseSignals].steps, 0);   // the final signals, from the cache
+  EXPECT_GE(by_phase[FitPhaseName(kPhasePrepare)].steps, 3000);
+  EXPECT_EQ(by_phase[FitPhaseName(kPhaseJacobians)].steps % 2000, 0);
+  EXPECT_EQ(by_phase[FitPhaseName(kPhaseTrials)].steps % 1000, 0);
+  EXPECT_EQ(by_phase[FitPhaseName(kPhaseEstimate)].steps, 0);  // the last iterate, from the cache
+  EXPECT_EQ(by_phase[FitPhaseName(kPhaseSignals)].steps, 0);   // the final signals, from the cache
   // the interval check: the rollouts have no constraint row (a smooth cost), so it is skipped
   // along both simulator parameters and says so (the limited spring below runs it)
-  EXPECT_EQ(by_phase[kPhaseIntervalCheck].steps, 0);
+  EXPECT_EQ(by_phase[FitPhaseName(kPhaseIntervalCheck)].steps, 0);
   EXPECT_EQ(r.interval_check.rfind("skipped along 2 of the 2 simulator parameters", 0), 0u)
       << r.interval_check;
   // fitted again (new simulators, step counts from 0): the same ledger, no negative row
@@ -126,7 +126,7 @@ TEST(FitLedgerTest, BatchTimeIsPartOfThePhaseThatSimulates) {
     long long batches = 0, folds = 0;
     for (const LedgerRow& row : r.ledger) {
       batches += row.batches;
-      if (row.phase == kPhaseFolds) {
+      if (row.phase == FitPhaseName(kPhaseFolds)) {
         // the compressed blocks' folds ahead: one batch per Jacobian, without steps
         EXPECT_EQ(row.steps, 0);
         EXPECT_GT(row.batches, 0) << "at " << threads;
@@ -172,13 +172,13 @@ TEST(FitLedgerTest, TheIntervalCheckRunsWhereConstraintRowsComeAndGo) {
   const FitResult r = problem.Fit(o);
   long long check_steps = -1;
   for (const LedgerRow& row : r.ledger) {
-    if (row.phase == kPhaseIntervalCheck) check_steps = row.steps;
+    if (row.phase == FitPhaseName(kPhaseIntervalCheck)) check_steps = row.steps;
   }
   EXPECT_EQ(check_steps, 4000);
   // the +- one standard error of each parameter in one batch: 2 rollouts, one round on 2 workers
   long long check_critical = -1;
   for (const LedgerRow& row : r.ledger) {
-    if (row.phase == kPhaseIntervalCheck) check_critical = row.critical_steps;
+    if (row.phase == FitPhaseName(kPhaseIntervalCheck)) check_critical = row.critical_steps;
   }
   EXPECT_EQ(check_critical, 2000);
   EXPECT_EQ(r.interval_check.rfind("ran: 4 cost evaluations (constraint rows come, go", 0), 0u)
@@ -206,15 +206,17 @@ TEST(FitLedgerTest, CriticalStepsAtTwoWorkersAreExactAndThreadIndependent) {
   }
   std::map<std::string, LedgerRow> by_phase;
   for (const LedgerRow& row : ledgers[0]) by_phase[row.phase] = row;
-  const LedgerRow& jac = by_phase[kPhaseJacobians];
+  const LedgerRow& jac = by_phase[FitPhaseName(kPhaseJacobians)];
   ASSERT_GT(jac.steps, 0);
   EXPECT_EQ(jac.critical_steps * 2, jac.steps);
-  const LedgerRow& trials = by_phase[kPhaseTrials];
+  const LedgerRow& trials = by_phase[FitPhaseName(kPhaseTrials)];
   EXPECT_GT(trials.steps, 0);
   EXPECT_EQ(trials.critical_steps, trials.steps);
   // the interval check is skipped on these smooth rollouts (its batches: the limited spring above)
-  EXPECT_EQ(by_phase[kPhaseIntervalCheck].steps, 0);
-  EXPECT_EQ(by_phase[kPhasePrepare].steps - by_phase[kPhasePrepare].critical_steps, 1000);
+  EXPECT_EQ(by_phase[FitPhaseName(kPhaseIntervalCheck)].steps, 0);
+  EXPECT_EQ(by_phase[FitPhaseName(kPhasePrepare)].steps -
+                by_phase[FitPhaseName(kPhasePrepare)].critical_steps,
+            1000);
   const std::string table = FormatLedger(ledgers[0], 1000);
   EXPECT_NE(table.find("2w model"), std::string::npos);
 }
@@ -265,13 +267,13 @@ TEST(FitLedgerTest, ColumnsAheadAreTheSameFitAndTheirUnusedStepsAreCounted) {
     steps += row.steps;
   }
   EXPECT_EQ(steps, two.simulation_steps);
-  for (const LedgerRow& row : one.ledger) EXPECT_NE(row.phase, kPhaseAheadUnused);
-  ASSERT_EQ(by_phase.count(kPhaseAheadUnused), 1u);
-  const long long unused = by_phase[kPhaseAheadUnused].steps;
+  for (const LedgerRow& row : one.ledger) EXPECT_NE(row.phase, FitPhaseName(kPhaseAheadUnused));
+  ASSERT_EQ(by_phase.count(FitPhaseName(kPhaseAheadUnused)), 1u);
+  const long long unused = by_phase[FitPhaseName(kPhaseAheadUnused)].steps;
   EXPECT_GT(unused, 0);  // the last trial's column at least
   EXPECT_EQ(unused % 500, 0);
   EXPECT_EQ(two.simulation_steps - one.simulation_steps, unused);
-  const LedgerRow& jac = by_phase[kPhaseJacobians];
+  const LedgerRow& jac = by_phase[FitPhaseName(kPhaseJacobians)];
   EXPECT_EQ(jac.steps % 4000, 0);  // 8 columns of 500 steps per Jacobian
   EXPECT_EQ(jac.critical_steps * 2, jac.steps);
 }
