@@ -98,7 +98,7 @@ SequenceResult WithStateColumns(const SequenceResult& s) {
   return out;
 }
 
-std::string ReductionText(const FitResult::Reduction& r) {
+std::string ReductionText(const FitResult::Diagnostics::Reduction& r) {
   if (!r.used) return "off (solver.reduce_model: false)";
   std::string s = "collision pairs off " + std::to_string(r.collision_pairs_off) + " of " +
                   std::to_string(r.collision_pairs) + ", geoms off " + std::to_string(r.geoms_off) +

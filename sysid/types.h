@@ -433,9 +433,7 @@ struct FitResult {
   std::vector<IterationInfo> trace;
   std::vector<SequenceResult> sequences;
   std::vector<std::string> warnings;
-  double seconds = 0;              // wall time of the fit
-  long long simulation_steps = 0;  // step calls of all simulators (Simulator::StepCount)
-  std::string jacobian_mode;       // the core mode used
+  double seconds = 0;  // wall time of the fit
   // held-out sequences (experiment `validation:`), simulated at the start and at the estimate,
   // never fitted (sysid/run/validation.h); x0 as logged
   std::vector<SequenceResult> validation;
@@ -452,21 +450,6 @@ struct FitResult {
   // fitted through body_inertial its mass, centre of mass and principal moments, with delta-method
   // intervals; empty when nothing is derived
   std::vector<DerivedQuantity> derived;
-  // the reduced model (FitOptions::reduce_model, core/reduced_model.h), summed over the models:
-  // whether it was used, candidate collision pairs and those switched off, geoms switched off,
-  // the MuJoCo features switched off (e.g. "island", "contact"), and the calls the guard made
-  // simulate again with the full model (then the reduction was dropped for the rest of the fit)
-  struct Reduction {
-    bool recorded = false;  // false: a result written before the reduced model (nothing known)
-    bool used = false;
-    int collision_pairs = 0, collision_pairs_off = 0, geoms_off = 0;
-    std::vector<std::string> disabled;
-    int guard_trips = 0;
-  };
-  Reduction reduction;
-  // the fit's steps and seconds by phase (sysid/solve/fit_ledger.h); rows add up to
-  // simulation_steps
-  std::vector<LedgerRow> ledger;
   // whether the interval check (sysid/assess/interval_check.h) ran, along which variables and why,
   // one line; empty when the uncertainty step did not run
   std::string interval_check;
@@ -483,24 +466,48 @@ struct FitResult {
   // sysid/solve/gn_convergence.h): converged with the point, possibly the start, already within the
   // fraction of every standard error of the Gauss-Newton optimum
   bool gauss_newton_converged = false;
-  // the statistical stop fired before the estimate's Jacobian (FitOptions::
-  // advanced.gauss_newton_stop_before_jacobian): the covariance, standard errors and result's
-  // jacobian come from the previous iterate's Jacobian (iteration covariance_jacobian_iteration)
-  // with the residuals, cost and s^2 at the estimate; last_step_std_errors: the last step's largest
-  // |x_{k+1,i} - x_{k,i}| / s_i. -1 and NaN: the Jacobian is the estimate's own.
-  int covariance_jacobian_iteration = -1;
-  double last_step_std_errors = std::numeric_limits<double>::quiet_NaN();
-  // the compressed blocks (FitOptions::advanced.reuse_folds): Jacobian requests answered
-  // with a block's last fold instead of a re-fold, and the folds made
-  // (sysid/solve/compressed_cost.h)
-  long long reused_folds = 0;
-  long long folds = 0;
-  // of the folds, those made ahead on the simulator's workers (FitOptions::advanced.fold_ahead)
-  long long ahead_folds = 0;
+
+  // How the fit got its answer, not the answer: the simulation it cost, the Jacobian mode, the
+  // reduced model, the ledger, where the covariance's Jacobian came from and the compressed
+  // blocks' folds. For benchmarks, tests and the curious (result.yaml keeps some of it).
+  struct Diagnostics {
+    long long simulation_steps = 0;  // step calls of all simulators (Simulator::StepCount)
+    std::string jacobian_mode;       // the core mode used
+    // the reduced model (FitOptions::reduce_model, core/reduced_model.h), summed over the models:
+    // whether it was used, candidate collision pairs and those switched off, geoms switched off,
+    // the MuJoCo features switched off (e.g. "island", "contact"), and the calls the guard made
+    // simulate again with the full model (then the reduction was dropped for the rest of the fit)
+    struct Reduction {
+      bool recorded = false;  // false: a result written before the reduced model (nothing known)
+      bool used = false;
+      int collision_pairs = 0, collision_pairs_off = 0, geoms_off = 0;
+      std::vector<std::string> disabled;
+      int guard_trips = 0;
+    };
+    Reduction reduction;
+    // the fit's steps and seconds by phase (sysid/solve/fit_ledger.h); rows add up to
+    // simulation_steps
+    std::vector<LedgerRow> ledger;
+    // the statistical stop fired before the estimate's Jacobian (FitOptions::
+    // advanced.gauss_newton_stop_before_jacobian): the covariance, standard errors and result's
+    // jacobian come from the previous iterate's Jacobian (iteration covariance_jacobian_iteration)
+    // with the residuals, cost and s^2 at the estimate; last_step_std_errors: the last step's
+    // largest |x_{k+1,i} - x_{k,i}| / s_i. -1 and NaN: the Jacobian is the estimate's own.
+    int covariance_jacobian_iteration = -1;
+    double last_step_std_errors = std::numeric_limits<double>::quiet_NaN();
+    // the compressed blocks (FitOptions::advanced.reuse_folds): Jacobian requests answered
+    // with a block's last fold instead of a re-fold, and the folds made
+    // (sysid/solve/compressed_cost.h)
+    long long reused_folds = 0;
+    long long folds = 0;
+    // of the folds, those made ahead on the simulator's workers (FitOptions::advanced.fold_ahead)
+    long long ahead_folds = 0;
+  };
+  Diagnostics diagnostics;
 };
 
 // one line for a user, e.g. "collision pairs off 3 of 4, geoms off 2, disabled [island], guard
 // trips 0", or "off (solver.reduce_model: false)"
-std::string ReductionText(const FitResult::Reduction& r);
+std::string ReductionText(const FitResult::Diagnostics::Reduction& r);
 
 }  // namespace mjsysid

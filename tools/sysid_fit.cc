@@ -122,8 +122,9 @@ void PrintEstimates(const mjsysid::io::FitResultFile& f, bool verbose) {
   if (verbose) {
     std::printf("  stopped: %s\n", f.termination.c_str());
     if (!f.segment_reason.empty()) std::printf("  segments: %s\n", f.segment_reason.c_str());
-    if (f.reduction.recorded) {
-      std::printf("  reduced model: %s\n", mjsysid::ReductionText(f.reduction).c_str());
+    const mjsysid::FitResult::Diagnostics::Reduction& reduction = f.diagnostics.reduction;
+    if (reduction.recorded) {
+      std::printf("  reduced model: %s\n", mjsysid::ReductionText(reduction).c_str());
     }
   }
   std::printf("  %-24s %14s %14s %14s %12s  %-29s %s\n", "parameter", "initial", "estimate",

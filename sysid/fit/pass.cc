@@ -82,7 +82,7 @@ void FitPass::Start() {
   ledger_.Enter(kPhaseSetup);
   np_ = static_cast<int>(I_.params.size());
   nm_ = static_cast<int>(I_.m.size());
-  result_.jacobian_mode = plan_.jacobian_mode;
+  result_.diagnostics.jacobian_mode = plan_.jacobian_mode;
   result_.segment_steps_used = plan_.segment_steps;
   result_.segment_reason = SegmentReasonText(plan_.segments);
   result_.event_windows = plan_.event_windows;
@@ -109,10 +109,10 @@ void FitPass::Decide() {
   }
   DecideFitStatus(options_, accepted_steps, !I_.jacobian_warnings.empty(), &result_,
                   cost_not_local_, jacobian_warned_at_estimate_);
-  for (const auto& mo : I_.models) result_.simulation_steps += mo.sim->StepCount();
+  for (const auto& mo : I_.models) result_.diagnostics.simulation_steps += mo.sim->StepCount();
   // what the reduced models switched off, summed over the models
-  FitResult::Reduction& r = result_.reduction;
-  r = FitResult::Reduction();
+  FitResult::Diagnostics::Reduction& r = result_.diagnostics.reduction;
+  r = FitResult::Diagnostics::Reduction();
   r.recorded = true;
   r.used = options_.reduce_model;
   for (const auto& mo : I_.models) {
@@ -127,7 +127,7 @@ void FitPass::Decide() {
       }
     }
   }
-  result_.ledger = ledger_.Finish();
+  result_.diagnostics.ledger = ledger_.Finish();
   result_.seconds = Seconds();
 }
 

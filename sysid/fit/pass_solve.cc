@@ -58,8 +58,8 @@ void FitPass::RecordSolve() {
       !result_.interrupted;
   result_.termination = result_.gauss_newton_converged ? gn_stop_->Message() : summary_.message;
   if (previous_jacobian_) {
-    result_.covariance_jacobian_iteration = gn_stop_->previous_iteration();
-    result_.last_step_std_errors = gn_stop_->last().step_ratio;
+    result_.diagnostics.covariance_jacobian_iteration = gn_stop_->previous_iteration();
+    result_.diagnostics.last_step_std_errors = gn_stop_->last().step_ratio;
   }
   // sharded (sysid/mpi/): the uncompressed rows, with the priors'; compressed blocks: the rows
   // they stand for

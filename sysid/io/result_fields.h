@@ -103,7 +103,7 @@ void VisitResultFields(V& v, R& r) {
   v.Text({"created"}, r.created);
   v.Text({"mjsysid_version"}, r.mjsysid_version);
   v.Text({"mujoco_version"}, r.mujoco_version);
-  v.Text({"jacobian_mode"}, r.jacobian_mode);
+  v.Text({"jacobian_mode"}, r.diagnostics.jacobian_mode);
   v.Text({"run_id", Presence::kWhenSet, true}, r.run_id);
   // whether std and ci95 mean something (only for status converged); absent: valid when converged
   v.Bool({"intervals_valid", Presence::kOptional, true}, r.intervals_valid);
@@ -122,9 +122,9 @@ void VisitResultFields(V& v, R& r) {
   // the statistical stop before the last Jacobian (sysid/solve/gn_convergence.h): the covariance's
   // Jacobian is the previous iterate's; absent: the estimate's own
   v.Map({"covariance_jacobian", Presence::kWhenSet}, Style::kBlock,
-        r.covariance_jacobian_iteration >= 0, [&](auto& m) {
-          m.Int({"iteration"}, r.covariance_jacobian_iteration);
-          m.Number({"last_step_std_errors"}, r.last_step_std_errors);
+        r.diagnostics.covariance_jacobian_iteration >= 0, [&](auto& m) {
+          m.Int({"iteration"}, r.diagnostics.covariance_jacobian_iteration);
+          m.Number({"last_step_std_errors"}, r.diagnostics.last_step_std_errors);
         });
   // auto's contact segments: the cells next to contact events left out (sysid/data/event_windows.h)
   v.Map({"event_windows", Presence::kWhenSet}, Style::kBlock, r.event_windows.masked > 0,
@@ -154,14 +154,15 @@ void VisitResultFields(V& v, R& r) {
            [](auto& e, auto& s) { VisitSpreadFields(e, s); });
   });
   // the reduced model (FitOptions::reduce_model, core/reduced_model.h)
-  v.Map({"reduced", Presence::kWhenSet}, Style::kFlow, r.reduction.recorded, [&](auto& m) {
-    MarkPresent(r.reduction.recorded);
-    m.Bool({"used"}, r.reduction.used);
-    m.Int({"collision_pairs"}, r.reduction.collision_pairs);
-    m.Int({"collision_pairs_off"}, r.reduction.collision_pairs_off);
-    m.Int({"geoms_off"}, r.reduction.geoms_off);
-    m.Texts({"disabled"}, Style::kFlow, r.reduction.disabled);
-    m.Int({"guard_trips"}, r.reduction.guard_trips);
+  auto& reduction = r.diagnostics.reduction;
+  v.Map({"reduced", Presence::kWhenSet}, Style::kFlow, reduction.recorded, [&](auto& m) {
+    MarkPresent(reduction.recorded);
+    m.Bool({"used"}, reduction.used);
+    m.Int({"collision_pairs"}, reduction.collision_pairs);
+    m.Int({"collision_pairs_off"}, reduction.collision_pairs_off);
+    m.Int({"geoms_off"}, reduction.geoms_off);
+    m.Texts({"disabled"}, Style::kFlow, reduction.disabled);
+    m.Int({"guard_trips"}, reduction.guard_trips);
   });
 }
 

@@ -29,7 +29,8 @@ inline const std::string& KindModels() {
 inline void Print(const FitResult& r) {
   std::printf("[ measured ] cost %.3e -> %.3e in %d iterations (%s), %.2f s, jacobian %s\n",
               r.initial_cost, r.final_cost, r.iterations,
-              r.converged ? "converged" : "NOT converged", r.seconds, r.jacobian_mode.c_str());
+              r.converged ? "converged" : "NOT converged", r.seconds,
+              r.diagnostics.jacobian_mode.c_str());
   for (const auto& p : r.parameters) {
     std::printf("[ measured ]   %-10s %.9g (from %.4g) +- %.3g [%.6g, %.6g]\n", p.name.c_str(),
                 p.value, p.initial, p.std_error, p.ci95_low, p.ci95_high);

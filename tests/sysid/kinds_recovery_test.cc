@@ -97,7 +97,7 @@ TEST(KindsRecoveryTest, ServoGainsAndDelayNoiseFree) {
   const FitResult r = problem.Fit(FitOptions());
   Print(r);
   EXPECT_TRUE(r.converged) << r.termination;
-  EXPECT_EQ(r.jacobian_mode, "whole_rollout");
+  EXPECT_EQ(r.diagnostics.jacobian_mode, "whole_rollout");
   for (const Truth& t : truth) {
     EXPECT_NEAR(Estimate(r, t.name).value / t.value, 1.0, 1e-6) << t.name;
   }

@@ -30,7 +30,8 @@ using test::Truth;
 void Print(const FitResult& r) {
   std::printf("[ measured ] cost %.3e -> %.3e in %d iterations (%s), %.2f s, jacobian %s\n",
               r.initial_cost, r.final_cost, r.iterations,
-              r.converged ? "converged" : "NOT converged", r.seconds, r.jacobian_mode.c_str());
+              r.converged ? "converged" : "NOT converged", r.seconds,
+              r.diagnostics.jacobian_mode.c_str());
   std::printf("[ measured ]   %s\n", r.segment_reason.c_str());
   for (const auto& p : r.parameters) {
     std::printf("[ measured ]   %-14s %.9g (from %.4g) +- %.3g%s\n", p.name.c_str(), p.value,

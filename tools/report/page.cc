@@ -279,7 +279,7 @@ std::string Page(const FitResultFile& r, const std::vector<std::string>& sequenc
       {"residual variance", HtmlNum(r.uncertainty.residual_variance)},
       {"residuals", std::to_string(r.num_residuals)},
       {"wall time", HtmlNum(r.seconds, 4) + " s"},
-      {"jacobian", HtmlEscape(r.jacobian_mode)},
+      {"jacobian", HtmlEscape(r.diagnostics.jacobian_mode)},
       {"versions",
        "mjsysid " + HtmlEscape(r.mjsysid_version) + ", MuJoCo " + HtmlEscape(r.mujoco_version)}};
   h << "<table class=\"facts\">\n";

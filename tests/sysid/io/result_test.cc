@@ -109,7 +109,7 @@ FitResultFile FullResult() {
   r.created = "2024-05-01T12:00:00Z";
   r.mjsysid_version = "0.1.0";
   r.mujoco_version = "4.0.0";
-  r.jacobian_mode = "analytic";
+  r.diagnostics.jacobian_mode = "analytic";
   r.iterations = 7;
   r.num_residuals = 8000;
   r.initial_cost = 1.0 / 3.0;
@@ -223,7 +223,7 @@ void ExpectSame(const FitResultFile& a, const FitResultFile& b) {
   EXPECT_EQ(a.created, b.created);
   EXPECT_EQ(a.mjsysid_version, b.mjsysid_version);
   EXPECT_EQ(a.mujoco_version, b.mujoco_version);
-  EXPECT_EQ(a.jacobian_mode, b.jacobian_mode);
+  EXPECT_EQ(a.diagnostics.jacobian_mode, b.diagnostics.jacobian_mode);
   EXPECT_EQ(a.iterations, b.iterations);
   EXPECT_EQ(a.num_residuals, b.num_residuals);
   EXPECT_EQ(a.initial_cost, b.initial_cost);
@@ -362,15 +362,15 @@ TEST_F(ResultTest, EventWindowsRoundTripAndAreAbsentWhenNone) {
 TEST_F(ResultTest, CovarianceJacobianRoundTripsAndIsAbsentWhenTheEstimates) {
   FitResultFile r = FullResult();
   WriteBoth(r);
-  EXPECT_EQ(ReadResult(Dir()).covariance_jacobian_iteration, -1);
-  EXPECT_TRUE(std::isnan(ReadResult(Dir()).last_step_std_errors));
+  EXPECT_EQ(ReadResult(Dir()).diagnostics.covariance_jacobian_iteration, -1);
+  EXPECT_TRUE(std::isnan(ReadResult(Dir()).diagnostics.last_step_std_errors));
   EXPECT_EQ(test::ReadFile(Dir() + "/result.yaml").find("covariance_jacobian"), std::string::npos);
-  r.covariance_jacobian_iteration = 4;
-  r.last_step_std_errors = 0.265;
+  r.diagnostics.covariance_jacobian_iteration = 4;
+  r.diagnostics.last_step_std_errors = 0.265;
   WriteBoth(r);
   const FitResultFile back = ReadResult(Dir());
-  EXPECT_EQ(back.covariance_jacobian_iteration, 4);
-  EXPECT_EQ(back.last_step_std_errors, 0.265);
+  EXPECT_EQ(back.diagnostics.covariance_jacobian_iteration, 4);
+  EXPECT_EQ(back.diagnostics.last_step_std_errors, 0.265);
 }
 
 // every field of the table in sysid/io/result_fields.h, the optional ones set to values other
@@ -383,8 +383,8 @@ TEST_F(ResultTest, EveryFieldOfTheTableIsReadBackAsWritten) {
   r.segment_steps_used = 25;
   r.segment_reason = "auto: growth beyond linear after 25 steps";
   r.interval_check = "ran along 2 variables: the cost is rugged";
-  r.covariance_jacobian_iteration = 3;
-  r.last_step_std_errors = 0.125;
+  r.diagnostics.covariance_jacobian_iteration = 3;
+  r.diagnostics.last_step_std_errors = 0.125;
   r.event_windows = {2, 76, 771, {"torso_gyro", "leg_vel"}};
   DerivedQuantity mass;
   mass.name = "payload.mass";
@@ -400,13 +400,13 @@ TEST_F(ResultTest, EveryFieldOfTheTableIsReadBackAsWritten) {
   com.unit = "m";
   com.truth.reset();
   r.derived = {mass, com};
-  r.reduction.recorded = true;
-  r.reduction.used = true;
-  r.reduction.collision_pairs = 12;
-  r.reduction.collision_pairs_off = 5;
-  r.reduction.geoms_off = 3;
-  r.reduction.disabled = {"island", "contact"};
-  r.reduction.guard_trips = 1;
+  r.diagnostics.reduction.recorded = true;
+  r.diagnostics.reduction.used = true;
+  r.diagnostics.reduction.collision_pairs = 12;
+  r.diagnostics.reduction.collision_pairs_off = 5;
+  r.diagnostics.reduction.geoms_off = 3;
+  r.diagnostics.reduction.disabled = {"island", "contact"};
+  r.diagnostics.reduction.guard_trips = 1;
   WriteBoth(r);
   const std::string first = ReadFile(Path("result.yaml"));
 
@@ -416,7 +416,7 @@ TEST_F(ResultTest, EveryFieldOfTheTableIsReadBackAsWritten) {
   EXPECT_EQ(back.run_id, r.run_id);
   EXPECT_FALSE(back.intervals_valid);
   EXPECT_EQ(back.derived.size(), 2u);
-  EXPECT_TRUE(back.reduction.recorded);
+  EXPECT_TRUE(back.diagnostics.reduction.recorded);
   WriteBoth(back);
   EXPECT_EQ(ReadFile(Path("result.yaml")), first);
   const FitResultFile again = ReadResultFiles(Path("result.yaml"), Path("result.h5"));
@@ -457,7 +457,7 @@ TEST_F(ResultTest, RoundTripOfAnEmptyishResultAndOddText) {
   r.created = "~";
   r.mjsysid_version = "1.0";
   r.mujoco_version = "#x";
-  r.jacobian_mode = " padded ";
+  r.diagnostics.jacobian_mode = " padded ";
   r.solver = {{"true", "false"}, {"k", ""}, {"ü", "[1, 2]"}};
   ParameterEstimate p;
   p.name = "0.5";

@@ -82,11 +82,11 @@ TEST(FitLedgerTest, SpringMassFitLedgerAddsUpAndTheEstimateCostsNoSteps) {
   EXPECT_NEAR(test::Estimate(r, "damping").value, 0.3, 3e-4);
   long long steps = 0;
   std::map<std::string, LedgerRow> by_phase;
-  for (const LedgerRow& row : r.ledger) {
+  for (const LedgerRow& row : r.diagnostics.ledger) {
     steps += row.steps;
     by_phase[row.phase] = row;
   }
-  EXPECT_EQ(steps, r.simulation_steps);
+  EXPECT_EQ(steps, r.diagnostics.simulation_steps);
   for (const char* phase : {kPhasePrepare, kPhaseJacobians, kPhaseTrials, kPhaseSolver,
                             kPhaseEstimate, kPhaseIntervalCheck, kPhaseSignals}) {
     EXPECT_EQ(by_phase.count(phase), 1u) << phase;
@@ -107,12 +107,12 @@ TEST(FitLedgerTest, SpringMassFitLedgerAddsUpAndTheEstimateCostsNoSteps) {
   // fitted again (new simulators, step counts from 0): the same ledger, no negative row
   const FitResult again = problem.Fit(o);
   long long again_steps = 0;
-  for (const LedgerRow& row : again.ledger) {
+  for (const LedgerRow& row : again.diagnostics.ledger) {
     EXPECT_GE(row.steps, 0) << row.phase;
     again_steps += row.steps;
   }
-  EXPECT_EQ(again_steps, again.simulation_steps);
-  EXPECT_EQ(again.simulation_steps, r.simulation_steps);
+  EXPECT_EQ(again_steps, again.diagnostics.simulation_steps);
+  EXPECT_EQ(again.diagnostics.simulation_steps, r.diagnostics.simulation_steps);
 }
 
 // The time inside the simulators' batches (core/thread_pool.h, PoolTime) in the ledger: a phase
@@ -124,7 +124,7 @@ TEST(FitLedgerTest, BatchTimeIsPartOfThePhaseThatSimulates) {
     const FitResult r = SpringMassFit(&problem, threads);
     ASSERT_TRUE(r.converged) << r.termination;
     long long batches = 0, folds = 0;
-    for (const LedgerRow& row : r.ledger) {
+    for (const LedgerRow& row : r.diagnostics.ledger) {
       batches += row.batches;
       if (row.phase == kPhaseFolds) {
         // the compressed blocks' folds ahead: one batch per Jacobian, without steps
@@ -152,8 +152,8 @@ TEST(FitLedgerTest, BatchTimeIsPartOfThePhaseThatSimulates) {
     }
     EXPECT_GT(batches, 0);
     EXPECT_GT(folds, 0);
-    EXPECT_LE(folds, r.ahead_folds);  // each batch at least one block's fold
-    EXPECT_NE(FormatLedger(r.ledger, 1000).find("serial s"), std::string::npos);
+    EXPECT_LE(folds, r.diagnostics.ahead_folds);  // each batch at least one block's fold
+    EXPECT_NE(FormatLedger(r.diagnostics.ledger, 1000).find("serial s"), std::string::npos);
   }
 }
 
@@ -171,13 +171,13 @@ TEST(FitLedgerTest, TheIntervalCheckRunsWhereConstraintRowsComeAndGo) {
   o.threads = 1;
   const FitResult r = problem.Fit(o);
   long long check_steps = -1;
-  for (const LedgerRow& row : r.ledger) {
+  for (const LedgerRow& row : r.diagnostics.ledger) {
     if (row.phase == kPhaseIntervalCheck) check_steps = row.steps;
   }
   EXPECT_EQ(check_steps, 4000);
   // the +- one standard error of each parameter in one batch: 2 rollouts, one round on 2 workers
   long long check_critical = -1;
-  for (const LedgerRow& row : r.ledger) {
+  for (const LedgerRow& row : r.diagnostics.ledger) {
     if (row.phase == kPhaseIntervalCheck) check_critical = row.critical_steps;
   }
   EXPECT_EQ(check_critical, 2000);
@@ -196,7 +196,7 @@ TEST(FitLedgerTest, CriticalStepsAtTwoWorkersAreExactAndThreadIndependent) {
     Problem problem;
     const FitResult r = SpringMassFit(&problem, threads);
     ASSERT_TRUE(r.converged) << r.termination;
-    ledgers.push_back(r.ledger);
+    ledgers.push_back(r.diagnostics.ledger);
   }
   ASSERT_EQ(ledgers[0].size(), ledgers[1].size());
   for (size_t i = 0; i < ledgers[0].size(); ++i) {
@@ -260,17 +260,17 @@ TEST(FitLedgerTest, ColumnsAheadAreTheSameFitAndTheirUnusedStepsAreCounted) {
   }
   std::map<std::string, LedgerRow> by_phase;
   long long steps = 0;
-  for (const LedgerRow& row : two.ledger) {
+  for (const LedgerRow& row : two.diagnostics.ledger) {
     by_phase[row.phase] = row;
     steps += row.steps;
   }
-  EXPECT_EQ(steps, two.simulation_steps);
-  for (const LedgerRow& row : one.ledger) EXPECT_NE(row.phase, kPhaseAheadUnused);
+  EXPECT_EQ(steps, two.diagnostics.simulation_steps);
+  for (const LedgerRow& row : one.diagnostics.ledger) EXPECT_NE(row.phase, kPhaseAheadUnused);
   ASSERT_EQ(by_phase.count(kPhaseAheadUnused), 1u);
   const long long unused = by_phase[kPhaseAheadUnused].steps;
   EXPECT_GT(unused, 0);  // the last trial's column at least
   EXPECT_EQ(unused % 500, 0);
-  EXPECT_EQ(two.simulation_steps - one.simulation_steps, unused);
+  EXPECT_EQ(two.diagnostics.simulation_steps - one.diagnostics.simulation_steps, unused);
   const LedgerRow& jac = by_phase[kPhaseJacobians];
   EXPECT_EQ(jac.steps % 4000, 0);  // 8 columns of 500 steps per Jacobian
   EXPECT_EQ(jac.critical_steps * 2, jac.steps);
