@@ -389,7 +389,15 @@ NB_MODULE(_mjsysid, m) {
       .def_ro("intervals_valid", &FitResult::intervals_valid)
       .def_ro("chi2_ratio", &FitResult::chi2_ratio)
       .def_ro("sensor_chi2_ratio", &FitResult::sensor_chi2_ratio)
-      .def_ro("termination", &FitResult::termination)
+      .def_prop_ro(
+          "termination", [](const FitResult& r) { return TerminationText(r.termination); },
+          "why the optimiser stopped, one line (result.yaml's termination)")
+      .def_prop_ro(
+          "termination_kind",
+          [](const FitResult& r) { return TerminationKindName(r.termination.kind); },
+          "solver_convergence, iteration_limit, solver_failure, callback_stop, callback_abort, "
+          "gauss_newton_stop, interrupted, checkpoint; none (no solve) or unknown (a file "
+          "written before the kinds)")
       .def_ro("num_residuals", &FitResult::num_residuals)
       .def_prop_ro("covariance",
                    [](const FitResult& r) -> Eigen::MatrixXd { return r.uncertainty.covariance; })
@@ -403,8 +411,9 @@ NB_MODULE(_mjsysid, m) {
       .def_ro("seconds", &FitResult::seconds)
       .def_ro("segment_steps_used", &FitResult::segment_steps_used,
               "multiple shooting: steps per segment (0: single shooting)")
-      .def_ro("segment_reason", &FitResult::segment_reason,
-              "why (multiple_shooting: auto's choice, or the given segment_steps)")
+      .def_prop_ro(
+          "segment_reason", [](const FitResult& r) { return SegmentReasonText(r.segment_reason); },
+          "why (multiple_shooting: auto's choice, or the given segment_steps)")
       .def_ro("gauss_newton_converged", &FitResult::gauss_newton_converged,
               "ended by the statistical stop (gauss_newton_stop, docs/numerics.md \"Stopping\")")
       .def_ro("diagnostics", &FitResult::diagnostics,

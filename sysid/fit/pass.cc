@@ -84,7 +84,7 @@ void FitPass::Start() {
   nm_ = static_cast<int>(I_.m.size());
   result_.diagnostics.jacobian_mode = plan_.jacobian_mode;
   result_.segment_steps_used = plan_.segment_steps;
-  result_.segment_reason = SegmentReasonText(plan_.segments);
+  result_.segment_reason = plan_.segments;
   result_.event_windows = plan_.event_windows;
   result_.warnings = I_.prepare_warnings;
   result_.warnings.insert(result_.warnings.end(), start_notes.begin(), start_notes.end());

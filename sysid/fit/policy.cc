@@ -32,9 +32,7 @@ FitResult Refit(Problem::Impl* impl, const FitOptions& options, int steps,
   FitPass pass(impl, segmented);
   pass.Solve();  // (segment_steps set: never stops for a Jacobian warning)
   pass.Assess();
-  SegmentRecord record = pass.plan().segments;
-  record.choice = reason;
-  pass.result().segment_reason = SegmentReasonText(record);
+  pass.result().segment_reason.choice = reason;
   return std::move(pass.result());
 }
 

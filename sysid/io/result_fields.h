@@ -10,7 +10,9 @@
 //   Texts(K, Style, list of text), TextMap(K, Style, map of text), Map(K, Style, written, f: a
 //   nested map whose fields f(visitor) lists), List(K, Style of the entries, vector, f: one map per
 //   entry, f(visitor, entry) lists its fields), FitMetrics(K, result: written only, recomputed from
-//   result.h5 when read).
+//   result.h5 when read), Record(K, kind key, record: a record of the result written as its text
+//   under K, then its kind's name under the kind key when known, a kind key {nullptr} for a record
+//   without kinds; see RecordText below).
 #pragma once
 
 #include <Eigen/Core>
@@ -42,6 +44,59 @@ struct FieldKey {
   Presence presence = Presence::kRequired;
   bool h5 = false;  // also a root attribute of result.h5
 };
+
+// The records of FitResult (sysid/types.h) as result.yaml keeps them: the text (rendered by the
+// one function next to the type) and the kind's name ("": not written, kWhenSet). A record read
+// back keeps the text as read (read_text; the numbers are not in the file) and the kind; a file
+// without the kind key (written before the kinds) gives the kind kUnknown, an empty text the
+// record's default (nothing recorded). SetRecord is false for a kind name it does not know.
+inline std::string RecordText(const FitTermination& t) { return TerminationText(t); }
+inline std::string RecordKind(const FitTermination& t) {
+  const bool known =
+      t.kind != FitTermination::Kind::kNone && t.kind != FitTermination::Kind::kUnknown;
+  return known ? TerminationKindName(t.kind) : "";
+}
+inline bool SetRecord(const std::string& text, const std::optional<std::string>& kind,
+                      FitTermination* t) {
+  *t = FitTermination();
+  if (kind) {
+    const std::optional<FitTermination::Kind> k = TerminationKindFromName(*kind);
+    if (!k) return false;
+    t->kind = *k;
+  } else if (!text.empty()) {
+    t->kind = FitTermination::Kind::kUnknown;
+  }
+  t->read_text = text;
+  return true;
+}
+inline std::string RecordText(const IntervalCheckRecord& r) { return IntervalCheckText(r); }
+inline std::string RecordKind(const IntervalCheckRecord& r) {
+  const bool known =
+      r.kind != IntervalCheckRecord::Kind::kNotRun && r.kind != IntervalCheckRecord::Kind::kUnknown;
+  return known ? IntervalCheckKindName(r.kind) : "";
+}
+inline bool SetRecord(const std::string& text, const std::optional<std::string>& kind,
+                      IntervalCheckRecord* r) {
+  *r = IntervalCheckRecord();
+  if (kind) {
+    const std::optional<IntervalCheckRecord::Kind> k = IntervalCheckKindFromName(*kind);
+    if (!k) return false;
+    r->kind = *k;
+  } else if (!text.empty()) {
+    r->kind = IntervalCheckRecord::Kind::kUnknown;
+  }
+  r->read_text = text;
+  return true;
+}
+// the segments have no kind: the text read back is the record's choice
+inline std::string RecordText(const SegmentRecord& r) { return SegmentReasonText(r); }
+inline std::string RecordKind(const SegmentRecord&) { return ""; }
+inline bool SetRecord(const std::string& text, const std::optional<std::string>& kind,
+                      SegmentRecord* r) {
+  *r = SegmentRecord();
+  r->choice = text;
+  return !kind;
+}
 
 // a reader's note that an optional block was present (a writer's result is const)
 inline void MarkPresent(bool& flag) { flag = true; }
@@ -99,7 +154,7 @@ void VisitResultFields(V& v, R& r) {
   v.Text({"name"}, r.name);
   v.Text({"experiment"}, r.experiment);
   v.Text({"status", Presence::kRequired, true}, r.status);
-  v.Text({"termination"}, r.termination);
+  v.Record({"termination"}, {"termination_kind", Presence::kWhenSet}, r.termination);
   v.Text({"created"}, r.created);
   v.Text({"mjsysid_version"}, r.mjsysid_version);
   v.Text({"mujoco_version"}, r.mujoco_version);
@@ -115,10 +170,11 @@ void VisitResultFields(V& v, R& r) {
   v.Number({"wall_time_s"}, r.seconds);
   // multiple shooting as used (0: single shooting) and why
   v.Int({"segment_steps_used", Presence::kOptional}, r.segment_steps_used);
-  v.Text({"segment_reason", Presence::kOptional}, r.segment_reason);
+  v.Record({"segment_reason", Presence::kOptional}, {nullptr}, r.segment_reason);
   // whether the interval check ran and why (sysid/assess/interval_check.h); absent: no uncertainty
   // step
-  v.Text({"interval_check", Presence::kWhenSet}, r.interval_check);
+  v.Record({"interval_check", Presence::kWhenSet}, {"interval_check_kind", Presence::kWhenSet},
+           r.interval_check);
   // the statistical stop before the last Jacobian (sysid/solve/gn_convergence.h): the covariance's
   // Jacobian is the previous iterate's; absent: the estimate's own
   v.Map({"covariance_jacobian", Presence::kWhenSet}, Style::kBlock,

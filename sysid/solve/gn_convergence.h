@@ -68,6 +68,7 @@
 #include "sysid/assess/estimate_jacobian.h"
 #include "sysid/assess/uncertainty.h"
 #include "sysid/solve/fit_ledger.h"
+#include "sysid/types.h"
 
 namespace mjsysid {
 
@@ -136,9 +137,10 @@ class GaussNewtonStop : public ceres::IterationCallback {
   int previous_iteration() const { return previous_iteration_; }
   int tests() const { return tests_; }  // how many points were tested
   const GaussNewtonTest& last() const { return last_; }
-  // the termination message of a fired test, e.g. "converged: predicted Gauss-Newton step below
-  // 3 % of every standard error (largest 1.3 %, iteration 1)"
-  std::string Message() const;
+  // the termination record of a fired test (kGaussNewtonStop), whose text (TerminationText) is
+  // e.g. "converged: predicted Gauss-Newton step below 3 % of every standard error (largest
+  // 1.3 %, iteration 1)"
+  FitTermination Termination() const;
 
  private:
   const ceres::Problem* problem_;

@@ -289,6 +289,8 @@ def test_statistical_stop_is_reported(root, frames):  # noqa: F811
     assert stop.status == ceres.status == "converged"
     assert stop.gauss_newton_converged and not ceres.gauss_newton_converged
     assert "Gauss-Newton" in stop.termination, stop.termination
+    assert stop.termination_kind == "gauss_newton_stop", stop.termination_kind
+    assert ceres.termination_kind == "solver_convergence", ceres.termination
     assert ceres.diagnostics.covariance_jacobian_iteration == -1
     assert np.isnan(ceres.diagnostics.last_step_std_errors)
     assert 0 <= stop.diagnostics.covariance_jacobian_iteration == stop.iterations - 1, \

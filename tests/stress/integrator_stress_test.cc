@@ -141,7 +141,7 @@ TEST(IntegratorStressTest, ShortFitConvergesWithEveryIntegrator) {
     const double err = stress::WorstRelativeError(r, truth);
     std::printf("[ stress ] integrator fit %-12s jacobian %-11s error %.2e, %d iterations\n",
                 integrator, r.diagnostics.jacobian_mode.c_str(), err, r.iterations);
-    EXPECT_TRUE(r.converged) << integrator << ": " << r.termination;
+    EXPECT_TRUE(r.converged) << integrator << ": " << TerminationText(r.termination);
     EXPECT_LE(err, 1e-5) << integrator;
     if (m->opt.integrator == mjINT_RK4) {
       EXPECT_EQ(r.diagnostics.jacobian_mode, "directional");

@@ -215,7 +215,7 @@ TEST_P(FoldAheadFitTest, TheSameFitBitForBitAtOneAndTwoThreads) {
       GetParam().c_str(), on.iterations, on.diagnostics.simulation_steps, on.diagnostics.folds,
       on.diagnostics.ahead_folds, on.diagnostics.reused_folds, off.diagnostics.folds,
       off.diagnostics.ahead_folds, off.diagnostics.reused_folds, on2.diagnostics.folds,
-      on2.diagnostics.ahead_folds, on.termination.c_str());
+      on2.diagnostics.ahead_folds, TerminationText(on.termination).c_str());
   EXPECT_EQ(on.segment_steps_used, 0);  // single shooting: compressed blocks
   // every Jacobian of the solve folds its 3 blocks ahead
   EXPECT_GE(on.diagnostics.ahead_folds, 3);
@@ -238,7 +238,8 @@ TEST(FoldAheadMultipleShootingTest, TheSameFitBitForBitAtOneAndTwoThreads) {
   const FitResult on2 = FitWith(cfg, true, 2);
   std::printf("arm5: %d iterations, folds %lld (%lld ahead); off %lld (%lld ahead)\n  %s\n",
               on.iterations, on.diagnostics.folds, on.diagnostics.ahead_folds,
-              off.diagnostics.folds, off.diagnostics.ahead_folds, on.termination.c_str());
+              off.diagnostics.folds, off.diagnostics.ahead_folds,
+              TerminationText(on.termination).c_str());
   EXPECT_GT(on.segment_steps_used, 0);  // multiple shooting
   EXPECT_GE(on.diagnostics.ahead_folds, 5);
   EXPECT_EQ(on2.diagnostics.ahead_folds, on.diagnostics.ahead_folds);

@@ -172,7 +172,7 @@ TEST_P(FoldReuseFitTest, TheSameFitBitForBit) {
       "%s%s: %d iterations, %lld steps, folds %lld + %lld reused (off: %lld + %lld)\n  %s\n",
       c.experiment.c_str(), c.auto_start ? " +auto" : "", on.iterations,
       on.diagnostics.simulation_steps, on.diagnostics.folds, on.diagnostics.reused_folds,
-      off.diagnostics.folds, off.diagnostics.reused_folds, on.termination.c_str());
+      off.diagnostics.folds, off.diagnostics.reused_folds, TerminationText(on.termination).c_str());
   EXPECT_EQ(on.segment_steps_used, 0);  // single shooting: compressed blocks
   // (with a fitted control delay the statistical stop is off and Ceres ends after trials at other
   // points, so the estimate's Jacobian is a new fold: the same fit is all there is to test)

@@ -25,7 +25,8 @@ inline void ExpectSameFit(const FitResult& a, const FitResult& b, bool steps) {
   if (steps) {
     EXPECT_EQ(a.diagnostics.simulation_steps, b.diagnostics.simulation_steps);
   }
-  EXPECT_EQ(a.termination, b.termination);
+  EXPECT_EQ(a.termination.kind, b.termination.kind);
+  EXPECT_EQ(TerminationText(a.termination), TerminationText(b.termination));
   EXPECT_EQ(a.diagnostics.covariance_jacobian_iteration,
             b.diagnostics.covariance_jacobian_iteration);
   EXPECT_TRUE(SameBits(a.final_cost, b.final_cost));

@@ -257,7 +257,7 @@ std::string Page(const FitResultFile& r, const std::vector<std::string>& sequenc
   // header
   h << "<h1>" << HtmlEscape(name) << "</h1>\n<p><span class=\"badge " << StatusClass(r.status)
     << "\">" << HtmlEscape(r.status.empty() ? "unknown" : r.status) << "</span> "
-    << HtmlEscape(r.termination) << "</p>\n";
+    << HtmlEscape(TerminationText(r.termination)) << "</p>\n";
   // the intervals mean something only for a converged fit (FitStatus, sysid/types.h)
   if (!r.intervals_valid) {
     h << "<p><span class=\"badge bad\">intervals not valid</span> the fit's status is "

@@ -77,7 +77,7 @@ TEST(FitLedgerTest, SpringMassFitLedgerAddsUpAndTheEstimateCostsNoSteps) {
   FitOptions o;
   o.threads = 1;
   const FitResult r = problem.Fit(o);
-  ASSERT_TRUE(r.converged) << r.termination;
+  ASSERT_TRUE(r.converged) << TerminationText(r.termination);
   EXPECT_NEAR(test::Estimate(r, "mass").value, 1.0, 1e-3);
   EXPECT_NEAR(test::Estimate(r, "damping").value, 0.3, 3e-4);
   long long steps = 0;
@@ -102,8 +102,10 @@ TEST(FitLedgerTest, SpringMassFitLedgerAddsUpAndTheEstimateCostsNoSteps) {
   // the interval check: the rollouts have no constraint row (a smooth cost), so it is skipped
   // along both simulator parameters and says so (the limited spring below runs it)
   EXPECT_EQ(by_phase[kPhaseIntervalCheck].steps, 0);
-  EXPECT_EQ(r.interval_check.rfind("skipped along 2 of the 2 simulator parameters", 0), 0u)
-      << r.interval_check;
+  EXPECT_EQ(
+      IntervalCheckText(r.interval_check).rfind("skipped along 2 of the 2 simulator parameters", 0),
+      0u)
+      << IntervalCheckText(r.interval_check);
   // fitted again (new simulators, step counts from 0): the same ledger, no negative row
   const FitResult again = problem.Fit(o);
   long long again_steps = 0;
@@ -122,7 +124,7 @@ TEST(FitLedgerTest, BatchTimeIsPartOfThePhaseThatSimulates) {
   for (int threads : {1, 2}) {
     Problem problem;
     const FitResult r = SpringMassFit(&problem, threads);
-    ASSERT_TRUE(r.converged) << r.termination;
+    ASSERT_TRUE(r.converged) << TerminationText(r.termination);
     long long batches = 0, folds = 0;
     for (const LedgerRow& row : r.diagnostics.ledger) {
       batches += row.batches;
@@ -181,8 +183,10 @@ TEST(FitLedgerTest, TheIntervalCheckRunsWhereConstraintRowsComeAndGo) {
     if (row.phase == kPhaseIntervalCheck) check_critical = row.critical_steps;
   }
   EXPECT_EQ(check_critical, 2000);
-  EXPECT_EQ(r.interval_check.rfind("ran: 4 cost evaluations (constraint rows come, go", 0), 0u)
-      << r.interval_check;
+  EXPECT_EQ(IntervalCheckText(r.interval_check)
+                .rfind("ran: 4 cost evaluations (constraint rows come, go", 0),
+            0u)
+      << IntervalCheckText(r.interval_check);
 }
 
 // The task model (core/thread_pool.h) in the ledger: the steps on the critical path at 2 workers
@@ -195,7 +199,7 @@ TEST(FitLedgerTest, CriticalStepsAtTwoWorkersAreExactAndThreadIndependent) {
   for (int threads : {1, 2}) {
     Problem problem;
     const FitResult r = SpringMassFit(&problem, threads);
-    ASSERT_TRUE(r.converged) << r.termination;
+    ASSERT_TRUE(r.converged) << TerminationText(r.termination);
     ledgers.push_back(r.diagnostics.ledger);
   }
   ASSERT_EQ(ledgers[0].size(), ledgers[1].size());
@@ -249,7 +253,7 @@ TEST(FitLedgerTest, ColumnsAheadAreTheSameFitAndTheirUnusedStepsAreCounted) {
     FitOptions o;
     o.threads = threads;
     results.push_back(problem.Fit(o));
-    ASSERT_TRUE(results.back().converged) << results.back().termination;
+    ASSERT_TRUE(results.back().converged) << TerminationText(results.back().termination);
   }
   const FitResult &one = results[0], &two = results[1];
   EXPECT_EQ(one.iterations, two.iterations);
