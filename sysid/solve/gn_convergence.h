@@ -52,7 +52,8 @@
 // makes the problem's cost functions answer Jacobian requests with J_k while it runs and, when it
 // fires, for Ceres' request too (Ceres reads it for its gradient norm only); the next
 // operator() call then ends the solve without evaluating. The covariance then comes from J_k
-// with the residuals, cost and s^2 at x_{k+1} (FitResult::covariance_jacobian_iteration).
+// with the residuals, cost and s^2 at x_{k+1} (FitResult::diagnostics.
+// covariance_jacobian_iteration).
 //
 // Threads: as the evaluation cache, the thread that runs the solve. Failure: an evaluation that
 // fails (a cancelled simulation) or a broken argument makes the test not pass.
