@@ -410,6 +410,102 @@ struct LedgerRow {
   double batch_cpu_seconds = 0;
 };
 
+// Why the optimiser stopped, as a record (FitResult::termination): a kind and its numbers,
+// rendered by TerminationText as result.yaml's `termination`, the CLI's "stopped:" line, the
+// report's and Python's text. The solver's kinds come from Ceres' termination type
+// (sysid/fit/pass_solve.cc), the statistical stop's from GaussNewtonStop::Termination
+// (sysid/solve/gn_convergence.h), the run's (an interruption, a checkpoint) from
+// sysid/run/fit_experiment.cc.
+struct FitTermination {
+  enum class Kind {
+    kNone,               // nothing recorded (no solve): ""
+    kSolverConvergence,  // Ceres CONVERGENCE (a tolerance met): solver_message
+    kIterationLimit,     // Ceres NO_CONVERGENCE (the iteration limit; no time limit is set)
+    kSolverFailure,      // Ceres FAILURE: solver_message
+    kCallbackStop,       // Ceres USER_SUCCESS: a callback ended the solve (the interrupt flag)
+    kCallbackAbort,      // Ceres USER_FAILURE: a callback aborted it (auto's Jacobian warning)
+    kGaussNewtonStop,    // the statistical stop (FitOptions::gauss_newton_stop)
+    kInterrupted,        // the run: a stop signal after `iteration`
+    kCheckpoint,         // the run: a checkpoint after `iteration` (the fit still running)
+    kUnknown,            // read from a result file written before the kinds: read_text only
+  };
+  Kind kind = Kind::kNone;
+  std::string solver_message;  // Ceres' summary message (every solve's; the text of its kinds)
+  // kGaussNewtonStop: the iteration tested; kInterrupted, kCheckpoint: the last iteration
+  int iteration = 0;
+  // kGaussNewtonStop: the fraction of every standard error the predicted Gauss-Newton step is
+  // below (FitOptions::gauss_newton_stop) and the largest step's fraction; with the Jacobian of
+  // an earlier iteration (jacobian_iteration, -1: the estimate's own) the last step's size in
+  // standard errors
+  double fraction = 0, largest = 0;
+  int jacobian_iteration = -1;
+  double step_std_errors = std::numeric_limits<double>::quiet_NaN();
+  // a record read from a result file (sysid/io/result.h): the text as written there (the file
+  // keeps the kind, not the numbers); TerminationText gives it as it is. Empty in a fit's result.
+  std::string read_text;
+};
+
+// the record as one line, e.g. "converged: predicted Gauss-Newton step below 3 % of every
+// standard error (largest 1.3 %, iteration 1)", Ceres' message, "interrupted (a stop signal) after
+// iteration 4", "checkpoint after iteration 2"
+std::string TerminationText(const FitTermination& t);
+// "solver_convergence", "iteration_limit", "gauss_newton_stop", ... (result.yaml's
+// termination_kind); "none" and "unknown" for kNone and kUnknown
+const char* TerminationKindName(FitTermination::Kind kind);
+// the kind of a name written by TerminationKindName; nullopt for any other text
+std::optional<FitTermination::Kind> TerminationKindFromName(const std::string& name);
+
+// Whether the interval check (sysid/assess/interval_check.h) ran, along which variables and why
+// (FitResult::interval_check, set by sysid/fit/pass_intervals.cc), rendered by IntervalCheckText
+// as result.yaml's `interval_check`.
+struct IntervalCheckRecord {
+  enum class Kind {
+    kNotRun,         // no uncertainty step: "" (not written)
+    kRanRugged,      // along every variable: the rollouts at the estimate can make the cost
+                     // rugged (`rugged` says why)
+    kRanSmooth,      // along every variable: smooth rollouts, every standard error wide
+    kSkippedSmooth,  // smooth rollouts: skipped along the `skipped` of the `parameters` simulator
+                     // parameters whose standard error is not wide
+    kUnknown,        // read from a result file written before the kinds: read_text only
+  };
+  Kind kind = Kind::kNotRun;
+  int evaluations = 0;  // cost evaluations made
+  int skipped = 0;      // kSkippedSmooth: simulator parameters skipped
+  int parameters = 0;   // the simulator parameters
+  std::string rugged;   // kRanRugged: why (RuggedReason, e.g. "constraint rows come, go ...")
+  // a standard error is wide above this fraction of its value (kSmoothRelativeStd)
+  double wide_fraction = 0;
+  // a record read from a result file: the text as written there; IntervalCheckText gives it as it
+  // is. Empty in a fit's result.
+  std::string read_text;
+};
+
+// the record as one line, e.g. "ran: 4 cost evaluations (smooth rollouts, standard errors above
+// 10 % of the value)", "skipped along 2 of the 2 simulator parameters (...): ...; 0 cost
+// evaluations along the other variables"; "" for kNotRun
+std::string IntervalCheckText(const IntervalCheckRecord& r);
+// "ran_rugged", "ran_smooth", "skipped_smooth" (result.yaml's interval_check_kind); "not_run" and
+// "unknown" for kNotRun and kUnknown
+const char* IntervalCheckKindName(IntervalCheckRecord::Kind kind);
+// the kind of a name written by IntervalCheckKindName; nullopt for any other text
+std::optional<IntervalCheckRecord::Kind> IntervalCheckKindFromName(const std::string& name);
+
+// Why the fit runs in the segments it runs in, as parts (FitResult::segment_reason;
+// SegmentReasonText is its text): the choice of the segment length, where later segments start,
+// the continuity weights, and the first solve with the segment states held (auto's contact
+// segments). A refit in segments (sysid/fit/policy.cc) replaces the choice with its own reason. A
+// record read from a result file has the whole text as its choice.
+struct SegmentRecord {
+  std::string choice;        // why this length (HorizonChoice::reason, or the refit's reason)
+  std::string start_source;  // where later segments start ("": no later segment)
+  std::string weights;       // the continuity weights ("": no segment joins the next)
+  int held_iterations = -1;  // iterations of the solve with the states held (-1: none ran)
+  double held_initial_cost = 0, held_final_cost = 0;
+};
+// "CHOICE; segment states from SOURCE; WEIGHTS; first N iterations with the segment states held
+// on the data (cost A -> B)", the parts present
+std::string SegmentReasonText(const SegmentRecord& r);
+
 struct FitResult {
   std::vector<ParameterEstimate> parameters;  // physical parameters, then measurement terms
   double initial_cost = 0, final_cost = 0;    // 0.5 |r|^2
@@ -423,7 +519,7 @@ struct FitResult {
   // fitted states count too, each under its name ("qpos:<joint>", ...)
   double chi2_ratio = std::numeric_limits<double>::quiet_NaN();
   std::map<std::string, double> sensor_chi2_ratio;
-  std::string termination;  // why the optimiser stopped
+  FitTermination termination;  // why the optimiser stopped (TerminationText)
   int num_residuals = 0;
   Uncertainty uncertainty;  // over FitResult::parameters (order as there)
   // dr/dp at the estimate (physical units) as its thin-QR triangle R: min(num_residuals, np) x
@@ -433,9 +529,7 @@ struct FitResult {
   std::vector<IterationInfo> trace;
   std::vector<SequenceResult> sequences;
   std::vector<std::string> warnings;
-  double seconds = 0;              // wall time of the fit
-  long long simulation_steps = 0;  // step calls of all simulators (Simulator::StepCount)
-  std::string jacobian_mode;       // the core mode used
+  double seconds = 0;  // wall time of the fit
   // held-out sequences (experiment `validation:`), simulated at the start and at the estimate,
   // never fitted (sysid/run/validation.h); x0 as logged
   std::vector<SequenceResult> validation;
@@ -444,32 +538,17 @@ struct FitResult {
   std::vector<StartResult> starts;
   int best_start = 0;
   std::vector<ParameterSpread> start_spread;
-  // multiple shooting as used: samples per segment (0: single shooting) and why, one line
-  // (e.g. "single shooting: sensitivity bounded (max h*|S| 3.1e-05 <= 0.01)")
+  // multiple shooting as used: samples per segment (0: single shooting) and why (its text, e.g.
+  // "single shooting: sensitivity bounded (max h*|S| 3.1e-05 <= 0.01)": SegmentReasonText)
   int segment_steps_used = 0;
-  std::string segment_reason;
+  SegmentRecord segment_reason;
   // physical quantities derived from the estimate (sysid/assess/derived_inertials.h): per body
   // fitted through body_inertial its mass, centre of mass and principal moments, with delta-method
   // intervals; empty when nothing is derived
   std::vector<DerivedQuantity> derived;
-  // the reduced model (FitOptions::reduce_model, core/reduced_model.h), summed over the models:
-  // whether it was used, candidate collision pairs and those switched off, geoms switched off,
-  // the MuJoCo features switched off (e.g. "island", "contact"), and the calls the guard made
-  // simulate again with the full model (then the reduction was dropped for the rest of the fit)
-  struct Reduction {
-    bool recorded = false;  // false: a result written before the reduced model (nothing known)
-    bool used = false;
-    int collision_pairs = 0, collision_pairs_off = 0, geoms_off = 0;
-    std::vector<std::string> disabled;
-    int guard_trips = 0;
-  };
-  Reduction reduction;
-  // the fit's steps and seconds by phase (sysid/solve/fit_ledger.h); rows add up to
-  // simulation_steps
-  std::vector<LedgerRow> ledger;
-  // whether the interval check (sysid/assess/interval_check.h) ran, along which variables and why,
-  // one line; empty when the uncertainty step did not run
-  std::string interval_check;
+  // whether the interval check (sysid/assess/interval_check.h) ran, along which variables and why
+  // (IntervalCheckText); kNotRun when the uncertainty step did not run
+  IntervalCheckRecord interval_check;
   // auto's contact segments: the event windows left out of the fit (sysid/data/event_windows.h; all
   // 0 when none); sensors: those with masked cells
   struct EventWindows {
@@ -483,24 +562,48 @@ struct FitResult {
   // sysid/solve/gn_convergence.h): converged with the point, possibly the start, already within the
   // fraction of every standard error of the Gauss-Newton optimum
   bool gauss_newton_converged = false;
-  // the statistical stop fired before the estimate's Jacobian (FitOptions::
-  // advanced.gauss_newton_stop_before_jacobian): the covariance, standard errors and result's
-  // jacobian come from the previous iterate's Jacobian (iteration covariance_jacobian_iteration)
-  // with the residuals, cost and s^2 at the estimate; last_step_std_errors: the last step's largest
-  // |x_{k+1,i} - x_{k,i}| / s_i. -1 and NaN: the Jacobian is the estimate's own.
-  int covariance_jacobian_iteration = -1;
-  double last_step_std_errors = std::numeric_limits<double>::quiet_NaN();
-  // the compressed blocks (FitOptions::advanced.reuse_folds): Jacobian requests answered
-  // with a block's last fold instead of a re-fold, and the folds made
-  // (sysid/solve/compressed_cost.h)
-  long long reused_folds = 0;
-  long long folds = 0;
-  // of the folds, those made ahead on the simulator's workers (FitOptions::advanced.fold_ahead)
-  long long ahead_folds = 0;
+
+  // How the fit got its answer, not the answer: the simulation it cost, the Jacobian mode, the
+  // reduced model, the ledger, where the covariance's Jacobian came from and the compressed
+  // blocks' folds. For benchmarks, tests and the curious (result.yaml keeps some of it).
+  struct Diagnostics {
+    long long simulation_steps = 0;  // step calls of all simulators (Simulator::StepCount)
+    std::string jacobian_mode;       // the core mode used
+    // the reduced model (FitOptions::reduce_model, core/reduced_model.h), summed over the models:
+    // whether it was used, candidate collision pairs and those switched off, geoms switched off,
+    // the MuJoCo features switched off (e.g. "island", "contact"), and the calls the guard made
+    // simulate again with the full model (then the reduction was dropped for the rest of the fit)
+    struct Reduction {
+      bool recorded = false;  // false: a result written before the reduced model (nothing known)
+      bool used = false;
+      int collision_pairs = 0, collision_pairs_off = 0, geoms_off = 0;
+      std::vector<std::string> disabled;
+      int guard_trips = 0;
+    };
+    Reduction reduction;
+    // the fit's steps and seconds by phase (sysid/solve/fit_ledger.h); rows add up to
+    // simulation_steps
+    std::vector<LedgerRow> ledger;
+    // the statistical stop fired before the estimate's Jacobian (FitOptions::
+    // advanced.gauss_newton_stop_before_jacobian): the covariance, standard errors and result's
+    // jacobian come from the previous iterate's Jacobian (iteration covariance_jacobian_iteration)
+    // with the residuals, cost and s^2 at the estimate; last_step_std_errors: the last step's
+    // largest |x_{k+1,i} - x_{k,i}| / s_i. -1 and NaN: the Jacobian is the estimate's own.
+    int covariance_jacobian_iteration = -1;
+    double last_step_std_errors = std::numeric_limits<double>::quiet_NaN();
+    // the compressed blocks (FitOptions::advanced.reuse_folds): Jacobian requests answered
+    // with a block's last fold instead of a re-fold, and the folds made
+    // (sysid/solve/compressed_cost.h)
+    long long reused_folds = 0;
+    long long folds = 0;
+    // of the folds, those made ahead on the simulator's workers (FitOptions::advanced.fold_ahead)
+    long long ahead_folds = 0;
+  };
+  Diagnostics diagnostics;
 };
 
 // one line for a user, e.g. "collision pairs off 3 of 4, geoms off 2, disabled [island], guard
 // trips 0", or "off (solver.reduce_model: false)"
-std::string ReductionText(const FitResult::Reduction& r);
+std::string ReductionText(const FitResult::Diagnostics::Reduction& r);
 
 }  // namespace mjsysid

@@ -23,9 +23,11 @@ if ((${#experiments[@]} == 0)); then
   done
 fi
 mkdir -p "$out"
-# what differs between two runs of the same binary: clocks, ids, versions, dates, paths
+# what differs between two runs of the same binary: clocks, ids, versions, dates, paths; and the
+# kinds' keys (termination_kind, interval_check_kind: a binary before them has none; their text
+# keys stay compared)
 strip() {
-  grep -vE '(seconds|wall_time_s|created|run_id|mjsysid_version|experiment|wake|wait|_time|identified):' "$1"
+  grep -vE '(seconds|wall_time_s|created|run_id|mjsysid_version|experiment|wake|wait|_time|identified|termination_kind|interval_check_kind):' "$1"
 }
 status=0
 for e in "${experiments[@]}"; do

@@ -154,10 +154,12 @@ void PrintEstimates(const mjsysid::io::FitResultFile& f, bool verbose) {
   std::printf("%s: %s after %d iterations, cost %.6g -> %.6g, %.2f s\n", f.name.c_str(),
               f.status.c_str(), f.iterations, f.initial_cost, f.final_cost, f.seconds);
   if (verbose) {
-    std::printf("  stopped: %s\n", f.termination.c_str());
-    if (!f.segment_reason.empty()) std::printf("  segments: %s\n", f.segment_reason.c_str());
-    if (f.reduction.recorded) {
-      std::printf("  reduced model: %s\n", mjsysid::ReductionText(f.reduction).c_str());
+    std::printf("  stopped: %s\n", mjsysid::TerminationText(f.termination).c_str());
+    const std::string segments = mjsysid::SegmentReasonText(f.segment_reason);
+    if (!segments.empty()) std::printf("  segments: %s\n", segments.c_str());
+    const mjsysid::FitResult::Diagnostics::Reduction& reduction = f.diagnostics.reduction;
+    if (reduction.recorded) {
+      std::printf("  reduced model: %s\n", mjsysid::ReductionText(reduction).c_str());
     }
   }
   std::printf("  %-24s %14s %14s %14s %12s  %-29s %s\n", "parameter", "initial", "estimate",

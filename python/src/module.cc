@@ -322,6 +322,58 @@ NB_MODULE(_mjsysid, m) {
       .def_ro("state_simulated_initial", &SequenceResult::state_simulated_initial)
       .def_ro("state_simulated_final", &SequenceResult::state_simulated_final);
 
+  nb::class_<LedgerRow>(m, "LedgerRow",
+                        "One phase of a fit's ledger (sysid/solve/fit_ledger.h): entries, "
+                        "simulator steps and seconds")
+      .def_ro("phase", &LedgerRow::phase)
+      .def_ro("entries", &LedgerRow::entries)
+      .def_ro("steps", &LedgerRow::steps)
+      .def_ro("seconds", &LedgerRow::seconds)
+      .def_ro("critical_steps", &LedgerRow::critical_steps,
+              "of steps, those on the critical path at 2 workers")
+      .def_ro("batch_seconds", &LedgerRow::batch_seconds,
+              "of seconds, those inside the simulators' batches")
+      .def_ro("batches", &LedgerRow::batches)
+      .def_ro("wake_seconds", &LedgerRow::wake_seconds)
+      .def_ro("wait_seconds", &LedgerRow::wait_seconds)
+      .def_ro("batch_cpu_seconds", &LedgerRow::batch_cpu_seconds);
+
+  using Diagnostics = FitResult::Diagnostics;
+  nb::class_<Diagnostics>(m, "FitDiagnostics",
+                          "How a fit got its answer, not the answer (FitResult::Diagnostics, "
+                          "sysid/types.h)")
+      .def_ro("simulation_steps", &Diagnostics::simulation_steps, "step calls of all simulators")
+      .def_ro("jacobian_mode", &Diagnostics::jacobian_mode, "the Jacobian mode used")
+      .def_prop_ro(
+          "reduction",
+          [](const Diagnostics& d) {
+            const Diagnostics::Reduction& r = d.reduction;
+            nb::dict out;
+            out["used"] = r.used;
+            out["collision_pairs"] = r.collision_pairs;
+            out["collision_pairs_off"] = r.collision_pairs_off;
+            out["geoms_off"] = r.geoms_off;
+            out["disabled"] = r.disabled;
+            out["guard_trips"] = r.guard_trips;
+            out["text"] = ReductionText(r);
+            return out;
+          },
+          "the reduced model (reduce_model): dict used, collision_pairs, collision_pairs_off, "
+          "geoms_off, disabled, guard_trips, text (as result.yaml's `reduced:`)")
+      .def_ro("ledger", &Diagnostics::ledger,
+              "the fit's steps and seconds by phase (a list of LedgerRow; steps add up to "
+              "simulation_steps)")
+      .def_ro("covariance_jacobian_iteration", &Diagnostics::covariance_jacobian_iteration,
+              "-1: covariance, std errors and jacobian from the estimate's own Jacobian; else "
+              "the iteration whose Jacobian they use (the stop before the last Jacobian)")
+      .def_ro("last_step_std_errors", &Diagnostics::last_step_std_errors,
+              "that stop: the last step's largest size in standard errors (NaN otherwise)")
+      .def_ro("folds", &Diagnostics::folds, "the compressed blocks' folds made")
+      .def_ro("reused_folds", &Diagnostics::reused_folds,
+              "Jacobian requests answered with a block's last fold (reuse_folds)")
+      .def_ro("ahead_folds", &Diagnostics::ahead_folds,
+              "of the folds, those made ahead on the workers (fold_ahead)");
+
   nb::class_<FitResult>(m, "FitResult", "The result of a fit (sysid/types.h)")
       .def_ro("parameters", &FitResult::parameters)
       .def_prop_ro("estimates", &Estimates, "dict: name -> estimated value")
@@ -337,7 +389,15 @@ NB_MODULE(_mjsysid, m) {
       .def_ro("intervals_valid", &FitResult::intervals_valid)
       .def_ro("chi2_ratio", &FitResult::chi2_ratio)
       .def_ro("sensor_chi2_ratio", &FitResult::sensor_chi2_ratio)
-      .def_ro("termination", &FitResult::termination)
+      .def_prop_ro(
+          "termination", [](const FitResult& r) { return TerminationText(r.termination); },
+          "why the optimiser stopped, one line (result.yaml's termination)")
+      .def_prop_ro(
+          "termination_kind",
+          [](const FitResult& r) { return TerminationKindName(r.termination.kind); },
+          "solver_convergence, iteration_limit, solver_failure, callback_stop, callback_abort, "
+          "gauss_newton_stop, interrupted, checkpoint; none (no solve) or unknown (a file "
+          "written before the kinds)")
       .def_ro("num_residuals", &FitResult::num_residuals)
       .def_prop_ro("covariance",
                    [](const FitResult& r) -> Eigen::MatrixXd { return r.uncertainty.covariance; })
@@ -349,34 +409,16 @@ NB_MODULE(_mjsysid, m) {
       .def_ro("sequences", &FitResult::sequences)
       .def_ro("warnings", &FitResult::warnings)
       .def_ro("seconds", &FitResult::seconds)
-      .def_ro("simulation_steps", &FitResult::simulation_steps)
-      .def_ro("jacobian_mode", &FitResult::jacobian_mode)
       .def_ro("segment_steps_used", &FitResult::segment_steps_used,
               "multiple shooting: steps per segment (0: single shooting)")
-      .def_ro("segment_reason", &FitResult::segment_reason,
-              "why (multiple_shooting: auto's choice, or the given segment_steps)")
+      .def_prop_ro(
+          "segment_reason", [](const FitResult& r) { return SegmentReasonText(r.segment_reason); },
+          "why (multiple_shooting: auto's choice, or the given segment_steps)")
       .def_ro("gauss_newton_converged", &FitResult::gauss_newton_converged,
               "ended by the statistical stop (gauss_newton_stop, docs/numerics.md \"Stopping\")")
-      .def_ro("covariance_jacobian_iteration", &FitResult::covariance_jacobian_iteration,
-              "-1: covariance, std errors and jacobian from the estimate's own Jacobian; else "
-              "the iteration whose Jacobian they use (the stop before the last Jacobian)")
-      .def_ro("last_step_std_errors", &FitResult::last_step_std_errors,
-              "that stop: the last step's largest size in standard errors (NaN otherwise)")
-      .def_prop_ro(
-          "reduction",
-          [](const FitResult& r) {
-            nb::dict d;
-            d["used"] = r.reduction.used;
-            d["collision_pairs"] = r.reduction.collision_pairs;
-            d["collision_pairs_off"] = r.reduction.collision_pairs_off;
-            d["geoms_off"] = r.reduction.geoms_off;
-            d["disabled"] = r.reduction.disabled;
-            d["guard_trips"] = r.reduction.guard_trips;
-            d["text"] = ReductionText(r.reduction);
-            return d;
-          },
-          "the reduced model (reduce_model): dict used, collision_pairs, collision_pairs_off, "
-          "geoms_off, disabled, guard_trips, text (as result.yaml's `reduced:`)");
+      .def_ro("diagnostics", &FitResult::diagnostics,
+              "how the fit got its answer: simulation steps, Jacobian mode, reduced model, "
+              "ledger, the covariance's Jacobian, folds (FitDiagnostics)");
 
   nb::class_<io::FitResultFile, FitResult>(m, "ResultFile",
                                            "A fit as stored in DIR/result.yaml + result.h5")

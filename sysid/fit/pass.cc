@@ -86,9 +86,9 @@ void FitPass::Start() {
   ledger_.Enter(kPhaseSetup);
   np_ = static_cast<int>(fit_.params.size());
   nm_ = static_cast<int>(vars_.m.size());
-  result_.jacobian_mode = plan_.jacobian_mode;
+  result_.diagnostics.jacobian_mode = plan_.jacobian_mode;
   result_.segment_steps_used = plan_.segment_steps;
-  result_.segment_reason = SegmentReasonText(plan_.segments);
+  result_.segment_reason = plan_.segments;
   result_.event_windows = plan_.event_windows;
   result_.warnings = fit_.prepare_warnings;
   result_.warnings.insert(result_.warnings.end(), start_notes.begin(), start_notes.end());
@@ -113,10 +113,10 @@ void FitPass::Decide() {
   }
   DecideFitStatus(options_, accepted_steps, !diag_.jacobian_warnings.empty(), &result_,
                   cost_not_local_, jacobian_warned_at_estimate_);
-  for (const auto& mo : fit_.models) result_.simulation_steps += mo.sim->StepCount();
+  for (const auto& mo : fit_.models) result_.diagnostics.simulation_steps += mo.sim->StepCount();
   // what the reduced models switched off, summed over the models
-  FitResult::Reduction& r = result_.reduction;
-  r = FitResult::Reduction();
+  FitResult::Diagnostics::Reduction& r = result_.diagnostics.reduction;
+  r = FitResult::Diagnostics::Reduction();
   r.recorded = true;
   r.used = options_.reduce_model;
   for (const auto& mo : fit_.models) {
@@ -131,7 +131,7 @@ void FitPass::Decide() {
       }
     }
   }
-  result_.ledger = ledger_.Finish();
+  result_.diagnostics.ledger = ledger_.Finish();
   result_.seconds = Seconds();
 }
 

@@ -4,7 +4,6 @@
 #include <string>
 #include <vector>
 
-#include "core/text.h"
 #include "sysid/assess/interval_check.h"
 #include "sysid/fit/pass.h"
 #include "sysid/fit_observer.h"
@@ -60,22 +59,15 @@ void FitPass::CheckIntervals() {
   const IntervalCheck ic =
       CheckIntervalScale(r_aug_.col(nvar), r_aug_.leftCols(nvar), se_checked, plan_.names,
                          [this](int v, double delta, double* c) { return CostAt(v, delta, c); });
-  const std::string wide = FormatDigits(100 * kSmoothRelativeStd, 3) + " % of the value";
-  if (!rugged.empty()) {
-    result_.interval_check =
-        "ran: " + std::to_string(ic.checked) + " cost evaluations (" + rugged + ")";
-  } else if (skipped == 0) {
-    result_.interval_check = "ran: " + std::to_string(ic.checked) +
-                             " cost evaluations (smooth rollouts, standard errors above " + wide +
-                             ")";
-  } else {
-    result_.interval_check =
-        "skipped along " + std::to_string(skipped) + " of the " + std::to_string(np_) +
-        " simulator parameters (standard error <= " + wide +
-        "): the rollouts at the estimate have no contact, no constraint row that comes, goes or "
-        "changes state, no kink and no Jacobian warning (a smooth cost); " +
-        std::to_string(ic.checked) + " cost evaluations along the other variables";
-  }
+  IntervalCheckRecord& record = result_.interval_check;
+  record.kind = !rugged.empty() ? IntervalCheckRecord::Kind::kRanRugged
+                : skipped == 0  ? IntervalCheckRecord::Kind::kRanSmooth
+                                : IntervalCheckRecord::Kind::kSkippedSmooth;
+  record.evaluations = ic.checked;
+  record.skipped = skipped;
+  record.parameters = np_;
+  record.rugged = rugged;
+  record.wide_fraction = kSmoothRelativeStd;
   if (!ic.local) {
     cost_not_local_ = true;
     result_.warnings.push_back(

@@ -7,6 +7,25 @@
 #include "sysid/solve/multiple_shooting.h"
 
 namespace mjsysid {
+namespace {
+
+// the record's kind of Ceres' termination type
+FitTermination::Kind SolverTermination(ceres::TerminationType type) {
+  switch (type) {
+    case ceres::CONVERGENCE:
+      return FitTermination::Kind::kSolverConvergence;
+    case ceres::NO_CONVERGENCE:
+      return FitTermination::Kind::kIterationLimit;
+    case ceres::USER_SUCCESS:
+      return FitTermination::Kind::kCallbackStop;
+    case ceres::USER_FAILURE:
+      return FitTermination::Kind::kCallbackAbort;
+    default:
+      return FitTermination::Kind::kSolverFailure;
+  }
+}
+
+}  // namespace
 
 // 4. The solve. Auto's contact segments first solve with the segment states held on the data
 // (sysid/solve/multiple_shooting.h, SolveWithStatesHeld): its accepted steps count as the fit's and
@@ -28,7 +47,7 @@ bool FitPass::RunSolver() {
     plan_.segments.held_iterations = static_cast<int>(held.iterations.size()) - 1;
     plan_.segments.held_initial_cost = held.initial_cost;
     plan_.segments.held_final_cost = held.final_cost;
-    result_.segment_reason = SegmentReasonText(plan_.segments);
+    result_.segment_reason = plan_.segments;
   }
   solve_.cache->SetColumnsAhead(true);
   solve_.compressed = compress_ && options_.advanced.fold_ahead ? &compressed_ : nullptr;
@@ -57,10 +76,17 @@ void FitPass::RecordSolve() {
   result_.converged =
       (summary_.termination_type == ceres::CONVERGENCE || result_.gauss_newton_converged) &&
       !result_.interrupted;
-  result_.termination = result_.gauss_newton_converged ? gn_stop_->Message() : summary_.message;
+  // why: the statistical stop's record, else Ceres' termination type and message
+  FitTermination& termination = result_.termination;
+  if (result_.gauss_newton_converged) {
+    termination = gn_stop_->Termination();
+  } else {
+    termination.kind = SolverTermination(summary_.termination_type);
+  }
+  termination.solver_message = summary_.message;
   if (previous_jacobian_) {
-    result_.covariance_jacobian_iteration = gn_stop_->previous_iteration();
-    result_.last_step_std_errors = gn_stop_->last().step_ratio;
+    result_.diagnostics.covariance_jacobian_iteration = gn_stop_->previous_iteration();
+    result_.diagnostics.last_step_std_errors = gn_stop_->last().step_ratio;
   }
   // sharded (sysid/mpi/): the uncompressed rows, with the priors'; compressed blocks: the rows
   // they stand for

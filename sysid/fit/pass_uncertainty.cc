@@ -54,9 +54,9 @@ void FitPass::Uncertainty() {
   ledger_.Enter(kPhaseCovariance);
   solve_.SetPreviousJacobian(false);
   solve_.compressed = nullptr;
-  result_.reused_folds = compressed_.reused_folds;
-  result_.folds = compressed_.folds;
-  result_.ahead_folds = compressed_.ahead_folds;
+  result_.diagnostics.reused_folds = compressed_.reused_folds;
+  result_.diagnostics.folds = compressed_.folds;
+  result_.diagnostics.ahead_folds = compressed_.ahead_folds;
   jacobian_warned_at_estimate_ = evaluated && !diag_.jacobian_warnings.empty();
   diag_.jacobian_warnings.insert(solve_warnings.begin(), solve_warnings.end());
   for (auto& mo : fit_.models) mo.sim->SetCancelFlag(nullptr);

@@ -33,15 +33,13 @@ FitResult Refit(const FitParts& parts, const FitOptions& options, int steps,
   FitPass pass(parts, segmented);
   pass.Solve();  // (segment_steps set: never stops for a Jacobian warning)
   pass.Assess();
-  SegmentRecord record = pass.plan().segments;
-  record.choice = reason;
-  pass.result().segment_reason = SegmentReasonText(record);
+  pass.result().segment_reason.choice = reason;
   return std::move(pass.result());
 }
 
 // each ledger row of r as part of `what` (e.g. "single-shooting fit: solve: Jacobians")
 void PrefixLedger(const std::string& what, FitResult* r) {
-  for (LedgerRow& row : r->ledger) row.phase = what + ": " + row.phase;
+  for (LedgerRow& row : r->diagnostics.ledger) row.phase = what + ": " + row.phase;
 }
 
 }  // namespace
@@ -78,19 +76,22 @@ FitResult FitWithPolicy(const FitParts& parts, const FitOptions& options) {
   FitResult refit = Refit(parts, options, steps, reason, result.seconds);
   if (refit.outcome == FitStatus::kConverged) {
     refit.seconds += result.seconds;
-    refit.simulation_steps += result.simulation_steps;
+    refit.diagnostics.simulation_steps += result.diagnostics.simulation_steps;
     // the ledger adds up to simulation_steps: the single-shooting fit's rows first
     PrefixLedger("single-shooting fit", &result);
-    refit.ledger.insert(refit.ledger.begin(), result.ledger.begin(), result.ledger.end());
+    std::vector<LedgerRow>& ledger = refit.diagnostics.ledger;
+    ledger.insert(ledger.begin(), result.diagnostics.ledger.begin(),
+                  result.diagnostics.ledger.end());
     refit.trace.insert(refit.trace.begin(), result.trace.begin(), result.trace.end());
     return refit;
   }
   result.warnings.push_back("auto: " + reason + " were tried and ended " +
                             FitStatusName(refit.outcome) + "; the single-shooting fit stays");
   result.seconds += refit.seconds;
-  result.simulation_steps += refit.simulation_steps;
+  result.diagnostics.simulation_steps += refit.diagnostics.simulation_steps;
   PrefixLedger("multiple-shooting refit", &refit);
-  result.ledger.insert(result.ledger.end(), refit.ledger.begin(), refit.ledger.end());
+  std::vector<LedgerRow>& ledger = result.diagnostics.ledger;
+  ledger.insert(ledger.end(), refit.diagnostics.ledger.begin(), refit.diagnostics.ledger.end());
   return std::move(result);
 }
 

@@ -639,19 +639,6 @@ void SeedCache(PreparedFit& fit, FitVariables& vars, SolveContext& solve, const 
 
 }  // namespace
 
-std::string SegmentReasonText(const SegmentRecord& r) {
-  std::string text = r.choice;
-  if (!r.start_source.empty()) text += "; segment states from " + r.start_source;
-  if (!r.weights.empty()) text += "; " + r.weights;
-  if (r.held_iterations >= 0) {
-    text += "; first " + std::to_string(r.held_iterations) +
-            " iterations with the segment states held on the data (cost " +
-            FormatDigits(r.held_initial_cost, 3) + " -> " + FormatDigits(r.held_final_cost, 3) +
-            ")";
-  }
-  return text;
-}
-
 FitPlan PrepareFit(const FitParts& parts, const FitOptions& options) {
   PreparedFit& fit = *parts.fit;
   FitVariables& vars = *parts.vars;

@@ -15,21 +15,6 @@
 
 namespace mjsysid {
 
-// Why the fit runs in the segments it runs in, as parts (FitResult::segment_reason is their text,
-// SegmentReasonText): the choice of the segment length, where later segments start, the
-// continuity weights, and the first solve with the segment states held (auto's contact segments).
-// A refit in segments (sysid/fit/policy.cc) replaces the choice with its own reason.
-struct SegmentRecord {
-  std::string choice;        // why this length (HorizonChoice::reason, or the refit's reason)
-  std::string start_source;  // where later segments start ("": no later segment)
-  std::string weights;       // the continuity weights ("": no segment joins the next)
-  int held_iterations = -1;  // iterations of the solve with the states held (-1: none ran)
-  double held_initial_cost = 0, held_final_cost = 0;
-};
-// "CHOICE; segment states from SOURCE; WEIGHTS; first N iterations with the segment states held
-// on the data (cost A -> B)", the parts present
-std::string SegmentReasonText(const SegmentRecord& r);
-
 // What PrepareFit decided besides the prepared state: the rollouts at the initial values, the
 // variables' names, bounds and starts, the Jacobian mode and the segments chosen
 struct FitPlan {

@@ -4,10 +4,14 @@
 // - Both writers are atomic (write PATH.tmp-<pid>, fsync, rename): a reader never sees a half file,
 //   and an interrupted fit leaves the last complete write (the last good iterate) in place.
 // - result.yaml keys (schema "mjsysid-result", version 1):
-//     format, format_version, name, experiment, status, intervals_valid, termination, created,
-//     mjsysid_version, mujoco_version, jacobian_mode, iterations, initial_cost, final_cost,
-//     residual_variance, num_residuals, wall_time_s, segment_steps_used and segment_reason
-//     (multiple shooting as used and why; optional when read), solver (map of setting -> value
+//     format, format_version, name, experiment, status, intervals_valid, termination and
+//     termination_kind (TerminationText and the kind's name of FitResult::termination; the kind
+//     optional when read: without it kUnknown), created, mjsysid_version, mujoco_version,
+//     jacobian_mode, iterations, initial_cost, final_cost, residual_variance, num_residuals,
+//     wall_time_s, segment_steps_used and segment_reason (multiple shooting as used and why,
+//     SegmentReasonText; optional when read), interval_check and interval_check_kind (only when
+//     the interval check ran: IntervalCheckText and the kind's name; the kind optional when read),
+//     covariance_jacobian, event_windows (when set), solver (map of setting -> value
 //     as text), parameters (list of {name, value, initial, std, ci95: [lo, hi], flags: [...],
 //     truth?}), unidentifiable (list of text), warnings (list of text), identified_models (map
 //     model -> file), run_id (when the result has one), fit_metrics (list of {sequence, role: fit
@@ -60,8 +64,10 @@ class ResultError : public std::runtime_error {
 
 // A fit's result as stored: the fit itself (sysid/types.h) and what the run adds about it.
 // Of FitResult the files keep: parameters (truth included), initial_cost, final_cost,
-// iterations, termination, num_residuals, jacobian_mode, seconds (wall_time_s),
-// segment_steps_used, segment_reason,
+// iterations, termination, interval_check and segment_reason (as their text and kind: read back,
+// a record keeps the text as written, not the numbers), num_residuals, seconds (wall_time_s),
+// segment_steps_used, event_windows, derived, of the diagnostics jacobian_mode, reduction and
+// the covariance's Jacobian (covariance_jacobian_iteration, last_step_std_errors),
 // uncertainty.{residual_variance, unidentifiable, covariance}, jacobian, trace, sequences
 // (x0_final excepted; channel_fits recomputed from the signals), validation, starts, best_start,
 // start_spread (result.yaml), warnings, intervals_valid (both files); outcome, converged and

@@ -10,7 +10,9 @@
 //   Texts(K, Style, list of text), TextMap(K, Style, map of text), Map(K, Style, written, f: a
 //   nested map whose fields f(visitor) lists), List(K, Style of the entries, vector, f: one map per
 //   entry, f(visitor, entry) lists its fields), FitMetrics(K, result: written only, recomputed from
-//   result.h5 when read).
+//   result.h5 when read), Record(K, kind key, record: a record of the result written as its text
+//   under K, then its kind's name under the kind key when known, a kind key {nullptr} for a record
+//   without kinds; see RecordText below).
 #pragma once
 
 #include <Eigen/Core>
@@ -42,6 +44,59 @@ struct FieldKey {
   Presence presence = Presence::kRequired;
   bool h5 = false;  // also a root attribute of result.h5
 };
+
+// The records of FitResult (sysid/types.h) as result.yaml keeps them: the text (rendered by the
+// one function next to the type) and the kind's name ("": not written, kWhenSet). A record read
+// back keeps the text as read (read_text; the numbers are not in the file) and the kind; a file
+// without the kind key (written before the kinds) gives the kind kUnknown, an empty text the
+// record's default (nothing recorded). SetRecord is false for a kind name it does not know.
+inline std::string RecordText(const FitTermination& t) { return TerminationText(t); }
+inline std::string RecordKind(const FitTermination& t) {
+  const bool known =
+      t.kind != FitTermination::Kind::kNone && t.kind != FitTermination::Kind::kUnknown;
+  return known ? TerminationKindName(t.kind) : "";
+}
+inline bool SetRecord(const std::string& text, const std::optional<std::string>& kind,
+                      FitTermination* t) {
+  *t = FitTermination();
+  if (kind) {
+    const std::optional<FitTermination::Kind> k = TerminationKindFromName(*kind);
+    if (!k) return false;
+    t->kind = *k;
+  } else if (!text.empty()) {
+    t->kind = FitTermination::Kind::kUnknown;
+  }
+  t->read_text = text;
+  return true;
+}
+inline std::string RecordText(const IntervalCheckRecord& r) { return IntervalCheckText(r); }
+inline std::string RecordKind(const IntervalCheckRecord& r) {
+  const bool known =
+      r.kind != IntervalCheckRecord::Kind::kNotRun && r.kind != IntervalCheckRecord::Kind::kUnknown;
+  return known ? IntervalCheckKindName(r.kind) : "";
+}
+inline bool SetRecord(const std::string& text, const std::optional<std::string>& kind,
+                      IntervalCheckRecord* r) {
+  *r = IntervalCheckRecord();
+  if (kind) {
+    const std::optional<IntervalCheckRecord::Kind> k = IntervalCheckKindFromName(*kind);
+    if (!k) return false;
+    r->kind = *k;
+  } else if (!text.empty()) {
+    r->kind = IntervalCheckRecord::Kind::kUnknown;
+  }
+  r->read_text = text;
+  return true;
+}
+// the segments have no kind: the text read back is the record's choice
+inline std::string RecordText(const SegmentRecord& r) { return SegmentReasonText(r); }
+inline std::string RecordKind(const SegmentRecord&) { return ""; }
+inline bool SetRecord(const std::string& text, const std::optional<std::string>& kind,
+                      SegmentRecord* r) {
+  *r = SegmentRecord();
+  r->choice = text;
+  return !kind;
+}
 
 // a reader's note that an optional block was present (a writer's result is const)
 inline void MarkPresent(bool& flag) { flag = true; }
@@ -99,11 +154,11 @@ void VisitResultFields(V& v, R& r) {
   v.Text({"name"}, r.name);
   v.Text({"experiment"}, r.experiment);
   v.Text({"status", Presence::kRequired, true}, r.status);
-  v.Text({"termination"}, r.termination);
+  v.Record({"termination"}, {"termination_kind", Presence::kWhenSet}, r.termination);
   v.Text({"created"}, r.created);
   v.Text({"mjsysid_version"}, r.mjsysid_version);
   v.Text({"mujoco_version"}, r.mujoco_version);
-  v.Text({"jacobian_mode"}, r.jacobian_mode);
+  v.Text({"jacobian_mode"}, r.diagnostics.jacobian_mode);
   v.Text({"run_id", Presence::kWhenSet, true}, r.run_id);
   // whether std and ci95 mean something (only for status converged); absent: valid when converged
   v.Bool({"intervals_valid", Presence::kOptional, true}, r.intervals_valid);
@@ -115,16 +170,17 @@ void VisitResultFields(V& v, R& r) {
   v.Number({"wall_time_s"}, r.seconds);
   // multiple shooting as used (0: single shooting) and why
   v.Int({"segment_steps_used", Presence::kOptional}, r.segment_steps_used);
-  v.Text({"segment_reason", Presence::kOptional}, r.segment_reason);
+  v.Record({"segment_reason", Presence::kOptional}, {nullptr}, r.segment_reason);
   // whether the interval check ran and why (sysid/assess/interval_check.h); absent: no uncertainty
   // step
-  v.Text({"interval_check", Presence::kWhenSet}, r.interval_check);
+  v.Record({"interval_check", Presence::kWhenSet}, {"interval_check_kind", Presence::kWhenSet},
+           r.interval_check);
   // the statistical stop before the last Jacobian (sysid/solve/gn_convergence.h): the covariance's
   // Jacobian is the previous iterate's; absent: the estimate's own
   v.Map({"covariance_jacobian", Presence::kWhenSet}, Style::kBlock,
-        r.covariance_jacobian_iteration >= 0, [&](auto& m) {
-          m.Int({"iteration"}, r.covariance_jacobian_iteration);
-          m.Number({"last_step_std_errors"}, r.last_step_std_errors);
+        r.diagnostics.covariance_jacobian_iteration >= 0, [&](auto& m) {
+          m.Int({"iteration"}, r.diagnostics.covariance_jacobian_iteration);
+          m.Number({"last_step_std_errors"}, r.diagnostics.last_step_std_errors);
         });
   // auto's contact segments: the cells next to contact events left out (sysid/data/event_windows.h)
   v.Map({"event_windows", Presence::kWhenSet}, Style::kBlock, r.event_windows.masked > 0,
@@ -154,14 +210,15 @@ void VisitResultFields(V& v, R& r) {
            [](auto& e, auto& s) { VisitSpreadFields(e, s); });
   });
   // the reduced model (FitOptions::reduce_model, core/reduced_model.h)
-  v.Map({"reduced", Presence::kWhenSet}, Style::kFlow, r.reduction.recorded, [&](auto& m) {
-    MarkPresent(r.reduction.recorded);
-    m.Bool({"used"}, r.reduction.used);
-    m.Int({"collision_pairs"}, r.reduction.collision_pairs);
-    m.Int({"collision_pairs_off"}, r.reduction.collision_pairs_off);
-    m.Int({"geoms_off"}, r.reduction.geoms_off);
-    m.Texts({"disabled"}, Style::kFlow, r.reduction.disabled);
-    m.Int({"guard_trips"}, r.reduction.guard_trips);
+  auto& reduction = r.diagnostics.reduction;
+  v.Map({"reduced", Presence::kWhenSet}, Style::kFlow, reduction.recorded, [&](auto& m) {
+    MarkPresent(reduction.recorded);
+    m.Bool({"used"}, reduction.used);
+    m.Int({"collision_pairs"}, reduction.collision_pairs);
+    m.Int({"collision_pairs_off"}, reduction.collision_pairs_off);
+    m.Int({"geoms_off"}, reduction.geoms_off);
+    m.Texts({"disabled"}, Style::kFlow, reduction.disabled);
+    m.Int({"guard_trips"}, reduction.guard_trips);
   });
 }
 

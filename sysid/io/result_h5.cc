@@ -53,6 +53,8 @@ struct SkipFields {
   void List(const FieldKey&, A&&...) {}
   template <class... A>
   void FitMetrics(const FieldKey&, A&&...) {}
+  template <class R>
+  void Record(const FieldKey&, const FieldKey&, R&&) {}
 };
 
 // the fields marked h5 (text and bool) as root attributes: those written only when set after the

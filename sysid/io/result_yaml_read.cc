@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -126,6 +127,21 @@ class FieldReader {
 
   void Text(const FieldKey& k, std::string& s) {
     if (const YAML::Node n = Find(k)) s = y_.Text(n, Path(k));
+  }
+  // the text and the kind's name (absent: none) as the record (SetRecord)
+  template <class R>
+  void Record(const FieldKey& k, const FieldKey& kind, R& record) {
+    const YAML::Node n = Find(k);
+    if (!n) return;
+    const std::string text = y_.Text(n, Path(k));
+    if (kind.name) {
+      if (const YAML::Node named = Find(kind)) {
+        const std::string name = y_.Text(named, Path(kind));
+        if (!SetRecord(text, name, &record)) y_.Fail(named, Path(kind), "unknown " + Quote(name));
+        return;
+      }
+    }
+    SetRecord(text, std::nullopt, &record);
   }
   void Int(const FieldKey& k, int& i) {
     if (const YAML::Node n = Find(k)) i = y_.Int(n, Path(k));

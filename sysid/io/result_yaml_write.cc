@@ -19,6 +19,12 @@ class YamlWriter {
     if (k.presence == Presence::kWhenSet && s.empty()) return;
     Key(k) << s;
   }
+  // the text, then the kind's name (when known)
+  template <class R>
+  void Record(const FieldKey& k, const FieldKey& kind, const R& record) {
+    Text(k, RecordText(record));
+    if (kind.name) Text(kind, RecordKind(record));
+  }
   void Int(const FieldKey& k, int i) { Key(k) << i; }
   void Bool(const FieldKey& k, bool b) { Key(k) << b; }
   void Number(const FieldKey& k, double x) { Key(k) << result_internal::Number(x); }

@@ -309,7 +309,8 @@ class CheckpointWriter {
   io::FitResultFile Checkpoint(const IterationInfo& it, const IterationInfo& entry) const {
     io::FitResultFile cp = header_;
     cp.status = "running";
-    cp.termination = "checkpoint after iteration " + std::to_string(entry.iteration);
+    cp.termination.kind = FitTermination::Kind::kCheckpoint;
+    cp.termination.iteration = entry.iteration;
     cp.iterations = entry.iteration;
     cp.initial_cost = progress_.initial_cost;
     cp.final_cost = it.cost;
@@ -418,8 +419,8 @@ void Conclude(const BuiltProblem& bp, const std::map<std::string, double>& truth
   const FitResult& r = *file;
   file->status = FitStatusName(r.outcome);
   if (r.interrupted) {
-    file->termination =
-        "interrupted (a stop signal) after iteration " + std::to_string(r.iterations);
+    file->termination.kind = FitTermination::Kind::kInterrupted;
+    file->termination.iteration = r.iterations;
   }
   for (ParameterEstimate& e : file->parameters) {
     if (truth.count(e.name)) e.truth = truth.at(e.name);

@@ -192,8 +192,9 @@ FitResult FitFromStarts(const BuiltProblem& bp, const FitOptions& options, int n
   FitResult result = std::move(fits[static_cast<size_t>(best)]);
   result.starts = records;
   result.best_start = best;
-  result.simulation_steps = 0;
-  for (const FitResult& f : fits) result.simulation_steps += f.simulation_steps;
+  result.diagnostics.simulation_steps = 0;
+  for (const FitResult& f : fits)
+    result.diagnostics.simulation_steps += f.diagnostics.simulation_steps;
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall).count();
 
   // the spread of each estimated value over the starts that ran

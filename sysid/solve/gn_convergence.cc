@@ -245,18 +245,17 @@ bool GaussNewtonStop::TestBeforeJacobian() {
   return before_jacobian_;
 }
 
-std::string GaussNewtonStop::Message() const {
-  std::string message = "converged: predicted Gauss-Newton step below " +
-                        FormatDigits(100 * fraction_, 3) + " % of every standard error (largest " +
-                        FormatDigits(100 * last_.max_ratio, 2) + " %, iteration " +
-                        std::to_string(iteration_) + ")";
+FitTermination GaussNewtonStop::Termination() const {
+  FitTermination t;
+  t.kind = FitTermination::Kind::kGaussNewtonStop;
+  t.fraction = fraction_;
+  t.largest = last_.max_ratio;
+  t.iteration = iteration_;
   if (fired_before_jacobian()) {
-    message += "; with the Jacobian of iteration " + std::to_string(previous_iteration_) + ", " +
-               FormatDigits(last_.step_ratio, 2) +
-               " standard errors from the estimate (the standard errors too; the estimate's own "
-               "not simulated)";
+    t.jacobian_iteration = previous_iteration_;
+    t.step_std_errors = last_.step_ratio;
   }
-  return message;
+  return t;
 }
 
 }  // namespace mjsysid

@@ -52,7 +52,8 @@
 // makes the problem's cost functions answer Jacobian requests with J_k while it runs and, when it
 // fires, for Ceres' request too (Ceres reads it for its gradient norm only); the next
 // operator() call then ends the solve without evaluating. The covariance then comes from J_k
-// with the residuals, cost and s^2 at x_{k+1} (FitResult::covariance_jacobian_iteration).
+// with the residuals, cost and s^2 at x_{k+1} (FitResult::diagnostics.
+// covariance_jacobian_iteration).
 //
 // Threads: as the evaluation cache, the thread that runs the solve. Failure: an evaluation that
 // fails (a cancelled simulation) or a broken argument makes the test not pass.
@@ -68,6 +69,7 @@
 #include "sysid/assess/estimate_jacobian.h"
 #include "sysid/assess/uncertainty.h"
 #include "sysid/solve/fit_ledger.h"
+#include "sysid/types.h"
 
 namespace mjsysid {
 
@@ -136,9 +138,10 @@ class GaussNewtonStop : public ceres::IterationCallback {
   int previous_iteration() const { return previous_iteration_; }
   int tests() const { return tests_; }  // how many points were tested
   const GaussNewtonTest& last() const { return last_; }
-  // the termination message of a fired test, e.g. "converged: predicted Gauss-Newton step below
-  // 3 % of every standard error (largest 1.3 %, iteration 1)"
-  std::string Message() const;
+  // the termination record of a fired test (kGaussNewtonStop), whose text (TerminationText) is
+  // e.g. "converged: predicted Gauss-Newton step below 3 % of every standard error (largest
+  // 1.3 %, iteration 1)"
+  FitTermination Termination() const;
 
  private:
   const ceres::Problem* problem_;

@@ -140,16 +140,17 @@ def test_jacobian_options(root, frames):  # noqa: F811
                 "step": {"jacobian": "matrix", "relative_step": 1e-5},
                 "directional": {"jacobian": "directional"},
                 "full": {"reduce_model": False}}.items()}
-    assert fits["forward"].jacobian_mode == "matrix"
-    assert fits["directional"].jacobian_mode == "directional"
-    assert fits["central"].simulation_steps > fits["forward"].simulation_steps
+    assert fits["forward"].diagnostics.jacobian_mode == "matrix"
+    assert fits["directional"].diagnostics.jacobian_mode == "directional"
+    assert (fits["central"].diagnostics.simulation_steps
+            > fits["forward"].diagnostics.simulation_steps)
     for name in ("central", "step"):
         assert fits[name].estimates != fits["forward"].estimates, name
         for key, value in fits["forward"].estimates.items():
             assert fits[name].estimates[key] == pytest.approx(value, rel=1e-6), (name, key)
-    assert fits["forward"].reduction["used"]
-    assert not fits["full"].reduction["used"]
-    assert fits["full"].reduction["text"].startswith("off")
+    assert fits["forward"].diagnostics.reduction["used"]
+    assert not fits["full"].diagnostics.reduction["used"]
+    assert fits["full"].diagnostics.reduction["text"].startswith("off")
     with pytest.raises(ValueError, match="jacobian 'fd': expected auto, directional, matrix"):
         mjsysid.fit(model, PARAMETERS, seqs, options={"jacobian": "fd"})
     with pytest.raises(ValueError, match="relative_step must be > 0"):
@@ -288,10 +289,15 @@ def test_statistical_stop_is_reported(root, frames):  # noqa: F811
     assert stop.status == ceres.status == "converged"
     assert stop.gauss_newton_converged and not ceres.gauss_newton_converged
     assert "Gauss-Newton" in stop.termination, stop.termination
-    assert ceres.covariance_jacobian_iteration == -1
-    assert np.isnan(ceres.last_step_std_errors)
-    assert 0 <= stop.covariance_jacobian_iteration == stop.iterations - 1, stop.termination
-    assert 0 <= stop.last_step_std_errors <= 0.5
+    assert stop.termination_kind == "gauss_newton_stop", stop.termination_kind
+    assert ceres.termination_kind == "solver_convergence", ceres.termination
+    assert ceres.diagnostics.covariance_jacobian_iteration == -1
+    assert np.isnan(ceres.diagnostics.last_step_std_errors)
+    assert 0 <= stop.diagnostics.covariance_jacobian_iteration == stop.iterations - 1, \
+        stop.termination
+    assert 0 <= stop.diagnostics.last_step_std_errors <= 0.5
+    # the ledger's steps add up to the fit's
+    assert sum(row.steps for row in stop.diagnostics.ledger) == stop.diagnostics.simulation_steps
     for p, q in zip(stop.parameters, ceres.parameters):
         assert abs(p.value - q.value) <= 0.03 * q.std_error, (p, q)
         assert p.std_error == pytest.approx(q.std_error, rel=0.005), (p, q)

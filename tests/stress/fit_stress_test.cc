@@ -78,7 +78,7 @@ TEST(FitStressTest, BadlyScaledParameters) {
     const double err = stress::WorstRelativeError(r, truth);
     std::printf("[ stress ] badly scaled (%s): worst relative error %.2e, %d iterations\n", name,
                 err, r.iterations);
-    EXPECT_TRUE(r.converged) << name << ": " << r.termination;
+    EXPECT_TRUE(r.converged) << name << ": " << TerminationText(r.termination);
     EXPECT_LE(err, 1e-6) << name;
     for (const auto& p : r.parameters) EXPECT_TRUE(p.identifiable) << name << " " << p.name;
   }
@@ -116,7 +116,7 @@ TEST(FitStressTest, StartsOnBoundsConverge) {
     const double err = stress::WorstRelativeError(r, truth);
     std::printf("[ stress ] start on bounds (%s): worst relative error %.2e, %d iterations\n",
                 s.name, err, r.iterations);
-    EXPECT_TRUE(r.converged) << s.name << ": " << r.termination;
+    EXPECT_TRUE(r.converged) << s.name << ": " << TerminationText(r.termination);
     EXPECT_LE(err, 1e-5) << s.name;
     for (const auto& p : r.parameters) EXPECT_FALSE(p.at_lower || p.at_upper) << s.name;
   }
@@ -250,7 +250,7 @@ TEST(FitStressTest, ZeroMotionDataIsNoEffectNotNaN) {
   const FitResult r = problem.Fit(FitOptions());
   std::printf("[ stress ] zero motion + one moving sequence: damping %.9f (truth 0.05)\n",
               Estimate(r, "damping").value);
-  EXPECT_TRUE(r.converged) << r.termination;
+  EXPECT_TRUE(r.converged) << TerminationText(r.termination);
   EXPECT_NEAR(Estimate(r, "damping").value, 0.05, 5e-8);
   EXPECT_TRUE(stress::AllFinite(r));
   // uncertainty of an all-zero Jacobian (zero cost): no NaN, everything "no effect"
@@ -362,7 +362,7 @@ TEST(FitStressTest, HeavyNoiseTruthWithinStatedBound) {
     FitOptions opt;
     opt.sensor_weights = {{"x", 1 / sx}, {"xdot", 1 / sv}};
     const FitResult r = problem.Fit(opt);
-    EXPECT_TRUE(r.converged) << "seed " << seed << ": " << r.termination;
+    EXPECT_TRUE(r.converged) << "seed " << seed << ": " << TerminationText(r.termination);
     EXPECT_NEAR(r.uncertainty.residual_variance, 1.0, 0.1) << "seed " << seed;
     for (const Truth& t : truth) {
       const ParameterEstimate& e = Estimate(r, t.name);
@@ -423,7 +423,7 @@ TEST(FitStressTest, DivergentTrialPointsAreRejectedAndRecovered) {
         "[ stress ] divergent (%s): %d rejected evaluations, relative error %.2e, %d "
         "iterations\n",
         c.name, rejected, err, r.iterations);
-    EXPECT_TRUE(r.converged) << c.name << ": " << r.termination;
+    EXPECT_TRUE(r.converged) << c.name << ": " << TerminationText(r.termination);
     EXPECT_LE(err, 1e-5) << c.name;
     EXPECT_TRUE(stress::AllFinite(r)) << c.name;
   }

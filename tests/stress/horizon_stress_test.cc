@@ -216,7 +216,7 @@ TEST_P(ChaoticFitTest, LongHorizonSingleAndMultipleShooting) {
     const FitResult r = fit(segment_steps);
     const char* kind = segment_steps < 0 ? "auto" : segment_steps ? "multiple" : "single";
     const std::string label = std::string(c.name) + " " + kind;
-    std::printf("[ stress ] %s: %s\n", label.c_str(), r.segment_reason.c_str());
+    std::printf("[ stress ] %s: %s\n", label.c_str(), SegmentReasonText(r.segment_reason).c_str());
     stress::PrintFit(label.c_str(), r);
     const double err = stress::WorstRelativeError(r, truth);
     const bool reported = !r.converged || stress::HasWarning(r, "Jacobian not reliable") ||
@@ -231,16 +231,16 @@ TEST_P(ChaoticFitTest, LongHorizonSingleAndMultipleShooting) {
       EXPECT_TRUE(err <= 1e-4 || reported) << label << ": wrong estimate returned silently";
     }
     if (segment_steps && c.multiple_must_recover) {
-      EXPECT_TRUE(r.converged) << label << ": " << r.termination;
+      EXPECT_TRUE(r.converged) << label << ": " << TerminationText(r.termination);
       EXPECT_LE(err, 1e-5) << label;
     }
     // auto: the chaotic horizon is split (segments chosen from the measured growth), and where
     // multiple shooting must recover, auto does too
     if (segment_steps < 0 && c.auto_must_split) {
-      EXPECT_GT(r.segment_steps_used, 0) << label << ": " << r.segment_reason;
+      EXPECT_GT(r.segment_steps_used, 0) << label << ": " << SegmentReasonText(r.segment_reason);
       EXPECT_LT(r.segment_steps_used, T) << label;
       if (c.multiple_must_recover || c.auto_must_split) {
-        EXPECT_TRUE(r.converged) << label << ": " << r.termination;
+        EXPECT_TRUE(r.converged) << label << ": " << TerminationText(r.termination);
         EXPECT_LE(err, 1e-5) << label;
       }
     }
@@ -309,10 +309,10 @@ TEST(HorizonStressTest, AutoMultipleShootingRecoversChaoticNoisyFit) {
   opt.max_iterations = 50;
   const FitResult r = problem.Fit(opt);
   stress::PrintFit("auto noisy", r);
-  std::printf("[ stress ] auto noisy: %s\n", r.segment_reason.c_str());
-  EXPECT_GT(r.segment_steps_used, 0) << r.segment_reason;
-  EXPECT_LT(r.segment_steps_used, T) << r.segment_reason;
-  EXPECT_TRUE(r.converged) << r.termination;
+  std::printf("[ stress ] auto noisy: %s\n", SegmentReasonText(r.segment_reason).c_str());
+  EXPECT_GT(r.segment_steps_used, 0) << SegmentReasonText(r.segment_reason);
+  EXPECT_LT(r.segment_steps_used, T) << SegmentReasonText(r.segment_reason);
+  EXPECT_TRUE(r.converged) << TerminationText(r.termination);
   EXPECT_LE(stress::WorstRelativeError(r, truth), 1e-3);
   for (const stress::Truth& t : truth) {
     const ParameterEstimate& e = Estimate(r, t.name);

@@ -140,11 +140,11 @@ TEST(IntegratorStressTest, ShortFitConvergesWithEveryIntegrator) {
     const FitResult r = fit(JacobianMode::kAuto);
     const double err = stress::WorstRelativeError(r, truth);
     std::printf("[ stress ] integrator fit %-12s jacobian %-11s error %.2e, %d iterations\n",
-                integrator, r.jacobian_mode.c_str(), err, r.iterations);
-    EXPECT_TRUE(r.converged) << integrator << ": " << r.termination;
+                integrator, r.diagnostics.jacobian_mode.c_str(), err, r.iterations);
+    EXPECT_TRUE(r.converged) << integrator << ": " << TerminationText(r.termination);
     EXPECT_LE(err, 1e-5) << integrator;
     if (m->opt.integrator == mjINT_RK4) {
-      EXPECT_EQ(r.jacobian_mode, "directional");
+      EXPECT_EQ(r.diagnostics.jacobian_mode, "directional");
       try {
         fit(JacobianMode::kMatrix);
         ADD_FAILURE() << "RK4 with jacobian mode matrix: expected std::invalid_argument";

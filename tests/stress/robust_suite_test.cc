@@ -179,7 +179,8 @@ TEST_P(RobustSuiteTest, EndsHonestly) {
       out.file.sequences.empty() ? 0 : steps / static_cast<int>(out.file.sequences.size()),
       out.file.status.c_str(), out.exit_code, 100 * worst, in_ci95 ? "yes" : "no",
       in_4std ? "yes" : "no", out.file.iterations, seconds, cfg.options.segment_steps);
-  std::printf("[ robust ] %s:   shooting: %s\n", name.c_str(), out.file.segment_reason.c_str());
+  std::printf("[ robust ] %s:   shooting: %s\n", name.c_str(),
+              SegmentReasonText(out.file.segment_reason).c_str());
   for (const std::string& w : out.file.warnings) {
     std::printf("[ robust ] %s:   warning: %s\n", name.c_str(), w.c_str());
   }
@@ -205,12 +206,14 @@ TEST_P(RobustSuiteTest, EndsHonestly) {
     const bool events = name == "finger" || name == "hopper" || name == "walker";
     EXPECT_EQ(omitted, events ? kJumping.at(name) : 0) << "jumping sensors left out of the fit";
     const bool contact_segments =
-        out.file.segment_reason.find("change their contact count") != std::string::npos;
-    EXPECT_EQ(contact_segments, events) << out.file.segment_reason;
+        SegmentReasonText(out.file.segment_reason).find("change their contact count") !=
+        std::string::npos;
+    EXPECT_EQ(contact_segments, events) << SegmentReasonText(out.file.segment_reason);
     // and start with the segment states held on the data (sysid/solve/multiple_shooting.h,
     // SolveWithStatesHeld), saying so
-    const bool held = out.file.segment_reason.find("held on the data") != std::string::npos;
-    EXPECT_EQ(held, events) << out.file.segment_reason;
+    const bool held =
+        SegmentReasonText(out.file.segment_reason).find("held on the data") != std::string::npos;
+    EXPECT_EQ(held, events) << SegmentReasonText(out.file.segment_reason);
   }
 
   // honest: converged means exit 0, valid intervals and every truth inside them; anything else
@@ -235,7 +238,7 @@ TEST_P(RobustSuiteTest, EndsHonestly) {
   // recovery where it is expected today, on the default logs (the long mode's added sequences
   // are recorded: docs/stress.md)
   if (!LongMode() && std::count(kRecovery.begin(), kRecovery.end(), name)) {
-    EXPECT_EQ(out.file.outcome, FitStatus::kConverged) << out.file.termination;
+    EXPECT_EQ(out.file.outcome, FitStatus::kConverged) << TerminationText(out.file.termination);
     EXPECT_LE(worst, kTolerance) << "worst relative error";
   }
   if (!LongMode() && std::count(kWithin5Percent.begin(), kWithin5Percent.end(), name)) {

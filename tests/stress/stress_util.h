@@ -64,7 +64,8 @@ inline bool HasWarning(const FitResult& r, const std::string& text) {
 inline void PrintFit(const char* label, const FitResult& r) {
   std::printf("[ stress ] %s: cost %.3e -> %.3e, %d iterations, %s, %.2f s, jacobian %s\n", label,
               r.initial_cost, r.final_cost, r.iterations,
-              r.converged ? "converged" : "NOT converged", r.seconds, r.jacobian_mode.c_str());
+              r.converged ? "converged" : "NOT converged", r.seconds,
+              r.diagnostics.jacobian_mode.c_str());
   for (const auto& p : r.parameters) {
     std::printf("[ stress ]   %-10s %.9g (from %.4g) +- %.3g%s%s%s\n", p.name.c_str(), p.value,
                 p.initial, p.std_error, p.identifiable ? "" : " UNIDENTIFIABLE",

@@ -198,8 +198,8 @@ FitResult FitWith(const io::ExperimentConfig& cfg, bool ahead, int threads) {
 // columns ahead, sysid/solve/evaluation_cache.h); and the folds made and reused
 void ExpectSameFit(const FitResult& a, const FitResult& b, bool steps) {
   test::ExpectSameFit(a, b, steps);
-  EXPECT_EQ(a.folds, b.folds);
-  EXPECT_EQ(a.reused_folds, b.reused_folds);
+  EXPECT_EQ(a.diagnostics.folds, b.diagnostics.folds);
+  EXPECT_EQ(a.diagnostics.reused_folds, b.diagnostics.reused_folds);
 }
 
 class FoldAheadFitTest : public ::testing::TestWithParam<std::string> {};
@@ -212,15 +212,16 @@ TEST_P(FoldAheadFitTest, TheSameFitBitForBitAtOneAndTwoThreads) {
   std::printf(
       "%s: %d iterations, %lld steps, folds %lld (%lld ahead) + %lld reused; off: %lld "
       "(%lld ahead) + %lld; 2 threads: %lld (%lld ahead)\n  %s\n",
-      GetParam().c_str(), on.iterations, on.simulation_steps, on.folds, on.ahead_folds,
-      on.reused_folds, off.folds, off.ahead_folds, off.reused_folds, on2.folds, on2.ahead_folds,
-      on.termination.c_str());
+      GetParam().c_str(), on.iterations, on.diagnostics.simulation_steps, on.diagnostics.folds,
+      on.diagnostics.ahead_folds, on.diagnostics.reused_folds, off.diagnostics.folds,
+      off.diagnostics.ahead_folds, off.diagnostics.reused_folds, on2.diagnostics.folds,
+      on2.diagnostics.ahead_folds, TerminationText(on.termination).c_str());
   EXPECT_EQ(on.segment_steps_used, 0);  // single shooting: compressed blocks
   // every Jacobian of the solve folds its 3 blocks ahead
-  EXPECT_GE(on.ahead_folds, 3);
-  EXPECT_EQ(on.ahead_folds % 3, 0);
-  EXPECT_EQ(on2.ahead_folds, on.ahead_folds);
-  EXPECT_EQ(off.ahead_folds, 0);
+  EXPECT_GE(on.diagnostics.ahead_folds, 3);
+  EXPECT_EQ(on.diagnostics.ahead_folds % 3, 0);
+  EXPECT_EQ(on2.diagnostics.ahead_folds, on.diagnostics.ahead_folds);
+  EXPECT_EQ(off.diagnostics.ahead_folds, 0);
   ExpectSameFit(on, off, true);
   ExpectSameFit(on2, off, false);
   std::filesystem::remove_all(std::filesystem::path(cfg.data[0].path).parent_path());
@@ -236,12 +237,13 @@ TEST(FoldAheadMultipleShootingTest, TheSameFitBitForBitAtOneAndTwoThreads) {
   const FitResult off = FitWith(cfg, false, 1);
   const FitResult on2 = FitWith(cfg, true, 2);
   std::printf("arm5: %d iterations, folds %lld (%lld ahead); off %lld (%lld ahead)\n  %s\n",
-              on.iterations, on.folds, on.ahead_folds, off.folds, off.ahead_folds,
-              on.termination.c_str());
+              on.iterations, on.diagnostics.folds, on.diagnostics.ahead_folds,
+              off.diagnostics.folds, off.diagnostics.ahead_folds,
+              TerminationText(on.termination).c_str());
   EXPECT_GT(on.segment_steps_used, 0);  // multiple shooting
-  EXPECT_GE(on.ahead_folds, 5);
-  EXPECT_EQ(on2.ahead_folds, on.ahead_folds);
-  EXPECT_EQ(off.ahead_folds, 0);
+  EXPECT_GE(on.diagnostics.ahead_folds, 5);
+  EXPECT_EQ(on2.diagnostics.ahead_folds, on.diagnostics.ahead_folds);
+  EXPECT_EQ(off.diagnostics.ahead_folds, 0);
   ExpectSameFit(on, off, true);
   ExpectSameFit(on2, off, false);
   std::filesystem::remove_all(std::filesystem::path(cfg.data[0].path).parent_path());

@@ -170,16 +170,18 @@ TEST_P(FoldReuseFitTest, TheSameFitBitForBit) {
   const FitResult off = FitWith(cfg, false);
   std::printf(
       "%s%s: %d iterations, %lld steps, folds %lld + %lld reused (off: %lld + %lld)\n  %s\n",
-      c.experiment.c_str(), c.auto_start ? " +auto" : "", on.iterations, on.simulation_steps,
-      on.folds, on.reused_folds, off.folds, off.reused_folds, on.termination.c_str());
+      c.experiment.c_str(), c.auto_start ? " +auto" : "", on.iterations,
+      on.diagnostics.simulation_steps, on.diagnostics.folds, on.diagnostics.reused_folds,
+      off.diagnostics.folds, off.diagnostics.reused_folds, TerminationText(on.termination).c_str());
   EXPECT_EQ(on.segment_steps_used, 0);  // single shooting: compressed blocks
   // (with a fitted control delay the statistical stop is off and Ceres ends after trials at other
   // points, so the estimate's Jacobian is a new fold: the same fit is all there is to test)
   if (!c.delay) {
-    EXPECT_GT(on.reused_folds, 0);
+    EXPECT_GT(on.diagnostics.reused_folds, 0);
   }
-  EXPECT_EQ(off.reused_folds, 0);
-  EXPECT_EQ(on.folds + on.reused_folds, off.folds);  // each reused fold is one fold fewer
+  EXPECT_EQ(off.diagnostics.reused_folds, 0);
+  EXPECT_EQ(on.diagnostics.folds + on.diagnostics.reused_folds,
+            off.diagnostics.folds);  // each reused fold is one fold fewer
   test::ExpectSameFit(on, off, true);
   std::filesystem::remove_all(std::filesystem::path(cfg.data[0].path).parent_path());
 }

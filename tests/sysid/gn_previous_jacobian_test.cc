@@ -87,7 +87,7 @@ FitResult FitWith(const io::ExperimentConfig& cfg, bool before_jacobian, double 
 }
 
 long long PhaseSteps(const FitResult& r, FitPhase phase) {
-  for (const LedgerRow& row : r.ledger) {
+  for (const LedgerRow& row : r.diagnostics.ledger) {
     if (row.phase == FitPhaseName(phase)) return row.steps;
   }
   return 0;
@@ -101,17 +101,17 @@ TEST_P(PreviousJacobianFitTest, SameFitOneJacobianFewer) {
   for (io::ParameterSpec& p : cfg.parameters) p.initial_auto = p.initial_auto || c.auto_start;
   const FitResult on = FitWith(cfg, true, kFraction);
   const FitResult off = FitWith(cfg, false, kFraction);
-  const bool fired = on.covariance_jacobian_iteration >= 0;
+  const bool fired = on.diagnostics.covariance_jacobian_iteration >= 0;
   std::printf(
       "%s%s: on %d it, %lld steps, Jacobians %lld; off %d it, %lld steps, Jacobians %lld; "
       "fired %d, last step %.3g std\n  on: %s\n",
-      c.experiment.c_str(), c.auto_start ? " +auto" : "", on.iterations, on.simulation_steps,
-      PhaseSteps(on, kPhaseJacobians), off.iterations, off.simulation_steps,
-      PhaseSteps(off, kPhaseJacobians), fired ? 1 : 0, on.last_step_std_errors,
-      on.termination.c_str());
+      c.experiment.c_str(), c.auto_start ? " +auto" : "", on.iterations,
+      on.diagnostics.simulation_steps, PhaseSteps(on, kPhaseJacobians), off.iterations,
+      off.diagnostics.simulation_steps, PhaseSteps(off, kPhaseJacobians), fired ? 1 : 0,
+      on.diagnostics.last_step_std_errors, TerminationText(on.termination).c_str());
   EXPECT_EQ(on.outcome, off.outcome);
   EXPECT_EQ(on.outcome, FitStatus::kConverged);
-  EXPECT_EQ(off.covariance_jacobian_iteration, -1);
+  EXPECT_EQ(off.diagnostics.covariance_jacobian_iteration, -1);
   EXPECT_EQ(fired, c.fires);
   ASSERT_EQ(on.parameters.size(), off.parameters.size());
   for (size_t i = 0; i < on.parameters.size(); ++i) {
@@ -126,17 +126,18 @@ TEST_P(PreviousJacobianFitTest, SameFitOneJacobianFewer) {
     EXPECT_LE(se, kStdErrorTolerance) << b.name;
   }
   if (fired) {
-    EXPECT_LE(on.last_step_std_errors, kPreviousJacobianSteps);
-    EXPECT_NE(on.termination.find("with the Jacobian of iteration"), std::string::npos);
+    EXPECT_LE(on.diagnostics.last_step_std_errors, kPreviousJacobianSteps);
+    EXPECT_NE(TerminationText(on.termination).find("with the Jacobian of iteration"),
+              std::string::npos);
     EXPECT_TRUE(on.gauss_newton_converged);
     // one Jacobian fewer (np columns x the log's steps), on the same iterations
     const long long one = static_cast<long long>(on.parameters.size()) * kSteps;
     EXPECT_EQ(on.iterations, off.iterations);
-    EXPECT_EQ(off.simulation_steps - on.simulation_steps, one);
+    EXPECT_EQ(off.diagnostics.simulation_steps - on.diagnostics.simulation_steps, one);
     EXPECT_EQ(PhaseSteps(off, kPhaseJacobians) - PhaseSteps(on, kPhaseJacobians), one);
   } else {  // refused: the fit as without the test, bit for bit
-    EXPECT_EQ(on.simulation_steps, off.simulation_steps);
-    EXPECT_EQ(on.termination, off.termination);
+    EXPECT_EQ(on.diagnostics.simulation_steps, off.diagnostics.simulation_steps);
+    EXPECT_EQ(TerminationText(on.termination), TerminationText(off.termination));
     EXPECT_EQ(on.iterations, off.iterations);
     EXPECT_EQ(on.final_cost, off.final_cost);
     for (size_t i = 0; i < on.parameters.size(); ++i) {

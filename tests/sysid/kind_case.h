@@ -29,7 +29,8 @@ inline const std::string& KindModels() {
 inline void Print(const FitResult& r) {
   std::printf("[ measured ] cost %.3e -> %.3e in %d iterations (%s), %.2f s, jacobian %s\n",
               r.initial_cost, r.final_cost, r.iterations,
-              r.converged ? "converged" : "NOT converged", r.seconds, r.jacobian_mode.c_str());
+              r.converged ? "converged" : "NOT converged", r.seconds,
+              r.diagnostics.jacobian_mode.c_str());
   for (const auto& p : r.parameters) {
     std::printf("[ measured ]   %-10s %.9g (from %.4g) +- %.3g [%.6g, %.6g]\n", p.name.c_str(),
                 p.value, p.initial, p.std_error, p.ci95_low, p.ci95_high);
@@ -104,7 +105,7 @@ inline FitResult FitCase(const KindCase& c, bool noisy, int seed, bool print = t
 // noise-free: every value within relative 1e-6 of the truth
 inline void ExpectNoiseFreeRecovery(const KindCase& c) {
   const FitResult r = FitCase(c, false, 50);
-  EXPECT_TRUE(r.converged) << r.termination;
+  EXPECT_TRUE(r.converged) << TerminationText(r.termination);
   for (const Truth& t : c.truth) {
     EXPECT_NEAR(Estimate(r, t.name).value / t.value, 1.0, 1e-6) << t.name;
   }
@@ -114,7 +115,8 @@ inline void ExpectNoiseFreeRecovery(const KindCase& c) {
 // inside every 95% interval
 inline void ExpectNoisyRecovery(const KindCase& c, int seed = 51) {
   const FitResult r = FitCase(c, true, seed);
-  EXPECT_EQ(r.outcome, FitStatus::kConverged) << FitStatusName(r.outcome) << ": " << r.termination;
+  EXPECT_EQ(r.outcome, FitStatus::kConverged)
+      << FitStatusName(r.outcome) << ": " << TerminationText(r.termination);
   EXPECT_TRUE(r.intervals_valid);
   EXPECT_NEAR(r.uncertainty.residual_variance, 1.0, 0.15);
   for (const Truth& t : c.truth) {

@@ -305,7 +305,7 @@ KindCase BallRollCase() {
 TEST(KindsCoverageTest, PairTorsionalRollingFrictionNoiseFreeTo1e3) {
   const KindCase c = BallRollCase();
   const FitResult r = FitCase(c, false, 50);
-  EXPECT_TRUE(r.converged) << r.termination;
+  EXPECT_TRUE(r.converged) << TerminationText(r.termination);
   for (const test::Truth& t : c.truth) {
     EXPECT_NEAR(Estimate(r, t.name).value / t.value, 1.0, 1e-3) << t.name;
   }

@@ -61,7 +61,7 @@ TEST(KindsRecoveryTest, PidTendonInertialNoiseFree) {
   }
   const FitResult r = problem.Fit(FitOptions());
   Print(r);
-  EXPECT_TRUE(r.converged) << r.termination;
+  EXPECT_TRUE(r.converged) << TerminationText(r.termination);
   for (const Truth& t : truth) {
     const double scale = t.name == "alpha" || t.name == "t1" ? 1.0 : t.value;
     EXPECT_NEAR(Estimate(r, t.name).value, t.value, 1e-6 * scale) << t.name;
@@ -96,8 +96,8 @@ TEST(KindsRecoveryTest, ServoGainsAndDelayNoiseFree) {
   problem.AddSequence(FitSequence("seq0", "servo", x0, u, Measure(*m, truth, x0, u, 0, 0)));
   const FitResult r = problem.Fit(FitOptions());
   Print(r);
-  EXPECT_TRUE(r.converged) << r.termination;
-  EXPECT_EQ(r.jacobian_mode, "whole_rollout");
+  EXPECT_TRUE(r.converged) << TerminationText(r.termination);
+  EXPECT_EQ(r.diagnostics.jacobian_mode, "whole_rollout");
   for (const Truth& t : truth) {
     EXPECT_NEAR(Estimate(r, t.name).value / t.value, 1.0, 1e-6) << t.name;
   }
@@ -126,7 +126,7 @@ TEST(KindsRecoveryTest, ServoGainsAndDelayNoisyTruthInsideIntervals) {
   opt.sensor_weights = {{"angle", 1 / 0.002}, {"rate", 1 / 0.02}};
   const FitResult r = problem.Fit(opt);
   Print(r);
-  EXPECT_TRUE(r.converged) << r.termination;
+  EXPECT_TRUE(r.converged) << TerminationText(r.termination);
   EXPECT_NEAR(r.uncertainty.residual_variance, 1.0, 0.15);
   for (const Truth& t : truth) {
     const ParameterEstimate& e = Estimate(r, t.name);
@@ -171,7 +171,7 @@ TEST(KindsRecoveryTest, PayloadInertialDerivedMassInterval) {
   opt.sensors_with_sigma = {"q_shoulder", "q_elbow", "v_shoulder"};
   const FitResult r = problem.Fit(opt);
   Print(r);
-  ASSERT_EQ(r.outcome, FitStatus::kConverged) << r.termination;
+  ASSERT_EQ(r.outcome, FitStatus::kConverged) << TerminationText(r.termination);
   ASSERT_EQ(r.derived.size(), 7u);
   for (const DerivedQuantity& d : r.derived) {
     std::printf("[ measured ]   %-18s %.9g +- %.3g [%.6g, %.6g] %s (%s)\n", d.name.c_str(), d.value,
@@ -328,7 +328,7 @@ TEST(KindsRecoveryTest, ContactSoftnessPersistentContactNoiseFree) {
   problem.AddSequence(FitSequence("seq0", "ball", x0, u, Measure(*m, truth, x0, u, 0, 0)));
   const FitResult r = problem.Fit(FitOptions());
   Print(r);
-  EXPECT_TRUE(r.converged) << r.termination;
+  EXPECT_TRUE(r.converged) << TerminationText(r.termination);
   for (const Truth& t : truth) {
     std::printf("[ measured ]   %s relative error %.2e\n", t.name.c_str(),
                 Estimate(r, t.name).value / t.value - 1);
@@ -445,7 +445,7 @@ void ExpectPersistentContactRecovery(const KindCase& c) {
   problem.AddSequence(FitSequence("seq0", "ball", x0, u, Measure(*m, c.truth, x0, u, 0, 0)));
   const FitResult r = problem.Fit(FitOptions());
   Print(r);
-  EXPECT_TRUE(r.converged) << r.termination;
+  EXPECT_TRUE(r.converged) << TerminationText(r.termination);
   for (const Truth& t : c.truth) {
     EXPECT_NEAR(Estimate(r, t.name).value / t.value, 1.0, 1e-6) << t.name;
   }

@@ -30,8 +30,9 @@ using test::Truth;
 void Print(const FitResult& r) {
   std::printf("[ measured ] cost %.3e -> %.3e in %d iterations (%s), %.2f s, jacobian %s\n",
               r.initial_cost, r.final_cost, r.iterations,
-              r.converged ? "converged" : "NOT converged", r.seconds, r.jacobian_mode.c_str());
-  std::printf("[ measured ]   %s\n", r.segment_reason.c_str());
+              r.converged ? "converged" : "NOT converged", r.seconds,
+              r.diagnostics.jacobian_mode.c_str());
+  std::printf("[ measured ]   %s\n", SegmentReasonText(r.segment_reason).c_str());
   for (const auto& p : r.parameters) {
     std::printf("[ measured ]   %-14s %.9g (from %.4g) +- %.3g%s\n", p.name.c_str(), p.value,
                 p.initial, p.std_error, p.identifiable ? "" : " UNIDENTIFIABLE");
@@ -52,7 +53,7 @@ TEST(RecoveryTest, SpringMassMassNoiseFree) {
   problem.AddSequence(FitSequence("seq0", "spring", x0, u, y));
   const FitResult r = problem.Fit(FitOptions());
   Print(r);
-  EXPECT_TRUE(r.converged) << r.termination;
+  EXPECT_TRUE(r.converged) << TerminationText(r.termination);
   EXPECT_NEAR(Estimate(r, "mass").value, 1.0, 1e-6);
 }
 
@@ -79,7 +80,7 @@ TEST(RecoveryTest, Arm5ArmaturesNoiseFree) {
   opt.threads = 2;
   const FitResult r = problem.Fit(opt);
   Print(r);
-  EXPECT_TRUE(r.converged) << r.termination;
+  EXPECT_TRUE(r.converged) << TerminationText(r.termination);
   for (const Truth& t : truth) {
     EXPECT_NEAR(Estimate(r, t.name).value / t.value, 1.0, 1e-6) << t.name;
   }
@@ -101,7 +102,7 @@ TEST(RecoveryTest, PendulumDampingAndFrictionLoss) {
   problem.AddSequence(FitSequence("seq0", "pendulum", x0, u, Measure(*m, truth, x0, u, 0, 0)));
   const FitResult r = problem.Fit(FitOptions());
   Print(r);
-  EXPECT_TRUE(r.converged) << r.termination;
+  EXPECT_TRUE(r.converged) << TerminationText(r.termination);
   for (const Truth& t : truth) EXPECT_NEAR(Estimate(r, t.name).value / t.value, 1.0, 1e-5);
 }
 
@@ -166,7 +167,7 @@ TEST(RecoveryTest, CartPoleMassDampingFriction) {
   }
   const FitResult r = problem.Fit(FitOptions());
   Print(r);
-  EXPECT_TRUE(r.converged) << r.termination;
+  EXPECT_TRUE(r.converged) << TerminationText(r.termination);
   for (const Truth& t : truth) EXPECT_NEAR(Estimate(r, t.name).value / t.value, 1.0, 1e-5);
 }
 
@@ -211,7 +212,7 @@ TEST(RecoveryTest, StartOnLowerBoundConverges) {
   problem.AddSequence(FitSequence("seq0", "pendulum", x0, u, Measure(*m, truth, x0, u, 0, 0)));
   const FitResult r = problem.Fit(FitOptions());
   Print(r);
-  EXPECT_TRUE(r.converged) << r.termination;
+  EXPECT_TRUE(r.converged) << TerminationText(r.termination);
   EXPECT_NEAR(Estimate(r, "damping").value, 0.05, 1e-7);
   EXPECT_FALSE(Estimate(r, "damping").at_lower);
 }
@@ -245,7 +246,7 @@ TEST(RecoveryTest, NoisyDataTruthInsideIntervals) {
   opt.sensor_weights = {{"x", 1 / 0.01}, {"xdot", 1 / 0.05}};
   const FitResult r = problem.Fit(opt);
   Print(r);
-  EXPECT_TRUE(r.converged) << r.termination;
+  EXPECT_TRUE(r.converged) << TerminationText(r.termination);
   EXPECT_NEAR(r.uncertainty.residual_variance, 1.0, 0.15);
   for (const Truth& t : truth) {
     const ParameterEstimate& e = Estimate(r, t.name);
@@ -351,7 +352,7 @@ TEST(RecoveryTest, ConfidenceIntervalCoverageOverSeeds) {
     FitOptions opt;
     opt.sensor_weights = {{"x", 1 / 0.01}, {"xdot", 1 / 0.05}};
     const FitResult r = problem.Fit(opt);
-    ASSERT_TRUE(r.converged) << "seed " << seed << ": " << r.termination;
+    ASSERT_TRUE(r.converged) << "seed " << seed << ": " << TerminationText(r.termination);
     for (int i = 0; i < 3; ++i) {
       const ParameterEstimate& e = Estimate(r, truth[i].name);
       covered[i] += e.ci95_low <= truth[i].value && truth[i].value <= e.ci95_high;
@@ -388,7 +389,7 @@ TEST(RecoveryTest, InitialStateWithQuaternions) {
   opt.estimate_initial_state = true;
   const FitResult r = problem.Fit(opt);
   Print(r);
-  EXPECT_TRUE(r.converged) << r.termination;
+  EXPECT_TRUE(r.converged) << TerminationText(r.termination);
   EXPECT_NEAR(Estimate(r, "damping").value / 0.05, 1.0, 1e-5);
   const Eigen::VectorXd& x0 = r.sequences[0].x0_final;
   // the same rotation: q or -q
@@ -423,7 +424,7 @@ TEST(RecoveryTest, SensorDelayGainAndBias) {
   problem.AddSequence(FitSequence("seq0", "pendulum", x0, u, y));
   const FitResult r = problem.Fit(FitOptions());
   Print(r);
-  EXPECT_TRUE(r.converged) << r.termination;
+  EXPECT_TRUE(r.converged) << TerminationText(r.termination);
   EXPECT_NEAR(Estimate(r, "damping").value / 0.05, 1.0, 1e-4);
   EXPECT_NEAR(Estimate(r, "angle.gain").value, 1.1, 1e-4);
   EXPECT_NEAR(Estimate(r, "angle.bias").value, 0.02, 1e-4);
@@ -507,7 +508,7 @@ TEST(RecoveryTest, MultipleShootingOnChaoticDoublePendulum) {
   opt.threads = 2;
   const FitResult r = problem.Fit(opt);
   Print(r);
-  EXPECT_TRUE(r.converged) << r.termination;
+  EXPECT_TRUE(r.converged) << TerminationText(r.termination);
   for (const Truth& t : truth) EXPECT_NEAR(Estimate(r, t.name).value / t.value, 1.0, 1e-5);
 }
 

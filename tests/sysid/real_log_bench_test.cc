@@ -447,8 +447,9 @@ void RunBench(const Case& c, RobotSettings rs, double floor_tolerance, double to
       "fit %.3f s / %lld steps on the grid (%lld samples), %.3f s / %lld steps off it\n",
       c.file.c_str(), static_cast<long long>(log.time.size()), rs.sensor_rate, rs.jitter * 1e3,
       rs.control_rate, rs.control_delay * 1e3, 100 * floor_error, 100 * error, 100 * linear_error,
-      floor.seconds, floor.simulation_steps, static_cast<long long>(floor.sequences[0].time.size()),
-      r.seconds, r.simulation_steps);
+      floor.seconds, floor.diagnostics.simulation_steps,
+      static_cast<long long>(floor.sequences[0].time.size()), r.seconds,
+      r.diagnostics.simulation_steps);
   for (const ParameterEstimate& e : r.parameters) {
     std::printf("  %-10s %.6g +- %.2g (start %g)\n", e.name.c_str(), e.value, e.std_error,
                 e.initial);
@@ -464,7 +465,8 @@ void RunBench(const Case& c, RobotSettings rs, double floor_tolerance, double to
       "  fitted control delay: %.3f ms +- %.2g (truth %g ms, start %g ms), worst parameter error "
       "%.3f %%, fit %.3f s / %lld steps, %d iterations, %s\n",
       delay.value * 1e3, delay.std_error * 1e3, rs.control_delay * 1e3, kDelayStart * 1e3,
-      100 * fd_error, fd.seconds, fd.simulation_steps, fd.iterations, FitStatusName(fd.outcome));
+      100 * fd_error, fd.seconds, fd.diagnostics.simulation_steps, fd.iterations,
+      FitStatusName(fd.outcome));
   EXPECT_NEAR(delay.value, rs.control_delay, 0.002);
   EXPECT_LT(fd_error, tolerance);
   // the masked cells are counted

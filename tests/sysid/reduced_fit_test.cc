@@ -55,15 +55,16 @@ TEST_P(ReducedFitTest, SameEstimateBitForBit) {
   const FitResult full = FitOnce(cfg, c, false);
   const FitResult reduced = FitOnce(cfg, c, true);
   std::printf("%s: %s; %d iterations, cost %.6g\n", c.experiment.c_str(),
-              ReductionText(reduced.reduction).c_str(), reduced.iterations, reduced.final_cost);
+              ReductionText(reduced.diagnostics.reduction).c_str(), reduced.iterations,
+              reduced.final_cost);
 
-  EXPECT_TRUE(full.reduction.recorded);
-  EXPECT_FALSE(full.reduction.used);
-  EXPECT_TRUE(reduced.reduction.used);
-  const auto& off = reduced.reduction.disabled;
+  EXPECT_TRUE(full.diagnostics.reduction.recorded);
+  EXPECT_FALSE(full.diagnostics.reduction.used);
+  EXPECT_TRUE(reduced.diagnostics.reduction.used);
+  const auto& off = reduced.diagnostics.reduction.disabled;
   EXPECT_EQ(std::find(off.begin(), off.end(), "contact") != off.end(), c.contact_off);
   EXPECT_EQ(std::find(off.begin(), off.end(), "island") != off.end(), c.island_off);
-  EXPECT_EQ(reduced.reduction.guard_trips, 0);
+  EXPECT_EQ(reduced.diagnostics.reduction.guard_trips, 0);
 
   ASSERT_EQ(full.parameters.size(), reduced.parameters.size());
   for (size_t i = 0; i < full.parameters.size(); ++i) {
@@ -74,7 +75,7 @@ TEST_P(ReducedFitTest, SameEstimateBitForBit) {
   EXPECT_EQ(full.iterations, reduced.iterations);
   EXPECT_EQ(full.initial_cost, reduced.initial_cost);
   EXPECT_EQ(full.final_cost, reduced.final_cost);
-  EXPECT_EQ(full.simulation_steps, reduced.simulation_steps);
+  EXPECT_EQ(full.diagnostics.simulation_steps, reduced.diagnostics.simulation_steps);
   EXPECT_EQ(full.outcome, reduced.outcome);
   std::filesystem::remove_all(std::filesystem::path(cfg.data[0].path).parent_path());
 }
@@ -104,11 +105,11 @@ TEST(ReducedFitFilesTest, SwitchAndRecordRoundTrip) {
   opt.threads = 1;
   run::RunFit(cfg, opt);
   const io::FitResultFile back = io::ReadResult(opt.out_dir);
-  EXPECT_TRUE(back.reduction.recorded);
-  EXPECT_TRUE(back.reduction.used);
-  EXPECT_EQ(back.reduction.disabled, (std::vector<std::string>{"contact", "island"}));
-  EXPECT_EQ(back.reduction.collision_pairs, 0);
-  EXPECT_EQ(back.reduction.guard_trips, 0);
+  EXPECT_TRUE(back.diagnostics.reduction.recorded);
+  EXPECT_TRUE(back.diagnostics.reduction.used);
+  EXPECT_EQ(back.diagnostics.reduction.disabled, (std::vector<std::string>{"contact", "island"}));
+  EXPECT_EQ(back.diagnostics.reduction.collision_pairs, 0);
+  EXPECT_EQ(back.diagnostics.reduction.guard_trips, 0);
   EXPECT_NE(test::ReadFile(opt.out_dir + "/result.yaml")
                 .find("reduced: {used: true, collision_pairs: 0, collision_pairs_off: 0, "
                       "geoms_off: 0, disabled: [contact, island], guard_trips: 0}"),

@@ -23,10 +23,12 @@ inline void ExpectSameFit(const FitResult& a, const FitResult& b, bool steps) {
   EXPECT_EQ(a.converged, b.converged);
   EXPECT_EQ(a.iterations, b.iterations);
   if (steps) {
-    EXPECT_EQ(a.simulation_steps, b.simulation_steps);
+    EXPECT_EQ(a.diagnostics.simulation_steps, b.diagnostics.simulation_steps);
   }
-  EXPECT_EQ(a.termination, b.termination);
-  EXPECT_EQ(a.covariance_jacobian_iteration, b.covariance_jacobian_iteration);
+  EXPECT_EQ(a.termination.kind, b.termination.kind);
+  EXPECT_EQ(TerminationText(a.termination), TerminationText(b.termination));
+  EXPECT_EQ(a.diagnostics.covariance_jacobian_iteration,
+            b.diagnostics.covariance_jacobian_iteration);
   EXPECT_TRUE(SameBits(a.final_cost, b.final_cost));
   EXPECT_EQ(a.warnings, b.warnings);
   ASSERT_EQ(a.parameters.size(), b.parameters.size());

@@ -118,7 +118,7 @@ TEST(FitStatusTest, MissingParameterWithSigmaIsModelMismatch) {
   problem.AddSequence(FitSequence("seq0", "pendulum", data.x0, data.u, data.y));
   const FitResult r = problem.Fit(data.Options());
   Print("missing parameter", r);
-  EXPECT_TRUE(r.converged) << "the optimiser converges: " << r.termination;
+  EXPECT_TRUE(r.converged) << "the optimiser converges: " << TerminationText(r.termination);
   EXPECT_EQ(r.outcome, FitStatus::kModelMismatch);
   EXPECT_FALSE(r.intervals_valid);
   EXPECT_GT(r.chi2_ratio, 2.0);
@@ -232,12 +232,12 @@ TEST(FitStatusTest, StartOnABoundIsAWarningAndAStuckStartDidNotMove) {
       fit(FitParameter("mass", Spec("body_mass", "mass"), 2.0).Bounds(0.01, 2.0).Log());
   Print("start on the upper bound", up);
   EXPECT_TRUE(HasWarning(up, "parameter 'mass' starts on its upper bound"));
-  EXPECT_EQ(up.outcome, FitStatus::kConverged) << up.termination;
+  EXPECT_EQ(up.outcome, FitStatus::kConverged) << TerminationText(up.termination);
   EXPECT_NEAR(Estimate(up, "mass").value, 1.0, 1e-6);
 
   const FitResult low = fit(FitParameter("mass", Spec("body_mass", "mass"), 0.5).Bounds(0.5, 100));
   Print("start on the lower bound", low);
-  std::printf("[ measured ] termination: %s\n", low.termination.c_str());
+  std::printf("[ measured ] termination: %s\n", TerminationText(low.termination).c_str());
   EXPECT_TRUE(HasWarning(low, "parameter 'mass' starts on its lower bound"));
   EXPECT_EQ(Estimate(low, "mass").value, 0.5);
   EXPECT_EQ(low.outcome, FitStatus::kDidNotMove);

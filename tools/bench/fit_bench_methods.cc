@@ -148,8 +148,8 @@ Row FitOurs(const Case& c, const std::string& method, JacobianMode mode, bool ce
     row.cpu_s = ProcessCpuSeconds() - cpu0;
     row.wall_s = r.seconds;
     row.iterations = r.iterations;
-    row.steps = r.simulation_steps;
-    row.ledger = r.ledger;
+    row.steps = r.diagnostics.simulation_steps;
+    row.ledger = r.diagnostics.ledger;
     row.initial_cost = r.initial_cost;
     row.final_cost = r.final_cost;
     // the status a user of `sysid fit` sees (docs/cli.md), not only the optimizer's flag

@@ -160,10 +160,10 @@ void ChaoticDoublePendulum() {
   const std::vector<std::pair<std::string, double>> truth = {{"m1", 1.0}, {"m2", 0.8}};
   const FitResult single = fit(0);
   Row("double_pendulum chaotic 5000 steps, single shooting", 2, single, 0,
-      WorstError(single, truth), single.segment_reason);
+      WorstError(single, truth), SegmentReasonText(single.segment_reason));
   const FitResult automatic = fit(-1);
   Row("double_pendulum chaotic 5000 steps, auto", 2, automatic, 0, WorstError(automatic, truth),
-      automatic.segment_reason + "; time " +
+      SegmentReasonText(automatic.segment_reason) + "; time " +
           std::to_string(automatic.seconds / single.seconds).substr(0, 4) + "x single shooting");
 }
 

@@ -95,7 +95,7 @@ Sample FitOnce(const io::ExperimentConfig& config, int threads, bool fold_ahead)
   double serial_cpu = thread_cpu;
   s.wall = r.seconds;
   s.serial = r.seconds;
-  for (const LedgerRow& row : r.ledger) {
+  for (const LedgerRow& row : r.diagnostics.ledger) {
     s.serial -= row.batch_seconds;
     s.wake += row.wake_seconds;
     s.wait += row.wait_seconds;

@@ -257,7 +257,7 @@ std::string Page(const FitResultFile& r, const std::vector<std::string>& sequenc
   // header
   h << "<h1>" << HtmlEscape(name) << "</h1>\n<p><span class=\"badge " << StatusClass(r.status)
     << "\">" << HtmlEscape(r.status.empty() ? "unknown" : r.status) << "</span> "
-    << HtmlEscape(r.termination) << "</p>\n";
+    << HtmlEscape(TerminationText(r.termination)) << "</p>\n";
   // the intervals mean something only for a converged fit (FitStatus, sysid/types.h)
   if (!r.intervals_valid) {
     h << "<p><span class=\"badge bad\">intervals not valid</span> the fit's status is "
@@ -279,7 +279,7 @@ std::string Page(const FitResultFile& r, const std::vector<std::string>& sequenc
       {"residual variance", HtmlNum(r.uncertainty.residual_variance)},
       {"residuals", std::to_string(r.num_residuals)},
       {"wall time", HtmlNum(r.seconds, 4) + " s"},
-      {"jacobian", HtmlEscape(r.jacobian_mode)},
+      {"jacobian", HtmlEscape(r.diagnostics.jacobian_mode)},
       {"versions",
        "mjsysid " + HtmlEscape(r.mjsysid_version) + ", MuJoCo " + HtmlEscape(r.mujoco_version)}};
   h << "<table class=\"facts\">\n";

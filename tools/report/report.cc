@@ -111,10 +111,11 @@ int WriteReport(const FitResultFile& result, const std::string& dir, const Repor
     }
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const std::string termination = TerminationText(result.termination);
     std::ostringstream s;
     s << "report " << result.name << " (" << dir << ")\n"
-      << "  status      " << result.status
-      << (result.termination.empty() ? "" : " (" + result.termination + ")") << "\n"
+      << "  status      " << result.status << (termination.empty() ? "" : " (" + termination + ")")
+      << "\n"
       << "  cost        " << Num(result.initial_cost, 4) << " -> " << Num(result.final_cost, 4)
       << " in " << result.iterations << " iterations\n"
       << "  parameters  " << result.parameters.size();

@@ -62,8 +62,9 @@ int NanCells(const FitResult& r, const std::string& sensor) {
 // cells say the same count. With 0 (the default): nothing is masked and nothing is said.
 TEST(EventWindowsTest, MaskVelocityCellsNextToContactEventsAndSaySo) {
   const run::FitRunOutcome on = FitHopper(2, "on");
-  ASSERT_NE(on.file.segment_reason.find("change their contact count"), std::string::npos)
-      << on.file.segment_reason;
+  ASSERT_NE(SegmentReasonText(on.file.segment_reason).find("change their contact count"),
+            std::string::npos)
+      << SegmentReasonText(on.file.segment_reason);
   const FitResult::EventWindows& ev = on.file.event_windows;
   EXPECT_EQ(ev.window, 2);
   EXPECT_GT(ev.events, 0);

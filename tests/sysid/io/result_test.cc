@@ -98,6 +98,30 @@ SequenceResult Sequence(const std::string& name, std::vector<std::string> sensor
   return s;
 }
 
+// the statistical stop's record, fired before the last Jacobian (its numbers need rounding)
+FitTermination GaussNewtonTermination() {
+  FitTermination t;
+  t.kind = FitTermination::Kind::kGaussNewtonStop;
+  t.solver_message = "User callback returned SOLVER_TERMINATE_SUCCESSFULLY.";
+  t.fraction = 0.03;
+  t.largest = 0.0134;
+  t.iteration = 5;
+  t.jacobian_iteration = 4;
+  t.step_std_errors = 0.265;
+  return t;
+}
+
+// the interval check skipped along two smooth simulator parameters
+IntervalCheckRecord SkippedIntervalCheck() {
+  IntervalCheckRecord r;
+  r.kind = IntervalCheckRecord::Kind::kSkippedSmooth;
+  r.evaluations = 2;
+  r.skipped = 2;
+  r.parameters = 3;
+  r.wide_fraction = 0.1;
+  return r;
+}
+
 // every field set, with awkward values: infinities, values that need 17 digits, odd text
 FitResultFile FullResult() {
   FitResultFile r;
@@ -105,11 +129,12 @@ FitResultFile FullResult() {
   r.experiment = "/work/experiments/pendulum.yaml";
   r.status = "converged";
   r.intervals_valid = true;
-  r.termination = "function tolerance reached: |dcost|/cost = 3e-11 < 1e-10";
+  r.termination.kind = FitTermination::Kind::kSolverConvergence;
+  r.termination.solver_message = "function tolerance reached: |dcost|/cost = 3e-11 < 1e-10";
   r.created = "2024-05-01T12:00:00Z";
   r.mjsysid_version = "0.1.0";
   r.mujoco_version = "4.0.0";
-  r.jacobian_mode = "analytic";
+  r.diagnostics.jacobian_mode = "analytic";
   r.iterations = 7;
   r.num_residuals = 8000;
   r.initial_cost = 1.0 / 3.0;
@@ -219,11 +244,12 @@ void ExpectSame(const FitResultFile& a, const FitResultFile& b) {
   EXPECT_EQ(a.experiment, b.experiment);
   EXPECT_EQ(a.status, b.status);
   EXPECT_EQ(a.intervals_valid, b.intervals_valid);
-  EXPECT_EQ(a.termination, b.termination);
+  EXPECT_EQ(TerminationText(a.termination), TerminationText(b.termination));
+  EXPECT_EQ(a.termination.kind, b.termination.kind);
   EXPECT_EQ(a.created, b.created);
   EXPECT_EQ(a.mjsysid_version, b.mjsysid_version);
   EXPECT_EQ(a.mujoco_version, b.mujoco_version);
-  EXPECT_EQ(a.jacobian_mode, b.jacobian_mode);
+  EXPECT_EQ(a.diagnostics.jacobian_mode, b.diagnostics.jacobian_mode);
   EXPECT_EQ(a.iterations, b.iterations);
   EXPECT_EQ(a.num_residuals, b.num_residuals);
   EXPECT_EQ(a.initial_cost, b.initial_cost);
@@ -362,15 +388,15 @@ TEST_F(ResultTest, EventWindowsRoundTripAndAreAbsentWhenNone) {
 TEST_F(ResultTest, CovarianceJacobianRoundTripsAndIsAbsentWhenTheEstimates) {
   FitResultFile r = FullResult();
   WriteBoth(r);
-  EXPECT_EQ(ReadResult(Dir()).covariance_jacobian_iteration, -1);
-  EXPECT_TRUE(std::isnan(ReadResult(Dir()).last_step_std_errors));
+  EXPECT_EQ(ReadResult(Dir()).diagnostics.covariance_jacobian_iteration, -1);
+  EXPECT_TRUE(std::isnan(ReadResult(Dir()).diagnostics.last_step_std_errors));
   EXPECT_EQ(test::ReadFile(Dir() + "/result.yaml").find("covariance_jacobian"), std::string::npos);
-  r.covariance_jacobian_iteration = 4;
-  r.last_step_std_errors = 0.265;
+  r.diagnostics.covariance_jacobian_iteration = 4;
+  r.diagnostics.last_step_std_errors = 0.265;
   WriteBoth(r);
   const FitResultFile back = ReadResult(Dir());
-  EXPECT_EQ(back.covariance_jacobian_iteration, 4);
-  EXPECT_EQ(back.last_step_std_errors, 0.265);
+  EXPECT_EQ(back.diagnostics.covariance_jacobian_iteration, 4);
+  EXPECT_EQ(back.diagnostics.last_step_std_errors, 0.265);
 }
 
 // every field of the table in sysid/io/result_fields.h, the optional ones set to values other
@@ -381,10 +407,15 @@ TEST_F(ResultTest, EveryFieldOfTheTableIsReadBackAsWritten) {
   r.run_id = "20261122T180501Z-12345-9f3a";
   r.intervals_valid = false;  // not the default of a converged result without the key
   r.segment_steps_used = 25;
-  r.segment_reason = "auto: growth beyond linear after 25 steps";
-  r.interval_check = "ran along 2 variables: the cost is rugged";
-  r.covariance_jacobian_iteration = 3;
-  r.last_step_std_errors = 0.125;
+  r.termination = GaussNewtonTermination();
+  r.segment_reason.choice = "auto: growth beyond linear after 25 steps";
+  r.segment_reason.weights = "continuity weights 1 x S / state spread";
+  r.segment_reason.held_iterations = 3;
+  r.segment_reason.held_initial_cost = 1.0 / 3.0;
+  r.segment_reason.held_final_cost = 0.125;
+  r.interval_check = SkippedIntervalCheck();
+  r.diagnostics.covariance_jacobian_iteration = 3;
+  r.diagnostics.last_step_std_errors = 0.125;
   r.event_windows = {2, 76, 771, {"torso_gyro", "leg_vel"}};
   DerivedQuantity mass;
   mass.name = "payload.mass";
@@ -400,13 +431,13 @@ TEST_F(ResultTest, EveryFieldOfTheTableIsReadBackAsWritten) {
   com.unit = "m";
   com.truth.reset();
   r.derived = {mass, com};
-  r.reduction.recorded = true;
-  r.reduction.used = true;
-  r.reduction.collision_pairs = 12;
-  r.reduction.collision_pairs_off = 5;
-  r.reduction.geoms_off = 3;
-  r.reduction.disabled = {"island", "contact"};
-  r.reduction.guard_trips = 1;
+  r.diagnostics.reduction.recorded = true;
+  r.diagnostics.reduction.used = true;
+  r.diagnostics.reduction.collision_pairs = 12;
+  r.diagnostics.reduction.collision_pairs_off = 5;
+  r.diagnostics.reduction.geoms_off = 3;
+  r.diagnostics.reduction.disabled = {"island", "contact"};
+  r.diagnostics.reduction.guard_trips = 1;
   WriteBoth(r);
   const std::string first = ReadFile(Path("result.yaml"));
 
@@ -416,12 +447,101 @@ TEST_F(ResultTest, EveryFieldOfTheTableIsReadBackAsWritten) {
   EXPECT_EQ(back.run_id, r.run_id);
   EXPECT_FALSE(back.intervals_valid);
   EXPECT_EQ(back.derived.size(), 2u);
-  EXPECT_TRUE(back.reduction.recorded);
+  EXPECT_TRUE(back.diagnostics.reduction.recorded);
   WriteBoth(back);
   EXPECT_EQ(ReadFile(Path("result.yaml")), first);
   const FitResultFile again = ReadResultFiles(Path("result.yaml"), Path("result.h5"));
   EXPECT_EQ(again.run_id, r.run_id);
   EXPECT_FALSE(again.intervals_valid);
+}
+
+// the records of the result (termination, interval check, segments) are written as the text their
+// functions render, each kind's name on the line after its text, and read back as that text and
+// kind
+TEST_F(ResultTest, RecordsAreWrittenAsTheirTextWithTheirKinds) {
+  FitResultFile r = FullResult();
+  r.termination = GaussNewtonTermination();
+  r.interval_check = SkippedIntervalCheck();
+  r.segment_reason.choice = "single shooting: sensitivity bounded";
+  r.segment_reason.weights = "continuity weight 1 (absolute)";
+  WriteBoth(r);
+  const std::string text = ReadFile(Path("result.yaml"));
+  const YAML::Node root = YAML::Load(text);
+  EXPECT_EQ(root["termination"].as<std::string>(),
+            "converged: predicted Gauss-Newton step below 3 % of every standard error (largest "
+            "1.3 %, iteration 5); with the Jacobian of iteration 4, 0.27 standard errors from the "
+            "estimate (the standard errors too; the estimate's own not simulated)");
+  EXPECT_EQ(root["termination_kind"].as<std::string>(), "gauss_newton_stop");
+  EXPECT_EQ(root["interval_check"].as<std::string>(), IntervalCheckText(r.interval_check));
+  EXPECT_EQ(root["interval_check_kind"].as<std::string>(), "skipped_smooth");
+  EXPECT_EQ(root["segment_reason"].as<std::string>(),
+            "single shooting: sensitivity bounded; continuity weight 1 (absolute)");
+  // each kind right after its text
+  const auto after = [&text](const std::string& key, const std::string& next) {
+    const size_t at = text.find("\n" + key + ": ");
+    const size_t line_end = text.find('\n', at + 1);
+    return at != std::string::npos && text.compare(line_end + 1, next.size() + 1, next + ":") == 0;
+  };
+  EXPECT_TRUE(after("termination", "termination_kind")) << text;
+  EXPECT_TRUE(after("interval_check", "interval_check_kind")) << text;
+
+  const FitResultFile back = ReadResult(Dir());
+  EXPECT_EQ(back.termination.kind, FitTermination::Kind::kGaussNewtonStop);
+  EXPECT_EQ(TerminationText(back.termination), TerminationText(r.termination));
+  EXPECT_EQ(back.interval_check.kind, IntervalCheckRecord::Kind::kSkippedSmooth);
+  EXPECT_EQ(IntervalCheckText(back.interval_check), IntervalCheckText(r.interval_check));
+  EXPECT_EQ(back.segment_reason.choice, SegmentReasonText(r.segment_reason));
+  EXPECT_EQ(SegmentReasonText(back.segment_reason), SegmentReasonText(r.segment_reason));
+
+  // a checkpoint's and an interruption's termination, a smooth check that ran, a rugged one
+  const std::pair<FitTermination::Kind, const char*> terminations[] = {
+      {FitTermination::Kind::kCheckpoint, "checkpoint after iteration 5"},
+      {FitTermination::Kind::kInterrupted, "interrupted (a stop signal) after iteration 5"}};
+  for (const auto& [kind, line] : terminations) {
+    r.termination.kind = kind;
+    WriteBoth(r);
+    const FitResultFile read = ReadResult(Dir());
+    EXPECT_EQ(read.termination.kind, kind);
+    EXPECT_EQ(TerminationText(read.termination), line);
+  }
+  r.interval_check.kind = IntervalCheckRecord::Kind::kRanRugged;
+  r.interval_check.rugged = "contacts in 12 of 600 steps";
+  WriteBoth(r);
+  EXPECT_EQ(ReadResult(Dir()).interval_check.kind, IntervalCheckRecord::Kind::kRanRugged);
+  EXPECT_EQ(IntervalCheckText(ReadResult(Dir()).interval_check),
+            "ran: 2 cost evaluations (contacts in 12 of 600 steps)");
+}
+
+// a result.yaml written before the kinds (no termination_kind, no interval_check_kind): the text
+// is read as it is with the kind unknown, and written again without the kind keys, the same file
+TEST_F(ResultTest, FilesWithoutKindsKeepTheirTextAndAnUnknownKind) {
+  FitResultFile r = FullResult();
+  r.interval_check = SkippedIntervalCheck();
+  WriteBoth(r);
+  ReplaceInFile(Path("result.yaml"), "termination_kind: solver_convergence\n", "");
+  ReplaceInFile(Path("result.yaml"), "interval_check_kind: skipped_smooth\n", "");
+  const std::string old = ReadFile(Path("result.yaml"));
+  const FitResultFile back = ReadResult(Dir());
+  EXPECT_EQ(back.termination.kind, FitTermination::Kind::kUnknown);
+  EXPECT_EQ(TerminationText(back.termination), TerminationText(r.termination));
+  EXPECT_EQ(back.interval_check.kind, IntervalCheckRecord::Kind::kUnknown);
+  EXPECT_EQ(IntervalCheckText(back.interval_check), IntervalCheckText(r.interval_check));
+  WriteBoth(back);
+  EXPECT_EQ(ReadFile(Path("result.yaml")), old);
+  // without an interval check: no key, nothing recorded
+  r.interval_check = IntervalCheckRecord();
+  WriteBoth(r);
+  EXPECT_EQ(ReadFile(Path("result.yaml")).find("interval_check"), std::string::npos);
+  EXPECT_EQ(ReadResult(Dir()).interval_check.kind, IntervalCheckRecord::Kind::kNotRun);
+}
+
+// a kind this build does not know is named with its key and position
+TEST_F(ResultTest, UnknownKindIsNamed) {
+  WriteBoth(FullResult());
+  ReplaceInFile(Path("result.yaml"), "termination_kind: solver_convergence\n",
+                "termination_kind: tired\n");
+  const std::string message = ReadError();
+  EXPECT_NE(message.find("key 'termination_kind': unknown 'tired'"), std::string::npos) << message;
 }
 
 TEST_F(ResultTest, FitMetricsAreWrittenPerSequenceAndChannel) {
@@ -453,11 +573,12 @@ TEST_F(ResultTest, RoundTripOfAnEmptyishResultAndOddText) {
   r.name = "null";
   r.experiment = "";
   r.status = "yes";
-  r.termination = "- not a list";
+  r.termination.kind = FitTermination::Kind::kSolverFailure;
+  r.termination.solver_message = "- not a list";
   r.created = "~";
   r.mjsysid_version = "1.0";
   r.mujoco_version = "#x";
-  r.jacobian_mode = " padded ";
+  r.diagnostics.jacobian_mode = " padded ";
   r.solver = {{"true", "false"}, {"k", ""}, {"ü", "[1, 2]"}};
   ParameterEstimate p;
   p.name = "0.5";

@@ -92,7 +92,7 @@ TEST(FitExperimentTest, EveryShippedExperimentRecoversItsTruth) {
           "[ measured ]   %-22s start %-10.4g estimate %-12.6g truth %-8.4g 95%% CI [%.6g, %.6g]\n",
           p.name.c_str(), p.initial, p.value, t, p.ci95_low, p.ci95_high);
       if (expect.rule == "ci") {
-        EXPECT_EQ(out.exit_code, 0) << out.file.termination;
+        EXPECT_EQ(out.exit_code, 0) << TerminationText(out.file.termination);
         EXPECT_GT(p.std_error, 0) << p.name;
         EXPECT_LE(std::abs(p.value - t), 4 * p.std_error) << p.name;
       } else if (expect.rule == "relative") {
@@ -296,7 +296,7 @@ simulate:
   opt.out_dir = dir + "/out";  // a folder of its own: a fit replaces its output folder
   opt.verbose = false;
   const FitRunOutcome out = RunFit(cfg, opt);
-  ASSERT_TRUE(out.file.converged) << out.file.termination;
+  ASSERT_TRUE(out.file.converged) << TerminationText(out.file.termination);
   const std::map<std::string, double> truth = {{"mass", 2.0}, {"gear", 3.0}};
   for (const ParameterEstimate& e : out.file.parameters) {
     SCOPED_TRACE(e.name);

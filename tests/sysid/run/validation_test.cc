@@ -66,7 +66,7 @@ TEST(ValidationTest, FitOnOneSequenceValidateOnAnother) {
   opt.out_dir = dir + "/out";
   opt.verbose = false;
   const FitRunOutcome out = RunFit(cfg, opt);
-  ASSERT_EQ(out.exit_code, 0) << out.file.termination;
+  ASSERT_EQ(out.exit_code, 0) << TerminationText(out.file.termination);
   ASSERT_EQ(out.file.sequences.size(), 1u);
   ASSERT_EQ(out.file.validation.size(), 1u);
   const SequenceResult& fit = out.file.sequences[0];

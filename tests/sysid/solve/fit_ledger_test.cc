@@ -77,16 +77,16 @@ TEST(FitLedgerTest, SpringMassFitLedgerAddsUpAndTheEstimateCostsNoSteps) {
   FitOptions o;
   o.threads = 1;
   const FitResult r = problem.Fit(o);
-  ASSERT_TRUE(r.converged) << r.termination;
+  ASSERT_TRUE(r.converged) << TerminationText(r.termination);
   EXPECT_NEAR(test::Estimate(r, "mass").value, 1.0, 1e-3);
   EXPECT_NEAR(test::Estimate(r, "damping").value, 0.3, 3e-4);
   long long steps = 0;
   std::map<std::string, LedgerRow> by_phase;
-  for (const LedgerRow& row : r.ledger) {
+  for (const LedgerRow& row : r.diagnostics.ledger) {
     steps += row.steps;
     by_phase[row.phase] = row;
   }
-  EXPECT_EQ(steps, r.simulation_steps);
+  EXPECT_EQ(steps, r.diagnostics.simulation_steps);
   for (FitPhase phase : {kPhasePrepare, kPhaseJacobians, kPhaseTrials, kPhaseSolver, kPhaseEstimate,
                          kPhaseIntervalCheck, kPhaseSignals}) {
     EXPECT_EQ(by_phase.count(FitPhaseName(phase)), 1u) << FitPhaseName(phase);
@@ -102,17 +102,19 @@ TEST(FitLedgerTest, SpringMassFitLedgerAddsUpAndTheEstimateCostsNoSteps) {
   // the interval check: the rollouts have no constraint row (a smooth cost), so it is skipped
   // along both simulator parameters and says so (the limited spring below runs it)
   EXPECT_EQ(by_phase[FitPhaseName(kPhaseIntervalCheck)].steps, 0);
-  EXPECT_EQ(r.interval_check.rfind("skipped along 2 of the 2 simulator parameters", 0), 0u)
-      << r.interval_check;
+  EXPECT_EQ(
+      IntervalCheckText(r.interval_check).rfind("skipped along 2 of the 2 simulator parameters", 0),
+      0u)
+      << IntervalCheckText(r.interval_check);
   // fitted again (new simulators, step counts from 0): the same ledger, no negative row
   const FitResult again = problem.Fit(o);
   long long again_steps = 0;
-  for (const LedgerRow& row : again.ledger) {
+  for (const LedgerRow& row : again.diagnostics.ledger) {
     EXPECT_GE(row.steps, 0) << row.phase;
     again_steps += row.steps;
   }
-  EXPECT_EQ(again_steps, again.simulation_steps);
-  EXPECT_EQ(again.simulation_steps, r.simulation_steps);
+  EXPECT_EQ(again_steps, again.diagnostics.simulation_steps);
+  EXPECT_EQ(again.diagnostics.simulation_steps, r.diagnostics.simulation_steps);
 }
 
 // The time inside the simulators' batches (core/thread_pool.h, PoolTime) in the ledger: a phase
@@ -122,9 +124,9 @@ TEST(FitLedgerTest, BatchTimeIsPartOfThePhaseThatSimulates) {
   for (int threads : {1, 2}) {
     Problem problem;
     const FitResult r = SpringMassFit(&problem, threads);
-    ASSERT_TRUE(r.converged) << r.termination;
+    ASSERT_TRUE(r.converged) << TerminationText(r.termination);
     long long batches = 0, folds = 0;
-    for (const LedgerRow& row : r.ledger) {
+    for (const LedgerRow& row : r.diagnostics.ledger) {
       batches += row.batches;
       if (row.phase == FitPhaseName(kPhaseFolds)) {
         // the compressed blocks' folds ahead: one batch per Jacobian, without steps
@@ -152,8 +154,8 @@ TEST(FitLedgerTest, BatchTimeIsPartOfThePhaseThatSimulates) {
     }
     EXPECT_GT(batches, 0);
     EXPECT_GT(folds, 0);
-    EXPECT_LE(folds, r.ahead_folds);  // each batch at least one block's fold
-    EXPECT_NE(FormatLedger(r.ledger, 1000).find("serial s"), std::string::npos);
+    EXPECT_LE(folds, r.diagnostics.ahead_folds);  // each batch at least one block's fold
+    EXPECT_NE(FormatLedger(r.diagnostics.ledger, 1000).find("serial s"), std::string::npos);
   }
 }
 
@@ -171,18 +173,20 @@ TEST(FitLedgerTest, TheIntervalCheckRunsWhereConstraintRowsComeAndGo) {
   o.threads = 1;
   const FitResult r = problem.Fit(o);
   long long check_steps = -1;
-  for (const LedgerRow& row : r.ledger) {
+  for (const LedgerRow& row : r.diagnostics.ledger) {
     if (row.phase == FitPhaseName(kPhaseIntervalCheck)) check_steps = row.steps;
   }
   EXPECT_EQ(check_steps, 4000);
   // the +- one standard error of each parameter in one batch: 2 rollouts, one round on 2 workers
   long long check_critical = -1;
-  for (const LedgerRow& row : r.ledger) {
+  for (const LedgerRow& row : r.diagnostics.ledger) {
     if (row.phase == FitPhaseName(kPhaseIntervalCheck)) check_critical = row.critical_steps;
   }
   EXPECT_EQ(check_critical, 2000);
-  EXPECT_EQ(r.interval_check.rfind("ran: 4 cost evaluations (constraint rows come, go", 0), 0u)
-      << r.interval_check;
+  EXPECT_EQ(IntervalCheckText(r.interval_check)
+                .rfind("ran: 4 cost evaluations (constraint rows come, go", 0),
+            0u)
+      << IntervalCheckText(r.interval_check);
 }
 
 // The task model (core/thread_pool.h) in the ledger: the steps on the critical path at 2 workers
@@ -195,8 +199,8 @@ TEST(FitLedgerTest, CriticalStepsAtTwoWorkersAreExactAndThreadIndependent) {
   for (int threads : {1, 2}) {
     Problem problem;
     const FitResult r = SpringMassFit(&problem, threads);
-    ASSERT_TRUE(r.converged) << r.termination;
-    ledgers.push_back(r.ledger);
+    ASSERT_TRUE(r.converged) << TerminationText(r.termination);
+    ledgers.push_back(r.diagnostics.ledger);
   }
   ASSERT_EQ(ledgers[0].size(), ledgers[1].size());
   for (size_t i = 0; i < ledgers[0].size(); ++i) {
@@ -251,7 +255,7 @@ TEST(FitLedgerTest, ColumnsAheadAreTheSameFitAndTheirUnusedStepsAreCounted) {
     FitOptions o;
     o.threads = threads;
     results.push_back(problem.Fit(o));
-    ASSERT_TRUE(results.back().converged) << results.back().termination;
+    ASSERT_TRUE(results.back().converged) << TerminationText(results.back().termination);
   }
   const FitResult &one = results[0], &two = results[1];
   EXPECT_EQ(one.iterations, two.iterations);
@@ -262,17 +266,18 @@ TEST(FitLedgerTest, ColumnsAheadAreTheSameFitAndTheirUnusedStepsAreCounted) {
   }
   std::map<std::string, LedgerRow> by_phase;
   long long steps = 0;
-  for (const LedgerRow& row : two.ledger) {
+  for (const LedgerRow& row : two.diagnostics.ledger) {
     by_phase[row.phase] = row;
     steps += row.steps;
   }
-  EXPECT_EQ(steps, two.simulation_steps);
-  for (const LedgerRow& row : one.ledger) EXPECT_NE(row.phase, FitPhaseName(kPhaseAheadUnused));
+  EXPECT_EQ(steps, two.diagnostics.simulation_steps);
+  for (const LedgerRow& row : one.diagnostics.ledger)
+    EXPECT_NE(row.phase, FitPhaseName(kPhaseAheadUnused));
   ASSERT_EQ(by_phase.count(FitPhaseName(kPhaseAheadUnused)), 1u);
   const long long unused = by_phase[FitPhaseName(kPhaseAheadUnused)].steps;
   EXPECT_GT(unused, 0);  // the last trial's column at least
   EXPECT_EQ(unused % 500, 0);
-  EXPECT_EQ(two.simulation_steps - one.simulation_steps, unused);
+  EXPECT_EQ(two.diagnostics.simulation_steps - one.diagnostics.simulation_steps, unused);
   const LedgerRow& jac = by_phase[FitPhaseName(kPhaseJacobians)];
   EXPECT_EQ(jac.steps % 4000, 0);  // 8 columns of 500 steps per Jacobian
   EXPECT_EQ(jac.critical_steps * 2, jac.steps);

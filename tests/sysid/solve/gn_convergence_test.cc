@@ -120,18 +120,18 @@ TEST_P(GaussNewtonStopFitTest, EndsWithinTheFractionOfAStandardErrorInFewerSteps
   const FitResult on = FitWith(cfg, kFraction);
   const FitResult off = FitWith(cfg, 0);
   std::printf("%s%s: on %d it, %lld steps (%s); off %d it, %lld steps (%s)\n", c.experiment.c_str(),
-              c.auto_start ? " +auto" : "", on.iterations, on.simulation_steps,
-              on.termination.c_str(), off.iterations, off.simulation_steps,
-              off.termination.c_str());
+              c.auto_start ? " +auto" : "", on.iterations, on.diagnostics.simulation_steps,
+              TerminationText(on.termination).c_str(), off.iterations,
+              off.diagnostics.simulation_steps, TerminationText(off.termination).c_str());
 
   EXPECT_FALSE(off.gauss_newton_converged);
   EXPECT_TRUE(on.gauss_newton_converged);
   EXPECT_TRUE(on.converged);
-  EXPECT_NE(on.termination.find("Gauss-Newton step below 3 %"), std::string::npos);
+  EXPECT_NE(TerminationText(on.termination).find("Gauss-Newton step below 3 %"), std::string::npos);
   EXPECT_EQ(on.outcome, off.outcome);
   EXPECT_EQ(on.outcome, FitStatus::kConverged);
   EXPECT_LE(on.iterations, off.iterations);
-  EXPECT_LE(on.simulation_steps, off.simulation_steps);
+  EXPECT_LE(on.diagnostics.simulation_steps, off.diagnostics.simulation_steps);
   ASSERT_EQ(on.parameters.size(), off.parameters.size());
   double far = 0;  // the start's largest distance from the estimate, in standard errors
   for (size_t i = 0; i < on.parameters.size(); ++i) {
@@ -176,7 +176,7 @@ TEST(GaussNewtonStopFitTest, RobustLossAndMultipleShootingAreUnchanged) {
     EXPECT_FALSE(on.gauss_newton_converged);
     EXPECT_EQ(on.iterations, off.iterations);
     EXPECT_EQ(on.final_cost, off.final_cost);
-    EXPECT_EQ(on.termination, off.termination);
+    EXPECT_EQ(TerminationText(on.termination), TerminationText(off.termination));
     EXPECT_EQ(on.outcome, off.outcome);
     ASSERT_EQ(on.parameters.size(), off.parameters.size());
     for (size_t i = 0; i < on.parameters.size(); ++i) {

@@ -332,8 +332,8 @@ TEST(StateResidualsTest, StatesFitLikeTheEquivalentSensors) {
   }
   std::printf("[ measured ] chi2 sensors %.9f, states %.9f\n", r[0].chi2_ratio, r[1].chi2_ratio);
   std::printf("[ measured ] sensors: %d iterations, %lld steps, %.3f s; states: %d, %lld, %.3f s\n",
-              r[0].iterations, r[0].simulation_steps, r[0].seconds, r[1].iterations,
-              r[1].simulation_steps, r[1].seconds);
+              r[0].iterations, r[0].diagnostics.simulation_steps, r[0].seconds, r[1].iterations,
+              r[1].diagnostics.simulation_steps, r[1].seconds);
   EXPECT_NEAR(r[1].chi2_ratio / r[0].chi2_ratio, 1.0, 1e-8);
 }
 
