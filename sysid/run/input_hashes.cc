@@ -5,6 +5,7 @@
 #include <regex>
 #include <set>
 #include <sstream>
+#include <system_error>
 
 #include "sysid/io/file_hash.h"
 
@@ -74,7 +75,10 @@ std::vector<std::string> InputChanges(const std::vector<io::InputHash>& recorded
     for (const io::InputHash& c : current) {
       if (same_file(r, c)) now = &c;
     }
-    if (now == nullptr || now->sha256.empty()) {
+    std::error_code ec;
+    if (now == nullptr && !fs::exists(r.path, ec)) {
+      out.push_back(name(r) + " is gone");
+    } else if (now == nullptr || now->sha256.empty()) {
       out.push_back(name(r) + (now == nullptr ? " is no longer an input" : " is gone"));
     } else if (now->sha256 != r.sha256) {
       out.push_back(name(*now) + " changed");

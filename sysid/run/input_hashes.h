@@ -24,8 +24,9 @@ std::vector<io::InputHash> HashAgain(const std::vector<io::InputHash>& recorded)
 
 // the differences between the inputs a fit recorded and the current ones, one text each, e.g.
 // "/abs/log.h5 (log) changed", "/abs/m.xml (model) is gone", "/abs/b.h5 (log) is a new input";
-// files are matched by role and path, the experiment by role alone; a current sha256 "" is a file
-// that is gone; empty when nothing changed
+// files are matched by role and path, the experiment by role alone; a current sha256 "" or a
+// recorded file missing from `current` and from the disk is a file that is gone; empty when
+// nothing changed
 std::vector<std::string> InputChanges(const std::vector<io::InputHash>& recorded,
                                       const std::vector<io::InputHash>& current);
 

@@ -150,6 +150,15 @@ TEST_F(Hashes35Test, ResumeRefusesAnEditedIncludedModelFile) {
   EXPECT_EQ(r.output.find("inc.xml"), std::string::npos) << r.output;  // only the edited file
 }
 
+// --resume after the log was removed: exit 2 naming the log as gone.
+TEST_F(Hashes35Test, ResumeRefusesALogThatIsGone) {
+  KilledFit();
+  fs::rename(dir_ + "/log.h5", dir_ + "/moved.h5");
+  const mjsysid::test::CliRun r = Sysid("fit --resume " + out_ + " --quiet");
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find(dir_ + "/log.h5 (log) is gone"), std::string::npos) << r.output;
+}
+
 // --resume from a checkpoint of an older version (no input_hashes): accepted (exit 0) with the
 // warning that the inputs were not checked.
 TEST_F(Hashes35Test, ResumeAcceptsAnOldCheckpointWithAWarning) {
