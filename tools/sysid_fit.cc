@@ -76,7 +76,8 @@ void DeclareFit(CLI::App* sub, FitArgs* args) {
       ->check(WholeNumberAtLeast(0));
   sub->add_option("--resume", args->resume,
                   "continue the fit of DIR from its checkpoint (DIR.partial/checkpoint.yaml of a "
-                  "killed run, or DIR's interrupted result); writes into DIR");
+                  "killed run, or DIR's interrupted result); writes into DIR; refused when the "
+                  "experiment, a model or a log changed since (their SHA-256)");
   sub->footer(
       "Writes DIR/result.yaml (values, std, 95% intervals, flags, costs, versions), DIR/result.h5 "
       "(trace, Jacobian, covariance, signals) and DIR/<model>_identified.xml, all with one run id, "

@@ -4,8 +4,11 @@
 #include <optional>
 #include <string>
 #include <system_error>
+#include <vector>
 
 #include "sysid/io/atomic_file.h"
+#include "sysid/io/result.h"
+#include "sysid/run/input_hashes.h"
 #include "sysid/run/output_folder.h"
 #include "tools/report/report.h"
 #include "tools/sysid_cli.h"
@@ -31,7 +34,36 @@ void DeclareReport(CLI::App* sub, ReportArgs* args) {
   sub->footer(
       "Writes DIR/report.html (self-contained: no network), DIR/cost.png, DIR/parameters.png, "
       "DIR/seq_<name>.png and DIR/motion.webp (the initial and fitted simulation, animated; needs "
-      "the experiment file and its logs, and OSMesa; without them the page says why).\n");
+      "the experiment file and its logs, and OSMesa; without them the page says why). The clip "
+      "is refused (exit 2) when the experiment, a model or a log changed since the fit (their "
+      "SHA-256 in result.yaml's input_hashes): fit again, or use --no-video.\n");
+}
+
+// the motion clip re-simulates the fit's inputs: refuses ones changed since the fit (exit 2);
+// warns when the result records none (written by an older mjsysid). Inputs that are gone are left
+// to the clip, whose page says it could not read them.
+void CheckInputsOfTheClip(const std::string& dir, const mjsysid::io::FitResultFile& result) {
+  if (result.input_hashes.empty()) {
+    std::fprintf(stderr,
+                 "sysid report: warning: %s/result.yaml records no input hashes (written by an "
+                 "older mjsysid): the motion clip re-simulates the experiment's files as they are "
+                 "now, unchecked\n",
+                 dir.c_str());
+    return;
+  }
+  std::vector<mjsysid::io::InputHash> now = mjsysid::run::HashAgain(result.input_hashes);
+  for (size_t i = 0; i < now.size(); ++i) {
+    if (now[i].sha256.empty()) now[i].sha256 = result.input_hashes[i].sha256;  // gone: the clip's
+  }
+  const std::vector<std::string> changes = mjsysid::run::InputChanges(result.input_hashes, now);
+  if (changes.empty()) return;
+  std::string list;
+  for (const std::string& c : changes) list += (list.empty() ? "" : "; ") + c;
+  throw InputError(dir + ": " + list + " since the fit (run " + result.run_id +
+                   "): the motion clip would re-simulate other inputs than the fit's (hint: fit "
+                   "again, sysid fit " +
+                   result.experiment + " --out " + dir +
+                   ", or report without the clip: sysid report --no-video " + dir + ")");
 }
 
 int RunReport(const ReportArgs& args) {
@@ -61,7 +93,9 @@ int RunReport(const ReportArgs& args) {
     options.motion.progress = [](const std::string& line) {
       std::fprintf(stderr, "%s\n", line.c_str());
     };
-    mjsysid::report::WriteReport(args.dir, options, &summary);
+    const mjsysid::io::FitResultFile result = mjsysid::io::ReadResult(args.dir);
+    if (options.motion.enabled) CheckInputsOfTheClip(args.dir, result);
+    mjsysid::report::WriteReport(result, args.dir, options, &summary);
   } catch (const mjsysid::io::ResultError& e) {
     throw InputError(e.what());
   }

@@ -24,7 +24,9 @@
 //     derived quantities, sysid/assess/derived_inertials.h: [{name, unit, value, std, ci95: [lo,
 //     hi], derived_from, truth?}]; read back), reduced (the reduced model, core/reduced_model.h:
 //     {used, collision_pairs, collision_pairs_off, geoms_off, disabled: [island, contact],
-//     guard_trips}; optional when read)
+//     guard_trips}; optional when read), input_hashes (the files the fit read, by content:
+//     [{role: experiment | model | log, path, sha256}], sysid/run/input_hashes.h; absent in
+//     results of older versions)
 //   std and ci95 bounds that are infinite are written as .inf / -.inf; flags are any of
 //   at_lower_bound, at_upper_bound, unidentifiable.
 // - result.h5 layout: root attributes format = "mjsysid-result", format_version = 1, status,
@@ -72,6 +74,13 @@ class ResultError : public std::runtime_error {
 // (x0_final excepted; channel_fits recomputed from the signals), validation, starts, best_start,
 // start_spread (result.yaml), warnings, intervals_valid (both files); outcome, converged and
 // interrupted are read back from status.
+// a file a fit read and the SHA-256 of its bytes (sysid/run/input_hashes.h)
+struct InputHash {
+  std::string role;    // experiment, model (an MJCF file or a file it includes) or log
+  std::string path;    // as the experiment resolved it (absolute)
+  std::string sha256;  // 64 lowercase hex digits
+};
+
 struct FitResultFile : FitResult {
   std::string name, experiment, created;
   std::string status;  // FitStatusName(outcome), or running (a checkpoint)
@@ -79,6 +88,9 @@ struct FitResultFile : FitResult {
   std::string mjsysid_version, mujoco_version;
   std::map<std::string, std::string> solver;             // setting -> value as text
   std::map<std::string, std::string> identified_models;  // model name -> file name in DIR
+  // the experiment, model and log files the fit read, by content; empty in results of older
+  // versions
+  std::vector<InputHash> input_hashes;
 };
 
 void WriteResultYaml(const std::string& path, const FitResultFile& result);

@@ -147,6 +147,14 @@ void VisitSpreadFields(V& v, S& s) {
   v.Number({"relative"}, s.relative);
 }
 
+// one entry of `input_hashes` (sysid/run/input_hashes.h)
+template <class V, class H>
+void VisitInputHashFields(V& v, H& h) {
+  v.Text({"role"}, h.role);
+  v.Text({"path"}, h.path);
+  v.Text({"sha256"}, h.sha256);
+}
+
 // every field of result.yaml after format and format_version, in file order
 template <class V, class R>
 void VisitResultFields(V& v, R& r) {
@@ -200,6 +208,9 @@ void VisitResultFields(V& v, R& r) {
   v.Texts({"unidentifiable"}, Style::kBlockOrEmptyFlow, r.uncertainty.unidentifiable);
   v.Texts({"warnings"}, Style::kBlockOrEmptyFlow, r.warnings);
   v.TextMap({"identified_models"}, Style::kBlockOrEmptyFlow, r.identified_models);
+  // the files the fit read, by content (--resume and report refuse inputs changed since)
+  v.List({"input_hashes", Presence::kWhenSet}, Style::kFlow, r.input_hashes,
+         [](auto& e, auto& h) { VisitInputHashFields(e, h); });
   // per channel fit metrics (sysid/assess/metrics.h) of the fitted and the held-out sequences
   v.FitMetrics({"fit_metrics"}, r);
   // multi-start: every start, the best, the spread

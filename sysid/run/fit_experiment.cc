@@ -20,6 +20,7 @@
 #include "sysid/assess/derived_inertials.h"
 #include "sysid/assess/metrics.h"
 #include "sysid/io/atomic_file.h"
+#include "sysid/run/input_hashes.h"
 #include "sysid/run/multi_start.h"
 #include "sysid/run/output_folder.h"
 #include "sysid/run/resume.h"
@@ -133,6 +134,29 @@ std::optional<io::FitResultFile> ResumeBase(const std::string& out_dir, bool res
                       "/checkpoint.yaml and no interrupted result in the folder");
   }
   return base;
+}
+
+// Resume inputs: takes the checkpoint and the files this run reads; throws when they are not the
+// files the checkpointed run read (a fit continued on other data would end on them with the old
+// run's initial cost and trace). A checkpoint of an older version has no hashes: a warning.
+void CheckResumeInputs(const std::string& out_dir, const io::FitResultFile& base,
+                       const std::vector<io::InputHash>& inputs,
+                       std::vector<std::string>* warnings) {
+  if (base.input_hashes.empty()) {
+    warnings->push_back("the checkpoint of run " + base.run_id +
+                        " records no input hashes (written by an older mjsysid): the experiment, "
+                        "models and logs were not checked against it");
+    return;
+  }
+  const std::vector<std::string> changes = InputChanges(base.input_hashes, inputs);
+  if (changes.empty()) return;
+  std::string list;
+  for (const std::string& c : changes) list += (list.empty() ? "" : "; ") + c;
+  throw OutputError("--resume " + out_dir + ": the inputs changed since the checkpoint of run " +
+                    base.run_id + " was written: " + list +
+                    "; a resumed fit must see the files the fit started on (fit again without "
+                    "--resume, or restore the file" +
+                    (changes.size() > 1 ? "s" : "") + ")");
 }
 
 // how many whole fits from different starts, and the seed that draws them
@@ -465,6 +489,10 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
 
   // the input: the checkpoint a --resume starts from, the problem, the starts
   const std::optional<io::FitResultFile> base = ResumeBase(out.out_dir, ro.resume);
+  // the files this run reads, by content, before they are read
+  const std::vector<io::InputHash> inputs = HashInputs(cfg);
+  std::vector<std::string> resume_warnings;
+  if (base) CheckResumeInputs(out.out_dir, *base, inputs, &resume_warnings);
   const io::ExperimentConfig run_cfg = base ? ResumedConfig(cfg, *base) : cfg;
   BuiltProblem bp = BuildProblem(run_cfg, ro.threads);
   const Starts starts = ResolveStarts(cfg, ro, out.out_dir, base.has_value());
@@ -484,6 +512,7 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   options.interrupt = ro.interrupt;
   io::FitResultFile& file = out.file;
   SetRunHeader(cfg, options, starts, &file);
+  file.input_hashes = inputs;
   const std::map<std::string, double> truth = TruthOf(cfg);
   CheckpointWriter checkpoints(cfg, run_cfg, bp, base, file, truth, staging, ro);
   options.on_iteration = [&checkpoints](const IterationInfo& it) { checkpoints.OnIteration(it); };
@@ -495,6 +524,7 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
     AppendToCheckpoint(*base, &file);
     file.warnings.push_back("resumed from the checkpoint of run " + base->run_id +
                             " after iteration " + std::to_string(base->iterations));
+    file.warnings.insert(file.warnings.end(), resume_warnings.begin(), resume_warnings.end());
   }
 
   // the assessment and verdict; the estimates are shown before any file is written (a full disk

@@ -383,6 +383,38 @@ TEST_F(SysidOutputsTest, ResumedFitsMatchUninterruptedOnes) {
   }
 }
 
+// inputs changed between kill and resume (issue 35): a fit killed (SIGKILL) after iteration 1,
+// its log then rewritten (simulated again from another truth), and `sysid fit --resume DIR`:
+// exit 2 naming the log and what to do, the checkpoint kept; the original log restored, the
+// resume runs (exit 0).
+TEST_F(SysidOutputsTest, ResumeRefusesALogEditedAfterTheKill) {
+  WriteFile(exp_, Experiment(2000, 50));
+  ASSERT_EQ(Run("simulate " + exp_).code, 0);
+  const std::string out = dir_ + "/part";
+  Process fit("fit " + exp_ + " --out " + out + " --quiet", dir_);
+  const std::string cp = out + ".partial/checkpoint.yaml";
+  for (int i = 0; i < 60000 && ReadFile(cp).find("\niterations: 1\n") == std::string::npos; ++i) {
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  }
+  fit.Signal(SIGKILL);
+  ASSERT_EQ(fit.Wait().signal, SIGKILL);
+  const std::string original = ReadFile(log_);
+  // the same experiment with another truth writes log.h5 again
+  std::string other = Experiment(2000, 50);
+  other.replace(other.find("damping: 0.08"), 13, "damping: 0.09");
+  WriteFile(dir_ + "/other.yaml", other);
+  ASSERT_EQ(Run("simulate " + dir_ + "/other.yaml").code, 0);
+  ASSERT_NE(ReadFile(log_), original);
+  ExpectRefused("fit --resume " + out + " --quiet",
+                {"sysid fit: --resume " + out + ": the inputs changed since the checkpoint of run ",
+                 log_ + " (log) changed", "fit again without --resume, or restore the file"});
+  EXPECT_TRUE(fs::exists(cp));
+  WriteFile(log_, original);
+  const Ended resumed = Run("fit --resume " + out + " --quiet");
+  EXPECT_EQ(resumed.code, 0) << resumed.err;
+  EXPECT_EQ(io::ReadResult(out).status, "converged");
+}
+
 // ---------------------------------------------------------------------------------------------
 // write failures
 

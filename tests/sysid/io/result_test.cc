@@ -438,6 +438,8 @@ TEST_F(ResultTest, EveryFieldOfTheTableIsReadBackAsWritten) {
   r.diagnostics.reduction.geoms_off = 3;
   r.diagnostics.reduction.disabled = {"island", "contact"};
   r.diagnostics.reduction.guard_trips = 1;
+  r.input_hashes = {{"experiment", "/abs/exp.yaml", std::string(64, 'a')},
+                    {"log", "/abs/log.h5", std::string(64, 'b')}};
   WriteBoth(r);
   const std::string first = ReadFile(Path("result.yaml"));
 
@@ -448,6 +450,10 @@ TEST_F(ResultTest, EveryFieldOfTheTableIsReadBackAsWritten) {
   EXPECT_FALSE(back.intervals_valid);
   EXPECT_EQ(back.derived.size(), 2u);
   EXPECT_TRUE(back.diagnostics.reduction.recorded);
+  ASSERT_EQ(back.input_hashes.size(), 2u);
+  EXPECT_EQ(back.input_hashes[1].role, "log");
+  EXPECT_EQ(back.input_hashes[1].path, "/abs/log.h5");
+  EXPECT_EQ(back.input_hashes[1].sha256, std::string(64, 'b'));
   WriteBoth(back);
   EXPECT_EQ(ReadFile(Path("result.yaml")), first);
   const FitResultFile again = ReadResultFiles(Path("result.yaml"), Path("result.h5"));
