@@ -126,6 +126,56 @@ int ObjectOf(const mjModel& m, const ParameterKindInfo& info, const ParameterSpe
   return id;
 }
 
+// whether body b has no degree of freedom between it and the world (it and all its ancestors
+// without joints: welded to the world, or a mocap body)
+bool WeldedToWorld(const mjModel& m, int b) {
+  for (; b > 0; b = m.body_parentid[b]) {
+    if (m.body_dofnum[b] > 0) return false;
+  }
+  return true;
+}
+
+// whether a sensor of m can read the mass, inertia or centre of mass of body b when no state
+// can: a force or torque sensor (cfrc_int, which carries the weight of the subtree), a subtree
+// sensor of b or of an ancestor of b, or a user or plugin sensor (which may read anything)
+bool SensorSeesBody(const mjModel& m, int b) {
+  for (int s = 0; s < m.nsensor; ++s) {
+    const int type = m.sensor_type[s];
+    if (type == mjSENS_USER || type == mjSENS_PLUGIN) return true;
+    int body = -1;
+    if (type == mjSENS_FORCE || type == mjSENS_TORQUE) {
+      body = m.site_bodyid[m.sensor_objid[s]];
+    } else if (type == mjSENS_SUBTREECOM || type == mjSENS_SUBTREELINVEL ||
+               type == mjSENS_SUBTREEANGMOM) {
+      body = m.sensor_objid[s];
+    } else {
+      continue;
+    }
+    for (int a = b; a >= 0; a = a > 0 ? m.body_parentid[a] : -1) {
+      if (a == body) return true;
+    }
+  }
+  return false;
+}
+
+// ParameterError when a body's mass, inertia or centre of mass can move neither a state nor a
+// sensor (in exact arithmetic its Jacobian column is zero; computed, it is rounding noise)
+void CheckBodyCanAct(const mjModel& m, const ParameterKindInfo& info, const ParameterSpec& spec,
+                     int b) {
+  if (!WeldedToWorld(m, b) || SensorSeesBody(m, b)) return;
+  const char* what = info.kind == ParameterKind::kBodyMass      ? "its mass"
+                     : info.kind == ParameterKind::kBodyCom     ? "its centre of mass"
+                     : info.kind == ParameterKind::kBodyInertia ? "its inertia"
+                                                                : "its mass and inertia";
+  throw ParameterError(
+      ParameterSpecPart::kObject,
+      std::string(info.name) + ": body '" + spec.object + "' is welded to the world" +
+          (m.body_mocapid[b] >= 0 ? " (a mocap body)" : "") +
+          " (no joint between it and the world): " + what +
+          " cannot move any state, and no force, torque or subtree sensor reads it",
+      "fit a body that moves, or remove the parameter");
+}
+
 }  // namespace
 
 std::vector<ModelArray> ModelArrays(const mjModel& model) {
@@ -201,6 +251,7 @@ Parameter Parameter::Resolve(const mjModel& m, const ParameterSpec& spec) {
                                  "identify",
                              "name a moving body");
       }
+      CheckBodyCanAct(m, info, spec, p.id_);
       p.ref_mass_ = m.body_mass[p.id_];
       for (int i = 0; i < 3; ++i) p.ref_inertia_[i] = m.body_inertia[3 * p.id_ + i];
       if (info.kind == ParameterKind::kBodyMassInertia && !(p.ref_mass_ > 0)) {
@@ -217,6 +268,7 @@ Parameter Parameter::Resolve(const mjModel& m, const ParameterSpec& spec) {
             std::string(info.name) + ": the world body has no inertial to identify",
             "name a moving body");
       }
+      CheckBodyCanAct(m, info, spec, p.id_);
       double theta[kInertialVariables];
       if (!ToLogCholesky(BodyInertialOf(m, p.id_), theta)) {
         throw ParameterError(
