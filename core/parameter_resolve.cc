@@ -126,43 +126,11 @@ int ObjectOf(const mjModel& m, const ParameterKindInfo& info, const ParameterSpe
   return id;
 }
 
-// whether body b has no degree of freedom between it and the world (it and all its ancestors
-// without joints: welded to the world, or a mocap body)
-bool WeldedToWorld(const mjModel& m, int b) {
-  for (; b > 0; b = m.body_parentid[b]) {
-    if (m.body_dofnum[b] > 0) return false;
-  }
-  return true;
-}
-
-// whether a sensor of m can read the mass, inertia or centre of mass of body b when no state
-// can: a force or torque sensor (cfrc_int, which carries the weight of the subtree), a subtree
-// sensor of b or of an ancestor of b, or a user or plugin sensor (which may read anything)
-bool SensorSeesBody(const mjModel& m, int b) {
-  for (int s = 0; s < m.nsensor; ++s) {
-    const int type = m.sensor_type[s];
-    if (type == mjSENS_USER || type == mjSENS_PLUGIN) return true;
-    int body = -1;
-    if (type == mjSENS_FORCE || type == mjSENS_TORQUE) {
-      body = m.site_bodyid[m.sensor_objid[s]];
-    } else if (type == mjSENS_SUBTREECOM || type == mjSENS_SUBTREELINVEL ||
-               type == mjSENS_SUBTREEANGMOM) {
-      body = m.sensor_objid[s];
-    } else {
-      continue;
-    }
-    for (int a = b; a >= 0; a = a > 0 ? m.body_parentid[a] : -1) {
-      if (a == body) return true;
-    }
-  }
-  return false;
-}
-
 // ParameterError when a body's mass, inertia or centre of mass can move neither a state nor a
 // sensor (in exact arithmetic its Jacobian column is zero; computed, it is rounding noise)
 void CheckBodyCanAct(const mjModel& m, const ParameterKindInfo& info, const ParameterSpec& spec,
                      int b) {
-  if (!WeldedToWorld(m, b) || SensorSeesBody(m, b)) return;
+  if (!BodyWeldedToWorld(m, b) || !SensorsReadingBody(m, b).empty()) return;
   const char* what = info.kind == ParameterKind::kBodyMass      ? "its mass"
                      : info.kind == ParameterKind::kBodyCom     ? "its centre of mass"
                      : info.kind == ParameterKind::kBodyInertia ? "its inertia"
@@ -192,6 +160,39 @@ std::vector<ModelArray> ModelArrays(const mjModel& model) {
   MJMODEL_POINTERS
 #undef XNV
 #undef X
+  return out;
+}
+
+bool BodyWeldedToWorld(const mjModel& m, int b) {
+  for (; b > 0; b = m.body_parentid[b]) {
+    if (m.body_dofnum[b] > 0) return false;
+  }
+  return true;
+}
+
+std::vector<int> SensorsReadingBody(const mjModel& m, int b) {
+  std::vector<int> out;
+  for (int s = 0; s < m.nsensor; ++s) {
+    const int type = m.sensor_type[s];
+    int body = -1;
+    if (type == mjSENS_USER || type == mjSENS_PLUGIN) {
+      out.push_back(s);
+      continue;
+    } else if (type == mjSENS_FORCE || type == mjSENS_TORQUE) {
+      body = m.site_bodyid[m.sensor_objid[s]];
+    } else if (type == mjSENS_SUBTREECOM || type == mjSENS_SUBTREELINVEL ||
+               type == mjSENS_SUBTREEANGMOM) {
+      body = m.sensor_objid[s];
+    } else {
+      continue;
+    }
+    for (int a = b; a >= 0; a = a > 0 ? m.body_parentid[a] : -1) {
+      if (a == body) {
+        out.push_back(s);
+        break;
+      }
+    }
+  }
   return out;
 }
 

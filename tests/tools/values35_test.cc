@@ -151,6 +151,40 @@ TEST_F(Values35Test, MassOfABodyWeldedToTheWorldIsRefused) {
   EXPECT_EQ(ok.code, 0) << ok.err;
 }
 
+// The same welded base with a force sensor at a site on it ("mountforce": cfrc_int carries the
+// base's weight): a `sensors:` list without it is exit 2 naming the sensor that would read it
+// ("none of the fitted sensors reads it (hint: fit a sensor that reads it (mountforce), ...")");
+// with it, the fit identifies the mass (exit 0, converged).
+TEST_F(Values35Test, MassOfAWeldedBodyNeedsAFittedSensorThatReadsIt) {
+  std::string xml = kWeldModel;
+  xml.replace(xml.find("<geom name=\"basegeom\""), 0, "<site name=\"mount\"/>");
+  xml.replace(xml.find("</sensor>"), 0, "<force name=\"mountforce\" site=\"mount\"/>\n  ");
+  const std::string model = dir_ + "/weld_force.xml";
+  WriteFile(model, xml);
+  const std::string log = dir_ + "/weld_force.h5";
+  const std::string base =
+      "  - {name: base_mass, target: body_mass, object: base, initial: 0.5,\n"
+      "     bounds: [0.05, 10], transform: log}\n";
+  const std::string unread = dir_ + "/unread.yaml";
+  WriteFile(unread, Experiment(model, log, base, "0.01"));
+  const CliRun r = Sysid("check " + unread);
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("unread.yaml:10:"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("none of the fitted sensors reads it (hint: fit a sensor that reads it "
+                       "(mountforce)"),
+            std::string::npos)
+      << r.err;
+  std::string read = Experiment(model, log, base, "0.01");
+  read.replace(read.find("parameters:"), 0, "  - {name: mountforce, sigma: 0.1}\n");
+  read.replace(read.find("truth: {damping: 0.08}"), 22, "truth: {damping: 0.08, base_mass: 1}");
+  WriteFile(dir_ + "/read.yaml", read);
+  ASSERT_EQ(Sysid("simulate " + dir_ + "/read.yaml --out " + log).code, 0);
+  const CliRun fit = Sysid("fit " + dir_ + "/read.yaml --out " + dir_ + "/res_read --quiet");
+  EXPECT_EQ(fit.code, 0) << fit.err;
+  EXPECT_NE(fit.out.find("converged"), std::string::npos) << fit.out;
+  EXPECT_NE(fit.out.find("base_mass"), std::string::npos) << fit.out;
+}
+
 // A finite logged value whose square overflows (1e308 in ctrl, 1e200 in sensordata): exit 2,
 // "LOG: /seq0/ctrl: row 17, column 0: value 1e+308 is beyond +-1e+150, ...", the log's path
 // named once (the child that reads the log prepended it a second time).
