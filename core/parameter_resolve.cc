@@ -126,6 +126,24 @@ int ObjectOf(const mjModel& m, const ParameterKindInfo& info, const ParameterSpe
   return id;
 }
 
+// ParameterError when a body's mass, inertia or centre of mass can move neither a state nor a
+// sensor (in exact arithmetic its Jacobian column is zero; computed, it is rounding noise)
+void CheckBodyCanAct(const mjModel& m, const ParameterKindInfo& info, const ParameterSpec& spec,
+                     int b) {
+  if (!BodyWeldedToWorld(m, b) || !SensorsReadingBody(m, b).empty()) return;
+  const char* what = info.kind == ParameterKind::kBodyMass      ? "its mass"
+                     : info.kind == ParameterKind::kBodyCom     ? "its centre of mass"
+                     : info.kind == ParameterKind::kBodyInertia ? "its inertia"
+                                                                : "its mass and inertia";
+  throw ParameterError(
+      ParameterSpecPart::kObject,
+      std::string(info.name) + ": body '" + spec.object + "' is welded to the world" +
+          (m.body_mocapid[b] >= 0 ? " (a mocap body)" : "") +
+          " (no joint between it and the world): " + what +
+          " cannot move any state, and no force, torque or subtree sensor reads it",
+      "fit a body that moves, or remove the parameter");
+}
+
 }  // namespace
 
 std::vector<ModelArray> ModelArrays(const mjModel& model) {
@@ -142,6 +160,39 @@ std::vector<ModelArray> ModelArrays(const mjModel& model) {
   MJMODEL_POINTERS
 #undef XNV
 #undef X
+  return out;
+}
+
+bool BodyWeldedToWorld(const mjModel& m, int b) {
+  for (; b > 0; b = m.body_parentid[b]) {
+    if (m.body_dofnum[b] > 0) return false;
+  }
+  return true;
+}
+
+std::vector<int> SensorsReadingBody(const mjModel& m, int b) {
+  std::vector<int> out;
+  for (int s = 0; s < m.nsensor; ++s) {
+    const int type = m.sensor_type[s];
+    int body = -1;
+    if (type == mjSENS_USER || type == mjSENS_PLUGIN) {
+      out.push_back(s);
+      continue;
+    } else if (type == mjSENS_FORCE || type == mjSENS_TORQUE) {
+      body = m.site_bodyid[m.sensor_objid[s]];
+    } else if (type == mjSENS_SUBTREECOM || type == mjSENS_SUBTREELINVEL ||
+               type == mjSENS_SUBTREEANGMOM) {
+      body = m.sensor_objid[s];
+    } else {
+      continue;
+    }
+    for (int a = b; a >= 0; a = a > 0 ? m.body_parentid[a] : -1) {
+      if (a == body) {
+        out.push_back(s);
+        break;
+      }
+    }
+  }
   return out;
 }
 
@@ -201,6 +252,7 @@ Parameter Parameter::Resolve(const mjModel& m, const ParameterSpec& spec) {
                                  "identify",
                              "name a moving body");
       }
+      CheckBodyCanAct(m, info, spec, p.id_);
       p.ref_mass_ = m.body_mass[p.id_];
       for (int i = 0; i < 3; ++i) p.ref_inertia_[i] = m.body_inertia[3 * p.id_ + i];
       if (info.kind == ParameterKind::kBodyMassInertia && !(p.ref_mass_ > 0)) {
@@ -217,6 +269,7 @@ Parameter Parameter::Resolve(const mjModel& m, const ParameterSpec& spec) {
             std::string(info.name) + ": the world body has no inertial to identify",
             "name a moving body");
       }
+      CheckBodyCanAct(m, info, spec, p.id_);
       double theta[kInertialVariables];
       if (!ToLogCholesky(BodyInertialOf(m, p.id_), theta)) {
         throw ParameterError(

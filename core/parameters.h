@@ -126,6 +126,17 @@ struct ModelArray {
 // every array of mjModel with its size in m, in mjModel's order
 std::vector<ModelArray> ModelArrays(const mjModel& m);
 
+// Whether body b has no degree of freedom between it and the world (it and its ancestors without
+// joints: welded to the world, or a mocap body): its mass, inertia and centre of mass move no
+// state.
+bool BodyWeldedToWorld(const mjModel& m, int b);
+
+// The sensors of m that can read body b's mass, inertia or centre of mass when no state can: force
+// and torque sensors at sites of b or of an ancestor (cfrc_int carries the subtree's weight),
+// subtree sensors of b or of an ancestor, and user and plugin sensors (which may read anything).
+// Parameter::Resolve refuses a body kind on a body welded to the world when this is empty.
+std::vector<int> SensorsReadingBody(const mjModel& m, int b);
+
 // every kind, in ParameterKind order
 const std::vector<ParameterKindInfo>& ParameterKindTable();
 

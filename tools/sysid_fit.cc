@@ -152,8 +152,14 @@ void PrintStarts(const mjsysid::io::FitResultFile& f) {
 // data); verbose: also why the solver stopped, why the segments, what the reduced model left out
 // (all three are in result.yaml)
 void PrintEstimates(const mjsysid::io::FitResultFile& f, bool verbose) {
-  std::printf("%s: %s after %d iterations, cost %.6g -> %.6g, %.2f s\n", f.name.c_str(),
-              f.status.c_str(), f.iterations, f.initial_cost, f.final_cost, f.seconds);
+  if (f.iterations < 0 || !(f.initial_cost >= 0) || !(f.final_cost >= 0)) {
+    // Ceres' summary when it could not evaluate the start (iterations and costs -1)
+    std::printf("%s: %s: the solver stopped before its first iteration (%s), %.2f s\n",
+                f.name.c_str(), f.status.c_str(), f.termination.c_str(), f.seconds);
+  } else {
+    std::printf("%s: %s after %d iterations, cost %.6g -> %.6g, %.2f s\n", f.name.c_str(),
+                f.status.c_str(), f.iterations, f.initial_cost, f.final_cost, f.seconds);
+  }
   if (verbose) {
     std::printf("  stopped: %s\n", mjsysid::TerminationText(f.termination).c_str());
     const std::string segments = mjsysid::SegmentReasonText(f.segment_reason);

@@ -11,6 +11,8 @@
 //
 // The subcommands live in one file each (tools/sysid_<subcommand>.cc), their shared helpers in
 // tools/sysid_cli.h; this file is the CLI11 app, the dispatch and the exit codes.
+#include <glog/logging.h>
+
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cstdio>
@@ -69,6 +71,13 @@ int RunGuarded(const std::string& name, const std::function<int()>& run) {
 
 int main(int argc, char** argv) {
   mjsysid::InstallMujocoHandlers();
+  // Ceres logs through glog (e.g. "Terminating: Residual and Jacobian evaluation failed" at
+  // ERROR, whatever Solver::Options::logging_type says): the fit's own report says what happened,
+  // so no third-party log line reaches the terminal (only a FATAL one, before an abort) and no
+  // log file is written
+  FLAGS_logtostderr = true;
+  FLAGS_minloglevel = google::GLOG_FATAL;
+  google::InitGoogleLogging(argv[0]);
 #ifdef MJSYSID_WITH_MPI
   // only when started by an MPI launcher (mpirun, srun); ended by std::atexit at exit
   mjsysid::mpi::Initialize(&argc, &argv);

@@ -42,6 +42,31 @@ void ValidateParameter(const ParameterSpec& p, const mjModel& m, const std::stri
   }
 }
 
+// A body kind on a body welded to the world that core accepted because a sensor can read it
+// (SensorsReadingBody): with a `sensors:` list, one of the listed sensors must be such a sensor,
+// or the parameter moves nothing that is fitted (its computed column is rounding noise)
+void CheckWeldedBodyIsRead(const ExperimentConfig& config, const ParameterSpec& p, const mjModel& m,
+                           const std::string& label) {
+  const std::string& kind = p.target.kind;
+  if (config.sensors.empty() || kind.rfind("body_", 0) != 0) return;
+  const int b = mj_name2id(&m, mjOBJ_BODY, p.target.object.c_str());
+  if (b <= 0 || !BodyWeldedToWorld(m, b)) return;
+  std::vector<std::string> readers;
+  for (int s : SensorsReadingBody(m, b)) {
+    const char* name = mj_id2name(&m, mjOBJ_SENSOR, s);
+    readers.emplace_back(name ? name : "sensor " + std::to_string(s));
+    for (const SensorSpec& fitted : config.sensors) {
+      if (fitted.name == readers.back()) return;
+    }
+  }
+  throw ConfigError(
+      p.marks.Of("object"),
+      kind + ": body " + Quote(p.target.object) + " is welded to the world (no " +
+          "joint between it and the world) in " + label +
+          ": it moves no state, and none of the fitted sensors reads it",
+      "fit a sensor that reads it (" + JoinNames(readers) + "), or remove the parameter");
+}
+
 void CheckSensor(const mjModel& m, const std::string& name, const Mark& mark,
                  const std::string& label) {
   RequireObject(m, mjOBJ_SENSOR, m.nsensor, "sensor", name, mark, label);
@@ -76,7 +101,9 @@ void ValidateExperimentAgainstModel(const ExperimentConfig& config, const mjMode
   // sensors, parameters, measurement
   for (const SensorSpec& s : config.sensors) CheckSensor(m, s.name, s.marks.Of("name"), label);
   for (const ParameterSpec& p : config.parameters) {
-    if (p.AppliesTo(model_name)) ValidateParameter(p, m, label);
+    if (!p.AppliesTo(model_name)) continue;
+    ValidateParameter(p, m, label);
+    CheckWeldedBodyIsRead(config, p, m, label);
   }
   for (const MeasurementSpec& ms : config.measurement) {
     CheckSensor(m, ms.sensor, ms.marks.Of("sensor"), label);

@@ -55,12 +55,24 @@ void CheckName(const std::string& name, const std::string& file, const std::stri
   }
 }
 
-// every value finite; with nan_allowed, NaN passes (a value not measured) and only Inf fails
+// the largest magnitude a logged value may have: its square (a residual's, a kinetic energy's)
+// must not overflow a double (1e308), so that a simulation or a cost with it stays finite
+constexpr double kLargestLoggedMagnitude = 1e150;
+
+// every value finite and within +-kLargestLoggedMagnitude; with nan_allowed, NaN passes (a value
+// not measured) and only Inf fails
 void CheckFinite(const double* data, Eigen::Index rows, Eigen::Index cols, const std::string& file,
                  const std::string& object, bool nan_allowed) {
   for (Eigen::Index r = 0; r < rows; ++r) {
     for (Eigen::Index c = 0; c < cols; ++c) {
       const double v = data[r * cols + c];
+      if (std::isfinite(v) && std::abs(v) > kLargestLoggedMagnitude) {
+        Fail(file, object,
+             "row " + std::to_string(r) + ", column " + std::to_string(c) + ": value " +
+                 FormatShortest(v) + " is beyond +-" + FormatShortest(kLargestLoggedMagnitude) +
+                 ", where its square overflows the simulation and the cost (a unit or "
+                 "conversion error?)");
+      }
       if (std::isfinite(v) || (nan_allowed && std::isnan(v))) continue;
       Fail(file, object,
            "row " + std::to_string(r) + ", column " + std::to_string(c) + ": value " +

@@ -199,7 +199,9 @@ Log ReadInChildProcess(const std::string& path, Log (*read_locked)(const std::st
       reply =
           "E" + file + ": reading it needs more memory than a log of its size can (corrupt file?)";
     } catch (const std::exception& e) {
-      reply = "E" + file + ": " + e.what();
+      // the file named once: the log's own checks (LogError) already begin with it
+      const std::string what = e.what();
+      reply = "E" + (what.rfind(file + ":", 0) == 0 ? what : file + ": " + what);
     }
     _exit(WriteAll(fds[1], reply) ? 0 : 1);
   }

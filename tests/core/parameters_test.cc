@@ -709,5 +709,46 @@ TEST(KindTableTest, SchemaDocListsTheTable) {
   EXPECT_EQ(table, KindsMarkdown()) << "paste this between the markers:\n" << KindsMarkdown();
 }
 
+// A body's mass, inertia or centre of mass with no joint between the body and the world cannot
+// move any state (issue 35): Resolve refuses it, naming the body and why, unless a force, torque
+// or subtree sensor can read it; a body welded to a moving body, and a mocap body, as expected.
+TEST(ParameterTest, BodiesWeldedToTheWorldAreRefusedUnlessASensorReadsThem) {
+  const std::string bodies = R"(<worldbody>
+      <body name="base" pos="0 0 1"><geom size="0.1" mass="1"/><site name="s"/>
+        <body name="link"><joint name="j" axis="0 1 0"/><geom size="0.1" mass="1"/>
+          <body name="tip" pos="0 0 -0.5"><geom size="0.1" mass="1"/></body>
+        </body>
+      </body>
+      <body name="target" mocap="true"><geom size="0.1" mass="1" contype="0"/></body>
+    </worldbody>)";
+  ModelPtr plain = LoadModelFromString("<mujoco>" + bodies + "</mujoco>");
+  for (const std::string kind : {"body_mass", "body_inertia", "body_com", "body_inertial"}) {
+    SCOPED_TRACE(kind);
+    for (const std::string body : {"base", "target"}) {
+      try {
+        Parameter::Resolve(*plain, Spec(kind, body));
+        ADD_FAILURE() << body << " accepted";
+      } catch (const ParameterError& e) {
+        EXPECT_NE(std::string(e.what()).find("body '" + body + "' is welded to the world"),
+                  std::string::npos)
+            << e.what();
+        EXPECT_EQ(e.part(), ParameterSpecPart::kObject);
+      }
+    }
+    EXPECT_NO_THROW(Parameter::Resolve(*plain, Spec(kind, "tip")));  // welded to a moving link
+  }
+  try {
+    Parameter::Resolve(*plain, Spec("body_mass", "base"));
+  } catch (const ParameterError& e) {
+    EXPECT_NE(std::string(e.what()).find("its mass cannot move any state"), std::string::npos);
+  }
+  // a force sensor on the base reads the weight of its subtree, the base's own included
+  for (const std::string sensor : {R"(<force site="s"/>)", R"(<subtreecom body="world"/>)"}) {
+    ModelPtr seen =
+        LoadModelFromString("<mujoco>" + bodies + "<sensor>" + sensor + "</sensor></mujoco>");
+    EXPECT_NO_THROW(Parameter::Resolve(*seen, Spec("body_mass", "base"))) << sensor;
+  }
+}
+
 }  // namespace
 }  // namespace mjsysid
