@@ -155,7 +155,8 @@ void PrintEstimates(const mjsysid::io::FitResultFile& f, bool verbose) {
   if (f.iterations < 0 || !(f.initial_cost >= 0) || !(f.final_cost >= 0)) {
     // Ceres' summary when it could not evaluate the start (iterations and costs -1)
     std::printf("%s: %s: the solver stopped before its first iteration (%s), %.2f s\n",
-                f.name.c_str(), f.status.c_str(), f.termination.c_str(), f.seconds);
+                f.name.c_str(), f.status.c_str(), mjsysid::TerminationText(f.termination).c_str(),
+                f.seconds);
   } else {
     std::printf("%s: %s after %d iterations, cost %.6g -> %.6g, %.2f s\n", f.name.c_str(),
                 f.status.c_str(), f.iterations, f.initial_cost, f.final_cost, f.seconds);
