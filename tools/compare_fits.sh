@@ -25,9 +25,10 @@ fi
 mkdir -p "$out"
 # what differs between two runs of the same binary: clocks, ids, versions, dates, paths; and the
 # kinds' keys (termination_kind, interval_check_kind: a binary before them has none; their text
-# keys stay compared)
+# keys stay compared) and the input hashes (input_hashes: absent before them, paths differ)
 strip() {
-  grep -vE '(seconds|wall_time_s|created|run_id|mjsysid_version|experiment|wake|wait|_time|identified|termination_kind|interval_check_kind):' "$1"
+  grep -vE '(seconds|wall_time_s|created|run_id|mjsysid_version|experiment|wake|wait|_time|identified|termination_kind|interval_check_kind|input_hashes):' "$1" |
+    grep -vE '^ *- \{role: (experiment|model|log), path: '
 }
 status=0
 for e in "${experiments[@]}"; do
