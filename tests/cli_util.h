@@ -3,8 +3,12 @@
 #pragma once
 
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <string>
 
 namespace mjsysid::test {
@@ -35,6 +39,40 @@ inline CliRun Sysid(const std::string& args) {
 // runs `sysid <args>` and returns what it printed on stderr alone (stdout discarded), in order
 inline CliRun SysidStderr(const std::string& args) {
   return RunShell(std::string(MJSYSID_SYSID_BIN) + " " + args + " 2>&1 >/dev/null");
+}
+
+// what a run printed on each stream, apart
+struct CliStreams {
+  int code = -1;    // exit code; -1 when killed by a signal (also by the timeout)
+  std::string out;  // stdout
+  std::string err;  // stderr
+};
+
+// runs `sysid <args>` (quoted by the caller) killed after `timeout_s` seconds: exit code, stdout
+// and stderr apart (stderr goes through a file in the temp folder named by the pid)
+inline CliStreams SysidStreams(const std::string& args, int timeout_s = 120) {
+  const std::string err_path = (std::filesystem::temp_directory_path() /
+                                ("mjsysid_stderr_" + std::to_string(::getpid()) + ".txt"))
+                                   .string();
+  const std::string cmd = "timeout -s KILL " + std::to_string(timeout_s) + " " +
+                          std::string(MJSYSID_SYSID_BIN) + " " + args + " 2>" + err_path;
+  FILE* pipe = popen(cmd.c_str(), "r");
+  CliStreams r;
+  char buf[4096];
+  while (size_t n = fread(buf, 1, sizeof(buf), pipe)) r.out.append(buf, n);
+  const int status = pclose(pipe);
+  if (WIFEXITED(status) && WEXITSTATUS(status) < 128) r.code = WEXITSTATUS(status);
+  std::ifstream in(err_path, std::ios::binary);
+  r.err.assign(std::istreambuf_iterator<char>(in), {});
+  std::filesystem::remove(err_path);
+  return r;
+}
+
+// how many times `needle` occurs in `hay` (overlapping occurrences counted)
+inline int CountOf(const std::string& hay, const std::string& needle) {
+  int n = 0;
+  for (size_t at = hay.find(needle); at != std::string::npos; at = hay.find(needle, at + 1)) ++n;
+  return n;
 }
 
 }  // namespace mjsysid::test

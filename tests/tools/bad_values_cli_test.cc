@@ -10,19 +10,17 @@
 #include <filesystem>
 #include <string>
 
+#include "tests/cli_util.h"
 #include "tests/file_util.h"
 
 namespace {
 
 namespace fs = std::filesystem;
+using mjsysid::test::CliStreams;
+using mjsysid::test::CountOf;
 using mjsysid::test::ReadFile;
+using mjsysid::test::SysidStreams;
 using mjsysid::test::WriteFile;
-
-struct CliRun {
-  int code = -1;    // exit code; -1 when killed by a signal
-  std::string err;  // stderr
-  std::string out;  // stdout
-};
 
 // the pendulum hung from a jointless base body ("base", welded to the world)
 const char kWeldModel[] = R"(<mujoco model="weld">
@@ -66,19 +64,7 @@ class Values35Test : public ::testing::Test {
            "  noise: {angle: 0.001, rate: 0.01}\n";
   }
 
-  static CliRun Sysid(const std::string& args) {
-    const std::string err_path = dir_ + "/stderr.txt";
-    const std::string cmd =
-        "timeout -s KILL 120 " + std::string(MJSYSID_SYSID_BIN) + " " + args + " 2>" + err_path;
-    FILE* pipe = popen(cmd.c_str(), "r");
-    CliRun r;
-    char buf[4096];
-    while (size_t n = fread(buf, 1, sizeof(buf), pipe)) r.out.append(buf, n);
-    const int status = pclose(pipe);
-    if (WIFEXITED(status) && WEXITSTATUS(status) < 128) r.code = WEXITSTATUS(status);
-    r.err = ReadFile(err_path);
-    return r;
-  }
+  static CliStreams Sysid(const std::string& args) { return SysidStreams(args); }
 
   // a copy of `log` with one element of `dataset` set to `value`
   static std::string PatchedLog(const std::string& log, const std::string& name,
@@ -104,13 +90,6 @@ class Values35Test : public ::testing::Test {
     return path;
   }
 
-  // how many times `needle` occurs in `hay`
-  static int Count(const std::string& hay, const std::string& needle) {
-    int n = 0;
-    for (size_t at = hay.find(needle); at != std::string::npos; at = hay.find(needle, at + 1)) ++n;
-    return n;
-  }
-
   static std::string dir_;
 };
 
@@ -134,7 +113,7 @@ TEST_F(Values35Test, MassOfABodyWeldedToTheWorldIsRefused) {
                             "0.01"));
   for (const std::string sub : {"simulate", "check", "fit"}) {
     SCOPED_TRACE(sub);
-    const CliRun r = Sysid(sub + " " + exp + (sub == "fit" ? " --out " + dir_ + "/res" : ""));
+    const CliStreams r = Sysid(sub + " " + exp + (sub == "fit" ? " --out " + dir_ + "/res" : ""));
     EXPECT_EQ(r.code, 2) << r.err;
     EXPECT_NE(r.err.find("welded.yaml:10:"), std::string::npos) << r.err;
     EXPECT_NE(r.err.find("body 'base' is welded to the world"), std::string::npos) << r.err;
@@ -147,7 +126,7 @@ TEST_F(Values35Test, MassOfABodyWeldedToTheWorldIsRefused) {
                             "  - {name: bob_mass, target: body_mass, object: bob, initial: 1,\n"
                             "     bounds: [0.05, 10], transform: log}\n",
                             "0.01"));
-  const CliRun ok = Sysid("fit " + bob + " --out " + dir_ + "/res_bob --quiet");
+  const CliStreams ok = Sysid("fit " + bob + " --out " + dir_ + "/res_bob --quiet");
   EXPECT_EQ(ok.code, 0) << ok.err;
 }
 
@@ -167,7 +146,7 @@ TEST_F(Values35Test, MassOfAWeldedBodyNeedsAFittedSensorThatReadsIt) {
       "     bounds: [0.05, 10], transform: log}\n";
   const std::string unread = dir_ + "/unread.yaml";
   WriteFile(unread, Experiment(model, log, base, "0.01"));
-  const CliRun r = Sysid("check " + unread);
+  const CliStreams r = Sysid("check " + unread);
   EXPECT_EQ(r.code, 2) << r.err;
   EXPECT_NE(r.err.find("unread.yaml:10:"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("none of the fitted sensors reads it (hint: fit a sensor that reads it "
@@ -179,7 +158,7 @@ TEST_F(Values35Test, MassOfAWeldedBodyNeedsAFittedSensorThatReadsIt) {
   read.replace(read.find("truth: {damping: 0.08}"), 22, "truth: {damping: 0.08, base_mass: 1}");
   WriteFile(dir_ + "/read.yaml", read);
   ASSERT_EQ(Sysid("simulate " + dir_ + "/read.yaml --out " + log).code, 0);
-  const CliRun fit = Sysid("fit " + dir_ + "/read.yaml --out " + dir_ + "/res_read --quiet");
+  const CliStreams fit = Sysid("fit " + dir_ + "/read.yaml --out " + dir_ + "/res_read --quiet");
   EXPECT_EQ(fit.code, 0) << fit.err;
   EXPECT_NE(fit.out.find("converged"), std::string::npos) << fit.out;
   EXPECT_NE(fit.out.find("base_mass"), std::string::npos) << fit.out;
@@ -202,20 +181,20 @@ TEST_F(Values35Test, LoggedValueBeyond1e150IsBadInputNamingTheFileOnce) {
     const std::string exp = dir_ + "/huge_" + dataset + ".yaml";
     WriteFile(exp, Experiment(model, bad, "", "0.01"));
     for (const std::string sub : {"check", "fit"}) {
-      const CliRun r =
+      const CliStreams r =
           Sysid(sub + " " + exp + (sub == "fit" ? " --out " + dir_ + "/res_huge" : ""));
       EXPECT_EQ(r.code, 2) << r.err;
       EXPECT_NE(r.err.find("/seq0/" + dataset + ": row 17, column 0: value " + shown +
                            " is beyond +-1e+150"),
                 std::string::npos)
           << r.err;
-      EXPECT_EQ(Count(r.err, "huge_" + dataset + ".h5"), 1) << r.err;
+      EXPECT_EQ(CountOf(r.err, "huge_" + dataset + ".h5"), 1) << r.err;
     }
   }
   // 1e150 itself is accepted by the check (the bound is inclusive)
   const std::string edge = PatchedLog(log, "edge.h5", "/seq0/sensordata", 17, 0, 1e150);
   WriteFile(dir_ + "/edge.yaml", Experiment(model, edge, "", "0.01"));
-  const CliRun r = Sysid("check " + dir_ + "/edge.yaml");
+  const CliStreams r = Sysid("check " + dir_ + "/edge.yaml");
   EXPECT_EQ(r.err.find("is beyond"), std::string::npos) << r.err;
 }
 
@@ -227,7 +206,8 @@ TEST_F(Values35Test, ImportRefusesAValueBeyond1e150) {
     csv += std::to_string(0.002 * i) + ",0.1,0.3," + (i == 7 ? "1e308" : "0.0") + "\n";
   }
   WriteFile(dir_ + "/huge.csv", csv);
-  const CliRun r = Sysid("import " + model + " " + dir_ + "/huge.csv --out " + dir_ + "/huge.h5");
+  const CliStreams r =
+      Sysid("import " + model + " " + dir_ + "/huge.csv --out " + dir_ + "/huge.h5");
   EXPECT_EQ(r.code, 2) << r.err;
   EXPECT_NE(r.err.find("/huge/sensordata: row 7, column 1: value 1e+308 is beyond +-1e+150"),
             std::string::npos)
@@ -248,10 +228,10 @@ TEST_F(Values35Test, SolverThatCannotStartPrintsNoLibraryLogAndNoMinusOne) {
   }
   WriteFile(dir_ + "/edge.csv", csv);
   const std::string log = dir_ + "/edge_csv.h5";
-  const CliRun imp = Sysid("import " + model + " " + dir_ + "/edge.csv --out " + log);
+  const CliStreams imp = Sysid("import " + model + " " + dir_ + "/edge.csv --out " + log);
   ASSERT_EQ(imp.code, 0) << imp.err;
   WriteFile(dir_ + "/edge_fit.yaml", Experiment(model, log, "", "0.0001"));
-  const CliRun r = Sysid("fit " + dir_ + "/edge_fit.yaml --out " + dir_ + "/res_edge");
+  const CliStreams r = Sysid("fit " + dir_ + "/edge_fit.yaml --out " + dir_ + "/res_edge");
   EXPECT_EQ(r.code, 4) << r.out << r.err;
   EXPECT_EQ(r.err.find("InitGoogleLogging"), std::string::npos) << r.err;
   EXPECT_EQ(r.err.find(".cc:"), std::string::npos) << r.err;  // glog's "file.cc:line]" prefix
