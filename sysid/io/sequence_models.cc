@@ -1,5 +1,7 @@
 #include "sysid/io/sequence_models.h"
 
+#include <algorithm>
+#include <filesystem>
 #include <map>
 #include <sstream>
 
@@ -104,6 +106,45 @@ void CheckSequenceEntriesUsed(const ExperimentConfig& config, const std::vector<
                           "' is in none of the data files",
                       "sequences in the data: " + JoinNames(all_groups));
   }
+}
+
+std::vector<std::string> SequenceNamesInFit(const std::vector<LoggedSequence>& selected,
+                                            std::vector<std::string>* renamed) {
+  // group name -> the logs that have it, in order
+  std::map<std::string, std::vector<std::string>> logs_of;
+  for (const LoggedSequence& q : selected) {
+    std::vector<std::string>& paths = logs_of[q.group];
+    if (std::find(paths.begin(), paths.end(), q.path) == paths.end()) paths.push_back(q.path);
+  }
+  std::vector<std::string> names;
+  std::map<std::string, size_t> first_of;  // name -> index into selected
+  for (size_t i = 0; i < selected.size(); ++i) {
+    const LoggedSequence& q = selected[i];
+    const bool shared = logs_of[q.group].size() > 1;
+    names.push_back(shared ? std::filesystem::path(q.path).stem().string() + ":" + q.group
+                           : q.group);
+    const auto [it, added] = first_of.emplace(names.back(), i);
+    if (!added) {
+      const LoggedSequence& p = selected[it->second];
+      throw LogError(p.path + ": /" + p.group + " and " + q.path + ": /" + q.group +
+                     " would both be named " + Quote(names.back()) +
+                     " in the fit (a group name selected from several logs is named "
+                     "'<log file stem>:<group>'): rename one of the log files or groups");
+    }
+  }
+  if (renamed) {
+    for (const auto& [group, paths] : logs_of) {
+      if (paths.size() < 2) continue;
+      std::vector<std::string> as;
+      for (const std::string& path : paths) {
+        as.push_back(std::filesystem::path(path).stem().string() + ":" + group);
+      }
+      renamed->push_back("sequence " + Quote(group) + " is in " + std::to_string(paths.size()) +
+                         " logs (" + JoinNames(paths) + "): named " + JoinNames(as) +
+                         " in the fit, its results and report");
+    }
+  }
+  return names;
 }
 
 }  // namespace mjsysid::io

@@ -13,9 +13,17 @@
 // Failure (bad input, exit 2): a selected group with no model by these rules (several models, no
 // record), an entry whose model contradicts the log's record, or a group recorded for two models
 // throws LogError naming the file and the group, with the fix.
+//
+// A sequence is identified by its log file and its group (SequenceNamesInFit): its name in the fit
+// (results, report, messages) is its group name, unless a group of that name is selected from
+// more than one log (every `sysid simulate` log names its groups seq0, seq1, ...): then each of
+// them is named "<log file stem>:<group>" (e.g. runA:seq0), a name valid as an HDF5 group, as a
+// YAML value and in the report. Which model a sequence belongs to is decided above, on its group
+// name in its own log, before it is renamed.
 #pragma once
 
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "sysid/io/experiment.h"
@@ -40,5 +48,19 @@ std::vector<SequenceOwner> AssignSequences(const ExperimentConfig& config, const
 // listing the groups that exist (all_groups).
 void CheckSequenceEntriesUsed(const ExperimentConfig& config, const std::vector<bool>& entry_used,
                               const std::vector<std::string>& all_groups);
+
+// one selected sequence: the path of its log and its group name there
+struct LoggedSequence {
+  std::string path;
+  std::string group;
+};
+
+// The names of `selected` (the sequences a fit uses, fitted and held out, from all its logs) in the
+// fit, in the same order, by the rule above. `renamed` (optional) gets one line per group name
+// found in several logs, saying how its sequences are named. Throws LogError naming both files
+// when two names still collide: two logs with the same file stem (in different folders), or a
+// group already named like another log's renamed one.
+std::vector<std::string> SequenceNamesInFit(const std::vector<LoggedSequence>& selected,
+                                            std::vector<std::string>* renamed = nullptr);
 
 }  // namespace mjsysid::io
