@@ -20,17 +20,19 @@ constexpr double kMaxPeriodOfTimestep = 100;
 // a time dataset longer than this (s, one day) is a unit error
 constexpr double kMaxSpan = 86400;
 
-// the fix of a unit error, for a log imported or written by the user
-std::string UnitFix(const char* example_factor) {
+// the fix of a unit error, for a log imported or written by the user; factor: the likely unit's
+// --time-scale factor, nullptr when no unit is likely
+std::string UnitFix(const char* factor) {
   return std::string(
              "time must be in seconds: write it in seconds, or (re-)import the CSV or "
              "bag with `sysid import --time-scale ") +
-         example_factor + "`";
+         (factor ? std::string(factor) + "`"
+                 : "FACTOR` (0.001 for milliseconds, 1e-9 for nanoseconds)");
 }
 
 // "time looks like milliseconds: periods of 2 'seconds' on a 0.002 s model; " when a smaller unit
 // (ms, us, ns) brings the median period closer to the timestep than seconds do (log scale);
-// example_factor: that unit's --time-scale factor, else 0.001
+// example_factor: that unit's --time-scale factor, else nullptr
 std::string LikelyUnit(double period, double timestep, const char** example_factor) {
   struct Unit {
     const char* name;
@@ -49,7 +51,7 @@ std::string LikelyUnit(double period, double timestep, const char** example_fact
       best_distance = d;
     }
   }
-  *example_factor = best ? best->text : "0.001";
+  *example_factor = best ? best->text : nullptr;
   if (!best) return "";
   return std::string("time looks like ") + best->name + ": periods of " + FormatDigits(period, 6) +
          " 'seconds' on a " + FormatDigits(timestep, 6) + " s model; ";
@@ -112,7 +114,7 @@ std::vector<std::string> CheckTimeBase(const Eigen::VectorXd& time, double times
              "milliseconds or clock ticks, or is the model's timestep in other units?)");
   }
   // the other unit error: far fewer samples than steps, or a log of days
-  const char* factor = "0.001";
+  const char* factor = nullptr;
   if (kind == TimeDataset::kSamples && period > kMaxPeriodOfTimestep * timestep) {
     const std::string unit = LikelyUnit(period, timestep, &factor);
     Fail(file, object,

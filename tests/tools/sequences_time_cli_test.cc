@@ -320,7 +320,7 @@ TEST_F(SequencesTime35Test, NanosecondsAreRefusedAtCheckAndFit) {
 
 // A log at the model's rate that spans more than a day (299 samples 0.002 s apart, the last one
 // at 90000 s): `check` exits 2, "the log spans 90000 s (0 .. 90000), more than one day (86400 s):
-// time must be in seconds: ...".
+// time must be in seconds: ... `sysid import --time-scale FACTOR` (0.001 for milliseconds, ...)".
 TEST_F(SequencesTime35Test, ALogLongerThanADayIsRefused) {
   LogWithTimes("day", [](Eigen::Index k) { return k == 299 ? 90000.0 : 0.002 * k; });
   const std::string exp = WriteExperiment("day", "day.h5");
@@ -328,6 +328,11 @@ TEST_F(SequencesTime35Test, ALogLongerThanADayIsRefused) {
   EXPECT_EQ(r.code, 2) << r.err;
   EXPECT_NE(r.err.find("/day.h5: /seq0/time: the log spans 90000 s (0 .. 90000), more than one "
                        "day (86400 s): time must be in seconds"),
+            std::string::npos)
+      << r.err;
+  // no smaller unit is likely (the period is the model's): no factor is suggested
+  EXPECT_NE(r.err.find("`sysid import --time-scale FACTOR` (0.001 for milliseconds, 1e-9 for "
+                       "nanoseconds)"),
             std::string::npos)
       << r.err;
 }
