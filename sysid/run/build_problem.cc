@@ -112,7 +112,8 @@ struct ModelSequences {
 
 // Assignment: takes one log (read from path); gives its selected sequences per model, each once.
 // The held-out sequences first, with their model: they are taken out of the fitted selection
-// (without `sequences:` every sequence of the log is selected, the held-out ones too).
+// (without `sequences:` every sequence of the log is selected, the held-out ones too). Throws for a
+// sequence that entries of both `sequences:` and `validation:` name.
 std::vector<ModelSequences> AssignToModels(const io::ExperimentConfig& cfg, const io::Log& log,
                                            const std::string& path, SequenceSelection* sel) {
   std::vector<bool> held_out(log.sequences.size(), false);
@@ -122,6 +123,12 @@ std::vector<ModelSequences> AssignToModels(const io::ExperimentConfig& cfg, cons
     for (const io::SequenceOwner& o : owners) held_out[o.sequence] = true;
   }
   for (const io::SequenceOwner& o : io::AssignSequences(cfg, log, path, &sel->entry_used)) {
+    // an entry of each list names it (e.g. `sequences: [runA:seq0]`, `validation: [seq0]`)
+    if (held_out[o.sequence] && !cfg.sequences.empty()) {
+      throw io::LogError(path + ": /" + log.sequences[o.sequence].name +
+                         ": is named by `sequences:` and by `validation:`: a validation sequence "
+                         "is held out of the fit (remove it from one of the lists)");
+    }
     owners.push_back(o);
   }
   std::vector<ModelSequences> per_model(cfg.models.size());
@@ -142,7 +149,10 @@ std::pair<io::Sequence, bool> SelectWindow(const io::ExperimentConfig& cfg, size
                                            const io::Sequence& whole, const std::string& path) {
   const io::SequenceRef* ref = nullptr;
   for (const io::SequenceRef& r : cfg.sequences) {
-    if (r.name == whole.name && (r.model.empty() || r.model == cfg.models[mi].name)) ref = &r;
+    if (io::EntryNamesGroup(r, path, whole.name) &&
+        (r.model.empty() || r.model == cfg.models[mi].name)) {
+      ref = &r;
+    }
   }
   const bool windowed = ref && (std::isfinite(ref->start) || std::isfinite(ref->end));
   return {windowed ? io::WindowOf(whole, ref->start, ref->end, path) : whole, windowed};
@@ -332,7 +342,7 @@ void ReadSequences(const io::ExperimentConfig& cfg, BuiltProblem* out) {
   // the selected sequences in order, named by the rule once all logs are read
   std::vector<FitSequence> built;
   std::vector<bool> held_out;
-  std::vector<io::LoggedSequence> where;
+  std::vector<io::LoggedSequence> where, in_logs;
   SequenceSelection sel;
   sel.entry_used.assign(cfg.sequences.size(), false);
   sel.held_out_cfg.models = cfg.models;
@@ -344,7 +354,10 @@ void ReadSequences(const io::ExperimentConfig& cfg, BuiltProblem* out) {
                             "run `sysid simulate EXP.yaml` to generate it");
     }
     const io::Log log = io::ReadLog(df.path);
-    for (const io::Sequence& s : log.sequences) sel.all_groups.push_back(s.name);
+    for (const io::Sequence& s : log.sequences) {
+      sel.all_groups.push_back(s.name);
+      in_logs.push_back({df.path, s.name});
+    }
     const std::vector<ModelSequences> per_model = AssignToModels(cfg, log, df.path, &sel);
     const bool post = log.sensor_time == "post" || cfg.sensor_time == io::SensorTime::kPost;
     // one validation per model over the sequences that belong to it (fitted and held out)
@@ -361,7 +374,7 @@ void ReadSequences(const io::ExperimentConfig& cfg, BuiltProblem* out) {
   }
   io::CheckSequenceEntriesUsed(cfg, sel.entry_used, sel.all_groups);
   io::CheckSequenceEntriesUsed(sel.held_out_cfg, sel.held_out_used, sel.all_groups);
-  const std::vector<std::string> names = io::SequenceNamesInFit(where, &out->warnings);
+  const std::vector<std::string> names = io::SequenceNamesInFit(where, in_logs, &out->warnings);
   for (size_t i = 0; i < built.size(); ++i) {
     built[i].name = names[i];
     if (held_out[i]) {

@@ -1,7 +1,7 @@
 // Sequences identified by file and group, and logged times in the wrong unit, through the real CLI
 // (issue 35, items 2 and 5; docs/bad-input.md, "Issue 35: sequence names and time units").
-// Item 2: logs of `sysid simulate` all name their groups seq0, seq1, ...; a group name selected
-// from several logs is named "<log file stem>:<group>" in the fit, its result files and report
+// Item 2: logs of `sysid simulate` all name their groups seq0, seq1, ...; a group name found
+// in several logs is named "<log file stem>:<group>" in the fit, its result files and report
 // (the rule: io::SequenceNamesInFit, sysid/io/sequence_models.h); a name that still collides, and
 // a log listed twice, are refused before anything is simulated. Item 5: a median sample period
 // above 100 x the model timestep, or a log longer than a day, is refused at import, check and fit
@@ -191,6 +191,28 @@ TEST_F(SequencesTime35Test, SeveralModelsKeepTheirSequencesWhenRenamed) {
     EXPECT_EQ(group.rfind(s.model + "_seq", 0), 0u) << s.name << " fitted with " << s.model;
     EXPECT_EQ(group.find("payload") != std::string::npos, s.model == "cart_payload") << s.name;
   }
+}
+
+// `sequences:` and `validation:` entries may name a group in one log by its name in the fit:
+// `sequences: [runA:seq0, seq1]`, `validation: [runB:seq0]` checks (exit 0) with runA:seq0 and
+// seq1 fitted and runB:seq0 held out; `sequences: [runA:seq0]` with `validation: [seq0]` names
+// runA's seq0 in both lists: exit 2, "runA.h5: /seq0: is named by `sequences:` and by
+// `validation:`: a validation sequence is held out of the fit (remove it from one of the lists)".
+TEST_F(SequencesTime35Test, EntriesNameAGroupOfOneLogByItsNameInTheFit) {
+  TwoSimulatedLogs();
+  const std::string ok = WriteExperiment("q1", "[runA.h5, runB.h5]",
+                                         "sequences: [runA:seq0, seq1]\nvalidation: [runB:seq0]\n");
+  const CliStreams r = SysidStreams("check " + ok);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("  fitted     runA:seq0, seq1\n"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("  validation runB:seq0 (held out"), std::string::npos) << r.out;
+  const std::string both =
+      WriteExperiment("q2", "[runA.h5, runB.h5]", "sequences: [runA:seq0]\nvalidation: [seq0]\n");
+  const CliStreams bad = SysidStreams("check " + both);
+  EXPECT_EQ(bad.code, 2) << bad.err;
+  EXPECT_NE(bad.err.find(dir_ + "/runA.h5: /seq0: is named by `sequences:` and by `validation:`"),
+            std::string::npos)
+      << bad.err;
 }
 
 // A fit of runA and runB killed at its first checkpoint, then `fit --resume`: exit 0, the result
