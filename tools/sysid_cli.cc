@@ -96,6 +96,20 @@ CLI::Validator ThreadCountValidator() {
       "0.." + std::to_string(kMaxThreads));
 }
 
+CLI::Validator PositiveFiniteNumber() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        char* end = nullptr;
+        const double v = std::strtod(text.c_str(), &end);
+        if (text.empty() || *end != '\0' || !std::isfinite(v) || !(v > 0)) {
+          return "expected a finite number > 0, got '" + text.substr(0, 40) +
+                 (text.size() > 40 ? "...'" : "'");
+        }
+        return "";
+      },
+      "NUMBER>0");
+}
+
 CLI::Validator FiniteNumber() {
   return CLI::Validator(
       [](std::string& text) -> std::string {

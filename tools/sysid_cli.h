@@ -83,6 +83,9 @@ CLI::Validator ThreadCountValidator();
 // an option value that must be a finite number
 CLI::Validator FiniteNumber();
 
+// an option value that must be a finite number > 0
+CLI::Validator PositiveFiniteNumber();
+
 // An HDF5 log output `out` (of --out): not one of `inputs`, and unless `force` either absent or
 // an mjsysid log (a file ReadLog accepts); its folder created. Throws OutputError (exit 2).
 void PrepareLogOutput(const std::string& out, const std::vector<std::string>& inputs, bool force);

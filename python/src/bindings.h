@@ -61,7 +61,8 @@ class FitGuard {
 };
 
 // registers the translation of mjsysid's exceptions into Python's: bad input (ConfigError,
-// LogError, ModelLoadError, ParameterError, OutputError, ResultError, std::invalid_argument) ->
+// LogError, ModelLoadError, ParameterError, OutputError, MemoryLimitError, ResultError,
+// std::invalid_argument) ->
 // ValueError with the message `sysid` prints; SimulationError and MujocoError -> RuntimeError
 void RegisterExceptions();
 

@@ -252,6 +252,8 @@ void RegisterExceptions() {
       PyErr_SetString(PyExc_ValueError, e.what());
     } catch (const run::OutputError& e) {
       PyErr_SetString(PyExc_ValueError, e.what());
+    } catch (const run::MemoryLimitError& e) {
+      PyErr_SetString(PyExc_ValueError, e.what());
     } catch (const std::invalid_argument& e) {
       PyErr_SetString(PyExc_ValueError, e.what());
     } catch (const SimulationError& e) {
