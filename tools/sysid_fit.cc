@@ -48,9 +48,10 @@ struct FitArgs {
   bool quiet = false;
   bool verbose = false;
   bool force = false;
-  std::string resume;   // --resume DIR
-  int starts = 0;       // --starts N (0: solver.starts)
-  long long seed = -1;  // --seed S (< 0: solver.seed)
+  std::string resume;       // --resume DIR
+  int starts = 0;           // --starts N (0: solver.starts)
+  long long seed = -1;      // --seed S (< 0: solver.seed)
+  double memory_limit = 0;  // --memory-limit GB (0: solver.memory_limit_gb, else the default)
 };
 
 // the --help page of `sysid fit`: description, arguments (into args) and footer
@@ -60,8 +61,13 @@ void DeclareFit(CLI::App* sub, FitArgs* args) {
                   "YAML experiment file (with --resume: default the checkpoint's)");
   sub->add_option("--out", args->out,
                   "output folder (default: the experiment's `output`, results/<name>)");
-  sub->add_option("--threads", args->threads, "simulation threads (default: solver.threads)")
-      ->check(WholeNumberAtLeast(0));
+  sub->add_option("--threads", args->threads,
+                  "simulation threads, 0 = all cores, at most 256 (default: solver.threads)")
+      ->check(ThreadCountValidator());
+  sub->add_option("--memory-limit", args->memory_limit,
+                  "refuse the fit when its memory estimate exceeds GB gigabytes (1e9 bytes; "
+                  "default: solver.memory_limit_gb, else 80 % of the available memory)")
+      ->check(PositiveFiniteNumber());
   sub->add_flag("--quiet", args->quiet, "no progress table (warnings and the summary only)");
   sub->add_flag("--verbose", args->verbose,
                 "explain the statistical stop's test under each iteration of the table, and say "
@@ -231,12 +237,24 @@ std::string ExperimentOf(const FitArgs& args) {
 int RunFitHere(const FitArgs& args,
                const std::function<void(mjsysid::Problem&, mjsysid::FitOptions*)>& on_problem) {
   namespace io = mjsysid::io;
+  SetActivity("reading the experiment and its logs (before the memory estimate)");
   const io::ExperimentConfig config = io::LoadExperiment(ExperimentOf(args));
   mjsysid::run::FitRunOptions options;
   options.on_problem = on_problem;
   options.out_dir = args.resume.empty() ? args.out : args.resume;
   options.resume = !args.resume.empty();
   options.threads = args.threads;
+  options.memory_limit_gb = args.memory_limit;
+  // named in the message if the fit still runs out of memory (tools/sysid_main.cc)
+  options.on_memory_estimate = [&args](const mjsysid::MemoryEstimate& e, long long limit) {
+    if (args.verbose) {
+      std::fprintf(stderr, "memory: estimated %s (%lld samples, %lld bytes per sample), limit %s\n",
+                   mjsysid::FormatGB(e.bytes).c_str(), e.samples, e.per_sample_bytes,
+                   limit > 0 ? mjsysid::FormatGB(limit).c_str() : "none");
+    }
+    SetActivity("the fit (estimated " + mjsysid::FormatGB(e.bytes) + ", limit " +
+                (limit > 0 ? mjsysid::FormatGB(limit) : std::string("none")) + ")");
+  };
   // the fit's progress as one table on stderr (sysid/run/fit_table.h)
   mjsysid::run::FitTable table(
       [](const std::string& line) {

@@ -8,6 +8,7 @@
 //   1 the run failed (a simulation failed, MuJoCo raised an error)
 //   2 bad input (command line, experiment file, model, parameters, data files)
 //   `sysid fit` also 1, 3, 4 for a fit whose status is not converged (run::ExitCodeOf)
+//   5 out of memory (std::bad_alloc anywhere; a fit over its memory estimate's limit is 2)
 //
 // The subcommands live in one file each (tools/sysid_<subcommand>.cc), their shared helpers in
 // tools/sysid_cli.h; this file is the CLI11 app, the dispatch and the exit codes.
@@ -19,6 +20,7 @@
 #include <cstdlib>
 #include <exception>
 #include <functional>
+#include <new>
 #include <string>
 #include <vector>
 
@@ -28,6 +30,7 @@
 #include "mjsysid/version.h"
 #include "sysid/io/experiment.h"
 #include "sysid/io/log.h"
+#include "sysid/run/fit_experiment.h"
 #include "sysid/run/output_folder.h"
 #include "tools/sysid_cli.h"
 #ifdef MJSYSID_WITH_MPI
@@ -48,6 +51,16 @@ int RunGuarded(const std::string& name, const std::function<int()>& run) {
   };
   try {
     return run();
+  } catch (const std::bad_alloc&) {
+    // one line, whatever the allocation was (no memory left to say more)
+    const std::string& activity = cli::Activity();
+    std::fprintf(stderr,
+                 "sysid %s: out of memory (std::bad_alloc) during %s; reduce the data or raise "
+                 "the machine's memory (docs/cli.md, \"Threads and memory\")\n",
+                 name.c_str(), activity.empty() ? "the run" : activity.c_str());
+    return cli::kExitOutOfMemory;
+  } catch (const mjsysid::run::MemoryLimitError& e) {
+    return fail(e.what(), cli::kExitBadInput);
   } catch (const mjsysid::io::ConfigError& e) {
     return fail(e.what(), cli::kExitBadInput);
   } catch (const mjsysid::io::LogError& e) {

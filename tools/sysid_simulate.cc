@@ -145,8 +145,9 @@ Command AddSimulate(CLI::App* app) {
                                       "random seed (default: simulate.seed of the experiment)");
   CLI::Option* threads = sub->add_option(
       "--threads", args->threads,
-      "simulation threads, 0 = all cores (default: solver.threads of the experiment)");
-  threads->check(CLI::Range(0, 4096));
+      "simulation threads, 0 = all cores, at most 256 (default: solver.threads of the "
+      "experiment)");
+  threads->check(ThreadCountValidator());
   sub->add_flag("--force", args->force,
                 "overwrite an existing --out file that is not an mjsysid log");
   sub->footer(std::string("Sequences are named seq0, seq1, ... (MODEL_seq0, ... with several "

@@ -23,6 +23,7 @@ its absolute stamp (nanoseconds) is the log attribute time_origin_ns.
 from __future__ import annotations
 
 import argparse
+import math
 import pathlib
 import sys
 
@@ -230,8 +231,13 @@ def bag_to_sequence(bag: str, m, mapping: dict, mapping_path: str):
 
 
 def import_bags(model: str, bags: list[str], mapping_path: str, out: str,
-                sensor_time: str = "pre") -> mjsysid.Log:
-    """Imports the bags into the HDF5 log `out` (written atomically, checked against model)."""
+                sensor_time: str = "pre", time_scale: float = 1.0) -> mjsysid.Log:
+    """Imports the bags into the HDF5 log `out` (written atomically, checked against model).
+
+    time_scale multiplies every sample time (`sysid import --time-scale`: stamps that are not
+    in nanoseconds, e.g. a simulator clock in other units)."""
+    if not (math.isfinite(time_scale) and time_scale > 0):
+        raise ValueError(f"--time-scale: expected a finite number > 0, got {time_scale!r}")
     m = mujoco.MjModel.from_xml_path(model)
     mapping = load_mapping(mapping_path, m)
     log = mjsysid.Log()
@@ -242,6 +248,8 @@ def import_bags(model: str, bags: list[str], mapping_path: str, out: str,
                   "mapping": str(pathlib.Path(mapping_path).resolve())}
     for bag in bags:
         seq, origin = bag_to_sequence(bag, m, mapping, mapping_path)
+        if time_scale != 1.0:
+            seq.time = np.asarray(seq.time) * time_scale
         attributes[f"time_origin_ns.{seq.name}"] = str(origin)
         attributes[f"source.{seq.name}"] = str(pathlib.Path(bag).resolve())
         sequences.append(seq)
@@ -259,9 +267,11 @@ def main(argv=None) -> int:
     parser.add_argument("--mapping", required=True)
     parser.add_argument("--out", required=True)
     parser.add_argument("--sensor-time", default="pre", choices=("pre", "post"))
+    parser.add_argument("--time-scale", type=float, default=1.0)
     args = parser.parse_args(argv)
     try:
-        log = import_bags(args.model, args.bags, args.mapping, args.out, args.sensor_time)
+        log = import_bags(args.model, args.bags, args.mapping, args.out, args.sensor_time,
+                          args.time_scale)
     except (ValueError, FileNotFoundError) as err:  # MappingError, mjsysid's bad input
         print(f"sysid import: {err}", file=sys.stderr)
         return 2

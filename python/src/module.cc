@@ -87,7 +87,7 @@ io::Log Simulate(nb::handle experiment, std::optional<std::string> out,
   for (const io::ModelSpec& spec : config.models) inputs.push_back(spec.path);
   if (write) run::CheckOutputFile(path, inputs, "out");
   sim::SimulateSettings settings;
-  settings.threads = threads ? *threads : config.options.threads;
+  settings.threads = threads ? CheckedThreads(*threads, "threads") : config.options.threads;
   io::Log log;
   {
     nb::gil_scoped_release release;
@@ -133,7 +133,7 @@ ExperimentFit FitExperiment(nb::handle experiment, std::optional<std::string> ou
   const io::ExperimentConfig config = ConfigOf(experiment);
   run::FitRunOptions options;
   options.out_dir = out.value_or("");
-  options.threads = threads;
+  options.threads = CheckedThreads(threads, "threads", /*allow_default=*/true);
   options.verbose = verbose;
   options.force = force;
   options.resume = resume;
@@ -252,6 +252,8 @@ void RegisterExceptions() {
     } catch (const ParameterError& e) {
       PyErr_SetString(PyExc_ValueError, e.what());
     } catch (const run::OutputError& e) {
+      PyErr_SetString(PyExc_ValueError, e.what());
+    } catch (const run::MemoryLimitError& e) {
       PyErr_SetString(PyExc_ValueError, e.what());
     } catch (const std::invalid_argument& e) {
       PyErr_SetString(PyExc_ValueError, e.what());

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <ctime>
 #include <filesystem>
 #include <limits>
@@ -16,6 +17,7 @@
 
 #include "core/identified_model.h"
 #include "core/text.h"
+#include "core/thread_pool.h"
 #include "mjsysid/version.h"
 #include "sysid/assess/derived_inertials.h"
 #include "sysid/assess/metrics.h"
@@ -490,6 +492,74 @@ void WriteResultFiles(const io::ExperimentConfig& cfg, const std::string& stagin
 
 }  // namespace
 
+MemoryEstimate EstimateRunMemory(const BuiltProblem& bp, int starts) {
+  MemoryEstimateInput in;
+  for (const ModelPtr& m : bp.models) {
+    MemoryEstimateInput::Model mm;
+    mm.nq = static_cast<int>(m->nq);
+    mm.nv = static_cast<int>(m->nv);
+    mm.na = static_cast<int>(m->na);
+    mm.nu = static_cast<int>(m->nu);
+    mm.nsensordata = static_cast<int>(m->nsensordata);
+    const DataPtr d = MakeData(*m);
+    mm.data_bytes = static_cast<long long>(d->nbuffer) + static_cast<long long>(d->narena);
+    in.models.push_back(mm);
+  }
+  for (const FitSequence& s : bp.sequences) {
+    MemoryEstimateInput::Sequence ms;
+    const auto it = std::find(bp.model_names.begin(), bp.model_names.end(), s.model);
+    ms.model = it == bp.model_names.end() ? 0 : static_cast<int>(it - bp.model_names.begin());
+    ms.samples = s.measured.rows();
+    ms.log_doubles = s.time.size() + s.ctrl.size() + s.ctrl_time.size() + s.measured.size() +
+                     s.qpos.size() + s.qvel.size() + s.act.size();
+    in.sequences.push_back(ms);
+  }
+  in.variables = static_cast<int>(bp.parameters.size() + bp.control_delays.size());
+  for (const FitMeasurement& me : bp.measurements) {
+    for (const FitMeasurement::Term* t : {&me.delay, &me.gain, &me.bias}) {
+      in.variables += t->fit ? 1 : 0;
+    }
+  }
+  in.multiple_shooting = bp.options.segment_steps > 0;
+  in.segment_samples = std::max(0, bp.options.segment_steps);
+  const int threads = ThreadCount(bp.options.threads);
+  // multi-start: min(starts, threads) fits at a time, the threads divided (sysid/run/multi_start)
+  in.concurrent_fits = starts > 1 ? std::min(starts, threads) : 1;
+  in.threads = std::max(1, threads / in.concurrent_fits);
+  in.compress_blocks = bp.options.advanced.compress_blocks;
+  return EstimateFitMemory(in);
+}
+
+long long MemoryLimitBytes(const io::ExperimentConfig& config, double limit_gb,
+                           std::string* source) {
+  if (limit_gb > 0) {
+    *source = "--memory-limit";
+    return static_cast<long long>(limit_gb * 1e9);
+  }
+  if (config.memory_limit_gb > 0) {
+    *source = "solver.memory_limit_gb";  // the message starts with the file
+    return static_cast<long long>(config.memory_limit_gb * 1e9);
+  }
+  const long long available = AvailableMemoryBytes();
+  char share[64];
+  std::snprintf(share, sizeof(share), "%.0f %% of the %s available", 100 * kDefaultMemoryShare,
+                FormatGB(available).c_str());
+  *source = share;
+  return static_cast<long long>(kDefaultMemoryShare * static_cast<double>(available));
+}
+
+void CheckRunMemory(const io::ExperimentConfig& config, const MemoryEstimate& estimate,
+                    long long limit, const std::string& source) {
+  if (limit <= 0 || estimate.bytes <= limit) return;
+  throw MemoryLimitError(
+      config.source_file + ": the fit needs an estimated " + FormatGB(estimate.bytes) + " (" +
+      std::to_string(estimate.samples) + " samples, " + std::to_string(estimate.per_sample_bytes) +
+      " bytes per sample, docs/numerics.md \"Memory estimate\"), more than the limit of " +
+      FormatGB(limit) + " (" + source +
+      "); fit fewer or shorter sequences (`sequences:` windows), fewer starts or threads, or "
+      "raise the limit with `sysid fit --memory-limit GB` or solver.memory_limit_gb");
+}
+
 FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   FitRunOutcome out;
   out.out_dir = ro.out_dir.empty() ? cfg.output : ro.out_dir;
@@ -503,6 +573,14 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   const io::ExperimentConfig run_cfg = base ? ResumedConfig(cfg, *base) : cfg;
   BuiltProblem bp = BuildProblem(run_cfg, ro.threads);
   const Starts starts = ResolveStarts(cfg, ro, out.out_dir, base.has_value());
+  // the memory the fit will hold, against the limit, before anything is simulated or written
+  {
+    std::string source;
+    const long long limit = MemoryLimitBytes(cfg, ro.memory_limit_gb, &source);
+    const MemoryEstimate estimate = EstimateRunMemory(bp, starts.count);
+    if (ro.on_memory_estimate) ro.on_memory_estimate(estimate, limit);
+    CheckRunMemory(cfg, estimate, limit, source);
+  }
 
   // the output folder; one fit at a time into it; everything written into the staging folder
   // DIR.partial, which replaces DIR only once complete

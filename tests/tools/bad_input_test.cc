@@ -797,8 +797,9 @@ TEST_F(BadInputTest, CommandLineMessages) {
                  {"sysid rollout: --steps: expected a whole number >= 1, got '-1'"});
   ExpectBadInput("rollout " + model + " --amplitude nan",
                  {"--amplitude: expected a finite number, got 'nan'"});
-  const CliRun r = ExpectBadInput("fit " + dir_ + "/good.yaml --threads -3 --out " + prev_,
-                                  {"--threads: expected a whole number >= 0, got '-3'"});
+  const CliRun r = ExpectBadInput(
+      "fit " + dir_ + "/good.yaml --threads -3 --out " + prev_,
+      {"--threads: expected 0 (all cores) or a whole number from 1 to 256", "got -3"});
   EXPECT_LT(r.err.size(), 200u) << r.err;
   ExpectBadInput("fit --resume " + dir_ + "/nothing_here", {"nothing to resume"});
   ExpectBadInput("report " + dir_ + "/no_such_folder", {"no_such_folder: no such folder"});

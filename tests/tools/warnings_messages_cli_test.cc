@@ -25,7 +25,7 @@ using mjsysid::test::WriteFile;
 
 class Noise36Test : public ::testing::Test {
  protected:
-  static void SetUpTestSuite() { dir_ = mjsysid::test::FreshTempDir("noise36"); }
+  static void SetUpTestSuite() { dir_ = mjsysid::test::FreshTempDir("warnings_messages_cli"); }
   static void TearDownTestSuite() {
     if (!std::getenv("NOISE36_KEEP")) fs::remove_all(dir_);
   }
