@@ -23,7 +23,7 @@ using mjsysid::test::ReadFile;
 using mjsysid::test::SysidStreams;
 using mjsysid::test::WriteFile;
 
-class Noise36Test : public ::testing::Test {
+class WarningsMessagesCliTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() { dir_ = mjsysid::test::FreshTempDir("warnings_messages_cli"); }
   static void TearDownTestSuite() {
@@ -74,7 +74,7 @@ class Noise36Test : public ::testing::Test {
   static std::string dir_;
 };
 
-std::string Noise36Test::dir_;
+std::string WarningsMessagesCliTest::dir_;
 
 // 2000 sequences of 20 steps, none with logged states and each with one sensor value not
 // measured: every sequence gets the same two warnings ("LOG: /seqN: the log has no qpos: ..." from
@@ -83,7 +83,7 @@ std::string Noise36Test::dir_;
 // ...)" (exit 0); result.yaml records each once ({warning: ... {sequence} ..., count: 2000,
 // sequences: [...]}), and `sysid report` reads it back (exit 0; its page lists each once). It was
 // 2000 identical lines of each, on the terminal and in result.yaml.
-TEST_F(Noise36Test, AWarningOfEverySequenceIsPrintedAndRecordedOnceWithACount) {
+TEST_F(WarningsMessagesCliTest, AWarningOfEverySequenceIsPrintedAndRecordedOnceWithACount) {
   const std::string log = dir_ + "/many.h5", exp = dir_ + "/many.yaml";
   WriteFile(exp, Experiment(log, 2000, 20));
   ASSERT_EQ(SysidStreams("simulate " + exp).code, 0);
@@ -132,7 +132,7 @@ TEST_F(Noise36Test, AWarningOfEverySequenceIsPrintedAndRecordedOnceWithACount) {
 // the first 12 and the 4 others with the lowest % fit), the page saying "16 of 40 sequences
 // plotted: ... 24 plots left out", and the fit quality table still naming all 40 (exit 0). It
 // was one PNG per sequence, without limit (20,000 sequences, 20,000 files and images).
-TEST_F(Noise36Test, TheReportPlotsAFewSequencesAndListsThemAll) {
+TEST_F(WarningsMessagesCliTest, TheReportPlotsAFewSequencesAndListsThemAll) {
   const std::string log = dir_ + "/forty.h5", exp = dir_ + "/forty.yaml", res = dir_ + "/res40";
   WriteFile(exp, Experiment(log, 40, 50));
   ASSERT_EQ(SysidStreams("simulate " + exp).code, 0);
@@ -164,7 +164,7 @@ TEST_F(Noise36Test, TheReportPlotsAFewSequencesAndListsThemAll) {
 // before its first iteration; the termination says why); `sysid report` reads it back (exit 0)
 // and says "cost        none: the solver stopped before its first iteration". It recorded -1
 // iterations and costs -1 (Ceres' summary).
-TEST_F(Noise36Test, ASolverThatNeverStartedIsRecordedWithNoIterationAndNoCost) {
+TEST_F(WarningsMessagesCliTest, ASolverThatNeverStartedIsRecordedWithNoIterationAndNoCost) {
   std::string csv = "time,torque,angle,rate\n";
   for (int i = 0; i < 200; ++i) {
     csv += std::to_string(0.002 * i) + ",0.1,0.3," + (i >= 17 && i < 40 ? "1e150" : "0.0") + "\n";
@@ -199,7 +199,7 @@ TEST_F(Noise36Test, ASolverThatNeverStartedIsRecordedWithNoIterationAndNoCost) {
 // 1e-05 s is below 1/100 of the model timestep 0.002 s: ..."); and its warnings name the CSV too
 // (a gap: exit 0, "sysid import: warning: gap.csv: /gap/time: 1 gap(s) longer than 10 sample
 // periods ..."). They named the --out log ("out.h5: /big/sensordata: row 17, column 1: ...").
-TEST_F(Noise36Test, ImportMessagesNameTheCsvFileNotTheOutputLog) {
+TEST_F(WarningsMessagesCliTest, ImportMessagesNameTheCsvFileNotTheOutputLog) {
   const auto write_csv = [](const std::string& path, double period, int big_row, int gap_row) {
     std::string csv = "time,torque,angle,rate\n";
     for (int i = 0; i < 200; ++i) {
@@ -240,7 +240,7 @@ TEST_F(Noise36Test, ImportMessagesNameTheCsvFileNotTheOutputLog) {
 // ("FILE: is a file, not a folder: sysid report takes the output folder of `sysid fit` (the folder
 // holding result.yaml and result.h5)"); a path that does not exist is exit 2 "PATH: no such folder
 // (sysid report takes the output folder of `sysid fit`, ...)". A file gave "no such folder".
-TEST_F(Noise36Test, ReportOfAResultFileReportsItsFolder) {
+TEST_F(WarningsMessagesCliTest, ReportOfAResultFileReportsItsFolder) {
   const std::string log = dir_ + "/one.h5", exp = dir_ + "/one.yaml", res = dir_ + "/res_one";
   WriteFile(exp, Experiment(log, 1, 100));
   ASSERT_EQ(SysidStreams("simulate " + exp).code, 0);
