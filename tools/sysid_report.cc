@@ -68,21 +68,27 @@ void CheckInputsOfTheClip(const std::string& dir, const mjsysid::io::FitResultFi
                    ", or report without the clip: sysid report --no-video " + dir + ")");
 }
 
-// the folder to report: DIR itself; a fit's own result.yaml or result.h5 stands for its folder;
-// another file, or nothing, is bad input saying that a folder is expected
+// the folder to report: DIR itself; a fit's own result.yaml or result.h5 stands for its folder
 std::string ReportFolder(const std::string& given) {
   std::error_code ec;
-  if (fs::is_directory(given, ec)) return given;
   const fs::path p(given);
-  if (fs::exists(p, ec)) {
-    if (p.filename() == "result.yaml" || p.filename() == "result.h5") {
-      return p.has_parent_path() ? p.parent_path().string() : ".";
-    }
-    throw InputError(given +
+  if (fs::is_regular_file(p, ec) &&
+      (p.filename() == "result.yaml" || p.filename() == "result.h5")) {
+    return p.has_parent_path() ? p.parent_path().string() : ".";
+  }
+  return given;
+}
+
+// a folder to report is a folder: another file, or nothing, is bad input saying so
+void CheckReportFolder(const std::string& dir) {
+  std::error_code ec;
+  if (fs::is_directory(dir, ec)) return;
+  if (fs::exists(dir, ec)) {
+    throw InputError(dir +
                      ": is a file, not a folder: sysid report takes the output folder of `sysid "
                      "fit` (the folder holding result.yaml and result.h5)");
   }
-  throw InputError(given +
+  throw InputError(dir +
                    ": no such folder (sysid report takes the output folder of `sysid fit`, which "
                    "writes result.yaml and result.h5 into it)");
 }
@@ -97,6 +103,8 @@ int RunReport(const ReportArgs& given) {
     lock.emplace(args.dir, "sysid report");
   } catch (const mjsysid::io::FileError&) {
   }
+  // after the lock: a folder a running fit has not published yet is "in use", not missing
+  CheckReportFolder(args.dir);
   const fs::path dir(args.dir);
   for (const char* page : {"report.html", "cost.png", "parameters.png", "motion.webp"}) {
     mjsysid::run::CheckOutputFile((dir / page).string(),
