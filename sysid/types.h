@@ -509,7 +509,8 @@ std::string SegmentReasonText(const SegmentRecord& r);
 struct FitResult {
   std::vector<ParameterEstimate> parameters;  // physical parameters, then measurement terms
   double initial_cost = 0, final_cost = 0;    // 0.5 |r|^2
-  int iterations = 0;
+  int iterations = 0;      // -1 (and costs -1) when the solver stopped before its first iteration;
+                           // run::RunFit's result file says 0 and NaN costs (result.yaml .nan)
   bool converged = false;  // the optimiser reported convergence (Ceres); the verdict is `outcome`
   bool interrupted = false;
   FitStatus outcome = FitStatus::kNotConverged;  // the verdict (see FitStatus)

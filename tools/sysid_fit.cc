@@ -13,6 +13,7 @@
 
 #include "sysid/assess/metrics.h"
 #include "sysid/io/experiment.h"
+#include "sysid/io/warnings.h"
 #include "sysid/run/fit_experiment.h"
 #include "sysid/run/fit_table.h"
 #include "sysid/run/output_folder.h"
@@ -276,9 +277,11 @@ int RunFitHere(const FitArgs& args,
   CatchStopSignals(false);
   table.Flush();
   const io::FitResultFile& f = out.file;
-  // the data's warnings were printed before the fit (FitRunOutcome::printed_warnings)
-  for (size_t i = static_cast<size_t>(out.printed_warnings); i < f.warnings.size(); ++i)
-    std::fprintf(stderr, "sysid fit: warning: %s\n", f.warnings[i].c_str());
+  // the data's warnings were printed before the fit (FitRunOutcome::printed_warnings); those that
+  // recur per sequence once, with a count
+  const std::vector<std::string> after(f.warnings.begin() + out.printed_warnings, f.warnings.end());
+  for (const std::string& w : io::GroupedWarningLines(after))
+    std::fprintf(stderr, "sysid fit: warning: %s\n", w.c_str());
   std::printf("  wrote %s/{result.yaml, result.h5", out.out_dir.c_str());
   for (const auto& [model, file] : f.identified_models) std::printf(", %s", file.c_str());
   std::printf("} (run %s)\n", f.run_id.c_str());

@@ -20,6 +20,7 @@
 #include "sysid/io/csv.h"
 #include "sysid/io/log.h"
 #include "sysid/io/time_base.h"
+#include "sysid/io/warnings.h"
 #include "tools/sysid_cli.h"
 
 namespace mjsysid::cli {
@@ -177,7 +178,7 @@ int RunImport(const ImportArgs& args) {
   log.attributes["model"] = fs::absolute(args.model).string();
   // each argument one sequence: a file, or [NAME=]A.csv+B.csv+... (one sequence from several
   // files at their own rates, io::ImportCsvFiles; named NAME, else after the first file)
-  std::vector<std::string> files;
+  std::vector<std::string> files, warnings;
   for (const std::string& arg : args.csv) {
     std::error_code ec;
     std::string name, list = arg;
@@ -198,13 +199,22 @@ int RunImport(const ImportArgs& args) {
       }
     }
     if (name.empty()) name = fs::path(paths[0]).stem().string();
-    log.sequences.push_back(io::ImportCsvFiles(paths, *m, name));
-    if (time_scale != 1) io::ScaleTime(time_scale, arg, &log.sequences.back());
+    // the sequence checked alone against the model, its messages and warnings naming its CSV
+    // file(s), where the problem is (not the --out log, which does not exist yet)
+    io::Log one;
+    one.sensor_time = log.sensor_time;
+    one.attributes = log.attributes;
+    one.sequences.push_back(io::ImportCsvFiles(paths, *m, name));
+    if (time_scale != 1) io::ScaleTime(time_scale, arg, &one.sequences.back());
+    std::string csv_files;
+    for (const std::string& p : paths) csv_files += (csv_files.empty() ? "" : "+") + p;
+    io::ValidateLogAgainstModel(one, *m, csv_files, &warnings);
+    log.sequences.push_back(std::move(one.sequences[0]));
     files.insert(files.end(), paths.begin(), paths.end());
   }
-  std::vector<std::string> warnings;
-  io::ValidateLogAgainstModel(log, *m, args.out, &warnings);
-  for (const std::string& w : warnings)
+  // the log as a whole (sequence names unique across the files)
+  io::ValidateLogAgainstModel(log, *m, args.out);
+  for (const std::string& w : io::GroupedWarningLines(warnings))
     std::fprintf(stderr, "sysid import: warning: %s\n", w.c_str());
   std::vector<std::string> inputs = {args.model};
   inputs.insert(inputs.end(), files.begin(), files.end());

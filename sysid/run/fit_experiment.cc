@@ -22,6 +22,7 @@
 #include "sysid/assess/derived_inertials.h"
 #include "sysid/assess/metrics.h"
 #include "sysid/io/atomic_file.h"
+#include "sysid/io/warnings.h"
 #include "sysid/run/input_hashes.h"
 #include "sysid/run/multi_start.h"
 #include "sysid/run/output_folder.h"
@@ -115,11 +116,11 @@ std::string NowIso() {
 }
 
 // The run's own events, to the caller's observer (none: nothing): the data's warnings, reported
-// before the fit, and a checkpoint that could not be written.
+// before the fit (those that recur per sequence once, with a count: io::GroupedWarningLines), and a
+// checkpoint that could not be written.
 void ReportDataWarnings(FitObserver* observer, const std::vector<std::string>& warnings) {
-  for (const std::string& w : warnings) {
-    if (observer) observer->OnWarning(w);
-  }
+  if (!observer) return;
+  for (const std::string& w : io::GroupedWarningLines(warnings)) observer->OnWarning(w);
 }
 void ReportCheckpointNotWritten(FitObserver* observer, const char* what) {
   if (observer) observer->OnWarning(std::string("checkpoint not written: ") + what);
@@ -444,6 +445,12 @@ void Conclude(const BuiltProblem& bp, const std::map<std::string, double>& truth
               io::FitResultFile* file, FitRunOutcome* out) {
   const FitResult& r = *file;
   file->status = FitStatusName(r.outcome);
+  if (r.iterations < 0) {
+    // the solver stopped before its first iteration (Ceres' summary: -1 iterations, costs -1):
+    // no iteration and no cost, as result.yaml says it (iterations: 0, costs .nan)
+    file->iterations = 0;
+    file->initial_cost = file->final_cost = std::numeric_limits<double>::quiet_NaN();
+  }
   if (r.interrupted) {
     file->termination.kind = FitTermination::Kind::kInterrupted;
     file->termination.iteration = r.iterations;

@@ -288,7 +288,7 @@ TEST_F(SequencesTime35Test, MillisecondsAreRefusedAtImportAndConvertedWithTimeSc
   const CliStreams bad =
       SysidStreams("import " + model + " " + dir_ + "/ms.csv --out " + dir_ + "/ms.h5");
   EXPECT_EQ(bad.code, 2) << bad.err;
-  EXPECT_NE(bad.err.find("/ms.h5: /ms/time: the median sample period 2 s is more than 100 x the "
+  EXPECT_NE(bad.err.find("/ms.csv: /ms/time: the median sample period 2 s is more than 100 x the "
                          "model timestep 0.002 s: time looks like milliseconds: periods of 2 "
                          "'seconds' on a 0.002 s model; time must be in seconds"),
             std::string::npos)
@@ -387,7 +387,7 @@ TEST_F(SequencesTime35Test, ASlowSensorAtItsOwnTimesIsAccepted) {
       SysidStreams("import " + model + " run=" + dir_ + "/ctrl.csv+" + dir_ + "/slow.csv+" + dir_ +
                    "/slow_rate.csv --out " + dir_ + "/slow.h5");
   EXPECT_EQ(bad.code, 2) << bad.err;
-  EXPECT_NE(bad.err.find("/slow.h5: /run/time: the median sample period 1 s is more than 100 x "
+  EXPECT_NE(bad.err.find("/slow_rate.csv: /run/time: the median sample period 1 s is more than 100 x "
                          "the model timestep 0.002 s: "),
             std::string::npos)
       << bad.err;
