@@ -129,6 +129,9 @@ def _read_topics(bag: str, mapping: dict) -> dict[str, list[tuple[int, object]]]
         for conn, timestamp, raw in reader.messages(connections=connections):
             msg = reader.deserialize(raw, conn.msgtype)
             if mapping["stamp"] == "header":
+                if not hasattr(msg, "header"):
+                    raise MappingError(f"{bag}: {conn.topic}: stamp: header, but its messages "
+                                       f"({conn.msgtype}) have no header (use stamp: log)")
                 stamp = msg.header.stamp
                 timestamp = stamp.sec * 1_000_000_000 + stamp.nanosec
             out[conn.topic].append((timestamp, msg))
@@ -247,7 +250,13 @@ def import_bags(model: str, bags: list[str], mapping_path: str, out: str,
                   "model": str(pathlib.Path(model).resolve()),
                   "mapping": str(pathlib.Path(mapping_path).resolve())}
     for bag in bags:
-        seq, origin = bag_to_sequence(bag, m, mapping, mapping_path)
+        try:
+            seq, origin = bag_to_sequence(bag, m, mapping, mapping_path)
+        except (MappingError, FileNotFoundError):
+            raise
+        except Exception as err:  # noqa: BLE001 (rosbags' reader: a corrupt or foreign file)
+            raise MappingError(f"{bag}: cannot be read as a ROS 1 bag, ROS 2 bag or MCAP file "
+                               f"({type(err).__name__}: {err})") from None
         if time_scale != 1.0:
             seq.time = np.asarray(seq.time) * time_scale
         attributes[f"time_origin_ns.{seq.name}"] = str(origin)
