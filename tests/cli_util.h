@@ -53,12 +53,14 @@ struct CliStreams {
 };
 
 // runs `sysid <args>` (quoted by the caller) killed after `timeout_s` seconds: exit code, stdout
-// and stderr apart (stderr goes through a file in the temp folder named by the pid)
-inline CliStreams SysidStreams(const std::string& args, int timeout_s = 120) {
+// and stderr apart (stderr goes through a file in the temp folder named by the pid); `shell`
+// runs first in the same shell (e.g. "ulimit -v 300000; ")
+inline CliStreams SysidStreams(const std::string& args, int timeout_s = 120,
+                               const std::string& shell = "") {
   const std::string err_path = (std::filesystem::temp_directory_path() /
                                 ("mjsysid_stderr_" + std::to_string(::getpid()) + ".txt"))
                                    .string();
-  const std::string cmd = "timeout -s KILL " + std::to_string(timeout_s) + " " +
+  const std::string cmd = shell + "timeout -s KILL " + std::to_string(timeout_s) + " " +
                           std::string(MJSYSID_SYSID_BIN) + " " + args + " 2>" + err_path;
   FILE* pipe = popen(cmd.c_str(), "r");
   CliStreams r;

@@ -5,6 +5,7 @@
 // solver.memory_limit_gb), with the estimate and the limit in the message.
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <filesystem>
 #include <string>
 
@@ -171,6 +172,61 @@ TEST_F(LimitsTest, MemoryLimitFromTheExperimentAndItsOverride) {
   }
   EXPECT_FALSE(fs::exists(dir_ + "/res_ml0"));
   EXPECT_FALSE(fs::exists(dir_ + "/res_ml1"));
+}
+
+// an allocation that fails although the estimate was under the limit (the machine is short of
+// memory; one thread: here a 300,000-step pendulum log, 14 MB, fitted with --memory-limit 100 under
+// a `ulimit -v` 60 MB above what the binary needs to start, measured on this machine with `sysid
+// --version` in 5 MB steps): exit 5 with one line "out of memory (std::bad_alloc) during
+// ..." (while reading the log or during the fit, wherever the limit is met), never a bare
+// std::bad_alloc, never the log reader's "corrupt file?" (its own cap is not the limit that
+// failed); no output folder
+TEST_F(LimitsTest, AnAllocationThatFailsAnywayIsOutOfMemoryExit5) {
+  const std::string exp = dir_ + "/big.yaml";
+  std::string text = Experiment("");
+  const std::string steps = "steps: 300\n";
+  text.replace(text.find(steps), steps.size(), "steps: 300000\n");
+  text.replace(text.find("data: " + log_), 6 + log_.size(), "data: " + dir_ + "/big.h5");
+  WriteFile(exp, text);
+  ASSERT_EQ(SysidStreams("simulate " + exp + " --out " + dir_ + "/big.h5").code, 0);
+  long floor_kb = 0;
+  for (long kb = 150000; kb <= 2000000 && floor_kb == 0; kb += 5000) {
+    const std::string ulimit = "ulimit -v " + std::to_string(kb) + "; ";
+    if (SysidStreams("--version", 30, ulimit).code == 0) floor_kb = kb;
+  }
+  ASSERT_GT(floor_kb, 0) << "sysid --version never started under ulimit -v";
+  const std::string ulimit = "ulimit -v " + std::to_string(floor_kb + 60000) + "; ";
+  const std::string out = dir_ + "/res_oom";
+  const CliStreams r = SysidStreams(
+      "fit " + exp + " --out " + out + " --memory-limit 100 --quiet --threads 1", 300, ulimit);
+  std::printf("[ measured ] start floor %ld kB; fit under %ld kB: exit %d: %s", floor_kb,
+              floor_kb + 60000, r.code, r.err.c_str());
+  EXPECT_EQ(r.code, 5) << r.err;
+  EXPECT_NE(r.err.find("sysid fit: out of memory (std::bad_alloc) during "), std::string::npos)
+      << r.err;
+  EXPECT_EQ(r.err.find("corrupt file?"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(out));
+  // 40 MB above the start floor (measured here: the limit is met while the log is read): exit 5,
+  // not the log reader's "corrupt file?", whose own cap is above the process's limit
+  const CliStreams read =
+      SysidStreams("fit " + exp + " --out " + out + " --memory-limit 100 --quiet --threads 1", 300,
+                   "ulimit -v " + std::to_string(floor_kb + 40000) + "; ");
+  std::printf("[ measured ] fit under %ld kB: exit %d: %s", floor_kb + 40000, read.code,
+              read.err.c_str());
+  EXPECT_EQ(read.code, 5) << read.err;
+  EXPECT_EQ(read.err.find("corrupt file?"), std::string::npos) << read.err;
+  EXPECT_FALSE(fs::exists(out));
+  // with 8 threads the limit may stop a thread's stack first: exit 5 too, one line, either
+  // "out of memory" or "could not start a thread (Resource temporarily unavailable)"
+  const CliStreams t = SysidStreams(
+      "fit " + exp + " --out " + out + " --memory-limit 100 --quiet --threads 8", 300, ulimit);
+  std::printf("[ measured ] with 8 threads: exit %d: %s", t.code, t.err.c_str());
+  EXPECT_EQ(t.code, 5) << t.err;
+  EXPECT_TRUE(t.err.find("sysid fit: out of memory (std::bad_alloc) during ") == 0 ||
+              t.err.find("sysid fit: could not start a thread (") == 0)
+      << t.err;
+  EXPECT_EQ(CountOf(t.err, "\n"), 1) << t.err;
+  EXPECT_FALSE(fs::exists(out));
 }
 
 }  // namespace
