@@ -157,7 +157,7 @@ bool WriteAll(int fd, const std::string& data) {
 bool CapChildMemory(uintmax_t file_size) {
 #ifdef MJSYSID_ASAN
   (void)file_size;
-  return false;
+  return true;  // no cap, and ASan's allocator fails only on sizes no log can need: corrupt
 #else
   long pages = 0;
   if (FILE* f = std::fopen("/proc/self/statm", "r")) {
