@@ -187,8 +187,8 @@ void DecideFitStatus(const FitOptions& options, int accepted_steps, bool jacobia
       if (flagged_ratio >= 0) {
         mismatch = true;
         unexplained += (unexplained.empty() ? "" : ", ") + name + " " +
-                       FormatDigits(flagged_ratio, 3) + "x (% fit " + FormatDigits(flagged_fit, 3) +
-                       ")";
+                       FormatDigits(flagged_ratio, 3) + " x (% fit " +
+                       FormatDigits(flagged_fit, 3) + ")";
       }
     }
     if (!unexplained.empty()) {

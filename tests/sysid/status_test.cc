@@ -125,11 +125,21 @@ TEST(FitStatusTest, MissingParameterWithSigmaIsModelMismatch) {
   EXPECT_TRUE(HasWarning(r, "model mismatch")) << "no model-mismatch warning";
   EXPECT_EQ(run::ExitCodeOf(r.outcome), 3);
 
-  // the same fit without sigmas (weights only) cannot test the residuals: converged
+  // the same fit without sigmas (weights only): no chi-square test, but the noise test (residual
+  // RMS vs the noise the log itself shows, sysid/assess/noise_estimate.h) sees the friction's
+  // residual on the rate (measured 9.6 x its noise; the chi-square above says 99.9 = 10^2):
+  // model_mismatch, exit 3, naming the rate. (It was converged, exit 0, before that test.)
   FitOptions weights_only = data.Options();
   weights_only.sensors_with_sigma.clear();
   const FitResult w = problem.Fit(weights_only);
-  EXPECT_EQ(w.outcome, FitStatus::kConverged);
+  for (const auto& [sensor, ratio] : w.sensor_noise_ratio) {
+    std::printf("[ measured ]   weights only: residual / estimated noise of %s: %.4g\n",
+                sensor.c_str(), ratio);
+  }
+  EXPECT_EQ(w.outcome, FitStatus::kModelMismatch);
+  EXPECT_TRUE(HasWarning(w, "noise estimated from the log itself")) << "no noise-test warning";
+  EXPECT_TRUE(HasWarning(w, "rate 9.")) << "the rate named with its ratio";
+  EXPECT_FALSE(w.intervals_valid);
   EXPECT_TRUE(std::isnan(w.chi2_ratio));
 }
 
