@@ -520,6 +520,10 @@ struct FitResult {
   // fitted states count too, each under its name ("qpos:<joint>", ...)
   double chi2_ratio = std::numeric_limits<double>::quiet_NaN();
   std::map<std::string, double> sensor_chi2_ratio;
+  // sensors without a sigma: the residual RMS at the estimate over the noise estimated from the
+  // log itself (sysid/assess/noise_estimate.h), the worst of the sensor's columns pooled over
+  // sequences (about 1 when the model explains the data; absent where the log gives no estimate)
+  std::map<std::string, double> sensor_noise_ratio;
   FitTermination termination;  // why the optimiser stopped (TerminationText)
   int num_residuals = 0;
   Uncertainty uncertainty;  // over FitResult::parameters (order as there)

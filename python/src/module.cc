@@ -401,6 +401,7 @@ NB_MODULE(_mjsysid, m) {
       .def_ro("intervals_valid", &FitResult::intervals_valid)
       .def_ro("chi2_ratio", &FitResult::chi2_ratio)
       .def_ro("sensor_chi2_ratio", &FitResult::sensor_chi2_ratio)
+      .def_ro("sensor_noise_ratio", &FitResult::sensor_noise_ratio)
       .def_prop_ro(
           "termination", [](const FitResult& r) { return TerminationText(r.termination); },
           "why the optimiser stopped, one line (result.yaml's termination)")
