@@ -15,9 +15,11 @@
 #include <vector>
 
 #include "core/mujoco_env.h"
+#include "core/text.h"
 #include "mjsysid/version.h"
 #include "sysid/io/csv.h"
 #include "sysid/io/log.h"
+#include "sysid/io/plain_name.h"
 #include "tools/sysid_cli.h"
 
 namespace mjsysid::cli {
@@ -30,7 +32,7 @@ struct ImportArgs {
   std::vector<std::string> csv;
   std::string out;
   std::string sensor_time = "pre";
-  bool force = false;   // overwrite an --out that is not an mjsysid log
+  bool force = false;   // replace an --out that is not an mjsysid log
   std::string mapping;  // ROS bags / MCAP: topic -> actuators, sensors, joints (YAML)
 };
 
@@ -50,7 +52,9 @@ void DeclareImport(CLI::App* sub, ImportArgs* args) {
                   "pre: sensors read before the step (y_k at x_k); post: after it")
       ->check(CLI::IsMember({"pre", "post"}))
       ->capture_default_str();
-  sub->add_flag("--force", args->force, "overwrite an existing --out that is not an mjsysid log");
+  sub->add_flag("--force", args->force,
+                "replace an existing --out file that is not an mjsysid log (an mjsysid log is "
+                "replaced without it); never an input or a folder");
   sub->add_option("--mapping", args->mapping,
                   "ROS bags (.bag, ROS 2 folders, .db3) and MCAP files: YAML mapping of topics "
                   "to actuators, sensors and joints (docs/cli.md)");
@@ -128,7 +132,7 @@ int RunImportBags(const ImportArgs& args) {
   }
   std::vector<std::string> inputs = {args.model, args.mapping};
   inputs.insert(inputs.end(), args.csv.begin(), args.csv.end());
-  PrepareLogOutput(args.out, inputs, args.force);
+  PrepareLogOutput(args.out, inputs, args.force, LogWriter{"import", "", ""});
   std::vector<std::string> argv = {
       python,   "-m",        "mjsysid.bags", args.model,      "--out",
       args.out, "--mapping", args.mapping,   "--sensor-time", args.sensor_time};
@@ -168,6 +172,11 @@ int RunImport(const ImportArgs& args) {
       }
     }
     if (name.empty()) name = fs::path(paths[0]).stem().string();
+    if (const std::string why = io::PlainNameProblem(name); !why.empty()) {
+      throw InputError(arg + ": the sequence name " + mjsysid::Quote(name) +
+                       " is not a plain name: " + why + " (hint: name it NAME=" + paths[0] +
+                       " with " + io::kPlainNameRule + ")");
+    }
     log.sequences.push_back(io::ImportCsvFiles(paths, *m, name));
     files.insert(files.end(), paths.begin(), paths.end());
   }
@@ -177,7 +186,7 @@ int RunImport(const ImportArgs& args) {
     std::fprintf(stderr, "sysid import: warning: %s\n", w.c_str());
   std::vector<std::string> inputs = {args.model};
   inputs.insert(inputs.end(), files.begin(), files.end());
-  PrepareLogOutput(args.out, inputs, args.force);
+  PrepareLogOutput(args.out, inputs, args.force, LogWriter{"import", "", ""});
   io::WriteLog(args.out, log);
   std::printf("imported %zu sequence(s) into %s\n", log.sequences.size(), args.out.c_str());
   for (const io::Sequence& s : log.sequences) {
