@@ -102,8 +102,8 @@ std::string WrittenBy(const mjsysid::io::Log& log) {
   std::string by = "sysid " + command + " (" + g.substr(0, space) + ")";
   if (command == "simulate") {
     const auto exp = log.attributes.find("experiment");
-    by += " of " + (exp == log.attributes.end() ? std::string("an unnamed experiment")
-                                                : exp->second);
+    by +=
+        " of " + (exp == log.attributes.end() ? std::string("an unnamed experiment") : exp->second);
   }
   return by;
 }
@@ -134,8 +134,7 @@ void CheckLogOutput(const std::string& out, const std::vector<std::string>& inpu
                                     "--force or not (hint: choose another output file)");
   }
   if (force) return;
-  const std::string hint =
-      " (hint: --force replaces it, or --out LOG.h5 writes elsewhere)";
+  const std::string hint = " (hint: --force replaces it, or --out LOG.h5 writes elsewhere)";
   mjsysid::io::Log log;
   try {
     log = mjsysid::io::ReadLog(out);

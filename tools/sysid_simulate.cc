@@ -8,7 +8,6 @@
 
 #include "sysid/io/experiment.h"
 #include "sysid/io/log.h"
-#include "sysid/run/output_folder.h"
 #include "sysid/sim/simulate.h"
 #include "tools/sysid_cli.h"
 #ifdef MJSYSID_WITH_MPI

@@ -67,12 +67,13 @@ ExperimentConfig Parser::Parse(const YAML::Node& root) {
   if (c.name.empty()) c.name = "experiment";
   if (const std::string why = PlainNameProblem(c.name); !why.empty()) {
     // the name becomes a folder name (results/NAME): one rule for such names (plain_name.h)
-    Fail(r.Has("name") ? r.KeyMark("name") : c.marks.self,
-         (r.Has("name") ? std::string("name: ")
-                        : std::string("the experiment's name (its file name, no `name:` given): ")) +
-             Quote(c.name) + " is not a plain name: " + why,
-         std::string("the name is the experiment's default output folder results/NAME; give ") +
-             kPlainNameRule);
+    Fail(
+        r.Has("name") ? r.KeyMark("name") : c.marks.self,
+        (r.Has("name") ? std::string("name: ")
+                       : std::string("the experiment's name (its file name, no `name:` given): ")) +
+            Quote(c.name) + " is not a plain name: " + why,
+        std::string("the name is the experiment's default output folder results/NAME; give ") +
+            kPlainNameRule);
   }
 
   ParseModels(r, &c);

@@ -42,8 +42,9 @@ void Parser::ParseModels(const MapReader& r, ExperimentConfig* c) const {
     spec.name = std::filesystem::path(spec.path).stem().string();
     spec.marks.self = f.mark;
     if (const std::string why = PlainNameProblem(spec.name); !why.empty()) {
-      Fail(f.mark, "model: the file name gives the model name " + Quote(spec.name) +
-                       ", not a plain name: " + why,
+      Fail(f.mark,
+           "model: the file name gives the model name " + Quote(spec.name) +
+               ", not a plain name: " + why,
            std::string("a model's name names its file NAME_identified.xml in the result "
                        "folder; rename the file, or give 'models:' with a name that is ") +
                kPlainNameRule);

@@ -84,14 +84,13 @@ OtherRun OtherRunInside(const std::string& dir) {
     if (ec) break;
     const std::string name = p.filename().string();
     if (fs::is_directory(st) && name.size() > 8 && name.substr(name.size() - 8) == ".partial") {
-      return {p.string(), "the staging folder of a fit into " +
-                              p.parent_path().string() + "/" + name.substr(0, name.size() - 8)};
+      return {p.string(), "the staging folder of a fit into " + p.parent_path().string() + "/" +
+                              name.substr(0, name.size() - 8)};
     }
     if (it.depth() >= 1 && fs::is_regular_file(st) && IsRunFile(name)) {
-      return {p.parent_path().string(), "a fit's " + std::string(name.rfind("result", 0) == 0
-                                                                       ? "result"
-                                                                       : "checkpoint") +
-                                            " folder (it has " + name + ")"};
+      return {p.parent_path().string(),
+              "a fit's " + std::string(name.rfind("result", 0) == 0 ? "result" : "checkpoint") +
+                  " folder (it has " + name + ")"};
     }
   }
   return {};
@@ -140,11 +139,11 @@ void CheckOutputFolder(const std::string& dir, const std::vector<std::string>& i
   std::error_code ec;
   const fs::path cwd = Resolved(fs::current_path(ec).string());
   if (!ec && IsUnder(cwd, d)) {
-    throw OutputError("--out " + dir + ": the output folder " +
-                      (cwd == d ? "is the current directory" : "holds the current directory " +
-                                                                   cwd.string()) +
-                      "; a fit replaces the whole folder (hint: choose a folder of its own, "
-                      "e.g. results/NAME)");
+    throw OutputError(
+        "--out " + dir + ": the output folder " +
+        (cwd == d ? "is the current directory" : "holds the current directory " + cwd.string()) +
+        "; a fit replaces the whole folder (hint: choose a folder of its own, "
+        "e.g. results/NAME)");
   }
   const fs::file_status st = fs::status(dir, ec);
   if (!fs::exists(st)) {
