@@ -58,9 +58,15 @@ double ThreadCpuSeconds() {
   return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
 }
 
+std::string ThreadRequestError(long long num_threads) {
+  if (num_threads >= 0 && num_threads <= kMaxThreads) return "";
+  return "expected 0 (all cores) or a whole number from 1 to " + std::to_string(kMaxThreads) +
+         " (the cap on threads, docs/cli.md), got " + std::to_string(num_threads);
+}
+
 int ThreadCount(int num_threads) {
   if (num_threads <= 0) num_threads = static_cast<int>(std::thread::hardware_concurrency());
-  return std::max(num_threads, 1);
+  return std::min(std::max(num_threads, 1), kMaxThreads);
 }
 
 ThreadPool::ThreadPool(int num_threads) {

@@ -33,6 +33,7 @@
 #include <exception>
 #include <functional>
 #include <mutex>
+#include <string>
 #include <thread>
 #include <utility>
 #include <vector>
@@ -60,8 +61,30 @@ struct PoolLoad {
 // the calling thread's CPU time in seconds (CLOCK_THREAD_CPUTIME_ID)
 double ThreadCpuSeconds();
 
+// The bound on threads, one rule everywhere (docs/cli.md "Threads").
+//
+// A thread count requested anywhere (the experiment's solver.threads, `sysid fit --threads`,
+// `sysid simulate --threads`, the Python API, every MPI rank's) must be 0 (all cores) or
+// 1..kMaxThreads: anything else is bad input, refused before any thread starts (ThreadRequestError
+// says why, in one sentence). The cap is fixed, not the machine's core count, so that an
+// experiment file that travels between a laptop and a cluster node means the same on both; 256 is
+// above any core count a single process of this program can use (a fit's parallel work is its
+// segments and Jacobian columns) and far below what exhausts a shared machine (the unbounded
+// request `--threads 1000000` started ~32,000 threads, 2.4 GB of stacks, and every other
+// process on the machine then failed to fork). A request above the machine's cores is honoured
+// (results do not depend on the thread count, core/thread_pool.h's contract; the extra threads
+// share the cores).
+//
+// Invariant: ThreadCount, and so ThreadPool's constructor, never gives more than kMaxThreads,
+// whatever it is asked (a caller that skipped the check still cannot start more).
+constexpr int kMaxThreads = 256;
+
+// "" when num_threads is a valid request (0 .. kMaxThreads), else why not: "expected 0 (all
+// cores) or a whole number from 1 to 256, got N"
+std::string ThreadRequestError(long long num_threads);
+
 // The threads a request of num_threads means: num_threads <= 0 is
-// std::thread::hardware_concurrency() (at least 1).
+// std::thread::hardware_concurrency() (at least 1); never more than kMaxThreads.
 int ThreadCount(int num_threads);
 
 // wall time of the pool's batches since construction or ResetLoad (steady_clock seconds)
@@ -98,7 +121,8 @@ class ThreadPool {
   // measuring the hand-off)
   static constexpr double kSpinSeconds = 200e-6;
 
-  // num_threads <= 0 means std::thread::hardware_concurrency().
+  // num_threads <= 0 means std::thread::hardware_concurrency(); ThreadCount(num_threads) workers
+  // (never more than kMaxThreads).
   explicit ThreadPool(int num_threads = 1);
   ~ThreadPool();
   ThreadPool(const ThreadPool&) = delete;

@@ -509,7 +509,8 @@ std::string SegmentReasonText(const SegmentRecord& r);
 struct FitResult {
   std::vector<ParameterEstimate> parameters;  // physical parameters, then measurement terms
   double initial_cost = 0, final_cost = 0;    // 0.5 |r|^2
-  int iterations = 0;
+  int iterations = 0;      // -1 (and costs -1) when the solver stopped before its first iteration;
+                           // run::RunFit's result file says 0 and NaN costs (result.yaml .nan)
   bool converged = false;  // the optimiser reported convergence (Ceres); the verdict is `outcome`
   bool interrupted = false;
   FitStatus outcome = FitStatus::kNotConverged;  // the verdict (see FitStatus)
@@ -519,6 +520,10 @@ struct FitResult {
   // fitted states count too, each under its name ("qpos:<joint>", ...)
   double chi2_ratio = std::numeric_limits<double>::quiet_NaN();
   std::map<std::string, double> sensor_chi2_ratio;
+  // sensors without a sigma: the residual RMS at the estimate over the noise estimated from the
+  // log itself (sysid/assess/noise_estimate.h), the worst of the sensor's columns pooled over
+  // sequences (about 1 when the model explains the data; absent where the log gives no estimate)
+  std::map<std::string, double> sensor_noise_ratio;
   FitTermination termination;  // why the optimiser stopped (TerminationText)
   int num_residuals = 0;
   Uncertainty uncertainty;  // over FitResult::parameters (order as there)

@@ -10,6 +10,7 @@
 #include "core/simulator.h"
 #include "sysid/io/experiment.h"
 #include "sysid/io/log.h"
+#include "sysid/io/warnings.h"
 #include "sysid/run/fit_experiment.h"
 #include "sysid/types.h"
 #include "tools/sysid_cli.h"
@@ -107,7 +108,7 @@ int RunCheck(const CheckArgs& args) {
   // against Ceres' numeric differentiation
   if (!config.data.empty()) {
     mjsysid::run::BuiltProblem built = mjsysid::run::BuildProblem(config);
-    for (const std::string& w : built.warnings) {
+    for (const std::string& w : io::GroupedWarningLines(built.warnings)) {
       std::fprintf(stderr, "sysid check: warning: %s\n", w.c_str());
     }
     // what is fitted and what is held out (`validation:`)

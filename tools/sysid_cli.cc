@@ -11,6 +11,7 @@
 #include <system_error>
 #include <vector>
 
+#include "core/thread_pool.h"
 #include "sysid/io/log.h"
 #include "sysid/run/output_folder.h"
 
@@ -70,6 +71,43 @@ CLI::Validator WholeNumberAtLeast(long long min) {
         return "";
       },
       "INT>=" + std::to_string(min));
+}
+
+namespace {
+std::string g_activity;
+}  // namespace
+
+void SetActivity(const std::string& activity) { g_activity = activity; }
+const std::string& Activity() { return g_activity; }
+
+CLI::Validator ThreadCountValidator() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        char* end = nullptr;
+        errno = 0;
+        const long long v = std::strtoll(text.c_str(), &end, 10);
+        if (text.empty() || *end != '\0' || errno == ERANGE) {
+          return "expected 0 (all cores) or a whole number from 1 to " +
+                 std::to_string(kMaxThreads) + ", got '" + text.substr(0, 40) +
+                 (text.size() > 40 ? "...'" : "'");
+        }
+        return ThreadRequestError(v);
+      },
+      "0.." + std::to_string(kMaxThreads));
+}
+
+CLI::Validator PositiveFiniteNumber() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        char* end = nullptr;
+        const double v = std::strtod(text.c_str(), &end);
+        if (text.empty() || *end != '\0' || !std::isfinite(v) || !(v > 0)) {
+          return "expected a finite number > 0, got '" + text.substr(0, 40) +
+                 (text.size() > 40 ? "...'" : "'");
+        }
+        return "";
+      },
+      "NUMBER>0");
 }
 
 CLI::Validator FiniteNumber() {

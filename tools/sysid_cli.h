@@ -19,10 +19,18 @@ constexpr int kExitOk = 0;
 constexpr int kExitFailed = 1;
 constexpr int kExitBadInput = 2;
 
+constexpr int kExitOutOfMemory = 5;
+
 const char* const kExitCodesFooter =
     "Exit codes: 0 success, 1 the run failed (simulation or MuJoCo error), 2 bad input (command "
-    "line, experiment file, model, parameters or data files); `fit` writes its results and exits "
-    "1 not_converged or interrupted, 3 model_mismatch, 4 jacobian_unreliable or did_not_move.";
+    "line, experiment file, model, parameters or data files, a fit over its memory limit); `fit` "
+    "writes its results and exits 1 not_converged or interrupted, 3 model_mismatch, 4 "
+    "jacobian_unreliable or did_not_move; 5 out of memory.";
+
+// what the subcommand is doing, named when it runs out of memory (std::bad_alloc, exit 5;
+// tools/sysid_main.cc); "" until set
+void SetActivity(const std::string& activity);
+const std::string& Activity();
 
 // a bad input found by the command line itself (exit code 2)
 class InputError : public std::runtime_error {
@@ -69,8 +77,14 @@ std::string ModelSizes(const mjModel& m);
 // largest double in full: 309 digits)
 CLI::Validator WholeNumberAtLeast(long long min);
 
+// a thread count: 0 (all cores) or 1..kMaxThreads (core/thread_pool.h, one rule everywhere)
+CLI::Validator ThreadCountValidator();
+
 // an option value that must be a finite number
 CLI::Validator FiniteNumber();
+
+// an option value that must be a finite number > 0
+CLI::Validator PositiveFiniteNumber();
 
 // who writes an HDF5 log output, for the rule on replacing an existing file
 struct LogWriter {

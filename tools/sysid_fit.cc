@@ -13,6 +13,7 @@
 
 #include "sysid/assess/metrics.h"
 #include "sysid/io/experiment.h"
+#include "sysid/io/warnings.h"
 #include "sysid/run/fit_experiment.h"
 #include "sysid/run/fit_table.h"
 #include "sysid/run/output_folder.h"
@@ -47,9 +48,10 @@ struct FitArgs {
   bool quiet = false;
   bool verbose = false;
   bool force = false;
-  std::string resume;   // --resume DIR
-  int starts = 0;       // --starts N (0: solver.starts)
-  long long seed = -1;  // --seed S (< 0: solver.seed)
+  std::string resume;       // --resume DIR
+  int starts = 0;           // --starts N (0: solver.starts)
+  long long seed = -1;      // --seed S (< 0: solver.seed)
+  double memory_limit = 0;  // --memory-limit GB (0: solver.memory_limit_gb, else the default)
 };
 
 // the --help page of `sysid fit`: description, arguments (into args) and footer
@@ -59,8 +61,13 @@ void DeclareFit(CLI::App* sub, FitArgs* args) {
                   "YAML experiment file (with --resume: default the checkpoint's)");
   sub->add_option("--out", args->out,
                   "output folder (default: the experiment's `output`, results/<name>)");
-  sub->add_option("--threads", args->threads, "simulation threads (default: solver.threads)")
-      ->check(WholeNumberAtLeast(0));
+  sub->add_option("--threads", args->threads,
+                  "simulation threads, 0 = all cores, at most 256 (default: solver.threads)")
+      ->check(ThreadCountValidator());
+  sub->add_option("--memory-limit", args->memory_limit,
+                  "refuse the fit when its memory estimate exceeds GB gigabytes (1e9 bytes; "
+                  "default: solver.memory_limit_gb, else 80 % of the available memory)")
+      ->check(PositiveFiniteNumber());
   sub->add_flag("--quiet", args->quiet, "no progress table (warnings and the summary only)");
   sub->add_flag("--verbose", args->verbose,
                 "explain the statistical stop's test under each iteration of the table, and say "
@@ -230,12 +237,24 @@ std::string ExperimentOf(const FitArgs& args) {
 int RunFitHere(const FitArgs& args,
                const std::function<void(mjsysid::Problem&, mjsysid::FitOptions*)>& on_problem) {
   namespace io = mjsysid::io;
+  SetActivity("reading the experiment and its logs (before the memory estimate)");
   const io::ExperimentConfig config = io::LoadExperiment(ExperimentOf(args));
   mjsysid::run::FitRunOptions options;
   options.on_problem = on_problem;
   options.out_dir = args.resume.empty() ? args.out : args.resume;
   options.resume = !args.resume.empty();
   options.threads = args.threads;
+  options.memory_limit_gb = args.memory_limit;
+  // named in the message if the fit still runs out of memory (tools/sysid_main.cc)
+  options.on_memory_estimate = [&args](const mjsysid::MemoryEstimate& e, long long limit) {
+    if (args.verbose) {
+      std::fprintf(stderr, "memory: estimated %s (%lld samples, %lld bytes per sample), limit %s\n",
+                   mjsysid::FormatGB(e.bytes).c_str(), e.samples, e.per_sample_bytes,
+                   limit > 0 ? mjsysid::FormatGB(limit).c_str() : "none");
+    }
+    SetActivity("the fit (estimated " + mjsysid::FormatGB(e.bytes) + ", limit " +
+                (limit > 0 ? mjsysid::FormatGB(limit) : std::string("none")) + ")");
+  };
   // the fit's progress as one table on stderr (sysid/run/fit_table.h)
   mjsysid::run::FitTable table(
       [](const std::string& line) {
@@ -258,9 +277,11 @@ int RunFitHere(const FitArgs& args,
   CatchStopSignals(false);
   table.Flush();
   const io::FitResultFile& f = out.file;
-  // the data's warnings were printed before the fit (FitRunOutcome::printed_warnings)
-  for (size_t i = static_cast<size_t>(out.printed_warnings); i < f.warnings.size(); ++i)
-    std::fprintf(stderr, "sysid fit: warning: %s\n", f.warnings[i].c_str());
+  // the data's warnings were printed before the fit (FitRunOutcome::printed_warnings); those that
+  // recur per sequence once, with a count
+  const std::vector<std::string> after(f.warnings.begin() + out.printed_warnings, f.warnings.end());
+  for (const std::string& w : io::GroupedWarningLines(after))
+    std::fprintf(stderr, "sysid fit: warning: %s\n", w.c_str());
   std::printf("  wrote %s/{result.yaml, result.h5", out.out_dir.c_str());
   for (const auto& [model, file] : f.identified_models) std::printf(", %s", file.c_str());
   std::printf("} (run %s)\n", f.run_id.c_str());

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -20,6 +21,8 @@
 #include "sysid/io/csv.h"
 #include "sysid/io/log.h"
 #include "sysid/io/plain_name.h"
+#include "sysid/io/time_base.h"
+#include "sysid/io/warnings.h"
 #include "tools/sysid_cli.h"
 
 namespace mjsysid::cli {
@@ -32,8 +35,9 @@ struct ImportArgs {
   std::vector<std::string> csv;
   std::string out;
   std::string sensor_time = "pre";
-  bool force = false;   // replace an --out that is not an mjsysid log
-  std::string mapping;  // ROS bags / MCAP: topic -> actuators, sensors, joints (YAML)
+  bool force = false;           // replace an --out that is not an mjsysid log
+  std::string mapping;          // ROS bags / MCAP: topic -> actuators, sensors, joints (YAML)
+  std::string time_scale_text;  // as given, for the bag importer ("": not given)
 };
 
 // the --help page of `sysid import`: description, arguments (into args) and footer
@@ -52,6 +56,10 @@ void DeclareImport(CLI::App* sub, ImportArgs* args) {
                   "pre: sensors read before the step (y_k at x_k); post: after it")
       ->check(CLI::IsMember({"pre", "post"}))
       ->capture_default_str();
+  sub->add_option("--time-scale", args->time_scale_text,
+                  "multiply the time column(s) by FACTOR to get seconds: 0.001 for milliseconds, "
+                  "1e-9 for nanoseconds (finite, > 0)")
+      ->type_name("FACTOR");
   sub->add_flag("--force", args->force,
                 "replace an existing --out file that is not an mjsysid log (an mjsysid log is "
                 "replaced without it); never an input or a folder");
@@ -136,13 +144,36 @@ int RunImportBags(const ImportArgs& args) {
   std::vector<std::string> argv = {
       python,   "-m",        "mjsysid.bags", args.model,      "--out",
       args.out, "--mapping", args.mapping,   "--sensor-time", args.sensor_time};
+  if (!args.time_scale_text.empty()) {
+    argv.insert(argv.end(), {"--time-scale", args.time_scale_text});
+  }
   argv.insert(argv.end(), args.csv.begin(), args.csv.end());
   return RunChild(argv, /*quiet=*/false);
+}
+
+// --time-scale FACTOR: a finite number > 0 (parsed whole), else InputError
+double TimeScale(const std::string& text) {
+  if (text.empty()) return 1;
+  double factor = 0;
+  size_t used = 0;
+  try {
+    factor = std::stod(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used != text.size() || !std::isfinite(factor) || !(factor > 0)) {
+    throw InputError(
+        "--time-scale: expected a finite number > 0 (the factor from the logged "
+        "time unit to seconds: 0.001 for milliseconds, 1e-9 for nanoseconds), got '" +
+        text + "'");
+  }
+  return factor;
 }
 
 // CSV files (one sequence each, named after the file) into one validated HDF5 log
 int RunImport(const ImportArgs& args) {
   namespace io = mjsysid::io;
+  const double time_scale = TimeScale(args.time_scale_text);
   if (std::any_of(args.csv.begin(), args.csv.end(), IsBag)) return RunImportBags(args);
   mjsysid::ModelPtr m = mjsysid::LoadModel(args.model);
   io::Log log;
@@ -151,7 +182,7 @@ int RunImport(const ImportArgs& args) {
   log.attributes["model"] = fs::absolute(args.model).string();
   // each argument one sequence: a file, or [NAME=]A.csv+B.csv+... (one sequence from several
   // files at their own rates, io::ImportCsvFiles; named NAME, else after the first file)
-  std::vector<std::string> files;
+  std::vector<std::string> files, warnings;
   for (const std::string& arg : args.csv) {
     std::error_code ec;
     std::string name, list = arg;
@@ -177,12 +208,22 @@ int RunImport(const ImportArgs& args) {
                        " is not a plain name: " + why + " (hint: name it NAME=" + paths[0] +
                        " with " + io::kPlainNameRule + ")");
     }
-    log.sequences.push_back(io::ImportCsvFiles(paths, *m, name));
+    // the sequence checked alone against the model, its messages and warnings naming its CSV
+    // file(s), where the problem is (not the --out log, which does not exist yet)
+    io::Log one;
+    one.sensor_time = log.sensor_time;
+    one.attributes = log.attributes;
+    one.sequences.push_back(io::ImportCsvFiles(paths, *m, name));
+    if (time_scale != 1) io::ScaleTime(time_scale, arg, &one.sequences.back());
+    std::string csv_files;
+    for (const std::string& p : paths) csv_files += (csv_files.empty() ? "" : "+") + p;
+    io::ValidateLogAgainstModel(one, *m, csv_files, &warnings);
+    log.sequences.push_back(std::move(one.sequences[0]));
     files.insert(files.end(), paths.begin(), paths.end());
   }
-  std::vector<std::string> warnings;
-  io::ValidateLogAgainstModel(log, *m, args.out, &warnings);
-  for (const std::string& w : warnings)
+  // the log as a whole (sequence names unique across the files)
+  io::ValidateLogAgainstModel(log, *m, args.out);
+  for (const std::string& w : io::GroupedWarningLines(warnings))
     std::fprintf(stderr, "sysid import: warning: %s\n", w.c_str());
   std::vector<std::string> inputs = {args.model};
   inputs.insert(inputs.end(), files.begin(), files.end());

@@ -8,6 +8,8 @@
 //   1 the run failed (a simulation failed, MuJoCo raised an error)
 //   2 bad input (command line, experiment file, model, parameters, data files)
 //   `sysid fit` also 1, 3, 4 for a fit whose status is not converged (run::ExitCodeOf)
+//   5 out of memory (std::bad_alloc anywhere; a fit over its memory estimate's limit is 2), or a
+//     thread that could not start (the machine's limits on processes or memory)
 //
 // The subcommands live in one file each (tools/sysid_<subcommand>.cc), their shared helpers in
 // tools/sysid_cli.h; this file is the CLI11 app, the dispatch and the exit codes.
@@ -19,7 +21,9 @@
 #include <cstdlib>
 #include <exception>
 #include <functional>
+#include <new>
 #include <string>
+#include <system_error>
 #include <vector>
 
 #include "core/mujoco_env.h"
@@ -28,6 +32,7 @@
 #include "mjsysid/version.h"
 #include "sysid/io/experiment.h"
 #include "sysid/io/log.h"
+#include "sysid/run/fit_experiment.h"
 #include "sysid/run/output_folder.h"
 #include "tools/sysid_cli.h"
 #ifdef MJSYSID_WITH_MPI
@@ -48,6 +53,30 @@ int RunGuarded(const std::string& name, const std::function<int()>& run) {
   };
   try {
     return run();
+  } catch (const std::bad_alloc&) {
+    // one line, whatever the allocation was (no memory left to say more)
+    const std::string& activity = cli::Activity();
+    std::fprintf(stderr,
+                 "sysid %s: out of memory (std::bad_alloc) during %s; reduce the data or raise "
+                 "the machine's memory (docs/cli.md, \"Threads and memory\")\n",
+                 name.c_str(), activity.empty() ? "the run" : activity.c_str());
+    return cli::kExitOutOfMemory;
+  } catch (const std::system_error& e) {
+    // a thread that cannot start (EAGAIN: the limits on processes or address space, whose
+    // stacks count, are reached): out of resources like memory, not a failed run
+    if (e.code() != std::errc::resource_unavailable_try_again)
+      return fail(e.what(), cli::kExitFailed);
+    const std::string& activity = cli::Activity();
+    std::fprintf(stderr,
+                 "sysid %s: could not start a thread (%s) during %s: the machine's limits on "
+                 "processes or memory are reached (ulimit -u, ulimit -v); use fewer threads "
+                 "(--threads, solver.threads) or raise the limits (docs/cli.md, \"Threads and "
+                 "memory\")\n",
+                 name.c_str(), e.code().message().c_str(),
+                 activity.empty() ? "the run" : activity.c_str());
+    return cli::kExitOutOfMemory;
+  } catch (const mjsysid::run::MemoryLimitError& e) {
+    return fail(e.what(), cli::kExitBadInput);
   } catch (const mjsysid::io::ConfigError& e) {
     return fail(e.what(), cli::kExitBadInput);
   } catch (const mjsysid::io::LogError& e) {

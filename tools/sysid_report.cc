@@ -26,7 +26,9 @@ struct ReportArgs {
 // the --help page of `sysid report`: description, arguments (into args) and footer
 void DeclareReport(CLI::App* sub, ReportArgs* args) {
   sub->description("Plot a fit's results: measured vs simulated signals, parameters, cost trace");
-  sub->add_option("dir", args->dir, "output folder of `sysid fit` (result.yaml, result.h5)")
+  sub->add_option("dir", args->dir,
+                  "output folder of `sysid fit` (result.yaml, result.h5; the path of its "
+                  "result.yaml or result.h5 stands for the folder)")
       ->required();
   sub->add_flag("--no-video", args->no_video,
                 "no motion clip (by default the first sequence is re-simulated at the initial "
@@ -66,7 +68,34 @@ void CheckInputsOfTheClip(const std::string& dir, const mjsysid::io::FitResultFi
                    ", or report without the clip: sysid report --no-video " + dir + ")");
 }
 
-int RunReport(const ReportArgs& args) {
+// the folder to report: DIR itself; a fit's own result.yaml or result.h5 stands for its folder
+std::string ReportFolder(const std::string& given) {
+  std::error_code ec;
+  const fs::path p(given);
+  if (fs::is_regular_file(p, ec) &&
+      (p.filename() == "result.yaml" || p.filename() == "result.h5")) {
+    return p.has_parent_path() ? p.parent_path().string() : ".";
+  }
+  return given;
+}
+
+// a folder to report is a folder: another file, or nothing, is bad input saying so
+void CheckReportFolder(const std::string& dir) {
+  std::error_code ec;
+  if (fs::is_directory(dir, ec)) return;
+  if (fs::exists(dir, ec)) {
+    throw InputError(dir +
+                     ": is a file, not a folder: sysid report takes the output folder of `sysid "
+                     "fit` (the folder holding result.yaml and result.h5)");
+  }
+  throw InputError(dir +
+                   ": no such folder (sysid report takes the output folder of `sysid fit`, which "
+                   "writes result.yaml and result.h5 into it)");
+}
+
+int RunReport(const ReportArgs& given) {
+  ReportArgs args = given;
+  args.dir = ReportFolder(given.dir);
   // no fit may replace the folder while the report writes into it (a folder whose parent is not
   // writable has no lock, and no fit can replace it); the pages are no inputs
   std::optional<mjsysid::run::FolderLock> lock;
@@ -74,12 +103,8 @@ int RunReport(const ReportArgs& args) {
     lock.emplace(args.dir, "sysid report");
   } catch (const mjsysid::io::FileError&) {
   }
-  std::error_code ec;
-  if (!fs::is_directory(args.dir, ec)) {
-    throw InputError(args.dir +
-                     ": no such folder (a fit writes result.yaml and result.h5 into its "
-                     "output folder)");
-  }
+  // after the lock: a folder a running fit has not published yet is "in use", not missing
+  CheckReportFolder(args.dir);
   const fs::path dir(args.dir);
   for (const char* page : {"report.html", "cost.png", "parameters.png", "motion.webp"}) {
     mjsysid::run::CheckOutputFile((dir / page).string(),

@@ -148,8 +148,9 @@ Command AddSimulate(CLI::App* app) {
                                       "random seed (default: simulate.seed of the experiment)");
   CLI::Option* threads = sub->add_option(
       "--threads", args->threads,
-      "simulation threads, 0 = all cores (default: solver.threads of the experiment)");
-  threads->check(CLI::Range(0, 4096));
+      "simulation threads, 0 = all cores, at most 256 (default: solver.threads of the "
+      "experiment)");
+  threads->check(ThreadCountValidator());
   sub->add_flag("--force", args->force,
                 "replace an existing output log that sysid simulate did not write for this "
                 "experiment (a log from sysid import or another experiment, or a file that is "

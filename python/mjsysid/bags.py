@@ -23,6 +23,7 @@ its absolute stamp (nanoseconds) is the log attribute time_origin_ns.
 from __future__ import annotations
 
 import argparse
+import math
 import pathlib
 import sys
 
@@ -128,6 +129,9 @@ def _read_topics(bag: str, mapping: dict) -> dict[str, list[tuple[int, object]]]
         for conn, timestamp, raw in reader.messages(connections=connections):
             msg = reader.deserialize(raw, conn.msgtype)
             if mapping["stamp"] == "header":
+                if not hasattr(msg, "header"):
+                    raise MappingError(f"{bag}: {conn.topic}: stamp: header, but its messages "
+                                       f"({conn.msgtype}) have no header (use stamp: log)")
                 stamp = msg.header.stamp
                 timestamp = stamp.sec * 1_000_000_000 + stamp.nanosec
             out[conn.topic].append((timestamp, msg))
@@ -230,8 +234,13 @@ def bag_to_sequence(bag: str, m, mapping: dict, mapping_path: str):
 
 
 def import_bags(model: str, bags: list[str], mapping_path: str, out: str,
-                sensor_time: str = "pre") -> mjsysid.Log:
-    """Imports the bags into the HDF5 log `out` (written atomically, checked against model)."""
+                sensor_time: str = "pre", time_scale: float = 1.0) -> mjsysid.Log:
+    """Imports the bags into the HDF5 log `out` (written atomically, checked against model).
+
+    time_scale multiplies every sample time (`sysid import --time-scale`: stamps that are not
+    in nanoseconds, e.g. a simulator clock in other units)."""
+    if not (math.isfinite(time_scale) and time_scale > 0):
+        raise ValueError(f"--time-scale: expected a finite number > 0, got {time_scale!r}")
     m = mujoco.MjModel.from_xml_path(model)
     mapping = load_mapping(mapping_path, m)
     log = mjsysid.Log()
@@ -241,7 +250,15 @@ def import_bags(model: str, bags: list[str], mapping_path: str, out: str,
                   "model": str(pathlib.Path(model).resolve()),
                   "mapping": str(pathlib.Path(mapping_path).resolve())}
     for bag in bags:
-        seq, origin = bag_to_sequence(bag, m, mapping, mapping_path)
+        try:
+            seq, origin = bag_to_sequence(bag, m, mapping, mapping_path)
+        except (MappingError, FileNotFoundError):
+            raise
+        except Exception as err:  # noqa: BLE001 (rosbags' reader: a corrupt or foreign file)
+            raise MappingError(f"{bag}: cannot be read as a ROS 1 bag, ROS 2 bag or MCAP file "
+                               f"({type(err).__name__}: {err})") from None
+        if time_scale != 1.0:
+            seq.time = np.asarray(seq.time) * time_scale
         attributes[f"time_origin_ns.{seq.name}"] = str(origin)
         attributes[f"source.{seq.name}"] = str(pathlib.Path(bag).resolve())
         sequences.append(seq)
@@ -259,9 +276,11 @@ def main(argv=None) -> int:
     parser.add_argument("--mapping", required=True)
     parser.add_argument("--out", required=True)
     parser.add_argument("--sensor-time", default="pre", choices=("pre", "post"))
+    parser.add_argument("--time-scale", type=float, default=1.0)
     args = parser.parse_args(argv)
     try:
-        log = import_bags(args.model, args.bags, args.mapping, args.out, args.sensor_time)
+        log = import_bags(args.model, args.bags, args.mapping, args.out, args.sensor_time,
+                          args.time_scale)
     except (ValueError, FileNotFoundError) as err:  # MappingError, mjsysid's bad input
         print(f"sysid import: {err}", file=sys.stderr)
         return 2

@@ -18,8 +18,10 @@
 #include <cstdio>
 #include <functional>
 #include <optional>
+#include <stdexcept>
 #include <string>
 
+#include "core/thread_pool.h"
 #include "sysid/types.h"
 
 namespace mjsysid::python {
@@ -59,9 +61,20 @@ class FitGuard {
 };
 
 // registers the translation of mjsysid's exceptions into Python's: bad input (ConfigError,
-// LogError, ModelLoadError, ParameterError, OutputError, ResultError, std::invalid_argument) ->
+// LogError, ModelLoadError, ParameterError, OutputError, MemoryLimitError, ResultError,
+// std::invalid_argument) ->
 // ValueError with the message `sysid` prints; SimulationError and MujocoError -> RuntimeError
 void RegisterExceptions();
+
+// a thread count passed from Python (`what`: the argument's name): 0 (all cores) or
+// 1..kMaxThreads (core/thread_pool.h, the rule of the command line and the experiment file);
+// else std::invalid_argument (ValueError); allow_default: -1 is accepted too (the experiment's)
+inline int CheckedThreads(int threads, const std::string& what, bool allow_default = false) {
+  if (allow_default && threads == -1) return threads;
+  const std::string error = ThreadRequestError(threads);
+  if (!error.empty()) throw std::invalid_argument(what + ": " + error);
+  return threads;
+}
 
 // fit(model, parameters, sequences, options, callback): the library API on numpy arrays
 void BindFitApi(nb::module_& m);

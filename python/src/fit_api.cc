@@ -282,7 +282,7 @@ FitOptions OptionsOf(const nb::dict& d) {
   o.function_tolerance = Get<double>(d, "function_tolerance", o.function_tolerance, what);
   o.gradient_tolerance = Get<double>(d, "gradient_tolerance", o.gradient_tolerance, what);
   o.parameter_tolerance = Get<double>(d, "parameter_tolerance", o.parameter_tolerance, what);
-  o.threads = Get<int>(d, "threads", o.threads, what);
+  o.threads = CheckedThreads(Get<int>(d, "threads", o.threads, what), what + "['threads']");
   const LossType loss_types[] = {LossType::kNone, LossType::kHuber, LossType::kCauchy};
   std::vector<std::string> losses;
   for (LossType t : loss_types) losses.push_back(LossTypeName(t));

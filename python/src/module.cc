@@ -3,6 +3,7 @@
 // the plain data of a fit (sysid/types.h) and of a log (sysid/io/log.h) as Python classes with
 // numpy arrays, and the library API (fit_api.cc). Every function calls the C++ layers
 // (sysid/run, sysid/sim, sysid/io, tools/report); nothing is computed here.
+#include <glog/logging.h>
 #include <nanobind/eigen/dense.h>
 #include <nanobind/nanobind.h>
 #include <nanobind/stl/function.h>
@@ -86,7 +87,7 @@ io::Log Simulate(nb::handle experiment, std::optional<std::string> out,
   for (const io::ModelSpec& spec : config.models) inputs.push_back(spec.path);
   if (write) run::CheckOutputFile(path, inputs, "out");
   sim::SimulateSettings settings;
-  settings.threads = threads ? *threads : config.options.threads;
+  settings.threads = threads ? CheckedThreads(*threads, "threads") : config.options.threads;
   io::Log log;
   {
     nb::gil_scoped_release release;
@@ -132,7 +133,7 @@ ExperimentFit FitExperiment(nb::handle experiment, std::optional<std::string> ou
   const io::ExperimentConfig config = ConfigOf(experiment);
   run::FitRunOptions options;
   options.out_dir = out.value_or("");
-  options.threads = threads;
+  options.threads = CheckedThreads(threads, "threads", /*allow_default=*/true);
   options.verbose = verbose;
   options.force = force;
   options.resume = resume;
@@ -252,6 +253,8 @@ void RegisterExceptions() {
       PyErr_SetString(PyExc_ValueError, e.what());
     } catch (const run::OutputError& e) {
       PyErr_SetString(PyExc_ValueError, e.what());
+    } catch (const run::MemoryLimitError& e) {
+      PyErr_SetString(PyExc_ValueError, e.what());
     } catch (const std::invalid_argument& e) {
       PyErr_SetString(PyExc_ValueError, e.what());
     } catch (const SimulationError& e) {
@@ -269,6 +272,15 @@ NB_MODULE(_mjsysid, m) {
   using namespace mjsysid::python;
   using nb::arg;
   InstallMujocoHandlers();
+  // Ceres logs through glog (e.g. "Terminating: Residual and Jacobian evaluation failed" at ERROR):
+  // as in the CLI (tools/sysid_main.cc), the fit's own result says what happened, so no
+  // third-party log line reaches the terminal (only a FATAL one, before an abort) and no log file
+  // is written. Left alone when the process initialized glog itself.
+  if (!google::IsGoogleLoggingInitialized()) {
+    FLAGS_logtostderr = true;
+    FLAGS_minloglevel = google::GLOG_FATAL;
+    google::InitGoogleLogging("mjsysid");
+  }
   RegisterExceptions();
   m.doc() = "mjsysid: system identification for MuJoCo models (C++ library bindings)";
   m.attr("__version__") = MJSYSID_VERSION;
@@ -389,6 +401,7 @@ NB_MODULE(_mjsysid, m) {
       .def_ro("intervals_valid", &FitResult::intervals_valid)
       .def_ro("chi2_ratio", &FitResult::chi2_ratio)
       .def_ro("sensor_chi2_ratio", &FitResult::sensor_chi2_ratio)
+      .def_ro("sensor_noise_ratio", &FitResult::sensor_noise_ratio)
       .def_prop_ro(
           "termination", [](const FitResult& r) { return TerminationText(r.termination); },
           "why the optimiser stopped, one line (result.yaml's termination)")

@@ -11,6 +11,8 @@
 #include <vector>
 
 #include "core/text.h"
+#include "sysid/assess/metrics.h"
+#include "sysid/assess/noise_estimate.h"
 
 namespace mjsysid {
 namespace {
@@ -131,6 +133,75 @@ void DecideFitStatus(const FitOptions& options, int accepted_steps, bool jacobia
     }
   }
 
+  // without sigmas: each column's residual at the estimate against the noise estimated from the
+  // log itself, pooled over sequences (sysid/assess/noise_estimate.h)
+  if (!r.interrupted) {
+    struct Pooled {
+      double residual2 = 0, noise2 = 0, spread2 = 0;  // sums over measured rows
+    };
+    std::map<std::string, std::vector<Pooled>> columns;  // sensor -> its columns
+    const auto& sig = options.sensors_with_sigma;
+    for (const SequenceResult& sr : r.sequences) {
+      Eigen::Index col = 0;
+      for (size_t i = 0; i < sr.sensor_names.size(); ++i) {
+        const std::string& name = sr.sensor_names[i];
+        const int dim = sr.sensor_dims[i];
+        const bool has_sigma = std::find(sig.begin(), sig.end(), name) != sig.end();
+        if (!has_sigma && sr.simulated_final.cols() >= col + dim &&
+            sr.simulated_final.rows() == sr.measured.rows()) {
+          std::vector<Pooled>& pooled = columns[name];
+          pooled.resize(static_cast<size_t>(dim));
+          for (int c = 0; c < dim; ++c) {
+            const Eigen::VectorXd y = sr.measured.col(col + c);
+            const double noise = EstimateNoiseStd(y);
+            if (!std::isfinite(noise)) continue;
+            const auto measured = !y.array().isNaN();
+            const double rows = static_cast<double>(measured.count());
+            const double mean = measured.select(y.array(), 0.0).sum() / rows;
+            const auto diff = y.array() - sr.simulated_final.col(col + c).array();
+            Pooled& p = pooled[static_cast<size_t>(c)];
+            p.residual2 += measured.select(diff, 0.0).square().sum();
+            p.spread2 += measured.select(y.array() - mean, 0.0).square().sum();
+            p.noise2 += noise * noise * rows;
+          }
+        }
+        col += dim;
+      }
+    }
+    std::string unexplained;
+    for (const auto& [name, pooled] : columns) {
+      // the sensor's worst column, and its worst column that fails the test
+      double worst = -1, flagged_ratio = -1, flagged_fit = 0;
+      for (const Pooled& p : pooled) {
+        if (!(p.noise2 > 0 && p.spread2 > 0)) continue;
+        const double ratio = std::sqrt(p.residual2 / p.noise2);
+        const double fit = FitPercent(std::sqrt(p.residual2 / p.spread2));
+        worst = std::max(worst, ratio);
+        if (ratio > kUnexplainedNoiseFactor && fit < kUnexplainedFitPercent &&
+            ratio > flagged_ratio) {
+          flagged_ratio = ratio;
+          flagged_fit = fit;
+        }
+      }
+      if (worst >= 0) r.sensor_noise_ratio[name] = worst;
+      if (flagged_ratio >= 0) {
+        mismatch = true;
+        unexplained += (unexplained.empty() ? "" : ", ") + name + " " +
+                       FormatDigits(flagged_ratio, 3) + " x (% fit " +
+                       FormatDigits(flagged_fit, 3) + ")";
+      }
+    }
+    if (!unexplained.empty()) {
+      r.warnings.push_back(
+          "model mismatch: the fit does not explain the data: the residuals are far above the "
+          "noise estimated from the log itself (sensors without a sigma): " +
+          unexplained +
+          ": the start is in another minimum (try other starts or multiple_shooting) or the "
+          "model lacks an effect in the data; give the sensors' sigmas if their noise is "
+          "filtered or known; the intervals are not valid");
+    }
+  }
+
   // the verdict, the first that applies
   if (r.interrupted) {
     r.outcome = FitStatus::kInterrupted;
@@ -148,8 +219,6 @@ void DecideFitStatus(const FitOptions& options, int accepted_steps, bool jacobia
         "horizon: multiple_shooting, or start closer); the intervals are not valid");
   } else if (!r.converged) {
     r.outcome = FitStatus::kNotConverged;
-  } else if (mismatch) {
-    r.outcome = FitStatus::kModelMismatch;
   } else if (jacobian_warned_at_estimate) {
     // converged on a Jacobian the core says is not local: the step was a guess, the intervals too
     // (measured: a chaotic 5000-step single-shooting fit without sigmas stopped 44 % off the truth
@@ -160,6 +229,10 @@ void DecideFitStatus(const FitOptions& options, int accepted_steps, bool jacobia
         "(h*|S| > 1e-2 at the estimate), so the estimate may be no minimum and its "
         "intervals are not valid; shorten the horizon (multiple_shooting: auto or segment_steps) "
         "or start closer");
+  } else if (mismatch) {
+    // the residuals are not noise (their warning says which test): after the Jacobian's flag,
+    // whose way out (a shorter horizon) comes first when both apply
+    r.outcome = FitStatus::kModelMismatch;
   } else if (cost_not_local) {
     // converged on a cost that jumps within the intervals (the warning says where)
     r.outcome = FitStatus::kJacobianUnreliable;

@@ -12,16 +12,21 @@
 // - jacobian_unreliable: the core flagged a Jacobian during the solve (jacobian_warned) and the
 //   cost fell by less than 5 %.
 // - not_converged: the optimiser did not converge.
+// - jacobian_unreliable when the core flagged the Jacobian at the estimate itself
+//   (jacobian_warned_at_estimate: h*|S| past kSensitivityGrowthLimit, the finite differences
+//   there are not local, so neither are intervals built from them; before model_mismatch: a
+//   shorter horizon is the first way out).
 // - model_mismatch: options.sensors_with_sigma not empty and the weighted residual variance of
 //   those sensors' columns at the estimate, sum(r^2) / (m - p) with p the rank of the Jacobian at
 //   the estimate, overall or per sensor (its share of m - p), above both the chi-square quantile
 //   at a one-sided false-alarm rate of 1e-6 and 2. The raw weighted residuals are tested (a
 //   robust loss declares outliers, it does not make a wrong model explain the data).
-// - jacobian_unreliable also when the fit would be converged but the core flagged the Jacobian at
-//   the estimate itself (jacobian_warned_at_estimate: h*|S| past kSensitivityGrowthLimit, the
-//   finite differences there are not local, so neither are intervals built from them), or
-//   cost_not_local: the cost at the estimate +- one standard error is not what the Jacobian
-//   predicts (sysid/assess/interval_check.h). Both need no sigmas.
+//   Also for sensors without a sigma: a column whose residual RMS at the estimate is above
+//   kUnexplainedNoiseFactor x the noise estimated from the log itself while its % fit is below
+//   kUnexplainedFitPercent (sysid/assess/noise_estimate.h); result->sensor_noise_ratio records
+//   the ratio per sensor. Each test's warning is appended whatever the verdict.
+// - jacobian_unreliable when cost_not_local: the cost at the estimate +- one standard error is
+//   not what the Jacobian predicts (sysid/assess/interval_check.h). Needs no sigmas.
 // - converged otherwise; intervals_valid only then (and when the uncertainty step ran).
 #pragma once
 

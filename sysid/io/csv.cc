@@ -137,6 +137,11 @@ double ParseNumber(const std::string& text, const std::string& where) {
   if (ec == std::errc::result_out_of_range) Fail(where, Quote(text) + " is out of range");
   if (ec != std::errc() || ptr != end) Fail(where, Quote(text) + " is not a number");
   if (!std::isfinite(value)) Fail(where, "value " + Quote(text) + " is not finite (NaN/Inf)");
+  if (std::abs(value) > kLargestLoggedMagnitude) {
+    Fail(where, "value " + Quote(text) + " is beyond +-" + FormatShortest(kLargestLoggedMagnitude) +
+                    ", where its square overflows the simulation and the cost (a unit or "
+                    "conversion error?)");
+  }
   return value;
 }
 

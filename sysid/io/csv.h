@@ -23,7 +23,8 @@
 //   1 unless blank lines precede it), the column (1-based) and its header: an unknown column
 //   (with the valid names as a hint), a duplicate or ambiguous column, a missing required column
 //   or sensor component, a row with a different number of fields than the header, an empty or
-//   non-numeric time or state cell, Inf, NaN outside sensor and actuator columns, non-increasing
+//   non-numeric time or state cell, Inf, a value beyond +-kLargestLoggedMagnitude (1e150, log.h),
+//   NaN outside sensor and actuator columns, non-increasing
 //   time, no data rows, an invalid sequence name; a file that is not comma-separated UTF-8/ASCII
 //   text (UTF-16/32, NUL bytes, CR-only line ends,
 //   ';' separators), with a hint. Values in messages are cut after 60 bytes, control bytes shown

@@ -158,6 +158,10 @@ struct ExperimentConfig {
   // solver.seed: the spread's seed (sysid/run/multi_start.h)
   int starts = 1;
   std::uint64_t start_seed = 0;
+  // solver.memory_limit_gb (> 0): the fit is refused when its memory estimate exceeds it
+  // (sysid/fit/memory_estimate.h); 0: absent, the default limit (a share of the machine's
+  // available memory)
+  double memory_limit_gb = 0;
   SimulateOptions simulate;
   std::string output;  // absolute; default <base_dir>/results/<name>
   Marks marks;

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "core/text.h"
+#include "core/thread_pool.h"
 #include "sysid/io/experiment.h"
 #include "sysid/io/experiment_internal.h"
 #include "sysid/io/yaml_reader.h"
@@ -180,10 +181,11 @@ MeasurementSpec Parser::ParseMeasurement(const Field& f, const ExperimentConfig&
 }
 
 void Parser::ParseSolver(const Field& f, ExperimentConfig* c) const {
-  const MapReader r(*this, f,
-                    {"max_iterations", "function_tolerance", "gradient_tolerance",
-                     "parameter_tolerance", "jacobian", "differences", "relative_step", "threads",
-                     "loss", "verbose", "starts", "seed", "reduce_model", "gauss_newton_stop"});
+  const MapReader r(
+      *this, f,
+      {"max_iterations", "function_tolerance", "gradient_tolerance", "parameter_tolerance",
+       "jacobian", "differences", "relative_step", "threads", "loss", "verbose", "starts", "seed",
+       "reduce_model", "gauss_newton_stop", "memory_limit_gb"});
   c->solver_marks = r.marks();
   FitOptions* o = &c->options;
   const long long kIntMax = std::numeric_limits<int>::max();
@@ -200,7 +202,18 @@ void Parser::ParseSolver(const Field& f, ExperimentConfig* c) const {
   }
   if (r.Has("differences")) o->jacobian.central = Enum(r.Get("differences"), kDifferences) == 1;
   if (r.Has("relative_step")) o->jacobian.relative_step = Positive(r.Get("relative_step"));
-  if (r.Has("threads")) o->threads = static_cast<int>(Integer(r.Get("threads"), 0, kIntMax));
+  if (r.Has("threads")) {
+    // one bound for threads everywhere (core/thread_pool.h kMaxThreads)
+    const Field t = r.Get("threads");
+    const long long n = Integer(t, 0, std::numeric_limits<long long>::max());
+    if (!ThreadRequestError(n).empty()) {
+      Fail(t.mark, t.path + ": " + ThreadRequestError(n),
+           "0 uses every core; more threads than cores only share them");
+    }
+    o->threads = static_cast<int>(n);
+  }
+  // the fit's memory limit (sysid/fit/memory_estimate.h), GB; absent: a share of the machine's
+  if (r.Has("memory_limit_gb")) c->memory_limit_gb = Positive(r.Get("memory_limit_gb"));
   if (r.Has("loss")) {
     const MapReader l(*this, r.Get("loss"), {"type", "scale"});
     if (l.Has("type")) o->loss = static_cast<LossType>(Enum(l.Get("type"), kLossTypes));

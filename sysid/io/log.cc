@@ -172,11 +172,15 @@ void ValidateLogAgainstModel(const Log& log, const mjModel& m, const std::string
     if (merged) {
       found.clear();
       for (const auto& [object, times] : seq.own_times) {
-        for (std::string& w : CheckTimeBase(times, dt, file, object)) found.push_back(std::move(w));
+        for (std::string& w :
+             CheckTimeBase(times, dt, file, object, nullptr, TimeDataset::kOwnTimes)) {
+          found.push_back(std::move(w));
+        }
       }
     }
     if (ctrl_time && ctrl_time->size() >= 2) {
-      for (std::string& w : CheckTimeBase(*ctrl_time, dt, file, gpath + "/ctrl_time")) {
+      for (std::string& w : CheckTimeBase(*ctrl_time, dt, file, gpath + "/ctrl_time", nullptr,
+                                          TimeDataset::kOwnTimes)) {
         found.push_back(std::move(w));
       }
     }

@@ -122,6 +122,11 @@ void WriteLog(const std::string& path, const Log& log);
 // root. Sequences come back in the order they were written.
 Log ReadLog(const std::string& path);
 
+// the largest magnitude a logged value may have (log checks, CSV import): its square (a
+// residual's, a kinetic energy's) must not overflow a double (1e308), so that a simulation or a
+// cost with it stays finite
+inline constexpr double kLargestLoggedMagnitude = 1e150;
+
 // Checks a log against the model it is meant for (`path_for_messages` names the log in
 // messages). Per sequence: every sensor name is a sensor of `m` with the same dimension
 // (m.sensor_dim), names unique; ctrl has exactly the model's actuators, in model order (missing,

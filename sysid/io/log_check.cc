@@ -55,10 +55,6 @@ void CheckName(const std::string& name, const std::string& file, const std::stri
   }
 }
 
-// the largest magnitude a logged value may have: its square (a residual's, a kinetic energy's)
-// must not overflow a double (1e308), so that a simulation or a cost with it stays finite
-constexpr double kLargestLoggedMagnitude = 1e150;
-
 // every value finite and within +-kLargestLoggedMagnitude; with nan_allowed, NaN passes (a value
 // not measured) and only Inf fails
 void CheckFinite(const double* data, Eigen::Index rows, Eigen::Index cols, const std::string& file,

@@ -152,21 +152,23 @@ bool WriteAll(int fd, const std::string& data) {
 
 // in the child: the address space may grow by what a log of this size can need, no more (a
 // corrupt string length makes HDF5 allocate up to 4 GiB); not under AddressSanitizer, whose
-// shadow memory is address space too
-void CapChildMemory(uintmax_t file_size) {
+// shadow memory is address space too. True when that cap is the child's limit: false when the
+// process already had a lower one (ulimit -v), which then, not the file, bounds the read
+bool CapChildMemory(uintmax_t file_size) {
 #ifdef MJSYSID_ASAN
   (void)file_size;
+  return true;  // no cap, and ASan's allocator fails only on sizes no log can need: corrupt
 #else
   long pages = 0;
   if (FILE* f = std::fopen("/proc/self/statm", "r")) {
     if (std::fscanf(f, "%ld", &pages) != 1) pages = 0;
     std::fclose(f);
   }
-  if (pages <= 0) return;
+  if (pages <= 0) return false;
   const auto used = static_cast<rlim_t>(pages) * static_cast<rlim_t>(sysconf(_SC_PAGESIZE));
   const rlim_t room = std::max<rlim_t>(rlim_t{1} << 30, static_cast<rlim_t>(file_size) * 64);
   const rlimit limit{used + room, used + room};
-  setrlimit(RLIMIT_AS, &limit);
+  return setrlimit(RLIMIT_AS, &limit) == 0;
 #endif
 }
 
@@ -189,15 +191,19 @@ Log ReadInChildProcess(const std::string& path, Log (*read_locked)(const std::st
     // the child: single-threaded, h5::Mutex() held on the parent's behalf; _exit skips atexit
     // handlers (HDF5's among them) and stdio flushes that belong to the parent
     close(fds[0]);
-    CapChildMemory(ec ? 0 : size);
+    const bool capped = CapChildMemory(ec ? 0 : size);
     std::string reply;
     try {
       reply = "L" + Encode(read_locked(path));
     } catch (const h5::Error& e) {
       reply = std::string("E") + e.what();
     } catch (const std::bad_alloc&) {
-      reply =
-          "E" + file + ": reading it needs more memory than a log of its size can (corrupt file?)";
+      // past our cap: the file asks for more than its size can hold; under a lower limit of the
+      // process's own: the machine is short of memory ("M": std::bad_alloc in the parent)
+      reply = capped ? "E" + file +
+                           ": reading it needs more memory than a log of its size can (corrupt "
+                           "file?)"
+                     : std::string("M");
     } catch (const std::exception& e) {
       // the file named once: the log's own checks (LogError) already begin with it
       const std::string what = e.what();
@@ -244,6 +250,7 @@ Log ReadInChildProcess(const std::string& path, Log (*read_locked)(const std::st
                             : "the HDF5 library crashed reading the file (" +
                                   std::string(strsignal(sig)) + "): it is corrupt");
   }
+  if (reply == "M") throw std::bad_alloc();
   if (reply.empty() || (reply[0] != 'L' && reply[0] != 'E')) {
     // e.g. a sanitizer build, whose handler turns the crash into an exit status
     h5::Fail(file, "",

@@ -7,7 +7,8 @@
 //   Text(K, std::string), Int(K, int), Number(K, double), Number(K, std::optional<double>: written
 //   when set), Bool(K, bool), Pair(K, low, high: [low, high]), Numbers(K, Eigen::VectorXd),
 //   Status(K, FitStatus: its name), Flags(K, at_lower, at_upper, identifiable: the flag names),
-//   Texts(K, Style, list of text), TextMap(K, Style, map of text), Map(K, Style, written, f: a
+//   Texts(K, Style, list of text), Warnings(K, list of text: result.yaml groups those that recur
+//   per sequence, sysid/io/warnings.h), TextMap(K, Style, map of text), Map(K, Style, written, f: a
 //   nested map whose fields f(visitor) lists), List(K, Style of the entries, vector, f: one map per
 //   entry, f(visitor, entry) lists its fields), FitMetrics(K, result: written only, recomputed from
 //   result.h5 when read), Record(K, kind key, record: a record of the result written as its text
@@ -206,7 +207,7 @@ void VisitResultFields(V& v, R& r) {
   v.List({"derived", Presence::kWhenSet}, Style::kBlock, r.derived,
          [](auto& e, auto& d) { VisitDerivedFields(e, d); });
   v.Texts({"unidentifiable"}, Style::kBlockOrEmptyFlow, r.uncertainty.unidentifiable);
-  v.Texts({"warnings"}, Style::kBlockOrEmptyFlow, r.warnings);
+  v.Warnings({"warnings"}, r.warnings);  // grouped per sequence (sysid/io/warnings.h)
   v.TextMap({"identified_models"}, Style::kBlockOrEmptyFlow, r.identified_models);
   // the files the fit read, by content (--resume and report refuse inputs changed since)
   v.List({"input_hashes", Presence::kWhenSet}, Style::kFlow, r.input_hashes,

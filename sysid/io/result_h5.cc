@@ -46,6 +46,8 @@ struct SkipFields {
   template <class... A>
   void Texts(const FieldKey&, A&&...) {}
   template <class... A>
+  void Warnings(const FieldKey&, A&&...) {}
+  template <class... A>
   void TextMap(const FieldKey&, A&&...) {}
   template <class... A>
   void Map(const FieldKey&, A&&...) {}

@@ -18,6 +18,7 @@
 #include "core/text.h"
 #include "sysid/io/result_fields.h"
 #include "sysid/io/result_internal.h"
+#include "sysid/io/warnings.h"
 
 namespace mjsysid::io::result_internal {
 namespace {
@@ -211,6 +212,33 @@ class FieldReader {
   void Texts(const FieldKey& k, Style, std::vector<std::string>& items) {
     if (const YAML::Node n = Find(k)) items = y_.Texts(n, Path(k));
   }
+  // the warnings, each group of the writer ({warning, count, sequences}) as the warnings it stands
+  // for
+  void Warnings(const FieldKey& k, std::vector<std::string>& items) {
+    const YAML::Node n = Find(k);
+    if (!n || n.IsNull()) return;
+    if (!n.IsSequence()) y_.Fail(n, Path(k), "expected a list, found " + YamlReader::Kind(n));
+    for (size_t i = 0; i < n.size(); ++i) {
+      const std::string path = Path(k) + "[" + std::to_string(i) + "]";
+      if (!n[i].IsMap()) {
+        items.push_back(y_.Text(n[i], path));
+        continue;
+      }
+      WarningGroup g;
+      g.pattern = y_.Text(y_.Get(n[i], "warning", path + ".warning"), path + ".warning");
+      g.sequences = y_.Texts(y_.Get(n[i], "sequences", path + ".sequences"), path + ".sequences");
+      const int count = y_.Int(y_.Get(n[i], "count", path + ".count"), path + ".count");
+      if (count != static_cast<int>(g.sequences.size()) ||
+          g.pattern.find(kSequencePlaceholder) == std::string::npos) {
+        y_.Fail(n[i], path,
+                "expected a group of warnings {warning: TEXT with {sequence}, count: N, "
+                "sequences: [N names]}, found count " +
+                    std::to_string(count) + " and " + std::to_string(g.sequences.size()) +
+                    " sequences");
+      }
+      for (size_t j = 0; j < g.sequences.size(); ++j) items.push_back(g.Expand(j));
+    }
+  }
   void TextMap(const FieldKey& k, Style, std::map<std::string, std::string>& map) {
     if (const YAML::Node n = Find(k)) map = y_.TextMap(n, Path(k));
   }
@@ -308,6 +336,12 @@ void ReadYaml(const std::string& path, FitResultFile* r) {
   r->converged = r->outcome == FitStatus::kConverged;
   r->interrupted = r->outcome == FitStatus::kInterrupted;
   if (!root["intervals_valid"]) r->intervals_valid = r->converged;
+  // a solver that stopped before its first iteration: iterations 0 and costs .nan; files written
+  // before said -1 iterations and costs -1 (Ceres' summary), read as the same
+  if (r->iterations < 0) {
+    r->iterations = 0;
+    r->initial_cost = r->final_cost = std::numeric_limits<double>::quiet_NaN();
+  }
   if (root["starts"] &&
       (r->best_start < 0 || r->best_start >= static_cast<int>(r->starts.size()))) {
     y.Fail(root["starts"]["best"], "starts.best",

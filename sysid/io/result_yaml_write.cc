@@ -1,11 +1,13 @@
 // result.yaml written: the fields of result_fields.h emitted in their order.
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <string>
 #include <vector>
 
 #include "sysid/io/result_fields.h"
 #include "sysid/io/result_internal.h"
+#include "sysid/io/warnings.h"
 
 namespace mjsysid::io::result_internal {
 namespace {
@@ -52,6 +54,24 @@ class YamlWriter {
     Key(k);
     Layout(style, items.empty()) << YAML::BeginSeq;
     for (const std::string& item : items) out_ << item;
+    out_ << YAML::EndSeq;
+  }
+  // one line per warning, except the ones that recur per sequence: one map per group,
+  // {warning: TEXT with {sequence}, count: N, sequences: [names]}
+  void Warnings(const FieldKey& k, const std::vector<std::string>& items) {
+    Key(k);
+    Layout(Style::kBlockOrEmptyFlow, items.empty()) << YAML::BeginSeq;
+    for (const WarningGroup& g : GroupWarnings(items)) {
+      if (g.Count() <= 1) {
+        for (size_t i = 0; i < std::max<size_t>(g.sequences.size(), 1); ++i) out_ << g.Expand(i);
+        continue;
+      }
+      out_ << YAML::BeginMap << YAML::Key << "warning" << YAML::Value << g.pattern;
+      out_ << YAML::Key << "count" << YAML::Value << g.Count();
+      out_ << YAML::Key << "sequences" << YAML::Value << YAML::Flow << YAML::BeginSeq;
+      for (const std::string& name : g.sequences) out_ << name;
+      out_ << YAML::EndSeq << YAML::EndMap;
+    }
     out_ << YAML::EndSeq;
   }
   void TextMap(const FieldKey& k, Style style, const std::map<std::string, std::string>& map) {

@@ -1,5 +1,7 @@
 #include "sysid/io/sequence_models.h"
 
+#include <algorithm>
+#include <filesystem>
 #include <map>
 #include <sstream>
 
@@ -54,7 +56,7 @@ std::vector<SequenceOwner> AssignSequences(const ExperimentConfig& config, const
     bool selected = config.sequences.empty();
     for (size_t e = 0; e < config.sequences.size(); ++e) {
       const SequenceRef& ref = config.sequences[e];
-      if (ref.name != group) continue;
+      if (!EntryNamesGroup(ref, path, group)) continue;
       selected = true;
       if (entry_used) (*entry_used)[e] = true;
       if (ref.model.empty()) continue;
@@ -104,6 +106,52 @@ void CheckSequenceEntriesUsed(const ExperimentConfig& config, const std::vector<
                           "' is in none of the data files",
                       "sequences in the data: " + JoinNames(all_groups));
   }
+}
+
+std::string QualifiedSequenceName(const std::string& log_path, const std::string& group) {
+  return std::filesystem::path(log_path).stem().string() + ":" + group;
+}
+
+bool EntryNamesGroup(const SequenceRef& ref, const std::string& log_path,
+                     const std::string& group) {
+  return ref.name == group || ref.name == QualifiedSequenceName(log_path, group);
+}
+
+std::vector<std::string> SequenceNamesInFit(const std::vector<LoggedSequence>& selected,
+                                            const std::vector<LoggedSequence>& in_logs,
+                                            std::vector<std::string>* renamed) {
+  // group name -> the logs that have it, in order
+  std::map<std::string, std::vector<std::string>> logs_of;
+  for (const LoggedSequence& q : in_logs.empty() ? selected : in_logs) {
+    std::vector<std::string>& paths = logs_of[q.group];
+    if (std::find(paths.begin(), paths.end(), q.path) == paths.end()) paths.push_back(q.path);
+  }
+  std::vector<std::string> names;
+  std::map<std::string, size_t> first_of;                      // name -> index into selected
+  std::map<std::string, std::vector<std::string>> renamed_as;  // group -> its selected names
+  for (size_t i = 0; i < selected.size(); ++i) {
+    const LoggedSequence& q = selected[i];
+    const bool shared = logs_of[q.group].size() > 1;
+    names.push_back(shared ? QualifiedSequenceName(q.path, q.group) : q.group);
+    if (shared) renamed_as[q.group].push_back(names.back());
+    const auto [it, added] = first_of.emplace(names.back(), i);
+    if (!added) {
+      const LoggedSequence& p = selected[it->second];
+      throw LogError(p.path + ": /" + p.group + " and " + q.path + ": /" + q.group +
+                     " would both be named " + Quote(names.back()) +
+                     " in the fit (a group name in several logs is named "
+                     "'<log file stem>:<group>'): rename one of the log files or groups");
+    }
+  }
+  if (renamed) {
+    for (const auto& [group, as] : renamed_as) {
+      const std::vector<std::string>& paths = logs_of[group];
+      renamed->push_back("sequence " + Quote(group) + " is in " + std::to_string(paths.size()) +
+                         " logs (" + JoinNames(paths) + "): named " + JoinNames(as) +
+                         " in the fit, its results and report");
+    }
+  }
+  return names;
 }
 
 }  // namespace mjsysid::io

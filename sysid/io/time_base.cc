@@ -15,6 +15,47 @@ constexpr double kPeriodVariation = 0.5;
 constexpr double kGapPeriods = 10;
 // a median period below this fraction of the model timestep is a unit error
 constexpr double kMinPeriodOfTimestep = 0.01;
+// a median period (of the sample times) above this many model timesteps is a unit error
+constexpr double kMaxPeriodOfTimestep = 100;
+// a time dataset longer than this (s, one day) is a unit error
+constexpr double kMaxSpan = 86400;
+
+// the fix of a unit error, for a log imported or written by the user; factor: the likely unit's
+// --time-scale factor, nullptr when no unit is likely
+std::string UnitFix(const char* factor) {
+  return std::string(
+             "time must be in seconds: write it in seconds, or (re-)import the CSV or "
+             "bag with `sysid import --time-scale ") +
+         (factor ? std::string(factor) + "`"
+                 : "FACTOR` (0.001 for milliseconds, 1e-9 for nanoseconds)");
+}
+
+// "time looks like milliseconds: periods of 2 'seconds' on a 0.002 s model; " when a smaller unit
+// (ms, us, ns) brings the median period closer to the timestep than seconds do (log scale);
+// example_factor: that unit's --time-scale factor, else nullptr
+std::string LikelyUnit(double period, double timestep, const char** example_factor) {
+  struct Unit {
+    const char* name;
+    double factor;
+    const char* text;
+  };
+  static const Unit kUnits[] = {{"milliseconds", 1e-3, "0.001"},
+                                {"microseconds", 1e-6, "1e-6"},
+                                {"nanoseconds", 1e-9, "1e-9"}};
+  const Unit* best = nullptr;
+  double best_distance = std::abs(std::log10(period / timestep));
+  for (const Unit& u : kUnits) {
+    const double d = std::abs(std::log10(period * u.factor / timestep));
+    if (d < best_distance) {
+      best = &u;
+      best_distance = d;
+    }
+  }
+  *example_factor = best ? best->text : nullptr;
+  if (!best) return "";
+  return std::string("time looks like ") + best->name + ": periods of " + FormatDigits(period, 6) +
+         " 'seconds' on a " + FormatDigits(timestep, 6) + " s model; ";
+}
 
 [[noreturn]] void Fail(const std::string& file, const std::string& object,
                        const std::string& what) {
@@ -51,7 +92,7 @@ double MedianPeriod(const Eigen::VectorXd& time) {
 
 std::vector<std::string> CheckTimeBase(const Eigen::VectorXd& time, double timestep,
                                        const std::string& file, const std::string& object,
-                                       const Eigen::VectorXd* ctrl_time) {
+                                       const Eigen::VectorXd* ctrl_time, TimeDataset kind) {
   std::vector<std::string> warnings;
   const Eigen::Index T = time.size();
   if (T < 2) {
@@ -71,6 +112,23 @@ std::vector<std::string> CheckTimeBase(const Eigen::VectorXd& time, double times
              FormatDigits(timestep, 6) +
              " s: time must be in seconds (are these "
              "milliseconds or clock ticks, or is the model's timestep in other units?)");
+  }
+  // the other unit error: far fewer samples than steps, or a log of days
+  const char* factor = nullptr;
+  if (kind == TimeDataset::kSamples && period > kMaxPeriodOfTimestep * timestep) {
+    const std::string unit = LikelyUnit(period, timestep, &factor);
+    Fail(file, object,
+         "the median sample period " + FormatDigits(period, 6) + " s is more than " +
+             FormatDigits(kMaxPeriodOfTimestep, 6) + " x the model timestep " +
+             FormatDigits(timestep, 6) + " s: " + unit + UnitFix(factor));
+  }
+  const double span = time[T - 1] - time[0];
+  if (span > kMaxSpan) {
+    const std::string unit = LikelyUnit(period, timestep, &factor);
+    Fail(file, object,
+         "the log spans " + FormatDigits(span, 6) + " s (" + FormatDigits(time[0], 9) + " .. " +
+             FormatDigits(time[T - 1], 9) + "), more than one day (86400 s): " + unit +
+             UnitFix(factor));
   }
 
   // varying periods and gaps: warnings naming the first place
@@ -115,6 +173,17 @@ std::vector<std::string> CheckTimeBase(const Eigen::VectorXd& time, double times
     }
   }
   return warnings;
+}
+
+void ScaleTime(double factor, const std::string& source, Sequence* seq) {
+  if (!(std::isfinite(factor) && factor > 0)) {
+    throw LogError(source + ": the time scale " + FormatShortest(factor) +
+                   " must be a finite number > 0 (0.001: milliseconds to seconds, 1e-9: "
+                   "nanoseconds)");
+  }
+  seq->time *= factor;
+  seq->ctrl_time *= factor;
+  for (auto& [object, times] : seq->own_times) times *= factor;
 }
 
 }  // namespace mjsysid::io

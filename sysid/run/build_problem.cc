@@ -13,6 +13,7 @@
 #include "sysid/io/log.h"
 #include "sysid/io/sequence_models.h"
 #include "sysid/run/fit_experiment.h"
+#include "sysid/run/output_folder.h"
 
 namespace mjsysid::run {
 namespace {
@@ -111,7 +112,8 @@ struct ModelSequences {
 
 // Assignment: takes one log (read from path); gives its selected sequences per model, each once.
 // The held-out sequences first, with their model: they are taken out of the fitted selection
-// (without `sequences:` every sequence of the log is selected, the held-out ones too).
+// (without `sequences:` every sequence of the log is selected, the held-out ones too). Throws for a
+// sequence that entries of both `sequences:` and `validation:` name.
 std::vector<ModelSequences> AssignToModels(const io::ExperimentConfig& cfg, const io::Log& log,
                                            const std::string& path, SequenceSelection* sel) {
   std::vector<bool> held_out(log.sequences.size(), false);
@@ -121,6 +123,12 @@ std::vector<ModelSequences> AssignToModels(const io::ExperimentConfig& cfg, cons
     for (const io::SequenceOwner& o : owners) held_out[o.sequence] = true;
   }
   for (const io::SequenceOwner& o : io::AssignSequences(cfg, log, path, &sel->entry_used)) {
+    // an entry of each list names it (e.g. `sequences: [runA:seq0]`, `validation: [seq0]`)
+    if (held_out[o.sequence] && !cfg.sequences.empty()) {
+      throw io::LogError(path + ": /" + log.sequences[o.sequence].name +
+                         ": is named by `sequences:` and by `validation:`: a validation sequence "
+                         "is held out of the fit (remove it from one of the lists)");
+    }
     owners.push_back(o);
   }
   std::vector<ModelSequences> per_model(cfg.models.size());
@@ -141,7 +149,10 @@ std::pair<io::Sequence, bool> SelectWindow(const io::ExperimentConfig& cfg, size
                                            const io::Sequence& whole, const std::string& path) {
   const io::SequenceRef* ref = nullptr;
   for (const io::SequenceRef& r : cfg.sequences) {
-    if (r.name == whole.name && (r.model.empty() || r.model == cfg.models[mi].name)) ref = &r;
+    if (io::EntryNamesGroup(r, path, whole.name) &&
+        (r.model.empty() || r.model == cfg.models[mi].name)) {
+      ref = &r;
+    }
   }
   const bool windowed = ref && (std::isfinite(ref->start) || std::isfinite(ref->end));
   return {windowed ? io::WindowOf(whole, ref->start, ref->end, path) : whole, windowed};
@@ -299,15 +310,39 @@ FitSequence SequenceOf(const io::ExperimentConfig& cfg, size_t mi, const io::Seq
   return fs_;
 }
 
+// Data files: takes the experiment's `data:` files; throws for a file listed twice (by any path:
+// its data would count twice).
+void CheckDataFilesDistinct(const io::ExperimentConfig& cfg) {
+  for (size_t j = 0; j < cfg.data.size(); ++j) {
+    for (size_t i = 0; i < j; ++i) {
+      if (!SamePath(cfg.data[i].path, cfg.data[j].path)) continue;
+      throw io::ConfigError(cfg.data[j].mark,
+                            "data file listed twice: " + cfg.data[j].path +
+                                (cfg.data[i].path == cfg.data[j].path
+                                     ? std::string()
+                                     : " (the same file as " + cfg.data[i].path + ")"),
+                            "first given at line " + std::to_string(cfg.data[i].mark.line) +
+                                ", column " + std::to_string(cfg.data[i].mark.column) +
+                                "; its data would count twice: list each log once");
+    }
+  }
+}
+
 // Logs: takes the experiment's `data:` files; gives out's fitted sequences (each added to the
 // problem) and its held-out validation sequences, every log checked against the model of its
-// sequences (the log's warnings in out). Throws for a missing file, and for a `sequences:` or
-// `validation:` entry that names no group of any log.
+// sequences (the log's warnings in out), each named by file and group (io::SequenceNamesInFit;
+// a renaming in out's warnings). Throws for a missing file, a file listed twice, a `sequences:` or
+// `validation:` entry that names no group of any log, and two sequences of one name.
 void ReadSequences(const io::ExperimentConfig& cfg, BuiltProblem* out) {
   if (cfg.data.empty()) {
     throw io::ConfigError(cfg.marks.self, "no `data:` log files to fit",
                           "run `sysid simulate` first, or list HDF5 logs under data:");
   }
+  CheckDataFilesDistinct(cfg);
+  // the selected sequences in order, named by the rule once all logs are read
+  std::vector<FitSequence> built;
+  std::vector<bool> held_out;
+  std::vector<io::LoggedSequence> where, in_logs;
   SequenceSelection sel;
   sel.entry_used.assign(cfg.sequences.size(), false);
   sel.held_out_cfg.models = cfg.models;
@@ -319,7 +354,10 @@ void ReadSequences(const io::ExperimentConfig& cfg, BuiltProblem* out) {
                             "run `sysid simulate EXP.yaml` to generate it");
     }
     const io::Log log = io::ReadLog(df.path);
-    for (const io::Sequence& s : log.sequences) sel.all_groups.push_back(s.name);
+    for (const io::Sequence& s : log.sequences) {
+      sel.all_groups.push_back(s.name);
+      in_logs.push_back({df.path, s.name});
+    }
     const std::vector<ModelSequences> per_model = AssignToModels(cfg, log, df.path, &sel);
     const bool post = log.sensor_time == "post" || cfg.sensor_time == io::SensorTime::kPost;
     // one validation per model over the sequences that belong to it (fitted and held out)
@@ -328,18 +366,24 @@ void ReadSequences(const io::ExperimentConfig& cfg, BuiltProblem* out) {
       if (mine.log.sequences.empty()) continue;
       io::ValidateLogAgainstModel(mine.log, *out->models[mi], df.path, &out->warnings);
       for (size_t si = 0; si < mine.log.sequences.size(); ++si) {
-        FitSequence fs_ = SequenceOf(cfg, mi, mine.log.sequences[si], df.path, post, out);
-        if (mine.held_out[si]) {
-          out->validation.push_back(std::move(fs_));  // simulated after the fit, never fitted
-          continue;
-        }
-        out->problem->AddSequence(fs_);
-        out->sequences.push_back(std::move(fs_));
+        built.push_back(SequenceOf(cfg, mi, mine.log.sequences[si], df.path, post, out));
+        held_out.push_back(mine.held_out[si]);
+        where.push_back({df.path, mine.log.sequences[si].name});
       }
     }
   }
   io::CheckSequenceEntriesUsed(cfg, sel.entry_used, sel.all_groups);
   io::CheckSequenceEntriesUsed(sel.held_out_cfg, sel.held_out_used, sel.all_groups);
+  const std::vector<std::string> names = io::SequenceNamesInFit(where, in_logs, &out->warnings);
+  for (size_t i = 0; i < built.size(); ++i) {
+    built[i].name = names[i];
+    if (held_out[i]) {
+      out->validation.push_back(std::move(built[i]));  // simulated after the fit, never fitted
+      continue;
+    }
+    out->problem->AddSequence(built[i]);
+    out->sequences.push_back(std::move(built[i]));
+  }
 }
 
 // Something to fit: takes the built sequences; throws when there are no residual rows (fitted

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <ctime>
 #include <filesystem>
 #include <limits>
@@ -16,10 +17,12 @@
 
 #include "core/identified_model.h"
 #include "core/text.h"
+#include "core/thread_pool.h"
 #include "mjsysid/version.h"
 #include "sysid/assess/derived_inertials.h"
 #include "sysid/assess/metrics.h"
 #include "sysid/io/atomic_file.h"
+#include "sysid/io/warnings.h"
 #include "sysid/run/input_hashes.h"
 #include "sysid/run/multi_start.h"
 #include "sysid/run/output_folder.h"
@@ -113,11 +116,11 @@ std::string NowIso() {
 }
 
 // The run's own events, to the caller's observer (none: nothing): the data's warnings, reported
-// before the fit, and a checkpoint that could not be written.
+// before the fit (those that recur per sequence once, with a count: io::GroupedWarningLines), and a
+// checkpoint that could not be written.
 void ReportDataWarnings(FitObserver* observer, const std::vector<std::string>& warnings) {
-  for (const std::string& w : warnings) {
-    if (observer) observer->OnWarning(w);
-  }
+  if (!observer) return;
+  for (const std::string& w : io::GroupedWarningLines(warnings)) observer->OnWarning(w);
 }
 void ReportCheckpointNotWritten(FitObserver* observer, const char* what) {
   if (observer) observer->OnWarning(std::string("checkpoint not written: ") + what);
@@ -442,6 +445,12 @@ void Conclude(const BuiltProblem& bp, const std::map<std::string, double>& truth
               io::FitResultFile* file, FitRunOutcome* out) {
   const FitResult& r = *file;
   file->status = FitStatusName(r.outcome);
+  if (r.iterations < 0) {
+    // the solver stopped before its first iteration (Ceres' summary: -1 iterations, costs -1):
+    // no iteration and no cost, as result.yaml says it (iterations: 0, costs .nan)
+    file->iterations = 0;
+    file->initial_cost = file->final_cost = std::numeric_limits<double>::quiet_NaN();
+  }
   if (r.interrupted) {
     file->termination.kind = FitTermination::Kind::kInterrupted;
     file->termination.iteration = r.iterations;
@@ -483,6 +492,74 @@ void WriteResultFiles(const io::ExperimentConfig& cfg, const std::string& stagin
 
 }  // namespace
 
+MemoryEstimate EstimateRunMemory(const BuiltProblem& bp, int starts) {
+  MemoryEstimateInput in;
+  for (const ModelPtr& m : bp.models) {
+    MemoryEstimateInput::Model mm;
+    mm.nq = static_cast<int>(m->nq);
+    mm.nv = static_cast<int>(m->nv);
+    mm.na = static_cast<int>(m->na);
+    mm.nu = static_cast<int>(m->nu);
+    mm.nsensordata = static_cast<int>(m->nsensordata);
+    const DataPtr d = MakeData(*m);
+    mm.data_bytes = static_cast<long long>(d->nbuffer) + static_cast<long long>(d->narena);
+    in.models.push_back(mm);
+  }
+  for (const FitSequence& s : bp.sequences) {
+    MemoryEstimateInput::Sequence ms;
+    const auto it = std::find(bp.model_names.begin(), bp.model_names.end(), s.model);
+    ms.model = it == bp.model_names.end() ? 0 : static_cast<int>(it - bp.model_names.begin());
+    ms.samples = s.measured.rows();
+    ms.log_doubles = s.time.size() + s.ctrl.size() + s.ctrl_time.size() + s.measured.size() +
+                     s.qpos.size() + s.qvel.size() + s.act.size();
+    in.sequences.push_back(ms);
+  }
+  in.variables = static_cast<int>(bp.parameters.size() + bp.control_delays.size());
+  for (const FitMeasurement& me : bp.measurements) {
+    for (const FitMeasurement::Term* t : {&me.delay, &me.gain, &me.bias}) {
+      in.variables += t->fit ? 1 : 0;
+    }
+  }
+  in.multiple_shooting = bp.options.segment_steps > 0;
+  in.segment_samples = std::max(0, bp.options.segment_steps);
+  const int threads = ThreadCount(bp.options.threads);
+  // multi-start: min(starts, threads) fits at a time, the threads divided (sysid/run/multi_start)
+  in.concurrent_fits = starts > 1 ? std::min(starts, threads) : 1;
+  in.threads = std::max(1, threads / in.concurrent_fits);
+  in.compress_blocks = bp.options.advanced.compress_blocks;
+  return EstimateFitMemory(in);
+}
+
+long long MemoryLimitBytes(const io::ExperimentConfig& config, double limit_gb,
+                           std::string* source) {
+  if (limit_gb > 0) {
+    *source = "--memory-limit";
+    return static_cast<long long>(limit_gb * 1e9);
+  }
+  if (config.memory_limit_gb > 0) {
+    *source = "solver.memory_limit_gb";  // the message starts with the file
+    return static_cast<long long>(config.memory_limit_gb * 1e9);
+  }
+  const long long available = AvailableMemoryBytes();
+  char share[64];
+  std::snprintf(share, sizeof(share), "%.0f %% of the %s available", 100 * kDefaultMemoryShare,
+                FormatGB(available).c_str());
+  *source = share;
+  return static_cast<long long>(kDefaultMemoryShare * static_cast<double>(available));
+}
+
+void CheckRunMemory(const io::ExperimentConfig& config, const MemoryEstimate& estimate,
+                    long long limit, const std::string& source) {
+  if (limit <= 0 || estimate.bytes <= limit) return;
+  throw MemoryLimitError(
+      config.source_file + ": the fit needs an estimated " + FormatGB(estimate.bytes) + " (" +
+      std::to_string(estimate.samples) + " samples, " + std::to_string(estimate.per_sample_bytes) +
+      " bytes per sample, docs/numerics.md \"Memory estimate\"), more than the limit of " +
+      FormatGB(limit) + " (" + source +
+      "); fit fewer or shorter sequences (`sequences:` windows), fewer starts or threads, or "
+      "raise the limit with `sysid fit --memory-limit GB` or solver.memory_limit_gb");
+}
+
 FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   FitRunOutcome out;
   out.out_dir = ro.out_dir.empty() ? cfg.output : ro.out_dir;
@@ -498,6 +575,14 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   const io::ExperimentConfig run_cfg = base ? ResumedConfig(cfg, *base) : cfg;
   BuiltProblem bp = BuildProblem(run_cfg, ro.threads);
   const Starts starts = ResolveStarts(cfg, ro, out.out_dir, base.has_value());
+  // the memory the fit will hold, against the limit, before anything is simulated or written
+  {
+    std::string source;
+    const long long limit = MemoryLimitBytes(cfg, ro.memory_limit_gb, &source);
+    const MemoryEstimate estimate = EstimateRunMemory(bp, starts.count);
+    if (ro.on_memory_estimate) ro.on_memory_estimate(estimate, limit);
+    CheckRunMemory(cfg, estimate, limit, source);
+  }
 
   // the output folder; one fit at a time into it; everything written into the staging folder
   // DIR.partial, which replaces DIR only once complete

@@ -29,10 +29,12 @@
 #include <atomic>
 #include <functional>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "core/mujoco_env.h"
+#include "sysid/fit/memory_estimate.h"
 #include "sysid/fit_observer.h"
 #include "sysid/io/experiment.h"
 #include "sysid/io/result.h"
@@ -64,9 +66,37 @@ struct BuiltProblem {
 // threads < 0: the config's solver.threads
 BuiltProblem BuildProblem(const io::ExperimentConfig& config, int threads = -1);
 
+// a fit whose memory estimate exceeds the limit (EstimateRunMemory, CheckRunMemory): refused
+// before anything is simulated or written (bad input for `sysid fit`: exit 2)
+class MemoryLimitError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// the memory estimate (sysid/fit/memory_estimate.h) of fitting bp from `starts` starts
+MemoryEstimate EstimateRunMemory(const BuiltProblem& bp, int starts);
+
+// The limit a fit is held to, bytes: limit_gb * 1e9 when > 0 (--memory-limit), else the
+// experiment's solver.memory_limit_gb when given, else kDefaultMemoryShare of
+// AvailableMemoryBytes() (none when that cannot be read: 0). *source: where it came from, for the
+// message (which names the experiment file already).
+long long MemoryLimitBytes(const io::ExperimentConfig& config, double limit_gb,
+                           std::string* source);
+
+// Throws MemoryLimitError when the estimate exceeds the limit (0: no limit), naming both and how
+// to reduce the fit or raise the limit.
+void CheckRunMemory(const io::ExperimentConfig& config, const MemoryEstimate& estimate,
+                    long long limit, const std::string& source);
+
 struct FitRunOptions {
   std::string out_dir;  // "" = config.output
   int threads = -1;     // < 0: the config's solver.threads
+  // the fit's memory limit in GB (`sysid fit --memory-limit`); <= 0: the experiment's
+  // solver.memory_limit_gb, else the default (MemoryLimitBytes)
+  double memory_limit_gb = 0;
+  // called with the memory estimate and the limit once the problem is built, before the check
+  // (the CLI names them if the fit still runs out of memory)
+  std::function<void(const MemoryEstimate&, long long limit)> on_memory_estimate;
   // the fit's events (sysid/fit_observer.h; borrowed, nullptr: none): the data's warnings before
   // the fit and a checkpoint that cannot be written always, the fit's progress when verbose and
   // the experiment's solver.verbose are both set

@@ -5,11 +5,32 @@
 #include <atomic>
 #include <chrono>
 #include <stdexcept>
+#include <string>
 #include <thread>
 #include <vector>
 
 namespace mjsysid {
 namespace {
+
+// The cap on threads (kMaxThreads): a request beyond it is refused with a reason, 0..256 accepted;
+// ThreadCount, and so the pool, never exceeds it whatever it is asked (the pool of a caller that
+// skipped the check starts kMaxThreads, not a million)
+TEST(ThreadPoolTest, ThreadsAreCapped) {
+  EXPECT_EQ(ThreadRequestError(0), "");
+  EXPECT_EQ(ThreadRequestError(kMaxThreads), "");
+  EXPECT_NE(ThreadRequestError(kMaxThreads + 1).find("from 1 to 256"), std::string::npos);
+  EXPECT_NE(ThreadRequestError(-1), "");
+  EXPECT_NE(ThreadRequestError(1000000).find("got 1000000"), std::string::npos);
+  EXPECT_EQ(ThreadCount(1000000), kMaxThreads);
+  EXPECT_EQ(ThreadCount(7), 7);
+  EXPECT_GE(ThreadCount(0), 1);
+  EXPECT_LE(ThreadCount(0), kMaxThreads);
+  ThreadPool pool(1000000);
+  EXPECT_EQ(pool.size(), kMaxThreads);
+  std::atomic<int> sum{0};
+  pool.ParallelFor(1000, [&](int, int i) { sum += i; });
+  EXPECT_EQ(sum.load(), 999 * 1000 / 2);
+}
 
 TEST(ThreadPoolTest, EveryIndexRunsExactlyOnce) {
   for (int threads : {1, 2, 4}) {

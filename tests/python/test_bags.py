@@ -150,6 +150,24 @@ def test_import_bag_errors_exit_2(root, sysid, tmp_path, truth):
         assert proc.returncode == 2 and expected in proc.stderr, proc.stderr
         assert proc.stderr.startswith("sysid import: ")
     assert not (tmp_path / "x.h5").exists()
+    # a file that is no bag (issue 35: reader errors named no file): exit 2 naming it
+    junk = tmp_path / "junk.bag"
+    junk.write_bytes(b"not a bag at all" * 64)
+    mapping.write_text(MAPPING)
+    proc = subprocess.run([sysid, "import", str(root / "models/pendulum.xml"), str(junk),
+                           "--mapping", str(mapping), "--out", str(tmp_path / "x.h5")],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2, proc.stderr
+    assert f"{junk}: cannot be read as a ROS 1 bag" in proc.stderr, proc.stderr
+    # stamp: header with a command topic of header-less Float64 (it was a raw AttributeError)
+    mapping.write_text("stamp: header\n" + MAPPING)
+    proc = subprocess.run([sysid, "import", str(root / "models/pendulum.xml"), str(bag),
+                           "--mapping", str(mapping), "--out", str(tmp_path / "x.h5")],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2, proc.stderr
+    assert f"{bag}: /cmd: stamp: header, but its messages" in proc.stderr, proc.stderr
+    assert "AttributeError" not in proc.stderr
+    assert not (tmp_path / "x.h5").exists()
     # no Python with the package
     mapping.write_text(MAPPING)
     proc = subprocess.run([sysid, "import", str(root / "models/pendulum.xml"), str(bag),

@@ -20,10 +20,11 @@
 // MJSYSID_STRESS_LONG=1 (ctest -L long: robust_suite_test.long) doubles every log's sequences
 // and asserts honesty only (today single shooting does not recover on the added sequences).
 // Every case prints `[ robust ]` lines: ctest -L robust -V | grep '\[ robust \]'.
+// The per-case work (simulate, fit, the honesty checks) is tests/stress/suite_harness.h, shared
+// with the outside suite (tests/stress/outside_suite_test.cc).
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -32,11 +33,7 @@
 #include <string>
 #include <vector>
 
-#include "sysid/io/log.h"
-#include "sysid/io/result.h"
-#include "sysid/run/fit_experiment.h"
-#include "sysid/sim/simulate.h"
-#include "tests/file_util.h"
+#include "tests/stress/suite_harness.h"
 
 namespace mjsysid {
 namespace {
@@ -58,13 +55,6 @@ const std::vector<std::string> kRecovery = {"cartpole_swing", "acrobot", "finger
 const std::vector<std::string> kWithin5Percent = {"hopper", "walker"};
 constexpr double kTolerance = 0.05;  // relative
 
-// the start of every parameter: 40 % off its truth (above or below)
-constexpr double kStartOffset = 0.4;
-
-// the sensor noise of every experiment: this fraction of the signal's spread (its standard
-// deviation over every sample and component of the noiseless log), within a factor of 2
-constexpr double kNoiseFraction = 0.01;
-
 bool LongMode() {
   const char* v = std::getenv("MJSYSID_STRESS_LONG");
   return v && std::string(v) == "1";
@@ -74,36 +64,6 @@ bool LongMode() {
 int SegmentStepsOverride() {
   const char* v = std::getenv("MJSYSID_ROBUST_SEGMENT_STEPS");
   return v && *v ? std::atoi(v) : -2;
-}
-
-// a fresh folder per case
-std::string TempDir(const std::string& name) { return test::FreshTempDir("robust_" + name); }
-
-double Truth(const io::ExperimentConfig& cfg, const std::string& name) {
-  for (const io::NamedValue& t : cfg.simulate.truth) {
-    if (t.name == name) return t.value;
-  }
-  ADD_FAILURE() << "no truth for " << name;
-  return std::nan("");
-}
-
-// standard deviation of the columns [col, col + dim) of every sequence, over all their entries
-double Spread(const io::Log& log, const std::string& sensor) {
-  double sum = 0, sum2 = 0, n = 0;
-  for (const io::Sequence& s : log.sequences) {
-    int col = 0;
-    for (size_t i = 0; i < s.sensor_names.size(); ++i) {
-      if (s.sensor_names[i] == sensor) {
-        const auto block = s.sensordata.middleCols(col, s.sensor_dims[i]);
-        sum += block.sum();
-        sum2 += block.squaredNorm();
-        n += static_cast<double>(block.size());
-      }
-      col += s.sensor_dims[i];
-    }
-  }
-  const double mean = sum / n;
-  return std::sqrt(std::max(0.0, sum2 / n - mean * mean));
 }
 
 class RobustSuiteTest : public ::testing::TestWithParam<std::string> {};
@@ -116,69 +76,27 @@ TEST_P(RobustSuiteTest, EndsHonestly) {
   if (segment_steps >= -1) cfg.options.segment_steps = segment_steps;
   cfg.options.verbose = false;
 
-  // every start 40 % off its truth
-  ASSERT_FALSE(cfg.parameters.empty());
-  for (const io::ParameterSpec& p : cfg.parameters) {
-    EXPECT_NEAR(std::abs(p.initial / Truth(cfg, p.name) - 1.0), kStartOffset, 1e-3) << p.name;
-  }
-
-  // the noise: 1 % of each signal's spread in the noiseless log, and the fit's sigma is the noise
-  {
-    io::ExperimentConfig clean = cfg;
-    clean.simulate.noise.clear();
-    const io::Log log = sim::SimulateExperiment(clean);
-    ASSERT_EQ(cfg.simulate.noise.size(), cfg.sensors.size());
-    for (const io::NamedValue& noise : cfg.simulate.noise) {
-      const double spread = Spread(log, noise.name);
-      std::printf("[ robust ] %s: sensor %-16s noise %-8.3g spread %-8.3g (1 %%: %.2g)\n",
-                  name.c_str(), noise.name.c_str(), noise.value, spread, kNoiseFraction * spread);
-      EXPECT_GT(noise.value, 0.5 * kNoiseFraction * spread) << noise.name;
-      EXPECT_LT(noise.value, 2.0 * kNoiseFraction * spread) << noise.name;
-      for (const io::SensorSpec& s : cfg.sensors) {
-        if (s.name == noise.name) {
-          EXPECT_EQ(s.sigma.value_or(-1.0), noise.value) << s.name;
-        }
-      }
-    }
-  }
+  // every start 40 % off its truth; the noise 1 % of each signal's spread in the noiseless log,
+  // and the fit's sigma is the noise
+  suite::ExpectStartsOffTruth(cfg);
+  suite::ExpectNoiseOnePercent(cfg, "robust", name);
+  if (::testing::Test::HasFatalFailure()) return;
 
   // simulate the noisy log and fit it, as `sysid simulate` and `sysid fit` do
-  const std::string dir = TempDir(name);
-  const std::string log_path = dir + "/log.h5";
-  cfg.data = {io::DataFile{log_path, {}}};
-  io::WriteLog(log_path, sim::SimulateExperiment(cfg));
-  run::FitRunOptions opt;
-  opt.out_dir = dir + "/out";
-  opt.verbose = false;
-  const auto start = std::chrono::steady_clock::now();
-  const run::FitRunOutcome out = run::RunFit(cfg, opt);
-  const double seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  suite::CaseRun run;
+  suite::SimulateAndFit(cfg, "robust", name, &run);
+  if (::testing::Test::HasFatalFailure()) return;
+  const run::FitRunOutcome& out = run.out;
+  const double worst = run.worst;
 
   // the numbers of the table (docs/stress.md)
-  double worst = 0;
-  bool in_ci95 = true, in_4std = true;
-  for (const ParameterEstimate& p : out.file.parameters) {
-    ASSERT_TRUE(p.truth.has_value()) << p.name;
-    const double t = *p.truth;
-    worst = std::max(worst, std::abs(p.value / t - 1.0));
-    in_ci95 = in_ci95 && p.ci95_low <= t && t <= p.ci95_high;
-    in_4std = in_4std && std::abs(p.value - t) <= 4 * p.std_error;
-    std::printf(
-        "[ robust ] %s:   %-20s start %-9.4g estimate %-11.6g truth %-8.4g error %6.2f %% "
-        "95%% CI [%.6g, %.6g]\n",
-        name.c_str(), p.name.c_str(), p.initial, p.value, t, 100 * std::abs(p.value / t - 1.0),
-        p.ci95_low, p.ci95_high);
-  }
-  int steps = 0;
-  for (const SequenceResult& s : out.file.sequences) steps += static_cast<int>(s.time.size());
   std::printf(
       "[ robust ] | %s | %zu | %d x %d | %s | %d | %.2f %% | %s (within 4 std: %s) | %d | %.1f s "
       "| segment_steps %d |\n",
       name.c_str(), out.file.parameters.size(), static_cast<int>(out.file.sequences.size()),
-      out.file.sequences.empty() ? 0 : steps / static_cast<int>(out.file.sequences.size()),
-      out.file.status.c_str(), out.exit_code, 100 * worst, in_ci95 ? "yes" : "no",
-      in_4std ? "yes" : "no", out.file.iterations, seconds, cfg.options.segment_steps);
+      out.file.sequences.empty() ? 0 : run.steps / static_cast<int>(out.file.sequences.size()),
+      out.file.status.c_str(), out.exit_code, 100 * worst, run.in_ci95 ? "yes" : "no",
+      run.in_4std ? "yes" : "no", out.file.iterations, run.seconds, cfg.options.segment_steps);
   std::printf("[ robust ] %s:   shooting: %s\n", name.c_str(),
               SegmentReasonText(out.file.segment_reason).c_str());
   for (const std::string& w : out.file.warnings) {
@@ -217,23 +135,8 @@ TEST_P(RobustSuiteTest, EndsHonestly) {
   }
 
   // honest: converged means exit 0, valid intervals and every truth inside them; anything else
-  // is a non-zero exit code with intervals not valid
-  if (out.file.outcome == FitStatus::kConverged) {
-    EXPECT_EQ(out.exit_code, 0);
-    EXPECT_TRUE(out.file.intervals_valid);
-    for (const ParameterEstimate& p : out.file.parameters) {
-      EXPECT_GT(p.std_error, 0) << p.name;
-      EXPECT_LE(std::abs(p.value - *p.truth), 4 * p.std_error)
-          << p.name << ": converged, but the truth " << *p.truth << " is outside the interval";
-    }
-  } else {
-    EXPECT_NE(out.exit_code, 0) << out.file.status;
-    EXPECT_FALSE(out.file.intervals_valid) << out.file.status;
-  }
-  // what a user reads back says the same
-  const io::FitResultFile back = io::ReadResult(opt.out_dir);
-  EXPECT_EQ(back.status, out.file.status);
-  EXPECT_EQ(back.intervals_valid, out.file.intervals_valid);
+  // is a non-zero exit code with intervals not valid; what a user reads back says the same
+  suite::ExpectHonest(run);
 
   // recovery where it is expected today, on the default logs (the long mode's added sequences
   // are recorded: docs/stress.md)
@@ -244,7 +147,7 @@ TEST_P(RobustSuiteTest, EndsHonestly) {
   if (!LongMode() && std::count(kWithin5Percent.begin(), kWithin5Percent.end(), name)) {
     EXPECT_LE(worst, kTolerance) << "worst relative error (" << out.file.status << ")";
   }
-  fs::remove_all(dir);
+  fs::remove_all(run.dir);
 }
 
 INSTANTIATE_TEST_SUITE_P(Cases, RobustSuiteTest, ::testing::ValuesIn(kCases),

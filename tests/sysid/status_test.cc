@@ -125,12 +125,80 @@ TEST(FitStatusTest, MissingParameterWithSigmaIsModelMismatch) {
   EXPECT_TRUE(HasWarning(r, "model mismatch")) << "no model-mismatch warning";
   EXPECT_EQ(run::ExitCodeOf(r.outcome), 3);
 
-  // the same fit without sigmas (weights only) cannot test the residuals: converged
+  // the same fit without sigmas (weights only): no chi-square test, but the noise test (residual
+  // RMS vs the noise the log itself shows, sysid/assess/noise_estimate.h) sees the friction's
+  // residual on the rate (measured 9.6 x its noise; the chi-square above says 99.9 = 10^2):
+  // model_mismatch, exit 3, naming the rate. (It was converged, exit 0, before that test.)
   FitOptions weights_only = data.Options();
   weights_only.sensors_with_sigma.clear();
   const FitResult w = problem.Fit(weights_only);
-  EXPECT_EQ(w.outcome, FitStatus::kConverged);
+  for (const auto& [sensor, ratio] : w.sensor_noise_ratio) {
+    std::printf("[ measured ]   weights only: residual / estimated noise of %s: %.4g\n",
+                sensor.c_str(), ratio);
+  }
+  EXPECT_EQ(w.outcome, FitStatus::kModelMismatch);
+  EXPECT_TRUE(HasWarning(w, "noise estimated from the log itself")) << "no noise-test warning";
+  EXPECT_TRUE(HasWarning(w, "rate 9.")) << "the rate named with its ratio";
+  EXPECT_FALSE(w.intervals_valid);
   EXPECT_TRUE(std::isnan(w.chi2_ratio));
+}
+
+// the noise-free check of the fit without sigmas: the right model, noise 0.01, no sigmas given
+// (weights 1/0.01 only): converged, and the residual over the noise the log shows is about 1 for
+// both sensors (sysid/assess/noise_estimate.h)
+TEST(FitStatusTest, RightModelWithoutSigmasIsConvergedAtTheLogsNoise) {
+  const Truth damping{"damping", Spec("joint_damping", "hinge"), 0.2};
+  const PendulumData data({damping});
+  Problem problem;
+  problem.AddModel("pendulum", *data.m);
+  problem.AddParameter(FitParameter("damping", damping.spec, 0.4).Bounds(1e-4, 10).Log());
+  problem.AddSequence(FitSequence("seq0", "pendulum", data.x0, data.u, data.y));
+  FitOptions opt = data.Options();
+  opt.sensors_with_sigma.clear();
+  const FitResult r = problem.Fit(opt);
+  Print("right model, no sigmas", r);
+  for (const auto& [sensor, ratio] : r.sensor_noise_ratio) {
+    std::printf("[ measured ]   residual / estimated noise of %s: %.4g\n", sensor.c_str(), ratio);
+  }
+  EXPECT_EQ(r.outcome, FitStatus::kConverged);
+  ASSERT_EQ(r.sensor_noise_ratio.size(), 2u);
+  for (const auto& [sensor, ratio] : r.sensor_noise_ratio) EXPECT_NEAR(ratio, 1.0, 0.2) << sensor;
+}
+
+// issue 32's case: the pendulum driven over the top (released at 0.3 rad with 10 rad/s, 4.5 Nm
+// multi-sine seed 3, 3000 steps = 6 s), noise-free log with damping 0.35, fitted from 0.1 with no
+// sigma given. Before the noise test it ended converged (exit 0) in another minimum; a fit that
+// leaves the data unexplained must not be converged, sigmas or not: model_mismatch, exit 3,
+// intervals not valid, the warning naming the sensors and the noise the log shows
+TEST(FitStatusTest, UnexplainedDataWithoutSigmasIsNotConverged) {
+  ModelPtr m = LoadModel(kModels + "/pendulum.xml");
+  const Truth damping{"damping", Spec("joint_damping", "hinge"), 0.35};
+  InitialState x0;
+  x0.qpos = Eigen::VectorXd::Constant(1, 0.3);
+  x0.qvel = Eigen::VectorXd::Constant(1, 10.0);
+  const RowMatrix u = Excitation(*m, 3000, 4.5, 3);
+  const RowMatrix y = Measure(*m, {damping}, x0, u, 0, 0);
+  Problem problem;
+  problem.AddModel("pendulum", *m);
+  problem.AddParameter(FitParameter("damping", damping.spec, 0.1).Bounds(1e-4, 10).Log());
+  problem.AddSequence(FitSequence("seq0", "pendulum", x0, u, y));
+  FitOptions opt;
+  opt.segment_steps = 0;  // single shooting: the issue's fit
+  const FitResult r = problem.Fit(opt);
+  Print("over the top, no sigmas", r);
+  for (const auto& [sensor, ratio] : r.sensor_noise_ratio) {
+    std::printf("[ measured ]   residual / estimated noise of %s: %.4g\n", sensor.c_str(), ratio);
+  }
+  const double err = std::abs(Estimate(r, "damping").value / 0.35 - 1);
+  std::printf("[ measured ] over the top: relative error %.3g\n", err);
+  if (err > 0.05) {
+    EXPECT_EQ(r.outcome, FitStatus::kModelMismatch);
+    EXPECT_FALSE(r.intervals_valid);
+    EXPECT_TRUE(HasWarning(r, "noise estimated from the log itself"));
+    EXPECT_EQ(run::ExitCodeOf(r.outcome), 3);
+  } else {
+    ADD_FAILURE() << "the case: single shooting from 0.1 must stop in another minimum";
+  }
 }
 
 // the double pendulum at high energy (released at 2.5, -2.0 rad, 0 and 6 rad/s, 3 Nm multi-sine

@@ -156,8 +156,13 @@ class BadInputTest : public ::testing::Test {
   // `fit` and `check` of an experiment on the log `log` must fail as bad input naming `pieces`
   static void ExpectBadLog(const std::string& log, std::initializer_list<std::string> pieces) {
     const std::string exp = ExperimentOn(fs::path(log).stem().string() + ".yaml", log);
-    ExpectBadInput("fit " + exp + " --out " + prev_ + " --quiet", pieces);
-    ExpectBadInput("check " + exp, pieces);
+    // each message names the log once (issue 35: nine log messages printed its path twice)
+    for (const CliRun& r : {ExpectBadInput("fit " + exp + " --out " + prev_ + " --quiet", pieces),
+                            ExpectBadInput("check " + exp, pieces)}) {
+      size_t named = 0;
+      for (size_t p = r.err.find(log); p != std::string::npos; p = r.err.find(log, p + 1)) ++named;
+      EXPECT_LE(named, 1u) << r.err;
+    }
   }
 
   // a copy of the good log, edited
@@ -797,8 +802,9 @@ TEST_F(BadInputTest, CommandLineMessages) {
                  {"sysid rollout: --steps: expected a whole number >= 1, got '-1'"});
   ExpectBadInput("rollout " + model + " --amplitude nan",
                  {"--amplitude: expected a finite number, got 'nan'"});
-  const CliRun r = ExpectBadInput("fit " + dir_ + "/good.yaml --threads -3 --out " + prev_,
-                                  {"--threads: expected a whole number >= 0, got '-3'"});
+  const CliRun r = ExpectBadInput(
+      "fit " + dir_ + "/good.yaml --threads -3 --out " + prev_,
+      {"--threads: expected 0 (all cores) or a whole number from 1 to 256", "got -3"});
   EXPECT_LT(r.err.size(), 200u) << r.err;
   ExpectBadInput("fit --resume " + dir_ + "/nothing_here", {"nothing to resume"});
   ExpectBadInput("report " + dir_ + "/no_such_folder", {"no_such_folder: no such folder"});

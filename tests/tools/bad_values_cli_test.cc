@@ -198,7 +198,8 @@ TEST_F(Values35Test, LoggedValueBeyond1e150IsBadInputNamingTheFileOnce) {
   EXPECT_EQ(r.err.find("is beyond"), std::string::npos) << r.err;
 }
 
-// The same rule on `import`: a CSV cell of 1e308 is exit 2 naming the dataset, row and column
+// The same rule on `import`: a CSV cell of 1e308 is exit 2 naming the CSV file, its line and
+// column (issue 35: it named the --out log's dataset, row and column)
 TEST_F(Values35Test, ImportRefusesAValueBeyond1e150) {
   const std::string model = std::string(MJSYSID_SOURCE_DIR) + "/models/pendulum.xml";
   std::string csv = "time,torque,angle,rate\n";
@@ -209,9 +210,10 @@ TEST_F(Values35Test, ImportRefusesAValueBeyond1e150) {
   const CliStreams r =
       Sysid("import " + model + " " + dir_ + "/huge.csv --out " + dir_ + "/huge.h5");
   EXPECT_EQ(r.code, 2) << r.err;
-  EXPECT_NE(r.err.find("/huge/sensordata: row 7, column 1: value 1e+308 is beyond +-1e+150"),
+  EXPECT_NE(r.err.find("huge.csv:9: column 4 ('rate'): value '1e308' is beyond +-1e+150"),
             std::string::npos)
       << r.err;
+  EXPECT_EQ(r.err.find("huge.h5"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(dir_ + "/huge.h5"));
 }
 

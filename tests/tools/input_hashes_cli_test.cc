@@ -6,14 +6,9 @@
 // existed are accepted with a warning. The log edited between a kill and a resume is in
 // tests/tools/sysid_outputs_test.cc (ResumeRefusesALogEditedAfterTheKill).
 #include <gtest/gtest.h>
-#include <signal.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
-#include <chrono>
 #include <filesystem>
 #include <string>
-#include <thread>
 
 #include "tests/cli_util.h"
 #include "tests/file_util.h"
@@ -27,7 +22,6 @@ using mjsysid::test::Sysid;
 using mjsysid::test::WriteFile;
 
 const std::string kModels = MJSYSID_MODELS_DIR;
-const std::string kSysid = MJSYSID_SYSID_BIN;
 
 class Hashes35Test : public ::testing::Test {
  protected:
@@ -67,21 +61,8 @@ class Hashes35Test : public ::testing::Test {
 
   // a fit into out_ killed (SIGKILL) once its first checkpoint is written: out_.partial holds it
   void KilledFit() {
-    const std::string cp = out_ + ".partial/checkpoint.yaml";
-    const pid_t pid = fork();
-    if (pid == 0) {
-      execl(kSysid.c_str(), kSysid.c_str(), "fit", exp_.c_str(), "--out", out_.c_str(), "--quiet",
-            static_cast<char*>(nullptr));
-      _exit(127);
-    }
-    for (int i = 0; i < 300000 && ReadFile(cp).find("\ninput_hashes:") == std::string::npos; ++i) {
-      std::this_thread::sleep_for(std::chrono::microseconds(200));
-    }
-    kill(pid, SIGKILL);
-    int status = 0;
-    waitpid(pid, &status, 0);
-    ASSERT_TRUE(WIFSIGNALED(status)) << "the fit ended before the kill";
-    ASSERT_TRUE(fs::exists(cp));
+    ASSERT_TRUE(mjsysid::test::FitKilledAtCheckpoint(exp_, out_))
+        << "the fit ended before the kill";
     ASSERT_FALSE(fs::exists(out_ + "/result.yaml"));
   }
 

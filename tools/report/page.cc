@@ -10,9 +10,11 @@
 #include <utility>
 #include <vector>
 
+#include "sysid/io/warnings.h"
 #include "tools/report/axes.h"
 #include "tools/report/canvas.h"
 #include "tools/report/plots.h"
+#include "tools/report/report.h"
 
 namespace mjsysid::report {
 
@@ -243,6 +245,19 @@ void StartsSection(std::ostringstream& h, const FitResultFile& r) {
   h << "</table>\n";
 }
 
+// how many of `count` sequences have no plot (an empty PNG), when any: the plots are capped
+// (report.h, PlottedSequences), every sequence is in the fit quality table
+void PlotsLeftOut(std::ostringstream& h, size_t count, const std::vector<std::string>& pngs) {
+  size_t plotted = 0;
+  for (size_t i = 0; i < count && i < pngs.size(); ++i) plotted += !pngs[i].empty();
+  if (plotted == count) return;
+  h << "<p class=\"muted plots-left-out\">" << plotted << " of " << count
+    << " sequences plotted: the first " << kPlotFirst << " and the " << kPlotWorst
+    << " others with the lowest % fit at the estimate; " << count - plotted
+    << " plots left out (every sequence's % fit and NRMSE are in the fit quality table "
+       "above)</p>\n";
+}
+
 }  // namespace
 
 std::string Page(const FitResultFile& r, const std::vector<std::string>& sequence_pngs,
@@ -300,7 +315,8 @@ std::string Page(const FitResultFile& r, const std::vector<std::string>& sequenc
     h << "<p class=\"muted\">none</p>\n";
   } else {
     h << "<ul class=\"warnings\">\n";
-    for (const std::string& w : r.warnings) h << "<li>" << HtmlEscape(w) << "</li>\n";
+    for (const std::string& w : io::GroupedWarningLines(r.warnings))
+      h << "<li>" << HtmlEscape(w) << "</li>\n";
     h << "</ul>\n";
   }
 
@@ -313,7 +329,9 @@ std::string Page(const FitResultFile& r, const std::vector<std::string>& sequenc
   FitQualitySection(h, r);
   h << "<h2>Sequences</h2>\n";
   if (r.sequences.empty()) h << "<p class=\"muted\">no sequences recorded</p>\n";
+  PlotsLeftOut(h, r.sequences.size(), sequence_pngs);
   for (size_t i = 0; i < r.sequences.size() && i < sequence_pngs.size(); ++i) {
+    if (sequence_pngs[i].empty()) continue;  // not plotted
     h << "<h3>" << HtmlEscape(r.sequences[i].name) << "</h3>\n<img alt=\"sequence "
       << HtmlEscape(r.sequences[i].name) << "\" src=\"data:image/png;base64,"
       << Base64(sequence_pngs[i]) << "\">\n";
@@ -323,7 +341,9 @@ std::string Page(const FitResultFile& r, const std::vector<std::string>& sequenc
          "(experiment <code>validation:</code>): simulated from their logged initial state at the "
          "start and at the estimate</p>\n";
   }
+  if (!r.validation.empty()) PlotsLeftOut(h, r.validation.size(), validation_pngs);
   for (size_t i = 0; i < r.validation.size() && i < validation_pngs.size(); ++i) {
+    if (validation_pngs[i].empty()) continue;  // not plotted
     h << "<h3>" << HtmlEscape(r.validation[i].name)
       << " <span class=\"muted\">validation (not fitted)</span></h3>\n<img alt=\"validation "
          "sequence "

@@ -4,11 +4,13 @@
 // Sections, in order: header (name, status badge, termination), facts (experiment, costs,
 // iterations, wall time, versions, identified models), solver settings, parameters (table;
 // unidentifiable rows highlighted; the unidentifiable combinations listed), starts (multi-start
-// only: every start's status, costs, start and estimate, and the spread), warnings, cost,
-// parameters over the iterations, fit quality (per sequence and channel: % fit and NRMSE at the
-// start and at the estimate, sysid/assess/metrics.h; fitted and held-out sequences), sequences,
-// validation sequences (not fitted), motion (when given: an animated WebP data URI). Every text
-// from the result is HTML-escaped.
+// only: every start's status, costs, start and estimate, and the spread), warnings (those that
+// recur per sequence once, sysid/io/warnings.h), cost, parameters over the iterations, fit
+// quality (every sequence and channel: % fit and NRMSE at the start and at the estimate,
+// sysid/assess/metrics.h; fitted and held-out sequences), sequences (the plotted ones,
+// report.h's PlottedSequences, and how many were left out), validation sequences (not fitted;
+// likewise), motion (when given: an animated WebP data URI). Every text from the result is
+// HTML-escaped.
 #pragma once
 
 #include <string>
@@ -24,7 +26,8 @@ std::string HtmlEscape(const std::string& s);
 std::string Base64(const std::string& bytes);
 
 // the page; sequence_pngs[i] is the PNG of result.sequences[i], validation_pngs[i] that of
-// result.validation[i]; motion_html (MotionHtml, tools/report/motion.h) goes after the sequences
+// result.validation[i] ("": not plotted, and the page says how many were left out); motion_html
+// (MotionHtml, tools/report/motion.h) goes after the sequences
 std::string Page(const io::FitResultFile& result, const std::vector<std::string>& sequence_pngs,
                  const std::vector<std::string>& validation_pngs = {},
                  const std::string& motion_html = "");

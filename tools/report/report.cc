@@ -1,12 +1,15 @@
 #include "tools/report/report.h"
 
+#include <algorithm>
 #include <cctype>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <set>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "sysid/io/atomic_file.h"
@@ -52,11 +55,35 @@ std::string SequencePng(const FitResultFile&, const SequenceResult& sequence, bo
   return Png(SequenceFigure(WithStateColumns(sequence), held_out));  // fitted states as sensors
 }
 
+std::vector<size_t> PlottedSequences(const std::vector<SequenceResult>& sequences) {
+  std::vector<size_t> plotted;
+  for (size_t i = 0; i < sequences.size() && i < kPlotFirst; ++i) plotted.push_back(i);
+  // the rest by their mean % fit at the estimate, lowest first
+  std::vector<std::pair<double, size_t>> rest;
+  for (size_t i = kPlotFirst; i < sequences.size(); ++i) {
+    double sum = 0;
+    int n = 0;
+    for (const ChannelFit& f : sequences[i].channel_fits) {
+      if (std::isnan(f.fit_final)) continue;
+      sum += f.fit_final;
+      ++n;
+    }
+    if (n > 0) rest.emplace_back(sum / n, i);
+  }
+  const size_t worst = std::min(rest.size(), kPlotWorst);
+  std::partial_sort(rest.begin(), rest.begin() + static_cast<std::ptrdiff_t>(worst), rest.end());
+  for (size_t j = 0; j < worst; ++j) plotted.push_back(rest[j].second);
+  std::sort(plotted.begin(), plotted.end());
+  return plotted;
+}
+
 std::string ReportHtml(const FitResultFile& result) {
-  std::vector<std::string> pngs, held_out;
-  for (const SequenceResult& s : result.sequences) pngs.push_back(SequencePng(result, s));
-  for (const SequenceResult& s : result.validation)
-    held_out.push_back(SequencePng(result, s, true));
+  // the plotted sequences' PNGs; "" for the others (not plotted)
+  std::vector<std::string> pngs(result.sequences.size()), held_out(result.validation.size());
+  for (const size_t i : PlottedSequences(result.sequences))
+    pngs[i] = SequencePng(result, result.sequences[i]);
+  for (const size_t i : PlottedSequences(result.validation))
+    held_out[i] = SequencePng(result, result.validation[i], true);
   return Page(result, pngs, held_out);
 }
 
@@ -73,20 +100,23 @@ int WriteReport(const FitResultFile& result, const std::string& dir, const Repor
   written.push_back("cost.png");
   WriteFile((d / "parameters.png").string(), ParametersPng(result));
   written.push_back("parameters.png");
-  // the fitted sequences (seq_*.png), then the held-out ones (val_*.png)
-  std::vector<std::string> pngs, held_out_pngs;
+  // the plotted fitted sequences (seq_*.png), then the held-out ones (val_*.png); "" for a
+  // sequence not plotted (PlottedSequences)
+  std::vector<std::string> pngs(result.sequences.size()), held_out_pngs(result.validation.size());
   std::set<std::string> names;
   for (const bool held_out : {false, true}) {
     const char* prefix = held_out ? "val_" : "seq_";
-    for (const SequenceResult& s : held_out ? result.validation : result.sequences) {
+    const std::vector<SequenceResult>& list = held_out ? result.validation : result.sequences;
+    for (const size_t i : PlottedSequences(list)) {
+      const SequenceResult& s = list[i];
       // two names that sanitize alike: _2, _3, ...
       std::string file = SequenceFileName(s.name, prefix);
       for (int k = 2; !names.insert(file).second; ++k) {
         file = SequenceFileName(s.name + "_" + std::to_string(k), prefix);
       }
-      std::vector<std::string>& into = held_out ? held_out_pngs : pngs;
-      into.push_back(SequencePng(result, s, held_out));
-      WriteFile((d / file).string(), into.back());
+      std::string& png = (held_out ? held_out_pngs : pngs)[i];
+      png = SequencePng(result, s, held_out);
+      WriteFile((d / file).string(), png);
       written.push_back(file);
     }
   }
@@ -115,10 +145,14 @@ int WriteReport(const FitResultFile& result, const std::string& dir, const Repor
     std::ostringstream s;
     s << "report " << result.name << " (" << dir << ")\n"
       << "  status      " << result.status << (termination.empty() ? "" : " (" + termination + ")")
-      << "\n"
-      << "  cost        " << Num(result.initial_cost, 4) << " -> " << Num(result.final_cost, 4)
-      << " in " << result.iterations << " iterations\n"
-      << "  parameters  " << result.parameters.size();
+      << "\n";
+    if (std::isnan(result.initial_cost) || std::isnan(result.final_cost)) {
+      s << "  cost        none: the solver stopped before its first iteration\n";
+    } else {
+      s << "  cost        " << Num(result.initial_cost, 4) << " -> " << Num(result.final_cost, 4)
+        << " in " << result.iterations << " iterations\n";
+    }
+    s << "  parameters  " << result.parameters.size();
     if (unidentifiable > 0) s << ", " << unidentifiable << " unidentifiable: " << unid_names;
     s << "\n  motion      ";
     if (motion.webp.empty()) {

@@ -12,6 +12,9 @@
 //                    [A-Za-z0-9_.-] of the sequence name, '_' for the rest.
 //   val_<name>.png   the same for each held-out sequence (experiment `validation:`), headed
 //                    "validation (not fitted)"
+//                    Only some sequences are plotted (PlottedSequences, below), fitted and held-out
+//                    apart: the first kPlotFirst and the kPlotWorst worst by % fit; the page says
+//                    how many were left out, and its fit quality table lists every sequence.
 //   motion.webp      the initial and fitted simulation of the first sequence side by side, an
 //                    animated WebP also embedded in the page (tools/report/motion.h); not written
 //                    when there is no clip (the page says why)
@@ -49,6 +52,12 @@ int WriteReport(const std::string& dir, const ReportOptions& options, std::strin
 int WriteReport(const io::FitResultFile& result, const std::string& dir, std::string* summary);
 int WriteReport(const io::FitResultFile& result, const std::string& dir,
                 const ReportOptions& options, std::string* summary);
+
+// the sequences plotted (indices into `sequences`, ascending): the first kPlotFirst, then the
+// kPlotWorst others with the lowest % fit at the estimate (the mean of their channels' fit_final,
+// a channel without one, NaN, left out; a sequence without any is never among the worst)
+inline constexpr size_t kPlotFirst = 12, kPlotWorst = 4;
+std::vector<size_t> PlottedSequences(const std::vector<SequenceResult>& sequences);
 
 // the pieces, for tests and other front ends
 std::string ReportHtml(const io::FitResultFile& result);  // the page, PNGs embedded, no motion

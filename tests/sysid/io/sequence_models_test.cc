@@ -1,4 +1,5 @@
-// io::AssignSequences: which model each logged sequence is fitted with (sysid/io/sequence_models.h)
+// io::AssignSequences: which model each logged sequence is fitted with, and io::SequenceNamesInFit:
+// what it is named in the fit (sysid/io/sequence_models.h)
 #include "sysid/io/sequence_models.h"
 
 #include <gtest/gtest.h>
@@ -131,6 +132,55 @@ TEST(SequenceModelsTest, AnEntryNoFileHasIsAConfigErrorAtItsLine) {
               std::string::npos);
     EXPECT_EQ(e.hint(), "sequences in the data: a, b");
   }
+}
+
+// A group name selected from one log keeps it; from several logs, each is <log stem>:<group>, in
+// the order given, with one line saying so.
+TEST(SequenceModelsTest, AGroupNameInSeveralLogsIsNamedAfterEachFile) {
+  std::vector<std::string> renamed;
+  const std::vector<std::string> names = SequenceNamesInFit(
+      {{"/d/runA.h5", "seq0"}, {"/d/runA.h5", "seq1"}, {"/d/runB.h5", "seq0"}}, {}, &renamed);
+  EXPECT_EQ(names, (std::vector<std::string>{"runA:seq0", "seq1", "runB:seq0"}));
+  ASSERT_EQ(renamed.size(), 1u);
+  EXPECT_NE(renamed[0].find("sequence 'seq0' is in 2 logs (/d/runA.h5, /d/runB.h5): named "
+                            "runA:seq0, runB:seq0"),
+            std::string::npos)
+      << renamed[0];
+  EXPECT_EQ(SequenceNamesInFit({{"/d/a.h5", "x"}, {"/d/b.h5", "y"}}),
+            (std::vector<std::string>{"x", "y"}));
+}
+
+// The rule looks at every group of the logs, not only the selected ones: runA's seq0 alone is
+// still runA:seq0 when runB has a seq0 too (its name does not depend on the selection). An entry
+// names a group by its group name in every log, or by its qualified name in its own log only.
+TEST(SequenceModelsTest, NamesDependOnTheLogsNotOnTheSelection) {
+  EXPECT_EQ(SequenceNamesInFit({{"/d/runA.h5", "seq0"}},
+                               {{"/d/runA.h5", "seq0"}, {"/d/runB.h5", "seq0"}}),
+            std::vector<std::string>{"runA:seq0"});
+  SequenceRef ref;
+  ref.name = "runA:seq0";
+  EXPECT_EQ(QualifiedSequenceName("/d/runA.h5", "seq0"), "runA:seq0");
+  EXPECT_TRUE(EntryNamesGroup(ref, "/d/runA.h5", "seq0"));
+  EXPECT_FALSE(EntryNamesGroup(ref, "/d/runB.h5", "seq0"));
+  ref.name = "seq0";
+  EXPECT_TRUE(EntryNamesGroup(ref, "/d/runB.h5", "seq0"));
+}
+
+// Names that still collide: two logs of one stem in two folders, a group named like another log's
+// renamed one: a LogError naming both files and groups.
+TEST(SequenceModelsTest, NamesThatStillCollideAreAnErrorNamingBothFiles) {
+  try {
+    SequenceNamesInFit({{"/x/run.h5", "seq0"}, {"/y/run.h5", "seq0"}});
+    ADD_FAILURE() << "no error";
+  } catch (const LogError& e) {
+    EXPECT_NE(std::string(e.what()).find("/x/run.h5: /seq0 and /y/run.h5: /seq0 would both be "
+                                         "named 'run:seq0'"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_THROW(
+      SequenceNamesInFit({{"/d/a.h5", "seq0"}, {"/d/b.h5", "seq0"}, {"/d/c.h5", "a:seq0"}}),
+      LogError);
 }
 
 }  // namespace
