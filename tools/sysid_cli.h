@@ -86,9 +86,25 @@ CLI::Validator FiniteNumber();
 // an option value that must be a finite number > 0
 CLI::Validator PositiveFiniteNumber();
 
-// An HDF5 log output `out` (of --out): not one of `inputs`, and unless `force` either absent or
-// an mjsysid log (a file ReadLog accepts); its folder created. Throws OutputError (exit 2).
-void PrepareLogOutput(const std::string& out, const std::vector<std::string>& inputs, bool force);
+// who writes an HDF5 log output, for the rule on replacing an existing file
+struct LogWriter {
+  std::string command;     // "simulate" or "import"
+  std::string experiment;  // simulate: the experiment file it simulates
+  std::string label;       // the output in messages; "" = "--out OUT"
+};
+
+// An HDF5 log output `out`: not one of `inputs` and not a folder, whatever `force`. An existing
+// file is replaced only with `force`, or when it is an mjsysid log (a file ReadLog accepts) that
+// `writer` may replace: for import any mjsysid log (its --out is explicit); for simulate only a
+// log that sysid simulate wrote for the same experiment file (its `generator` attribute
+// "mjsysid VERSION simulate", any version, and its `experiment` attribute naming the same file).
+// Throws OutputError (exit 2) naming the file and who wrote it.
+void CheckLogOutput(const std::string& out, const std::vector<std::string>& inputs, bool force,
+                    const LogWriter& writer);
+
+// CheckLogOutput, then the output's folder created
+void PrepareLogOutput(const std::string& out, const std::vector<std::string>& inputs, bool force,
+                      const LogWriter& writer);
 
 // the subcommands: each declares its arguments on `app` and returns what runs it
 Command AddSimulate(CLI::App* app);  // tools/sysid_simulate.cc

@@ -16,9 +16,11 @@
 #include <vector>
 
 #include "core/mujoco_env.h"
+#include "core/text.h"
 #include "mjsysid/version.h"
 #include "sysid/io/csv.h"
 #include "sysid/io/log.h"
+#include "sysid/io/plain_name.h"
 #include "sysid/io/time_base.h"
 #include "sysid/io/warnings.h"
 #include "tools/sysid_cli.h"
@@ -33,7 +35,7 @@ struct ImportArgs {
   std::vector<std::string> csv;
   std::string out;
   std::string sensor_time = "pre";
-  bool force = false;           // overwrite an --out that is not an mjsysid log
+  bool force = false;           // replace an --out that is not an mjsysid log
   std::string mapping;          // ROS bags / MCAP: topic -> actuators, sensors, joints (YAML)
   std::string time_scale_text;  // as given, for the bag importer ("": not given)
 };
@@ -58,7 +60,9 @@ void DeclareImport(CLI::App* sub, ImportArgs* args) {
                   "multiply the time column(s) by FACTOR to get seconds: 0.001 for milliseconds, "
                   "1e-9 for nanoseconds (finite, > 0)")
       ->type_name("FACTOR");
-  sub->add_flag("--force", args->force, "overwrite an existing --out that is not an mjsysid log");
+  sub->add_flag("--force", args->force,
+                "replace an existing --out file that is not an mjsysid log (an mjsysid log is "
+                "replaced without it); never an input or a folder");
   sub->add_option("--mapping", args->mapping,
                   "ROS bags (.bag, ROS 2 folders, .db3) and MCAP files: YAML mapping of topics "
                   "to actuators, sensors and joints (docs/cli.md)");
@@ -136,7 +140,7 @@ int RunImportBags(const ImportArgs& args) {
   }
   std::vector<std::string> inputs = {args.model, args.mapping};
   inputs.insert(inputs.end(), args.csv.begin(), args.csv.end());
-  PrepareLogOutput(args.out, inputs, args.force);
+  PrepareLogOutput(args.out, inputs, args.force, LogWriter{"import", "", ""});
   std::vector<std::string> argv = {
       python,   "-m",        "mjsysid.bags", args.model,      "--out",
       args.out, "--mapping", args.mapping,   "--sensor-time", args.sensor_time};
@@ -199,6 +203,11 @@ int RunImport(const ImportArgs& args) {
       }
     }
     if (name.empty()) name = fs::path(paths[0]).stem().string();
+    if (const std::string why = io::PlainNameProblem(name); !why.empty()) {
+      throw InputError(arg + ": the sequence name " + mjsysid::Quote(name) +
+                       " is not a plain name: " + why + " (hint: name it NAME=" + paths[0] +
+                       " with " + io::kPlainNameRule + ")");
+    }
     // the sequence checked alone against the model, its messages and warnings naming its CSV
     // file(s), where the problem is (not the --out log, which does not exist yet)
     io::Log one;
@@ -218,7 +227,7 @@ int RunImport(const ImportArgs& args) {
     std::fprintf(stderr, "sysid import: warning: %s\n", w.c_str());
   std::vector<std::string> inputs = {args.model};
   inputs.insert(inputs.end(), files.begin(), files.end());
-  PrepareLogOutput(args.out, inputs, args.force);
+  PrepareLogOutput(args.out, inputs, args.force, LogWriter{"import", "", ""});
   io::WriteLog(args.out, log);
   std::printf("imported %zu sequence(s) into %s\n", log.sequences.size(), args.out.c_str());
   for (const io::Sequence& s : log.sequences) {

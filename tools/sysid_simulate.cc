@@ -8,7 +8,6 @@
 
 #include "sysid/io/experiment.h"
 #include "sysid/io/log.h"
-#include "sysid/run/output_folder.h"
 #include "sysid/sim/simulate.h"
 #include "tools/sysid_cli.h"
 #ifdef MJSYSID_WITH_MPI
@@ -26,7 +25,7 @@ struct SimulateArgs {
   bool has_seed = false;     // --seed given
   int threads = 0;           // used when has_threads
   bool has_threads = false;  // --threads given
-  bool force = false;        // overwrite an --out that is not an mjsysid log
+  bool force = false;        // replace an output log simulate did not write for this experiment
 };
 
 // warns (stderr) about truth values outside their parameter's bounds: a fit could not reach them
@@ -51,13 +50,20 @@ int RunSimulate(const SimulateArgs& args) {
 
   // the output: --out, else the first `data:` path
   std::string out = args.out;
+  LogWriter writer{"simulate", config.source_file, ""};
   if (out.empty()) {
     if (config.data.empty()) {
       throw InputError(args.experiment +
                        ": no output file: give --out LOG.h5 or a `data:` path in the experiment");
     }
     out = config.data.front().path;
+    writer.label = out + " (the first `data:` path of " + args.experiment + ")";
   }
+  std::vector<std::string> inputs = {args.experiment};
+  for (const mjsysid::io::ModelSpec& spec : config.models) inputs.push_back(spec.path);
+  // an existing log is replaced only when simulate wrote it for this experiment (or --force):
+  // checked before simulating, and again before writing
+  CheckLogOutput(out, inputs, args.force, writer);
   WarnTruthOutsideBounds(config);
 
   // simulate, then write atomically (creating the folder)
@@ -66,9 +72,6 @@ int RunSimulate(const SimulateArgs& args) {
   settings.progress = [&start](const std::string& line) {
     std::fprintf(stderr, "  simulating  %s  %.2f s\n", line.c_str(), Seconds(start));
   };
-  std::vector<std::string> inputs = {args.experiment};
-  for (const mjsysid::io::ModelSpec& spec : config.models) inputs.push_back(spec.path);
-  mjsysid::run::CheckOutputFile(out, inputs, "--out");
 #ifdef MJSYSID_WITH_MPI
   // under mpirun: the rollouts sharded across the ranks, the log written by rank 0 alone
   if (mjsysid::mpi::Size() > 1) settings.rollout = mjsysid::mpi::ShardedRollout;
@@ -78,7 +81,7 @@ int RunSimulate(const SimulateArgs& args) {
 #ifdef MJSYSID_WITH_MPI
   if (mjsysid::mpi::Rank() > 0) return kExitOk;
 #endif
-  PrepareLogOutput(out, inputs, args.force);
+  PrepareLogOutput(out, inputs, args.force, writer);
   mjsysid::io::WriteLog(out, log);
 
   // summary
@@ -149,7 +152,9 @@ Command AddSimulate(CLI::App* app) {
       "experiment)");
   threads->check(ThreadCountValidator());
   sub->add_flag("--force", args->force,
-                "overwrite an existing --out file that is not an mjsysid log");
+                "replace an existing output log that sysid simulate did not write for this "
+                "experiment (a log from sysid import or another experiment, or a file that is "
+                "not an mjsysid log); never an input or a folder");
   sub->footer(std::string("Sequences are named seq0, seq1, ... (MODEL_seq0, ... with several "
                           "models); sensor rows are read before each step (sensor_time pre).\n") +
               kExitCodesFooter);

@@ -12,6 +12,7 @@
 
 #include "core/text.h"
 #include "sysid/io/experiment_internal.h"
+#include "sysid/io/plain_name.h"
 #include "sysid/io/yaml_reader.h"
 
 namespace mjsysid::io {
@@ -64,6 +65,16 @@ ExperimentConfig Parser::Parse(const YAML::Node& root) {
   }
   c.name = r.Has("name") ? Name(r.Get("name")) : default_name_;
   if (c.name.empty()) c.name = "experiment";
+  if (const std::string why = PlainNameProblem(c.name); !why.empty()) {
+    // the name becomes a folder name (results/NAME): one rule for such names (plain_name.h)
+    Fail(
+        r.Has("name") ? r.KeyMark("name") : c.marks.self,
+        (r.Has("name") ? std::string("name: ")
+                       : std::string("the experiment's name (its file name, no `name:` given): ")) +
+            Quote(c.name) + " is not a plain name: " + why,
+        std::string("the name is the experiment's default output folder results/NAME; give ") +
+            kPlainNameRule);
+  }
 
   ParseModels(r, &c);
   if (r.Has("data")) ParseData(r.Get("data"), &c);

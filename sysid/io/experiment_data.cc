@@ -13,6 +13,7 @@
 #include "core/text.h"
 #include "sysid/io/experiment.h"
 #include "sysid/io/experiment_internal.h"
+#include "sysid/io/plain_name.h"
 #include "sysid/io/yaml_reader.h"
 
 namespace mjsysid::io::experiment_internal {
@@ -40,6 +41,14 @@ void Parser::ParseModels(const MapReader& r, ExperimentConfig* c) const {
     spec.path = ResolvePath(f);
     spec.name = std::filesystem::path(spec.path).stem().string();
     spec.marks.self = f.mark;
+    if (const std::string why = PlainNameProblem(spec.name); !why.empty()) {
+      Fail(f.mark,
+           "model: the file name gives the model name " + Quote(spec.name) +
+               ", not a plain name: " + why,
+           std::string("a model's name names its file NAME_identified.xml in the result "
+                       "folder; rename the file, or give 'models:' with a name that is ") +
+               kPlainNameRule);
+    }
     c->models.push_back(std::move(spec));
     return;
   }
@@ -54,9 +63,12 @@ void Parser::ParseModels(const MapReader& r, ExperimentConfig* c) const {
     spec.name = Name(m.Get("name"));
     spec.path = ResolvePath(m.Get("path"));
     spec.marks = m.marks();
-    if (spec.name.find('/') != std::string::npos) {
-      Fail(m.Get("name").mark, m.Path("name") + ": a model name must not contain '/'",
-           "'/' separates model and sequence in 'sequences'");
+    if (const std::string why = PlainNameProblem(spec.name); !why.empty()) {
+      Fail(m.KeyMark("name"),
+           m.Path("name") + ": " + Quote(spec.name) + " is not a plain name: " + why,
+           std::string("a model's name names its file NAME_identified.xml in the result folder "
+                       "('/' also separates model and sequence in 'sequences'); give ") +
+               kPlainNameRule);
     }
     if (const ModelSpec* first = c->FindModel(spec.name)) {
       Fail(m.Get("name").mark, "duplicate model name " + Quote(spec.name),

@@ -563,6 +563,8 @@ void CheckRunMemory(const io::ExperimentConfig& config, const MemoryEstimate& es
 FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   FitRunOutcome out;
   out.out_dir = ro.out_dir.empty() ? cfg.output : ro.out_dir;
+  // a folder this run must not replace is refused before any work (checked again below)
+  CheckOutputFolder(out.out_dir, InputsOf(cfg), ro.force);
 
   // the input: the checkpoint a --resume starts from, the problem, the starts
   const std::optional<io::FitResultFile> base = ResumeBase(out.out_dir, ro.resume);

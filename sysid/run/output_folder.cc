@@ -65,6 +65,49 @@ std::string Trimmed(const std::string& dir) {
   return p.string();
 }
 
+// the files that make a folder another run's: its result, or its checkpoint (an unfinished run)
+bool IsRunFile(const std::string& name) {
+  return name == "result.yaml" || name == "result.h5" || name == "checkpoint.yaml" ||
+         name == "checkpoint.h5";
+}
+
+}  // namespace
+
+OtherRun OtherRunInside(const std::string& dir) {
+  std::error_code ec;
+  if (!fs::is_directory(fs::symlink_status(dir, ec))) return {};
+  // symlinks are not followed: deleting the folder deletes a symlink, not what it points to
+  fs::recursive_directory_iterator it(dir, fs::directory_options::skip_permission_denied, ec);
+  for (; !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+    const fs::path& p = it->path();
+    const fs::file_status st = it->symlink_status(ec);
+    if (ec) break;
+    const std::string name = p.filename().string();
+    if (fs::is_directory(st) && name.size() > 8 && name.substr(name.size() - 8) == ".partial") {
+      return {p.string(), "the staging folder of a fit into " + p.parent_path().string() + "/" +
+                              name.substr(0, name.size() - 8)};
+    }
+    if (it.depth() >= 1 && fs::is_regular_file(st) && IsRunFile(name)) {
+      return {p.parent_path().string(),
+              "a fit's " + std::string(name.rfind("result", 0) == 0 ? "result" : "checkpoint") +
+                  " folder (it has " + name + ")"};
+    }
+  }
+  return {};
+}
+
+namespace {
+
+// DIR.partial, which a fit into DIR deletes when it starts, holds no other run (at any depth)
+void CheckStagingFolder(const std::string& dir) {
+  const std::string staging = StagingFolder(dir);
+  if (const OtherRun other = OtherRunInside(staging); !other.path.empty()) {
+    throw OutputError("--out " + dir + ": " + staging + ", the staging folder that a fit into " +
+                      Trimmed(dir) + " deletes first, holds " + other.path + ", " + other.what +
+                      " (hint: move " + other.path + " out)");
+  }
+}
+
 }  // namespace
 
 bool SamePath(const std::string& a, const std::string& b) {
@@ -92,12 +135,33 @@ void CheckOutputFolder(const std::string& dir, const std::vector<std::string>& i
                         "a folder of its own, e.g. results/NAME)");
     }
   }
+  // replacing the folder that holds the current directory cannot work (the rename fails, busy)
   std::error_code ec;
+  const fs::path cwd = Resolved(fs::current_path(ec).string());
+  if (!ec && IsUnder(cwd, d)) {
+    throw OutputError(
+        "--out " + dir + ": the output folder " +
+        (cwd == d ? "is the current directory" : "holds the current directory " + cwd.string()) +
+        "; a fit replaces the whole folder (hint: choose a folder of its own, "
+        "e.g. results/NAME)");
+  }
   const fs::file_status st = fs::status(dir, ec);
-  if (!fs::exists(st)) return;
+  if (!fs::exists(st)) {
+    CheckStagingFolder(dir);
+    return;
+  }
   if (!fs::is_directory(st)) {
     throw OutputError("--out " + dir + ": exists and is not a folder (hint: choose another path)");
   }
+  // another run's result or checkpoint inside: never deleted, not even with --force
+  if (const OtherRun other = OtherRunInside(dir); !other.path.empty()) {
+    throw OutputError("--out " + dir + ": the output folder holds " + other.path + ", " +
+                      other.what +
+                      "; a fit replaces the whole folder and would delete it, --force or not "
+                      "(hint: choose a folder of its own, e.g. a new folder beside it, or move " +
+                      other.path + " out)");
+  }
+  CheckStagingFolder(dir);
   if (::access(dir.c_str(), W_OK | X_OK) != 0) {
     throw OutputError("--out " + dir +
                       ": the output folder is not writable: " + std::strerror(errno));
@@ -175,6 +239,8 @@ std::string StagingFolder(const std::string& dir) { return Trimmed(dir) + ".part
 std::string CreateStagingFolder(const std::string& dir, bool keep_checkpoint) {
   const std::string staging = StagingFolder(dir);
   std::error_code ec;
+  // CheckOutputFolder refused this before the fit; checked again before deleting anything
+  CheckStagingFolder(dir);
   if (keep_checkpoint && fs::is_directory(staging, ec)) {
     for (const fs::directory_entry& e : fs::directory_iterator(staging)) {
       const std::string name = e.path().filename().string();
@@ -208,7 +274,18 @@ void PublishFolder(const std::string& staging, const std::string& dir) {
     if (::renameat2(AT_FDCWD, staging.c_str(), AT_FDCWD, target.c_str(), RENAME_EXCHANGE) != 0) {
       Fail(target, "cannot swap the new result " + staging + " in", errno);
     }
-    fs::remove_all(staging, ec);  // now the previous result; left behind it is harmless
+    // staging is now the previous folder: deleted unless another run's folder got into it
+    // during the fit (CheckOutputFolder refused one before), which is kept and named
+    if (const OtherRun other = OtherRunInside(staging); !other.path.empty()) {
+      fs::path parent = fs::path(target).parent_path();
+      Sync(parent.empty() ? "." : parent.string(), true);
+      throw io::FileError(target + ": the new result is in place, but the previous folder, now " +
+                          staging + ", holds " + other.path + ", " + other.what +
+                          ", put there during the fit; it was not deleted (move it out, then "
+                          "delete " +
+                          staging + ")");
+    }
+    fs::remove_all(staging, ec);  // the previous result; left behind it is harmless
   } else if (std::rename(staging.c_str(), target.c_str()) != 0) {
     Fail(target, "cannot rename the new result " + staging + " to it", errno);
   }

@@ -9,6 +9,8 @@
 //   the previous result. A kill at any moment leaves DIR as the previous complete result or the
 //   new complete one; DIR.partial then holds the unfinished run (its checkpoint) or the replaced
 //   previous result, and the next fit into DIR deletes it.
+// - A fit never deletes another run: an output folder (or its DIR.partial) holding another run's
+//   result or checkpoint at any depth is refused (OtherRunInside), whatever --force.
 // - Every file of a run carries its run id (NewRunId): see sysid/io/result.h.
 //
 // Failure: OutputError for paths the user gave (exit 2), io::FileError for the file system
@@ -35,9 +37,22 @@ bool SamePath(const std::string& a, const std::string& b);
 void CheckOutputFile(const std::string& out, const std::vector<std::string>& inputs,
                      const std::string& option);
 
+// another run's folder found inside an output folder: its path and what it is
+struct OtherRun {
+  std::string path;  // "" when none
+  std::string what;  // e.g. "a fit's result folder (it has result.yaml)"
+};
+
+// The first folder of another run strictly inside `dir`, at any depth (symlinks not followed):
+// a folder holding result.yaml, result.h5, checkpoint.yaml or checkpoint.h5, or a staging folder
+// (a folder named *.partial). `dir`'s own result files do not count.
+OtherRun OtherRunInside(const std::string& dir);
+
 // `dir` (an output folder) is none of `inputs` and holds none of them (at any depth, through
-// symlinked folders too); when it exists it is a folder, and unless `force` it is empty or an
-// mjsysid result folder (it has result.yaml or is a previous fit's folder)
+// symlinked folders too) nor the current directory; when it exists it is a folder that holds no
+// other run's folder (OtherRunInside, whatever `force`), and unless `force` it is empty or an
+// mjsysid result folder (it has result.yaml or is a previous fit's folder); its staging folder
+// DIR.partial holds no other run's folder either
 void CheckOutputFolder(const std::string& dir, const std::vector<std::string>& inputs, bool force);
 
 // a new run id: UTC time, process id and 32 random bits, e.g. "20261122T180501Z-12345-9f3a07c1"
@@ -68,7 +83,9 @@ std::string CreateStagingFolder(const std::string& dir, bool keep_checkpoint = f
 
 // Makes the complete staging folder `staging` the folder `dir`: flushes every file and the folder
 // to disk, swaps it with `dir` in one rename (or renames it when `dir` does not exist), deletes
-// the previous result and flushes the parent folder. Throws io::FileError.
+// the previous result and flushes the parent folder. Throws io::FileError. The previous folder is
+// not deleted when another run's folder got into it during the fit (CheckOutputFolder refused one
+// before: a broken invariant): it stays at `staging`, named in the FileError.
 void PublishFolder(const std::string& staging, const std::string& dir);
 
 }  // namespace mjsysid::run
