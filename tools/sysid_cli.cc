@@ -124,73 +124,9 @@ CLI::Validator FiniteNumber() {
       "NUMBER");
 }
 
-namespace {
-
-// who wrote a log, from its `generator` attribute ("mjsysid VERSION simulate"), for messages:
-// "sysid import (mjsysid 0.9.0)"; for a simulated log also the experiment it simulated
-std::string WrittenBy(const mjsysid::io::Log& log) {
-  const auto gen = log.attributes.find("generator");
-  if (gen == log.attributes.end()) return "a program that does not say (no generator attribute)";
-  const std::string& g = gen->second;
-  const size_t space = g.rfind(' ');
-  if (g.rfind("mjsysid ", 0) != 0 || space == std::string::npos || space < 8) {
-    return "'" + g + "' (its generator attribute)";
-  }
-  const std::string command = g.substr(space + 1);
-  std::string by = "sysid " + command + " (" + g.substr(0, space) + ")";
-  if (command == "simulate") {
-    const auto exp = log.attributes.find("experiment");
-    by +=
-        " of " + (exp == log.attributes.end() ? std::string("an unnamed experiment") : exp->second);
-  }
-  return by;
-}
-
-// true when `writer` may replace the existing mjsysid log `log` without --force
-bool MayReplace(const mjsysid::io::Log& log, const LogWriter& writer) {
-  if (writer.command != "simulate") return true;  // import: any mjsysid log (--out is explicit)
-  const auto gen = log.attributes.find("generator");
-  const auto exp = log.attributes.find("experiment");
-  const std::string suffix = " simulate";
-  return gen != log.attributes.end() && gen->second.rfind("mjsysid ", 0) == 0 &&
-         gen->second.size() > suffix.size() &&
-         gen->second.compare(gen->second.size() - suffix.size(), suffix.size(), suffix) == 0 &&
-         exp != log.attributes.end() && mjsysid::run::SamePath(exp->second, writer.experiment);
-}
-
-}  // namespace
-
-void CheckLogOutput(const std::string& out, const std::vector<std::string>& inputs, bool force,
-                    const LogWriter& writer) {
-  const std::string label = writer.label.empty() ? "--out " + out : writer.label;
-  mjsysid::run::CheckOutputFile(out, inputs, "--out");
-  std::error_code ec;
-  if (!fs::exists(out, ec)) return;
-  if (!fs::is_regular_file(out, ec)) {
-    throw mjsysid::run::OutputError(label +
-                                    ": exists and is not a file (a folder?); not replaced, "
-                                    "--force or not (hint: choose another output file)");
-  }
-  if (force) return;
-  const std::string hint = " (hint: --force replaces it, or --out LOG.h5 writes elsewhere)";
-  mjsysid::io::Log log;
-  try {
-    log = mjsysid::io::ReadLog(out);
-  } catch (const mjsysid::io::LogError& e) {
-    throw mjsysid::run::OutputError(label + ": exists and is not an mjsysid log; not replaced" +
-                                    hint);
-  }
-  if (!MayReplace(log, writer)) {
-    throw mjsysid::run::OutputError(label + ": holds a log written by " + WrittenBy(log) +
-                                    ", not by sysid simulate of this experiment; not replaced, "
-                                    "nothing simulated" +
-                                    hint);
-  }
-}
-
 void PrepareLogOutput(const std::string& out, const std::vector<std::string>& inputs, bool force,
                       const LogWriter& writer) {
-  CheckLogOutput(out, inputs, force, writer);
+  run::CheckLogOutput(out, inputs, force, writer);
   std::error_code ec;
   const fs::path parent = fs::path(out).parent_path();
   if (!parent.empty()) {

@@ -13,6 +13,8 @@
 #include <string>
 #include <vector>
 
+#include "sysid/run/log_output.h"
+
 namespace mjsysid::cli {
 
 constexpr int kExitOk = 0;
@@ -86,23 +88,9 @@ CLI::Validator FiniteNumber();
 // an option value that must be a finite number > 0
 CLI::Validator PositiveFiniteNumber();
 
-// who writes an HDF5 log output, for the rule on replacing an existing file
-struct LogWriter {
-  std::string command;     // "simulate" or "import"
-  std::string experiment;  // simulate: the experiment file it simulates
-  std::string label;       // the output in messages; "" = "--out OUT"
-};
+using run::LogWriter;
 
-// An HDF5 log output `out`: not one of `inputs` and not a folder, whatever `force`. An existing
-// file is replaced only with `force`, or when it is an mjsysid log (a file ReadLog accepts) that
-// `writer` may replace: for import any mjsysid log (its --out is explicit); for simulate only a
-// log that sysid simulate wrote for the same experiment file (its `generator` attribute
-// "mjsysid VERSION simulate", any version, and its `experiment` attribute naming the same file).
-// Throws OutputError (exit 2) naming the file and who wrote it.
-void CheckLogOutput(const std::string& out, const std::vector<std::string>& inputs, bool force,
-                    const LogWriter& writer);
-
-// CheckLogOutput, then the output's folder created
+// run::CheckLogOutput (sysid/run/log_output.h), then the output's folder created
 void PrepareLogOutput(const std::string& out, const std::vector<std::string>& inputs, bool force,
                       const LogWriter& writer);
 

@@ -63,7 +63,7 @@ int RunSimulate(const SimulateArgs& args) {
   for (const mjsysid::io::ModelSpec& spec : config.models) inputs.push_back(spec.path);
   // an existing log is replaced only when simulate wrote it for this experiment (or --force):
   // checked before simulating, and again before writing
-  CheckLogOutput(out, inputs, args.force, writer);
+  run::CheckLogOutput(out, inputs, args.force, writer);
   WarnTruthOutsideBounds(config);
 
   // simulate, then write atomically (creating the folder)

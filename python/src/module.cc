@@ -30,6 +30,7 @@
 #include "sysid/io/result.h"
 #include "sysid/run/fit_experiment.h"
 #include "sysid/run/fit_table.h"
+#include "sysid/run/log_output.h"
 #include "sysid/run/output_folder.h"
 #include "sysid/sim/simulate.h"
 #include "tools/report/report.h"
@@ -70,7 +71,8 @@ io::ExperimentConfig ConfigOf(nb::handle experiment) {
 // simulate: the experiment's `simulate` block; written to `out`, else to the first `data:` path
 // (as `sysid simulate`), unless write is false
 io::Log Simulate(nb::handle experiment, std::optional<std::string> out,
-                 std::optional<unsigned long long> seed, std::optional<int> threads, bool write) {
+                 std::optional<unsigned long long> seed, std::optional<int> threads, bool write,
+                 bool force) {
   io::ExperimentConfig config = ConfigOf(experiment);
   io::CheckModelFilesExist(config);
   if (seed) config.simulate.seed = *seed;
@@ -85,7 +87,10 @@ io::Log Simulate(nb::handle experiment, std::optional<std::string> out,
   }
   std::vector<std::string> inputs = {config.source_file};
   for (const io::ModelSpec& spec : config.models) inputs.push_back(spec.path);
-  if (write) run::CheckOutputFile(path, inputs, "out");
+  // the CLI's rule: an existing log is replaced only when simulate wrote it for this experiment
+  run::LogWriter writer{"simulate", config.source_file, "out=" + path, "out",
+                        "force=True replaces it, or out= writes elsewhere"};
+  if (write) run::CheckLogOutput(path, inputs, force, writer);
   sim::SimulateSettings settings;
   settings.threads = threads ? CheckedThreads(*threads, "threads") : config.options.threads;
   io::Log log;
@@ -504,9 +509,10 @@ NB_MODULE(_mjsysid, m) {
   m.def("load_experiment", &io::LoadExperiment, arg("path"),
         "Reads and checks a YAML experiment file (docs/experiment-schema.md)");
   m.def("simulate", &Simulate, arg("experiment"), arg("out") = nb::none(), arg("seed") = nb::none(),
-        arg("threads") = nb::none(), arg("write") = true,
+        arg("threads") = nb::none(), arg("write") = true, arg("force") = false,
         "`sysid simulate`: the experiment's synthetic log; written to out (default: its first "
-        "`data:` path) unless write=False. Returns the Log.");
+        "`data:` path) unless write=False. An existing log that simulate did not write for this "
+        "experiment is replaced only with force=True (ValueError otherwise). Returns the Log.");
   m.def("check", &Check, arg("experiment"), arg("jacobians") = true,
         "`sysid check`: validates the experiment, models and data; with data, the core's "
         "Jacobians against ceres::GradientChecker. Returns a dict (worst_relative_error, "

@@ -82,3 +82,24 @@ def test_bad_input_raises_value_error_with_the_cli_message(pendulum, tmp_path, s
     with pytest.raises(ValueError) as err:
         mjsysid.fit_experiment(str(tmp_path / "missing.yaml"))
     assert proc.returncode == 2 and proc.stderr.strip() == "sysid fit: " + str(err.value)
+
+
+def test_simulate_replaces_only_its_own_log(pendulum, tmp_path, sysid):
+    # the CLI's rule (sysid/run/log_output.h): a file simulate did not write for this experiment
+    # is kept (ValueError) unless force=True; its own log is replaced
+    data = tmp_path / "pendulum.h5"
+    data.write_text("robot data, not a log")
+    with pytest.raises(ValueError, match="exists and is not an mjsysid log; not replaced"):
+        mjsysid.simulate(str(pendulum))
+    assert data.read_text() == "robot data, not a log"
+    mjsysid.simulate(str(pendulum), force=True)
+    assert mjsysid.read_log(str(data)).sequences
+    mjsysid.simulate(str(pendulum))  # its own log: replaced without force
+    # a log of another experiment (the CLI simulating a copy) at the same path: kept
+    other = tmp_path / "other.yaml"
+    other.write_text(pendulum.read_text())
+    assert run([sysid, "simulate", str(other), "--out", str(data), "--force"]).returncode == 0
+    before = data.read_bytes()
+    with pytest.raises(ValueError, match=r"holds a log written by sysid simulate \(mjsysid .*\) of "):
+        mjsysid.simulate(str(pendulum))
+    assert data.read_bytes() == before

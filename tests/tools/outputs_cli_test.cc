@@ -138,7 +138,8 @@ TEST_F(Outputs35Test, AFitNeverDeletesAnotherRunsResult) {
 }
 
 // experiment names that would become paths outside results/ or results/ itself: `.`, `..`,
-// `../../x`, `a/b`: exit 2 at `check`, naming the file, line and column of `name:` ("name: '.'
+// `../../x`, `a/b`: exit 2 at `check`, `simulate` and `fit`, naming the file, line and column of
+// the `name:` key ("name: '.'
 // is not a plain name: '.' is the folder itself"); nothing written. `../../x` wrote outside
 // results/, `.` made results/ itself the output.
 TEST_F(Outputs35Test, ExperimentNamesArePlainNames) {
@@ -153,7 +154,7 @@ TEST_F(Outputs35Test, ExperimentNamesArePlainNames) {
     for (const std::string sub : {"check ", "simulate ", "fit "}) {
       const CliStreams r = SysidStreams(sub + exp);
       EXPECT_EQ(r.code, 2) << r.err;
-      EXPECT_NE(r.err.find(exp + ":1:7: name: "), std::string::npos) << r.err;
+      EXPECT_NE(r.err.find(exp + ":1:1: name: "), std::string::npos) << r.err;
       EXPECT_NE(r.err.find(" is not a plain name: " + why), std::string::npos) << r.err;
     }
   }
@@ -183,33 +184,37 @@ TEST_F(Outputs35Test, ModelAndSequenceNamesArePlainNames) {
   EXPECT_FALSE(fs::exists(out));
 }
 
-// `fit --out .` run in the experiment's folder, and `--out` a folder that holds the current
+// `fit --out .` run in an empty folder of its own, and `--out` a folder that holds the current
 // directory: exit 2 before any work ("--out .: the output folder is the current directory; a fit
 // replaces the whole folder"), nothing written. It ran the whole fit, then failed with "Device or
-// resource busy" and left `..partial/`. An output folder holding the experiment file itself is
-// refused as an input of the run.
+// resource busy" and left `..partial/`. `--out .` in the experiment's own folder, and an output
+// folder holding the experiment file, are refused as holding an input of the run (--force or not).
 TEST_F(Outputs35Test, AnOutputFolderHoldingTheCurrentDirectoryOrAnInputIsRefused) {
   const std::string exp = Experiment("pend.yaml", "pend", dir_ + "/log.h5");
   ASSERT_EQ(SysidStreams("simulate " + exp).code, 0);
+  fs::create_directories(dir_ + "/work/deeper");
   const std::map<std::string, std::string> before = Snapshot(dir_);
-  const CliStreams dot = SysidStreams("fit " + exp + " --out . --quiet", 120, "cd " + dir_ + "; ");
+  const CliStreams dot =
+      SysidStreams("fit " + exp + " --out . --quiet", 120, "cd " + dir_ + "/work; ");
   EXPECT_EQ(dot.code, 2) << dot.err;
   EXPECT_NE(dot.err.find("--out .: the output folder is the current directory; a fit replaces "
                          "the whole folder"),
             std::string::npos)
       << dot.err;
-  fs::create_directories(dir_ + "/work/deeper");
   const CliStreams up = SysidStreams("fit " + exp + " --out " + dir_ + "/work --quiet", 120,
                                      "cd " + dir_ + "/work/deeper; ");
   EXPECT_EQ(up.code, 2) << up.err;
   EXPECT_NE(up.err.find("the output folder holds the current directory"), std::string::npos)
       << up.err;
-  fs::remove_all(dir_ + "/work");
+  for (const std::string flag : {"", " --force"}) {
+    const CliStreams own =
+        SysidStreams("fit " + exp + " --out . --quiet" + flag, 120, "cd " + dir_ + "; ");
+    EXPECT_EQ(own.code, 2) << own.err;
+    EXPECT_NE(own.err.find("--out .: the output folder holds " + exp + ", an input of this run"),
+              std::string::npos)
+        << own.err;
+  }
   EXPECT_EQ(Snapshot(dir_), before);  // nothing written: no ..partial, no result
-  const CliStreams holds = SysidStreams("fit " + exp + " --out " + dir_ + " --quiet --force");
-  EXPECT_EQ(holds.code, 2) << holds.err;
-  EXPECT_NE(holds.err.find("an input of this run"), std::string::npos) << holds.err;
-  EXPECT_EQ(Snapshot(dir_), before);
 }
 
 }  // namespace
