@@ -235,7 +235,8 @@ class BadInputTest : public ::testing::Test {
                                   bool simulate = true) {
     ExpectBadInput("check " + exp, pieces);
     ExpectBadInput("fit " + exp + " --out " + prev_ + " --quiet", pieces);
-    if (simulate) ExpectBadInput("simulate " + exp + " --out " + prev_log_, pieces);
+    // --force: the experiment's error comes first, and the existing log is never touched
+    if (simulate) ExpectBadInput("simulate " + exp + " --out " + prev_log_ + " --force", pieces);
   }
 
   static std::string dir_, good_log_, prev_, prev_log_, prev_log_bytes_;

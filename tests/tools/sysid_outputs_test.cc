@@ -181,8 +181,11 @@ TEST_F(SysidOutputsTest, ForeignFilesNeedForce) {
   EXPECT_EQ(ReadFile(foreign), "my notes\n");
   EXPECT_EQ(Run("import " + model + " " + csv + " --out " + foreign + " --force").code, 0);
   EXPECT_NO_THROW(io::ReadLog(foreign));
-  // an mjsysid log is replaced without --force
-  EXPECT_EQ(Run("simulate " + exp_ + " --out " + foreign).code, 0);
+  // a log that import wrote: simulate replaces it only with --force (docs/bad-input.md, "Issue 35:
+  // outputs that would lose data"); import replaces any mjsysid log (its --out is explicit)
+  ExpectRefused("simulate " + exp_ + " --out " + foreign, {foreign, "written by sysid import"});
+  EXPECT_EQ(Run("simulate " + exp_ + " --out " + foreign + " --force").code, 0);
+  EXPECT_EQ(Run("import " + model + " " + csv + " --out " + foreign).code, 0);
 
   // a folder that is not a result folder
   const std::string folder = dir_ + "/mine";
@@ -403,7 +406,7 @@ TEST_F(SysidOutputsTest, ResumeRefusesALogEditedAfterTheKill) {
   std::string other = Experiment(2000, 50);
   other.replace(other.find("damping: 0.08"), 13, "damping: 0.09");
   WriteFile(dir_ + "/other.yaml", other);
-  ASSERT_EQ(Run("simulate " + dir_ + "/other.yaml").code, 0);
+  ASSERT_EQ(Run("simulate " + dir_ + "/other.yaml --force").code, 0);  // another experiment's
   ASSERT_NE(ReadFile(log_), original);
   ExpectRefused("fit --resume " + out + " --quiet",
                 {"sysid fit: --resume " + out + ": the inputs changed since the checkpoint of run ",
