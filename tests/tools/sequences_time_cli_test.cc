@@ -387,9 +387,10 @@ TEST_F(SequencesTime35Test, ASlowSensorAtItsOwnTimesIsAccepted) {
       SysidStreams("import " + model + " run=" + dir_ + "/ctrl.csv+" + dir_ + "/slow.csv+" + dir_ +
                    "/slow_rate.csv --out " + dir_ + "/slow.h5");
   EXPECT_EQ(bad.code, 2) << bad.err;
-  EXPECT_NE(bad.err.find("/slow_rate.csv: /run/time: the median sample period 1 s is more than 100 x "
-                         "the model timestep 0.002 s: "),
-            std::string::npos)
+  EXPECT_NE(
+      bad.err.find("/slow_rate.csv: /run/time: the median sample period 1 s is more than 100 x "
+                   "the model timestep 0.002 s: "),
+      std::string::npos)
       << bad.err;
 }
 
