@@ -13,7 +13,6 @@
 //
 // The subcommands live in one file each (tools/sysid_<subcommand>.cc), their shared helpers in
 // tools/sysid_cli.h; this file is the CLI11 app, the dispatch and the exit codes.
-#include <glog/logging.h>
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
@@ -34,6 +33,7 @@
 #include "sysid/io/log.h"
 #include "sysid/run/fit_experiment.h"
 #include "sysid/run/output_folder.h"
+#include "sysid/solve/quiet_libraries.h"
 #include "tools/sysid_cli.h"
 #ifdef MJSYSID_WITH_MPI
 #include "sysid/mpi/distributed_fit.h"
@@ -100,13 +100,9 @@ int RunGuarded(const std::string& name, const std::function<int()>& run) {
 
 int main(int argc, char** argv) {
   mjsysid::InstallMujocoHandlers();
-  // Ceres logs through glog (e.g. "Terminating: Residual and Jacobian evaluation failed" at
-  // ERROR, whatever Solver::Options::logging_type says): the fit's own report says what happened,
-  // so no third-party log line reaches the terminal (only a FATAL one, before an abort) and no
-  // log file is written
-  FLAGS_logtostderr = true;
-  FLAGS_minloglevel = google::GLOG_FATAL;
-  google::InitGoogleLogging(argv[0]);
+  // no third-party line on the terminal: glog FATAL only, SuiteSparse's printf into the fit's
+  // warnings (sysid/solve/quiet_libraries.h)
+  mjsysid::QuietThirdPartyLibraries(argv[0]);
 #ifdef MJSYSID_WITH_MPI
   // only when started by an MPI launcher (mpirun, srun); ended by std::atexit at exit
   mjsysid::mpi::Initialize(&argc, &argv);

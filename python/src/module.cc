@@ -3,7 +3,6 @@
 // the plain data of a fit (sysid/types.h) and of a log (sysid/io/log.h) as Python classes with
 // numpy arrays, and the library API (fit_api.cc). Every function calls the C++ layers
 // (sysid/run, sysid/sim, sysid/io, tools/report); nothing is computed here.
-#include <glog/logging.h>
 #include <nanobind/eigen/dense.h>
 #include <nanobind/nanobind.h>
 #include <nanobind/stl/function.h>
@@ -33,6 +32,7 @@
 #include "sysid/run/log_output.h"
 #include "sysid/run/output_folder.h"
 #include "sysid/sim/simulate.h"
+#include "sysid/solve/quiet_libraries.h"
 #include "tools/report/report.h"
 
 namespace mjsysid::python {
@@ -277,15 +277,9 @@ NB_MODULE(_mjsysid, m) {
   using namespace mjsysid::python;
   using nb::arg;
   InstallMujocoHandlers();
-  // Ceres logs through glog (e.g. "Terminating: Residual and Jacobian evaluation failed" at ERROR):
-  // as in the CLI (tools/sysid_main.cc), the fit's own result says what happened, so no
-  // third-party log line reaches the terminal (only a FATAL one, before an abort) and no log file
-  // is written. Left alone when the process initialized glog itself.
-  if (!google::IsGoogleLoggingInitialized()) {
-    FLAGS_logtostderr = true;
-    FLAGS_minloglevel = google::GLOG_FATAL;
-    google::InitGoogleLogging("mjsysid");
-  }
+  // as in the CLI: no third-party line on the terminal (glog FATAL only unless the process
+  // initialized glog itself; SuiteSparse's printf into the fit's warnings)
+  QuietThirdPartyLibraries("mjsysid");
   RegisterExceptions();
   m.doc() = "mjsysid: system identification for MuJoCo models (C++ library bindings)";
   m.attr("__version__") = MJSYSID_VERSION;

@@ -9,6 +9,7 @@
 #include "core/text.h"
 #include "sysid/assess/fit_status.h"
 #include "sysid/solve/progress.h"
+#include "sysid/solve/quiet_libraries.h"
 
 namespace mjsysid {
 
@@ -110,6 +111,14 @@ void FitPass::Decide() {
   int accepted_steps = held_accepted_;
   for (size_t i = 1; i < summary_.iterations.size(); ++i) {
     accepted_steps += summary_.iterations[i].step_is_successful ? 1 : 0;
+  }
+  // what SuiteSparse printed during the solve and the uncertainty step (captured, never on the
+  // terminal: sysid/solve/quiet_libraries.h), as one warning
+  const std::vector<std::string> library = TakeThirdPartyMessages();
+  if (!library.empty()) {
+    std::string said;
+    for (const std::string& line : library) said += (said.empty() ? "" : " | ") + line;
+    result_.warnings.push_back("the sparse linear algebra library (SuiteSparse) said: " + said);
   }
   DecideFitStatus(options_, accepted_steps, !diag_.jacobian_warnings.empty(), &result_,
                   cost_not_local_, jacobian_warned_at_estimate_);
