@@ -40,6 +40,82 @@ double Chi2RatioLimit(double dof) {
   return std::max(q / dof, kChi2MinRatio);
 }
 
+// the sensor's residuals are weighted by a stated sigma (the chi-square test applies)
+bool HasSigma(const FitOptions& options, const std::string& sensor) {
+  const auto& sig = options.sensors_with_sigma;
+  return std::find(sig.begin(), sig.end(), sensor) != sig.end();
+}
+
+// Sensors without a sigma: each column's residual at the estimate against the noise estimated
+// from the log itself, pooled over sequences (sysid/assess/noise_estimate.h). Sets
+// r->sensor_noise_ratio, appends the warning naming the columns that fail the test; true when one
+// does.
+bool UnexplainedWithoutSigmas(const FitOptions& options, FitResult* result) {
+  FitResult& r = *result;
+  struct Pooled {
+    double residual2 = 0, noise2 = 0, spread2 = 0;  // sums over measured rows
+  };
+  std::map<std::string, std::vector<Pooled>> columns;  // sensor -> its columns
+  for (const SequenceResult& sr : r.sequences) {
+    Eigen::Index col = 0;
+    for (size_t i = 0; i < sr.sensor_names.size(); ++i) {
+      const std::string& name = sr.sensor_names[i];
+      const int dim = sr.sensor_dims[i];
+      if (!HasSigma(options, name) && sr.simulated_final.cols() >= col + dim &&
+          sr.simulated_final.rows() == sr.measured.rows()) {
+        std::vector<Pooled>& pooled = columns[name];
+        pooled.resize(static_cast<size_t>(dim));
+        for (int c = 0; c < dim; ++c) {
+          const Eigen::VectorXd y = sr.measured.col(col + c);
+          const double noise = EstimateNoiseStd(y);
+          if (!std::isfinite(noise)) continue;
+          const auto measured = !y.array().isNaN();
+          const double rows = static_cast<double>(measured.count());
+          const double mean = measured.select(y.array(), 0.0).sum() / rows;
+          const auto diff = y.array() - sr.simulated_final.col(col + c).array();
+          Pooled& p = pooled[static_cast<size_t>(c)];
+          p.residual2 += measured.select(diff, 0.0).square().sum();
+          p.spread2 += measured.select(y.array() - mean, 0.0).square().sum();
+          p.noise2 += noise * noise * rows;
+        }
+      }
+      col += dim;
+    }
+  }
+  std::string unexplained;
+  for (const auto& [name, pooled] : columns) {
+    // the sensor's worst column, and its worst column that fails the test
+    double worst = -1, flagged_ratio = -1, flagged_fit = 0;
+    for (const Pooled& p : pooled) {
+      if (!(p.noise2 > 0 && p.spread2 > 0)) continue;
+      const double ratio = std::sqrt(p.residual2 / p.noise2);
+      const double fit = FitPercent(std::sqrt(p.residual2 / p.spread2));
+      worst = std::max(worst, ratio);
+      if (ratio > kUnexplainedNoiseFactor && fit < kUnexplainedFitPercent &&
+          ratio > flagged_ratio) {
+        flagged_ratio = ratio;
+        flagged_fit = fit;
+      }
+    }
+    if (worst >= 0) r.sensor_noise_ratio[name] = worst;
+    if (flagged_ratio >= 0) {
+      unexplained += (unexplained.empty() ? "" : ", ") + name + " " +
+                     FormatDigits(flagged_ratio, 3) + " x (% fit " + FormatDigits(flagged_fit, 3) +
+                     ")";
+    }
+  }
+  if (!unexplained.empty()) {
+    r.warnings.push_back(
+        "model mismatch: the fit does not explain the data: the residuals are far above the "
+        "noise estimated from the log itself (sensors without a sigma): " +
+        unexplained +
+        ": the start is in another minimum (try other starts or multiple_shooting) or the "
+        "model lacks an effect in the data; give the sensors' sigmas if their noise is "
+        "filtered or known; the intervals are not valid");
+  }
+  return !unexplained.empty();
+}
+
 }  // namespace
 
 void DecideFitStatus(const FitOptions& options, int accepted_steps, bool jacobian_warned,
@@ -69,8 +145,7 @@ void DecideFitStatus(const FitOptions& options, int accepted_steps, bool jacobia
       for (size_t i = 0; i < sr.sensor_names.size(); ++i) {
         const std::string& name = sr.sensor_names[i];
         const int dim = sr.sensor_dims[i];
-        const auto& sig = options.sensors_with_sigma;
-        if (std::find(sig.begin(), sig.end(), name) != sig.end()) {
+        if (HasSigma(options, name)) {
           const auto w = options.sensor_weights.find(name);
           const double weight = w != options.sensor_weights.end() ? w->second : 1.0;
           // samples not measured (NaN) were masked out of the fit: left out here too
@@ -133,74 +208,8 @@ void DecideFitStatus(const FitOptions& options, int accepted_steps, bool jacobia
     }
   }
 
-  // without sigmas: each column's residual at the estimate against the noise estimated from the
-  // log itself, pooled over sequences (sysid/assess/noise_estimate.h)
-  if (!r.interrupted) {
-    struct Pooled {
-      double residual2 = 0, noise2 = 0, spread2 = 0;  // sums over measured rows
-    };
-    std::map<std::string, std::vector<Pooled>> columns;  // sensor -> its columns
-    const auto& sig = options.sensors_with_sigma;
-    for (const SequenceResult& sr : r.sequences) {
-      Eigen::Index col = 0;
-      for (size_t i = 0; i < sr.sensor_names.size(); ++i) {
-        const std::string& name = sr.sensor_names[i];
-        const int dim = sr.sensor_dims[i];
-        const bool has_sigma = std::find(sig.begin(), sig.end(), name) != sig.end();
-        if (!has_sigma && sr.simulated_final.cols() >= col + dim &&
-            sr.simulated_final.rows() == sr.measured.rows()) {
-          std::vector<Pooled>& pooled = columns[name];
-          pooled.resize(static_cast<size_t>(dim));
-          for (int c = 0; c < dim; ++c) {
-            const Eigen::VectorXd y = sr.measured.col(col + c);
-            const double noise = EstimateNoiseStd(y);
-            if (!std::isfinite(noise)) continue;
-            const auto measured = !y.array().isNaN();
-            const double rows = static_cast<double>(measured.count());
-            const double mean = measured.select(y.array(), 0.0).sum() / rows;
-            const auto diff = y.array() - sr.simulated_final.col(col + c).array();
-            Pooled& p = pooled[static_cast<size_t>(c)];
-            p.residual2 += measured.select(diff, 0.0).square().sum();
-            p.spread2 += measured.select(y.array() - mean, 0.0).square().sum();
-            p.noise2 += noise * noise * rows;
-          }
-        }
-        col += dim;
-      }
-    }
-    std::string unexplained;
-    for (const auto& [name, pooled] : columns) {
-      // the sensor's worst column, and its worst column that fails the test
-      double worst = -1, flagged_ratio = -1, flagged_fit = 0;
-      for (const Pooled& p : pooled) {
-        if (!(p.noise2 > 0 && p.spread2 > 0)) continue;
-        const double ratio = std::sqrt(p.residual2 / p.noise2);
-        const double fit = FitPercent(std::sqrt(p.residual2 / p.spread2));
-        worst = std::max(worst, ratio);
-        if (ratio > kUnexplainedNoiseFactor && fit < kUnexplainedFitPercent &&
-            ratio > flagged_ratio) {
-          flagged_ratio = ratio;
-          flagged_fit = fit;
-        }
-      }
-      if (worst >= 0) r.sensor_noise_ratio[name] = worst;
-      if (flagged_ratio >= 0) {
-        mismatch = true;
-        unexplained += (unexplained.empty() ? "" : ", ") + name + " " +
-                       FormatDigits(flagged_ratio, 3) + " x (% fit " +
-                       FormatDigits(flagged_fit, 3) + ")";
-      }
-    }
-    if (!unexplained.empty()) {
-      r.warnings.push_back(
-          "model mismatch: the fit does not explain the data: the residuals are far above the "
-          "noise estimated from the log itself (sensors without a sigma): " +
-          unexplained +
-          ": the start is in another minimum (try other starts or multiple_shooting) or the "
-          "model lacks an effect in the data; give the sensors' sigmas if their noise is "
-          "filtered or known; the intervals are not valid");
-    }
-  }
+  // without sigmas: the residuals against the noise the log itself shows
+  if (!r.interrupted && UnexplainedWithoutSigmas(options, &r)) mismatch = true;
 
   // the verdict, the first that applies
   if (r.interrupted) {
