@@ -6,7 +6,6 @@
 #include <cstdarg>
 #include <cstdio>
 #include <cstdlib>
-#include <filesystem>
 #include <string>
 #include <system_error>
 #include <vector>
@@ -16,8 +15,6 @@
 #include "sysid/run/output_folder.h"
 
 namespace mjsysid::cli {
-
-namespace fs = std::filesystem;
 
 double Seconds(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -122,19 +119,6 @@ CLI::Validator FiniteNumber() {
         return "";
       },
       "NUMBER");
-}
-
-void PrepareLogOutput(const std::string& out, const std::vector<std::string>& inputs, bool force,
-                      const LogWriter& writer) {
-  run::CheckLogOutput(out, inputs, force, writer);
-  std::error_code ec;
-  const fs::path parent = fs::path(out).parent_path();
-  if (!parent.empty()) {
-    fs::create_directories(parent, ec);
-    if (ec) {
-      throw InputError(out + ": cannot create the folder " + parent.string() + ": " + ec.message());
-    }
-  }
 }
 
 }  // namespace mjsysid::cli

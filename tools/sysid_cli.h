@@ -89,10 +89,7 @@ CLI::Validator FiniteNumber();
 CLI::Validator PositiveFiniteNumber();
 
 using run::LogWriter;
-
-// run::CheckLogOutput (sysid/run/log_output.h), then the output's folder created
-void PrepareLogOutput(const std::string& out, const std::vector<std::string>& inputs, bool force,
-                      const LogWriter& writer);
+using run::PrepareLogOutput;
 
 // the subcommands: each declares its arguments on `app` and returns what runs it
 Command AddSimulate(CLI::App* app);  // tools/sysid_simulate.cc

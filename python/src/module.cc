@@ -98,9 +98,7 @@ io::Log Simulate(nb::handle experiment, std::optional<std::string> out,
     nb::gil_scoped_release release;
     log = sim::SimulateExperiment(config, settings);
     if (write) {
-      std::error_code ec;
-      const fs::path parent = fs::absolute(path).parent_path();
-      fs::create_directories(parent, ec);
+      run::PrepareLogOutput(path, inputs, force, writer);  // checked again, as the CLI does
       io::WriteLog(path, log);
     }
   }

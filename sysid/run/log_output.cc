@@ -75,4 +75,18 @@ void CheckLogOutput(const std::string& out, const std::vector<std::string>& inpu
   }
 }
 
+void PrepareLogOutput(const std::string& out, const std::vector<std::string>& inputs, bool force,
+                      const LogWriter& writer) {
+  CheckLogOutput(out, inputs, force, writer);
+  std::error_code ec;
+  const fs::path parent = fs::path(out).parent_path();
+  if (!parent.empty()) {
+    fs::create_directories(parent, ec);
+    if (ec) {
+      throw OutputError(out + ": cannot create the folder " + parent.string() + ": " +
+                        ec.message());
+    }
+  }
+}
+
 }  // namespace mjsysid::run

@@ -26,4 +26,9 @@ struct LogWriter {
 void CheckLogOutput(const std::string& out, const std::vector<std::string>& inputs, bool force,
                     const LogWriter& writer);
 
+// CheckLogOutput, then the output's folder created (OutputError when it cannot be): called just
+// before the log is written
+void PrepareLogOutput(const std::string& out, const std::vector<std::string>& inputs, bool force,
+                      const LogWriter& writer);
+
 }  // namespace mjsysid::run
