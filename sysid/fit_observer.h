@@ -29,6 +29,7 @@ namespace mjsysid {
 enum class FitStage {
   kStart,          // rollouts and Jacobians at the initial values
   kRefit,          // auto: the fit starts again in multiple-shooting segments
+  kGlobal,         // a pass of the global stage (sysid/fit/global_stage.h)
   kUncertainty,    // the Jacobian at the estimate
   kIntervalCheck,  // the intervals' quadratic model against the cost
 };

@@ -264,6 +264,26 @@ struct FitOptions {
   // (single shooting, no robust loss, no fitted control delay, segment_steps auto with its probe's
   // growth at most kRefitGrowth: sysid/fit/pass_build.cc); 0: off, Ceres' tolerances alone
   double gauss_newton_stop = 0.03;
+  // the global stage (sysid/fit/global_stage.h): when the local fit ends other than converged,
+  // horizon continuation from its estimate, the better of the two kept; false: the local fit only
+  bool global_stage = true;
+  // its budget, in multiples of the local fit's simulation steps (> 0): no pass of the stage
+  // starts once the stage has simulated this many steps (steps, not seconds: the same rounds on
+  // any machine at any load)
+  double global_budget = 3.0;
+
+  // What one pass of the global stage changes (sysid/fit/global_stage.h sets these on its copies
+  // of the options; a user's fit leaves them at their defaults).
+  struct Continuation {
+    // segment_steps >= 0 counts as auto's contact segments (jumping sensors left out, event
+    // windows, the states held first): a pass that repeats a local fit's auto choice
+    bool contact_segments = false;
+    // segments of any kind start with their states held on the data (hold_states_first)
+    bool hold_states = false;
+    // ... and keep them held: the solve with the states held is the whole solve
+    bool held_only = false;
+  };
+  Continuation continuation;
 
   // How the fit is computed, not what it computes: switches that keep the estimate (the same bits,
   // or the same fit) and exist for benchmarks and tests; the defaults are what a user wants.

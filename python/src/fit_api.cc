@@ -62,6 +62,8 @@ const std::vector<std::string> kOptionKeys = {"max_iterations",
                                               "relative_step",
                                               "reduce_model",
                                               "gauss_newton_stop",
+                                              "global_stage",
+                                              "global_budget",
                                               "states",
                                               "verbose"};
 const std::vector<std::string> kMeasurementKeys = {"sensor", "delay", "gain", "bias"};
@@ -320,6 +322,10 @@ FitOptions OptionsOf(const nb::dict& d) {
   }
   o.reduce_model = Get<bool>(d, "reduce_model", o.reduce_model, what);
   o.gauss_newton_stop = Get<double>(d, "gauss_newton_stop", o.gauss_newton_stop, what);
+  // the global stage (sysid/fit/global_stage.h)
+  o.global_stage = Get<bool>(d, "global_stage", o.global_stage, what);
+  o.global_budget = Get<double>(d, "global_budget", o.global_budget, what);
+  if (!(o.global_budget > 0)) throw std::invalid_argument("options: global_budget must be > 0");
   // logged states fitted as data: {qpos: {sigma, joints?}, qvel: ..., act: {sigma, actuators?}}
   if (d.contains("states")) {
     if (!nb::isinstance<nb::dict>(d["states"])) {

@@ -122,7 +122,7 @@ void FitPass::Decide() {
   }
   DecideFitStatus(options_, accepted_steps, !diag_.jacobian_warnings.empty(), &result_,
                   cost_not_local_, jacobian_warned_at_estimate_);
-  for (const auto& mo : fit_.models) result_.diagnostics.simulation_steps += mo.sim->StepCount();
+  FinishRecords();
   // what the reduced models switched off, summed over the models
   FitResult::Diagnostics::Reduction& r = result_.diagnostics.reduction;
   r = FitResult::Diagnostics::Reduction();
@@ -140,6 +140,13 @@ void FitPass::Decide() {
       }
     }
   }
+}
+
+void FitPass::FinishRecords() {
+  if (result_.iterations == 0)
+    result_.iterations = static_cast<int>(summary_.iterations.size()) - 1;
+  result_.diagnostics.simulation_steps = 0;
+  for (const auto& mo : fit_.models) result_.diagnostics.simulation_steps += mo.sim->StepCount();
   result_.diagnostics.ledger = ledger_.Finish();
   result_.seconds = Seconds();
 }

@@ -66,6 +66,9 @@ class FitPass {
   Stop Solve();
   // runs stages 5-9 after Solve: the result is complete
   void Assess();
+  // instead of Assess, for a pass whose estimate alone is wanted: the result's seconds, simulation
+  // steps and ledger (its trace is the solve's)
+  void FinishRecords();
 
   // the result (complete after Assess)
   FitResult& result() { return result_; }
@@ -74,6 +77,11 @@ class FitPass {
   const std::string& first_jacobian_warning() const;
   // seconds since the pass began
   double Seconds() const;
+  // the physical parameters' values now (after Solve: the solve's end point)
+  std::vector<double> Estimate() const;
+  // the later segments' states start from the data (logged states or joint sensors), not from a
+  // rollout (after Solve)
+  bool StatesFromData() const;
 
  private:
   void Start();

@@ -38,7 +38,14 @@ bool FitPass::RunSolver() {
   diag_.jacobian_warnings.clear();
   ++solve_.cost_inputs_epoch;  // (jacobian_warnings cleared)
   ledger_.solving = true;
-  if (plan_.contact_segments && options_.hold_states_first && !fit_.shards) {
+  // a global-stage pass holds any segments' states, when they start from the data
+  const bool hold = plan_.contact_segments || (options_.continuation.hold_states &&
+                                               plan_.segment_steps > 0 && StatesFromData());
+  if (options_.continuation.held_only && !(hold && options_.hold_states_first && !fit_.shards)) {
+    ledger_.solving = false;  // nothing to hold: a held-only pass solves nothing
+    return true;
+  }
+  if (hold && options_.hold_states_first && !fit_.shards) {
     const ceres::Solver::Summary held = SolveWithStatesHeld(vars_, problem_.get(), solver_);
     for (size_t i = 1; i < held.iterations.size(); ++i) {
       held_accepted_ += held.iterations[i].step_is_successful ? 1 : 0;
@@ -48,6 +55,11 @@ bool FitPass::RunSolver() {
     plan_.segments.held_initial_cost = held.initial_cost;
     plan_.segments.held_final_cost = held.final_cost;
     result_.segment_reason = plan_.segments;
+    if (options_.continuation.held_only) {
+      summary_ = held;
+      ledger_.solving = false;
+      return true;
+    }
   }
   solve_.cache->SetColumnsAhead(true);
   solve_.compressed = compress_ && options_.advanced.fold_ahead ? &compressed_ : nullptr;
@@ -123,6 +135,17 @@ void FitPass::RecordSolve() {
     e.at_upper = OnBound(v, e.value, false);
     e.std_error = e.ci95_low = e.ci95_high = std::numeric_limits<double>::quiet_NaN();
   }
+}
+
+bool FitPass::StatesFromData() const {
+  const std::string& source = plan_.segments.start_source;
+  return !source.empty() && source != kStartFromRollout;
+}
+
+std::vector<double> FitPass::Estimate() const {
+  std::vector<double> out(static_cast<size_t>(np_));
+  for (int v = 0; v < np_; ++v) out[static_cast<size_t>(v)] = fit_.Physical(v, vars_.z[v]);
+  return out;
 }
 
 // whether variable v's value is on its lower or upper bound (sysid/types.h OnBound)

@@ -7,14 +7,17 @@
 //     beyond linear is refitted in segments (SegmentStepsAfterFailure); the refit is the result
 //     when it converges, else the single-shooting fit stays, saying so.
 // The passes' records are combined as records: the refit's segment choice replaced by the
-// policy's reason, traces, steps, seconds and ledger rows joined.
+// policy's reason, traces, steps, seconds and ledger rows joined. Then the global stage
+// (sysid/fit/global_stage.h) may continue from the local fit's estimate.
 #include "sysid/fit/policy.h"
 
 #include <algorithm>
 #include <limits>
 #include <string>
 
+#include "sysid/fit/global_stage.h"
 #include "sysid/fit/pass.h"
+#include "sysid/fit/records.h"
 #include "sysid/fit_observer.h"
 #include "sysid/solve/multiple_shooting.h"
 #include "sysid/solve/progress.h"
@@ -37,14 +40,8 @@ FitResult Refit(const FitParts& parts, const FitOptions& options, int steps,
   return std::move(pass.result());
 }
 
-// each ledger row of r as part of `what` (e.g. "single-shooting fit: solve: Jacobians")
-void PrefixLedger(const std::string& what, FitResult* r) {
-  for (LedgerRow& row : r->diagnostics.ledger) row.phase = what + ": " + row.phase;
-}
-
-}  // namespace
-
-FitResult FitWithPolicy(const FitParts& parts, const FitOptions& options) {
+// the local fit: one pass, and auto's refit in segments; *mode: the horizon of the result's pass
+FitResult LocalFit(const FitParts& parts, const FitOptions& options, LocalMode* mode) {
   FitPass pass(parts, options);
   if (pass.Solve() == FitPass::Stop::kJacobianWarning) {
     // single shooting's Jacobian stopped being local: the refit in segments is the result
@@ -57,11 +54,13 @@ FitResult FitWithPolicy(const FitParts& parts, const FitOptions& options) {
       refit.seconds += first_seconds;
       refit.trace.insert(refit.trace.begin(), pass.result().trace.begin(),
                          pass.result().trace.end());
+      *mode = {steps, false};
       return refit;
     }
   }
   pass.Assess();
   FitResult& result = pass.result();
+  *mode = {pass.plan().segment_steps, pass.plan().contact_segments};
   if (options.segment_steps >= 0 || pass.plan().segment_steps != 0 || result.converged ||
       result.interrupted) {
     return std::move(result);
@@ -75,24 +74,23 @@ FitResult FitWithPolicy(const FitParts& parts, const FitOptions& options) {
   if (steps <= 0) return std::move(result);
   FitResult refit = Refit(parts, options, steps, reason, result.seconds);
   if (refit.outcome == FitStatus::kConverged) {
-    refit.seconds += result.seconds;
-    refit.diagnostics.simulation_steps += result.diagnostics.simulation_steps;
     // the ledger adds up to simulation_steps: the single-shooting fit's rows first
-    PrefixLedger("single-shooting fit", &result);
-    std::vector<LedgerRow>& ledger = refit.diagnostics.ledger;
-    ledger.insert(ledger.begin(), result.diagnostics.ledger.begin(),
-                  result.diagnostics.ledger.end());
-    refit.trace.insert(refit.trace.begin(), result.trace.begin(), result.trace.end());
+    AddRecords(result, "single-shooting fit", true, &refit);
+    *mode = {steps, false};
     return refit;
   }
   result.warnings.push_back("auto: " + reason + " were tried and ended " +
                             FitStatusName(refit.outcome) + "; the single-shooting fit stays");
-  result.seconds += refit.seconds;
-  result.diagnostics.simulation_steps += refit.diagnostics.simulation_steps;
-  PrefixLedger("multiple-shooting refit", &refit);
-  std::vector<LedgerRow>& ledger = result.diagnostics.ledger;
-  ledger.insert(ledger.end(), refit.diagnostics.ledger.begin(), refit.diagnostics.ledger.end());
+  AddRecords(refit, "multiple-shooting refit", false, &result);
   return std::move(result);
+}
+
+}  // namespace
+
+FitResult FitWithPolicy(const FitParts& parts, const FitOptions& options) {
+  LocalMode mode;
+  FitResult local = LocalFit(parts, options, &mode);
+  return GlobalStage(parts, options, mode, std::move(local));
 }
 
 }  // namespace mjsysid

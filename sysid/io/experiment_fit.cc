@@ -28,6 +28,7 @@ const std::vector<std::string> kTransforms = {"none", "log", "scale"};
 const std::vector<std::string> kJacobianModes = {"auto", "directional", "matrix", "whole_rollout"};
 const std::vector<std::string> kDifferences = {"forward", "central"};
 const std::vector<std::string> kLossTypes = {"none", "huber", "cauchy"};
+const std::vector<std::string> kGlobalStage = {"auto", "off"};
 
 }  // namespace
 
@@ -185,7 +186,7 @@ void Parser::ParseSolver(const Field& f, ExperimentConfig* c) const {
       *this, f,
       {"max_iterations", "function_tolerance", "gradient_tolerance", "parameter_tolerance",
        "jacobian", "differences", "relative_step", "threads", "loss", "verbose", "starts", "seed",
-       "reduce_model", "gauss_newton_stop", "memory_limit_gb"});
+       "reduce_model", "gauss_newton_stop", "memory_limit_gb", "global", "global_budget"});
   c->solver_marks = r.marks();
   FitOptions* o = &c->options;
   const long long kIntMax = std::numeric_limits<int>::max();
@@ -226,6 +227,9 @@ void Parser::ParseSolver(const Field& f, ExperimentConfig* c) const {
   if (r.Has("gauss_newton_stop")) {
     o->gauss_newton_stop = NonNegative(r.Get("gauss_newton_stop"));
   }
+  // the global stage (sysid/fit/global_stage.h): auto | off, and its budget in local fits
+  if (r.Has("global")) o->global_stage = Enum(r.Get("global"), kGlobalStage) == 0;
+  if (r.Has("global_budget")) o->global_budget = Positive(r.Get("global_budget"));
   // multi-start (sysid/run/multi_start.h)
   if (r.Has("starts")) c->starts = static_cast<int>(Integer(r.Get("starts"), 1, 10000));
   if (r.Has("seed")) {

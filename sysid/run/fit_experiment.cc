@@ -226,6 +226,8 @@ void SetRunHeader(const io::ExperimentConfig& cfg, const FitOptions& options, co
       {"gradient_tolerance", FormatG17(options.gradient_tolerance)},
       {"parameter_tolerance", FormatG17(options.parameter_tolerance)},
       {"gauss_newton_stop", FormatG17(options.gauss_newton_stop)},
+      {"global", options.global_stage ? "auto" : "off"},
+      {"global_budget", FormatG17(options.global_budget)},
       {"jacobian", JacobianModeName(options.jacobian.mode)},
       {"differences", options.jacobian.central ? "central" : "forward"},
       {"relative_step", FormatG17(options.jacobian.relative_step)},

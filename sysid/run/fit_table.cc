@@ -27,6 +27,8 @@ const char* StageName(FitStage stage) {
       return "start";
     case FitStage::kRefit:
       return "refit";
+    case FitStage::kGlobal:
+      return "global";
     case FitStage::kUncertainty:
     case FitStage::kIntervalCheck:
       return "unc";

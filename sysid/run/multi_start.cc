@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "core/text.h"
+#include "sysid/assess/chi_square.h"
 #include "sysid/fit_observer.h"
 
 namespace mjsysid::run {
@@ -18,7 +19,6 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 // z of the one-sided 1 - 1e-3 normal quantile: the cost excess test of a local minimum
-constexpr double kLocalMinimumZ = 3.090232306167813;
 constexpr double kZ95 = 1.959963984540054;
 // an estimate without a finite interval "differs" above this relative difference
 constexpr double kRelativeDifference = 1e-3;
@@ -43,12 +43,6 @@ std::vector<int> Permutation(int n, std::mt19937_64& rng) {
 bool Honest(FitStatus s) { return s == FitStatus::kConverged || s == FitStatus::kModelMismatch; }
 
 }  // namespace
-
-double Chi2Quantile(double dof, double z) {
-  if (!(dof > 0)) return 0;
-  const double a = 2.0 / (9.0 * dof);
-  return dof * std::pow(1.0 - a + z * std::sqrt(a), 3);
-}
 
 RowMatrix SpreadStarts(const std::vector<FitParameter>& parameters, int n, std::uint64_t seed) {
   const auto np = static_cast<Eigen::Index>(parameters.size());
@@ -239,10 +233,8 @@ std::vector<std::string> LocalMinimaWarnings(const FitResult& result) {
   if (result.starts.size() < 2) return out;
   const auto b = static_cast<size_t>(result.best_start);
   const StartResult& best = result.starts[b];
-  const double np = static_cast<double>(result.parameters.size());
-  double s2 = result.uncertainty.residual_variance;
-  if (!(s2 > 0) || !std::isfinite(s2)) s2 = 1.0;
-  const double limit = Chi2Quantile(std::max(np, 1.0), kLocalMinimumZ);
+  const int np = static_cast<int>(result.parameters.size());
+  const double s2 = result.uncertainty.residual_variance;
 
   std::string detail;
   int count = 0;
@@ -255,8 +247,7 @@ std::vector<std::string> LocalMinimaWarnings(const FitResult& result) {
       continue;
     }
     // a cost excess the noise does not explain
-    const double excess = 2.0 * (r.final_cost - best.final_cost) / s2;
-    if (!(excess > limit)) continue;
+    if (!AboveByMoreThanNoise(r.final_cost, best.final_cost, s2, np)) continue;
     // estimates outside the best one's intervals
     std::string differ;
     for (size_t j = 0; j < result.parameters.size(); ++j) {

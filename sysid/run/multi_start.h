@@ -22,8 +22,8 @@
 // start's error is rethrown.
 //
 // Local minima: a start k is in another minimum when its final cost exceeds the best by more
-// than the noise explains, 2 (cost_k - cost_best) / s^2 > the chi-square (p degrees of freedom)
-// quantile at 1 - 1e-3 (s^2 the best fit's residual variance, p the number of estimated values),
+// than the noise explains (sysid/assess/chi_square.h, AboveByMoreThanNoise: s^2 the best fit's
+// residual variance, p the number of estimated values),
 // and at least one estimate differs from the best by more than the best's 95 % half-interval (or
 // by more than 1e-3 relative when the best has no finite interval). Then a warning names the
 // starts, their costs and the parameters that differ.
@@ -50,9 +50,6 @@ namespace mjsysid::run {
 
 // n x np physical start values (row 0: the parameters' own initial values); n >= 1
 RowMatrix SpreadStarts(const std::vector<FitParameter>& parameters, int n, std::uint64_t seed);
-
-// the chi-square quantile (Wilson-Hilferty) with dof degrees of freedom at standard normal z
-double Chi2Quantile(double dof, double z);
 
 // The fits of bp from n starts (n >= 2), options as for one fit (options.threads: all the fits'
 // threads together). progress: OnStartDone to options.observer per finished start (from the

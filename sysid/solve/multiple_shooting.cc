@@ -142,6 +142,8 @@ HorizonChoice ChooseHorizon(const PreparedFit& fit, const std::vector<Trajectory
     out.reason = out.steps == 0
                      ? "single shooting: segment_steps 0 (set)"
                      : "multiple shooting: segment_steps " + std::to_string(out.steps) + " (set)";
+    // a global-stage pass repeating a local fit's contact segments (sysid/fit/global_stage.h)
+    out.contacts = out.steps > 0 && options.continuation.contact_segments;
     return out;
   }
   double worst_e = 0, rate = 0;  // largest E; lambda of the earliest crossing
@@ -448,7 +450,7 @@ std::string SegmentStart(const PreparedFit& fit, int q, int k0, const Trajectory
   // the measured sample at step k0, if one lies on it (off-grid logs: often none)
   const std::vector<double>& position = fit.grids[q].position;
   const auto at = std::lower_bound(position.begin(), position.end(), static_cast<double>(k0));
-  if (at == position.end() || *at != static_cast<double>(k0)) return "the rollout";
+  if (at == position.end() || *at != static_cast<double>(k0)) return kStartFromRollout;
   const Eigen::Index i = at - position.begin();
   if (sq.qpos.rows() > i && sq.qvel.rows() > i && sq.qpos.cols() == nq && sq.qvel.cols() == nv &&
       sq.qpos.row(i).allFinite() && sq.qvel.row(i).allFinite()) {
@@ -467,11 +469,11 @@ std::string SegmentStart(const PreparedFit& fit, int q, int k0, const Trajectory
   }
   for (int j = 0; j < m.njnt; ++j) {
     const bool scalar = m.jnt_type[j] == mjJNT_HINGE || m.jnt_type[j] == mjJNT_SLIDE;
-    if (!scalar || pos_col[j] < 0 || vel_col[j] < 0) return "the rollout";
+    if (!scalar || pos_col[j] < 0 || vel_col[j] < 0) return kStartFromRollout;
   }
   for (int j = 0; j < m.njnt; ++j) {
     const double qj = sq.measured(i, pos_col[j]), vj = sq.measured(i, vel_col[j]);
-    if (!std::isfinite(qj) || !std::isfinite(vj)) return "the rollout";  // a masked cell
+    if (!std::isfinite(qj) || !std::isfinite(vj)) return kStartFromRollout;  // a masked cell
   }
   for (int j = 0; j < m.njnt; ++j) {
     (*x)[m.jnt_qposadr[j]] = sq.measured(i, pos_col[j]);

@@ -79,7 +79,8 @@ int SegmentStepsAfterFailure(double growth, double rate, int shortest_steps, std
 
 // x (nphys) = the initial state of sequence q's segment at sample k0 > 0: logged states
 // (FitSequence::states), else jointpos/jointvel sensors, else rollout.states.row(k0); act from
-// the rollout. Returns where it came from (for the reason).
+// the rollout. Returns where it came from (for the reason): kStartFromRollout when not the data.
+constexpr char kStartFromRollout[] = "the rollout";
 std::string SegmentStart(const PreparedFit& fit, int q, int k0, const Trajectory& rollout,
                          std::vector<double>* x);
 

@@ -252,6 +252,24 @@ TEST_F(ExperimentTest, MultipleShootingAutoForms) {
               "segment_steps: auto|0|N");
 }
 
+// solver.global: auto (default) | off, solver.global_budget > 0 (default 3 local fits); other
+// values name the key, its line and the forms
+TEST_F(ExperimentTest, GlobalStageKeys) {
+  const std::string base = kPendulum;
+  const ExperimentConfig d = LoadExperiment(Write("d.yaml", base));
+  EXPECT_TRUE(d.options.global_stage);
+  EXPECT_DOUBLE_EQ(d.options.global_budget, 3.0);
+  const ExperimentConfig c =
+      LoadExperiment(Write("c.yaml", base + "solver: {global: off, global_budget: 1.5}\n"));
+  EXPECT_FALSE(c.options.global_stage);
+  EXPECT_DOUBLE_EQ(c.options.global_budget, 1.5);
+  EXPECT_TRUE(
+      LoadExperiment(Write("a.yaml", base + "solver: {global: auto}\n")).options.global_stage);
+  ExpectError(base + "solver: {global: sometimes}\n", 4, 18,
+              "solver.global: 'sometimes' is not one of", "allowed values: auto, off");
+  ExpectError(base + "solver: {global_budget: 0}\n", 4, 25, "solver.global_budget");
+}
+
 // multiple_shooting: continuity_scale relative (default) | absolute, jumping_sensors omit (default)
 // | fit; other values name the key, its line and the forms
 TEST_F(ExperimentTest, MultipleShootingContinuityScaleAndJumpingSensors) {
