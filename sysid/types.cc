@@ -183,7 +183,9 @@ std::string IntervalCheckText(const IntervalCheckRecord& r) {
   const std::string wide = FormatDigits(100 * r.wide_fraction, 3) + " % of the value";
   switch (r.kind) {
     case IntervalCheckRecord::Kind::kRanRugged:
-      return "ran: " + std::to_string(r.evaluations) + " cost evaluations (" + r.rugged + ")";
+      return "ran: " + std::to_string(r.evaluations) + " cost evaluations (" + r.rugged + ")" +
+             (r.envelope.empty() ? ""
+                                 : "; the cost is rugged at the intervals' scale: " + r.envelope);
     case IntervalCheckRecord::Kind::kRanSmooth:
       return "ran: " + std::to_string(r.evaluations) +
              " cost evaluations (smooth rollouts, standard errors above " + wide + ")";

@@ -493,6 +493,9 @@ struct IntervalCheckRecord {
   int skipped = 0;      // kSkippedSmooth: simulator parameters skipped
   int parameters = 0;   // the simulator parameters
   std::string rugged;   // kRanRugged: why (RuggedReason, e.g. "constraint rows come, go ...")
+  // kRanRugged, the check failed and the envelope held (sysid/assess/interval_check.h,
+  // CheckRuggedEnvelope): what the intervals are, e.g. "the Jacobian's, widened x1.4 on NAME"
+  std::string envelope;
   // a standard error is wide above this fraction of its value (kSmoothRelativeStd)
   double wide_fraction = 0;
   // a record read from a result file: the text as written there; IntervalCheckText gives it as it

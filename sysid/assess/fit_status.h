@@ -26,7 +26,8 @@
 //   kUnexplainedFitPercent (sysid/assess/noise_estimate.h); result->sensor_noise_ratio records
 //   the ratio per sensor. Each test's warning is appended whatever the verdict.
 // - jacobian_unreliable when cost_not_local: the cost at the estimate +- one standard error is
-//   not what the Jacobian predicts (sysid/assess/interval_check.h). Needs no sigmas.
+//   not what the Jacobian predicts (sysid/assess/interval_check.h) and, on rollouts that can make
+//   the cost rugged, the envelope check (CheckRuggedEnvelope) did not hold either. Needs no sigmas.
 // - converged otherwise; intervals_valid only then (and when the uncertainty step ran).
 #pragma once
 

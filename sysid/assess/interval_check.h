@@ -40,6 +40,36 @@ IntervalCheck CheckIntervalScale(const Eigen::VectorXd& r, const RowMatrix& J,
                                  const std::vector<std::string>& names,
                                  const std::function<bool(int, double, double*)>& cost_at);
 
+// Where CheckIntervalScale fails on a rugged cost (contacts: the cost jumps where a contact comes
+// one step earlier or later), the jumps are the timing of contact events, not information about
+// the parameters, and the question is whether the Jacobian's intervals still bound the estimate.
+// CheckRuggedEnvelope evaluates the cost at every variable's estimate +- 1 and +- 2 standard
+// errors (4 evaluations each; a side outside the bounds or failing is skipped) and asks two
+// things of each:
+// - no lower point: no cost there is below the estimate's by more than the noise explains
+//   (sysid/assess/chi_square.h, AboveByMoreThanNoise, 1 degree of freedom, s2 the residual
+//   variance); else the estimate is not the bottom of its own interval (`lower` says where);
+// - the cost rises at least as fast as the quadratic model: where it rises less (actual change
+//   below the predicted one, both in cost units), the variable's interval widens by
+//   sqrt(predicted / actual) at the worst such point (widen[v] >= 1); a change <= 0 at 2
+//   standard errors that is not a lower point leaves the interval unbounded (at 1: skipped).
+// Envelope intervals are valid (`valid`) when no lower point exists and every interval is bounded:
+// then the Jacobian's standard errors times widen are the intervals, marked as those of a rugged
+// cost. Measured on the outside suite (docs/numerics.md, "Contact: intervals on a rugged cost").
+struct RuggedEnvelope {
+  bool valid = false;
+  int checked = 0;        // cost evaluations made
+  Eigen::VectorXd widen;  // per variable of std_error, >= 1 (1 where nothing widened)
+  std::string lower;      // "NAME +2 std: cost -A" for the lowest point found below the estimate
+  std::string unbounded;  // "NAME -1 std: cost +A" for a point that did not rise
+  std::string widest;     // "NAME x1.8" for the largest widening ("" when none reaches 1 %)
+};
+
+RuggedEnvelope CheckRuggedEnvelope(const Eigen::VectorXd& r, const RowMatrix& J,
+                                   const Eigen::VectorXd& std_error,
+                                   const std::vector<std::string>& names, double s2,
+                                   const std::function<bool(int, double, double*)>& cost_at);
+
 // Where the check can find something. The cost jumps where the constraint forces switch branch:
 // a contact or limit that comes or goes, a friction row between sticking and slipping (MuJoCo's
 // constraint forces are smooth functions of the state on each branch). The nominal rollouts at

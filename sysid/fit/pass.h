@@ -17,7 +17,8 @@
 //                                         estimate's values and bound flags
 //   6. Uncertainty  (pass_uncertainty.cc) the Jacobian at the estimate and the covariance
 //   7. CheckIntervals (pass_intervals.cc) the cost one standard error away against the Jacobian's
-//                                         quadratic model
+//                                         quadratic model; on a rugged cost its envelope at +-1
+//                                         and +-2 standard errors
 //   8. FinalSignals (pass_signals.cc)     derived inertials, bound and identifiability warnings,
 //                                         the simulated signals at the start and the estimate
 //   9. Decide       (pass.cc)             the status (sysid/assess/fit_status.h), steps, ledger,
@@ -101,6 +102,8 @@ class FitPass {
   // outside its bounds or when the residuals cannot be evaluated
   bool CostAt(int v, double delta, double* cost);
   bool OnBound(int v, double value, bool lower) const;
+  // the variables' standard errors, 95 % intervals and covariance scaled by widen (stage 7)
+  void WidenIntervals(const Eigen::VectorXd& widen);
 
   const FitParts parts_;
   PreparedFit& fit_;

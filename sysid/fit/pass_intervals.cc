@@ -68,6 +68,41 @@ void FitPass::CheckIntervals() {
   record.parameters = np_;
   record.rugged = rugged;
   record.wide_fraction = kSmoothRelativeStd;
+  // a rugged cost: whether the Jacobian's intervals still bound the estimate (a lower point
+  // within 2 standard errors, or a cost that does not rise, says no)
+  if (!ic.local && !rugged.empty()) {
+    const RuggedEnvelope env =
+        CheckRuggedEnvelope(r_aug_.col(nvar), r_aug_.leftCols(nvar), se, plan_.names,
+                            result_.uncertainty.residual_variance,
+                            [this](int v, double delta, double* c) { return CostAt(v, delta, c); });
+    record.evaluations += env.checked;
+    if (env.valid) {
+      WidenIntervals(env.widen);
+      record.envelope =
+          "intervals from the Jacobian, " +
+          (env.widest.empty() ? std::string("not widened")
+                              : "widened where the cost rises slower than its model (largest: " +
+                                    env.widest + ")") +
+          "; the cost at +-1 and +-2 standard errors along every variable rises and is nowhere "
+          "below the estimate's";
+      result_.warnings.push_back(
+          "the cost is rugged at the scale of the intervals (" + ic.worst +
+          "): contacts make it jump where a contact comes one step earlier or later; the "
+          "intervals are the Jacobian's" +
+          (env.widest.empty() ? std::string() : ", widened (largest: " + env.widest + ")") +
+          ", checked against the cost at +-1 and +-2 standard errors along every variable "
+          "(no lower point, a rise everywhere); the check is local: they are valid when the "
+          "status is converged, the fit explaining the data (docs/numerics.md, \"Contact: "
+          "intervals on a rugged cost\")");
+      return;
+    }
+    result_.warnings.push_back(
+        "rugged cost: " +
+        (env.lower.empty()
+             ? "the cost does not rise at " + env.unbounded
+             : "a point below the estimate by more than the noise explains: " + env.lower) +
+        ", so the estimate is not the bottom of its intervals");
+  }
   if (!ic.local) {
     cost_not_local_ = true;
     result_.warnings.push_back(
@@ -75,6 +110,24 @@ void FitPass::CheckIntervals() {
         "; contacts, impacts or stick-slip make the rollouts jump when a parameter moves by less "
         "than its standard error, so the Jacobian describes the cost only very locally and the "
         "intervals are not valid (docs/numerics.md, \"Contact: a rugged cost\")");
+  }
+}
+
+// the intervals (std errors, 95 % intervals, covariance) of the variables scaled by widen
+void FitPass::WidenIntervals(const Eigen::VectorXd& widen) {
+  constexpr double kZ95 = 1.959963984540054;
+  mjsysid::Uncertainty& u = result_.uncertainty;
+  for (Eigen::Index v = 0; v < widen.size(); ++v) {
+    if (widen[v] == 1) continue;
+    ParameterEstimate& e = result_.parameters[static_cast<size_t>(v)];
+    e.std_error *= widen[v];
+    e.ci95_low = e.value - kZ95 * e.std_error;
+    e.ci95_high = e.value + kZ95 * e.std_error;
+    if (v < u.std_error.size()) u.std_error[v] *= widen[v];
+    if (v < u.covariance.rows()) {
+      u.covariance.row(v) *= widen[v];
+      u.covariance.col(v) *= widen[v];
+    }
   }
 }
 

@@ -301,3 +301,20 @@ def test_statistical_stop_is_reported(root, frames):  # noqa: F811
     for p, q in zip(stop.parameters, ceres.parameters):
         assert abs(p.value - q.value) <= 0.03 * q.std_error, (p, q)
         assert p.std_error == pytest.approx(q.std_error, rel=0.005), (p, q)
+
+
+def test_global_stage_options(root, frames):  # noqa: F811
+    # the global stage (docs/numerics.md "Global stage") runs only after a local fit that did not
+    # converge: on the pendulum, which converges, it changes nothing (the same bits) and says
+    # nothing; global_budget must be positive
+    model = str(root / "models/pendulum.xml")
+    seqs = sequences_of(frames)[:1]
+    base = {"sensor_sigmas": SIGMAS, "max_iterations": 30, "threads": 1}
+    on = mjsysid.fit(model, PARAMETERS, seqs, options=base)
+    off = mjsysid.fit(model, PARAMETERS, seqs, options=dict(base, global_stage=False,
+                                                            global_budget=0.5))
+    assert on.status == "converged", on.status
+    assert on.estimates == off.estimates
+    assert not any(w.startswith("global stage") for w in on.warnings), on.warnings
+    with pytest.raises(ValueError, match="global_budget must be > 0"):
+        mjsysid.fit(model, PARAMETERS, seqs, options={"global_budget": 0.0})

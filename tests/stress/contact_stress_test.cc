@@ -204,7 +204,7 @@ INSTANTIATE_TEST_SUITE_P(Cases, ContactStressTest, ::testing::ValuesIn(Cases()),
 //   entry off; bound 0.5), and a step of 4e-5 relative in friction (0.2 of its standard error)
 //   raises the cost by more than half (measured x3.9; bound x1.5).
 // Then the fit (from the experiment's start 0.4, 1.5) must say so: not converged, a non-zero exit
-// code, intervals not valid, and the warning that the cost is not smooth at the intervals' scale.
+// code, intervals not valid, and a warning that the cost is rugged at the intervals' scale.
 TEST(BoxFloorContact, JacobianExactCostJumpsFitSaysSo) {
   const fs::path dir = test::FreshTempDir("contact_box_floor");
   io::ExperimentConfig cfg =
@@ -301,9 +301,14 @@ TEST(BoxFloorContact, JacobianExactCostJumpsFitSaysSo) {
   EXPECT_NE(out.file.outcome, FitStatus::kConverged);
   EXPECT_NE(out.exit_code, 0);
   EXPECT_FALSE(out.file.intervals_valid);
+  // the rugged cost is named: the interval check failed ("not smooth"), or it failed and the
+  // envelope check (sysid/assess/interval_check.h) held; measured: the envelope holds at this
+  // estimate with the truth 13 standard errors away (the check is local), and the chi-square test
+  // says model_mismatch (the estimate does not explain the data as the truth does)
   bool said = false;
   for (const std::string& w : out.file.warnings) {
-    said = said || w.find("not smooth at the scale of the intervals") != std::string::npos;
+    said = said || w.find("not smooth at the scale of the intervals") != std::string::npos ||
+           w.find("the cost is rugged at the scale of the intervals") != std::string::npos;
   }
   EXPECT_TRUE(said) << "no warning about the rugged cost";
   fs::remove_all(dir);

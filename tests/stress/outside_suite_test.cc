@@ -6,10 +6,11 @@
 // mode), simulated from the truth and fitted through the real experiment runner with the harness
 // the robust suite uses (tests/stress/suite_harness.h).
 //
-// It asserts honesty only (suite::ExpectHonest: a `converged` fit has every truth within 4 of its
+// It asserts honesty (suite::ExpectHonest: a `converged` fit has every truth within 4 of its
 // reported standard errors; any other ending is a non-zero exit code and says its intervals are
-// not valid). Recovery is not asserted yet (the global fit stage is to add that); each case prints
-// whether it recovered (converged, every estimate within 5 % of its truth) and one table row:
+// not valid), and recovery (converged, every estimate within 5 % of its truth) for the cases that
+// recover since the global stage (kRecovers); each case prints whether it recovered and one
+// table row:
 //   [ outside ] | case | status | exit | max rel error | worst parameter | iterations | seconds |
 // Regenerate: build/default/tests/outside_suite_test | grep '\[ outside \] |'.
 //
@@ -43,7 +44,10 @@ const std::vector<std::string> kFast = {"cartpole_rail", "cheetah", "hopper", "w
 const std::vector<std::string> kLong = {"humanoid27"};
 const std::vector<std::string> kHoldout = {"holdout/quadruped12", "holdout/swimmer3"};
 
-constexpr double kRecoveryTolerance = 0.05;  // relative; recorded, not asserted
+constexpr double kRecoveryTolerance = 0.05;  // relative
+// the fast cases that recover (converged, every estimate within kRecoveryTolerance): asserted;
+// the others are recorded only
+const std::vector<std::string> kRecovers = {"cheetah", "walker", "ant"};
 
 std::vector<std::string> Cases() {
   const char* v = std::getenv("MJSYSID_OUTSIDE_SET");
@@ -138,6 +142,12 @@ TEST_P(OutsideSuiteTest, EndsHonestly) {
               file.iterations, run.seconds);
 
   suite::ExpectHonest(run);
+  // the cases the global stage and the envelope check made recover (docs/stress.md, measured
+  // 2026-11-29): they must keep recovering
+  if (std::find(kRecovers.begin(), kRecovers.end(), name) != kRecovers.end()) {
+    EXPECT_TRUE(recovered) << name << ": " << file.status << ", worst " << 100 * run.worst << " % ("
+                           << run.worst_parameter << ")";
+  }
   fs::remove_all(run.dir);
 }
 

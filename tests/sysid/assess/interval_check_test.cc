@@ -5,7 +5,9 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Dense>
 #include <cmath>
+#include <functional>
 
 namespace mjsysid {
 namespace {
@@ -132,6 +134,77 @@ TEST(IntervalCheckTest, AlongSmoothRolloutsOnlyWideIntervalsAreChecked) {
   EXPECT_TRUE(CheckAlongSmooth(120.9, 51.7));                      // 43 %: LuGre's
   EXPECT_TRUE(CheckAlongSmooth(0.0, 1e-9));                        // no scale
   EXPECT_TRUE(CheckAlongSmooth(2.0, std::nextafter(0.2, 1.0)));    // just past it
+}
+
+// CheckRuggedEnvelope at the least-squares minimum of Make()'s residuals (J^T r = 0): the cost
+// at +-1 and +-2 standard errors along each variable, here given by `cost` (the quadratic model
+// itself, then changed), s2 = 1
+struct Envelope {
+  Linear f = Make();
+  Eigen::VectorXd r;
+  Eigen::Vector2d se;
+  Envelope() {
+    const Eigen::MatrixXd a = f.A;
+    const Eigen::Vector2d x = -(a.transpose() * a).ldlt().solve(a.transpose() * f.b);
+    r = f.b + f.A * x;
+    // standard errors of a unit residual variance: sqrt(diag((J^T J)^-1))
+    se = (a.transpose() * a).inverse().diagonal().cwiseSqrt();
+  }
+  double Model(int v, double delta) const { return 0.5 * (r + delta * f.A.col(v)).squaredNorm(); }
+  RuggedEnvelope Check(const std::function<double(int, double)>& cost) const {
+    return CheckRuggedEnvelope(r, f.A, se, {"a", "b"}, 1.0, [&](int v, double d, double* c) {
+      *c = cost(v, d);
+      return true;
+    });
+  }
+};
+
+// the quadratic model itself, and a cost that jumps upward inside the interval (contact events):
+// valid, nothing widened, 8 evaluations
+TEST(IntervalCheckTest, EnvelopeOfACostThatRisesIsValid) {
+  const Envelope e;
+  RuggedEnvelope env = e.Check([&](int v, double d) { return e.Model(v, d); });
+  EXPECT_TRUE(env.valid);
+  EXPECT_EQ(env.checked, 8);
+  EXPECT_EQ(env.widen, Eigen::Vector2d::Ones());
+  EXPECT_EQ(env.widest, "");
+  env = e.Check(
+      [&](int v, double d) { return e.Model(v, d) + (std::abs(d) > 0.3 * e.se[v] ? 800.0 : 0.0); });
+  EXPECT_TRUE(env.valid);
+  EXPECT_EQ(env.widen, Eigen::Vector2d::Ones());
+}
+
+// a cost that rises at a quarter of the model's rate along `a`: a's interval widens by 2
+TEST(IntervalCheckTest, EnvelopeWidensWhereTheCostRisesSlower) {
+  const Envelope e;
+  const double c0 = 0.5 * e.r.squaredNorm();
+  const RuggedEnvelope env = e.Check(
+      [&](int v, double d) { return v == 0 ? c0 + 0.25 * (e.Model(v, d) - c0) : e.Model(v, d); });
+  EXPECT_TRUE(env.valid);
+  EXPECT_NEAR(env.widen[0], 2.0, 1e-12);
+  EXPECT_EQ(env.widen[1], 1.0);
+  EXPECT_EQ(env.widest, "a x2");
+}
+
+// a point 2 standard errors out below the estimate by more than the noise explains (the
+// chi-square quantile with 1 degree of freedom at 1 - 1e-3 is 9.5: a cost 6 lower), and a cost
+// that does not rise 2 standard errors out: not valid, each named
+TEST(IntervalCheckTest, EnvelopeWithALowerPointOrNoRiseIsNotValid) {
+  const Envelope e;
+  const double c0 = 0.5 * e.r.squaredNorm();
+  RuggedEnvelope env = e.Check(
+      [&](int v, double d) { return v == 1 && d > 1.5 * e.se[1] ? c0 - 6.0 : e.Model(v, d); });
+  EXPECT_FALSE(env.valid);
+  EXPECT_EQ(env.lower.rfind("b +2 std: cost -6", 0), 0u) << env.lower;
+  // a lower cost within the noise is no lower point
+  env = e.Check(
+      [&](int v, double d) { return v == 1 && d > 1.5 * e.se[1] ? c0 - 4.0 : e.Model(v, d); });
+  EXPECT_EQ(env.lower, "");
+  EXPECT_FALSE(env.valid);  // but it does not rise there
+  EXPECT_EQ(env.unbounded.rfind("b +2 std: cost -4", 0), 0u) << env.unbounded;
+  // flat 1 standard error out, rising at 2: valid
+  env = e.Check([&](int v, double d) { return std::abs(d) < 1.5 * e.se[v] ? c0 : e.Model(v, d); });
+  EXPECT_TRUE(env.valid);
 }
 
 }  // namespace
