@@ -48,11 +48,13 @@ const std::vector<std::string> kCases = {"cartpole_swing", "acrobot", "finger",
 // the cases that must recover today with the experiment default (`multiple_shooting: auto`):
 // converged, every estimate within kTolerance of its truth. The goal is every case
 // (docs/stress.md).
-const std::vector<std::string> kRecovery = {"cartpole_swing", "acrobot", "finger"};
+// (the hopper and walker since the envelope check of rugged costs, issue 32)
+const std::vector<std::string> kRecovery = {"cartpole_swing", "acrobot", "finger", "hopper",
+                                            "walker"};
 // the cases whose every estimate must be within kTolerance of its truth although the fit is not
-// `converged` (the hopper and walker: jacobian_unreliable, the interval check finds their contact
-// costs jumping within one standard error; the honesty checks below hold as for every case)
-const std::vector<std::string> kWithin5Percent = {"hopper", "walker"};
+// `converged` (none since the envelope check; before it the hopper and walker, whose interval
+// check found their contact costs jumping within one standard error)
+const std::vector<std::string> kWithin5Percent = {};
 constexpr double kTolerance = 0.05;  // relative
 
 bool LongMode() {
