@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <exception>
+#include <new>
 #include <string>
 #include <utility>
 #include <vector>
@@ -58,9 +60,17 @@ struct Record {
   bool out_of_budget = false;
   bool interrupted = false;
   bool no_data_states = false;
+  std::string failure;  // what a pass that failed threw ("": none)
   double seconds = 0;
   double last_cost = -1;  // the last round's final cost (-1: none ended)
 };
+
+// how the rounds were cut short, for the stage's warning ("" when they were not)
+std::string Ending(const Record& rec) {
+  if (!rec.failure.empty()) return "; a pass failed and ended the stage: " + rec.failure;
+  if (rec.interrupted) return "; interrupted, the best point so far kept";
+  return "";
+}
 
 bool Interrupted(const FitOptions& options) {
   return options.interrupt && options.interrupt->load();
@@ -83,6 +93,14 @@ FitResult GlobalStage(const FitParts& parts, const FitOptions& options, const Lo
   const double local_seconds = local.seconds;  // the stages' times count from the fit's start
   std::vector<double> user_starts(np);
   for (size_t g = 0; g < np; ++g) user_starts[g] = fit.params[g].initial;
+  // the user's starts back in the problem however the stage ends (a throw included)
+  struct RestoreStarts {
+    PreparedFit& fit;
+    const std::vector<double>& starts;
+    ~RestoreStarts() {
+      for (size_t g = 0; g < starts.size(); ++g) fit.params[g].initial = starts[g];
+    }
+  } restore{fit, user_starts};
 
   FitResult best = std::move(local);
   // the local fit, kept aside once a round replaces it (its signals and cost stay the start's)
@@ -93,80 +111,87 @@ FitResult GlobalStage(const FitParts& parts, const FitOptions& options, const Lo
   Record rec;
   long long spent = 0;  // the stage's simulation steps so far
   const auto over_budget = [&] { return static_cast<double>(spent) >= budget; };
-  for (int round = 1; round <= kMaxGlobalRounds; ++round) {
-    if (Interrupted(options)) {
-      rec.interrupted = true;
-      break;
-    }
-    if (over_budget()) {
-      rec.out_of_budget = true;
-      break;
-    }
-    const std::string tag = "global stage round " + std::to_string(round);
-    // 1. continuation: short segments held on the data, jumping sensors left out
-    FitOptions held = options;
-    held.segment_steps = kContinuationSteps;
-    held.hold_states_first = true;
-    held.continuation = {true, true, true};
-    StartAt(&fit, EstimateOf(best, np));
-    if (options.observer) {
-      options.observer->OnStage(
-          FitStage::kGlobal,
-          tag + ": " + std::to_string(kContinuationSteps) + "-step segments held on the data",
-          local_seconds + SecondsSince(start));
-    }
-    std::vector<double> continued;
-    {
-      FitPass pass(parts, held);
-      pass.Solve();
-      pass.FinishRecords();
-      passes.push_back(RecordOf(tag + " continuation", pass.result()));
-      spent += pass.result().diagnostics.simulation_steps;
-      if (!pass.StatesFromData()) {
-        rec.no_data_states = true;
+  try {
+    for (int round = 1; round <= kMaxGlobalRounds; ++round) {
+      if (Interrupted(options)) {
+        rec.interrupted = true;
         break;
       }
-      continued = pass.Estimate();
+      if (over_budget()) {
+        rec.out_of_budget = true;
+        break;
+      }
+      const std::string tag = "global stage round " + std::to_string(round);
+      // 1. continuation: short segments held on the data, jumping sensors left out
+      FitOptions held = options;
+      held.segment_steps = kContinuationSteps;
+      held.hold_states_first = true;
+      held.continuation = {true, true, true};
+      StartAt(&fit, EstimateOf(best, np));
+      if (options.observer) {
+        options.observer->OnStage(
+            FitStage::kGlobal,
+            tag + ": " + std::to_string(kContinuationSteps) + "-step segments held on the data",
+            local_seconds + SecondsSince(start));
+      }
+      std::vector<double> continued;
+      {
+        FitPass pass(parts, held);
+        pass.Solve();
+        pass.FinishRecords();
+        passes.push_back(RecordOf(tag + " continuation", pass.result()));
+        spent += pass.result().diagnostics.simulation_steps;
+        if (!pass.StatesFromData()) {
+          rec.no_data_states = true;
+          break;
+        }
+        continued = pass.Estimate();
+      }
+      if (Interrupted(options)) {
+        rec.interrupted = true;
+        break;
+      }
+      if (over_budget()) {
+        rec.out_of_budget = true;
+        break;
+      }
+      // 2. the local fit's horizon from there, its segment states held on the data first
+      FitOptions own = options;
+      own.segment_steps = mode.segment_steps;
+      own.continuation.contact_segments = mode.contact_segments;
+      own.continuation.hold_states = true;
+      StartAt(&fit, continued);
+      if (options.observer) {
+        options.observer->OnStage(FitStage::kGlobal, tag + ": the local fit's horizon from there",
+                                  local_seconds + SecondsSince(start));
+      }
+      FitPass pass(parts, own);
+      pass.Solve();
+      pass.Assess();
+      FitResult& r = pass.result();
+      passes.push_back(RecordOf(tag, r));
+      spent += r.diagnostics.simulation_steps;
+      ++rec.rounds;
+      rec.last_cost = r.final_cost;
+      rec.interrupted = r.interrupted;
+      const bool lower =
+          !r.interrupted && std::isfinite(r.final_cost) && r.final_cost >= 0 &&
+          AboveByMoreThanNoise(best.final_cost, r.final_cost, r.uncertainty.residual_variance,
+                               static_cast<int>(r.parameters.size()));
+      if (!lower) break;
+      ++rec.improved;
+      if (!replaced) local_fit = std::move(best);
+      replaced = true;
+      best = std::move(r);
+      best_pass = passes.size() - 1;
     }
-    if (Interrupted(options)) {
-      rec.interrupted = true;
-      break;
-    }
-    if (over_budget()) {
-      rec.out_of_budget = true;
-      break;
-    }
-    // 2. the local fit's horizon from there, its segment states held on the data first
-    FitOptions own = options;
-    own.segment_steps = mode.segment_steps;
-    own.continuation.contact_segments = mode.contact_segments;
-    own.continuation.hold_states = true;
-    StartAt(&fit, continued);
-    if (options.observer) {
-      options.observer->OnStage(FitStage::kGlobal, tag + ": the local fit's horizon from there",
-                                local_seconds + SecondsSince(start));
-    }
-    FitPass pass(parts, own);
-    pass.Solve();
-    pass.Assess();
-    FitResult& r = pass.result();
-    passes.push_back(RecordOf(tag, r));
-    spent += r.diagnostics.simulation_steps;
-    ++rec.rounds;
-    rec.last_cost = r.final_cost;
-    const bool lower =
-        !r.interrupted && std::isfinite(r.final_cost) && r.final_cost >= 0 &&
-        AboveByMoreThanNoise(best.final_cost, r.final_cost, r.uncertainty.residual_variance,
-                             static_cast<int>(r.parameters.size()));
-    if (!lower) break;
-    ++rec.improved;
-    if (!replaced) local_fit = std::move(best);
-    replaced = true;
-    best = std::move(r);
-    best_pass = passes.size() - 1;
+  } catch (const std::bad_alloc&) {
+    throw;  // out of memory: the caller's (exit 5)
+  } catch (const std::exception& e) {
+    // a pass that failed ends the stage; the best point so far stands
+    rec.failure = e.what();
   }
   rec.seconds = SecondsSince(start);
-  for (size_t g = 0; g < np; ++g) fit.params[g].initial = user_starts[g];
   JoinRecords(passes, best_pass, &best);
 
   if (replaced) {
@@ -192,7 +217,8 @@ FitResult GlobalStage(const FitParts& parts, const FitOptions& options, const Lo
         std::to_string(rec.rounds) + " round(s) lower, " + FormatDigits(rec.seconds, 3) + " s, " +
         std::to_string(spent) + " simulation steps of a budget of " + FormatDigits(budget, 3) +
         (rec.out_of_budget ? ", which ended the rounds" : "") +
-        "): the local fit had stopped in another minimum; this result is the lower point");
+        "): the local fit had stopped in another minimum; this result is the lower point" +
+        Ending(rec));
     return best;
   }
   std::string what;
@@ -201,17 +227,18 @@ FitResult GlobalStage(const FitParts& parts, const FitOptions& options, const Lo
         "not run: the segment states cannot come from the data (no logged qpos/qvel, and not "
         "every joint a hinge or slide with position and velocity sensors)";
   } else if (rec.rounds == 0) {
-    what = rec.interrupted ? "not run: interrupted"
-                           : "not run: its budget (" + FormatDigits(budget, 3) +
-                                 " simulation steps, global_budget x the local fit's) was "
-                                 "spent";
+    what = rec.interrupted || !rec.failure.empty()
+               ? "no round ended"
+               : "not run: its budget (" + FormatDigits(budget, 3) +
+                     " simulation steps, global_budget x the local fit's) was "
+                     "spent";
   } else {
     what = "horizon continuation ended at cost " + FormatDigits(rec.last_cost, 4) +
            ", not lower than the local fit's " + FormatDigits(best.final_cost, 4) +
            " by more than the noise explains (" + FormatDigits(rec.seconds, 3) +
            " s): no better point found from here; the local result stands";
   }
-  best.warnings.push_back("global stage: " + what);
+  best.warnings.push_back("global stage: " + what + Ending(rec));
   return best;
 }
 

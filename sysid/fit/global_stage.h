@@ -50,8 +50,10 @@ struct LocalMode {
   bool contact_segments = false;  // auto's contact segments
 };
 
-// local: the local fit's result (its horizon: mode). Returns it, or the stage's better point.
-// Throws what a fit pass throws.
+// local: the local fit's result (its horizon: mode). Returns it, or the stage's better point. A
+// pass of the stage that throws (a simulation error) or is interrupted ends the stage: the best
+// point so far stands and the warning says why; only std::bad_alloc propagates. The problem's
+// parameters keep the user's starts however the stage ends.
 FitResult GlobalStage(const FitParts& parts, const FitOptions& options, const LocalMode& mode,
                       FitResult local);
 

@@ -13,10 +13,12 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <filesystem>
 #include <string>
 
+#include "sysid/fit_observer.h"
 #include "sysid/io/experiment.h"
 #include "sysid/io/log.h"
 #include "sysid/run/fit_experiment.h"
@@ -131,6 +133,40 @@ TEST_F(GlobalStageTest, ABudgetSpentRunsNoRound) {
   EXPECT_NE(GlobalWarning(a).find("not run: its budget"), std::string::npos) << GlobalWarning(a);
   EXPECT_EQ(a.file.status, b.file.status);
   EXPECT_DOUBLE_EQ(a.file.final_cost, b.file.final_cost);
+}
+
+// a stop signal during the stage's second pass: that pass ends at once, the stage ends, the best
+// point so far (here the local fit's) stands and says so, and the problem keeps the user's starts
+// (a fit after it starts from them again)
+TEST_F(GlobalStageTest, AnInterruptInTheStageKeepsTheBestPointSoFar) {
+  struct StopInPassTwo : FitObserver {
+    std::atomic<bool>* stop = nullptr;
+    void OnStage(FitStage stage, const std::string& text, double) override {
+      if (stage == FitStage::kGlobal && text.find("horizon from there") != std::string::npos) {
+        stop->store(true);
+      }
+    }
+  };
+  run::BuiltProblem built = run::BuildProblem(cfg_);
+  std::atomic<bool> stop{false};
+  StopInPassTwo observer;
+  observer.stop = &stop;
+  FitOptions o = built.options;
+  o.observer = &observer;
+  o.interrupt = &stop;
+  const FitResult r = built.problem->Fit(o);
+  std::string said;
+  for (const std::string& w : r.warnings) {
+    if (w.rfind("global stage: ", 0) == 0) said = w;
+  }
+  EXPECT_NE(said.find("interrupted, the best point so far kept"), std::string::npos) << said;
+  EXPECT_FALSE(r.interrupted) << "the local fit had ended; only the stage was cut";
+  EXPECT_NE(r.outcome, FitStatus::kConverged);
+  for (size_t i = 0; i < r.parameters.size(); ++i) {
+    EXPECT_DOUBLE_EQ(built.problem->parameters()[i].initial, built.parameters[i].initial)
+        << r.parameters[i].name;
+    EXPECT_DOUBLE_EQ(r.parameters[i].initial, built.parameters[i].initial);
+  }
 }
 
 }  // namespace
