@@ -110,17 +110,16 @@ FitResult GlobalStage(const FitParts& parts, const FitOptions& options, const Lo
   size_t best_pass = 0;  // passes[best_pass] is best's
   Record rec;
   long long spent = 0;  // the stage's simulation steps so far
-  const auto over_budget = [&] { return static_cast<double>(spent) >= budget; };
+  // whether the next pass may start: not after an interrupt or once the budget is spent (says
+  // which in rec)
+  const auto may_start = [&] {
+    rec.interrupted = Interrupted(options);
+    rec.out_of_budget = !rec.interrupted && static_cast<double>(spent) >= budget;
+    return !rec.interrupted && !rec.out_of_budget;
+  };
   try {
     for (int round = 1; round <= kMaxGlobalRounds; ++round) {
-      if (Interrupted(options)) {
-        rec.interrupted = true;
-        break;
-      }
-      if (over_budget()) {
-        rec.out_of_budget = true;
-        break;
-      }
+      if (!may_start()) break;
       const std::string tag = "global stage round " + std::to_string(round);
       // 1. continuation: short segments held on the data, jumping sensors left out
       FitOptions held = options;
@@ -147,14 +146,7 @@ FitResult GlobalStage(const FitParts& parts, const FitOptions& options, const Lo
         }
         continued = pass.Estimate();
       }
-      if (Interrupted(options)) {
-        rec.interrupted = true;
-        break;
-      }
-      if (over_budget()) {
-        rec.out_of_budget = true;
-        break;
-      }
+      if (!may_start()) break;
       // 2. the local fit's horizon from there, its segment states held on the data first
       FitOptions own = options;
       own.segment_steps = mode.segment_steps;
