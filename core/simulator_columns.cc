@@ -17,6 +17,7 @@ namespace mjsysid {
 using internal::CombineSides;
 using internal::CopyModelInto;
 using internal::kGrowthLimit;
+using internal::kSplitGrowth;
 using internal::Tenths;
 using internal::WaitForRows;
 
@@ -50,20 +51,36 @@ void Simulator::DirectionalColumn(Worker& w, const RowMatrix& ctrl, int seq_inde
   RestoreInputs(*model_, dims_, nom, d);
   double max_growth = 0;
   int growth_step = -1;
+  int split_steps = 0;  // steps past kSplitGrowth
 
-  // one perturbed step from the nominal x_k moved along sign*h*S_k, parameter at p + sign*h:
-  // leaves the one-sided difference quotients of x_{k+1} and y_k in dx, dy
-  auto side = [&](mjModel* m, double sign, int k, Eigen::VectorXd& dx, Eigen::VectorXd& dy) {
+  // one perturbed step of model m from the nominal x_k moved along x_scale*S_k: leaves the
+  // difference quotients of x_{k+1} and y_k, times inv, in dx, dy; returns its contact count
+  auto side = [&](const mjModel* m, double x_scale, double inv, int k, Eigen::VectorXd& dx,
+                  Eigen::VectorXd& dy) {
     RestoreStep(*m, dims_, nom, k, ctrl.row(k).data(), d);
-    TangentPerturb(*m, d, w.s.data(), sign * h);
+    if (x_scale != 0) TangentPerturb(*m, d, w.s.data(), x_scale);
     Step(m, d, mjSTAGE_NONE);
     ++w.steps;
     CheckStep(*d, nom.step(k, 0), seq_index, k, "perturbed step");  // step state: time first
     CountSolve(*m, *d, &report->solver);
     GetPhysics(*m, *d, w.xp.data());
-    TangentDifference(*model_, nom.states.row(k + 1).data(), w.xp.data(), sign / h, dx.data());
-    for (int i = 0; i < ns; ++i) dy[i] = (d->sensordata[i] - nom.sensors(k, i)) * (sign / h);
+    TangentDifference(*model_, nom.states.row(k + 1).data(), w.xp.data(), inv, dx.data());
+    for (int i = 0; i < ns; ++i) dy[i] = (d->sensordata[i] - nom.sensors(k, i)) * inv;
     return d->ncon;
+  };
+  // the difference of models (plus, minus) with the state moved by +-x_scale*S_k, divided by
+  // +-step: forward, and backward too for central differences or a contact-set change; the
+  // result in dx_out, dy_out (w.s_next and w.yp may be passed)
+  auto difference = [&](const mjModel* plus, const mjModel* minus, double x_scale, double step,
+                        int k, Eigen::VectorXd& dx_out, Eigen::VectorXd& dy_out) {
+    const int ncon = side(plus, x_scale, 1.0 / step, k, dx_out, dy_out);
+    if (opt.central || ncon != nom.ncon[k]) {
+      side(minus, -x_scale, -1.0 / step, k, w.e, w.ym);
+      if (CombineSides(dx_out, w.e, dy_out, w.ym, opt.central, w.xm.head(nx), dy_out)) {
+        ++report->kinks;
+      }
+      dx_out = w.xm.head(nx);
+    }
   };
 
   Tenths tenths(step_progress_, "Jacobian column", T);
@@ -71,14 +88,21 @@ void Simulator::DirectionalColumn(Worker& w, const RowMatrix& ctrl, int seq_inde
     CheckCancel();
     tenths.At(k);
     if (!WaitForRows(ready, k + 2)) return;
-    // forward side; the backward side too for central differences or a contact-set change
-    const int ncon = side(w.plus.get(), 1.0, k, w.s_next, w.yp);
-    if (opt.central || ncon != nom.ncon[k]) {
-      side(w.minus.get(), -1.0, k, w.e, w.ym);
-      if (CombineSides(w.s_next, w.e, w.yp, w.ym, opt.central, w.xm.head(nx), w.yp)) {
-        ++report->kinks;
+    const double s_norm = w.s.lpNorm<Eigen::Infinity>();
+    if (h * s_norm <= kSplitGrowth) {
+      // one step: parameter at p +- h and state moved by +-h*S_k
+      difference(w.plus.get(), w.minus.get(), h, h, k, w.s_next, w.yp);
+    } else {
+      // A_k S_k: the state moved along S_k scaled to the state step, the nominal model
+      ++split_steps;
+      const double a = opt.state_step / s_norm;
+      difference(model_.get(), model_.get(), a, a, k, w.s_next, w.yp);
+      if (is_param) {
+        // + F_k, G_k: the parameter at p +- h from the nominal state
+        difference(w.plus.get(), w.minus.get(), 0.0, h, k, w.fx, w.fy);
+        w.s_next += w.fx;
+        w.yp += w.fy;
       }
-      w.s_next = w.xm.head(nx);
     }
     for (int i = 0; i < ns; ++i) out->DyDp(k * ns + i, col) = w.yp[i];
 
@@ -100,8 +124,13 @@ void Simulator::DirectionalColumn(Worker& w, const RowMatrix& ctrl, int seq_inde
     report->warning = "column " + std::to_string(col) +
                       ": sensitivity grew so that h*|S| = " + FormatDigits(max_growth, 6) + " (> " +
                       FormatDigits(kGrowthLimit, 6) + ") from step " + std::to_string(growth_step) +
-                      ": finite differences are no longer local; shorten the horizon (multiple "
-                      "shooting)";
+                      ": the rollout is so sensitive that a linear model of it holds only for "
+                      "parameter changes far below the step" +
+                      (split_steps > 0 ? " (from there the state and parameter parts were "
+                                         "differenced apart, " +
+                                             std::to_string(split_steps) + " steps)"
+                                       : std::string()) +
+                      "; shorten the horizon (multiple shooting)";
   }
 }
 

@@ -89,6 +89,8 @@ void Simulator::JacobiansImpl(const std::vector<SequenceInput>& sequences,
     w->xm.resize(dims_.nphys);
     w->yp.resize(ns);
     w->ym.resize(ns);
+    w->fx.resize(nx);
+    w->fy.resize(ns);
   }
 
   // constraint solves of the perturbed steps, per sequence
