@@ -25,7 +25,8 @@ const char* LossTypeName(LossType loss) {
 namespace {
 constexpr FitStatus kAllStatuses[] = {FitStatus::kConverged,     FitStatus::kNotConverged,
                                       FitStatus::kModelMismatch, FitStatus::kJacobianUnreliable,
-                                      FitStatus::kDidNotMove,    FitStatus::kInterrupted};
+                                      FitStatus::kDidNotMove,    FitStatus::kInterrupted,
+                                      FitStatus::kSolverFailed};
 }  // namespace
 
 const char* FitStatusName(FitStatus status) {
@@ -42,6 +43,8 @@ const char* FitStatusName(FitStatus status) {
       return "did_not_move";
     case FitStatus::kInterrupted:
       return "interrupted";
+    case FitStatus::kSolverFailed:
+      return "solver_failed";
   }
   return "not_converged";
 }

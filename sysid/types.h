@@ -51,6 +51,8 @@ const char* LossTypeName(LossType loss);
 //   the cost at the estimate +- one standard error is far from the Jacobian's prediction (a cost
 //   that jumps within the intervals, sysid/assess/interval_check.h).
 // - kDidNotMove: no estimated value left its start (no step was accepted).
+// - kSolverFailed: Ceres ended with a failure (e.g. its sparse linear solver could not factorise
+//   the system); the estimate is the last accepted point and the warning names the cause.
 // - kInterrupted: a stop signal ended the fit.
 // Every value but kConverged marks the intervals not valid.
 enum class FitStatus {
@@ -59,11 +61,12 @@ enum class FitStatus {
   kModelMismatch,
   kJacobianUnreliable,
   kDidNotMove,
-  kInterrupted
+  kInterrupted,
+  kSolverFailed
 };
 
 // "converged", "not_converged", "model_mismatch", "jacobian_unreliable", "did_not_move",
-// "interrupted" (result files, CLI, report)
+// "interrupted", "solver_failed" (result files, CLI, report)
 const char* FitStatusName(FitStatus status);
 // the status of a name written by FitStatusName; nullopt for any other text (e.g. "running")
 std::optional<FitStatus> FitStatusFromName(const std::string& name);

@@ -7,6 +7,9 @@
 // result->outcome, intervals_valid, chi2_ratio and sensor_chi2_ratio, and appends the warning that
 // says what went wrong. The first that applies, in this order:
 // - interrupted: result->interrupted.
+// - solver_failed: Ceres ended with FAILURE (result->termination.kind kSolverFailure, its message
+//   in solver_message; what SuiteSparse said is already among the warnings), whatever steps it
+//   accepted before: the estimate is the last accepted point, not a fit.
 // - did_not_move: no accepted step changed any estimated value, unless the solve's statistical
 //   stop found the start already converged (result->gauss_newton_converged).
 // - jacobian_unreliable: the core flagged a Jacobian during the solve (jacobian_warned) and the

@@ -107,9 +107,7 @@ void FitPass::RecordSolve() {
   result_.num_residuals = fit_.shards
                               ? static_cast<int>(fit_.shards->NumResiduals()) + prior_rows
                               : summary_.num_residuals + static_cast<int>(compressed_.hidden_rows);
-  if (summary_.termination_type == ceres::FAILURE) {
-    result_.warnings.push_back("Ceres failed: " + summary_.message);
-  }
+  // a failure's message: in the status's warning (sysid/assess/fit_status.h)
   if (diag_.rejected_evaluations > 0) {
     result_.warnings.push_back(std::to_string(diag_.rejected_evaluations) +
                                " evaluation(s) rejected (trial points where the simulation "

@@ -41,6 +41,7 @@ int ExitCodeOf(FitStatus status) {
       return 3;
     case FitStatus::kJacobianUnreliable:
     case FitStatus::kDidNotMove:
+    case FitStatus::kSolverFailed:
       return 4;
     default:
       return 1;  // not converged, interrupted

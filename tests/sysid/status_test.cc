@@ -275,8 +275,11 @@ TEST(FitStatusTest, ChaoticSingleShootingWithoutSigmasIsNotConverged) {
                               std::abs(Estimate(r, "m2").value / 0.8 - 1.0));
   std::printf("[ measured ] chaotic no sigmas: worst relative error %.3g\n", err);
   EXPECT_GT(err, 0.1);  // the case: single shooting does not recover
-  EXPECT_EQ(r.outcome, FitStatus::kJacobianUnreliable);
-  EXPECT_TRUE(HasWarning(r, "Jacobian unreliable at the estimate"));
+  // measured: jacobian_unreliable ("Jacobian unreliable at the estimate") while the directional
+  // columns past h*|S| = 1e-2 were one nonlinear step; since they are split there
+  // (core/simulator_internal.h) the solve runs into the iteration cap, 44 % off: not_converged
+  EXPECT_EQ(r.outcome, FitStatus::kNotConverged);
+  EXPECT_TRUE(HasWarning(r, "Jacobian not reliable in 1 of 1 segment(s)"));
   EXPECT_FALSE(r.intervals_valid);
   EXPECT_NE(run::ExitCodeOf(r.outcome), 0);
   // the global stage goes on from there in the same single shooting and recovers (measured:
@@ -287,7 +290,7 @@ TEST(FitStatusTest, ChaoticSingleShootingWithoutSigmasIsNotConverged) {
   const double gerr = std::max(std::abs(Estimate(g, "m1").value - 1.0),
                                std::abs(Estimate(g, "m2").value / 0.8 - 1.0));
   EXPECT_LT(gerr, 1e-3);
-  EXPECT_TRUE(HasWarning(g, "global stage: the local fit ended jacobian_unreliable"));
+  EXPECT_TRUE(HasWarning(g, "global stage: the local fit ended not_converged"));
   if (g.outcome == FitStatus::kConverged) {
     for (const ParameterEstimate& e : g.parameters) {
       EXPECT_LE(std::abs(e.value - (e.name == "m1" ? 1.0 : 0.8)), 4 * e.std_error) << e.name;
@@ -360,7 +363,8 @@ TEST(FitStatusTest, NamesExitCodesAndResultFile) {
   const std::vector<std::pair<FitStatus, int>> codes = {
       {FitStatus::kConverged, 0},     {FitStatus::kNotConverged, 1},
       {FitStatus::kModelMismatch, 3}, {FitStatus::kJacobianUnreliable, 4},
-      {FitStatus::kDidNotMove, 4},    {FitStatus::kInterrupted, 1}};
+      {FitStatus::kDidNotMove, 4},    {FitStatus::kInterrupted, 1},
+      {FitStatus::kSolverFailed, 4}};
   const fs::path dir = fs::temp_directory_path() / ("status_test_" + std::to_string(::getpid()));
   fs::create_directories(dir);
   for (const auto& [status, code] : codes) {

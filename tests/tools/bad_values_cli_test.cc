@@ -243,7 +243,7 @@ TEST_F(Values35Test, SolverThatCannotStartPrintsNoLibraryLogAndNoMinusOne) {
   EXPECT_EQ(r.err.find(".cc:"), std::string::npos) << r.err;  // glog's "file.cc:line]" prefix
   EXPECT_EQ(r.out.find("-1 iterations"), std::string::npos) << r.out;
   EXPECT_EQ(r.out.find("cost -1 -> -1"), std::string::npos) << r.out;
-  EXPECT_NE(r.out.find("did_not_move: the solver stopped before its first iteration (Residual "
+  EXPECT_NE(r.out.find("solver_failed: the solver stopped before its first iteration (Residual "
                        "and Jacobian evaluation failed.)"),
             std::string::npos)
       << r.out;
