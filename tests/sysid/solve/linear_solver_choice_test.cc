@@ -28,16 +28,25 @@ int Chain(int segments, int nx, int np, PreparedFit* fit, FitVariables* vars) {
   return np + (segments - 1) * nx;
 }
 
+// ChooseLinearSolver's options for such a chain
+struct Choice {
+  PreparedFit fit;
+  FitVariables vars;
+  ceres::Solver::Options so;
+  Choice(int segments, int nx, int np) {
+    const int tangent = Chain(segments, nx, np, &fit, &vars);
+    ChooseLinearSolver(fit, vars, tangent, &so);
+  }
+};
+
 // a humanoid-sized chain (issue 32: 2000 segments of 54 states, 22 parameters): every other block
 // eliminated, the rest with z in a sparse Schur complement, and z factorised after the kept states.
 // First, z (which every residual touches) filled the whole factor: CHOLMOD "problem too large"
 // with the 1000 kept blocks, and did_not_move.
 TEST(LinearSolverChoiceTest, TheParametersAreFactorisedAfterTheKeptStates) {
-  PreparedFit fit;
-  FitVariables vars;
-  const int tangent = Chain(2000, 54, 22, &fit, &vars);
-  ceres::Solver::Options so;
-  ChooseLinearSolver(fit, vars, tangent, &so);
+  Choice c(2000, 54, 22);
+  const ceres::Solver::Options& so = c.so;
+  FitVariables& vars = c.vars;
   EXPECT_EQ(so.linear_solver_type, ceres::SPARSE_SCHUR);
   ASSERT_TRUE(so.linear_solver_ordering);
   const ceres::ParameterBlockOrdering& order = *so.linear_solver_ordering;
@@ -59,22 +68,12 @@ TEST(LinearSolverChoiceTest, TheParametersAreFactorisedAfterTheKeptStates) {
 
 // a small chain: the reduced system (z and the kept states) of at most 200 dimensions is dense
 TEST(LinearSolverChoiceTest, ASmallReducedSystemIsDense) {
-  PreparedFit fit;
-  FitVariables vars;
-  const int tangent = Chain(20, 4, 3, &fit, &vars);  // 10 kept blocks of 4 + 3
-  ceres::Solver::Options so;
-  ChooseLinearSolver(fit, vars, tangent, &so);
-  EXPECT_EQ(so.linear_solver_type, ceres::DENSE_SCHUR);
+  EXPECT_EQ(Choice(20, 4, 3).so.linear_solver_type, ceres::DENSE_SCHUR);  // 10 kept blocks of 4
 }
 
 // single shooting: dense QR
 TEST(LinearSolverChoiceTest, SingleShootingIsDenseQr) {
-  PreparedFit fit;
-  FitVariables vars;
-  const int tangent = Chain(1, 4, 3, &fit, &vars);
-  ceres::Solver::Options so;
-  ChooseLinearSolver(fit, vars, tangent, &so);
-  EXPECT_EQ(so.linear_solver_type, ceres::DENSE_QR);
+  EXPECT_EQ(Choice(1, 4, 3).so.linear_solver_type, ceres::DENSE_QR);
 }
 
 }  // namespace
