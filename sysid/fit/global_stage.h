@@ -19,8 +19,10 @@
 // Round 2's final cost is a cost of the same function as the local fit's (the same horizon,
 // sensors and weights), so the two are compared directly: round 2 replaces the best when its cost
 // is lower by more than the noise explains (sysid/assess/chi_square.h, AboveByMoreThanNoise), and
-// then another round starts from it; else the stage ends. At most kMaxRounds rounds; no round (no
-// phase) starts after global_budget x the local fit's seconds, and an interrupt stops it.
+// then another round starts from it; else the stage ends. At most kMaxGlobalRounds rounds; no
+// pass starts once the stage has simulated global_budget x the local fit's simulation steps (steps,
+// not seconds: the same rounds at any load), and an interrupt stops it. A pass that starts inside
+// the budget runs to its end (measured overruns up to 1.7x, docs/stress.md).
 //
 // Runs when: options.global_stage, the local fit ended not_converged, model_mismatch,
 // jacobian_unreliable or did_not_move (never after converged or interrupted), the fit is not
