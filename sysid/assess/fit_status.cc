@@ -248,14 +248,17 @@ void DecideFitStatus(const FitOptions& options, int accepted_steps, bool jacobia
   } else if (!r.converged) {
     r.outcome = FitStatus::kNotConverged;
   } else if (jacobian_warned_at_estimate) {
-    // converged on a Jacobian the core says is not local: the step was a guess, the intervals too
+    // converged where the core flags the Jacobian: the rollouts are so sensitive that its linear
+    // model holds only for changes far below a step, so the last step was a guess, the intervals
+    // too
     // (measured: a chaotic 5000-step single-shooting fit without sigmas stopped 44 % off the truth
     // with the cost 12 % down and intervals 2e-5 wide; since the core splits its columns past
     // h*|S| = 1e-2 that fit runs into its iteration cap instead, tests/sysid/status_test.cc)
     r.outcome = FitStatus::kJacobianUnreliable;
     r.warnings.push_back(
-        "Jacobian unreliable at the estimate: the core's finite differences are not local there "
-        "(h*|S| > 1e-2 at the estimate), so the estimate may be no minimum and its "
+        "Jacobian unreliable at the estimate: the rollouts there are so sensitive to the "
+        "parameters (h*|S| > 1e-2 at the estimate) that the Jacobian's linear model holds only "
+        "for changes far below a step, so the estimate may be no minimum and its "
         "intervals are not valid; shorten the horizon (multiple_shooting: auto or segment_steps) "
         "or start closer");
   } else if (mismatch) {

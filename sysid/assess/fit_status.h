@@ -16,8 +16,9 @@
 //   cost fell by less than 5 %.
 // - not_converged: the optimiser did not converge.
 // - jacobian_unreliable when the core flagged the Jacobian at the estimate itself
-//   (jacobian_warned_at_estimate: h*|S| past kSensitivityGrowthLimit, the finite differences
-//   there are not local, so neither are intervals built from them; before model_mismatch: a
+//   (jacobian_warned_at_estimate: h*|S| past kSensitivityGrowthLimit, the rollouts so sensitive
+//   that the linear model holds only far below a step, nor do intervals built from it; before
+//   model_mismatch: a
 //   shorter horizon is the first way out).
 // - model_mismatch: options.sensors_with_sigma not empty and the weighted residual variance of
 //   those sensors' columns at the estimate, sum(r^2) / (m - p) with p the rank of the Jacobian at
