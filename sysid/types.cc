@@ -26,7 +26,7 @@ namespace {
 constexpr FitStatus kAllStatuses[] = {FitStatus::kConverged,     FitStatus::kNotConverged,
                                       FitStatus::kModelMismatch, FitStatus::kJacobianUnreliable,
                                       FitStatus::kDidNotMove,    FitStatus::kInterrupted,
-                                      FitStatus::kSolverFailed};
+                                      FitStatus::kSolverFailed,  FitStatus::kLocalMinimum};
 }  // namespace
 
 const char* FitStatusName(FitStatus status) {
@@ -45,6 +45,8 @@ const char* FitStatusName(FitStatus status) {
       return "interrupted";
     case FitStatus::kSolverFailed:
       return "solver_failed";
+    case FitStatus::kLocalMinimum:
+      return "local_minimum";
   }
   return "not_converged";
 }

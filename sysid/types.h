@@ -45,7 +45,9 @@ const char* LossTypeName(LossType loss);
 //   given, the weighted residuals are as large as the noise explains; the intervals are valid.
 // - kNotConverged: the optimiser stopped without converging (iteration limit, failure).
 // - kModelMismatch: sigmas given and the weighted residual variance far above its chi-square
-//   expectation (overall or for one sensor): the model or the start cannot explain the data.
+//   expectation (overall or for one sensor), or, without sigmas, residuals far above the noise the
+//   log itself shows, at a point where no lower one is known: the model cannot explain the data
+//   (or the sigmas are too small).
 // - kJacobianUnreliable: the core flagged the Jacobian as not reliable (e.g. a horizon too long
 //   for single shooting) and the cost fell by less than a few %; or the optimiser converged but
 //   the cost at the estimate +- one standard error is far from the Jacobian's prediction (a cost
@@ -53,6 +55,10 @@ const char* LossTypeName(LossType loss);
 // - kDidNotMove: no estimated value left its start (no step was accepted).
 // - kSolverFailed: Ceres ended with a failure (e.g. its sparse linear solver could not factorise
 //   the system); the estimate is the last accepted point and the warning names the cause.
+// - kLocalMinimum: the residuals are above the noise (as kModelMismatch) at a point where a lower
+//   one exists: the multiple-shooting segments do not join at the estimate (it describes no single
+//   trajectory), or, for a start of a multi-start fit (StartResult), another start ended lower by
+//   more than the noise explains. Other starts or the global stage are the way out, not the model.
 // - kInterrupted: a stop signal ended the fit.
 // Every value but kConverged marks the intervals not valid.
 enum class FitStatus {
@@ -62,11 +68,12 @@ enum class FitStatus {
   kJacobianUnreliable,
   kDidNotMove,
   kInterrupted,
-  kSolverFailed
+  kSolverFailed,
+  kLocalMinimum
 };
 
 // "converged", "not_converged", "model_mismatch", "jacobian_unreliable", "did_not_move",
-// "interrupted", "solver_failed" (result files, CLI, report)
+// "interrupted", "solver_failed", "local_minimum" (result files, CLI, report)
 const char* FitStatusName(FitStatus status);
 // the status of a name written by FitStatusName; nullopt for any other text (e.g. "running")
 std::optional<FitStatus> FitStatusFromName(const std::string& name);

@@ -26,8 +26,8 @@ constexpr int kExitOutOfMemory = 5;
 const char* const kExitCodesFooter =
     "Exit codes: 0 success, 1 the run failed (simulation or MuJoCo error), 2 bad input (command "
     "line, experiment file, model, parameters or data files, a fit over its memory limit); `fit` "
-    "writes its results and exits 1 not_converged or interrupted, 3 model_mismatch, 4 "
-    "jacobian_unreliable, did_not_move or solver_failed; 5 out of memory.";
+    "writes its results and exits 1 not_converged, local_minimum or interrupted, 3 model_mismatch, "
+    "4 jacobian_unreliable, did_not_move or solver_failed; 5 out of memory.";
 
 // what the subcommand is doing, named when it runs out of memory (std::bad_alloc, exit 5;
 // tools/sysid_main.cc); "" until set

@@ -1,5 +1,6 @@
 // sysid fit EXP.yaml --out DIR: fit the experiment's parameters and print the estimates; under
 // mpirun the sequences are sharded across the ranks (RunFitSharded).
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <csignal>
@@ -9,6 +10,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "sysid/assess/metrics.h"
@@ -130,25 +132,28 @@ void PrintFitQuality(const mjsysid::io::FitResultFile& f) {
   }
 }
 
-// multi-start: per estimated value the range over the starts, and how many starts ended where
+// multi-start: how many starts ended with each status (local_minimum: in another minimum than the
+// best, sysid/run/multi_start.h), and per estimated value the range over the starts
 void PrintStarts(const mjsysid::io::FitResultFile& f) {
   if (f.starts.size() < 2) return;
-  int honest = 0, failed = 0;
+  std::vector<std::pair<std::string, int>> counts;  // in order of first appearance
   for (const mjsysid::StartResult& s : f.starts) {
-    failed += s.error.empty() || s.status == mjsysid::FitStatus::kInterrupted ? 0 : 1;
-    honest += s.error.empty() && (s.status == mjsysid::FitStatus::kConverged ||
-                                  s.status == mjsysid::FitStatus::kModelMismatch)
-                  ? 1
-                  : 0;
+    const bool failed = !s.error.empty() && s.status != mjsysid::FitStatus::kInterrupted;
+    const std::string what = failed ? "failed" : mjsysid::FitStatusName(s.status);
+    auto it =
+        std::find_if(counts.begin(), counts.end(), [&](const auto& c) { return c.first == what; });
+    if (it == counts.end()) {
+      counts.emplace_back(what, 1);
+    } else {
+      ++it->second;
+    }
   }
-  int stopped = 0;
-  for (const mjsysid::StartResult& s : f.starts) {
-    stopped += s.status == mjsysid::FitStatus::kInterrupted ? 1 : 0;
+  std::string list;
+  for (const auto& [what, n] : counts) {
+    list += (list.empty() ? "" : ", ") + std::to_string(n) + " " + what;
   }
-  std::printf(
-      "  %zu starts (%d converged, %d failed, %d interrupted); the result is start %d's (lowest "
-      "cost)\n",
-      f.starts.size(), honest, failed, stopped, f.best_start);
+  std::printf("  %zu starts (%s); the result is start %d's (lowest cost)\n", f.starts.size(),
+              list.c_str(), f.best_start);
   std::printf("  %-24s %14s %14s %12s\n", "spread over the starts", "min", "max", "(max-min)/|v|");
   for (const mjsysid::ParameterSpread& s : f.start_spread) {
     std::printf("  %-24s %14.6g %14.6g %12.3g\n", s.name.c_str(), s.min, s.max, s.relative);

@@ -389,7 +389,7 @@ NB_MODULE(_mjsysid, m) {
       .def_prop_ro(
           "status", [](const FitResult& r) { return FitStatusName(r.outcome); },
           "converged, not_converged, model_mismatch, jacobian_unreliable, "
-          "did_not_move, interrupted or solver_failed")
+          "did_not_move, interrupted, solver_failed or local_minimum")
       .def_ro("initial_cost", &FitResult::initial_cost)
       .def_ro("final_cost", &FitResult::final_cost)
       .def_ro("iterations", &FitResult::iterations)

@@ -15,6 +15,7 @@
 #include "sysid/assess/chi_square.h"
 #include "sysid/fit/pass.h"
 #include "sysid/fit/records.h"
+#include "sysid/fit/restart.h"
 #include "sysid/fit_observer.h"
 #include "sysid/solve/progress.h"
 
@@ -24,33 +25,8 @@ namespace {
 // the statuses after which the stage runs
 bool Unfinished(FitStatus s) {
   return s == FitStatus::kNotConverged || s == FitStatus::kModelMismatch ||
-         s == FitStatus::kJacobianUnreliable || s == FitStatus::kDidNotMove;
-}
-
-// v moved off a bound it lies on, by 1e-3 of the bound's magnitude (of the range, or 1, at a bound
-// of 0), so that a restart there is not a start on the bound
-double OffBounds(const FitParameter& p, double v) {
-  const auto step = [](double bound, double other) {
-    if (bound != 0) return 1e-3 * std::abs(bound);
-    return 1e-3 * (std::isfinite(other) ? std::abs(other - bound) : 1.0);
-  };
-  if (OnBound(v, p.lower, true)) v = p.lower + step(p.lower, p.upper);
-  if (OnBound(v, p.upper, false)) v = p.upper - step(p.upper, p.lower);
-  return std::clamp(v, p.lower, p.upper);
-}
-
-// the parameters' starts set to x (physical values, moved off their bounds)
-void StartAt(PreparedFit* fit, const std::vector<double>& x) {
-  for (size_t g = 0; g < fit->params.size(); ++g) {
-    fit->params[g].initial = OffBounds(fit->params[g], x[g]);
-  }
-}
-
-// the physical estimates of a result
-std::vector<double> EstimateOf(const FitResult& r, size_t np) {
-  std::vector<double> x(np);
-  for (size_t g = 0; g < np; ++g) x[g] = r.parameters[g].value;
-  return x;
+         s == FitStatus::kLocalMinimum || s == FitStatus::kJacobianUnreliable ||
+         s == FitStatus::kDidNotMove;
 }
 
 // what the stage did so far, for its warning
@@ -91,16 +67,9 @@ FitResult GlobalStage(const FitParts& parts, const FitOptions& options, const Lo
   const double budget = options.global_budget *
                         static_cast<double>(std::max(local.diagnostics.simulation_steps, 1LL));
   const double local_seconds = local.seconds;  // the stages' times count from the fit's start
-  std::vector<double> user_starts(np);
-  for (size_t g = 0; g < np; ++g) user_starts[g] = fit.params[g].initial;
   // the user's starts back in the problem however the stage ends (a throw included)
-  struct RestoreStarts {
-    PreparedFit& fit;
-    const std::vector<double>& starts;
-    ~RestoreStarts() {
-      for (size_t g = 0; g < starts.size(); ++g) fit.params[g].initial = starts[g];
-    }
-  } restore{fit, user_starts};
+  const KeepStarts keep(&fit);
+  const std::vector<double>& user_starts = keep.starts();
 
   FitResult best = std::move(local);
   // the local fit, kept aside once a round replaces it (its signals and cost stay the start's)
@@ -126,7 +95,7 @@ FitResult GlobalStage(const FitParts& parts, const FitOptions& options, const Lo
       held.segment_steps = kContinuationSteps;
       held.hold_states_first = true;
       held.continuation = {true, true, true};
-      StartAt(&fit, EstimateOf(best, np));
+      StartAt(&fit, EstimateOf(best, np), true);
       if (options.observer) {
         options.observer->OnStage(
             FitStage::kGlobal,
@@ -152,7 +121,7 @@ FitResult GlobalStage(const FitParts& parts, const FitOptions& options, const Lo
       own.segment_steps = mode.segment_steps;
       own.continuation.contact_segments = mode.contact_segments;
       own.continuation.hold_states = true;
-      StartAt(&fit, continued);
+      StartAt(&fit, continued, true);
       if (options.observer) {
         options.observer->OnStage(FitStage::kGlobal, tag + ": the local fit's horizon from there",
                                   local_seconds + SecondsSince(start));

@@ -25,9 +25,9 @@
 // the budget runs to its end (measured overruns up to 1.7x, docs/stress.md).
 //
 // Runs when: options.global_stage, the local fit ended not_converged, model_mismatch,
-// jacobian_unreliable or did_not_move (never after converged or interrupted), the fit is not
-// sharded (sysid/mpi/), and the segment states can come from the data (else it says so and ends).
-// Measurement terms and control delays restart at their own initial values in each pass.
+// local_minimum, jacobian_unreliable or did_not_move (never after converged or interrupted), the
+// fit is not sharded (sysid/mpi/), and the segment states can come from the data (else it says so
+// and ends). Measurement terms and control delays restart at their own initial values in each pass.
 //
 // The result: the better of the local fit and the stage's best, with the user's starts as
 // `initial`, the local fit's initial cost and initial signals, every pass's time, steps, ledger

@@ -5,19 +5,32 @@
 //     length the warning implies (SegmentStepsAfterWarning); the refit is the result;
 //   - after a failure: single shooting that did not converge on a system whose probe grew well
 //     beyond linear is refitted in segments (SegmentStepsAfterFailure); the refit is the result
-//     when it converges, else the single-shooting fit stays, saying so.
+//     when it converges. Else the two are compared by a common cost: the refit's estimate
+//     simulated in one piece (single shooting, a pass of no iteration) against the
+//     single-shooting fit's final cost. The refit is the result when that cost is lower by more
+//     than the noise explains (the single-shooting fit stopped in another minimum), else the
+//     single-shooting fit stays; a warning says which and why. (A segmented cost is never
+//     compared with a single-shooting one: segments restarted from the data fit it better
+//     whatever the parameters.)
 // The passes' records are combined as records: the refit's segment choice replaced by the
 // policy's reason, traces, steps, seconds and ledger rows joined. Then the global stage
 // (sysid/fit/global_stage.h) may continue from the local fit's estimate.
 #include "sysid/fit/policy.h"
 
 #include <algorithm>
+#include <cmath>
+#include <exception>
 #include <limits>
+#include <new>
 #include <string>
+#include <vector>
 
+#include "core/text.h"
+#include "sysid/assess/chi_square.h"
 #include "sysid/fit/global_stage.h"
 #include "sysid/fit/pass.h"
 #include "sysid/fit/records.h"
+#include "sysid/fit/restart.h"
 #include "sysid/fit_observer.h"
 #include "sysid/solve/multiple_shooting.h"
 #include "sysid/solve/progress.h"
@@ -38,6 +51,32 @@ FitResult Refit(const FitParts& parts, const FitOptions& options, int steps,
   pass.Assess();
   pass.result().segment_reason.choice = reason;
   return std::move(pass.result());
+}
+
+// The cost of the physical parameter values x with every sequence simulated in one piece from its
+// start (single shooting: the fit's sensors, weights and priors; measurement terms and control
+// delays at their starts): a pass of no iteration from x, whose records join *into's. +inf when
+// it cannot be evaluated (a simulation error).
+double CostInOnePiece(const FitParts& parts, const FitOptions& options,
+                      const std::vector<double>& x, FitResult* into) {
+  const KeepStarts keep(parts.fit);
+  StartAt(parts.fit, x, false);
+  FitOptions one = options;
+  one.segment_steps = 0;
+  one.max_iterations = 0;
+  one.observer = nullptr;  // no progress of its own: it is part of the refit's comparison
+  one.on_iteration = nullptr;
+  try {
+    FitPass pass(parts, one);
+    pass.Solve();
+    pass.FinishRecords();
+    AddRecords(pass.result(), "refit's estimate in one piece", false, into);
+    return pass.SolvedCost();
+  } catch (const std::bad_alloc&) {
+    throw;
+  } catch (const std::exception&) {
+    return std::numeric_limits<double>::infinity();
+  }
 }
 
 // the local fit: one pass, and auto's refit in segments; *mode: the horizon of the result's pass
@@ -73,14 +112,42 @@ FitResult LocalFit(const FitParts& parts, const FitOptions& options, LocalMode* 
       SegmentStepsAfterFailure(pass.plan().probe_growth, pass.plan().probe_rate, shortest, &reason);
   if (steps <= 0) return std::move(result);
   FitResult refit = Refit(parts, options, steps, reason, result.seconds);
-  if (refit.outcome == FitStatus::kConverged) {
+  const size_t np = parts.fit->params.size();
+  // the common cost: the refit's estimate in one piece (not for a refit that was interrupted)
+  double one_piece = std::numeric_limits<double>::infinity();
+  if (refit.outcome != FitStatus::kConverged && !refit.interrupted &&
+      refit.parameters.size() >= np) {
+    one_piece = CostInOnePiece(parts, options, EstimateOf(refit, np), &refit);
+  }
+  const bool lower =
+      std::isfinite(one_piece) &&
+      AboveByMoreThanNoise(result.final_cost, one_piece, refit.uncertainty.residual_variance,
+                           static_cast<int>(np));
+  if (refit.outcome == FitStatus::kConverged || lower) {
+    if (lower) {
+      refit.warnings.push_back(
+          "auto: the single-shooting fit ended " + std::string(FitStatusName(result.outcome)) +
+          " at cost " + FormatDigits(result.final_cost, 4) + "; " + reason + " ended " +
+          FitStatusName(refit.outcome) +
+          ", and their estimate simulated in one piece has the "
+          "lower cost " +
+          FormatDigits(one_piece, 4) +
+          ": the single-shooting fit had stopped in another minimum (local minimum); this "
+          "result is the refit's");
+    }
     // the ledger adds up to simulation_steps: the single-shooting fit's rows first
     AddRecords(result, "single-shooting fit", true, &refit);
     *mode = {steps, false};
     return refit;
   }
-  result.warnings.push_back("auto: " + reason + " were tried and ended " +
-                            FitStatusName(refit.outcome) + "; the single-shooting fit stays");
+  result.warnings.push_back(
+      "auto: " + reason + " were tried and ended " + FitStatusName(refit.outcome) +
+      (std::isfinite(one_piece)
+           ? "; their estimate simulated in one piece has cost " + FormatDigits(one_piece, 4) +
+                 ", not below this fit's " + FormatDigits(result.final_cost, 4) +
+                 " by more than the noise explains"
+           : std::string()) +
+      "; the single-shooting fit stays");
   AddRecords(refit, "multiple-shooting refit", false, &result);
   return std::move(result);
 }

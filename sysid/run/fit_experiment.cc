@@ -44,7 +44,7 @@ int ExitCodeOf(FitStatus status) {
     case FitStatus::kSolverFailed:
       return 4;
     default:
-      return 1;  // not converged, interrupted
+      return 1;  // not converged, local minimum, interrupted
   }
 }
 

@@ -127,8 +127,9 @@ struct FitRunOutcome {
   int printed_warnings = 0;
 };
 
-// the exit code of `sysid fit` for a fit's status (docs/cli.md): 0 converged; 1 not converged or
-// interrupted; 3 model_mismatch; 4 jacobian_unreliable or did_not_move (2 is bad input)
+// the exit code of `sysid fit` for a fit's status (docs/cli.md): 0 converged; 1 not converged,
+// local_minimum or interrupted; 3 model_mismatch; 4 jacobian_unreliable, did_not_move or
+// solver_failed (2 is bad input)
 int ExitCodeOf(FitStatus status);
 
 FitRunOutcome RunFit(const io::ExperimentConfig& config, const FitRunOptions& options);

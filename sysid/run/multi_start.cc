@@ -207,6 +207,8 @@ FitResult FitFromStarts(const BuiltProblem& bp, const FitOptions& options, int n
     result.start_spread.push_back(s);
   }
   for (const std::string& w : LocalMinimaWarnings(result)) result.warnings.push_back(w);
+  // the starts in another minimum say so (their fits' own verdicts are in that warning)
+  for (size_t k : StartsInOtherMinima(result)) result.starts[k].status = FitStatus::kLocalMinimum;
   // a stop signal: the run is interrupted, whatever the best start's own verdict
   int unfinished = 0;
   for (const StartResult& r : records) unfinished += r.status == FitStatus::kInterrupted ? 1 : 0;
@@ -228,44 +230,70 @@ FitResult FitFromStarts(const BuiltProblem& bp, const FitOptions& options, int n
   return result;
 }
 
+namespace {
+
+// whether start k of a multi-start result ended in another minimum (multi_start.h, "Local
+// minima"); *differ: the estimates that differ from the best's, *names gains their names
+bool InOtherMinimum(const FitResult& result, size_t k, std::string* differ,
+                    std::vector<std::string>* names) {
+  const auto b = static_cast<size_t>(result.best_start);
+  const StartResult& best = result.starts[b];
+  const StartResult& r = result.starts[k];
+  // a start stopped by a signal is not at a minimum
+  if (k == b || !r.error.empty() || r.status == FitStatus::kInterrupted ||
+      r.estimate.size() != best.estimate.size()) {
+    return false;
+  }
+  // a cost excess the noise does not explain
+  if (!AboveByMoreThanNoise(r.final_cost, best.final_cost, result.uncertainty.residual_variance,
+                            static_cast<int>(result.parameters.size()))) {
+    return false;
+  }
+  // estimates outside the best one's intervals
+  for (size_t j = 0; j < result.parameters.size(); ++j) {
+    const ParameterEstimate& e = result.parameters[j];
+    const double d = std::abs(r.estimate[static_cast<Eigen::Index>(j)] - e.value);
+    const double half = kZ95 * e.std_error;
+    const bool differs = std::isfinite(half) && half > 0
+                             ? d > half
+                             : d > kRelativeDifference * std::max(std::abs(e.value), 1e-300);
+    if (!differs) continue;
+    *differ += (differ->empty() ? "" : ", ") + e.name + " " +
+               FormatDigits(r.estimate[static_cast<Eigen::Index>(j)], 4) + " (best " +
+               FormatDigits(e.value, 4) + ")";
+    if (std::find(names->begin(), names->end(), e.name) == names->end()) {
+      names->push_back(e.name);
+    }
+  }
+  return !differ->empty();
+}
+
+}  // namespace
+
+std::vector<size_t> StartsInOtherMinima(const FitResult& result) {
+  std::vector<size_t> out;
+  std::vector<std::string> names;
+  for (size_t k = 0; k < result.starts.size() && result.starts.size() >= 2; ++k) {
+    std::string differ;
+    if (InOtherMinimum(result, k, &differ, &names)) out.push_back(k);
+  }
+  return out;
+}
+
 std::vector<std::string> LocalMinimaWarnings(const FitResult& result) {
   std::vector<std::string> out;
   if (result.starts.size() < 2) return out;
   const auto b = static_cast<size_t>(result.best_start);
   const StartResult& best = result.starts[b];
-  const int np = static_cast<int>(result.parameters.size());
-  const double s2 = result.uncertainty.residual_variance;
-
   std::string detail;
   int count = 0;
   std::vector<std::string> names;  // parameters that differ at any such start
   for (size_t k = 0; k < result.starts.size(); ++k) {
     const StartResult& r = result.starts[k];
-    // a start stopped by a signal is not at a minimum
-    if (k == b || !r.error.empty() || r.status == FitStatus::kInterrupted ||
-        r.estimate.size() != best.estimate.size()) {
-      continue;
-    }
-    // a cost excess the noise does not explain
-    if (!AboveByMoreThanNoise(r.final_cost, best.final_cost, s2, np)) continue;
-    // estimates outside the best one's intervals
     std::string differ;
-    for (size_t j = 0; j < result.parameters.size(); ++j) {
-      const ParameterEstimate& e = result.parameters[j];
-      const double d = std::abs(r.estimate[static_cast<Eigen::Index>(j)] - e.value);
-      const double half = kZ95 * e.std_error;
-      const bool differs = std::isfinite(half) && half > 0
-                               ? d > half
-                               : d > kRelativeDifference * std::max(std::abs(e.value), 1e-300);
-      if (!differs) continue;
-      differ += (differ.empty() ? "" : ", ") + e.name + " " +
-                FormatDigits(r.estimate[static_cast<Eigen::Index>(j)], 4) + " (best " +
-                FormatDigits(e.value, 4) + ")";
-      if (std::find(names.begin(), names.end(), e.name) == names.end()) names.push_back(e.name);
-    }
-    if (differ.empty()) continue;
+    if (!InOtherMinimum(result, k, &differ, &names)) continue;
     ++count;
-    detail += "; start " + std::to_string(k) + " (" + FitStatusName(r.status) + ", " +
+    detail += "; start " + std::to_string(k) + " (its fit ended " + FitStatusName(r.status) + ", " +
               std::to_string(r.iterations) + " iterations) ended at cost " +
               FormatDigits(r.final_cost, 6) + " with " + differ;
   }

@@ -26,7 +26,8 @@
 // residual variance, p the number of estimated values),
 // and at least one estimate differs from the best by more than the best's 95 % half-interval (or
 // by more than 1e-3 relative when the best has no finite interval). Then a warning names the
-// starts, their costs and the parameters that differ.
+// starts, their fits' verdicts, their costs and the parameters that differ, and those starts'
+// status in `starts` is local_minimum.
 //
 // Interruption: FitOptions::interrupt stops every running fit after its iteration and starts no
 // new one (recorded with status interrupted, error "not started (interrupted)"); the best of what
@@ -67,5 +68,8 @@ std::unique_ptr<Problem> ProblemFrom(const BuiltProblem& bp, const Eigen::Vector
 
 // the local-minimum warnings of a multi-start result (empty when none): see above
 std::vector<std::string> LocalMinimaWarnings(const FitResult& result);
+// the starts of a multi-start result in another minimum (see above); FitFromStarts sets their
+// StartResult::status to local_minimum after the warning (which names their own verdicts)
+std::vector<size_t> StartsInOtherMinima(const FitResult& result);
 
 }  // namespace mjsysid::run

@@ -210,7 +210,9 @@ void StartsSection(std::ostringstream& h, const FitResultFile& r) {
        "start "
     << r.best_start
     << "'s: the lowest final cost of the fits that converged (status converged or "
-       "model_mismatch), else of all</p>\n";
+       "model_mismatch), else of all; a start that ended in another minimum (its cost above the "
+       "best's by more than the noise explains, with other estimates) is marked "
+       "local_minimum</p>\n";
   h << "<table class=\"starts\">\n<tr><th>start</th><th>status</th><th>iterations</th>"
        "<th>initial cost</th><th>final cost</th>";
   for (const ParameterEstimate& p : r.parameters) {

@@ -4,10 +4,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "sysid/io/log.h"
 #include "sysid/run/output_folder.h"
@@ -127,6 +129,15 @@ simulate:
   EXPECT_EQ(r.start_spread[0].name, "stiffness");
   EXPECT_GT(r.start_spread[0].relative, 1.0);
   ASSERT_TRUE(HasLocalMinimaWarning(r));
+  // the flagged starts say local_minimum in their records; the best and the starts at its cost
+  // keep their fits' own verdicts
+  const std::vector<size_t> flagged = StartsInOtherMinima(r);
+  ASSERT_FALSE(flagged.empty());
+  for (size_t k = 0; k < r.starts.size(); ++k) {
+    const bool other = std::find(flagged.begin(), flagged.end(), k) != flagged.end();
+    EXPECT_EQ(r.starts[k].status == FitStatus::kLocalMinimum, other) << "start " << k;
+  }
+  EXPECT_EQ(r.starts[static_cast<size_t>(r.best_start)].status, FitStatus::kConverged);
   for (const std::string& w : r.warnings) {
     if (w.rfind("local minima:", 0) == 0) {
       EXPECT_NE(w.find("stiffness"), std::string::npos) << w;
@@ -142,6 +153,7 @@ simulate:
         << s.start[0] << ", " << s.start[1];
   }
   EXPECT_FALSE(HasLocalMinimaWarning(g));
+  for (const StartResult& s : g.starts) EXPECT_NE(s.status, FitStatus::kLocalMinimum);
 }
 
 // The pendulum (experiments/pendulum.yaml, one sequence): every start spread over its bounds
