@@ -15,11 +15,11 @@
 // - jacobian_unreliable: the core flagged a Jacobian during the solve (jacobian_warned) and the
 //   cost fell by less than 5 %.
 // - not_converged: the optimiser did not converge.
-// - jacobian_unreliable when the core flagged the Jacobian at the estimate itself
-//   (jacobian_warned_at_estimate: h*|S| past kSensitivityGrowthLimit, the rollouts so sensitive
-//   that the linear model holds only far below a step, nor do intervals built from it; before
-//   model_mismatch: a
-//   shorter horizon is the first way out).
+// - jacobian_unreliable when the core flagged the Jacobian at the estimate itself and the cost
+//   did not confirm the intervals' model (jacobian_warned_at_estimate: h*|S| past
+//   kSensitivityGrowthLimit, the rollouts so sensitive that the linear model may hold only far
+//   below a step, nor do intervals built from it; before model_mismatch: a shorter horizon is the
+//   first way out).
 // - model_mismatch: options.sensors_with_sigma not empty and the weighted residual variance of
 //   those sensors' columns at the estimate, sum(r^2) / (m - p) with p the rank of the Jacobian at
 //   the estimate, overall or per sensor (its share of m - p), above both the chi-square quantile
@@ -43,7 +43,8 @@ namespace mjsysid {
 // segment's Jacobian as not reliable during the solve; cost_not_local: CheckIntervalScale found
 // the cost at the estimate +- one standard error far from the Jacobian's quadratic model;
 // jacobian_warned_at_estimate: the core flagged the Jacobian evaluated at the estimate (the one the
-// intervals come from)
+// intervals come from) and the cost along every variable did not confirm the intervals' model
+// (a fit pass's stage 7; sysid/fit/pass.cc)
 void DecideFitStatus(const FitOptions& options, int accepted_steps, bool jacobian_warned,
                      FitResult* result, bool cost_not_local = false,
                      bool jacobian_warned_at_estimate = false);

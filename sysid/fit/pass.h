@@ -146,6 +146,9 @@ class FitPass {
   Eigen::MatrixXd r_aug_;   // the triangle [R q; 0 rho] of [J_p r] (physical units)
   bool cost_not_local_ = false;
   bool jacobian_warned_at_estimate_ = false;
+  // the cost along every variable confirmed the intervals' model (stage 7: the interval check
+  // matched it, or the envelope held, on a cost checked as rugged)
+  bool intervals_confirmed_ = false;
 };
 
 }  // namespace mjsysid

@@ -77,6 +77,7 @@ void FitPass::CheckIntervals() {
                             [this](int v, double delta, double* c) { return CostAt(v, delta, c); });
     record.evaluations += env.checked;
     if (env.valid) {
+      intervals_confirmed_ = true;
       WidenIntervals(env.widen);
       record.envelope =
           "intervals from the Jacobian, " +
@@ -103,6 +104,8 @@ void FitPass::CheckIntervals() {
              : "a point below the estimate by more than the noise explains: " + env.lower) +
         ", so the estimate is not the bottom of its intervals");
   }
+  // on a cost checked as rugged the check ran along every variable with an interval
+  if (ic.local && !rugged.empty()) intervals_confirmed_ = true;
   if (!ic.local) {
     cost_not_local_ = true;
     result_.warnings.push_back(

@@ -226,7 +226,7 @@ HorizonChoice ChooseHorizon(const PreparedFit& fit, const std::vector<Trajectory
   out.reason = "multiple shooting: sensitivity grows exponentially, rate " + FormatDigits(rate, 3) +
                " per step (x" + FormatDigits(kExponentialGrowth, 3) + " beyond linear at step " +
                std::to_string(first) + " of sequence '" + where + "')";
-  if (!contact_source.empty() && kContactSegmentSteps < out.steps) {
+  if (!contact_source.empty() && kContactSegmentSteps <= out.steps) {
     out.steps = kContactSegmentSteps;
     out.contacts = true;
     out.reason += " and " + contacts;

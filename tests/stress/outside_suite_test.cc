@@ -46,8 +46,9 @@ const std::vector<std::string> kHoldout = {"holdout/quadruped12", "holdout/swimm
 
 constexpr double kRecoveryTolerance = 0.05;  // relative
 // the fast cases that recover (converged, every estimate within kRecoveryTolerance): asserted;
-// the others are recorded only
-const std::vector<std::string> kRecovers = {"cheetah", "walker", "ant"};
+// the others are recorded only (the hopper since auto's 10-step segments get the contact
+// treatment and the interval check can vouch for a flagged Jacobian, docs/stress.md)
+const std::vector<std::string> kRecovers = {"cheetah", "hopper", "walker", "ant"};
 
 std::vector<std::string> Cases() {
   const char* v = std::getenv("MJSYSID_OUTSIDE_SET");

@@ -130,10 +130,17 @@ TEST_P(RobustSuiteTest, EndsHonestly) {
         std::string::npos;
     EXPECT_EQ(contact_segments, events) << SegmentReasonText(out.file.segment_reason);
     // and start with the segment states held on the data (sysid/solve/multiple_shooting.h,
-    // SolveWithStatesHeld), saying so
+    // SolveWithStatesHeld), saying so; so does a global-stage pass in segments when it is the
+    // result (the crate since auto keeps its 64-step refit: sysid/fit/policy.cc)
     const bool held =
         SegmentReasonText(out.file.segment_reason).find("held on the data") != std::string::npos;
-    EXPECT_EQ(held, events) << SegmentReasonText(out.file.segment_reason);
+    bool stage_kept = false;
+    for (const std::string& w : out.file.warnings) {
+      stage_kept = stage_kept || (w.rfind("global stage:", 0) == 0 &&
+                                  w.find("this result is the lower point") != std::string::npos);
+    }
+    EXPECT_EQ(held, events || (stage_kept && out.file.segment_steps_used > 0))
+        << SegmentReasonText(out.file.segment_reason);
   }
 
   // honest: converged means exit 0, valid intervals and every truth inside them; anything else
