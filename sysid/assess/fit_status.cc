@@ -119,27 +119,13 @@ bool UnexplainedWithoutSigmas(const FitOptions& options, FitResult* result) {
 
 }  // namespace
 
-void DecideFitStatus(const FitOptions& options, int accepted_steps, bool jacobian_warned,
-                     FitResult* result, bool cost_not_local, bool jacobian_warned_at_estimate) {
+bool ResidualsAboveNoise(const FitOptions& options, FitResult* result) {
   FitResult& r = *result;
-
-  // did the estimate leave its start: an accepted step that changed some estimated value
-  bool moved = accepted_steps > 0 && r.parameters.empty();  // only initial states estimated
-  for (const ParameterEstimate& e : r.parameters) {
-    moved = moved || (accepted_steps > 0 && e.value != e.initial);
-  }
-  // the statistical stop at the start: the start is the estimate, within the stop's fraction of
-  // every standard error of the Gauss-Newton optimum (a full-rank Jacobian: every value moves
-  // the data), so not having moved is right
-  moved = moved || r.gauss_newton_converged;
-  const double decrease = r.initial_cost > 0 ? (r.initial_cost - r.final_cost) / r.initial_cost : 0;
-  const bool jacobian_bad = jacobian_warned && decrease < kSmallCostDecrease;
-
   // with sigmas: the weighted residuals of those sensors (and of the fitted states) at the
   // estimate against chi-square
   std::vector<std::string> mismatched;
   bool mismatch = false;
-  if ((!options.sensors_with_sigma.empty() || options.states.any()) && !r.interrupted) {
+  if (!options.sensors_with_sigma.empty() || options.states.any()) {
     std::map<std::string, std::pair<double, long long>> per_sensor;  // sum r^2, rows
     for (const SequenceResult& sr : r.sequences) {
       Eigen::Index col = 0;
@@ -210,7 +196,27 @@ void DecideFitStatus(const FitOptions& options, int accepted_steps, bool jacobia
   }
 
   // without sigmas: the residuals against the noise the log itself shows
-  if (!r.interrupted && UnexplainedWithoutSigmas(options, &r)) mismatch = true;
+  if (UnexplainedWithoutSigmas(options, &r)) mismatch = true;
+  return mismatch;
+}
+
+void DecideFitStatus(const FitOptions& options, int accepted_steps, bool jacobian_warned,
+                     FitResult* result, bool cost_not_local, bool jacobian_warned_at_estimate) {
+  FitResult& r = *result;
+
+  // did the estimate leave its start: an accepted step that changed some estimated value
+  bool moved = accepted_steps > 0 && r.parameters.empty();  // only initial states estimated
+  for (const ParameterEstimate& e : r.parameters) {
+    moved = moved || (accepted_steps > 0 && e.value != e.initial);
+  }
+  // the statistical stop at the start: the start is the estimate, within the stop's fraction of
+  // every standard error of the Gauss-Newton optimum (a full-rank Jacobian: every value moves
+  // the data), so not having moved is right
+  moved = moved || r.gauss_newton_converged;
+  const double decrease = r.initial_cost > 0 ? (r.initial_cost - r.final_cost) / r.initial_cost : 0;
+  const bool jacobian_bad = jacobian_warned && decrease < kSmallCostDecrease;
+
+  const bool mismatch = !r.interrupted && ResidualsAboveNoise(options, &r);
 
   // the verdict, the first that applies
   if (r.interrupted) {

@@ -39,6 +39,12 @@
 
 namespace mjsysid {
 
+// The residual tests of model_mismatch above, alone: with sigmas the chi-square test, without them
+// the test against the noise the log shows. Sets result->chi2_ratio, sensor_chi2_ratio and
+// sensor_noise_ratio from result's sequences (measured and simulated_final) and parameters (their
+// number, or the uncertainty's rank), appends each failing test's warning; true when one fails.
+bool ResidualsAboveNoise(const FitOptions& options, FitResult* result);
+
 // accepted_steps: the solve's successful iterations; jacobian_warned: the core flagged some
 // segment's Jacobian as not reliable during the solve; cost_not_local: CheckIntervalScale found
 // the cost at the estimate +- one standard error far from the Jacobian's quadratic model;
