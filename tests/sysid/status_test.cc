@@ -244,19 +244,8 @@ TEST(FitStatusTest, UnexplainedDataWithoutSigmasIsNotConverged) {
 // single shooting (tests/stress/horizon_stress_test.cc "high": measured, it does not recover):
 // the fit must not be converged, its intervals not valid and the exit code not 0
 TEST(FitStatusTest, ChaoticLongHorizonIsNotConverged) {
-  ModelPtr m = LoadModel(kModels + "/double_pendulum.xml");
-  const std::vector<Truth> truth = {{"m1", Spec("body_mass", "link1"), 1.0},
-                                    {"m2", Spec("body_mass", "link2"), 0.8}};
-  InitialState x0;
-  x0.qpos = Eigen::Vector2d(2.5, -2.0);
-  x0.qvel = Eigen::Vector2d(0, 6.0);
-  const RowMatrix u = Excitation(*m, 3000, 3.0, 5);
-  const RowMatrix y = Measure(*m, truth, x0, u, 0, 0);
   Problem problem;
-  problem.AddModel("dp", *m);
-  problem.AddParameter(FitParameter("m1", truth[0].spec, 1.2).Bounds(0.05, 20).Log());
-  problem.AddParameter(FitParameter("m2", truth[1].spec, 0.6).Bounds(0.05, 20).Log());
-  problem.AddSequence(FitSequence("seq0", "dp", x0, u, y));
+  test::AddHighEnergyDoublePendulum(3000, 0, 1.2, 0.6, &problem);
   FitOptions opt;
   opt.segment_steps = 0;  // single shooting (the default, auto, splits this horizon and recovers)
   opt.threads = 2;

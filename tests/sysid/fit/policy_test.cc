@@ -16,21 +16,14 @@
 #include <cmath>
 #include <cstdio>
 #include <string>
-#include <vector>
 
-#include "core/mujoco_env.h"
 #include "sysid/problem.h"
 #include "tests/fit_test_util.h"
-#include "tests/test_util.h"
 
 namespace mjsysid {
 namespace {
 
 using test::Estimate;
-using test::Excitation;
-using test::Measure;
-using test::Spec;
-using test::Truth;
 
 bool HasWarning(const FitResult& r, const std::string& text) {
   for (const std::string& w : r.warnings) {
@@ -41,19 +34,8 @@ bool HasWarning(const FitResult& r, const std::string& text) {
 
 // the fit of the case above with max_iterations `iterations`
 FitResult FitDoublePendulum(int iterations) {
-  ModelPtr m = LoadModel(std::string(MJSYSID_MODELS_DIR) + "/double_pendulum.xml");
-  const std::vector<Truth> truth = {{"m1", Spec("body_mass", "link1"), 1.0},
-                                    {"m2", Spec("body_mass", "link2"), 0.8}};
-  InitialState x0;
-  x0.qpos = Eigen::Vector2d(2.5, -2.0);
-  x0.qvel = Eigen::Vector2d(0, 6.0);
-  const RowMatrix u = Excitation(*m, 1600, 3.0, 5);
-  const RowMatrix y = Measure(*m, truth, x0, u, 0.01, 3);
   Problem problem;
-  problem.AddModel("dp", *m);
-  problem.AddParameter(FitParameter("m1", truth[0].spec, 1.4).Bounds(0.05, 20).Log());
-  problem.AddParameter(FitParameter("m2", truth[1].spec, 0.5).Bounds(0.05, 20).Log());
-  problem.AddSequence(FitSequence("seq0", "dp", x0, u, y));
+  test::AddHighEnergyDoublePendulum(1600, 0.01, 1.4, 0.5, &problem);
   FitOptions opt;  // auto multiple shooting (the default)
   opt.threads = 2;
   opt.max_iterations = iterations;
