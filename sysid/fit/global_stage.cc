@@ -25,8 +25,7 @@ namespace {
 // the statuses after which the stage runs
 bool Unfinished(FitStatus s) {
   return s == FitStatus::kNotConverged || s == FitStatus::kModelMismatch ||
-         s == FitStatus::kLocalMinimum || s == FitStatus::kJacobianUnreliable ||
-         s == FitStatus::kDidNotMove;
+         s == FitStatus::kJacobianUnreliable || s == FitStatus::kDidNotMove;
 }
 
 // what the stage did so far, for its warning

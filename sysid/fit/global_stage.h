@@ -25,7 +25,7 @@
 // the budget runs to its end (measured overruns up to 1.7x, docs/stress.md).
 //
 // Runs when: options.global_stage, the local fit ended not_converged, model_mismatch,
-// local_minimum, jacobian_unreliable or did_not_move (never after converged or interrupted), the
+// jacobian_unreliable or did_not_move (never after converged or interrupted), the
 // fit is not sharded (sysid/mpi/), and the segment states can come from the data (else it says so
 // and ends). Measurement terms and control delays restart at their own initial values in each pass.
 //

@@ -149,8 +149,7 @@ FitResult LocalFit(const FitParts& parts, const FitOptions& options, LocalMode* 
           "auto: the single-shooting fit ended " + std::string(FitStatusName(result.outcome)) +
           " at cost " + FormatDigits(result.final_cost, 4) + "; " + reason + " ended " +
           FitStatusName(refit.outcome) +
-          ", and their estimate simulated in one piece has the "
-          "lower cost " +
+          ", and their estimate simulated in one piece has the lower cost " +
           FormatDigits(one_piece, 4) +
           ": the single-shooting fit had stopped in another minimum (local minimum); this "
           "result is the refit's");
@@ -179,7 +178,8 @@ FitResult LocalFit(const FitParts& parts, const FitOptions& options, LocalMode* 
 // model_mismatch, the segments' free states absorbed an effect the model lacks: *result becomes
 // model_mismatch, saying so. Measured (tests/sysid/status_test.cc): the pendulum fitted without
 // its friction in 20-step segments converged at a weighted residual variance of 1.34 (the
-// continuity gaps, 0.053, took up the friction); in one piece the variance is ~100. Not for fits
+// continuity gaps, 0.053, took up the friction); in one piece the variance is 53.8 (the rate's
+// 100). Not for fits
 // with measurement terms, control delays or estimated initial states (the pass would start them
 // elsewhere), nor sharded ones. Its steps and time join the result's records.
 void CheckInOnePiece(const FitParts& parts, const FitOptions& options, FitResult* result) {
