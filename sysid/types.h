@@ -539,6 +539,22 @@ struct SegmentRecord {
 // on the data (cost A -> B)", the parts present
 std::string SegmentReasonText(const SegmentRecord& r);
 
+// how one channel's residuals at the estimate look, pooled over the sequences
+// (sysid/assess/residual_diagnostics.h computes and explains every field)
+struct ResidualDiagnostics {
+  std::string channel;       // "sensor" (1-D), "sensor[i]"
+  int samples = 0;           // measured rows over every sequence
+  double mean = 0;           // bias, the channel's units
+  double rms = 0;            // the channel's units
+  double sigma = 0;          // the stated sigma (NaN: none)
+  double ratio = 0;          // rms / sigma (NaN without sigma)
+  double bias_units = 0;     // |mean| in standard errors of a mean of correlated residuals
+  double lag1 = 0;           // autocorrelation at one sample
+  double tau = 0;            // integrated correlation time, samples (1: white)
+  double portmanteau_p = 0;  // Ljung-Box p-value
+  bool white = true;         // the portmanteau test passed (or too few samples to tell)
+};
+
 struct FitResult {
   std::vector<ParameterEstimate> parameters;  // physical parameters, then measurement terms
   double initial_cost = 0, final_cost = 0;    // 0.5 |r|^2
@@ -560,6 +576,14 @@ struct FitResult {
   FitTermination termination;  // why the optimiser stopped (TerminationText)
   int num_residuals = 0;
   Uncertainty uncertainty;  // over FitResult::parameters (order as there)
+  // the fitted sensor columns' residuals at the estimate, one entry per channel pooled over the
+  // fitted sequences (sysid/assess/residual_diagnostics.h)
+  std::vector<ResidualDiagnostics> residuals;
+  // what the intervals come from: the covariance s^2 (J^T J)^-1 times interval_inflation, the
+  // residuals' correlation time when they are not white (1: white residuals; the uncertainty's
+  // covariance, std_error and ci95 of parameters and derived quantities include it), and why
+  double interval_inflation = 1;
+  std::string intervals_from;
   // dr/dp at the estimate (physical units) as its thin-QR triangle R: min(num_residuals, np) x
   // np, upper triangular, R^T R = J^T J (the per-sample rows are not kept:
   // sysid/assess/uncertainty.h RowTriangle)

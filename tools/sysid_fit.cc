@@ -105,13 +105,16 @@ std::string Flags(const mjsysid::ParameterEstimate& p) {
   return Join(f);
 }
 
-// a % fit for a table cell ("-" for NaN: a constant channel or a failed simulation)
-std::string Percent(double x) {
+// a number for a table cell in format ("-" for NaN: no sigma, too few samples)
+std::string Number(double x, const char* format) {
   if (!std::isfinite(x)) return "-";
   char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.1f", x);
+  std::snprintf(buf, sizeof(buf), format, x);
   return buf;
 }
+
+// a % fit for a table cell ("-" for NaN: a constant channel or a failed simulation)
+std::string Percent(double x) { return Number(x, "%.1f"); }
 
 // per sequence the worst and the median channel's % fit (sysid/assess/metrics.h), at the start and
 // at the estimate; fitted sequences first, then the held-out ones (`validation:`)
@@ -130,6 +133,36 @@ void PrintFitQuality(const mjsysid::io::FitResultFile& f) {
                   Percent(b.median).c_str());
     }
   }
+}
+
+// the residuals at the estimate per channel (sysid/assess/residual_diagnostics.h): every channel
+// when there are few, else the ones that are not white; then what the intervals came from
+void PrintResiduals(const mjsysid::io::FitResultFile& f) {
+  if (f.residuals.empty()) return;
+  constexpr size_t kAllChannelsUpTo = 12;
+  int white = 0;
+  for (const mjsysid::ResidualDiagnostics& d : f.residuals) white += d.white ? 1 : 0;
+  const bool all = f.residuals.size() <= kAllChannelsUpTo;
+  if (!all && white == static_cast<int>(f.residuals.size())) {
+    std::printf("  residuals: all %zu channels white\n", f.residuals.size());
+  } else {
+    std::printf("  residuals at the estimate%s (white: no correlation beyond chance)\n",
+                all ? "" : ", channels that are not white");
+    std::printf("  %-24s %12s %10s %10s %8s %12s  %s\n", "channel", "rms", "rms/sigma", "bias/se",
+                "lag-1", "corr. time", "white");
+    for (const mjsysid::ResidualDiagnostics& d : f.residuals) {
+      if (!all && d.white) continue;
+      std::printf("  %-24s %12.3g %10s %10s %8s %12s  %s\n", d.channel.c_str(), d.rms,
+                  Number(d.ratio, "%.3g").c_str(), Number(d.bias_units, "%.2g").c_str(),
+                  Number(d.lag1, "%.2f").c_str(), Number(d.tau, "%.3g").c_str(),
+                  d.white ? "yes" : "NO");
+    }
+    if (!all) {
+      std::printf("  (%d of %zu channels white: result.yaml `residuals` lists every channel)\n",
+                  white, f.residuals.size());
+    }
+  }
+  if (f.interval_inflation > 1) std::printf("  intervals from %s\n", f.intervals_from.c_str());
 }
 
 // multi-start: how many starts ended with each status (local_minimum: in another minimum than the
@@ -210,6 +243,7 @@ void PrintEstimates(const mjsysid::io::FitResultFile& f, bool verbose) {
                 f.status.c_str());
   }
   PrintFitQuality(f);
+  PrintResiduals(f);
   PrintStarts(f);
   std::fflush(stdout);
 }

@@ -284,6 +284,29 @@ NB_MODULE(_mjsysid, m) {
   m.def("mujoco_version", &MujocoVersion, "X.Y.Z of the libmujoco loaded in this process");
 
   // --- results of a fit (sysid/types.h) ---
+  nb::class_<ResidualDiagnostics>(
+      m, "ResidualDiagnostics",
+      "One fitted channel's residuals at the estimate, pooled over the fitted sequences "
+      "(result.yaml `residuals`, docs/real-logs.md \"Residual diagnostics\")")
+      .def_ro("channel", &ResidualDiagnostics::channel)
+      .def_ro("samples", &ResidualDiagnostics::samples, "measured rows")
+      .def_ro("mean", &ResidualDiagnostics::mean, "bias, the channel's units")
+      .def_ro("rms", &ResidualDiagnostics::rms)
+      .def_ro("sigma", &ResidualDiagnostics::sigma, "the stated sigma (NaN: none)")
+      .def_ro("rms_over_sigma", &ResidualDiagnostics::ratio)
+      .def_ro("bias_std_errors", &ResidualDiagnostics::bias_units,
+              "|mean| in standard errors of a mean of these (correlated) residuals")
+      .def_ro("lag1", &ResidualDiagnostics::lag1, "autocorrelation at one sample")
+      .def_ro("correlation_samples", &ResidualDiagnostics::tau,
+              "integrated correlation time in samples (1: white)")
+      .def_ro("portmanteau_p", &ResidualDiagnostics::portmanteau_p, "Ljung-Box p-value")
+      .def_ro("white", &ResidualDiagnostics::white)
+      .def("__repr__", [](const ResidualDiagnostics& d) {
+        return "ResidualDiagnostics(" + d.channel + ", rms " + std::to_string(d.rms) +
+               ", correlation_samples " + std::to_string(d.tau) +
+               (d.white ? ", white)" : ", not white)");
+      });
+
   nb::class_<ParameterEstimate>(m, "ParameterEstimate",
                                 "One estimated variable: a physical parameter or a measurement "
                                 "term (SENSOR.delay, SENSOR.gain, SENSOR.bias)")
@@ -399,6 +422,12 @@ NB_MODULE(_mjsysid, m) {
       .def_ro("chi2_ratio", &FitResult::chi2_ratio)
       .def_ro("sensor_chi2_ratio", &FitResult::sensor_chi2_ratio)
       .def_ro("sensor_noise_ratio", &FitResult::sensor_noise_ratio)
+      .def_ro("residuals", &FitResult::residuals,
+              "per fitted channel: bias, rms / sigma, whiteness, correlation time")
+      .def_ro("interval_inflation", &FitResult::interval_inflation,
+              "the factor on the covariance for correlated residuals (1: white)")
+      .def_ro("intervals_from", &FitResult::intervals_from,
+              "what the intervals come from (white or correlated residuals)")
       .def_prop_ro(
           "termination", [](const FitResult& r) { return TerminationText(r.termination); },
           "why the optimiser stopped, one line (result.yaml's termination)")

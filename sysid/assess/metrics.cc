@@ -12,10 +12,25 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 double Nrmse(const Eigen::Ref<const Eigen::VectorXd>& measured,
              const Eigen::Ref<const Eigen::VectorXd>& simulated) {
   if (measured.size() == 0 || measured.size() != simulated.size()) return kNaN;
-  // |y - yhat| / |y - mean(y)|: the same as RMS error over the population std
-  const double spread = (measured.array() - measured.mean()).matrix().norm();
+  // over the measured cells (NaN: not measured, as the fit masks them): |y - yhat| / |y - mean(y)|,
+  // the same as RMS error over the population std; a simulated NaN is a failed simulation
+  double sum = 0;
+  long long n = 0;
+  for (Eigen::Index k = 0; k < measured.size(); ++k) {
+    if (std::isnan(measured[k])) continue;
+    sum += measured[k];
+    ++n;
+  }
+  if (n == 0) return kNaN;
+  const double mean = sum / static_cast<double>(n);
+  double spread = 0, error = 0;
+  for (Eigen::Index k = 0; k < measured.size(); ++k) {
+    if (std::isnan(measured[k])) continue;
+    spread += (measured[k] - mean) * (measured[k] - mean);
+    error += (measured[k] - simulated[k]) * (measured[k] - simulated[k]);
+  }
   if (!(spread > 0)) return kNaN;
-  return (measured - simulated).norm() / spread;
+  return std::sqrt(error / spread);
 }
 
 double FitPercent(double nrmse) { return 100.0 * (1.0 - nrmse); }

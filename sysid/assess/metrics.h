@@ -4,9 +4,11 @@
 //   NRMSE = |y - yhat| / |y - mean(y)| = RMS(yhat - y) / std(y)   (std: population, 1/T)
 //   % fit = 100 (1 - NRMSE)
 //
-// y the measured column (T samples), yhat the simulated one. 100 % is a perfect match, 0 % is no
-// better than the constant mean(y), negative is worse than it. A measured column with no variation
-// (std(y) = 0) has no fit to speak of: NaN for both. No Ceres, no MuJoCo: Eigen only.
+// y the measured column (T samples), yhat the simulated one, over the measured cells only (NaN in
+// y: not measured, left out as the fit leaves it out). 100 % is a perfect match, 0 % is no better
+// than the constant mean(y), negative is worse than it. A measured column with no variation
+// (std(y) = 0) or no measured cell has no fit to speak of: NaN for both; so has a simulation with
+// NaN at a measured cell (failed). No Ceres, no MuJoCo: Eigen only.
 #pragma once
 
 #include <Eigen/Core>
@@ -17,8 +19,8 @@
 
 namespace mjsysid {
 
-// NRMSE of simulated against measured (both length T >= 1); NaN when measured is constant or the
-// lengths differ
+// NRMSE of simulated against measured (both length T >= 1) over measured's non-NaN cells; NaN when
+// those are constant or none, or the lengths differ
 double Nrmse(const Eigen::Ref<const Eigen::VectorXd>& measured,
              const Eigen::Ref<const Eigen::VectorXd>& simulated);
 

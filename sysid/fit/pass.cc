@@ -69,6 +69,7 @@ void FitPass::Assess() {
   Uncertainty();
   if (evaluated_) CheckIntervals();
   FinalSignals();
+  Residuals();
   Decide();
 }
 
@@ -105,8 +106,8 @@ void FitPass::Start() {
   }
 }
 
-// 9. the verdict (sysid/assess/fit_status.h) from the accepted steps, the Jacobian warnings and the
-// chi-square; the step count, the reduced model, the ledger and the time
+// 10. the verdict (sysid/assess/fit_status.h) from the accepted steps, the Jacobian warnings and
+// the chi-square; the step count, the reduced model, the ledger and the time
 void FitPass::Decide() {
   int accepted_steps = held_accepted_;
   for (size_t i = 1; i < summary_.iterations.size(); ++i) {

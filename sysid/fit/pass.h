@@ -1,5 +1,5 @@
 // One pass of a fit: the problem prepared once, solved once, and its estimate assessed, as a
-// sequence of named stages (Ceres' Minimize): Solve runs stages 1-4, Assess stages 5-9.
+// sequence of named stages (Ceres' Minimize): Solve runs stages 1-4, Assess stages 5-10.
 // Problem::Fit (sysid/fit/policy.cc) runs a pass and, for auto multiple shooting, may run a second
 // one in segments; it combines their records.
 //
@@ -19,10 +19,13 @@
 //   7. CheckIntervals (pass_intervals.cc) the cost one standard error away against the Jacobian's
 //                                         quadratic model; on a rugged cost its envelope at +-1
 //                                         and +-2 standard errors
-//   8. FinalSignals (pass_signals.cc)     derived inertials, bound and identifiability warnings,
-//                                         the simulated signals at the start and the estimate
-//   9. Decide       (pass.cc)             the status (sysid/assess/fit_status.h), steps, ledger,
-//   time
+//   8. FinalSignals (pass_signals.cc)     bound and identifiability warnings, the simulated
+//                                         signals at the start and the estimate
+//   9. Residuals    (pass_residuals.cc)   the residuals' diagnostics per channel; intervals
+//                                         widened by their correlation time when not white; the
+//                                         derived inertials with the parameters' final covariance
+//  10. Decide       (pass.cc)             the status (sysid/assess/fit_status.h), steps, ledger,
+//                                         time
 //
 // Ownership: a pass borrows the fit state's parts (sysid/solve/fit_state.h) for its lifetime and
 // owns the Ceres problem and what the solve needs around it; the solve context's borrowed pointers
@@ -65,7 +68,7 @@ class FitPass {
   // runs stages 1-4; kJacobianWarning when the solve stopped for one (the result then holds the
   // trace alone; Assess may still follow)
   Stop Solve();
-  // runs stages 5-9 after Solve: the result is complete
+  // runs stages 5-10 after Solve: the result is complete
   void Assess();
   // instead of Assess, for a pass whose estimate alone is wanted: the result's seconds, simulation
   // steps and ledger (its trace is the solve's)
@@ -95,11 +98,13 @@ class FitPass {
   void Uncertainty();
   void CheckIntervals();
   void FinalSignals();
+  void Residuals();
   void Decide();
 
   // stage 8's parts
-  void DerivedQuantities();
   void SequenceSignals(size_t q, double* worst_gap, std::string* worst_gap_where);
+  // stage 9's
+  void DerivedQuantities();
   // the cost with variable v of FitResult::parameters moved by delta (physical units): false
   // outside its bounds or when the residuals cannot be evaluated
   bool CostAt(int v, double delta, double* cost);

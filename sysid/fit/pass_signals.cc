@@ -1,6 +1,6 @@
-// Stage 8 of a fit pass (sysid/fit/pass.h): what the estimate means beyond its values: derived
-// inertials, bound and identifiability warnings, and the simulated signals at the start and at the
-// estimate, sequence by sequence.
+// Stage 8 of a fit pass (sysid/fit/pass.h): what the estimate means beyond its values: bound and
+// identifiability warnings, and the simulated signals at the start and at the estimate, sequence by
+// sequence; and stage 9's derived inertials.
 #include <string>
 #include <vector>
 
@@ -61,12 +61,11 @@ void SensorsAtSamples(const RowMatrix& sensors, const SampleGrid& grid, int k0, 
 
 }  // namespace
 
-// 8. Derived quantities and warnings, then every sequence's signals at the start and at the
+// 8. Bound and identifiability warnings, then every sequence's signals at the start and at the
 // estimate (segment-wise in multiple shooting) with the largest continuity gap: segments that do
 // not join describe no single trajectory, which the user must be told (docs/stress.md).
 void FitPass::FinalSignals() {
   ledger_.Enter(kPhaseSignals);
-  DerivedQuantities();
   for (const auto& p : result_.parameters) {
     if (p.at_lower || p.at_upper) {
       result_.warnings.push_back("parameter '" + p.name + "' stopped on its " +

@@ -127,6 +127,22 @@ void VisitDerivedFields(V& v, D& d) {
   v.Number({"truth", Presence::kWhenSet}, d.truth);
 }
 
+// one entry of `residuals` (sysid/assess/residual_diagnostics.h)
+template <class V, class D>
+void VisitResidualFields(V& v, D& d) {
+  v.Text({"channel"}, d.channel);
+  v.Int({"samples"}, d.samples);
+  v.Number({"mean"}, d.mean);
+  v.Number({"rms"}, d.rms);
+  v.Number({"sigma"}, d.sigma);
+  v.Number({"rms_over_sigma"}, d.ratio);
+  v.Number({"bias_std_errors"}, d.bias_units);
+  v.Number({"lag1"}, d.lag1);
+  v.Number({"correlation_samples"}, d.tau);
+  v.Number({"portmanteau_p"}, d.portmanteau_p);
+  v.Bool({"white"}, d.white);
+}
+
 // one entry of `starts.runs` (values in the order of `parameters`)
 template <class V, class S>
 void VisitStartFields(V& v, S& s) {
@@ -171,6 +187,10 @@ void VisitResultFields(V& v, R& r) {
   v.Text({"run_id", Presence::kWhenSet, true}, r.run_id);
   // whether std and ci95 mean something (only for status converged); absent: valid when converged
   v.Bool({"intervals_valid", Presence::kOptional, true}, r.intervals_valid);
+  // what the intervals come from (white residuals, or widened by their correlation time: the
+  // factor applied to the covariance); absent: white (files before the residual diagnostics)
+  v.Text({"intervals_from", Presence::kWhenSet}, r.intervals_from);
+  v.Number({"interval_inflation", Presence::kOptional}, r.interval_inflation);
   v.Int({"iterations"}, r.iterations);
   v.Number({"initial_cost"}, r.initial_cost);
   v.Number({"final_cost"}, r.final_cost);
@@ -214,6 +234,10 @@ void VisitResultFields(V& v, R& r) {
          [](auto& e, auto& h) { VisitInputHashFields(e, h); });
   // per channel fit metrics (sysid/assess/metrics.h) of the fitted and the held-out sequences
   v.FitMetrics({"fit_metrics"}, r);
+  // the residuals at the estimate per fitted channel, pooled over the fitted sequences: bias,
+  // ratio to sigma, whiteness, correlation time (sysid/assess/residual_diagnostics.h)
+  v.List({"residuals", Presence::kWhenSet}, Style::kBlock, r.residuals,
+         [](auto& e, auto& d) { VisitResidualFields(e, d); });
   // multi-start: every start, the best, the spread
   v.Map({"starts", Presence::kWhenSet}, Style::kBlock, !r.starts.empty(), [&](auto& m) {
     m.Int({"best"}, r.best_start);

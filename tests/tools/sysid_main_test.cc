@@ -138,6 +138,10 @@ TEST(SysidCliTest, ValidationSequencesAreCheckedSimulatedAndReported) {
   ASSERT_NE(row, std::string::npos) << fit.output;
   EXPECT_NE(fit.output.find("seq0                     fit               2"), std::string::npos);
   EXPECT_NE(fit.output.find(" -> 99.", row), std::string::npos) << fit.output;
+  // the residuals per channel: white noise simulated, so white, and the intervals as before
+  EXPECT_NE(fit.output.find("residuals at the estimate"), std::string::npos) << fit.output;
+  EXPECT_EQ(fit.output.find("  NO\n"), std::string::npos) << fit.output;
+  EXPECT_EQ(fit.output.find("intervals from correlated"), std::string::npos) << fit.output;
   const CliRun report = Sysid("report " + dir + "/out");
   EXPECT_EQ(report.code, 0) << report.output;
   EXPECT_TRUE(fs::exists(dir + "/out/val_seq2.png"));

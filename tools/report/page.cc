@@ -201,6 +201,31 @@ void FitQualitySection(std::ostringstream& h, const FitResultFile& r) {
   h << "</table>\n";
 }
 
+// per fitted channel: the residuals' bias, size against sigma, whiteness and correlation time
+// (sysid/assess/residual_diagnostics.h), non-white rows marked; what the intervals came from
+void ResidualSection(std::ostringstream& h, const FitResultFile& r) {
+  if (r.residuals.empty()) return;
+  h << "<h2>Residuals</h2>\n<p class=\"muted\">simulated &minus; measured at the estimate, per "
+       "channel over the fitted sequences. White noise has no correlation beyond chance "
+       "(Ljung-Box test over 20 lags) and a correlation time of about 1 sample; residuals that "
+       "carry model error, filtering or stamp jitter are correlated over many samples, and the "
+       "data then hold fewer independent samples than rows. Bias in standard errors of a mean "
+       "of such residuals (above 4: an offset the model lacks).</p>\n";
+  h << "<p>intervals from "
+    << HtmlEscape(r.intervals_from.empty() ? "white residuals" : r.intervals_from) << "</p>\n";
+  h << "<table class=\"residuals\">\n<tr><th>channel</th><th>samples</th><th>mean</th>"
+       "<th>rms</th><th>rms / sigma</th><th>bias / se</th><th>lag-1</th>"
+       "<th>correlation (samples)</th><th>white</th></tr>\n";
+  for (const ResidualDiagnostics& d : r.residuals) {
+    h << "<tr" << (d.white ? "" : " class=\"unid\"") << "><td>" << HtmlEscape(d.channel)
+      << "</td><td class=\"n\">" << d.samples << "</td>" << MetricCell(d.mean, "")
+      << MetricCell(d.rms, "") << MetricCell(d.ratio, "") << MetricCell(d.bias_units, "")
+      << MetricCell(d.lag1, "") << MetricCell(d.tau, "") << "<td>"
+      << (d.white ? "yes" : "<b>no</b>") << "</td></tr>\n";
+  }
+  h << "</table>\n";
+}
+
 // multi-start: every start (status, costs, start and estimate per parameter, the best marked) and
 // the spread per parameter; the local-minimum warning is among the warnings
 void StartsSection(std::ostringstream& h, const FitResultFile& r) {
@@ -329,6 +354,7 @@ std::string Page(const FitResultFile& r, const std::vector<std::string>& sequenc
   h << "<h2>Parameters over the iterations</h2>\n";
   h << RenderSvg(params.width, params.height, "params", params.draw);
   FitQualitySection(h, r);
+  ResidualSection(h, r);
   h << "<h2>Sequences</h2>\n";
   if (r.sequences.empty()) h << "<p class=\"muted\">no sequences recorded</p>\n";
   PlotsLeftOut(h, r.sequences.size(), sequence_pngs);

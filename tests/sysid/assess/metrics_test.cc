@@ -52,6 +52,29 @@ TEST(Metrics, ConstantMeasuredOrMismatchedLengthIsNaN) {
   EXPECT_TRUE(std::isnan(Nrmse(Eigen::VectorXd(), Eigen::VectorXd())));
 }
 
+// a measured cell that is NaN is not measured: the metric is over the others (issue 33: one NaN
+// cell made a channel's % fit NaN); a NaN in the simulation at a measured cell stays NaN
+TEST(Metrics, NotMeasuredCellsAreLeftOut) {
+  const Eigen::VectorXd y = Sine(400);
+  Eigen::VectorXd gappy = y;
+  Eigen::VectorXd sim = 0.9 * y;
+  gappy[17] = gappy[200] = std::nan("");
+  sim[17] = 5.0;  // a simulated value where nothing was measured counts for nothing
+  // over the 398 measured cells: the error is 0.1 y there, the spread that of y there
+  Eigen::VectorXd ym(398), em(398);
+  for (int k = 0, j = 0; k < 400; ++k) {
+    if (k == 17 || k == 200) continue;
+    ym[j] = y[k];
+    em[j++] = 0.1 * y[k];
+  }
+  const double expected = em.norm() / (ym.array() - ym.mean()).matrix().norm();
+  EXPECT_NEAR(Nrmse(gappy, sim), expected, 1e-14);
+  EXPECT_NEAR(FitPercent(Nrmse(gappy, sim)), 90.0, 0.1);
+  sim[30] = std::nan("");
+  EXPECT_TRUE(std::isnan(Nrmse(gappy, sim)));
+  EXPECT_TRUE(std::isnan(Nrmse(Eigen::VectorXd::Constant(5, std::nan("")), sim.head(5))));
+}
+
 TEST(Metrics, ChannelFitsNameColumnsAndCompareBothSimulations) {
   // two sensors: "a" (1-D) and "b" (2-D); initial 0.5 y, final 0.9 y
   const int T = 200;

@@ -382,6 +382,56 @@ TEST_F(ResultTest, EventWindowsRoundTripAndAreAbsentWhenNone) {
   EXPECT_EQ(back.event_windows.sensors, (std::vector<std::string>{"torso_gyro", "leg_vel"}));
 }
 
+// the residual diagnostics per channel and what the intervals came from (sysid/assess/
+// residual_diagnostics.h): written when the fit made them, read back as written (NaN included:
+// a channel without sigma); a file without them reads as white residuals
+TEST_F(ResultTest, ResidualDiagnosticsRoundTripAndAreAbsentWhenNone) {
+  FitResultFile r = FullResult();
+  WriteBoth(r);
+  EXPECT_TRUE(ReadResult(Dir()).residuals.empty());
+  EXPECT_EQ(ReadResult(Dir()).interval_inflation, 1.0);
+  EXPECT_EQ(test::ReadFile(Dir() + "/result.yaml").find("\nresiduals:"), std::string::npos);
+  ResidualDiagnostics angle;
+  angle.channel = "angle";
+  angle.samples = 1496;
+  angle.mean = -2.5e-5;
+  angle.rms = 9.1e-4;
+  angle.sigma = 4.5e-4;
+  angle.ratio = 2.02;
+  angle.bias_units = 0.21;
+  angle.lag1 = 0.74;
+  angle.tau = 29.0;
+  angle.portmanteau_p = 0;
+  angle.white = false;
+  ResidualDiagnostics rate = angle;
+  rate.channel = "rate[1]";
+  rate.sigma = rate.ratio = std::numeric_limits<double>::quiet_NaN();
+  rate.white = true;
+  r.residuals = {angle, rate};
+  r.interval_inflation = 29.0;
+  r.intervals_from =
+      "correlated residuals: s^2 (J^T J)^-1 x 29, the correlation time (samples) of 'angle'";
+  WriteBoth(r);
+  const FitResultFile back = ReadResult(Dir());
+  ASSERT_EQ(back.residuals.size(), 2u);
+  EXPECT_EQ(back.residuals[0].channel, "angle");
+  EXPECT_EQ(back.residuals[0].samples, 1496);
+  EXPECT_EQ(back.residuals[0].mean, -2.5e-5);
+  EXPECT_EQ(back.residuals[0].rms, 9.1e-4);
+  EXPECT_EQ(back.residuals[0].ratio, 2.02);
+  EXPECT_EQ(back.residuals[0].bias_units, 0.21);
+  EXPECT_EQ(back.residuals[0].lag1, 0.74);
+  EXPECT_EQ(back.residuals[0].tau, 29.0);
+  EXPECT_EQ(back.residuals[0].portmanteau_p, 0.0);
+  EXPECT_FALSE(back.residuals[0].white);
+  EXPECT_EQ(back.residuals[1].channel, "rate[1]");
+  EXPECT_TRUE(std::isnan(back.residuals[1].sigma));
+  EXPECT_TRUE(std::isnan(back.residuals[1].ratio));
+  EXPECT_TRUE(back.residuals[1].white);
+  EXPECT_EQ(back.interval_inflation, 29.0);
+  EXPECT_EQ(back.intervals_from, r.intervals_from);
+}
+
 // where the covariance's Jacobian was taken (the statistical stop before the last Jacobian,
 // sysid/solve/gn_convergence.h): written only when it was the previous iterate's, read back as
 // written
