@@ -281,6 +281,10 @@ struct FitOptions {
   // starts once the stage has simulated this many steps (steps, not seconds: the same rounds on
   // any machine at any load)
   double global_budget = 3.0;
+  // the timestep check (sysid/fit/timestep_check.h): when a fit with sigmas ends model_mismatch on
+  // the chi-square test with residuals that are not white, the same fit at half the timestep tells
+  // whether the misfit is the model's discretisation; false: never
+  bool timestep_check = true;
 
   // What one pass of the global stage changes (sysid/fit/global_stage.h sets these on its copies
   // of the options; a user's fit leaves them at their defaults).
@@ -341,6 +345,9 @@ struct ParameterEstimate {
   bool at_lower = false, at_upper = false;  // stopped on a bound (then not estimated: fixed)
   bool identifiable = true;
   std::optional<double> truth;  // the true value when known (synthetic data), for reports
+  // the timestep check (sysid/fit/timestep_check.h): the model's timestep's bias of the value
+  // (value at the timestep - value in continuous time, estimated); unset when it did not run
+  std::optional<double> timestep_bias;
 };
 
 // how well a simulation reproduces one measured column (sysid/assess/metrics.h), at the start and
@@ -584,6 +591,8 @@ struct FitResult {
   // covariance, std_error and ci95 of parameters and derived quantities include it), and why
   double interval_inflation = 1;
   std::string intervals_from;
+  // the timestep check (sysid/fit/timestep_check.h): what it ran and found; "" when it did not run
+  std::string timestep_check;
   // dr/dp at the estimate (physical units) as its thin-QR triangle R: min(num_residuals, np) x
   // np, upper triangular, R^T R = J^T J (the per-sample rows are not kept:
   // sysid/assess/uncertainty.h RowTriangle)

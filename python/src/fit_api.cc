@@ -64,6 +64,7 @@ const std::vector<std::string> kOptionKeys = {"max_iterations",
                                               "gauss_newton_stop",
                                               "global_stage",
                                               "global_budget",
+                                              "timestep_check",
                                               "states",
                                               "verbose"};
 const std::vector<std::string> kMeasurementKeys = {"sensor", "delay", "gain", "bias"};
@@ -326,6 +327,8 @@ FitOptions OptionsOf(const nb::dict& d) {
   o.global_stage = Get<bool>(d, "global_stage", o.global_stage, what);
   o.global_budget = Get<double>(d, "global_budget", o.global_budget, what);
   if (!(o.global_budget > 0)) throw std::invalid_argument("options: global_budget must be > 0");
+  // the timestep check (sysid/fit/timestep_check.h)
+  o.timestep_check = Get<bool>(d, "timestep_check", o.timestep_check, what);
   // logged states fitted as data: {qpos: {sigma, joints?}, qvel: ..., act: {sigma, actuators?}}
   if (d.contains("states")) {
     if (!nb::isinstance<nb::dict>(d["states"])) {

@@ -320,6 +320,8 @@ NB_MODULE(_mjsysid, m) {
       .def_ro("at_lower", &ParameterEstimate::at_lower)
       .def_ro("at_upper", &ParameterEstimate::at_upper)
       .def_ro("identifiable", &ParameterEstimate::identifiable)
+      .def_ro("timestep_bias", &ParameterEstimate::timestep_bias,
+              "the model timestep's bias of the value (the timestep check), None: not run")
       .def_ro("truth", &ParameterEstimate::truth, "the true value (simulated data), else None")
       .def("__repr__", [](const ParameterEstimate& p) {
         return "ParameterEstimate(" + p.name + " = " + std::to_string(p.value) + " +- " +
@@ -428,6 +430,8 @@ NB_MODULE(_mjsysid, m) {
               "the factor on the covariance for correlated residuals (1: white)")
       .def_ro("intervals_from", &FitResult::intervals_from,
               "what the intervals come from (white or correlated residuals)")
+      .def_ro("timestep_check", &FitResult::timestep_check,
+              "the timestep check: what it ran and found (\"\": not run)")
       .def_prop_ro(
           "termination", [](const FitResult& r) { return TerminationText(r.termination); },
           "why the optimiser stopped, one line (result.yaml's termination)")

@@ -33,6 +33,8 @@
 //   not what the Jacobian predicts (sysid/assess/interval_check.h) and, on rollouts that can make
 //   the cost rugged, the envelope check (CheckRuggedEnvelope) did not hold either. Needs no sigmas.
 // - converged otherwise; intervals_valid only then (and when the uncertainty step ran).
+// After the pass, the fit policy's timestep check (sysid/fit/timestep_check.h) may turn a
+// chi-square model_mismatch whose misfit is the model's discretisation into converged.
 #pragma once
 
 #include "sysid/types.h"

@@ -33,6 +33,7 @@
 #include "sysid/fit/pass.h"
 #include "sysid/fit/records.h"
 #include "sysid/fit/restart.h"
+#include "sysid/fit/timestep_check.h"
 #include "sysid/fit_observer.h"
 #include "sysid/solve/multiple_shooting.h"
 #include "sysid/solve/progress.h"
@@ -219,6 +220,7 @@ FitResult FitWithPolicy(const FitParts& parts, const FitOptions& options) {
   FitResult local = LocalFit(parts, options, &mode);
   FitResult result = GlobalStage(parts, options, mode, std::move(local));
   CheckInOnePiece(parts, options, &result);
+  CheckTimestep(parts, options, &result);
   return result;
 }
 

@@ -29,6 +29,7 @@ const std::vector<std::string> kJacobianModes = {"auto", "directional", "matrix"
 const std::vector<std::string> kDifferences = {"forward", "central"};
 const std::vector<std::string> kLossTypes = {"none", "huber", "cauchy"};
 const std::vector<std::string> kGlobalStage = {"auto", "off"};
+const std::vector<std::string> kTimestepCheck = {"auto", "off"};
 
 }  // namespace
 
@@ -182,11 +183,11 @@ MeasurementSpec Parser::ParseMeasurement(const Field& f, const ExperimentConfig&
 }
 
 void Parser::ParseSolver(const Field& f, ExperimentConfig* c) const {
-  const MapReader r(
-      *this, f,
-      {"max_iterations", "function_tolerance", "gradient_tolerance", "parameter_tolerance",
-       "jacobian", "differences", "relative_step", "threads", "loss", "verbose", "starts", "seed",
-       "reduce_model", "gauss_newton_stop", "memory_limit_gb", "global", "global_budget"});
+  const MapReader r(*this, f,
+                    {"max_iterations", "function_tolerance", "gradient_tolerance",
+                     "parameter_tolerance", "jacobian", "differences", "relative_step", "threads",
+                     "loss", "verbose", "starts", "seed", "reduce_model", "gauss_newton_stop",
+                     "memory_limit_gb", "global", "global_budget", "timestep_check"});
   c->solver_marks = r.marks();
   FitOptions* o = &c->options;
   const long long kIntMax = std::numeric_limits<int>::max();
@@ -230,6 +231,10 @@ void Parser::ParseSolver(const Field& f, ExperimentConfig* c) const {
   // the global stage (sysid/fit/global_stage.h): auto | off, and its budget in local fits
   if (r.Has("global")) o->global_stage = Enum(r.Get("global"), kGlobalStage) == 0;
   if (r.Has("global_budget")) o->global_budget = Positive(r.Get("global_budget"));
+  // the timestep check (sysid/fit/timestep_check.h): auto | off
+  if (r.Has("timestep_check")) {
+    o->timestep_check = Enum(r.Get("timestep_check"), kTimestepCheck) == 0;
+  }
   // multi-start (sysid/run/multi_start.h)
   if (r.Has("starts")) c->starts = static_cast<int>(Integer(r.Get("starts"), 1, 10000));
   if (r.Has("seed")) {

@@ -113,6 +113,7 @@ void VisitParameterFields(V& v, P& p) {
   v.Pair({"ci95"}, p.ci95_low, p.ci95_high);
   v.Flags({"flags"}, p.at_lower, p.at_upper, p.identifiable);
   v.Number({"truth", Presence::kWhenSet}, p.truth);
+  v.Number({"timestep_bias", Presence::kWhenSet}, p.timestep_bias);
 }
 
 // one entry of `derived` (sysid/assess/derived_inertials.h)
@@ -191,6 +192,8 @@ void VisitResultFields(V& v, R& r) {
   // factor applied to the covariance); absent: white (files before the residual diagnostics)
   v.Text({"intervals_from", Presence::kWhenSet}, r.intervals_from);
   v.Number({"interval_inflation", Presence::kOptional}, r.interval_inflation);
+  // the timestep check (sysid/fit/timestep_check.h): what it ran and found; absent: not run
+  v.Text({"timestep_check", Presence::kWhenSet}, r.timestep_check);
   v.Int({"iterations"}, r.iterations);
   v.Number({"initial_cost"}, r.initial_cost);
   v.Number({"final_cost"}, r.final_cost);

@@ -229,6 +229,7 @@ void SetRunHeader(const io::ExperimentConfig& cfg, const FitOptions& options, co
       {"gauss_newton_stop", FormatG17(options.gauss_newton_stop)},
       {"global", options.global_stage ? "auto" : "off"},
       {"global_budget", FormatG17(options.global_budget)},
+      {"timestep_check", options.timestep_check ? "auto" : "off"},
       {"jacobian", JacobianModeName(options.jacobian.mode)},
       {"differences", options.jacobian.central ? "central" : "forward"},
       {"relative_step", FormatG17(options.jacobian.relative_step)},

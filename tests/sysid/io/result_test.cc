@@ -408,6 +408,8 @@ TEST_F(ResultTest, ResidualDiagnosticsRoundTripAndAreAbsentWhenNone) {
   rate.sigma = rate.ratio = std::numeric_limits<double>::quiet_NaN();
   rate.white = true;
   r.residuals = {angle, rate};
+  r.parameters[0].timestep_bias = -3.5e-4;
+  r.timestep_check = "the same fit at half the timestep (0.001 s, 3 iterations, converged)";
   r.interval_inflation = 29.0;
   r.intervals_from =
       "correlated residuals: s^2 (J^T J)^-1 x 29, the correlation time (samples) of 'angle'";
@@ -430,6 +432,9 @@ TEST_F(ResultTest, ResidualDiagnosticsRoundTripAndAreAbsentWhenNone) {
   EXPECT_TRUE(back.residuals[1].white);
   EXPECT_EQ(back.interval_inflation, 29.0);
   EXPECT_EQ(back.intervals_from, r.intervals_from);
+  EXPECT_EQ(back.timestep_check, r.timestep_check);
+  EXPECT_EQ(back.parameters[0].timestep_bias, -3.5e-4);
+  EXPECT_FALSE(back.parameters[1].timestep_bias.has_value());
 }
 
 // where the covariance's Jacobian was taken (the statistical stop before the last Jacobian,
