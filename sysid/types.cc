@@ -11,6 +11,10 @@ const char* ControlHoldName(ControlHold hold) {
   return hold == ControlHold::kLinear ? "linear" : "zoh";
 }
 
+const char* ControlBeforeName(ControlBefore before) {
+  return before == ControlBefore::kZero ? "zero" : "hold";
+}
+
 const char* LossTypeName(LossType loss) {
   switch (loss) {
     case LossType::kHuber:

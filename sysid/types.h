@@ -143,6 +143,13 @@ enum class ControlHold { kZeroOrder, kLinear };
 // "zoh", "linear" (the YAML spelling)
 const char* ControlHoldName(ControlHold hold);
 
+// what an actuator gets before its first logged control (sysid/data/sample_grid.h), e.g. when a
+// control delay or a log whose commands start late reaches before it: the first command held, or 0
+enum class ControlBefore { kHold, kZero };
+
+// "hold", "zero" (the YAML spelling)
+const char* ControlBeforeName(ControlBefore before);
+
 // A transport delay of the logged controls fitted as a variable (sysid/data/sample_grid.h: the
 // controls are shifted by it before the hold): one actuator's (actuator named) or shared by every
 // actuator not given its own (actuator ""), in every sequence whose model has the actuator; it
@@ -186,6 +193,8 @@ struct FitSequence {
   Eigen::VectorXd ctrl_time;
   std::vector<ControlHold> ctrl_hold;  // per actuator (nu) or empty: zero-order hold
   std::vector<double> ctrl_delay;      // per actuator (nu, s, >= 0) or empty: no transport delay
+  // every actuator's control before its first logged one: the first held (default) or 0
+  ControlBefore ctrl_before = ControlBefore::kHold;
   // logged states at the sample times (rows as `measured`): T x nq, T x nv, T x na; NaN = not
   // measured (masked); 0 rows = not logged. Fitted as data where FitOptions::states says so;
   // multiple shooting starts its segments at logged qpos and qvel.

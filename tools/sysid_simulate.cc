@@ -38,6 +38,14 @@ void WarnTruthOutsideBounds(const mjsysid::io::ExperimentConfig& config) {
                    "bounds [%g, %g]\n",
                    t.mark.ToString().c_str(), t.name.c_str(), t.value, p->lower, p->upper);
     }
+    const auto* d = config.FindFittedControlDelay(t.name);
+    if (d && (t.value < d->term.lower || t.value > d->term.upper)) {
+      std::fprintf(stderr,
+                   "sysid simulate: warning: %s: truth %s = %g lies outside the control delay's "
+                   "bounds [%g, %g]\n",
+                   t.mark.ToString().c_str(), t.name.c_str(), t.value, d->term.lower,
+                   d->term.upper);
+    }
   }
 }
 
@@ -124,6 +132,17 @@ int RunSimulate(const SimulateArgs& args) {
       std::printf("  truth       %s = %s%s\n", key.c_str(), Short(it->second).c_str(),
                   kept ? " (model value)" : "");
     }
+  }
+  // the fitted control delays as simulated (their truth, else their initial value)
+  for (const mjsysid::io::ExperimentConfig::ControlDelaySpec& cd : config.control_delays) {
+    if (!cd.term.fit) continue;
+    const std::string name = mjsysid::FitControlDelay{cd.actuator}.Name();
+    bool given = false;
+    for (const mjsysid::io::NamedValue& t : config.simulate.truth) given = given || t.name == name;
+    auto it = log.attributes.find("truth." + name);
+    if (it == log.attributes.end()) continue;
+    std::printf("  truth       %s = %s%s\n", name.c_str(), Short(it->second).c_str(),
+                given ? "" : " (its initial value)");
   }
   std::printf("  wrote       %s in %.2f s\n", out.c_str(), Seconds(start));
   return kExitOk;

@@ -41,8 +41,8 @@ const std::vector<std::string> kParameterKeys = {"name",  "kind",    "object", "
                                                  "index", "initial", "lower",  "upper",
                                                  "log",   "scale",   "prior",  "models"};
 const std::vector<std::string> kSequenceKeys = {
-    "name", "model",   "ctrl",      "measured",  "qpos",       "qvel",      "act",
-    "time", "sensors", "ctrl_time", "ctrl_hold", "ctrl_delay", "no_sensors"};
+    "name", "model",   "ctrl",      "measured",  "qpos",       "qvel",        "act",
+    "time", "sensors", "ctrl_time", "ctrl_hold", "ctrl_delay", "ctrl_before", "no_sensors"};
 const std::vector<std::string> kOptionKeys = {"max_iterations",
                                               "function_tolerance",
                                               "gradient_tolerance",
@@ -272,6 +272,19 @@ FitSequence SequenceOf(const nb::dict& d, size_t i, const std::vector<std::strin
       s.ctrl_delay.assign(s.ctrl.cols(), delay[0]);
     } else {
       s.ctrl_delay.assign(delay.data(), delay.data() + delay.size());
+    }
+  }
+  if (d.contains("ctrl_before")) {
+    // every actuator's control before its first logged one: the first held, or 0
+    const std::string b = Get<std::string>(d, "ctrl_before", "", what);
+    if (b == ControlBeforeName(ControlBefore::kHold)) {
+      s.ctrl_before = ControlBefore::kHold;
+    } else if (b == ControlBeforeName(ControlBefore::kZero)) {
+      s.ctrl_before = ControlBefore::kZero;
+    } else {
+      throw std::invalid_argument(what + ": ctrl_before '" + b + "': expected " +
+                                  ControlBeforeName(ControlBefore::kHold) + " or " +
+                                  ControlBeforeName(ControlBefore::kZero));
     }
   }
   return s;

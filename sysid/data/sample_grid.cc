@@ -43,7 +43,7 @@ int SampleGrid::SimulatedSteps(int k0, int T) const {
 SampleGrid BuildSampleGrid(const Eigen::VectorXd& time, int T, double x0_time,
                            const RowMatrix& ctrl, const Eigen::VectorXd& ctrl_time,
                            const std::vector<ControlHold>& hold, const std::vector<double>& delay,
-                           double dt, const std::string& where) {
+                           double dt, const std::string& where, ControlBefore before) {
   if (!(dt > 0)) throw std::invalid_argument(where + "the model timestep must be positive");
   CheckTimes(time, where, "sample");
   CheckTimes(ctrl_time, where, "control");
@@ -66,6 +66,7 @@ SampleGrid BuildSampleGrid(const Eigen::VectorXd& time, int T, double x0_time,
     g.ctrl_position[j] = ctrl_time.size() ? Position(ctrl_time[j], t0, dt) : g.position[j];
   }
   g.delay = delay.empty() ? std::vector<double>(nu, 0.0) : delay;
+  g.before = before;
   HoldControls(g, ctrl, hold, g.delay, dt, &g.ctrl);
   return g;
 }
@@ -77,6 +78,7 @@ void HoldControls(const SampleGrid& g, const RowMatrix& ctrl, const std::vector<
   const std::vector<double>& cpos = g.ctrl_position;
   const int last = count < 0 ? g.steps : first + count;  // one past the last step held
   out->resize(last - first, nu);
+  const bool zero_before = g.before == ControlBefore::kZero;
   std::vector<Eigen::Index> valid;
   for (Eigen::Index i = 0; i < nu; ++i) {
     const double shift = delay.empty() ? 0.0 : delay[i] / dt;
@@ -100,7 +102,7 @@ void HoldControls(const SampleGrid& g, const RowMatrix& ctrl, const std::vector<
         // one, and so on (piecewise linear in the delay; a command within the on-grid tolerance
         // of the step's end belongs to the next step, so commands on the grid give the command
         // in force at the step's start exactly)
-        double cur = ctrl(valid[v < 0 ? 0 : v], i), sum = 0, done = 0;
+        double cur = v < 0 && zero_before ? 0.0 : ctrl(valid[v < 0 ? 0 : v], i), sum = 0, done = 0;
         for (Eigen::Index w = v + 1;
              w < nv && cpos[valid[w]] < at + 1 - SampleGrid::kOnGridTolerance; ++w) {
           const double f = cpos[valid[w]] - at;  // in (tolerance, 1 - tolerance)
@@ -110,7 +112,7 @@ void HoldControls(const SampleGrid& g, const RowMatrix& ctrl, const std::vector<
         }
         (*out)(n - first, i) = done == 0 ? cur : sum + cur * (1 - done);
       } else if (v < 0) {
-        (*out)(n - first, i) = ctrl(valid[0], i);
+        (*out)(n - first, i) = zero_before ? 0.0 : ctrl(valid[0], i);
       } else if (v + 1 >= nv || cpos[valid[v]] >= at) {
         (*out)(n - first, i) = ctrl(valid[v], i);
       } else {
@@ -120,6 +122,27 @@ void HoldControls(const SampleGrid& g, const RowMatrix& ctrl, const std::vector<
       }
     }
   }
+}
+
+int StepsBeforeFirstControl(const SampleGrid& g, const RowMatrix& ctrl,
+                            const std::vector<double>& delay, double dt, int* actuator) {
+  int most = 0, which = -1;
+  for (Eigen::Index i = 0; i < ctrl.cols(); ++i) {
+    Eigen::Index j = 0;
+    while (j < ctrl.rows() && std::isnan(ctrl(j, i))) ++j;
+    if (j == ctrl.rows()) continue;  // no valid control: PrepareFit rejects it
+    // step n reads from n - shift on (both holds): before the first control while n - shift lies
+    // more than the on-grid tolerance before its position
+    const double shift = delay.empty() ? 0.0 : delay[i] / dt;
+    const double reach = g.ctrl_position[j] + shift - SampleGrid::kOnGridTolerance;
+    const int n = reach <= 0 ? 0 : std::min(g.steps, static_cast<int>(std::ceil(reach)));
+    if (n > most) {
+      most = n;
+      which = static_cast<int>(i);
+    }
+  }
+  if (actuator) *actuator = which;
+  return most;
 }
 
 }  // namespace mjsysid

@@ -12,10 +12,10 @@
 //
 // Controls. Each actuator's logged controls (at their own times) reach step n by a hold rule:
 // zero-order hold (what a digital controller does: each command holds until the next) or linear
-// interpolation between the two around t_n; before the first logged control the first is held,
-// after the last the last. An optional transport delay d (seconds, per actuator) shifts the
-// controls before the hold. With zero-order hold step n sees the step average of the held,
-// delayed command u_zoh:
+// interpolation between the two around t_n; before the first logged control the first is held
+// (ControlBefore::kHold, the default) or the actuator gets 0 (kZero), after the last the last. An
+// optional transport delay d (seconds, per actuator) shifts the controls before the hold. With
+// zero-order hold step n sees the step average of the held, delayed command u_zoh:
 //   u_n = (1/dt) * integral over [t_n, t_n + dt] of u_zoh(t - d) dt,
 // the command in force at the step's start weighted by the fraction of the step until the next
 // command, and so on: piecewise linear in d (and in the command times), where a point sample
@@ -55,6 +55,7 @@ struct SampleGrid {
   // control delay), and the evaluation cache keys its rollouts by `delay`
   std::vector<double> ctrl_position;
   std::vector<double> delay;
+  ControlBefore before = ControlBefore::kHold;  // what HoldControls gives before the first control
 
   // the measured samples [*first, *first + *count) read by the segment of steps [k0, k0 + T)
   void SamplesOf(int k0, int T, int* first, int* count) const;
@@ -67,20 +68,29 @@ struct SampleGrid {
 // T samples on the grid, one per step, from x0_time), controls `ctrl` (Tc x nu) logged at
 // `ctrl_time` (Tc, seconds, strictly increasing; empty: at the measured sample times, Tc = T), for
 // a model with timestep dt. hold and delay: per actuator (empty: zero-order hold, no delay; else nu
-// entries; delays in seconds, >= 0). `where` prefixes error messages.
+// entries; delays in seconds, >= 0). `where` prefixes error messages. before: what every actuator
+// gets before its first logged control (kept in the grid for HoldControls).
 SampleGrid BuildSampleGrid(const Eigen::VectorXd& time, int T, double x0_time,
                            const RowMatrix& ctrl, const Eigen::VectorXd& ctrl_time,
                            const std::vector<ControlHold>& hold, const std::vector<double>& delay,
-                           double dt, const std::string& where);
+                           double dt, const std::string& where,
+                           ControlBefore before = ControlBefore::kHold);
 
 // The controls of steps [first, first + count) of grid g (count < 0: through the last step;
 // count x nu into *out, resized, row 0 = step first) held from the logged controls `ctrl` (Tc x
 // nu, at g.ctrl_position) by the rule above with per-actuator hold and delay (seconds; empty:
-// zero-order hold, no delay). Piecewise linear in each delay (zero-order hold); a negative delay
-// shifts the controls earlier (used by a fitted delay's finite differences at its lower bound).
-// Allocates only when *out changes shape (and a scratch list of the valid controls).
+// zero-order hold, no delay) and g.before. Piecewise linear in each delay (zero-order hold); a
+// negative delay shifts the controls earlier (used by a fitted delay's finite differences at its
+// lower bound). Allocates only when *out changes shape (and a scratch list of the valid controls).
 void HoldControls(const SampleGrid& g, const RowMatrix& ctrl, const std::vector<ControlHold>& hold,
                   const std::vector<double>& delay, double dt, RowMatrix* out, int first = 0,
                   int count = -1);
+
+// The number of leading steps of grid g whose controls, held with per-actuator delay (seconds;
+// empty: none), read before an actuator's first logged (not NaN) control in `ctrl` (Tc x nu, at
+// g.ctrl_position): commands nobody logged (g.before says what they are). The largest over the
+// actuators, at most g.steps; *actuator (when given) is the one, -1 when none.
+int StepsBeforeFirstControl(const SampleGrid& g, const RowMatrix& ctrl,
+                            const std::vector<double>& delay, double dt, int* actuator = nullptr);
 
 }  // namespace mjsysid

@@ -359,6 +359,57 @@ void AssignControlDelays(PreparedFit& fit, int q, const mjModel& m, std::vector<
   }
 }
 
+// 4d, after the grid: a warning when the controls of sequence q's first steps read before an
+// actuator's first logged command: its delay (given, or fitted: up to its upper bound, else from
+// its initial value) reaches before it, or the commands start after the first sample. The steps of
+// the rollout from the first sample (and so of the segment that starts there under multiple
+// shooting) then use commands nobody logged: FitSequence::ctrl_before's.
+void WarnControlsBeforeLog(PreparedFit& fit, int q, const mjModel& m, const std::string& where) {
+  const FitSequence& sq = fit.sequences[q];
+  const SampleGrid& g = fit.grids[q];
+  const double dt = m.opt.timestep;
+  auto ms = [](double seconds) { return FormatDigits(seconds * 1e3, 3) + " ms"; };
+  std::vector<double> reach = sq.ctrl_delay;
+  reach.resize(m.nu, 0.0);
+  std::vector<std::string> fitted(m.nu);  // a fitted delay's description, per actuator
+  for (int i = 0; i < m.nu; ++i) {
+    const int v = fit.ctrl_delay_var[q][i];
+    for (size_t c = 0; v >= 0 && c < fit.control_delays.size(); ++c) {
+      if (fit.control_delay_index[c] != v) continue;
+      const FitControlDelay& cd = fit.control_delays[c];
+      const bool bounded = std::isfinite(cd.upper);
+      reach[i] = bounded ? cd.upper : cd.initial;
+      fitted[i] = cd.Name() + " (fitted, " + (bounded ? "up to its upper bound " : "from ") +
+                  ms(reach[i]) + ")";
+    }
+  }
+  int i = -1;
+  const int steps = StepsBeforeFirstControl(g, sq.ctrl, reach, dt, &i);
+  if (steps == 0 || i < 0) return;
+  Eigen::Index j = 0;
+  while (std::isnan(sq.ctrl(j, i))) ++j;
+  const double t0 = sq.time.size() ? sq.time[0] : sq.x0.time;
+  char at[96];
+  std::snprintf(at, sizeof(at), " (at %.3f s, first sample at %.3f s)",
+                t0 + g.ctrl_position[j] * dt, t0);
+  const char* actuator = mj_id2name(&m, mjOBJ_ACTUATOR, i);
+  const std::string who =
+      m.nu > 1
+          ? "actuator " + (actuator ? "'" + std::string(actuator) + "'" : std::to_string(i)) + ": "
+          : "";
+  const std::string cause = reach[i] > 0 ? "the control delay " +
+                                               (fitted[i].empty() ? ms(reach[i]) : fitted[i]) +
+                                               " reaches before the first logged command"
+                                         : "the first logged command comes after the first sample";
+  const bool zero = sq.ctrl_before == ControlBefore::kZero;
+  fit.prepare_warnings.push_back(
+      where + who + cause + at + ": " + (fitted[i].empty() ? "the first " : "up to the first ") +
+      std::to_string(steps) + (steps == 1 ? " step uses" : " steps use") +
+      " commands nobody logged (controls.before: " + ControlBeforeName(sq.ctrl_before) +
+      (zero ? " gives them 0" : " holds the first one") +
+      "; log the commands from before the first sample, or start the fit later)");
+}
+
 // 4e. sequence q's given initial state completed from the model (qpos0, rest) and stored as a
 // physics vector
 void SetInitialState(PreparedFit& fit, int q, const mjModel& m, const StateDims& d,
@@ -406,7 +457,8 @@ void PrepareSequences(PreparedFit& fit, FitVariables& vars, const FitOptions& op
     fit.grids[q] = BuildSampleGrid(
         sq.time, static_cast<int>(sq.measured.rows()), sq.x0.time, sq.ctrl, sq.ctrl_time,
         sq.ctrl_hold, vars.m.empty() ? sq.ctrl_delay : fit.ControlDelays(iq, vars.m.data()),
-        m.opt.timestep, where);
+        m.opt.timestep, where, sq.ctrl_before);
+    WarnControlsBeforeLog(fit, iq, m, where);
     SetInitialState(fit, iq, m, d, where);
     // logged states fitted as data (sysid/solve/state_residuals.h)
     if (options.states.any()) {

@@ -211,6 +211,42 @@ const ParameterSpec* ExperimentConfig::FindParameter(const std::string& param_na
   return nullptr;
 }
 
+ExperimentConfig::ActuatorControls ExperimentConfig::ActuatorControlsOf(
+    const mjModel& m, const std::map<std::string, double>& fitted) const {
+  ActuatorControls out;
+  out.hold.assign(m.nu, control_hold);
+  out.delay.assign(m.nu, control_delay);
+  for (const auto& [actuator, hold] : control_holds) {
+    const int id = mj_name2id(&m, mjOBJ_ACTUATOR, actuator.c_str());
+    if (id >= 0) out.hold[id] = hold;
+  }
+  // the shared delay first (every actuator), then an actuator's own over it
+  for (const bool own : {false, true}) {
+    for (const ControlDelaySpec& cd : control_delays) {
+      if (cd.actuator.empty() == own) continue;
+      double value = cd.term.initial;
+      if (cd.term.fit) {
+        const auto it = fitted.find(FitControlDelay{cd.actuator}.Name());
+        if (it != fitted.end()) value = it->second;
+      }
+      const int id = own ? mj_name2id(&m, mjOBJ_ACTUATOR, cd.actuator.c_str()) : -1;
+      if (own && id < 0) continue;  // an actuator of another model
+      for (int i = 0; i < m.nu; ++i) {
+        if (!own || i == id) out.delay[i] = value;
+      }
+    }
+  }
+  return out;
+}
+
+const ExperimentConfig::ControlDelaySpec* ExperimentConfig::FindFittedControlDelay(
+    const std::string& delay_name) const {
+  for (const ControlDelaySpec& cd : control_delays) {
+    if (cd.term.fit && FitControlDelay{cd.actuator}.Name() == delay_name) return &cd;
+  }
+  return nullptr;
+}
+
 const ModelSpec* ExperimentConfig::FindModel(const std::string& model_name) const {
   for (const ModelSpec& m : models) {
     if (m.name == model_name) return &m;

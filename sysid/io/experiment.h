@@ -186,6 +186,24 @@ struct ExperimentConfig {
   std::vector<Mark> control_hold_marks;  // the actuator keys of control_holds
   std::vector<ControlDelaySpec> control_delays;
 
+  // `controls.before` (every actuator, every sequence): what an actuator gets before its first
+  // logged command
+  ControlBefore control_before = ControlBefore::kHold;
+
+  // The hold rule and transport delay (s) of every actuator of model m (nu entries each), the one
+  // rule of "which hold and delay does actuator i get": control_hold and control_delay, an
+  // actuator's own entry over them; a fitted delay (FitControlDelay::Name(): "controls.delay" or
+  // "controls.delay.<actuator>") at fitted[name] when given (an estimate, a simulation's truth),
+  // else at its initial value.
+  struct ActuatorControls {
+    std::vector<ControlHold> hold;
+    std::vector<double> delay;
+  };
+  ActuatorControls ActuatorControlsOf(const mjModel& m,
+                                      const std::map<std::string, double>& fitted = {}) const;
+  // the fitted control delay (`controls.delay` with fit: true) of that name, nullptr when none
+  const ControlDelaySpec* FindFittedControlDelay(const std::string& name) const;
+
   // nullptr when absent
   const ParameterSpec* FindParameter(const std::string& name) const;
   const ModelSpec* FindModel(const std::string& name) const;

@@ -22,6 +22,8 @@ namespace {
 
 // in the order of ControlHold
 const std::vector<std::string> kControlHolds = {"zoh", "linear"};
+// ControlBefore's order
+const std::vector<std::string> kControlBefore = {"hold", "zero"};
 
 }  // namespace
 
@@ -168,7 +170,9 @@ void Parser::ParseSensors(const Field& f, ExperimentConfig* c) const {
 // {<actuator>: s | {initial, fit, bounds}}}; a map with any of initial/fit/bounds is one delay
 // for every actuator, any other map names actuators (checked against the model later)
 void Parser::ParseControls(const Field& f, ExperimentConfig* c) const {
-  const MapReader s(*this, f, {"hold", "delay"});
+  const MapReader s(*this, f, {"hold", "delay", "before"});
+  if (s.Has("before"))
+    c->control_before = static_cast<ControlBefore>(Enum(s.Get("before"), kControlBefore));
   // the entries of an actuator-keyed map, in file order, each name once
   auto by_actuator = [&](const Field& m, auto&& each) {
     std::vector<std::string> seen;

@@ -54,15 +54,25 @@ void Parser::ParseSimulate(const Field& f, const ExperimentConfig& c, SimulateOp
   s->marks = r.marks();
   const long long kIntMax = std::numeric_limits<int>::max();
 
-  // truth: values of declared parameters
+  // truth: values of declared parameters and fitted control delays (parsed before)
   if (r.Has("truth")) {
     s->truth = NamedValues(r.Get("truth"));
     std::vector<std::string> names;
     for (const ParameterSpec& p : c.parameters) names.push_back(p.name);
+    const size_t parameters = names.size();
+    for (const ExperimentConfig::ControlDelaySpec& cd : c.control_delays) {
+      if (cd.term.fit) names.push_back(FitControlDelay{cd.actuator}.Name());
+    }
+    const bool delays = names.size() > parameters;
     for (const NamedValue& t : s->truth) {
-      if (!c.FindParameter(t.name)) {
-        Fail(t.mark, r.Path("truth") + ": " + Quote(t.name) + " is not a parameter",
-             NamesHint(t.name, names, "parameters"));
+      if (!c.FindParameter(t.name) && !c.FindFittedControlDelay(t.name)) {
+        // a delay's name (or an experiment with fitted delays) says that delays have truths too
+        const bool say = delays || t.name.rfind("controls.delay", 0) == 0;
+        Fail(t.mark,
+             r.Path("truth") + ": " + Quote(t.name) + " is not a parameter" +
+                 (say ? " nor a fitted control delay" : ""),
+             NamesHint(t.name, names,
+                       delays ? "parameters and fitted control delays" : "parameters"));
       }
     }
   }

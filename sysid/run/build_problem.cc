@@ -266,8 +266,9 @@ void LoggedStates(const io::ExperimentConfig& cfg, const io::Sequence& s, int T,
 }
 
 // Controls: takes the sequence s (T fitted samples); gives fs->ctrl (at their own times when the
-// log has ctrl_time) and every actuator's hold rule and given transport delay: the experiment's,
-// an actuator's own over it (a fitted delay is the Problem's).
+// log has ctrl_time), every actuator's hold rule and transport delay (ExperimentConfig::
+// ActuatorControlsOf; a fitted delay at its initial value here, the Problem's variable in the
+// fit) and the rule before the first logged command.
 void Controls(const io::ExperimentConfig& cfg, const mjModel& m, const io::Sequence& s, int T,
               FitSequence* fs) {
   if (s.ctrl_time.size() > 0) {
@@ -276,16 +277,10 @@ void Controls(const io::ExperimentConfig& cfg, const mjModel& m, const io::Seque
   } else {
     fs->ctrl = s.ctrl.topRows(T);
   }
-  fs->ctrl_hold.assign(m.nu, cfg.control_hold);
-  fs->ctrl_delay.assign(m.nu, cfg.control_delay);
-  for (const auto& [actuator, hold] : cfg.control_holds) {
-    const int id = mj_name2id(&m, mjOBJ_ACTUATOR, actuator.c_str());
-    if (id >= 0) fs->ctrl_hold[id] = hold;
-  }
-  for (const io::ExperimentConfig::ControlDelaySpec& cd : cfg.control_delays) {
-    const int id = mj_name2id(&m, mjOBJ_ACTUATOR, cd.actuator.c_str());
-    if (!cd.term.fit && id >= 0) fs->ctrl_delay[id] = cd.term.initial;
-  }
+  io::ExperimentConfig::ActuatorControls ac = cfg.ActuatorControlsOf(m);
+  fs->ctrl_hold = std::move(ac.hold);
+  fs->ctrl_delay = std::move(ac.delay);
+  fs->ctrl_before = cfg.control_before;
 }
 
 // Sequence: takes a logged sequence of model mi (log read from path; post: sensor_time post);

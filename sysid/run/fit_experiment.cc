@@ -412,19 +412,11 @@ FitResult FitProblem(const io::ExperimentConfig& run_cfg, const Starts& starts,
 // one first, an actuator's own over it.
 void SetFittedControlDelays(const io::ExperimentConfig& cfg, const mjModel& vm,
                             const std::vector<ParameterEstimate>& estimates, FitSequence* sq) {
-  for (const bool own : {false, true}) {
-    for (const io::ExperimentConfig::ControlDelaySpec& cd : cfg.control_delays) {
-      if (!cd.term.fit || cd.actuator.empty() == own) continue;
-      const int id = mj_name2id(&vm, mjOBJ_ACTUATOR, cd.actuator.c_str());
-      if (own && id < 0) continue;
-      for (const ParameterEstimate& e : estimates) {
-        if (e.name != FitControlDelay{cd.actuator}.Name()) continue;
-        for (int i = 0; i < vm.nu; ++i) {
-          if (!own || i == id) sq->ctrl_delay[i] = e.value;
-        }
-      }
-    }
+  std::map<std::string, double> fitted;
+  for (const ParameterEstimate& e : estimates) {
+    if (cfg.FindFittedControlDelay(e.name)) fitted[e.name] = e.value;
   }
+  sq->ctrl_delay = cfg.ActuatorControlsOf(vm, fitted).delay;
 }
 
 // Metrics and validation: takes the fit; gives the fit metrics per channel of every fitted

@@ -87,9 +87,10 @@ SequenceResult SimulateHeldOut(const mjModel& m, const std::vector<FitParameter>
   // the log's samples and controls on the simulation grid, as the fit reads them
   // (sysid/data/sample_grid.h: any sample rate, controls held or interpolated, transport delay)
   const double dt = m.opt.timestep;
-  const SampleGrid grid = BuildSampleGrid(
-      sequence.time, static_cast<int>(T), sequence.x0.time, sequence.ctrl, sequence.ctrl_time,
-      sequence.ctrl_hold, sequence.ctrl_delay, dt, "validation sequence '" + sequence.name + "': ");
+  const SampleGrid grid =
+      BuildSampleGrid(sequence.time, static_cast<int>(T), sequence.x0.time, sequence.ctrl,
+                      sequence.ctrl_time, sequence.ctrl_hold, sequence.ctrl_delay, dt,
+                      "validation sequence '" + sequence.name + "': ", sequence.ctrl_before);
 
   // one rollout per point, the measurement terms applied column by column
   for (const bool final_value : {false, true}) {

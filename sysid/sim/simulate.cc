@@ -40,15 +40,25 @@ const io::Mark& ModelMark(const io::ExperimentConfig& config, const io::ModelSpe
   return config.model_list ? spec.marks.Of("path") : spec.marks.self;
 }
 
-// every truth entry names a parameter, with a finite value
+// every truth entry names a parameter or a fitted control delay, with a finite value
 void CheckTruth(const io::ExperimentConfig& config) {
   std::vector<std::string> names;
   for (const io::ParameterSpec& p : config.parameters) names.push_back(p.name);
+  const size_t parameters = names.size();
+  for (const io::ExperimentConfig::ControlDelaySpec& cd : config.control_delays) {
+    if (cd.term.fit) names.push_back(FitControlDelay{cd.actuator}.Name());
+  }
+  const bool delays = names.size() > parameters;
   for (const io::NamedValue& t : config.simulate.truth) {
-    if (!config.FindParameter(t.name)) {
-      throw io::ConfigError(
-          t.mark, "simulate.truth: '" + t.name + "' is not a parameter",
-          names.empty() ? "the experiment has no parameters" : "parameters: " + Join(names));
+    if (!config.FindParameter(t.name) && !config.FindFittedControlDelay(t.name)) {
+      // a delay's name (or an experiment with fitted delays) says that delays have truths too
+      const bool say = delays || t.name.rfind("controls.delay", 0) == 0;
+      throw io::ConfigError(t.mark,
+                            "simulate.truth: '" + t.name + "' is not a parameter" +
+                                (say ? " nor a fitted control delay" : ""),
+                            names.empty() ? "the experiment has no parameters"
+                            : delays      ? "parameters and fitted control delays: " + Join(names)
+                                          : "parameters: " + Join(names));
     }
     if (!std::isfinite(t.value)) {
       throw io::ConfigError(t.mark, "simulate.truth." + t.name + ": the value must be finite");
@@ -80,6 +90,19 @@ void SensorColumns(const io::ExperimentConfig& config, const io::ModelSpec& spec
     names->push_back(name);
     dims->push_back(m.sensor_dim[i]);
   }
+}
+
+// the value each fitted control delay is simulated at: its truth (simulate.truth), else its
+// initial value; by FitControlDelay::Name()
+std::map<std::string, double> DelayTruths(const io::ExperimentConfig& config) {
+  std::map<std::string, double> out;
+  for (const io::ExperimentConfig::ControlDelaySpec& cd : config.control_delays) {
+    if (cd.term.fit) out[FitControlDelay{cd.actuator}.Name()] = cd.term.initial;
+  }
+  for (const io::NamedValue& t : config.simulate.truth) {
+    if (out.count(t.name)) out[t.name] = t.value;
+  }
+  return out;
 }
 
 // per-parameter true values of every model, for the attributes
@@ -155,6 +178,7 @@ io::Log SimulateExperiment(const io::ExperimentConfig& config, const SimulateSet
   log.sensor_time = "pre";
   std::map<std::string, std::string>& attr = log.attributes;
   std::map<std::string, TruthRecord> truth_records;
+  const std::map<std::string, double> delay_truths = DelayTruths(config);
 
   for (size_t mi = 0; mi < config.models.size(); ++mi) {
     const io::ModelSpec& spec = config.models[mi];
@@ -193,15 +217,29 @@ io::Log SimulateExperiment(const io::ExperimentConfig& config, const SimulateSet
     const StateDims& dims = sim.dims();
     const double dt = m.opt.timestep;
     std::vector<SequenceInput> inputs(so.sequences);
+    // every actuator's hold rule and delay as the experiment states them (`controls:`; a fitted
+    // delay at its truth), exactly as the fit holds them (ExperimentConfig::ActuatorControlsOf)
+    const io::ExperimentConfig::ActuatorControls held = config.ActuatorControlsOf(m, delay_truths);
     // a robot's log (sample_rate): its sample instants, its controls logged at them, and where
     // each instant sits on the simulation grid; the rollout holds the logged controls exactly as
-    // the fit does (BuildSampleGrid), so a noise-free log is reproduced by the true parameters
+    // the fit does (BuildSampleGrid), so a noise-free log is reproduced by the true parameters.
+    // One sample per step: the commands are logged, the rollout gets them held and delayed.
     std::vector<std::vector<double>> sample_times(so.sequences), positions(so.sequences);
     std::vector<RowMatrix> logged_ctrl(so.sequences);
     for (int s = 0; s < so.sequences; ++s) {
       inputs[s].x0 = InitialStateOf(config, sim);
       inputs[s].ctrl = GenerateControls(m, so.excitation, so.steps, so.seed + s);
-      if (so.sample_rate <= 0) continue;
+      if (so.sample_rate <= 0) {
+        logged_ctrl[s] = inputs[s].ctrl;
+        Eigen::VectorXd t(so.steps);
+        for (int k = 0; k < so.steps; ++k) t[k] = k * dt;
+        inputs[s].ctrl =
+            BuildSampleGrid(t, so.steps, 0.0, logged_ctrl[s], Eigen::VectorXd(), held.hold,
+                            held.delay, dt, "simulate: sequence " + std::to_string(s),
+                            config.control_before)
+                .ctrl;
+        continue;
+      }
       const std::vector<double>& times = sample_times[s] =
           RobotSampleTimes(so, (so.steps - 1) * dt, SeedFor(so.seed + s, kSampleStream + mi));
       RowMatrix& uk = logged_ctrl[s];
@@ -211,9 +249,9 @@ io::Log SimulateExperiment(const io::ExperimentConfig& config, const SimulateSet
         uk.row(static_cast<Eigen::Index>(k)) = inputs[s].ctrl.row(n);
       }
       const Eigen::VectorXd t = Eigen::Map<const Eigen::VectorXd>(times.data(), times.size());
-      const SampleGrid grid =
-          BuildSampleGrid(t, static_cast<int>(times.size()), 0.0, uk, Eigen::VectorXd(), {}, {}, dt,
-                          "simulate: sequence " + std::to_string(s));
+      const SampleGrid grid = BuildSampleGrid(
+          t, static_cast<int>(times.size()), 0.0, uk, Eigen::VectorXd(), held.hold, held.delay, dt,
+          "simulate: sequence " + std::to_string(s), config.control_before);
       inputs[s].ctrl = grid.ctrl;
       positions[s] = grid.position;
     }
@@ -244,7 +282,7 @@ io::Log SimulateExperiment(const io::ExperimentConfig& config, const SimulateSet
         const int T = so.steps;
         seq.time.resize(T);
         for (int k = 0; k < T; ++k) seq.time[k] = k * dt;
-        seq.ctrl = inputs[s].ctrl;
+        seq.ctrl = logged_ctrl[s];  // the commands, before any delay
         seq.sensordata = traj[s].sensors;
         seq.qpos = traj[s].states.block(0, 0, T, dims.nq);
         seq.qvel = traj[s].states.block(0, dims.nq, T, dims.nv);
@@ -313,6 +351,8 @@ io::Log SimulateExperiment(const io::ExperimentConfig& config, const SimulateSet
     }
   }
   if (!from_model.empty()) attr["truth_from_model"] = Join(from_model);
+  // the fitted control delays as simulated (their truth, else their initial value)
+  for (const auto& [name, value] : delay_truths) attr["truth." + name] = FormatG17(value);
   if (!so.initial_state.qpos.empty()) {
     attr["initial_state.qpos"] = JoinNumbers(so.initial_state.qpos);
   }

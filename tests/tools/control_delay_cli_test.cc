@@ -1,7 +1,9 @@
 // A fitted control transport delay through the real command line (issue 14, docs/real-logs.md):
 // a pendulum log whose commands come from a 50 Hz controller and reach the motor 13 ms late,
 // fitted with `controls: {delay: {initial, fit: true, bounds}}` next to the hinge damping; and
-// bad `controls` specs exiting 2 naming file, line and key; a hold per actuator applied.
+// bad `controls` specs exiting 2 naming file, line and key; a hold per actuator applied; the
+// warning when a delay reaches before the first logged command (`controls.before`); a delay's
+// truth through `sysid simulate` and the fit's result.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -30,6 +32,15 @@ double ValueAfter(const std::string& text, const std::string& key) {
   if (at == std::string::npos) return std::nan("");
   const size_t v = text.find("value: ", at);
   return v == std::string::npos ? std::nan("") : std::stod(text.substr(v + 7));
+}
+
+// the number after "truth: " in the entry of `key` in result.yaml text (NaN when absent)
+double TruthAfter(const std::string& text, const std::string& key) {
+  const size_t at = text.find(key);
+  if (at == std::string::npos) return std::nan("");
+  const size_t next = text.find("- name:", at + key.size());
+  const size_t v = text.find("truth: ", at);
+  return v == std::string::npos || v > next ? std::nan("") : std::stod(text.substr(v + 7));
 }
 
 class ControlDelayCliTest : public ::testing::Test {
@@ -161,6 +172,7 @@ TEST_F(ControlDelayCliTest, BadSpecsExitTwoNamingFileLineAndKey) {
       {"  delay: {initial: 0.07, fit: true, bounds: [0, 0.05]}\n",
        "fit.yaml:9:", "controls.delay.initial: 0.07 is outside bounds"},
       {"  delay: {torque: -0.01}\n", "fit.yaml:9:", "controls.delay.torque"},
+      {"  before: bogus\n", "fit.yaml:9:", "controls.before: 'bogus' is not one of hold, zero"},
   };
   for (const Bad& b : bad) {
     SCOPED_TRACE(b.controls);
@@ -172,6 +184,79 @@ TEST_F(ControlDelayCliTest, BadSpecsExitTwoNamingFileLineAndKey) {
       EXPECT_NE(run.output.find(b.message), std::string::npos) << run.output;
     }
   }
+}
+
+// The commands start with the first sample: a delay (given 13 ms: 6.5 steps) reaches before the
+// first one, and the fit warns (CLI and result.yaml) how many steps use commands nobody logged,
+// with the rule used (hold, or zero); a fitted delay up to its upper bound. A window from 0.1 s
+// has logged commands from before it (at their own times, ctrl_time): no warning.
+TEST_F(ControlDelayCliTest, WarnsWhenADelayReachesBeforeTheFirstCommand) {
+  const std::string given =
+      "sequence 'run1': the control delay 13 ms reaches before the first logged command (at "
+      "0.000 s, first sample at 0.000 s): the first 7 steps use commands nobody logged "
+      "(controls.before: hold holds the first one; log the commands from before the first "
+      "sample, or start the fit later)";
+  const struct {
+    std::string controls, warning;
+  } cases[] = {
+      {"  delay: 0.013\n", given},
+      {"  before: zero\n  delay: 0.013\n",
+       "the first 7 steps use commands nobody logged (controls.before: zero gives them 0;"},
+      {"  delay: {initial: 0.005, fit: true, bounds: [0, 0.05]}\n",
+       "the control delay controls.delay (fitted, up to its upper bound 50 ms) reaches before the "
+       "first logged command (at 0.000 s, first sample at 0.000 s): up to the first 25 steps use "
+       "commands nobody logged"},
+  };
+  int i = 0;
+  for (const auto& c : cases) {
+    SCOPED_TRACE(c.controls);
+    const std::string out = dir_ + "/out" + std::to_string(i++);
+    const test::CliRun fit = Sysid("fit " + Experiment(c.controls) + " --out " + out);
+    EXPECT_NE(fit.output.find(c.warning), std::string::npos) << fit.output;
+    EXPECT_NE(test::ReadFile(out + "/result.yaml").find("reaches before the first logged command"),
+              std::string::npos);
+  }
+  std::printf("[ measured ] %s\n", given.c_str());
+  const std::string window = dir_ + "/window.yaml";
+  test::WriteFile(window, test::PendulumDampingYaml(log_) +
+                              "sequences: [{name: run1, start: 0.1}]\ncontrols:\n  delay: 0.013\n");
+  const test::CliRun fit = Sysid("fit " + window + " --out " + dir_ + "/outw");
+  EXPECT_EQ(fit.code, 0) << fit.output;
+  EXPECT_EQ(fit.output.find("before the first logged command"), std::string::npos) << fit.output;
+  EXPECT_EQ(test::ReadFile(dir_ + "/outw/result.yaml").find("before the first logged command"),
+            std::string::npos);
+}
+
+// A delay's truth: `sysid simulate` with `truth: {controls.delay: 0.012}` and the shared delay
+// fitted (initial 5 ms, bounds [0, 50 ms]) logs truth.controls.delay 0.012 and the commands
+// undelayed; the noise-free log fitted from 5 ms recovers 12 ms within one model step (2 ms) and
+// the result's controls.delay row shows the truth 0.012
+TEST_F(ControlDelayCliTest, SimulatedDelayTruthIsRecoveredAndShown) {
+  const std::string exp = dir_ + "/sim.yaml";
+  test::WriteFile(exp, test::PendulumDampingYaml(dir_ + "/sim.h5") +
+                           "controls: {delay: {initial: 0.005, fit: true, bounds: [0, 0.05]}}\n"
+                           "simulate:\n"
+                           "  truth: {damping: 0.12, controls.delay: 0.012}\n"
+                           "  sequences: 1\n  steps: 1500\n  seed: 5\n"
+                           "  excitation: {type: sines, amplitude: 3.0}\n");
+  const test::CliRun sim = Sysid("simulate " + exp);
+  ASSERT_EQ(sim.code, 0) << sim.output;
+  EXPECT_NE(sim.output.find("truth       controls.delay = 0.012\n"), std::string::npos)
+      << sim.output;
+  const io::Log log = io::ReadLog(dir_ + "/sim.h5");
+  EXPECT_EQ(std::stod(log.attributes.at("truth.controls.delay")), 0.012);
+  const test::CliRun fit = Sysid("fit " + exp + " --out " + dir_ + "/out");
+  ASSERT_EQ(fit.code, 0) << fit.output;
+  const std::string result = test::ReadFile(dir_ + "/out/result.yaml");
+  const double delay = ValueAfter(result, "name: controls.delay");
+  const double damping = ValueAfter(result, "name: damping");
+  std::printf("[ measured ] controls.delay %.6g s (truth 0.012), damping %.6g (truth 0.12)\n",
+              delay, damping);
+  EXPECT_NEAR(delay, 0.012, 0.002);
+  EXPECT_EQ(TruthAfter(result, "name: controls.delay"), 0.012);
+  EXPECT_EQ(TruthAfter(result, "name: damping"), 0.12);
+  // the CLI summary's truth column
+  EXPECT_NE(fit.output.find("0.012"), std::string::npos) << fit.output;
 }
 
 }  // namespace

@@ -1,7 +1,8 @@
 // The simulation grid of a logged sequence (sysid/data/sample_grid.h) on hand-made times and
 // controls: positions (whole numbers on the grid, fractions off it), the steps simulated, the
 // samples of a segment, zero-order hold and linear interpolation of controls at their own times, a
-// transport delay, NaN controls held from the last valid value.
+// transport delay, NaN controls held from the last valid value, the commands before the first
+// logged one (held or zero) and how many steps read them.
 #include "sysid/data/sample_grid.h"
 
 #include <gtest/gtest.h>
@@ -131,6 +132,68 @@ TEST(SampleGridTest, NanControlsAreHeldFromTheLastValidOne) {
   const SampleGrid z = BuildSampleGrid({}, 4, 0.0, u, {}, {}, {}, kDt, "");
   EXPECT_EQ(z.ctrl(2, 0), 1);
   EXPECT_EQ(z.ctrl(3, 0), 4);
+}
+
+// Before the first logged command: with a delay of 3 steps, the first 3 steps read before it; they
+// get the first command (before: hold, the default) or 0 (before: zero), the later steps the same
+// either way; under both holds. A partial step (delay 2.5 steps) averages 0 with the first.
+TEST(SampleGridTest, BeforeTheFirstCommandHoldsItOrGivesZero) {
+  const Eigen::VectorXd t = Times({0.0, 0.01, 0.02, 0.03});
+  const RowMatrix u = Column({3, -1, 7, 2});
+  for (const ControlHold h : {ControlHold::kZeroOrder, ControlHold::kLinear}) {
+    SCOPED_TRACE(ControlHoldName(h));
+    const SampleGrid hold = BuildSampleGrid(t, 4, 0.0, u, t, {h}, {3 * kDt}, kDt, "");
+    const SampleGrid zero =
+        BuildSampleGrid(t, 4, 0.0, u, t, {h}, {3 * kDt}, kDt, "", ControlBefore::kZero);
+    EXPECT_EQ(hold.before, ControlBefore::kHold);
+    EXPECT_EQ(zero.before, ControlBefore::kZero);
+    for (int n = 0; n < 3; ++n) {
+      EXPECT_EQ(hold.ctrl(n, 0), 3) << n;
+      EXPECT_EQ(zero.ctrl(n, 0), 0) << n;
+    }
+    for (int n = 3; n < hold.steps; ++n) EXPECT_EQ(zero.ctrl(n, 0), hold.ctrl(n, 0)) << n;
+    EXPECT_EQ(StepsBeforeFirstControl(hold, u, {3 * kDt}, kDt), 3);
+    // HoldControls at another delay keeps the grid's rule
+    RowMatrix again;
+    HoldControls(zero, u, {h}, {kDt}, kDt, &again);
+    EXPECT_EQ(again(0, 0), 0);
+    EXPECT_EQ(again(1, 0), 3);
+  }
+  const SampleGrid half =
+      BuildSampleGrid(t, 4, 0.0, u, t, {}, {2.5 * kDt}, kDt, "", ControlBefore::kZero);
+  EXPECT_EQ(half.ctrl(1, 0), 0);
+  EXPECT_NEAR(half.ctrl(2, 0), 0.5 * 3, 1e-12);
+  EXPECT_EQ(StepsBeforeFirstControl(half, u, {2.5 * kDt}, kDt), 3);
+}
+
+// the steps that read before the first logged command: none without a delay when the commands
+// start with the samples, none when they start early enough (4 steps before, delay 3 steps), the
+// rest when they start too late (2 steps before: 1 step; 2 steps after, no delay: 2 steps); the
+// actuator that reaches furthest is named, NaN rows before an actuator's first value count
+TEST(SampleGridTest, CountsTheStepsThatReadBeforeTheFirstCommand) {
+  const Eigen::VectorXd t = Times({0.0, 0.01, 0.02, 0.03});
+  const RowMatrix u = Column({3, -1, 7, 2});
+  const SampleGrid g = BuildSampleGrid(t, 4, 0.0, u, t, {}, {}, kDt, "");
+  EXPECT_EQ(StepsBeforeFirstControl(g, u, {}, kDt), 0);
+  EXPECT_EQ(StepsBeforeFirstControl(g, u, {0.0}, kDt), 0);
+  const Eigen::VectorXd early = Times({-4 * kDt, 0.01, 0.02, 0.03});
+  EXPECT_EQ(StepsBeforeFirstControl(BuildSampleGrid(t, 4, 0.0, u, early, {}, {}, kDt, ""), u,
+                                    {3 * kDt}, kDt),
+            0);
+  const Eigen::VectorXd less = Times({-2 * kDt, 0.01, 0.02, 0.03});
+  EXPECT_EQ(StepsBeforeFirstControl(BuildSampleGrid(t, 4, 0.0, u, less, {}, {}, kDt, ""), u,
+                                    {3 * kDt}, kDt),
+            1);
+  const Eigen::VectorXd late = Times({2 * kDt, 0.01, 0.02, 0.03});
+  EXPECT_EQ(
+      StepsBeforeFirstControl(BuildSampleGrid(t, 4, 0.0, u, late, {}, {}, kDt, ""), u, {}, kDt), 2);
+  RowMatrix two(4, 2);
+  two << 1, kNan, 2, kNan, 3, 5, 4, 6;  // actuator 1 logs from the third row (20 ms)
+  int actuator = -1;
+  EXPECT_EQ(StepsBeforeFirstControl(BuildSampleGrid(t, 4, 0.0, two, t, {}, {}, kDt, ""), two, {},
+                                    kDt, &actuator),
+            10);
+  EXPECT_EQ(actuator, 1);
 }
 
 TEST(SampleGridTest, BadTimesAreErrors) {

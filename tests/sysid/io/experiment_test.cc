@@ -559,6 +559,44 @@ TEST_F(ExperimentTest, ControlsPerActuatorAndFittedDelay) {
   ExpectError(base + "controls: {delay: {torque: 1, torque: 2}}\n", 4, 31, "given twice", "");
 }
 
+// `controls.before`: hold (default) or zero before the first logged command; anything else is an
+// error at the value naming the key and the allowed values
+TEST_F(ExperimentTest, ControlsBefore) {
+  const std::string base =
+      "model: pendulum.xml\nparameters:\n"
+      "  - {name: m, target: body_mass, object: bob, initial: 1}\n";
+  EXPECT_EQ(LoadExperiment(Write("exp.yaml", base)).control_before, ControlBefore::kHold);
+  EXPECT_EQ(LoadExperiment(Write("exp.yaml", base + "controls: {before: zero}\n")).control_before,
+            ControlBefore::kZero);
+  EXPECT_EQ(LoadExperiment(Write("exp.yaml", base + "controls: {before: hold, delay: 0.01}\n"))
+                .control_before,
+            ControlBefore::kHold);
+  ExpectError(base + "controls: {before: bogus}\n", 4, 20, "controls.before: 'bogus'",
+              "allowed values: hold, zero");
+}
+
+// simulate.truth names parameters and fitted control delays ("controls.delay", or
+// "controls.delay.<actuator>"); a given delay has no truth to state
+TEST_F(ExperimentTest, TruthOfAFittedControlDelay) {
+  const std::string base =
+      "model: pendulum.xml\nparameters:\n"
+      "  - {name: m, target: body_mass, object: bob, initial: 1}\n";
+  const ExperimentConfig shared = LoadExperiment(
+      Write("exp.yaml", base + "controls: {delay: {initial: 0.005, fit: true}}\n"
+                               "simulate: {truth: {m: 2, controls.delay: 0.012}}\n"));
+  ASSERT_EQ(shared.simulate.truth.size(), 2u);
+  EXPECT_EQ(shared.simulate.truth[1].name, "controls.delay");
+  EXPECT_EQ(shared.simulate.truth[1].value, 0.012);
+  ASSERT_NE(shared.FindFittedControlDelay("controls.delay"), nullptr);
+  EXPECT_EQ(shared.FindFittedControlDelay("controls.delay.torque"), nullptr);
+  const ExperimentConfig own = LoadExperiment(
+      Write("exp.yaml", base + "controls: {delay: {torque: {initial: 0.005, fit: true}}}\n"
+                               "simulate: {truth: {controls.delay.torque: 0.012}}\n"));
+  EXPECT_EQ(own.simulate.truth[0].name, "controls.delay.torque");
+  ExpectError(base + "controls: {delay: 0.01}\nsimulate: {truth: {controls.delay: 0.012}}\n", 5, 20,
+              "'controls.delay' is not a parameter nor a fitted control delay");
+}
+
 // a sequence entry may fit a window of the sequence: {name, start, end} in seconds
 TEST_F(ExperimentTest, SequenceWindows) {
   const std::string base =

@@ -17,6 +17,7 @@
 #include "core/mujoco_env.h"
 #include "core/simulator.h"
 #include "mjsysid/version.h"
+#include "sysid/data/sample_grid.h"
 #include "sysid/io/experiment.h"
 #include "sysid/io/log.h"
 #include "sysid/problem.h"
@@ -324,6 +325,65 @@ TEST_F(SimulateTest, ModelValuesThatDifferBetweenModelsAreRecordedPerModel) {
   EXPECT_EQ(log.attributes.at("truth_from_model"), "damping");
 }
 
+// A fitted control delay's truth (simulate.truth "controls.delay"): the log's ctrl are the
+// commands (those of the experiment without `controls:`), the rollout got them held and delayed
+// as the fit holds them (re-simulating the commands through BuildSampleGrid at 12 ms reproduces
+// sensordata exactly, the undelayed commands do not), before: zero gives the first 6 steps 0;
+// the attribute truth.controls.delay is the value simulated (the initial one without a truth).
+TEST_F(SimulateTest, FittedDelaySimulatedAtItsTruthAndLoggedUndelayed) {
+  const std::string body = R"(
+model: pendulum.xml
+parameters:
+  - {name: damping, target: joint_damping, object: hinge, initial: 0.2, bounds: [0, 1]}
+simulate:
+  truth: {damping: 0.11, controls.delay: 0.012}
+  sequences: 1
+  steps: 300
+  seed: 5
+  excitation: {type: sines, amplitude: 3.0}
+)";
+  const std::string fitted = "controls: {delay: {initial: 0.005, fit: true, bounds: [0, 0.05]}}\n";
+  const std::string plain = R"(
+model: pendulum.xml
+parameters:
+  - {name: damping, target: joint_damping, object: hinge, initial: 0.2, bounds: [0, 1]}
+simulate: {truth: {damping: 0.11}, sequences: 1, steps: 300, seed: 5,
+           excitation: {type: sines, amplitude: 3.0}}
+)";
+  const io::Log commands = SimulateExperiment(Parse(plain));
+  ModelPtr m = LoadModel(kModels + "/pendulum.xml");
+  const double dt = m->opt.timestep;
+  const std::vector<ParameterSpec> params = {Parse(plain).parameters[0].target};
+  Eigen::VectorXd truth(1);
+  truth << 0.11;
+  for (const ControlBefore before : {ControlBefore::kHold, ControlBefore::kZero}) {
+    SCOPED_TRACE(ControlBeforeName(before));
+    const std::string controls =
+        before == ControlBefore::kZero
+            ? "controls: {before: zero, delay: {initial: 0.005, fit: true, bounds: [0, 0.05]}}\n"
+            : fitted;
+    const io::Log log = SimulateExperiment(Parse(body + controls));
+    EXPECT_EQ(std::stod(log.attributes.at("truth.controls.delay")), 0.012);
+    const io::Sequence& seq = log.sequences[0];
+    EXPECT_EQ(seq.ctrl, commands.sequences[0].ctrl);  // the commands, undelayed
+    const SampleGrid grid =
+        BuildSampleGrid(seq.time, static_cast<int>(seq.time.size()), 0.0, seq.ctrl,
+                        Eigen::VectorXd(), {}, {0.012}, dt, "", before);
+    for (int n = 0; n < 6; ++n) {
+      EXPECT_EQ(grid.ctrl(n, 0), before == ControlBefore::kZero ? 0.0 : seq.ctrl(0, 0)) << n;
+    }
+    EXPECT_EQ(grid.ctrl(6, 0), seq.ctrl(0, 0));
+    io::Sequence held = seq;
+    held.ctrl = grid.ctrl;
+    EXPECT_EQ(Resimulate(*m, params, truth, held).sensors, seq.sensordata);
+    EXPECT_GT((Resimulate(*m, params, truth, seq).sensors - seq.sensordata).norm(), 1e-3);
+  }
+  // without a truth the delay is simulated (and recorded) at its initial value
+  io::ExperimentConfig initial = Parse(body + fitted);
+  initial.simulate.truth.pop_back();
+  EXPECT_EQ(std::stod(SimulateExperiment(initial).attributes.at("truth.controls.delay")), 0.005);
+}
+
 // ---------------------------------------------------------------------------------------------
 // errors
 
@@ -352,6 +412,18 @@ simulate:
   } catch (const io::ConfigError& e) {
     EXPECT_NE(std::string(e.what()).find("no_such_parameter"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("is not a parameter"), std::string::npos) << e.what();
+  }
+  // a control delay's name is a truth only when that delay is fitted
+  cfg = Parse(kPendulum);
+  cfg.simulate.truth.push_back({"controls.delay", 0.012, {}});
+  try {
+    SimulateExperiment(cfg);
+    FAIL() << "no error";
+  } catch (const io::ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("'controls.delay' is not a parameter nor a fitted control "
+                                         "delay"),
+              std::string::npos)
+        << e.what();
   }
 }
 
