@@ -519,6 +519,9 @@ struct IntervalCheckRecord {
   int skipped = 0;      // kSkippedSmooth: simulator parameters skipped
   int parameters = 0;   // the simulator parameters
   std::string rugged;   // kRanRugged: why (RuggedReason, e.g. "constraint rows come, go ...")
+  // kRanRugged because the dynamics jump: contacts, or constraint rows that come, go or change
+  // state (not kept in result files: the fit's own record)
+  bool dynamics_jump = false;
   // kRanRugged, the check failed and the envelope held (sysid/assess/interval_check.h,
   // CheckRuggedEnvelope): what the intervals are, e.g. "the Jacobian's, widened x1.4 on NAME"
   std::string envelope;

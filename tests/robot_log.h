@@ -172,6 +172,7 @@ struct Case {
   double amplitude;
   std::vector<int> positions;  // sensordata columns quantized like encoders
   int segment_steps = 0;       // multiple shooting (simulation steps), 0: single
+  RobotSettings robot;         // how the real-log bench's robot logs it
 };
 
 inline Case SpringMass() {
@@ -186,6 +187,8 @@ inline Case SpringMass() {
       FitParameter("stiffness", Spec("joint_stiffness", "slide"), 3.0).Bounds(1e-3, 1000).Log()};
   c.amplitude = 2.0;
   c.positions = {0};
+  c.robot.quantum = 1e-4;  // m
+  c.robot.sigma = 1e-4;
   return c;
 }
 
@@ -200,6 +203,12 @@ inline Case Pendulum() {
   c.x0.qvel = Eigen::VectorXd::Zero(1);
   c.amplitude = 2.0;
   c.positions = {0};
+  c.robot.sensor_rate = 250;
+  c.robot.control_rate = 50;
+  c.robot.control_delay = 0.015;
+  c.robot.jitter = 0.0008;
+  c.robot.quantum = 2 * M_PI / 4096;  // a 12-bit encoder
+  c.robot.sigma = 1e-4;
   return c;
 }
 
@@ -215,6 +224,13 @@ inline Case CartPole() {
   c.x0.qvel = Eigen::Vector2d::Zero();
   c.amplitude = 4.0;
   c.positions = {0, 1};
+  c.robot.sensor_rate = 200;
+  c.robot.control_rate = 50;
+  c.robot.control_delay = 0.02;
+  c.robot.jitter = 0.001;
+  c.robot.quantum = 1e-4;  // m and rad
+  c.robot.sigma = 1e-4;
+  c.robot.duration = 5;
   return c;
 }
 
@@ -232,6 +248,13 @@ inline Case Arm5() {
   c.amplitude = 3.0;
   c.positions = {0, 1, 2, 3, 4};
   c.segment_steps = 250;  // multiple shooting, 0.5 s segments
+  c.robot.sensor_rate = 100;
+  c.robot.control_rate = 100;
+  c.robot.control_delay = 0.005;
+  c.robot.jitter = 0.0005;
+  c.robot.quantum = 2 * M_PI / 16384;  // 14-bit encoders
+  c.robot.sigma = 1e-4;
+  c.robot.duration = 3;
   return c;
 }
 

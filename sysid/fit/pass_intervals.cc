@@ -67,6 +67,8 @@ void FitPass::CheckIntervals() {
   record.skipped = skipped;
   record.parameters = np_;
   record.rugged = rugged;
+  record.dynamics_jump =
+      !rugged.empty() && (smoothness.contact_steps > 0 || smoothness.row_changes > 0);
   record.wide_fraction = kSmoothRelativeStd;
   // a rugged cost: whether the Jacobian's intervals still bound the estimate (a lower point
   // within 2 standard errors, or a cost that does not rise, says no)

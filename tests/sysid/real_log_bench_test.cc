@@ -285,55 +285,30 @@ void RunBench(const Case& c, RobotSettings rs, double floor_tolerance, double to
   EXPECT_GT(missing, 0);
 }
 
+// the cases' robots: tests/robot_log.h
 TEST(RealLogBenchTest, SpringMass) {
-  RobotSettings rs;
-  rs.quantum = 1e-4;  // m
-  rs.sigma = 1e-4;
   // measured: worst error 0.11 % on the grid, 0.10 % off it (linear hold: 0.64 %); the same with
   // point-sampled held controls (the delay is a whole number of steps)
-  RunBench(SpringMass(), rs, 0.005, 0.01);
+  RunBench(SpringMass(), SpringMass().robot, 0.005, 0.01);
 }
 
 TEST(RealLogBenchTest, Pendulum) {
-  RobotSettings rs;
-  rs.sensor_rate = 250;
-  rs.control_rate = 50;
-  rs.control_delay = 0.015;
-  rs.jitter = 0.0008;
-  rs.quantum = 2 * M_PI / 4096;  // a 12-bit encoder
-  rs.sigma = 1e-4;
   // measured: worst error 0.018 % on the grid, 0.020 % off it (linear hold: 6.3 %); 0.70 % and
   // 0.70 % with point-sampled held controls (the 15 ms delay is 7.5 steps: the step average
   // splits the step where the command changes)
-  RunBench(Pendulum(), rs, 0.01, 0.015);
+  RunBench(Pendulum(), Pendulum().robot, 0.01, 0.015);
 }
 
 TEST(RealLogBenchTest, CartPole) {
-  RobotSettings rs;
-  rs.sensor_rate = 200;
-  rs.control_rate = 50;
-  rs.control_delay = 0.02;
-  rs.jitter = 0.001;
-  rs.quantum = 1e-4;  // m and rad
-  rs.sigma = 1e-4;
-  rs.duration = 5;
   // measured: 0.16 % on the grid, 0.16 % off it (linear hold: 11 %); the same with point-sampled
   // held controls (the delay is a whole number of steps)
-  RunBench(CartPole(), rs, 0.005, 0.01);
+  RunBench(CartPole(), CartPole().robot, 0.005, 0.01);
 }
 
 TEST(RealLogBenchTest, Arm5) {
-  RobotSettings rs;
-  rs.sensor_rate = 100;
-  rs.control_rate = 100;
-  rs.control_delay = 0.005;
-  rs.jitter = 0.0005;
-  rs.quantum = 2 * M_PI / 16384;  // 14-bit encoders
-  rs.sigma = 1e-4;
-  rs.duration = 3;
   // measured: 0.070 % on the grid, 0.067 % off it, multiple shooting in 0.5 s segments (linear
   // hold: 1.7 %); 0.37 % and 0.42 % with point-sampled held controls (5 ms is 2.5 steps)
-  RunBench(Arm5(), rs, 0.01, 0.01);
+  RunBench(Arm5(), Arm5().robot, 0.01, 0.01);
 }
 
 }  // namespace

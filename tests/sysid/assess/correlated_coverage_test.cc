@@ -197,40 +197,10 @@ TEST(CorrelatedCoverageTest, WhiteNoiseKeepsTheIntervals) {
   ExpectCoverage({pendulum, spring}, false);
 }
 
-// the real-log bench's settings (tests/sysid/real_log_bench_test.cc)
+// the real-log bench's robots (tests/robot_log.h)
 TEST(CorrelatedCoverageTest, RobotLogsMisfitByTheTimestepAreCovered) {
-  RobotSettings spring;
-  spring.quantum = 1e-4;
-  spring.sigma = 1e-4;
-  RobotSettings pendulum;
-  pendulum.sensor_rate = 250;
-  pendulum.control_rate = 50;
-  pendulum.control_delay = 0.015;
-  pendulum.jitter = 0.0008;
-  pendulum.quantum = 2 * M_PI / 4096;
-  pendulum.sigma = 1e-4;
-  RobotSettings cartpole;
-  cartpole.sensor_rate = 200;
-  cartpole.control_rate = 50;
-  cartpole.control_delay = 0.02;
-  cartpole.jitter = 0.001;
-  cartpole.quantum = 1e-4;
-  cartpole.sigma = 1e-4;
-  cartpole.duration = 5;
-  RobotSettings arm5;
-  arm5.sensor_rate = 100;
-  arm5.control_rate = 100;
-  arm5.control_delay = 0.005;
-  arm5.jitter = 0.0005;
-  arm5.quantum = 2 * M_PI / 16384;
-  arm5.sigma = 1e-4;
-  arm5.duration = 3;
-  for (const auto& [c, rs] :
-       std::vector<std::pair<Case, RobotSettings>>{{test::SpringMass(), spring},
-                                                   {test::Pendulum(), pendulum},
-                                                   {test::CartPole(), cartpole},
-                                                   {test::Arm5(), arm5}}) {
-    const Coverage cov = Measure(c, rs);
+  for (const Case& c : {test::SpringMass(), test::Pendulum(), test::CartPole(), test::Arm5()}) {
+    const Coverage cov = Measure(c, c.robot);
     EXPECT_EQ(cov.white_fits, 0) << c.file;
     EXPECT_GE(cov.min_inflation, 5) << c.file;
     EXPECT_EQ(cov.timestep_checked, cov.fits) << c.file;
@@ -269,14 +239,8 @@ TEST(CorrelatedCoverageTest, RobotLogWithAFittedDelay) {
 // 0.01 otherwise), the fitted model none. The misfit does not shrink at half the timestep, so the
 // status stays model_mismatch, with the check's numbers in a warning.
 TEST(CorrelatedCoverageTest, AMissingTermIsNotTheTimesteps) {
-  Case c = test::Pendulum();
-  RobotSettings rs;
-  rs.sensor_rate = 250;
-  rs.control_rate = 50;
-  rs.control_delay = 0.015;
-  rs.jitter = 0.0008;
-  rs.quantum = 2 * M_PI / 4096;
-  rs.sigma = 1e-4;
+  const Case c = test::Pendulum();
+  RobotSettings rs = c.robot;
   for (int seed = 0; seed < 6; ++seed) {
     std::vector<test::Truth> truth = c.truth;
     const double friction = seed < 3 ? 0.3 : 0.03;
