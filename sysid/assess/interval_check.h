@@ -103,6 +103,11 @@ struct CostSmoothness {
 // kink at every sample) are checked either way.
 std::string RuggedReason(const CostSmoothness& s);
 
+// the start of the warning a fit pass gives when the check failed and no envelope held (the
+// cost is not what the Jacobian predicts one standard error away: the intervals describe nothing)
+inline constexpr char kCostNotSmoothWarning[] =
+    "the cost is not smooth at the scale of the intervals";
+
 inline constexpr double kSmoothRelativeStd = 0.1;
 // whether the check runs along a simulator parameter of this value and standard error when the
 // rollouts are smooth (RuggedReason ""): se > kSmoothRelativeStd |value| (a value 0: always)

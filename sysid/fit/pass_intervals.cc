@@ -111,7 +111,7 @@ void FitPass::CheckIntervals() {
   if (!ic.local) {
     cost_not_local_ = true;
     result_.warnings.push_back(
-        "the cost is not smooth at the scale of the intervals: " + ic.worst +
+        std::string(kCostNotSmoothWarning) + ": " + ic.worst +
         "; contacts, impacts or stick-slip make the rollouts jump when a parameter moves by less "
         "than its standard error, so the Jacobian describes the cost only very locally and the "
         "intervals are not valid (docs/numerics.md, \"Contact: a rugged cost\")");

@@ -9,6 +9,7 @@
 
 #include "core/mujoco_env.h"
 #include "core/text.h"
+#include "sysid/assess/interval_check.h"
 #include "sysid/problem.h"
 
 namespace mjsysid {
@@ -93,8 +94,14 @@ void CheckTimestep(const FitParts& parts, const FitOptions& options, FitResult* 
   // case; a fitted delay's kinks are smooth enough, measured on the robot with a fitted delay)
   const bool rugged = r.interval_check.kind == IntervalCheckRecord::Kind::kRanRugged &&
                       r.interval_check.dynamics_jump;
+  // (nor where the interval check found the cost not smooth at the intervals' scale: the status
+  // put model_mismatch before that finding, which a converged fit must not hide)
+  bool not_smooth = false;
+  for (const std::string& w : r.warnings) {
+    not_smooth = not_smooth || w.rfind(kCostNotSmoothWarning, 0) == 0;
+  }
   if (!options.timestep_check || r.outcome != FitStatus::kModelMismatch || r.interrupted ||
-      fit.shards || fit.params.empty() || !(r.chi2_ratio > 2) || white || rugged) {
+      fit.shards || fit.params.empty() || !(r.chi2_ratio > 2) || white || rugged || not_smooth) {
     return;
   }
   int order = 1;
