@@ -9,7 +9,9 @@
 
 #include "core/mujoco_env.h"
 #include "core/text.h"
+#include "sysid/assess/fit_status.h"
 #include "sysid/assess/interval_check.h"
+#include "sysid/assess/noise_estimate.h"
 #include "sysid/problem.h"
 
 namespace mjsysid {
@@ -103,6 +105,15 @@ void CheckTimestep(const FitParts& parts, const FitOptions& options, FitResult* 
   if (!options.timestep_check || r.outcome != FitStatus::kModelMismatch || r.interrupted ||
       fit.shards || fit.params.empty() || !(r.chi2_ratio > 2) || white || rugged || not_smooth) {
     return;
+  }
+  // the mismatch must be this result's own chi-square test (not the one-piece check's of a fit in
+  // segments, sysid/fit/policy.cc), and no sensor without sigma may be among the unexplained
+  // (the half step tests the sigmas' excess only)
+  FitResult tested = r;
+  tested.warnings.clear();
+  if (!ResidualsAboveNoise(options, &tested)) return;
+  for (const auto& [sensor, ratio] : tested.sensor_noise_ratio) {
+    if (ratio > kUnexplainedNoiseFactor) return;
   }
   int order = 1;
   FitResult h;

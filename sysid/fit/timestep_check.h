@@ -19,7 +19,9 @@
 // the fit has physical parameters and its dynamics do not jump (no contacts or changing constraint
 // rows at the estimate, IntervalCheckRecord::dynamics_jump: there a refit moves to another point
 // of a rugged cost, which says nothing about the timestep), and the interval check did not find
-// the cost not smooth at the intervals' scale (kCostNotSmoothWarning). Then:
+// the cost not smooth at the intervals' scale (kCostNotSmoothWarning), the result's own chi-square
+// test fails (not only the one-piece check of a fit in segments) and no sensor without a sigma is
+// above kUnexplainedNoiseFactor x its log's noise. Then:
 // - every estimate's 95 % interval is widened to cover the continuous-time value theta - beta
 //   ([min(theta, theta - beta) - 1.96 s, max(..) + 1.96 s]) and ParameterEstimate::timestep_bias
 //   holds beta;
