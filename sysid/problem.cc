@@ -4,6 +4,7 @@
 // inputs and builds what a fit runs on.
 #include "sysid/problem.h"
 
+#include <map>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -12,6 +13,7 @@
 #include "sysid/fit/policy.h"
 #include "sysid/fit/prepare.h"
 #include "sysid/fit/segment_evaluator.h"
+#include "sysid/fit/sigma_from_log.h"
 #include "sysid/solve/fit_state.h"
 
 namespace mjsysid {
@@ -78,10 +80,19 @@ const std::vector<FitParameter>& Problem::parameters() const { return impl_->fit
 // -----------------------------------------------------------------------------------------------
 // fitting
 
-FitResult Problem::Fit(const FitOptions& options) { return FitWithPolicy(impl_->Parts(), options); }
+FitResult Problem::Fit(const FitOptions& options) {
+  std::map<std::string, double> sigmas;
+  const FitOptions resolved = WithSigmasFromLog(impl_->fit, options, &sigmas);
+  FitResult result = FitWithPolicy(impl_->Parts(), resolved);
+  for (ResidualDiagnostics& d : result.residuals) {
+    d.sigma_from_log = sigmas.count(d.channel.substr(0, d.channel.find('['))) > 0;
+  }
+  result.sigma_from_log = std::move(sigmas);
+  return result;
+}
 
 JacobianCheck Problem::CheckJacobians(const FitOptions& options) {
-  return CheckJacobiansAt(impl_->Parts(), options);
+  return CheckJacobiansAt(impl_->Parts(), WithSigmasFromLog(impl_->fit, options, nullptr));
 }
 
 // -----------------------------------------------------------------------------------------------
@@ -89,7 +100,7 @@ JacobianCheck Problem::CheckJacobians(const FitOptions& options) {
 
 SegmentEvaluator PrepareOnly(Problem* problem, const FitOptions& options) {
   const FitParts parts = PartsOf(problem);
-  PrepareFit(parts, options);
+  PrepareFit(parts, WithSigmasFromLog(*parts.fit, options, nullptr));
   return SegmentEvaluator(parts);
 }
 

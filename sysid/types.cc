@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "core/text.h"
 
@@ -103,6 +104,14 @@ SequenceResult WithStateColumns(const SequenceResult& s) {
   out.measured = join(s.measured, s.state_measured);
   out.simulated_initial = join(s.simulated_initial, s.state_simulated_initial);
   out.simulated_final = join(s.simulated_final, s.state_simulated_final);
+  if (s.simulated_one_piece.rows() > 0) {
+    out.simulated_one_piece = join(
+        s.simulated_one_piece,
+        s.state_simulated_one_piece.rows() > 0
+            ? s.state_simulated_one_piece
+            : RowMatrix::Constant(s.state_simulated_final.rows(), s.state_simulated_final.cols(),
+                                  std::numeric_limits<double>::quiet_NaN()));
+  }
   for (Eigen::Index c = 0; c < s.state_measured.cols(); ++c) {
     out.missing.push_back(static_cast<int>(s.state_measured.col(c).array().isNaN().count()));
   }

@@ -249,6 +249,10 @@ struct FitOptions {
   // sensors whose weight is 1/sigma (a noise level, not a mere weight): their weighted residuals
   // are compared with their chi-square expectation to decide FitStatus::kModelMismatch
   std::vector<std::string> sensors_with_sigma;
+  // sensors whose sigma is estimated from the fitted sequences' logs at the fit's start
+  // (sigma: auto; sysid/fit/sigma_from_log.h): their weights and sensors_with_sigma are set from
+  // it, and FitResult::sigma_from_log says what was used
+  std::vector<std::string> sensors_sigma_from_log;
   UncertaintyOptions uncertainty;
   // the front end's choice to show progress (the experiment's solver.verbose): the runner
   // (sysid/run/) passes its observer only when set; Problem::Fit itself reads `observer` alone
@@ -364,7 +368,13 @@ struct ParameterEstimate {
 struct ChannelFit {
   std::string channel;  // "sensor" (1-D) or "sensor[i]"
   double nrmse_initial = 0, nrmse_final = 0;
-  double fit_initial = 0, fit_final = 0;  // %; NaN for a constant measured column
+  // %; NaN for a constant measured column. fit_final is the estimate simulated in one piece
+  // (SequenceResult::simulated_one_piece under multiple shooting)
+  double fit_initial = 0, fit_final = 0;
+  // multiple shooting: the estimate's fit segment by segment (each segment from its own fitted
+  // state: SequenceResult::simulated_final), beside fit_final; NaN for a fit in one piece
+  double nrmse_segments = std::numeric_limits<double>::quiet_NaN();
+  double fit_segments = std::numeric_limits<double>::quiet_NaN();
 };
 
 // the fitted sensor columns of one sequence: measured and simulated, sensor by sensor
@@ -376,7 +386,12 @@ struct SequenceResult {
   RowMatrix measured;                     // T x sum(sensor_dims)
   RowMatrix simulated_initial;            // T x sum(sensor_dims), at the initial parameters
   RowMatrix simulated_final;  // T x sum(sensor_dims), at the estimate (measurement terms on)
-  Eigen::VectorXd x0_final;   // estimated initial physics vector (or the given one); may be empty
+  // multiple shooting, where simulated_final is segment by segment (each segment from its own
+  // fitted state: what the fit fitted): the estimate simulated in one piece from the sequence's
+  // first state (what the identified model gives), T x sum(sensor_dims); empty for a fit in one
+  // piece (simulated_final is that)
+  RowMatrix simulated_one_piece;
+  Eigen::VectorXd x0_final;  // estimated initial physics vector (or the given one); may be empty
   // one per column above (sysid/assess/metrics.h ChannelFits; filled by the runner and the result
   // reader)
   std::vector<ChannelFit> channel_fits;
@@ -388,6 +403,7 @@ struct SequenceResult {
   std::vector<std::string> state_names;
   std::vector<int> state_dims;
   RowMatrix state_measured, state_simulated_initial, state_simulated_final;
+  RowMatrix state_simulated_one_piece;  // as simulated_one_piece (empty: none)
   // T x sum(state_residual_dims) weighted residuals (simulated (-) measured) / sigma at the
   // estimate in tangent space (an orientation 3 rows), NaN where not measured: what the
   // chi-square test sums
@@ -522,6 +538,9 @@ struct IntervalCheckRecord {
   // kRanRugged because the dynamics jump: contacts, or constraint rows that come, go or change
   // state (not kept in result files: the fit's own record)
   bool dynamics_jump = false;
+  // the check found the cost not smooth at the intervals' scale (kCostNotSmoothWarning; not kept
+  // in result files: the fit's own record)
+  bool cost_not_smooth = false;
   // kRanRugged, the check failed and the envelope held (sysid/assess/interval_check.h,
   // CheckRuggedEnvelope): what the intervals are, e.g. "the Jacobian's, widened x1.4 on NAME"
   std::string envelope;
@@ -561,17 +580,18 @@ std::string SegmentReasonText(const SegmentRecord& r);
 // how one channel's residuals at the estimate look, pooled over the sequences
 // (sysid/assess/residual_diagnostics.h computes and explains every field)
 struct ResidualDiagnostics {
-  std::string channel;       // "sensor" (1-D), "sensor[i]"
-  int samples = 0;           // measured rows over every sequence
-  double mean = 0;           // bias, the channel's units
-  double rms = 0;            // the channel's units
-  double sigma = 0;          // the stated sigma (NaN: none)
-  double ratio = 0;          // rms / sigma (NaN without sigma)
-  double bias_units = 0;     // |mean| in standard errors of a mean of correlated residuals
-  double lag1 = 0;           // autocorrelation at one sample
-  double tau = 0;            // integrated correlation time, samples (1: white)
-  double portmanteau_p = 0;  // Ljung-Box p-value
-  bool white = true;         // the portmanteau test passed (or too few samples to tell)
+  std::string channel;          // "sensor" (1-D), "sensor[i]"
+  int samples = 0;              // measured rows over every sequence
+  double mean = 0;              // bias, the channel's units
+  double rms = 0;               // the channel's units
+  double sigma = 0;             // the stated sigma (NaN: none)
+  bool sigma_from_log = false;  // sigma estimated from the log (sigma: auto), not stated
+  double ratio = 0;             // rms / sigma (NaN without sigma)
+  double bias_units = 0;        // |mean| in standard errors of a mean of correlated residuals
+  double lag1 = 0;              // autocorrelation at one sample
+  double tau = 0;               // integrated correlation time, samples (1: white)
+  double portmanteau_p = 0;     // Ljung-Box p-value
+  bool white = true;            // the portmanteau test passed (or too few samples to tell)
 };
 
 struct FitResult {
@@ -592,6 +612,8 @@ struct FitResult {
   // log itself (sysid/assess/noise_estimate.h), the worst of the sensor's columns pooled over
   // sequences (about 1 when the model explains the data; absent where the log gives no estimate)
   std::map<std::string, double> sensor_noise_ratio;
+  // the sigmas estimated from the log (FitOptions::sensors_sigma_from_log), sensor -> sigma
+  std::map<std::string, double> sigma_from_log;
   FitTermination termination;  // why the optimiser stopped (TerminationText)
   int num_residuals = 0;
   Uncertainty uncertainty;  // over FitResult::parameters (order as there)

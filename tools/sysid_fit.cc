@@ -131,7 +131,25 @@ void PrintFitQuality(const mjsysid::io::FitResultFile& f) {
                   list == &f.sequences ? "fit" : "validation", s.channel_fits.size(),
                   Percent(a.worst).c_str(), Percent(b.worst).c_str(), Percent(a.median).c_str(),
                   Percent(b.median).c_str());
+      // multiple shooting: the row above is the estimate in one piece; the segments' beside it
+      if (s.simulated_one_piece.rows() > 0) {
+        std::vector<mjsysid::ChannelFit> segments = s.channel_fits;
+        for (mjsysid::ChannelFit& c : segments) c.fit_final = c.fit_segments;
+        const mjsysid::FitSummary g = mjsysid::SummarizeFits(segments, false);
+        std::printf("  %-24s %-10s %8s  %6s    %-12s %6s    %s\n", "", "(segments)", "", "",
+                    Percent(g.worst).c_str(), "", Percent(g.median).c_str());
+      }
     }
+  }
+  bool segmented = false;
+  for (const mjsysid::SequenceResult& s : f.sequences) {
+    segmented = segmented || s.simulated_one_piece.rows() > 0;
+  }
+  if (segmented) {
+    std::printf(
+        "  (fitted in segments: each row is the estimate simulated in one piece from the "
+        "sequence's first state, what the identified model gives; (segments): each segment from "
+        "its own fitted state, what the fit fitted)\n");
   }
 }
 
@@ -161,6 +179,17 @@ void PrintResiduals(const mjsysid::io::FitResultFile& f) {
       std::printf("  (%d of %zu channels white: result.yaml `residuals` lists every channel)\n",
                   white, f.residuals.size());
     }
+  }
+  std::vector<std::string> seen;  // sigma: auto, sensor by sensor
+  std::string from_log;
+  for (const mjsysid::ResidualDiagnostics& d : f.residuals) {
+    const std::string sensor = d.channel.substr(0, d.channel.find('['));
+    if (!d.sigma_from_log || std::find(seen.begin(), seen.end(), sensor) != seen.end()) continue;
+    seen.push_back(sensor);
+    from_log += (from_log.empty() ? "" : ", ") + sensor + " " + Number(d.sigma, "%.3g");
+  }
+  if (!from_log.empty()) {
+    std::printf("  sigma estimated from the log (sigma: auto): %s\n", from_log.c_str());
   }
   if (f.interval_inflation > 1) std::printf("  intervals from %s\n", f.intervals_from.c_str());
   if (!f.timestep_check.empty()) std::printf("  timestep check: %s\n", f.timestep_check.c_str());

@@ -312,9 +312,21 @@ FitOptions OptionsOf(const nb::dict& d) {
   o.fit_jumping_sensors =
       GetChoice(d, "jumping_sensors", kJumpingSensors, o.fit_jumping_sensors ? 1 : 0, what) == 1;
   o.sensor_weights = Get<std::map<std::string, double>>(d, "sensor_weights", {}, what);
-  // a sigma is a weight 1/sigma that also enters the model_mismatch verdict (as in YAML)
-  for (const auto& [sensor, sigma] :
-       Get<std::map<std::string, double>>(d, "sensor_sigmas", {}, what)) {
+  // a sigma is a weight 1/sigma that also enters the model_mismatch verdict (as in YAML); "auto":
+  // estimated from the log at the fit's start (sigma: auto)
+  for (const auto& [sensor, value] :
+       Get<std::map<std::string, nb::object>>(d, "sensor_sigmas", {}, what)) {
+    if (nb::isinstance<nb::str>(value) && nb::cast<std::string>(value) == "auto") {
+      o.sensors_sigma_from_log.push_back(sensor);
+      continue;
+    }
+    double sigma = 0;
+    try {
+      sigma = nb::cast<double>(value);
+    } catch (const nb::cast_error&) {
+      throw std::invalid_argument("options: sensor_sigmas['" + sensor +
+                                  "'] must be a number > 0 or 'auto'");
+    }
     if (!(sigma > 0)) {
       throw std::invalid_argument("options: sensor_sigmas['" + sensor + "'] must be > 0");
     }

@@ -292,7 +292,9 @@ NB_MODULE(_mjsysid, m) {
       .def_ro("samples", &ResidualDiagnostics::samples, "measured rows")
       .def_ro("mean", &ResidualDiagnostics::mean, "bias, the channel's units")
       .def_ro("rms", &ResidualDiagnostics::rms)
-      .def_ro("sigma", &ResidualDiagnostics::sigma, "the stated sigma (NaN: none)")
+      .def_ro("sigma", &ResidualDiagnostics::sigma, "the stated or estimated sigma (NaN: none)")
+      .def_ro("sigma_from_log", &ResidualDiagnostics::sigma_from_log,
+              "sigma estimated from the log (sensor_sigmas 'auto')")
       .def_ro("rms_over_sigma", &ResidualDiagnostics::ratio)
       .def_ro("bias_std_errors", &ResidualDiagnostics::bias_units,
               "|mean| in standard errors of a mean of these (correlated) residuals")
@@ -347,7 +349,11 @@ NB_MODULE(_mjsysid, m) {
       .def_ro("time", &SequenceResult::time)
       .def_ro("measured", &SequenceResult::measured)
       .def_ro("simulated_initial", &SequenceResult::simulated_initial)
-      .def_ro("simulated_final", &SequenceResult::simulated_final)
+      .def_ro("simulated_final", &SequenceResult::simulated_final,
+              "at the estimate; segment by segment for a fit in segments")
+      .def_ro("simulated_one_piece", &SequenceResult::simulated_one_piece,
+              "a fit in segments: the estimate simulated in one piece from the first state "
+              "(empty for a fit in one piece)")
       .def_ro("x0_final", &SequenceResult::x0_final)
       .def_ro("state_names", &SequenceResult::state_names,
               "fitted states: qpos:<joint>, qvel:<joint>, act:<actuator>")
@@ -424,6 +430,8 @@ NB_MODULE(_mjsysid, m) {
       .def_ro("chi2_ratio", &FitResult::chi2_ratio)
       .def_ro("sensor_chi2_ratio", &FitResult::sensor_chi2_ratio)
       .def_ro("sensor_noise_ratio", &FitResult::sensor_noise_ratio)
+      .def_ro("sigma_from_log", &FitResult::sigma_from_log,
+              "sensor -> sigma estimated from the log (sensor_sigmas 'auto')")
       .def_ro("residuals", &FitResult::residuals,
               "per fitted channel: bias, rms / sigma, whiteness, correlation time")
       .def_ro("interval_inflation", &FitResult::interval_inflation,

@@ -7,13 +7,9 @@
 
 #include "core/inertia_cholesky.h"
 #include "core/parameters.h"
+#include "sysid/assess/uncertainty.h"
 
 namespace mjsysid {
-namespace {
-
-constexpr double kZ95 = 1.959963984540054;
-
-}  // namespace
 
 std::vector<DerivedQuantity> DeriveInertials(const mjModel& model, const std::string& model_name,
                                              const std::vector<FitParameter>& params,

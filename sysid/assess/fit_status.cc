@@ -68,7 +68,7 @@ bool UnexplainedWithoutSigmas(const FitOptions& options, FitResult* result) {
         pooled.resize(static_cast<size_t>(dim));
         for (int c = 0; c < dim; ++c) {
           const Eigen::VectorXd y = sr.measured.col(col + c);
-          const double noise = EstimateNoiseStd(y);
+          const double noise = EstimateNoiseStd(y, sr.time);
           if (!std::isfinite(noise)) continue;
           const auto measured = !y.array().isNaN();
           const double rows = static_cast<double>(measured.count());

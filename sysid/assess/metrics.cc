@@ -48,7 +48,17 @@ std::vector<ChannelFit> ChannelFits(const SequenceResult& s) {
       // a simulation that is missing (e.g. failed) gives NaN, not a number for another column
       f.nrmse_initial =
           s.simulated_initial.cols() > col ? Nrmse(y, s.simulated_initial.col(col)) : kNaN;
-      f.nrmse_final = s.simulated_final.cols() > col ? Nrmse(y, s.simulated_final.col(col)) : kNaN;
+      const double final_fit =
+          s.simulated_final.cols() > col ? Nrmse(y, s.simulated_final.col(col)) : kNaN;
+      if (s.simulated_one_piece.rows() > 0) {
+        // multiple shooting: the headline is the estimate in one piece, the segments' beside it
+        f.nrmse_final =
+            s.simulated_one_piece.cols() > col ? Nrmse(y, s.simulated_one_piece.col(col)) : kNaN;
+        f.nrmse_segments = final_fit;
+        f.fit_segments = FitPercent(f.nrmse_segments);
+      } else {
+        f.nrmse_final = final_fit;
+      }
       f.fit_initial = FitPercent(f.nrmse_initial);
       f.fit_final = FitPercent(f.nrmse_final);
       out.push_back(std::move(f));

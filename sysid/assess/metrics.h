@@ -28,7 +28,8 @@ double Nrmse(const Eigen::Ref<const Eigen::VectorXd>& measured,
 double FitPercent(double nrmse);
 
 // one ChannelFit per column of s.measured (sensor_names/sensor_dims name them): the initial and
-// the final simulation against the measured data
+// the final simulation against the measured data; with s.simulated_one_piece (multiple shooting)
+// the final is that, and the segments' (s.simulated_final) fill nrmse_segments and fit_segments
 std::vector<ChannelFit> ChannelFits(const SequenceResult& s);
 
 // the worst (lowest) and the median of the final % fit of a sequence's channels, NaN channels left

@@ -5,11 +5,15 @@
 // second difference d_k = y_{k+1} - 2 y_k + y_{k-1} is ~N(0, 6 sigma^2) plus s'' dt^2. The
 // estimate is the median absolute second difference scaled to a std,
 //   sigma_hat = 1.4826 median|d_k| / sqrt(6),
-// robust to jumps (impacts, gaps) that a few d_k carry. A signal that is not smooth at the sampling
-// rate, or stamp jitter, adds to it (the estimate errs large: a fit is then called unexplained
-// less often, never more). Quantized data (many d_k exactly 0) get at least the quantum / sqrt(12),
-// the quantum being the smallest nonzero step between consecutive samples. Noise filtered before
-// logging (correlated over many samples) is underestimated: give sigmas for such sensors.
+// robust to jumps (impacts, gaps) that a few d_k carry. On uneven stamps (logged jitter, dropped
+// rows) d_k is the difference that cancels a slope between them, scaled alike. A signal that is not
+// smooth at the sampling rate, or stamp jitter the stamps do not show, adds to it (the estimate
+// errs large: a fit is then called unexplained less often, never more). Quantized data (every step
+// between consecutive samples a whole number of quanta, the quantum being the smallest nonzero
+// step) take sqrt(mean d_k^2 / 6) instead, the largest 2 % of d_k left out and the mean scaled to a
+// Gaussian's (the median of whole quanta jumps between 0, q and 2q), and at least the quantum /
+// sqrt(12): an encoder's rounding, or the noise above it. Noise filtered before logging (correlated
+// over many samples) is underestimated: give sigmas for such sensors.
 #pragma once
 
 #include <Eigen/Core>
@@ -17,7 +21,12 @@
 namespace mjsysid {
 
 // sigma_hat of column y (T samples; NaN samples skipped: only triples of consecutive measured
-// samples count); NaN when fewer than 8 such triples exist
+// samples count); NaN when fewer than 8 such triples exist. With the samples' times (T, s,
+// increasing; another length: evenly spaced) the second differences follow the stamps (a
+// logged jitter or gap is not read as noise: on uneven stamps the plain difference carries the
+// slope times the jitter)
+double EstimateNoiseStd(const Eigen::Ref<const Eigen::VectorXd>& y,
+                        const Eigen::Ref<const Eigen::VectorXd>& time);
 double EstimateNoiseStd(const Eigen::Ref<const Eigen::VectorXd>& y);
 
 // A channel without a sigma is unexplained at the estimate when both hold:

@@ -27,6 +27,9 @@
 
 namespace mjsysid {
 
+// the two-sided 95 % quantile of the standard normal: a 95 % interval is value +- kZ95 std
+inline constexpr double kZ95 = 1.959963984540054;
+
 struct UncertaintyOptions {
   double rank_tolerance = 1e-7;  // relative singular value below which a direction is lost
   double participation = 0.1;    // |component| of a lost direction that makes a variable

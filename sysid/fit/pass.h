@@ -103,6 +103,14 @@ class FitPass {
 
   // stage 8's parts
   void SequenceSignals(size_t q, double* worst_gap, std::string* worst_gap_where);
+  // rows [first, first + count) of *out (T x nsensordata): sequence q's sensors in rollout tr
+  // (from step k0) at those samples, the measurement terms applied to the fitted columns
+  void SimulatedAtSamples(size_t q, const Trajectory& tr, int k0, int first, int count,
+                          RowMatrix* out) const;
+  // multiple shooting: sequence q at the estimate simulated in one piece from x0 (its first
+  // segment's state, physics vector) into sr->simulated_one_piece and state_simulated_one_piece
+  // (NaN and a warning when that rollout fails)
+  void OnePieceSignals(size_t q, const Eigen::VectorXd& x0, SequenceResult* sr);
   // stage 9's
   void DerivedQuantities();
   // the cost with variable v of FitResult::parameters moved by delta (physical units): false

@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "sysid/assess/interval_check.h"
+#include "sysid/assess/uncertainty.h"
 #include "sysid/fit/pass.h"
 #include "sysid/fit_observer.h"
 #include "sysid/solve/progress.h"
@@ -110,6 +111,7 @@ void FitPass::CheckIntervals() {
   if (ic.local && !rugged.empty()) intervals_confirmed_ = true;
   if (!ic.local) {
     cost_not_local_ = true;
+    result_.interval_check.cost_not_smooth = true;
     result_.warnings.push_back(
         std::string(kCostNotSmoothWarning) + ": " + ic.worst +
         "; contacts, impacts or stick-slip make the rollouts jump when a parameter moves by less "
@@ -120,7 +122,6 @@ void FitPass::CheckIntervals() {
 
 // the intervals (std errors, 95 % intervals, covariance) of the variables scaled by widen
 void FitPass::WidenIntervals(const Eigen::VectorXd& widen) {
-  constexpr double kZ95 = 1.959963984540054;
   mjsysid::Uncertainty& u = result_.uncertainty;
   for (Eigen::Index v = 0; v < widen.size(); ++v) {
     if (widen[v] == 1) continue;

@@ -1,6 +1,8 @@
 // Stage 8 of a fit pass (sysid/fit/pass.h): what the estimate means beyond its values: bound and
 // identifiability warnings, and the simulated signals at the start and at the estimate, sequence by
 // sequence; and stage 9's derived inertials.
+#include <algorithm>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -29,7 +31,9 @@ void KeepFittedColumns(const mjModel& m, const std::vector<std::string>& fitted,
     for (int c = 0; c < m.sensor_dim[id]; ++c) cols.push_back(m.sensor_adr[id] + c);
   }
   const Eigen::Index T = sr->measured.rows();
-  for (RowMatrix* mat : {&sr->measured, &sr->simulated_initial, &sr->simulated_final}) {
+  for (RowMatrix* mat :
+       {&sr->measured, &sr->simulated_initial, &sr->simulated_final, &sr->simulated_one_piece}) {
+    if (mat->rows() == 0) continue;  // (no one-piece simulation)
     RowMatrix kept(T, static_cast<Eigen::Index>(cols.size()));
     for (size_t c = 0; c < cols.size(); ++c) kept.col(c) = mat->col(cols[c]);
     *mat = std::move(kept);
@@ -152,7 +156,7 @@ void FitPass::SequenceSignals(size_t q, double* worst_gap, std::string* worst_ga
       const Trajectory& tr = cached.tr;
       int first = 0, count = 0;
       fit_.SamplesOf(static_cast<int>(s), &first, &count);
-      SensorsAtSamples(tr.sensors, grid, seg.k0, first, count, dt, &sr.simulated_final);
+      SimulatedAtSamples(q, tr, seg.k0, first, count, &sr.simulated_final);
       if (seg.next >= 0) {
         const int nx = mo.sim->dims().nx;
         Eigen::VectorXd gap(nx);
@@ -163,21 +167,14 @@ void FitPass::SequenceSignals(size_t q, double* worst_gap, std::string* worst_ga
           *worst_gap_where = "sequence '" + sq.name + "' at step " + std::to_string(seg.k0 + seg.T);
         }
       }
-      // apply the measurement terms to the fitted columns
-      for (const Channel& ch : fit_.channels[q]) {
-        if (ch.measurement < 0) continue;
-        const MeasurementTerms terms = fit_.Terms(ch.measurement, nm_ ? vars_.m.data() : nullptr);
-        const Signal simulated{tr.sensors.data() + ch.column, tr.sensors.cols()};
-        for (int k = first; k < first + count; ++k) {
-          const DelayedSample at(grid.position[k] - seg.k0, tr.T, terms.delay, dt);
-          sr.simulated_final(k, ch.column) = terms.Apply(at.Value(simulated));
-        }
-      }
     } catch (const std::exception& e) {
       result_.warnings.push_back("sequence '" + sq.name +
                                  "': final simulation failed: " + e.what());
     }
   }
+  const bool segmented = std::count_if(fit_.segments.begin(), fit_.segments.end(),
+                                       [&](auto& g) { return g.seq == static_cast<int>(q); }) > 1;
+  if (segmented && sr.x0_final.size() > 0) OnePieceSignals(q, sr.x0_final, &sr);
   KeepFittedColumns(mo.sim->model(), fit_.fitted[q], sq, &sr);
   // fitted states: logged, at the initial values, at the estimate, weighted residuals
   if (!fit_.state_channels[q].empty()) {
@@ -220,6 +217,62 @@ void FitPass::SequenceSignals(size_t q, double* worst_gap, std::string* worst_ga
                                " values not measured (NaN), masked out of the fit");
   }
   result_.sequences.push_back(std::move(sr));
+}
+
+void FitPass::SimulatedAtSamples(size_t q, const Trajectory& tr, int k0, int first, int count,
+                                 RowMatrix* out) const {
+  const FitSequence& sq = fit_.sequences[q];
+  const double dt = fit_.models[fit_.ModelIndex(sq.model)].sim->model().opt.timestep;
+  const SampleGrid& grid = fit_.grids[q];
+  SensorsAtSamples(tr.sensors, grid, k0, first, count, dt, out);
+  // the measurement terms applied to the fitted columns
+  for (const Channel& ch : fit_.channels[q]) {
+    if (ch.measurement < 0) continue;
+    const MeasurementTerms terms = fit_.Terms(ch.measurement, nm_ ? vars_.m.data() : nullptr);
+    const Signal simulated{tr.sensors.data() + ch.column, tr.sensors.cols()};
+    for (int k = first; k < first + count; ++k) {
+      const DelayedSample at(grid.position[k] - k0, tr.T, terms.delay, dt);
+      (*out)(k, ch.column) = terms.Apply(at.Value(simulated));
+    }
+  }
+}
+
+// What the identified model gives: the whole sequence from its first state at the estimate (the
+// simulator holds the estimate's parameters, the grid its fitted delays), without the later
+// segments' fitted states; chaotic or unstable motion may leave it far from the data, which is
+// what the user would see
+void FitPass::OnePieceSignals(size_t q, const Eigen::VectorXd& x0, SequenceResult* sr) {
+  const FitSequence& sq = fit_.sequences[q];
+  const FitModel& mo = fit_.models[fit_.ModelIndex(sq.model)];
+  const int nq = mo.sim->model().nq, nv = mo.sim->model().nv, na = mo.sim->model().na;
+  const int T = static_cast<int>(sq.measured.rows());
+  sr->simulated_one_piece =
+      RowMatrix::Constant(T, sq.measured.cols(), std::numeric_limits<double>::quiet_NaN());
+  SequenceInput in;
+  in.x0.qpos = x0.segment(0, nq);
+  in.x0.qvel = x0.segment(nq, nv);
+  in.x0.act = x0.segment(nq + nv, na);
+  in.x0.time = sq.x0.time;
+  in.ctrl = fit_.grids[q].ctrl;
+  const std::vector<StateChannel>& chans = fit_.state_channels[q];
+  int width = 0;
+  for (const StateChannel& ch : chans) width += ch.width();
+  if (!chans.empty()) {
+    sr->state_simulated_one_piece =
+        RowMatrix::Constant(T, width, std::numeric_limits<double>::quiet_NaN());
+  }
+  try {
+    const Trajectory tr = mo.sim->Rollout(in);
+    SimulatedAtSamples(q, tr, 0, 0, T, &sr->simulated_one_piece);
+    if (!chans.empty()) {
+      StatesAtSamples(mo.sim->model(), chans, sq, tr.states, fit_.grids[q].position, 0, 0, T,
+                      &sr->state_simulated_one_piece, nullptr);
+    }
+  } catch (const std::exception& e) {
+    result_.warnings.push_back(
+        "sequence '" + sq.name +
+        "': the estimate simulated in one piece failed (its % fit is NaN): " + e.what());
+  }
 }
 
 }  // namespace mjsysid

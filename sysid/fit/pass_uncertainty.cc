@@ -13,11 +13,6 @@
 #include "sysid/solve/progress.h"
 
 namespace mjsysid {
-namespace {
-
-constexpr double kZ95 = 1.959963984540054;
-
-}  // namespace
 
 // 6. The Jacobian at the estimate in physical units (tangent space for states) and the covariance
 // of the estimated variables. Single shooting takes the Jacobian only as the thin-QR triangle of

@@ -12,12 +12,11 @@
 #include "sysid/assess/fit_status.h"
 #include "sysid/assess/interval_check.h"
 #include "sysid/assess/noise_estimate.h"
+#include "sysid/assess/uncertainty.h"
 #include "sysid/problem.h"
 
 namespace mjsysid {
 namespace {
-
-constexpr double kZ95 = 1.959963984540054;
 
 // the estimate of variable `name` in r (fallback when r has none), inside [lower, upper]
 double StartOf(const FitResult& r, const std::string& name, double fallback, double lower,
@@ -98,12 +97,10 @@ void CheckTimestep(const FitParts& parts, const FitOptions& options, FitResult* 
                       r.interval_check.dynamics_jump;
   // (nor where the interval check found the cost not smooth at the intervals' scale: the status
   // put model_mismatch before that finding, which a converged fit must not hide)
-  bool not_smooth = false;
-  for (const std::string& w : r.warnings) {
-    not_smooth = not_smooth || w.rfind(kCostNotSmoothWarning, 0) == 0;
-  }
+  const bool not_smooth = r.interval_check.cost_not_smooth;
   if (!options.timestep_check || r.outcome != FitStatus::kModelMismatch || r.interrupted ||
-      fit.shards || fit.params.empty() || !(r.chi2_ratio > 2) || white || rugged || not_smooth) {
+      fit.shards || fit.params.empty() || !std::isfinite(r.chi2_ratio) || white || rugged ||
+      not_smooth) {
     return;
   }
   // the mismatch must be this result's own chi-square test (not the one-piece check's of a fit in
@@ -149,8 +146,19 @@ void CheckTimestep(const FitParts& parts, const FitOptions& options, FitResult* 
     e.ci95_high = std::max(e.value, e.value - beta) + kZ95 * e.std_error;
   }
 
-  // is the misfit the timestep's?
-  const double excess = r.chi2_ratio - 1, excess_half = h.chi2_ratio - 1;
+  // is the misfit the timestep's? The excess of the worst measure the chi-square test reads: the
+  // overall ratio, or a sensor's (the test fails on either)
+  std::string worst;  // "": the overall ratio
+  double ratio = r.chi2_ratio, ratio_half = h.chi2_ratio;
+  for (const auto& [sensor, value] : r.sensor_chi2_ratio) {
+    const auto at_half = h.sensor_chi2_ratio.find(sensor);
+    if (value > ratio && at_half != h.sensor_chi2_ratio.end()) {
+      worst = sensor;
+      ratio = value;
+      ratio_half = at_half->second;
+    }
+  }
+  const double excess = ratio - 1, excess_half = ratio_half - 1;
   // (the half-step fit starts at the estimate, so its chi-square bounds its own minimum's from
   // above whether or not it converged; a failed or interrupted solve tells nothing)
   const bool explains = std::isfinite(excess_half) && excess_half <= kTimestepExplains * excess &&
@@ -159,10 +167,14 @@ void CheckTimestep(const FitParts& parts, const FitOptions& options, FitResult* 
   const double dt = fit.models.empty() ? 0 : fit.models[0].model->opt.timestep;
   r.timestep_check = "the same fit at half the timestep (" + FormatDigits(dt / 2, 3) + " s, " +
                      std::to_string(h.iterations) + " iterations, " + FitStatusName(h.outcome) +
-                     "): chi-square ratio " + FormatDigits(r.chi2_ratio, 3) + " -> " +
-                     FormatDigits(h.chi2_ratio, 3) + "; the timestep's bias of the estimates " +
-                     "(Richardson, integrator order " + std::to_string(order) + ") at most " +
-                     FormatDigits(100 * largest, 2) + " % (" + largest_name + ")";
+                     "): chi-square ratio " +
+                     (worst.empty() ? std::string()
+                                    : "of '" + worst + "' " + FormatDigits(ratio, 3) + " -> " +
+                                          FormatDigits(ratio_half, 3) + ", overall ") +
+                     FormatDigits(r.chi2_ratio, 3) + " -> " + FormatDigits(h.chi2_ratio, 3) +
+                     "; the timestep's bias of the estimates " + "(Richardson, integrator order " +
+                     std::to_string(order) + ") at most " + FormatDigits(100 * largest, 2) +
+                     " % (" + largest_name + ")";
   r.intervals_from += "; each 95 % interval widened to cover the estimate less the timestep's bias";
   if (explains) {
     r.outcome = FitStatus::kConverged;

@@ -7,8 +7,9 @@
 // the estimates are biased by O(dt^p) (measured on robot-style logs: 0.02-0.2 % at 2 ms, many
 // standard errors). The check fits the same problem once more with every model's timestep halved,
 // from the estimate (the samples at their own times, segments of the same duration), and compares:
-// - the excess of the weighted residual variance over the noise, chi2 - 1: the discretisation's
-//   share scales with dt^(2p); the misfit is the timestep's when the half step leaves at most
+// - the excess of the weighted residual variance over the noise, chi2 - 1, of the worst measure
+//   the chi-square test reads (the overall ratio or a sensor's): the discretisation's share
+//   scales with dt^(2p); the misfit is the timestep's when the half step leaves at most
 //   kTimestepExplains of it (a missing term leaves it unchanged);
 // - every estimate: the shift theta(dt) - theta(dt / 2), and by Richardson extrapolation the
 //   timestep's bias of the estimate, beta = shift * 2^p / (2^p - 1), p the integrator's order (1:

@@ -63,7 +63,9 @@ enum class SensorTime { kPre, kPost };
 struct SensorSpec {
   std::string name;
   std::optional<double> sigma;  // noise standard deviation, > 0
-  double weight = 1.0;          // > 0; unused when sigma is given
+  // sigma: auto: the noise level estimated from the log (FitOptions::sensors_sigma_from_log)
+  bool sigma_from_log = false;
+  double weight = 1.0;  // > 0; unused when sigma is given or estimated
   Marks marks;
 
   // the factor applied to this sensor's residuals

@@ -153,7 +153,19 @@ void Parser::ParseSensors(const Field& f, ExperimentConfig* c) const {
         Fail(m.KeyMark("weight"), item.path + ": give either 'sigma' or 'weight', not both",
              "weight = 1 / sigma");
       }
-      if (m.Has("sigma")) s.sigma = Positive(m.Get("sigma"));
+      if (m.Has("sigma")) {
+        // a number, or auto: the noise estimated from the log at the fit's start
+        const Field sigma = m.Get("sigma");
+        if (sigma.node.IsScalar() && sigma.node.Scalar() == "auto") {
+          s.sigma_from_log = true;
+        } else if (Describe(sigma.node).rfind("the number", 0) != 0) {
+          Fail(sigma.mark,
+               sigma.path + ": expected a number > 0 or auto, got " + Describe(sigma.node),
+               "the sensor's noise standard deviation, or auto (estimated from the log)");
+        } else {
+          s.sigma = Positive(sigma);
+        }
+      }
       if (m.Has("weight")) s.weight = Positive(m.Get("weight"));
     }
     for (const SensorSpec& seen : c->sensors) {

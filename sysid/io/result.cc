@@ -89,6 +89,9 @@ void CheckSequence(const SequenceResult& s, const std::string& file, const std::
   CheckSequenceMatrix(s.measured, samples, cols, file, g + "/measured");
   CheckSequenceMatrix(s.simulated_initial, samples, cols, file, g + "/simulated_initial");
   CheckSequenceMatrix(s.simulated_final, samples, cols, file, g + "/simulated_final");
+  if (s.simulated_one_piece.rows() > 0) {
+    CheckSequenceMatrix(s.simulated_one_piece, samples, cols, file, g + "/simulated_one_piece");
+  }
 }
 
 // sizes tying the trace, covariance and jacobian to the parameters

@@ -15,10 +15,11 @@
 //     as text), parameters (list of {name, value, initial, std, ci95: [lo, hi], flags: [...],
 //     truth?}), unidentifiable (list of text), warnings (list of text), identified_models (map
 //     model -> file), run_id (when the result has one), fit_metrics (list of {sequence, role: fit
-//     | validation, channels: [{channel, fit_initial, fit_final, nrmse_initial, nrmse_final}]},
-//     sysid/assess/metrics.h; written for readers of the file, recomputed from result.h5 by
-//     ReadResult), starts (multi-start only, sysid/run/multi_start.h: {best, runs: [{start: [...],
-//     estimate:
+//     | validation, channels: [{channel, fit_initial, fit_final, nrmse_initial, nrmse_final,
+//     fit_segments?, nrmse_segments?}]}, sysid/assess/metrics.h: fit_final of the estimate in one
+//     piece, the segments' beside it for a fit in segments; written for readers of the file,
+//     recomputed from result.h5 by ReadResult), starts (multi-start only, sysid/run/multi_start.h:
+//     {best, runs: [{start: [...], estimate:
 //     [...], initial_cost, final_cost, status, iterations, error?}], spread: [{name, min, max,
 //     relative}]}; values in the order of `parameters`; read back), derived (only when the fit
 //     derived quantities, sysid/assess/derived_inertials.h: [{name, unit, value, std, ci95: [lo,
@@ -37,9 +38,11 @@
 //   min(nres, np) x np, R^T R = J^T J);
 //   /trace/{iteration, cost, step_norm, gradient_norm, seconds, successful} (nit) and
 //   /trace/parameters (nit x np);
-//   /sequences/<name>/{time (T), measured, simulated_initial, simulated_final (T x ns)} with
-//   attributes model, sensor_names (strings), sensor_dims (ints); held-out sequences (experiment
-//   `validation:`) in the same layout under /validation/<name> (absent when there are none).
+//   /sequences/<name>/{time (T), measured, simulated_initial, simulated_final (T x ns),
+//   simulated_one_piece (T x ns, a fit in segments only: then simulated_final is segment by
+//   segment)} with attributes model, sensor_names (strings), sensor_dims (ints); held-out sequences
+//   (experiment `validation:`) in the same layout under /validation/<name> (absent when there are
+//   none).
 // - The run id (FitResultFile::run_id, e.g. "20261122T180501Z-12345-9f3a") names the fit that
 //   wrote a file: result.yaml key run_id, result.h5 root attribute run_id, and in each identified
 //   model the comment RunIdComment(run_id). ReadResult refuses a folder whose files carry

@@ -136,6 +136,8 @@ void VisitResidualFields(V& v, D& d) {
   v.Number({"mean"}, d.mean);
   v.Number({"rms"}, d.rms);
   v.Number({"sigma"}, d.sigma);
+  // the sigma estimated from the log (sigma: auto); absent: stated (files before sigma: auto)
+  v.Bool({"sigma_from_log", Presence::kOptional}, d.sigma_from_log);
   v.Number({"rms_over_sigma"}, d.ratio);
   v.Number({"bias_std_errors"}, d.bias_units);
   v.Number({"lag1"}, d.lag1);

@@ -224,8 +224,10 @@ void WriteH5Sequence(hid_t sequences, const SequenceResult& s, const std::string
   const std::pair<const char*, const RowMatrix*> mats[] = {
       {"measured", &s.measured},
       {"simulated_initial", &s.simulated_initial},
-      {"simulated_final", &s.simulated_final}};
+      {"simulated_final", &s.simulated_final},
+      {"simulated_one_piece", &s.simulated_one_piece}};  // (multiple shooting only)
   for (const auto& [name, m] : mats) {
+    if (m->rows() == 0 && m == &s.simulated_one_piece) continue;
     WriteMatrix(group.get(), name, m->data(), m->rows(), m->cols(), file, g + "/" + name);
   }
   // fitted states (optional: only when the fit had `states`), laid out like the sensors
@@ -237,8 +239,10 @@ void WriteH5Sequence(hid_t sequences, const SequenceResult& s, const std::string
       {"state_measured", &s.state_measured},
       {"state_simulated_initial", &s.state_simulated_initial},
       {"state_simulated_final", &s.state_simulated_final},
-      {"state_residual_final", &s.state_residual_final}};
+      {"state_residual_final", &s.state_residual_final},
+      {"state_simulated_one_piece", &s.state_simulated_one_piece}};
   for (const auto& [name, m] : states) {
+    if (m->rows() == 0 && m == &s.state_simulated_one_piece) continue;
     WriteMatrix(group.get(), name, m->data(), m->rows(), m->cols(), file, g + "/" + name);
   }
 }
@@ -427,6 +431,11 @@ SequenceResult ReadH5Sequence(hid_t sequences, const std::string& name, const st
   for (const auto& [dname, m] : mats) {
     *m = h5::ToMatrix(ReadRequired(group.get(), dname, 2, file, g + "/" + dname));
   }
+  // a fit in segments: the estimate in one piece too (checked with the others by CheckSequence)
+  if (h5::HasLink(group.get(), "simulated_one_piece", file, g)) {
+    s.simulated_one_piece = h5::ToMatrix(
+        ReadRequired(group.get(), "simulated_one_piece", 2, file, g + "/simulated_one_piece"));
+  }
   s.channel_fits = ChannelFits(s);
   // fitted states, when the fit had them
   h5::Id names = h5::OpenAttrIfAny(group.get(), "state_names", file, g);
@@ -451,8 +460,10 @@ SequenceResult ReadH5Sequence(hid_t sequences, const std::string& name, const st
       {"state_measured", &s.state_measured},
       {"state_simulated_initial", &s.state_simulated_initial},
       {"state_simulated_final", &s.state_simulated_final},
-      {"state_residual_final", &s.state_residual_final}};
+      {"state_residual_final", &s.state_residual_final},
+      {"state_simulated_one_piece", &s.state_simulated_one_piece}};
   for (const auto& [dname, m] : states) {
+    if (m == &s.state_simulated_one_piece && !h5::HasLink(group.get(), dname, file, g)) continue;
     *m = h5::ToMatrix(ReadRequired(group.get(), dname, 2, file, g + "/" + dname));
     const bool residual = m == &s.state_residual_final;
     long long cols = 0;

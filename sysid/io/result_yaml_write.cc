@@ -119,6 +119,13 @@ class YamlWriter {
           for (const auto& [key, x] : values) {
             out_ << YAML::Key << key << YAML::Value << result_internal::Number(x);
           }
+          // multiple shooting: fit_final is the estimate in one piece, these segment by segment
+          if (s.simulated_one_piece.rows() > 0) {
+            out_ << YAML::Key << "fit_segments" << YAML::Value
+                 << result_internal::Number(f.fit_segments);
+            out_ << YAML::Key << "nrmse_segments" << YAML::Value
+                 << result_internal::Number(f.nrmse_segments);
+          }
           out_ << YAML::EndMap;
         }
         out_ << YAML::EndSeq;

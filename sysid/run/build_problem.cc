@@ -422,6 +422,10 @@ void ResolveOptions(const io::ExperimentConfig& cfg, int threads, BuiltProblem* 
   if (o.threads <= 0)
     o.threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   for (const io::SensorSpec& ss : cfg.sensors) {
+    if (ss.sigma_from_log) {
+      o.sensors_sigma_from_log.push_back(ss.name);  // Problem::Fit estimates it
+      continue;
+    }
     o.sensor_weights[ss.name] = ss.ResidualWeight();
     if (ss.sigma) o.sensors_with_sigma.push_back(ss.name);
   }

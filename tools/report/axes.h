@@ -23,6 +23,7 @@ constexpr Rgb kGrid{230, 230, 230};
 constexpr Rgb kMeasured{165, 165, 165};
 constexpr Rgb kBefore{31, 95, 191};
 constexpr Rgb kAfter{214, 39, 40};
+constexpr Rgb kSegments{240, 150, 60};  // a fit in segments, segment by segment
 constexpr Rgb kTruth{30, 150, 60};
 constexpr Rgb kUnidentifiable{253, 232, 232};
 constexpr Rgb kAlert{198, 40, 40};

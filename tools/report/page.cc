@@ -183,9 +183,18 @@ void FitQualitySection(std::ostringstream& h, const FitResultFile& r) {
     h << "<p class=\"muted\">no sequences recorded</p>\n";
     return;
   }
+  bool segmented = false;  // a fit in segments: the segments' % fit in a column of its own
+  for (const SequenceResult& s : r.sequences)
+    segmented = segmented || s.simulated_one_piece.rows() > 0;
+  if (segmented) {
+    h << "<p>Fitted in segments: <em>estimate</em> is the estimate simulated in one piece from "
+         "each sequence's first state (what the identified model gives); <em>segments</em> is "
+         "each segment simulated from its own fitted state (what the fit fitted).</p>\n";
+  }
   h << "<table class=\"metrics\">\n<tr><th>sequence</th><th>role</th><th>channel</th>"
-       "<th>% fit, start</th><th>% fit, estimate</th><th>NRMSE, start</th>"
-       "<th>NRMSE, estimate</th></tr>\n";
+       "<th>% fit, start</th><th>% fit, estimate</th>"
+    << (segmented ? "<th>% fit, segments</th>" : "")
+    << "<th>NRMSE, start</th><th>NRMSE, estimate</th></tr>\n";
   for (const std::vector<SequenceResult>* list : {&r.sequences, &r.validation}) {
     const bool held_out = list == &r.validation;
     for (const SequenceResult& s : *list) {
@@ -193,8 +202,9 @@ void FitQualitySection(std::ostringstream& h, const FitResultFile& r) {
         h << "<tr" << (held_out ? " class=\"val\"" : "") << "><td>" << HtmlEscape(s.name)
           << "</td><td>" << (held_out ? "validation (not fitted)" : "fit") << "</td><td>"
           << HtmlEscape(f.channel) << "</td>" << MetricCell(f.fit_initial, " %")
-          << MetricCell(f.fit_final, " %") << MetricCell(f.nrmse_initial, "")
-          << MetricCell(f.nrmse_final, "") << "</tr>\n";
+          << MetricCell(f.fit_final, " %")
+          << (segmented ? MetricCell(f.fit_segments, " %") : std::string())
+          << MetricCell(f.nrmse_initial, "") << MetricCell(f.nrmse_final, "") << "</tr>\n";
       }
     }
   }

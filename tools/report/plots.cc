@@ -172,10 +172,18 @@ void DrawSequence(Canvas& c, const SequenceResult& s, bool held_out) {
   if (samples > 0)
     header += ", t = " + Num(s.time[0], 4) + " .. " + Num(s.time[samples - 1], 4) + " s";
   c.Text(14, 14, Shorten(c, header, kSeqWidth - 28), kInk, Align::kLeft);
-  DrawLegend(c, 14, 14 + c.CapHeight() + 16,
-             {{"measured", kMeasured, 0, false},
-              {"simulated, initial parameters", kBefore, 6, false},
-              {"simulated, fitted parameters", kAfter, 0, false}});
+  // a fit in segments: the fitted line is the estimate in one piece, the segments' beside it
+  const bool segmented = s.simulated_one_piece.rows() == samples && samples > 0;
+  std::vector<LegendItem> legend = {{"measured", kMeasured, 0, false},
+                                    {"simulated, initial parameters", kBefore, 6, false}};
+  if (segmented) {
+    legend.push_back({"fitted, segment by segment", kSegments, 3, false});
+    legend.push_back({"fitted, in one piece", kAfter, 0, false});
+  } else {
+    legend.push_back({"simulated, fitted parameters", kAfter, 0, false});
+  }
+  DrawLegend(c, 14, 14 + c.CapHeight() + 16, legend);
+  const RowMatrix& fitted = segmented ? s.simulated_one_piece : s.simulated_final;
 
   // each panel's label with its % fit at the start and at the estimate (sysid/assess/metrics.h)
   std::vector<std::string> labels = ColumnLabels(s);
@@ -200,6 +208,7 @@ void DrawSequence(Canvas& c, const SequenceResult& s, bool held_out) {
     for (Eigen::Index k = 0; k < samples; ++k) {
       inner.Add(s.measured(k, j));
       inner.Add(s.simulated_final(k, j));
+      if (segmented) inner.Add(fitted(k, j));
       before.Add(s.simulated_initial(k, j));
     }
     Range yr = inner;
@@ -213,8 +222,10 @@ void DrawSequence(Canvas& c, const SequenceResult& s, bool held_out) {
                   row == rows - 1 ? "time (s)" : "", kWhite, kLeftMargin);
 
     // each line decimated on its own
-    const std::pair<const RowMatrix*, Rgb> lines[] = {
-        {&s.measured, kMeasured}, {&s.simulated_initial, kBefore}, {&s.simulated_final, kAfter}};
+    std::vector<std::pair<const RowMatrix*, Rgb>> lines = {{&s.measured, kMeasured},
+                                                           {&s.simulated_initial, kBefore}};
+    if (segmented) lines.push_back({&s.simulated_final, kSegments});
+    lines.push_back({&fitted, kAfter});
     for (const auto& [m, color] : lines) {
       const Eigen::VectorXd y = m->col(j);
       std::vector<double> xs, ys;
@@ -224,8 +235,9 @@ void DrawSequence(Canvas& c, const SequenceResult& s, bool held_out) {
       }
       const bool measured = m == &s.measured;
       // measured: a wide light band under the simulations
-      DrawSeries(c, p, xs, ys, color, measured ? 3 : 1.6, m == &s.simulated_initial ? 6 : 0,
-                 samples == 1 ? 3 : 0);
+      const double dash =
+          m == &s.simulated_initial ? 6 : (segmented && m == &s.simulated_final ? 3 : 0);
+      DrawSeries(c, p, xs, ys, color, measured ? 3 : 1.6, dash, samples == 1 ? 3 : 0);
     }
   }
 }

@@ -39,13 +39,13 @@ using test::RobotLog;
 using test::RobotSettings;
 
 constexpr int kSeeds = 40;
-constexpr double kZ95 = 1.959963984540054;
 
 // without_friction: the fitted model's joints lose their friction loss (a term the model lacks)
 // fitted_delay: the control delay fitted too, from 12.3 ms (bounds [0, 50] ms), shared by every
-// actuator
+// actuator; from_log: every sensor's sigma estimated from the log (sigma: auto) instead
 FitResult FitWithSigmas(const Case& c, const RobotLog& log, const RobotSettings& rs,
-                        bool without_friction = false, bool fitted_delay = false) {
+                        bool without_friction = false, bool fitted_delay = false,
+                        bool from_log = false) {
   ModelPtr model = test::WithTimestep(c.file, 0.002);
   if (without_friction) {
     for (int i = 0; i < model->nv; ++i) model->dof_frictionloss[i] = 0;
@@ -69,6 +69,10 @@ FitResult FitWithSigmas(const Case& c, const RobotLog& log, const RobotSettings&
         std::find(c.positions.begin(), c.positions.end(), m.sensor_adr[s]) != c.positions.end();
     const double q2 = quantized ? rs.quantum * rs.quantum / 12 : 0.0;
     const std::string name = mj_id2name(&m, mjOBJ_SENSOR, s);
+    if (from_log) {
+      o.sensors_sigma_from_log.push_back(name);
+      continue;
+    }
     o.sensor_weights[name] = 1 / std::sqrt(rs.sigma * rs.sigma + q2);
     o.sensors_with_sigma.push_back(name);
   }
@@ -81,6 +85,8 @@ struct Coverage {
   double worst_delay_error = 0;  // the largest |estimate - truth| of a fitted delay (s)
   double min_inflation = 1e300;
   std::vector<int> covered, covered_unwidened;
+  // the timestep check's fits: the truth within 1.96 std of the estimate less its timestep bias
+  std::vector<int> covered_centred;
   std::vector<double> z2;
 
   int Pooled(const std::vector<int>& v) const {
@@ -91,18 +97,26 @@ struct Coverage {
 };
 
 // kSeeds fits of case c's logs under rs (seeds 100..), the coverage of their intervals
-Coverage Measure(const Case& c, RobotSettings rs, bool fitted_delay = false) {
+Coverage Measure(const Case& c, RobotSettings rs, bool fitted_delay = false,
+                 bool from_log = false) {
   // the variables checked: the parameters, and the delay when fitted
   std::vector<test::Truth> checked = c.truth;
   if (fitted_delay) checked.push_back({"controls.delay", {}, rs.control_delay});
   Coverage cov;
   cov.covered.assign(checked.size(), 0);
   cov.covered_unwidened.assign(checked.size(), 0);
+  cov.covered_centred.assign(checked.size(), 0);
   cov.z2.assign(checked.size(), 0);
   for (int seed = 0; seed < kSeeds; ++seed) {
     rs.seed = 100 + seed;
     const RobotLog log = test::MakeRobotLog(c.file, c.truth, c.x0, c.amplitude, c.positions, rs);
-    const FitResult r = FitWithSigmas(c, log, rs, false, fitted_delay);
+    const FitResult r = FitWithSigmas(c, log, rs, false, fitted_delay, from_log);
+    if (seed == 0 && from_log) {
+      for (const auto& [sensor, sigma] : r.sigma_from_log) {
+        std::printf("[ measured ] %s seed 0: sigma of %s from the log %.3g\n", c.file.c_str(),
+                    sensor.c_str(), sigma);
+      }
+    }
     ++cov.fits;
     cov.white_fits += r.interval_inflation == 1;
     cov.converged += r.outcome == FitStatus::kConverged && r.intervals_valid;
@@ -128,6 +142,8 @@ Coverage Measure(const Case& c, RobotSettings rs, bool fitted_delay = false) {
       const double z = (e.value - t) / e.std_error;
       cov.z2[i] += z * z;
       cov.covered_unwidened[i] += std::abs(z) * std::sqrt(r.interval_inflation) < kZ95;
+      const double centred = e.value - e.timestep_bias.value_or(0.0);
+      cov.covered_centred[i] += std::abs(centred - t) < kZ95 * e.std_error;
     }
   }
   std::printf(
@@ -138,9 +154,10 @@ Coverage Measure(const Case& c, RobotSettings rs, bool fitted_delay = false) {
   for (size_t i = 0; i < checked.size(); ++i) {
     std::printf(
         "[ measured ]   %-14s covered %d of %d (%.1f %%), rms (estimate - truth) / std %.2f; "
-        "unwidened %d of %d\n",
+        "unwidened %d of %d; centred on the estimate less its timestep bias %d of %d\n",
         checked[i].name.c_str(), cov.covered[i], cov.fits, 100.0 * cov.covered[i] / cov.fits,
-        std::sqrt(cov.z2[i] / cov.fits), cov.covered_unwidened[i], cov.fits);
+        std::sqrt(cov.z2[i] / cov.fits), cov.covered_unwidened[i], cov.fits, cov.covered_centred[i],
+        cov.fits);
   }
   return cov;
 }
@@ -212,11 +229,24 @@ TEST(CorrelatedCoverageTest, RobotLogsMisfitByTheTimestepAreCovered) {
   }
 }
 
+// The same robots with every sigma estimated from the log (sigma: auto, sysid/fit/sigma_from_log.h)
+TEST(CorrelatedCoverageTest, RobotLogsWithSigmaFromTheLog) {
+  for (const Case& c : {test::SpringMass(), test::Pendulum(), test::CartPole(), test::Arm5()}) {
+    const Coverage cov = Measure(c, c.robot, false, true);
+    EXPECT_GE(cov.converged, static_cast<int>(0.75 * cov.fits)) << c.file;
+    EXPECT_LT(cov.worst_error, 0.01) << c.file;
+    for (size_t i = 0; i < c.truth.size(); ++i) {
+      EXPECT_GE(cov.covered[i], static_cast<int>(0.85 * cov.fits)) << c.truth[i].name;
+    }
+  }
+}
+
 // The issue's robot (issue 33): a 100 Hz controller whose held commands reach the motor 12 ms
 // late, position and velocity at 200 Hz with 0.5 ms stamp jitter, a 12-bit encoder, noise 1e-4,
 // dropped rows and NaN cells; the delay fitted from 12.3 ms with the pendulum's damping and bob
 // mass. Every fit converged, the parameters within 2 % and the delay within one model step (2 ms)
-// of their truth, each inside its interval in >= 85 % of the fits.
+// of their truth, each inside its interval in >= 85 % of the fits; with the encoder's sigmas, and
+// with every sigma estimated from the log (sigma: auto).
 TEST(CorrelatedCoverageTest, RobotLogWithAFittedDelay) {
   RobotSettings rs;
   rs.sensor_rate = 200;
@@ -226,12 +256,14 @@ TEST(CorrelatedCoverageTest, RobotLogWithAFittedDelay) {
   rs.quantum = 2 * M_PI / 4096;
   rs.sigma = 1e-4;
   const Case c = test::Pendulum();
-  const Coverage cov = Measure(c, rs, true);
-  EXPECT_EQ(cov.converged, cov.fits);
-  EXPECT_LT(cov.worst_error, 0.02);
-  EXPECT_LT(cov.worst_delay_error, 0.002);
-  for (size_t i = 0; i < cov.covered.size(); ++i) {
-    EXPECT_GE(cov.covered[i], static_cast<int>(0.85 * cov.fits)) << "variable " << i;
+  for (const bool from_log : {false, true}) {
+    const Coverage cov = Measure(c, rs, true, from_log);
+    EXPECT_EQ(cov.converged, cov.fits) << from_log;
+    EXPECT_LT(cov.worst_error, 0.02) << from_log;
+    EXPECT_LT(cov.worst_delay_error, 0.002) << from_log;
+    for (size_t i = 0; i < cov.covered.size(); ++i) {
+      EXPECT_GE(cov.covered[i], static_cast<int>(0.85 * cov.fits)) << "variable " << i;
+    }
   }
 }
 

@@ -287,6 +287,25 @@ TEST_F(ExperimentTest, MultipleShootingContinuityScaleAndJumpingSensors) {
               "expected 'omit' or 'fit'", "jumping_sensors: omit|fit");
 }
 
+// sensors[].sigma: auto (the noise estimated from the log, sysid/fit/sigma_from_log.h): no stated
+// sigma, the sensor marked; another word or a quoted value names the key and the forms
+TEST_F(ExperimentTest, SensorSigmaAuto) {
+  const std::string head = "model: pendulum.xml\nsensors:\n";
+  const std::string tail =
+      "parameters:\n  - {name: m, target: body_mass, object: bob, initial: 1}\n";
+  const ExperimentConfig c = LoadExperiment(Write(
+      "auto.yaml", head + "  - {name: angle, sigma: auto}\n  - {name: rate, sigma: 0.1}\n" + tail));
+  ASSERT_EQ(c.sensors.size(), 2u);
+  EXPECT_TRUE(c.sensors[0].sigma_from_log);
+  EXPECT_FALSE(c.sensors[0].sigma.has_value());
+  EXPECT_FALSE(c.sensors[1].sigma_from_log);
+  ExpectError(head + "  - {name: angle, sigma: atuo}\n" + tail, 3, 26,
+              "sensors[0].sigma: expected a number > 0 or auto, got the string 'atuo'",
+              "or auto (estimated from the log)");
+  ExpectError(head + "  - {name: angle, sigma: auto, weight: 2}\n" + tail, 3, 32,
+              "give either 'sigma' or 'weight', not both");
+}
+
 // multiple_shooting: hold_states_first true (default) | false, event_window 0 (default, off) | k
 // in 0..1000; other values name the key, its line and the forms
 TEST_F(ExperimentTest, MultipleShootingHeldStatesAndEventWindow) {

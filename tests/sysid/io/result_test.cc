@@ -403,7 +403,9 @@ TEST_F(ResultTest, ResidualDiagnosticsRoundTripAndAreAbsentWhenNone) {
   angle.tau = 29.0;
   angle.portmanteau_p = 0;
   angle.white = false;
+  angle.sigma_from_log = true;
   ResidualDiagnostics rate = angle;
+  rate.sigma_from_log = false;
   rate.channel = "rate[1]";
   rate.sigma = rate.ratio = std::numeric_limits<double>::quiet_NaN();
   rate.white = true;
@@ -426,6 +428,8 @@ TEST_F(ResultTest, ResidualDiagnosticsRoundTripAndAreAbsentWhenNone) {
   EXPECT_EQ(back.residuals[0].tau, 29.0);
   EXPECT_EQ(back.residuals[0].portmanteau_p, 0.0);
   EXPECT_FALSE(back.residuals[0].white);
+  EXPECT_TRUE(back.residuals[0].sigma_from_log);
+  EXPECT_FALSE(back.residuals[1].sigma_from_log);
   EXPECT_EQ(back.residuals[1].channel, "rate[1]");
   EXPECT_TRUE(std::isnan(back.residuals[1].sigma));
   EXPECT_TRUE(std::isnan(back.residuals[1].ratio));
@@ -435,6 +439,33 @@ TEST_F(ResultTest, ResidualDiagnosticsRoundTripAndAreAbsentWhenNone) {
   EXPECT_EQ(back.timestep_check, r.timestep_check);
   EXPECT_EQ(back.parameters[0].timestep_bias, -3.5e-4);
   EXPECT_FALSE(back.parameters[1].timestep_bias.has_value());
+}
+
+// a fit in segments: the estimate in one piece (result.h5 simulated_one_piece) round trips, the
+// % fit read back is the one piece's with the segments' beside it (result.yaml fit_segments); a
+// fit in one piece writes neither
+TEST_F(ResultTest, OnePieceSimulationRoundTripsWithItsFit) {
+  FitResultFile r = FullResult();
+  WriteBoth(r);
+  EXPECT_EQ(test::ReadFile(Dir() + "/result.yaml").find("fit_segments"), std::string::npos);
+  SequenceResult& s = r.sequences[0];
+  s.simulated_one_piece = Matrix(s.measured.rows(), s.measured.cols(), 77);
+  s.channel_fits = ChannelFits(s);
+  WriteBoth(r);
+  EXPECT_NE(test::ReadFile(Dir() + "/result.yaml").find("fit_segments"), std::string::npos);
+  const FitResultFile back = ReadResult(Dir());
+  const SequenceResult& t = back.sequences[0];
+  ExpectSame(s.simulated_one_piece, t.simulated_one_piece, "simulated_one_piece");
+  ASSERT_EQ(t.channel_fits.size(), s.channel_fits.size());
+  for (size_t i = 0; i < t.channel_fits.size(); ++i) {
+    const ChannelFit& f = t.channel_fits[i];
+    EXPECT_EQ(f.nrmse_final, Nrmse(s.measured.col(i), s.simulated_one_piece.col(i)));
+    EXPECT_EQ(f.nrmse_segments, Nrmse(s.measured.col(i), s.simulated_final.col(i)));
+  }
+  EXPECT_EQ(back.sequences[1].simulated_one_piece.rows(), 0);
+  // a one-piece matrix of another shape is refused, naming it
+  s.simulated_one_piece = Matrix(s.measured.rows(), s.measured.cols() + 1, 78);
+  EXPECT_THROW(WriteBoth(r), std::exception);
 }
 
 // where the covariance's Jacobian was taken (the statistical stop before the last Jacobian,
