@@ -40,11 +40,16 @@ trap 'rm -rf "$install_tmp"' EXIT
 cmake --install build/default --prefix "$install_tmp/prefix" >/dev/null
 # both programs must run without LD_LIBRARY_PATH (libmujoco through their RPATH)
 env -u LD_LIBRARY_PATH "$install_tmp/prefix/bin/sysid" --version
-cmake -S tests/consumer -B "$install_tmp/build" -G Ninja \
-  -DCMAKE_PREFIX_PATH="$install_tmp/prefix" >/dev/null
-cmake --build "$install_tmp/build" -j "$jobs"
-env -u LD_LIBRARY_PATH "$install_tmp/build/mjsysid_consumer" models/pendulum.xml \
-  "$install_tmp/log.h5"
+# a C++-only project (project(x CXX): CMake's FindHDF5, which the config runs, needs C) and one
+# with C and C++
+for languages in "CXX" "C;CXX"; do
+  consumer_build="$install_tmp/build-${languages/;/-}"
+  cmake -S tests/consumer -B "$consumer_build" -G Ninja \
+    -DCMAKE_PREFIX_PATH="$install_tmp/prefix" -DMJSYSID_CONSUMER_LANGUAGES="$languages" >/dev/null
+  cmake --build "$consumer_build" -j "$jobs"
+  env -u LD_LIBRARY_PATH "$consumer_build/mjsysid_consumer" models/pendulum.xml \
+    "$install_tmp/log.h5"
+done
 
 step "Python package: pip install . into the venv, then pytest tests/python"
 venv="${MJSYSID_VENV:-$root/.venv}"

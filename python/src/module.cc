@@ -489,8 +489,9 @@ NB_MODULE(_mjsysid, m) {
 
   // --- logs (sysid/io/log.h) ---
   nb::class_<io::Sequence>(m, "Sequence",
-                           "One logged rollout: time (T), ctrl (T x nu), sensordata (T x ns), "
-                           "optional qpos/qvel/act (T x nq|nv|na, else 0 x 0)")
+                           "One logged rollout: time (T), ctrl (T x nu, or Tc x nu at "
+                           "ctrl_time), sensordata (T x ns), optional qpos/qvel/act (T x "
+                           "nq|nv|na, else 0 x 0)")
       .def(nb::init<>())
       .def_rw("name", &io::Sequence::name)
       .def_rw("time", &io::Sequence::time)
@@ -501,7 +502,11 @@ NB_MODULE(_mjsysid, m) {
       .def_rw("act", &io::Sequence::act)
       .def_rw("sensor_names", &io::Sequence::sensor_names)
       .def_rw("sensor_dims", &io::Sequence::sensor_dims)
-      .def_rw("actuator_names", &io::Sequence::actuator_names);
+      .def_rw("actuator_names", &io::Sequence::actuator_names)
+      // the controls' own times (dataset ctrl_time; empty: one control row per `time`): what
+      // the bag reader writes for commands at their own stamps
+      .def_rw("ctrl_time", &io::Sequence::ctrl_time,
+              "the controls' own times (Tc, seconds); empty: ctrl has one row per time");
 
   nb::class_<io::Log>(m, "Log", "Sequences recorded with one sensor_time convention")
       .def(nb::init<>())
