@@ -20,7 +20,8 @@
 //                                         quadratic model; on a rugged cost its envelope at +-1
 //                                         and +-2 standard errors
 //   8. FinalSignals (pass_signals.cc)     bound and identifiability warnings, the simulated
-//                                         signals at the start and the estimate
+//                                         signals at the start and the estimate (a fit in
+//                                         segments: segment by segment and in one piece)
 //   9. Residuals    (pass_residuals.cc)   the residuals' diagnostics per channel; intervals
 //                                         widened by their correlation time when not white; the
 //                                         derived inertials with the parameters' final covariance
@@ -50,6 +51,19 @@
 #include "sysid/solve/variable_manifold.h"
 
 namespace mjsysid {
+
+// stage 8's warning when a fit in segments has a continuity gap above 1e-3 at the estimate: this
+// start, the gap and where, then the tail; the policy's one-piece check (sysid/fit/policy.cc)
+// replaces the tail by kSegmentsJoinWithinNoiseTail when the estimate in one piece explains the
+// data
+inline constexpr char kSegmentsDoNotJoinWarning[] =
+    "multiple shooting: segments do not join at the estimate";
+inline constexpr char kSegmentsDoNotJoinTail[] =
+    ": it describes no single trajectory; try shorter segments, a larger continuity_weight or a "
+    "start closer to the data";
+inline constexpr char kSegmentsJoinWithinNoiseTail[] =
+    ", but the estimate simulated in one piece from each sequence's first state explains the data "
+    "as well (the one-piece check passed): the gaps are within what the noise explains";
 
 class FitPass {
  public:

@@ -93,12 +93,10 @@ void FitPass::FinalSignals() {
   for (size_t q = 0; q < fit_.sequences.size(); ++q)
     SequenceSignals(q, &worst_gap, &worst_gap_where);
   if (worst_gap > kContinuityGapWarning) {
-    result_.warnings.push_back(
-        std::string("multiple shooting: segments do not join at the estimate (largest continuity "
-                    "gap ") +
-        FormatDigits(worst_gap, 3) + " in state units, " + worst_gap_where +
-        "): it describes no single trajectory; try shorter segments, a larger continuity_weight "
-        "or a start closer to the data");
+    result_.warnings.push_back(std::string(kSegmentsDoNotJoinWarning) +
+                               " (largest continuity gap " + FormatDigits(worst_gap, 3) +
+                               " in state units, " + worst_gap_where + ")" +
+                               kSegmentsDoNotJoinTail);
   }
 }
 

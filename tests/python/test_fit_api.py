@@ -58,6 +58,25 @@ def test_fit_from_dataframes_recovers_truth(root, frames):
     assert seq.measured.shape == seq.simulated_final.shape == (2000, 2)
 
 
+def test_sigma_auto_estimates_the_logs_noise(root, frames):
+    # the shipped pendulum log (noise 0.001 rad, 0.01 rad/s): "auto" estimates each sensor's noise
+    # from the log (within 10 %), the fit then judges the model as with stated sigmas
+    result = mjsysid.fit(str(root / "models/pendulum.xml"), PARAMETERS, sequences_of(frames),
+                         options={"sensor_sigmas": {"angle": "auto", "rate": "auto"},
+                                  "max_iterations": 50})
+    assert result.status == "converged" and result.intervals_valid
+    assert set(result.sigma_from_log) == {"angle", "rate"}
+    for sensor, sigma in result.sigma_from_log.items():
+        assert abs(sigma / SIGMAS[sensor] - 1) < 0.1, (sensor, sigma)
+    assert all(d.sigma_from_log for d in result.residuals)
+    assert abs(result.chi2_ratio - 1) < 0.15
+    for p in result.parameters:
+        assert abs(p.value - TRUTH[p.name]) < 4 * p.std_error, p
+    with pytest.raises(ValueError, match=r"sensor_sigmas\['angle'\] must be a number > 0 or 'auto'"):
+        mjsysid.fit(str(root / "models/pendulum.xml"), PARAMETERS, sequences_of(frames)[:1],
+                    options={"sensor_sigmas": {"angle": "atuo"}})
+
+
 def test_model_as_xml_text_gives_the_same_fit(root, frames):
     xml = (root / "models/pendulum.xml").read_text()
     seqs = sequences_of(frames)[:1]
