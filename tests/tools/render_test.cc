@@ -10,13 +10,18 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
+#include <fstream>
 #include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "core/mujoco_env.h"
+#include "sysid/io/log.h"
+#include "tests/experiment_log.h"
+#include "tests/file_util.h"
 #include "tools/report/encode.h"
 #include "tools/report/motion.h"
 
@@ -217,6 +222,57 @@ TEST(MotionTest, NoClipSaysWhy) {
   EXPECT_TRUE(motion.webp.empty());
   EXPECT_NE(motion.note.find("could not be read again"), std::string::npos) << motion.note;
   EXPECT_NE(motion.note.find("/nonexistent/pendulum.yaml"), std::string::npos) << motion.note;
+}
+
+// The clip on the log's clock with the measured motion: the shipped pendulum experiment's log
+// (1 sequence of 2000 steps at 2 ms, with qpos) kept at every 5th row (a 100 Hz log of the 2 ms
+// model, 3.99 s). The clip shows the 3.99 s the log spans (it showed 400 rows as 400 steps,
+// 0.8 s, with the commands 5x too fast), and a third view, the log's qpos
+TEST(MotionTest, TheClipFollowsTheLogsClockAndShowsTheMeasuredMotion) {
+  const std::string dir = test::FreshTempDir("motion_clock");
+  io::ExperimentConfig cfg = test::ShippedExperimentWithLog("pendulum.yaml", 1, 2000, "motion_log");
+  io::Log log = io::ReadLog(cfg.data[0].path);
+  io::Sequence& s = log.sequences[0];
+  std::vector<int> keep;
+  for (int k = 0; k < s.time.size(); k += 5) keep.push_back(k);
+  auto rows = [&](const RowMatrix& m) {
+    RowMatrix out(static_cast<Eigen::Index>(keep.size()), m.cols());
+    for (size_t i = 0; i < keep.size(); ++i) out.row(i) = m.row(keep[i]);
+    return out;
+  };
+  Eigen::VectorXd time(static_cast<Eigen::Index>(keep.size()));
+  for (size_t i = 0; i < keep.size(); ++i) time[i] = s.time[keep[i]];
+  s.time = time;
+  s.ctrl = rows(s.ctrl);
+  s.sensordata = rows(s.sensordata);
+  s.qpos = rows(s.qpos);
+  s.qvel = rows(s.qvel);
+  io::WriteLog(dir + "/log.h5", log);
+  // the experiment on that log, its model path absolute
+  std::string text = test::ReadFile(std::string(MJSYSID_EXPERIMENTS_DIR) + "/pendulum.yaml");
+  text.replace(text.find("model: ../models/"), 17,
+               "model: " + std::string(MJSYSID_MODELS_DIR) + "/");
+  text.replace(text.find("data: logs/pendulum.h5"), 22, "data: " + dir + "/log.h5");
+  std::ofstream(dir + "/exp.yaml") << text;
+  io::FitResultFile r;
+  r.experiment = dir + "/exp.yaml";
+  r.sequences.resize(1);
+  r.sequences[0].name = s.name;
+  const MotionResult motion = MakeMotion(r, MotionOptions());
+  ASSERT_FALSE(motion.webp.empty()) << motion.note;
+  std::printf("[ measured ] clip of a %.3f s log at 100 Hz: %.3f s, %d frames, %dx%d\n",
+              time[time.size() - 1] - time[0], motion.seconds, motion.frames, motion.width,
+              motion.height);
+  EXPECT_NEAR(motion.seconds, time[time.size() - 1] - time[0], 0.01);
+  EXPECT_TRUE(motion.measured);
+  EXPECT_EQ(motion.width, 3 * MotionOptions().width);
+  EXPECT_NE(MotionHtml(motion).find("right: the measured motion"), std::string::npos);
+  const DecodedAnimation clip = DecodeAnimatedWebp(motion.webp);
+  EXPECT_EQ(static_cast<int>(clip.frames.size()), motion.frames);
+  EXPECT_EQ(clip.width, motion.width);
+  // the clip plays in the log's time: its last frame ends about 4 s in
+  ASSERT_FALSE(clip.end_ms.empty());
+  EXPECT_NEAR(clip.end_ms.back(), 1000 * motion.seconds, 100);
 }
 
 }  // namespace

@@ -178,7 +178,7 @@ window.addEventListener('load', () => {
     if (svg.querySelectorAll('use').length === 0) problems.push('svg ' + i + ' has no text');
   }
 
-  // the motion clip: one image, decoded at its full size (two 320x240 views)
+  // the motion clip: one image, decoded at its full size (three 320x240 views)
   const clips = document.querySelectorAll('img.motion');
   const motion = clips.length === 1 ? clips[0].naturalWidth + 'x' + clips[0].naturalHeight
                                     : clips.length + ' clips';
@@ -271,7 +271,8 @@ class ReportBrowserTest : public ::testing::Test {
     return at == std::string::npos ? "" : page.substr(at, page.find('>', at) + 1 - at);
   }
 
-  // "OK" when the clip `img` (640x240: initial left, fitted right) moves in Chromium: a page with
+  // "OK" when the clip `img` (960x240: initial, fitted, and the measured motion from the log's
+  // qpos) moves in Chromium: a page with
   // only the clip at the top-left is screenshotted as soon as it has loaded, and once more with
   // its load held back ~2 s (HoldServer); each half must be drawn in both shots (the rod, the bob
   // and the label: more than 200 pixels) and must have changed (more than 100 pixels; measured on
@@ -290,13 +291,13 @@ class ReportBrowserTest : public ::testing::Test {
       WriteFile(html, "<!DOCTYPE html><html><body style=\"margin:0;background:#fff\">" + img +
                           (k == 1 ? hold : "") + "</body></html>");
       fs::remove(png);
-      Chromium(html, "--window-size=700,300 --screenshot=" + png, /*virtual_time=*/false);
+      Chromium(html, "--window-size=1000,300 --screenshot=" + png, /*virtual_time=*/false);
       shots[k] = test::SurfaceFromPng(ReadFile(png));
       if (cairo_surface_status(shots[k]) != CAIRO_STATUS_SUCCESS) return "FAIL no screenshot";
     }
     std::string problems;
-    const char* halves[2] = {"initial", "fitted"};
-    for (int h = 0; h < 2; ++h) {
+    const char* halves[3] = {"initial", "fitted", "measured"};
+    for (int h = 0; h < 3; ++h) {
       const RegionCount n = CountRegion(shots[0], shots[1], 320 * h, 0, 320, 240);
       if (n.foreground_a <= 200 || n.foreground_b <= 200) {
         problems += std::string(" ") + halves[h] + " not drawn (" + std::to_string(n.foreground_a) +
@@ -317,7 +318,7 @@ std::string ReportBrowserTest::dir_;
 
 TEST_F(ReportBrowserTest, EverySectionAndPlotRenders) {
   // 7 sections, the 3 sequence PNGs and the motion clip, the cost and parameter SVGs
-  EXPECT_EQ(Verdict(Page(), "check.html"), "OK sections=7 images=4 svgs=2 motion=640x240");
+  EXPECT_EQ(Verdict(Page(), "check.html"), "OK sections=7 images=4 svgs=2 motion=960x240");
 }
 
 TEST_F(ReportBrowserTest, TheMotionClipPlays) {

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "core/simulator.h"
+#include "sysid/data/sample_grid.h"
 #include "sysid/io/experiment.h"
 #include "sysid/run/fit_experiment.h"
 #include "tools/report/encode.h"
@@ -31,17 +32,31 @@ void Progress(const MotionOptions& o, const std::string& line) {
   if (o.progress) o.progress(line);
 }
 
-// left and right side by side into one frame (2w x h)
-void SideBySide(const RgbImage& left, const RgbImage& right, RgbImage* out) {
-  const int w = left.width, h = left.height;
-  out->width = 2 * w;
+// the views (each w x h) side by side into one frame (n w x h)
+void SideBySide(const std::vector<RgbImage>& views, RgbImage* out) {
+  const int w = views[0].width, h = views[0].height;
+  const size_t n = views.size();
+  out->width = static_cast<int>(n) * w;
   out->height = h;
-  out->rgb.resize(static_cast<size_t>(2 * w) * h * 3);
+  out->rgb.resize(n * static_cast<size_t>(w) * h * 3);
   const size_t row = static_cast<size_t>(w) * 3;
   for (int y = 0; y < h; ++y) {
-    std::copy_n(left.rgb.data() + y * row, row, out->rgb.data() + 2 * y * row);
-    std::copy_n(right.rgb.data() + y * row, row, out->rgb.data() + (2 * y + 1) * row);
+    for (size_t v = 0; v < n; ++v) {
+      std::copy_n(views[v].rgb.data() + y * row, row, out->rgb.data() + (n * y + v) * row);
+    }
   }
+}
+
+// the logged qpos in force at time t (the last measured row at or before it: a log's own
+// samples, never interpolated, so that a quaternion stays one); false before the first
+bool LoggedQposAt(const FitSequence& seq, double t, Eigen::VectorXd* q) {
+  bool found = false;
+  for (Eigen::Index k = 0; k < seq.qpos.rows() && seq.time[k] <= t + 1e-9; ++k) {
+    if (seq.qpos.row(k).array().isNaN().any()) continue;
+    *q = seq.qpos.row(k).transpose();
+    found = true;
+  }
+  return found;
 }
 
 }  // namespace
@@ -101,12 +116,29 @@ MotionResult MakeMotion(const io::FitResultFile& r, const MotionOptions& o) {
   initial = Eigen::Map<Eigen::VectorXd>(init_v.data(), init_v.size());
   final_values = Eigen::Map<Eigen::VectorXd>(final_v.data(), final_v.size());
 
-  // the first max_seconds of the sequence, at the initial and at the fitted values
+  // the first max_seconds of the sequence on the log's clock: the controls of each simulation
+  // step held from the logged ones at their own times (sysid/data/sample_grid.h, as the fit
+  // holds them; given delays applied, fitted ones at their starts), at the initial and at the
+  // fitted values
   const double dt = m.opt.timestep;
-  const int T = static_cast<int>(seq->ctrl.rows());
-  const int steps = std::max(1, std::min(T, static_cast<int>(std::floor(o.max_seconds / dt))));
+  SampleGrid grid;
+  try {
+    grid = BuildSampleGrid(seq->time, static_cast<int>(seq->measured.rows()), seq->x0.time,
+                           seq->ctrl, seq->ctrl_time, seq->ctrl_hold, seq->ctrl_delay, dt,
+                           "sequence " + seq->name + ": ", seq->ctrl_before);
+  } catch (const std::exception& e) {
+    out.note = "sequence " + seq->name + ": its controls could not be placed on the model's " +
+               "steps: " + e.what();
+    return out;
+  }
+  const int steps =
+      std::max(1, std::min(grid.steps, static_cast<int>(std::floor(o.max_seconds / dt))));
   const int stride = std::max(1, static_cast<int>(std::lround(1.0 / (o.fps * dt))));
-  SequenceInput input{seq->x0, seq->ctrl.topRows(steps)};
+  SequenceInput input{seq->x0, grid.ctrl.topRows(steps)};
+  const double t0 = seq->time.size() ? seq->time[0] : seq->x0.time;
+  // the measured motion beside them where the log has qpos (and times to place it)
+  const bool measured =
+      seq->qpos.rows() > 0 && seq->qpos.cols() == m.nq && seq->time.size() == seq->qpos.rows();
   Trajectory initial_run, fitted_run;
   try {
     Simulator sim(m, specs);
@@ -129,25 +161,40 @@ MotionResult MakeMotion(const io::FitResultFile& r, const MotionOptions& o) {
   }
   out.gl_renderer = renderer->gl_renderer();
   const int frames = steps / stride + 1;
-  // the camera frames both simulations over the whole clip
-  RowMatrix shown(2 * frames, m.nq);
+  const int nq = m.nq;
+  // each frame's logged qpos (frame f at t0 + f stride dt; before the first measured row, the
+  // fitted simulation's, which starts from the log's state)
+  RowMatrix logged(measured ? frames : 0, nq);
+  for (int f = 0; f < logged.rows(); ++f) {
+    Eigen::VectorXd q;
+    if (LoggedQposAt(*seq, t0 + f * stride * dt, &q)) {
+      logged.row(f) = q.transpose();
+    } else {
+      logged.row(f) = fitted_run.states.row(f * stride).head(nq);
+    }
+  }
+  const int views = measured ? 3 : 2;
+  // the camera frames every view over the whole clip
+  RowMatrix shown(views * frames, nq);
   for (int f = 0; f < frames; ++f) {
-    shown.row(2 * f) = initial_run.states.row(f * stride).head(m.nq);
-    shown.row(2 * f + 1) = fitted_run.states.row(f * stride).head(m.nq);
+    shown.row(views * f) = initial_run.states.row(f * stride).head(nq);
+    shown.row(views * f + 1) = fitted_run.states.row(f * stride).head(nq);
+    if (measured) shown.row(views * f + 2) = logged.row(f);
   }
   Progress(o, "rendering motion of sequence " + seq->name + ": " + std::to_string(frames) +
-                  " frames, initial and fitted, " + std::to_string(o.width) + "x" +
-                  std::to_string(o.height) + " each (" + out.gl_renderer + ")");
+                  " frames, initial and fitted" + (measured ? " and measured, " : ", ") +
+                  std::to_string(o.width) + "x" + std::to_string(o.height) + " each (" +
+                  out.gl_renderer + ")");
   std::vector<RgbImage> video(frames);
-  RgbImage left, right;
-  const int nq = m.nq;
+  std::vector<RgbImage> view(views);
   try {
     renderer->Frame(shown);
     for (int f = 0; f < frames; ++f) {
       const int k = f * stride;
-      renderer->Render(initial_run.states.row(k).head(nq).transpose(), "initial", &left);
-      renderer->Render(fitted_run.states.row(k).head(nq).transpose(), "fitted", &right);
-      SideBySide(left, right, &video[f]);
+      renderer->Render(initial_run.states.row(k).head(nq).transpose(), "initial", &view[0]);
+      renderer->Render(fitted_run.states.row(k).head(nq).transpose(), "fitted", &view[1]);
+      if (measured) renderer->Render(logged.row(f).transpose(), "measured", &view[2]);
+      SideBySide(view, &video[f]);
     }
   } catch (const std::exception& e) {
     out.note = std::string("rendering failed: ") + e.what();
@@ -156,8 +203,9 @@ MotionResult MakeMotion(const io::FitResultFile& r, const MotionOptions& o) {
   const int frame_ms = static_cast<int>(std::lround(1000 * stride * dt));
   out.webp = EncodeAnimatedWebp(video, std::max(frame_ms, 1), o.quality);
   out.frames = frames;
-  out.width = 2 * o.width;
+  out.width = views * o.width;
   out.height = o.height;
+  out.measured = measured;
   out.seconds = steps * dt;
   out.fps = 1 / (stride * dt);
   return out;
@@ -173,8 +221,11 @@ std::string MotionHtml(const MotionResult& motion) {
   h << "<h3>" << HtmlEscape(motion.sequence) << "</h3>\n<img class=\"motion\" alt=\"motion "
     << HtmlEscape(motion.sequence) << "\" width=\"" << motion.width << "\" height=\""
     << motion.height << "\" src=\"data:image/webp;base64," << Base64(motion.webp) << "\">\n"
-    << "<p class=\"muted\">left: simulated with the initial parameter values; right: with the "
-       "fitted ones; both from the log's initial state with the log's controls. "
+    << "<p class=\"muted\">left: simulated with the initial parameter values; middle"
+    << (motion.measured ? "" : " (right)")
+    << ": with the fitted ones; both from the log's initial state with the log's controls on "
+       "the log's clock"
+    << (motion.measured ? "; right: the measured motion (the log's qpos)" : "") << ". "
     << Fixed(motion.seconds, 2) << " s simulated, " << motion.frames << " frames at "
     << Fixed(motion.fps, 1) << " fps, looping (" << Fixed(motion.webp.size() / 1024.0, 0)
     << " KiB animated WebP)</p>\n";

@@ -5,13 +5,17 @@
 // Where the motion comes from: result.yaml names the experiment file; the experiment is loaded
 // and its logs mapped to sequences as the fit did (run::BuildProblem), and the sequence is
 // re-simulated (core Simulator, one thread) from the log's initial state with the log's controls,
-// once at the parameters' initial values and once at the fitted values of result.yaml. The fitted
+// once at the parameters' initial values and once at the fitted values of result.yaml. The
+// controls are held onto the model's steps from their logged times as the fit holds them
+// (sysid/data/sample_grid.h): the clip runs on the log's clock at any sample rate (given delays
+// applied; a fitted control delay at its start). Where the log has qpos, a third view shows the
+// measured motion (the last logged row at or before each frame's time). The fitted
 // simulation is the single-shooting rollout of the estimate: with `estimate_initial_state` the
 // fit's estimated initial state is not stored in the results, so both clips start from the log's
 // state; multiple-shooting segments are not shown.
 //
 // Clip: the first `max_seconds` of the sequence, one frame every round(1 / (fps * timestep))
-// simulation steps; each frame width x height per simulation, left "initial", right "fitted",
+// simulation steps; each frame width x height per view, "initial", "fitted" (and "measured"),
 // from one fixed free camera that keeps both simulations' moving bodies in view over the whole clip
 // (OffscreenRenderer::Frame).
 //
@@ -28,7 +32,7 @@ namespace mjsysid::report {
 
 struct MotionOptions {
   bool enabled = true;  // false: the section says the video was turned off (--no-video)
-  int width = 320;      // pixels per simulation (the frame is 2 * width x height)
+  int width = 320;      // pixels per view (the frame is 2 or 3 views wide)
   int height = 240;
   double fps = 25;          // target frame rate (the step decimation rounds it)
   double max_seconds = 10;  // at most this much of the sequence
@@ -42,8 +46,9 @@ struct MotionResult {
   std::string sequence;  // the sequence shown
   std::string webp;      // the animated WebP (empty without a clip)
   int frames = 0, width = 0, height = 0;
-  double seconds = 0;  // simulated time shown
-  double fps = 0;      // the frame rate after decimation
+  double seconds = 0;     // simulated time shown
+  double fps = 0;         // the frame rate after decimation
+  bool measured = false;  // a third view: the log's qpos
   std::string gl_renderer;
 };
 
