@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <string>
+
+#include "core/text.h"
 
 namespace mjsysid {
 namespace {
@@ -17,8 +20,11 @@ double Position(double t, double t0, double dt) {
 void CheckTimes(const Eigen::VectorXd& t, const std::string& where, const char* what) {
   for (Eigen::Index k = 0; k < t.size(); ++k) {
     if (!std::isfinite(t[k]) || (k > 0 && !(t[k] > t[k - 1]))) {
-      throw std::invalid_argument(where + what + " times must be finite and strictly increasing " +
-                                  "(row " + std::to_string(k) + ")");
+      // the row and its value (and the one before), to find it in the log
+      throw std::invalid_argument(
+          where + what + " times must be finite and strictly increasing (row " + std::to_string(k) +
+          ": " + FormatDigits(t[k], 9) +
+          (k > 0 ? " after " + FormatDigits(t[k - 1], 9) : std::string()) + ")");
     }
   }
 }
