@@ -260,6 +260,17 @@ void CheckSequenceShapes(const FitSequence& sq, const StateDims& d, const std::s
       throw std::invalid_argument(where + "a control delay must be finite and >= 0");
     }
   }
+  // the logged states, when given: one row per sample (checked first: a caller may have taken
+  // the initial state from their first row)
+  const std::tuple<const char*, const RowMatrix*, int, const char*> logged[] = {
+      {"qpos", &sq.qpos, d.nq, "nq"}, {"qvel", &sq.qvel, d.nv, "nv"}, {"act", &sq.act, d.na, "na"}};
+  for (const auto& [name, x, n, dim] : logged) {
+    if (x->rows() != 0 && (x->rows() != T || x->cols() != n)) {
+      throw std::invalid_argument(where + "logged " + name + " must be T x " + dim + " = " +
+                                  Shape(T, n) + " (one row per row of measured), got " +
+                                  Shape(x->rows(), x->cols()));
+    }
+  }
   // the given initial state (empty parts: the model's qpos0, zeros)
   const std::tuple<const char*, const Eigen::VectorXd*, int, const char*> initial[] = {
       {"qpos", &sq.x0.qpos, d.nq, "nq"},
@@ -275,18 +286,10 @@ void CheckSequenceShapes(const FitSequence& sq, const StateDims& d, const std::s
     for (Eigen::Index i = 0; i < x->size(); ++i) {
       if (!std::isfinite((*x)[i])) {
         throw std::invalid_argument(where + "the initial " + name + " is not finite at entry " +
-                                    std::to_string(i) + " (" + FormatDigits((*x)[i], 6) + ")");
+                                    std::to_string(i) + " (" + FormatDigits((*x)[i], 6) +
+                                    "; the simulation starts there: with logged states, their " +
+                                    "first row unless given apart)");
       }
-    }
-  }
-  // the logged states, when given: one row per sample (their first row is the initial state)
-  const std::tuple<const char*, const RowMatrix*, int, const char*> logged[] = {
-      {"qpos", &sq.qpos, d.nq, "nq"}, {"qvel", &sq.qvel, d.nv, "nv"}, {"act", &sq.act, d.na, "na"}};
-  for (const auto& [name, x, n, dim] : logged) {
-    if (x->rows() != 0 && (x->rows() != T || x->cols() != n)) {
-      throw std::invalid_argument(where + "logged " + name + " must be T x " + dim + " = " +
-                                  Shape(T, n) + " (one row per row of measured), got " +
-                                  Shape(x->rows(), x->cols()));
     }
   }
 }
