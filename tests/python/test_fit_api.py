@@ -139,3 +139,121 @@ def test_bad_input_raises_value_error(root, frames):
         mjsysid.fit(model, PARAMETERS, seqs, options={"loss": "l1"})
     with pytest.raises(ValueError):
         mjsysid.fit("<mujoco><worldbody><body>", PARAMETERS, seqs)
+
+
+def test_channel_fits_give_each_channels_percent_fit(root, frames):
+    # % fit = 100 (1 - NRMSE), NRMSE = RMS(simulated - measured) / std(measured), per channel, as
+    # the runner and result.yaml give it; recomputed here from the result's own arrays (1e-9)
+    result = mjsysid.fit(str(root / "models/pendulum.xml"), PARAMETERS, sequences_of(frames),
+                         options={"sensor_sigmas": SIGMAS, "max_iterations": 50})
+    for seq in result.sequences:
+        assert [f.channel for f in seq.channel_fits] == ["angle", "rate"]
+        one_piece = seq.simulated_one_piece.size > 0  # a fit in segments
+        final = seq.simulated_one_piece if one_piece else seq.simulated_final
+        for j, f in enumerate(seq.channel_fits):
+            y = seq.measured[:, j]
+            for simulated, nrmse, fit in [(seq.simulated_initial, f.nrmse_initial, f.fit_initial),
+                                          (final, f.nrmse_final, f.fit_final)]:
+                expected = np.sqrt(np.mean((simulated[:, j] - y) ** 2)) / np.std(y)
+                assert nrmse == pytest.approx(expected, rel=1e-9), f
+                assert fit == pytest.approx(100 * (1 - expected), rel=1e-9), f
+            assert np.isnan(f.fit_segments) != one_piece and np.isnan(f.nrmse_segments) != one_piece
+            # at the estimate the misfit is the noise: NRMSE = sigma / std(y) within 10 % (sigma
+            # 0.001 rad, 0.01 rad/s; measured 0.98 to 1.03 of it: % fit 99.45 to 99.63 for the
+            # angle, 98.74 to 99.08 for the rate); the start (damping 0.2, friction 0.01, mass 0.8
+            # for 0.08, 0.03, 1.2) is far worse (measured 50.7 to 74.3 %)
+            floor = SIGMAS[f.channel] / np.std(y)
+            assert 0.9 * floor < f.nrmse_final < 1.1 * floor, (f, floor)
+            assert f.fit_initial < 80, f
+        assert "% fit angle" in repr(seq)
+
+
+def named_sequences(frames, measured, ctrl=lambda df: df[["torque"]]):
+    """The sequences with measured and ctrl given as DataFrames or dicts made by the functions."""
+    return [{"name": f"run{i}", "time": df["time"], "ctrl": ctrl(df), "measured": measured(df),
+             "qpos": qpos, "qvel": qvel} for i, (df, qpos, qvel) in enumerate(frames)]
+
+
+def test_dataframe_columns_are_matched_to_the_sensors_by_name(root, frames):
+    # the columns swapped (rate, angle): placed by name, the fit recovers the truth (within 4
+    # standard errors; noise 0.001 rad, 0.01 rad/s; start 0.2, 0.01, 0.8). Taken in model order,
+    # as before, the same frames ended model_mismatch with every parameter on a bound
+    model = str(root / "models/pendulum.xml")
+    options = {"sensor_sigmas": SIGMAS, "max_iterations": 50}
+    swapped = mjsysid.fit(model, PARAMETERS, named_sequences(frames, lambda df: df[["rate", "angle"]]),
+                          options=options)
+    assert swapped.status == "converged" and swapped.intervals_valid
+    for p in swapped.parameters:
+        assert abs(p.value - TRUTH[p.name]) < 4 * p.std_error, p
+    assert swapped.sequences[0].sensor_names == ["angle", "rate"]
+    # a dict of named columns places them as the DataFrame does: the same estimates to the bit
+    first = frames[:1]
+    a = mjsysid.fit(model, PARAMETERS, named_sequences(first, lambda df: df[["rate", "angle"]]),
+                    options=options)
+    b = mjsysid.fit(model, PARAMETERS,
+                    named_sequences(first, lambda df: {"rate": df["rate"].to_numpy(),
+                                                       "angle": list(df["angle"])},
+                                    ctrl=lambda df: {"torque": df["torque"]}),
+                    options=options)
+    c = mjsysid.fit(model, PARAMETERS, sequences_of(first), options=options)  # arrays, model order
+    assert a.estimates == b.estimates == c.estimates
+
+
+def test_named_columns_that_do_not_match_are_value_errors(root, frames):
+    model = str(root / "models/pendulum.xml")
+    lists = "(the columns given: time, angle, rate; the sensors of model 'model': angle, rate)"
+    with pytest.raises(ValueError) as e:  # a column that is not a sensor
+        mjsysid.fit(model, PARAMETERS, named_sequences(frames[:1], lambda df: df[["time", "angle",
+                                                                                  "rate"]]))
+    assert "sequences[0]: 'measured': column 'time' is not a sensor " + lists in str(e.value)
+    with pytest.raises(ValueError, match=r"'measured': no column for sensor rate \(the columns "
+                                         r"given: angle; the sensors of model 'model': angle, "
+                                         r"rate\)"):
+        mjsysid.fit(model, PARAMETERS, named_sequences(frames[:1], lambda df: df[["angle"]]))
+    with pytest.raises(ValueError, match=r"'ctrl': column 'motor' is not an actuator \(the columns "
+                                         r"given: motor; the actuators of model 'model': torque\)"):
+        mjsysid.fit(model, PARAMETERS, named_sequences(
+            frames[:1], lambda df: df[["angle", "rate"]],
+            ctrl=lambda df: df[["torque"]].rename(columns={"torque": "motor"})))
+    with pytest.raises(ValueError, match=r"column 'angle' has 10 rows, the columns before it 2000"):
+        mjsysid.fit(model, PARAMETERS, named_sequences(
+            frames[:1], lambda df: {"rate": df["rate"], "angle": df["angle"][:10]}))
+    # the fitted sensors only (`sensors`): the others may be absent (not measured)
+    seqs = named_sequences(frames[:1], lambda df: df[["angle"]])
+    result = mjsysid.fit(model, PARAMETERS, [dict(seqs[0], sensors=["angle"])],
+                         options={"max_iterations": 2})
+    assert result.sequences[0].sensor_names == ["angle"]
+    # a DataFrame without names (pandas' default 0, 1 labels) is an array: model order, as before
+    unnamed = named_sequences(frames[:1], lambda df: pd.DataFrame(df[["angle", "rate"]].to_numpy()))
+    a = mjsysid.fit(model, PARAMETERS, unnamed, options={"max_iterations": 2})
+    b = mjsysid.fit(model, PARAMETERS, sequences_of(frames[:1]), options={"max_iterations": 2})
+    assert a.estimates == b.estimates
+
+
+def test_mujoco_model_and_spec_give_the_fit_of_the_path(root, frames):
+    mujoco = pytest.importorskip("mujoco")
+    path = str(root / "models/pendulum.xml")
+    seqs = sequences_of(frames)[:1]
+    options = {"sensor_sigmas": SIGMAS}
+    by_path = mjsysid.fit(path, PARAMETERS, seqs, options=options)
+    by_model = mjsysid.fit(mujoco.MjModel.from_xml_path(path), PARAMETERS, seqs, options=options)
+    by_spec = mjsysid.fit(mujoco.MjSpec.from_file(path), PARAMETERS, seqs, options=options)
+    several = mjsysid.fit({"p": mujoco.MjModel.from_xml_path(path)}, PARAMETERS,
+                          [dict(seqs[0], model="p")], options=options)
+    assert by_path.estimates == by_model.estimates == by_spec.estimates == several.estimates
+    with pytest.raises(ValueError, match="model: expected a path, MJCF text, a mujoco.MjModel or "
+                                         "a mujoco.MjSpec, got int"):
+        mjsysid.fit(42, PARAMETERS, seqs)
+
+
+def test_results_have_a_useful_repr(root, frames):
+    result = mjsysid.fit(str(root / "models/pendulum.xml"), PARAMETERS, sequences_of(frames)[:1],
+                         options={"sensor_sigmas": SIGMAS})
+    text = repr(result)
+    assert text.startswith(f"FitResult({result.status}, {result.iterations} iterations, cost ")
+    assert "damping = " in text and "bob_mass = " in text and "1 sequence" in text
+    p = result.parameters[0]
+    assert repr(p).startswith(f"ParameterEstimate(damping = {p.value:.6g} +- {p.std_error:.2g}, "
+                              "initial 0.2")
+    f = result.sequences[0].channel_fits[0]
+    assert repr(f).startswith("ChannelFit(angle, fit ")
