@@ -16,8 +16,10 @@
 #include <cmath>
 #include <csignal>
 #include <filesystem>
+#include <new>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "bindings.h"
@@ -26,6 +28,7 @@
 #include "core/simulator.h"
 #include "core/text.h"
 #include "mjsysid/version.h"
+#include "pickle.h"
 #include "sysid/io/experiment.h"
 #include "sysid/io/log.h"
 #include "sysid/io/result.h"
@@ -58,6 +61,24 @@ struct ExperimentFit : io::FitResultFile {
   std::string out_dir;
   int exit_code = 0;
 };
+
+// pickling (pickle.h): ExperimentFit's fields after its ResultFile's
+void Fields(Archive& a, ExperimentFit& f) {
+  a(static_cast<io::FitResultFile&>(f), f.out_dir, f.exit_code);
+}
+
+// __getstate__ / __setstate__ of a result class T (pickle.h): the state is bytes
+template <typename T>
+nb::bytes StateOf(const T& result) {
+  const std::string bytes = Pickled(result);
+  return nb::bytes(bytes.data(), bytes.size());
+}
+template <typename T>
+void SetState(T& result, const nb::bytes& state) {
+  T read;  // read first: a bad state leaves nothing half made
+  Unpickle(std::string(state.c_str(), state.size()), &read);
+  new (&result) T(std::move(read));
+}
 
 // an experiment given as a path or as a loaded ExperimentConfig
 io::ExperimentConfig ConfigOf(nb::handle experiment) {
@@ -512,6 +533,8 @@ NB_MODULE(_mjsysid, m) {
       .def_ro("diagnostics", &FitResult::diagnostics,
               "how the fit got its answer: simulation steps, Jacobian mode, reduced model, "
               "ledger, the covariance's Jacobian, folds (FitDiagnostics)")
+      .def("__getstate__", &StateOf<FitResult>)
+      .def("__setstate__", &SetState<FitResult>)
       .def("__repr__", [](const FitResult& r) {
         std::string estimates;
         for (const ParameterEstimate& p : r.parameters) {
@@ -535,12 +558,16 @@ NB_MODULE(_mjsysid, m) {
       .def_ro("mjsysid_version", &io::FitResultFile::mjsysid_version)
       .def_ro("mujoco_version", &io::FitResultFile::mujoco_version)
       .def_ro("solver", &io::FitResultFile::solver)
-      .def_ro("identified_models", &io::FitResultFile::identified_models);
+      .def_ro("identified_models", &io::FitResultFile::identified_models)
+      .def("__getstate__", &StateOf<io::FitResultFile>)
+      .def("__setstate__", &SetState<io::FitResultFile>);
 
   nb::class_<ExperimentFit, io::FitResultFile>(m, "ExperimentFit",
                                                "The outcome of fit_experiment (`sysid fit`)")
       .def_ro("out_dir", &ExperimentFit::out_dir)
-      .def_ro("exit_code", &ExperimentFit::exit_code, "the exit code `sysid fit` would give");
+      .def_ro("exit_code", &ExperimentFit::exit_code, "the exit code `sysid fit` would give")
+      .def("__getstate__", &StateOf<ExperimentFit>)
+      .def("__setstate__", &SetState<ExperimentFit>);
 
   // --- logs (sysid/io/log.h) ---
   nb::class_<io::Sequence>(m, "Sequence",

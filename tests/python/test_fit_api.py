@@ -4,6 +4,9 @@ Data: the pendulum experiment's simulated log (truth damping 0.08, frictionloss 
 1.2; sensor noise sigma 0.001 rad (angle) and 0.01 rad/s (rate); start 0.2, 0.01, 0.8).
 """
 
+import copy
+import math
+import pickle
 import threading
 
 import numpy as np
@@ -257,3 +260,50 @@ def test_results_have_a_useful_repr(root, frames):
                               "initial 0.2")
     f = result.sequences[0].channel_fits[0]
     assert repr(f).startswith("ChannelFit(angle, fit ")
+
+
+def assert_same(a, b, where="result"):
+    """a and b equal in every public attribute, recursively (arrays to the bit, NaN equal to NaN)."""
+    assert type(a) is type(b), where
+    if isinstance(a, np.ndarray):
+        assert a.shape == b.shape and np.array_equal(a, b, equal_nan=True), where
+    elif isinstance(a, float):
+        assert a == b or (math.isnan(a) and math.isnan(b)), (where, a, b)
+    elif isinstance(a, (list, tuple)):
+        assert len(a) == len(b), where
+        for i, (x, y) in enumerate(zip(a, b)):
+            assert_same(x, y, f"{where}[{i}]")
+    elif isinstance(a, dict):
+        assert a.keys() == b.keys(), where
+        for k in a:
+            assert_same(a[k], b[k], f"{where}[{k!r}]")
+    elif type(a).__module__.startswith("mjsysid"):
+        names = [n for n in dir(a) if not n.startswith("_") and not callable(getattr(a, n))]
+        assert names, where
+        for n in names:
+            assert_same(getattr(a, n), getattr(b, n), f"{where}.{n}")
+    else:
+        assert a == b, (where, a, b)
+
+
+def test_results_pickle_and_deepcopy_exactly(root, frames, pendulum, tmp_path):
+    # every public attribute of the copy equals the original's, arrays to the bit (a fit of the
+    # first sequence; then a fit_experiment's ExperimentFit and the ResultFile read back)
+    result = mjsysid.fit(str(root / "models/pendulum.xml"), PARAMETERS, sequences_of(frames)[:1],
+                         options={"sensor_sigmas": SIGMAS})
+    for twin in [pickle.loads(pickle.dumps(result)), copy.deepcopy(result)]:
+        assert_same(result, twin)
+        assert repr(twin) == repr(result)
+    mjsysid.simulate(str(pendulum))
+    exp_fit = mjsysid.fit_experiment(str(pendulum), out=str(tmp_path / "out"))
+    from_file = mjsysid.read_result(str(tmp_path / "out"))
+    for r in [exp_fit, from_file]:
+        assert_same(r, pickle.loads(pickle.dumps(r)))
+    assert pickle.loads(pickle.dumps(exp_fit)).out_dir == exp_fit.out_dir
+    # bytes that are not a pickled result are refused, not misread
+    blank = mjsysid.FitResult.__new__(mjsysid.FitResult)
+    with pytest.raises(ValueError, match="not a pickled mjsysid result"):
+        blank.__setstate__(b"not a result")
+    state = result.__getstate__()
+    with pytest.raises(ValueError, match="truncated|corrupt"):
+        mjsysid.FitResult.__new__(mjsysid.FitResult).__setstate__(state[:len(state) // 2])
