@@ -10,6 +10,10 @@
 namespace mjsysid {
 namespace {
 
+// the most simulation steps of one sequence: 1e8 (55 h at a 2 ms timestep; far below the int
+// steps are counted in)
+constexpr double kMaxSteps = 1e8;
+
 // (t - t0) / dt, a whole number when within the tolerance of one
 double Position(double t, double t0, double dt) {
   const double q = (t - t0) / dt;
@@ -61,6 +65,15 @@ SampleGrid BuildSampleGrid(const Eigen::VectorXd& time, int T, double x0_time,
   for (int k = 0; k < T; ++k) {
     g.position[k] = time.size() ? Position(time[k], t0, dt) : k;
     g.on_grid = g.on_grid && g.position[k] == std::floor(g.position[k]);
+  }
+  // more steps than a fit can simulate: refused before anything is allocated (their count did
+  // not fit an int, and std::bad_alloc followed); most often stamps in ms or ns read as seconds
+  if (T > 0 && !(g.position[T - 1] < kMaxSteps)) {
+    throw std::invalid_argument(
+        where + "the sample times span " + FormatDigits(time[T - 1] - t0, 6) + " s, " +
+        FormatDigits(g.position[T - 1], 3) + " steps of the model's timestep " +
+        FormatDigits(dt, 6) + " s: more than the " + FormatDigits(kMaxSteps, 3) +
+        " a fit simulates (times are in seconds: stamps in ms or ns are 1e3 or 1e9 times larger)");
   }
   // steps: through the last sample's step, or the step after it when it lies between two
   g.steps = T ? static_cast<int>(std::ceil(g.position[T - 1])) + 1 : 0;

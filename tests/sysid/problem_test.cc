@@ -681,6 +681,12 @@ TEST(ProblemInputTest, BadInputIsAnInvalidArgumentNamingTheSizes) {
   bad.ctrl_hold = {ControlHold::kZeroOrder, ControlHold::kLinear};
   expect(error_of(*m, bad, FitOptions(), true),
          {"ctrl_hold must be empty or have one entry per actuator (1), got 2"});
+  bad = good;  // stamps in ns read as seconds: 1e6 s between samples, 5e8 steps each; the step
+  // count overflowed an int and the fit ended in std::bad_alloc before
+  bad.time = Eigen::VectorXd::LinSpaced(T, 0, (T - 1) * 2e6);
+  expect(error_of(*m, bad, FitOptions(), true),
+         {"the sample times span 9.8e+07 s, 4.9e+10 steps of the model's timestep 0.002 s",
+          "more than the 1e+08"});
   bad = good;  // time not increasing
   bad.time = Eigen::VectorXd::Zero(T);
   expect(error_of(*m, bad, FitOptions(), true), {"strictly increasing", "row 1"});
