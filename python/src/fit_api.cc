@@ -24,6 +24,7 @@
 
 #include "bindings.h"
 #include "core/mujoco_env.h"
+#include "core/text.h"
 #include "sysid/assess/metrics.h"
 #include "sysid/problem.h"
 #include "sysid/run/fit_table.h"
@@ -507,6 +508,22 @@ FitOptions OptionsOf(const nb::dict& d) {
   o.function_tolerance = Get<double>(d, "function_tolerance", o.function_tolerance, what);
   o.gradient_tolerance = Get<double>(d, "gradient_tolerance", o.gradient_tolerance, what);
   o.parameter_tolerance = Get<double>(d, "parameter_tolerance", o.parameter_tolerance, what);
+  // Ceres refuses these at the solve (status solver_failed); the experiment file's rules, except
+  // that 0 iterations (the start evaluated) stays allowed as before
+  if (o.max_iterations < 0) {
+    throw std::invalid_argument("options: max_iterations must be >= 0, got " +
+                                std::to_string(o.max_iterations));
+  }
+  const std::pair<const char*, double> tolerances[] = {
+      {"function_tolerance", o.function_tolerance},
+      {"gradient_tolerance", o.gradient_tolerance},
+      {"parameter_tolerance", o.parameter_tolerance}};
+  for (const auto& [name, value] : tolerances) {
+    if (!(value >= 0)) {
+      throw std::invalid_argument(std::string("options: ") + name + " must be >= 0, got " +
+                                  FormatDigits(value, 6));
+    }
+  }
   o.threads = CheckedThreads(Get<int>(d, "threads", o.threads, what), what + "['threads']");
   const LossType loss_types[] = {LossType::kNone, LossType::kHuber, LossType::kCauchy};
   std::vector<std::string> losses;

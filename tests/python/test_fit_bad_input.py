@@ -147,3 +147,20 @@ def test_shapes_and_values_are_value_errors_with_sizes(model, seq, change, parts
     message = fit_error(model, dict(seq, **change))
     expect(message, *parts)
     assert "sequence" in message  # which sequence: sequences[0] or its name 'seq0'
+
+
+@pytest.mark.parametrize("options, message", [
+    ({"max_iterations": -5}, "options: max_iterations must be >= 0, got -5"),  # solver_failed before
+    ({"function_tolerance": -1e-6}, "options: function_tolerance must be >= 0, got -1e-06"),
+    ({"threads": 10000}, "options['threads']: expected 0 (all cores) or a whole number from 1 to 256"),
+])
+def test_options_out_of_range_are_value_errors(model, seq, options, message):
+    expect(fit_error(model, seq, options=options), message)
+
+
+def test_times_in_ns_are_a_value_error_not_an_allocation(model, seq):
+    # stamps 1e6 "s" apart (ns read as seconds): 9.8e10 steps of 2 ms; std::bad_alloc
+    # (MemoryError) before, after an int overflow
+    expect(fit_error(model, dict(seq, time=np.arange(T) * 1e6)),
+           "the sample times span 1.99e+08 s, 9.95e+10 steps of the model's timestep 0.002 s",
+           "more than the 1e+08 a fit simulates")
