@@ -183,7 +183,8 @@ def test_dataframe_columns_are_matched_to_the_sensors_by_name(root, frames):
     # as before, the same frames ended model_mismatch with every parameter on a bound
     model = str(root / "models/pendulum.xml")
     options = {"sensor_sigmas": SIGMAS, "max_iterations": 50}
-    swapped = mjsysid.fit(model, PARAMETERS, named_sequences(frames, lambda df: df[["rate", "angle"]]),
+    swapped = mjsysid.fit(model, PARAMETERS,
+                          named_sequences(frames, lambda df: df[["rate", "angle"]]),
                           options=options)
     assert swapped.status == "converged" and swapped.intervals_valid
     for p in swapped.parameters:
@@ -263,7 +264,7 @@ def test_results_have_a_useful_repr(root, frames):
 
 
 def assert_same(a, b, where="result"):
-    """a and b equal in every public attribute, recursively (arrays to the bit, NaN equal to NaN)."""
+    """a and b equal in every public attribute, recursively (arrays to the bit, NaN = NaN)."""
     assert type(a) is type(b), where
     if isinstance(a, np.ndarray):
         assert a.shape == b.shape and np.array_equal(a, b, equal_nan=True), where

@@ -110,7 +110,8 @@ def test_nothing_to_estimate_and_no_sequence(model, seq):
     ({"measured": np.zeros((0, 2)), "ctrl": np.zeros((0, 1)), "time": np.zeros(0)},
      ["measured must be T x nsensordata = T x 2", "got 0 x 2"]),
     ({"measured": np.zeros((T, 1))}, ["got 200 x 1"]),
-    ({"measured": np.zeros((T, 2, 1))}, ["'measured' must be a 1-D or 2-D array, got shape (200, 2, 1)"]),
+    ({"measured": np.zeros((T, 2, 1))},
+     ["'measured' must be a 1-D or 2-D array, got shape (200, 2, 1)"]),
     ({"measured": [["a", "b"]] * T}, ["sequences[0]: 'measured' is not an array of numbers"]),
     # ctrl: columns and rows against the model and measured
     ({"ctrl": np.zeros((T, 2))}, ["ctrl must be 200 x 1", "nu = 1", "got 200 x 2"]),
@@ -150,9 +151,11 @@ def test_shapes_and_values_are_value_errors_with_sizes(model, seq, change, parts
 
 
 @pytest.mark.parametrize("options, message", [
-    ({"max_iterations": -5}, "options: max_iterations must be >= 0, got -5"),  # solver_failed before
+    # max_iterations -5: status solver_failed before
+    ({"max_iterations": -5}, "options: max_iterations must be >= 0, got -5"),
     ({"function_tolerance": -1e-6}, "options: function_tolerance must be >= 0, got -1e-06"),
-    ({"threads": 10000}, "options['threads']: expected 0 (all cores) or a whole number from 1 to 256"),
+    ({"threads": 10000},
+     "options['threads']: expected 0 (all cores) or a whole number from 1 to 256"),
 ])
 def test_options_out_of_range_are_value_errors(model, seq, options, message):
     expect(fit_error(model, seq, options=options), message)
