@@ -308,3 +308,54 @@ def test_results_pickle_and_deepcopy_exactly(root, frames, pendulum, tmp_path):
     state = result.__getstate__()
     with pytest.raises(ValueError, match="truncated|corrupt"):
         mjsysid.FitResult.__new__(mjsysid.FitResult).__setstate__(state[:len(state) // 2])
+
+
+def test_wide_sensors_and_several_actuators_by_name(root):
+    # the spherical pendulum (models/ball_pendulum.xml: sensors quat 4, angvel 3, bob_pos 3
+    # columns; motors tx, ty), 300 steps from a 0.4 rad tilt under uniform random torques in
+    # [-0.5, 0.5] (seed 0), rolled out by mujoco, noise-free; damping (truth 0.05) from 0.1, 3
+    # iterations. Named columns in reverse order (a DataFrame of NAME[i], a dict of NAME as
+    # T x dim) place the data as the array in model order does: the same measured and estimate
+    # to the bit
+    mujoco = pytest.importorskip("mujoco")
+    path = str(root / "models/ball_pendulum.xml")
+    m = mujoco.MjModel.from_xml_path(path)
+    d = mujoco.MjData(m)
+    steps = 300
+    ctrl = np.random.default_rng(0).uniform(-0.5, 0.5, (steps, 2))
+    d.qpos[:] = [np.cos(0.2), np.sin(0.2), 0.0, 0.0]
+    qpos0 = d.qpos.copy()
+    y = np.empty((steps, m.nsensordata))
+    for k in range(steps):
+        d.ctrl[:] = ctrl[k]
+        mujoco.mj_forward(m, d)
+        y[k] = d.sensordata
+        mujoco.mj_step(m, d)
+    adr = {"quat": (0, 4), "angvel": (4, 3), "bob_pos": (7, 3)}
+    frame = pd.DataFrame({f"{n}[{i}]": y[:, a + i] for n, (a, w) in reversed(adr.items())
+                          for i in reversed(range(w))})
+    columns = {n: y[:, a:a + w] for n, (a, w) in reversed(adr.items())}
+    damping = [{"name": "damping", "kind": "joint_damping", "object": "ball", "initial": 0.1,
+                "lower": 1e-4, "upper": 5.0, "log": True}]
+
+    def fit(measured, ctrl_given):
+        return mjsysid.fit(path, damping, [{"ctrl": ctrl_given, "measured": measured,
+                                            "qpos": qpos0}], options={"max_iterations": 3})
+
+    by_array = fit(y, ctrl)
+    by_frame = fit(frame, pd.DataFrame({"ty": ctrl[:, 1], "tx": ctrl[:, 0]}))
+    by_dict = fit(columns, {"ty": ctrl[:, 1], "tx": ctrl[:, 0]})
+    assert by_array.estimates == by_frame.estimates == by_dict.estimates
+    for r in [by_frame, by_dict]:
+        assert np.array_equal(r.sequences[0].measured, by_array.sequences[0].measured)
+    assert np.array_equal(by_array.sequences[0].measured, y)
+    with pytest.raises(ValueError, match=r"column 'bob_pos' must have 3 column\(s\), got 2 \(give "
+                                         r"T x 3, or 'bob_pos\[0\]' ... 'bob_pos\[2\]' one by one\)"):
+        fit(dict(columns, bob_pos=y[:, 7:9]), ctrl)
+    with pytest.raises(ValueError, match=r"column 'bob_pos\[3\]': sensor 'bob_pos' has 3 column"):
+        fit(dict(columns, **{"bob_pos[3]": y[:, 9]}), ctrl)
+    with pytest.raises(ValueError, match=r"column 'quat\[0\]' gives a column of sensor 'quat' "
+                                         r"twice"):
+        fit(dict(columns, **{"quat[0]": y[:, 0]}), ctrl)
+    with pytest.raises(ValueError, match=r"no column for sensor angvel\[2\] \(the columns given"):
+        fit(frame.drop(columns=["angvel[2]"]), ctrl)
