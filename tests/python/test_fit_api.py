@@ -349,8 +349,9 @@ def test_wide_sensors_and_several_actuators_by_name(root):
     for r in [by_frame, by_dict]:
         assert np.array_equal(r.sequences[0].measured, by_array.sequences[0].measured)
     assert np.array_equal(by_array.sequences[0].measured, y)
-    with pytest.raises(ValueError, match=r"column 'bob_pos' must have 3 column\(s\), got 2 \(give "
-                                         r"T x 3, or 'bob_pos\[0\]' ... 'bob_pos\[2\]' one by one\)"):
+    with pytest.raises(ValueError, match=r"column 'bob_pos' must have 3 column\(s\), got 2 "
+                                         r"\(give T x 3, or 'bob_pos\[0\]' ... 'bob_pos\[2\]' "
+                                         r"one by one\)"):
         fit(dict(columns, bob_pos=y[:, 7:9]), ctrl)
     with pytest.raises(ValueError, match=r"column 'bob_pos\[3\]': sensor 'bob_pos' has 3 column"):
         fit(dict(columns, **{"bob_pos[3]": y[:, 9]}), ctrl)
