@@ -5,8 +5,9 @@
 // a version, and bytes of another version are refused (ValueError) rather than misread.
 //
 // One function per struct lists its fields once (Fields below); the same list writes and reads.
-// A field added to one of these structs must be added to its list (tests/python/
-// test_fit_api.py compares a round trip attribute by attribute, every public one).
+// A field added to or removed from one of these structs must be added to or removed from its
+// list, and kVersion raised (tests/python/test_fit_api.py compares a round trip attribute by
+// attribute, every public one).
 #pragma once
 
 #include <Eigen/Core>
