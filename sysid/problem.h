@@ -36,7 +36,10 @@
 // shrinks instead of the fit failing.
 //
 // Errors: bad input (unknown names, shapes, NaN in data, a parameter that has no effect on the
-// data, infeasible bounds) throws std::invalid_argument or ParameterError before Ceres starts.
+// data, infeasible bounds, a sequence with nothing to fit, a fit with nothing to estimate, times
+// that need more than 1e8 steps) throws std::invalid_argument or ParameterError before Ceres
+// starts; the message names the sequence, the member and the sizes expected and found
+// (docs/bad-input.md, "Issue 34").
 #pragma once
 
 #include <mujoco/mujoco.h>

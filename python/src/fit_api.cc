@@ -2,7 +2,10 @@
 // control_delays=None): the library API (sysid/problem.h) on Python data. The dicts are read into
 // FitParameter / FitSequence / FitOptions / FitMeasurement / FitControlDelay; unknown keys and
 // wrong shapes raise ValueError naming the key; everything else (names, bounds, shapes against the
-// model) is checked by Problem as for a C++ caller.
+// model, something to fit) is checked by Problem as for a C++ caller. A `measured` or `ctrl` with
+// named columns (a pandas DataFrame, a dict) is matched to the model's sensors or actuators by
+// name; a plain array is in model order. The model is a path, MJCF text, a mujoco.MjModel or a
+// mujoco.MjSpec. Each sequence of the result gets its % fit per channel (channel_fits).
 #include <nanobind/eigen/dense.h>
 #include <nanobind/nanobind.h>
 #include <nanobind/stl/map.h>
@@ -11,6 +14,9 @@
 
 #include <algorithm>
 #include <functional>
+#include <limits>
+#include <map>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -18,6 +24,8 @@
 
 #include "bindings.h"
 #include "core/mujoco_env.h"
+#include "core/text.h"
+#include "sysid/assess/metrics.h"
 #include "sysid/problem.h"
 #include "sysid/run/fit_table.h"
 
@@ -26,6 +34,8 @@ namespace {
 
 using nb::arg;
 using namespace nb::literals;
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // "a, b, c"
 std::string Joined(const std::vector<std::string>& names) {
@@ -111,30 +121,209 @@ int GetChoice(const nb::dict& d, const char* key, const std::vector<std::string>
   return static_cast<int>(it - names.begin());
 }
 
-// d[key] as a float64 matrix (a 1-D array is one column), or 0 x 0 when absent
-RowMatrix GetMatrix(const nb::dict& d, const char* key, const std::string& what) {
-  if (!d.contains(key)) return RowMatrix();
+// "(200, 2)": a numpy array's shape, for messages
+std::string ShapeOf(const nb::object& a) {
+  const nb::object shape = a.attr("shape");  // an object: nb::str of an accessor would cast it
+  return nb::cast<std::string>(nb::str(shape));
+}
+
+// value as a float64 numpy array; a value numpy cannot convert names the key
+nb::object FloatArray(nb::handle value, const char* key, const std::string& what) {
   nb::module_ np = nb::module_::import_("numpy");
-  nb::object a = np.attr("asarray")(d[key], "dtype"_a = "float64");
-  const int ndim = nb::cast<int>(a.attr("ndim"));
-  if (ndim == 1) a = a.attr("reshape")(-1, 1);
-  if (ndim != 1 && ndim != 2) {
-    throw std::invalid_argument(what + ": '" + key + "' must be a 1-D or 2-D array, not " +
-                                std::to_string(ndim) + "-D");
+  try {
+    return np.attr("asarray")(value, "dtype"_a = "float64");
+  } catch (nb::python_error& e) {
+    throw std::invalid_argument(what + ": '" + key + "' is not an array of numbers (" +
+                                nb::cast<std::string>(nb::str(value.type().attr("__name__"))) +
+                                "): " + nb::cast<std::string>(nb::str(e.value())));
   }
+}
+
+// an array as a C-contiguous float64 matrix (a 1-D array is one column)
+RowMatrix MatrixOf(nb::handle value, const char* key, const std::string& what) {
+  nb::module_ np = nb::module_::import_("numpy");
+  nb::object a = FloatArray(value, key, what);
+  const int ndim = nb::cast<int>(a.attr("ndim"));
+  if (ndim != 1 && ndim != 2) {
+    throw std::invalid_argument(
+        what + ": '" + key + "' must be a 1-D or 2-D array, got shape " + ShapeOf(a) + " (" +
+        nb::cast<std::string>(nb::str(value.type().attr("__name__"))) + ")");
+  }
+  if (ndim == 1) a = a.attr("reshape")(-1, 1);
   return nb::cast<RowMatrix>(np.attr("ascontiguousarray")(a));
 }
 
-// a 1-D vector (empty when absent)
-Eigen::VectorXd GetVector(const nb::dict& d, const char* key, const std::string& what) {
+// d[key] as a float64 matrix (a 1-D array is one column), or 0 x 0 when absent
+RowMatrix GetMatrix(const nb::dict& d, const char* key, const std::string& what) {
+  if (!d.contains(key)) return RowMatrix();
+  return MatrixOf(d[key], key, what);
+}
+
+// d[key] as a 1-D vector (empty when absent); scalar_ok: a number is one entry
+Eigen::VectorXd GetVector(const nb::dict& d, const char* key, const std::string& what,
+                          bool scalar_ok = false) {
   if (!d.contains(key)) return Eigen::VectorXd();
   nb::module_ np = nb::module_::import_("numpy");
-  nb::object a = np.attr("ravel")(np.attr("asarray")(d[key], "dtype"_a = "float64"));
-  try {
-    return nb::cast<Eigen::VectorXd>(a);
-  } catch (const nb::cast_error&) {
-    throw std::invalid_argument(what + ": '" + key + "' is not a vector of numbers");
+  nb::object a = FloatArray(d[key], key, what);
+  const int ndim = nb::cast<int>(a.attr("ndim"));
+  if (ndim != 1 && !(scalar_ok && ndim == 0)) {
+    throw std::invalid_argument(what + ": '" + key + "' must be " +
+                                (scalar_ok ? "a number or a 1-D array" : "a 1-D array") +
+                                ", got shape " + ShapeOf(a));
   }
+  return nb::cast<Eigen::VectorXd>(np.attr("ascontiguousarray")(np.attr("ravel")(a)));
+}
+
+// The model objects whose columns a named `measured` (sensors) or `ctrl` (actuators) fills, in
+// model order: each name, its columns' first index and count
+struct Columns {
+  const char* kind;     // "sensor" or "actuator"
+  const char* article;  // "a" or "an"
+  std::vector<std::string> names;
+  std::vector<int> first, width;
+  int total = 0;
+};
+
+Columns SensorColumns(const mjModel& m) {
+  Columns c{"sensor", "a", {}, {}, {}, static_cast<int>(m.nsensordata)};
+  for (int i = 0; i < m.nsensor; ++i) {
+    const char* name = mj_id2name(&m, mjOBJ_SENSOR, i);
+    c.names.push_back(name ? name : "");
+    c.first.push_back(m.sensor_adr[i]);
+    c.width.push_back(m.sensor_dim[i]);
+  }
+  return c;
+}
+
+Columns ActuatorColumns(const mjModel& m) {
+  Columns c{"actuator", "an", {}, {}, {}, static_cast<int>(m.nu)};
+  for (int i = 0; i < m.nu; ++i) {
+    const char* name = mj_id2name(&m, mjOBJ_ACTUATOR, i);
+    c.names.push_back(name ? name : "");
+    c.first.push_back(i);
+    c.width.push_back(1);
+  }
+  return c;
+}
+
+// a DataFrame's column labels as a Python list (list(df.columns): nb::list of the Index itself
+// would not convert it)
+nb::list ColumnLabels(nb::handle frame) {
+  nb::module_ builtins = nb::module_::import_("builtins");
+  return nb::cast<nb::list>(builtins.attr("list")(frame.attr("columns")));
+}
+
+// value with named columns: a dict, or a pandas DataFrame whose column labels are not pandas'
+// default 0, 1, ... (a DataFrame made from an array without names, taken as that array)
+bool HasNamedColumns(nb::handle value) {
+  if (nb::isinstance<nb::dict>(value)) return true;
+  if (!nb::hasattr(value, "columns") || !nb::hasattr(value, "to_numpy")) return false;
+  const nb::list labels = ColumnLabels(value);
+  for (size_t i = 0; i < nb::len(labels); ++i) {
+    if (!nb::isinstance<nb::int_>(labels[i]) ||
+        nb::cast<long long>(labels[i]) != static_cast<long long>(i)) {
+      return true;
+    }
+  }
+  return false;
+}
+
+// The named columns of `value` (a dict or a DataFrame, HasNamedColumns) placed by name into a
+// T x cols.total matrix: "NAME" for a 1-D object (a dict's value may be T x width for a wider
+// one) or "NAME[i]" for its column i. Objects in `required` must be given; the others, absent,
+// are NaN (not measured). A label that names no object, or a missing required one, is a
+// ValueError naming the labels given and the model's names.
+RowMatrix NamedColumns(nb::handle value, const Columns& cols,
+                       const std::vector<std::string>& required, const char* key,
+                       const std::string& what, const std::string& model) {
+  std::vector<std::pair<std::string, nb::object>> given;  // label, column(s)
+  if (nb::isinstance<nb::dict>(value)) {
+    for (auto [label, column] : nb::cast<nb::dict>(value)) {
+      given.emplace_back(nb::cast<std::string>(nb::str(label)), nb::borrow(column));
+    }
+  } else {
+    for (nb::handle label : ColumnLabels(value)) {
+      given.emplace_back(nb::cast<std::string>(nb::str(label)), value.attr("__getitem__")(label));
+    }
+  }
+  std::string labels, names;
+  for (const auto& [label, column] : given) labels += (labels.empty() ? "" : ", ") + label;
+  names = Joined(cols.names);
+  const std::string lists = " (the columns given: " + labels + "; the " + cols.kind +
+                            "s of model '" + model + "': " + names + ")";
+  RowMatrix out;
+  std::vector<bool> filled(cols.total, false);
+  const std::string where = what + ": '" + key + "'";
+  for (const auto& [label, column] : given) {
+    // NAME or NAME[i]
+    std::string name = label;
+    int index = -1;
+    const size_t open = label.rfind('[');
+    if (open != std::string::npos && label.back() == ']' && open + 2 < label.size()) {
+      const std::string digits = label.substr(open + 1, label.size() - open - 2);
+      if (digits.find_first_not_of("0123456789") == std::string::npos) {
+        name = label.substr(0, open);
+        index = std::stoi(digits);
+      }
+    }
+    auto it = std::find(cols.names.begin(), cols.names.end(), label);
+    if (it != cols.names.end()) {
+      index = -1;  // a name that itself ends in [i]
+    } else {
+      it = std::find(cols.names.begin(), cols.names.end(), name);
+    }
+    if (it == cols.names.end()) {
+      throw std::invalid_argument(where + ": column '" + label + "' is not " + cols.article + " " +
+                                  cols.kind + lists);
+    }
+    const size_t o = it - cols.names.begin();
+    const int width = cols.width[o];
+    if (index >= width) {
+      throw std::invalid_argument(where + ": column '" + label + "': " + cols.kind + " '" + name +
+                                  "' has " + std::to_string(width) + " column(s)" + lists);
+    }
+    const RowMatrix x = MatrixOf(column, key, what + ": '" + key + "' column '" + label + "'");
+    const int expected = index >= 0 ? 1 : width;
+    if (x.cols() != expected) {
+      throw std::invalid_argument(
+          where + ": column '" + label + "' must have " + std::to_string(expected) +
+          " column(s), got " + std::to_string(x.cols()) +
+          (index < 0 && width > 1
+               ? " (give T x " + std::to_string(width) + ", or '" + name + "[0]' ... '" + name +
+                     "[" + std::to_string(width - 1) + "]' one by one)"
+               : ""));
+    }
+    if (out.size() == 0) out = RowMatrix::Constant(x.rows(), cols.total, kNaN);
+    if (x.rows() != out.rows()) {
+      throw std::invalid_argument(where + ": column '" + label + "' has " +
+                                  std::to_string(x.rows()) + " rows, the columns before it " +
+                                  std::to_string(out.rows()));
+    }
+    const int first = cols.first[o] + std::max(index, 0);
+    for (int c = 0; c < expected; ++c) {
+      if (filled[first + c]) {
+        throw std::invalid_argument(where + ": column '" + label + "' gives a column of " +
+                                    cols.kind + " '" + name + "' twice");
+      }
+      filled[first + c] = true;
+      out.col(first + c) = x.col(c);
+    }
+  }
+  std::vector<std::string> missing;
+  for (size_t o = 0; o < cols.names.size(); ++o) {
+    if (std::find(required.begin(), required.end(), cols.names[o]) == required.end()) continue;
+    for (int c = 0; c < cols.width[o]; ++c) {
+      if (filled[cols.first[o] + c]) continue;
+      missing.push_back(cols.width[o] > 1 ? cols.names[o] + "[" + std::to_string(c) + "]"
+                                          : cols.names[o]);
+    }
+  }
+  if (!missing.empty()) {
+    throw std::invalid_argument(where + ": no column for " + cols.kind + " " + Joined(missing) +
+                                lists);
+  }
+  if (out.size() == 0) out = RowMatrix::Constant(0, cols.total, kNaN);
+  return out;
 }
 
 FitParameter ParameterOf(const nb::dict& d, size_t i) {
@@ -207,8 +396,10 @@ FitControlDelay ControlDelayOf(const nb::dict& d, size_t i) {
 }
 
 // models: the names given to Problem::AddModel (a sequence names one with `model` when there are
-// several)
-FitSequence SequenceOf(const nb::dict& d, size_t i, const std::vector<std::string>& models) {
+// several), in order, and their models (`measured` and `ctrl` with named columns are placed by
+// the model's sensor and actuator names)
+FitSequence SequenceOf(const nb::dict& d, size_t i, const std::vector<std::string>& models,
+                       const std::vector<const mjModel*>& compiled) {
   const std::string what = "sequences[" + std::to_string(i) + "]";
   CheckKeys(d, kSequenceKeys, what);
   for (const char* key : {"ctrl", "measured"}) {
@@ -221,8 +412,30 @@ FitSequence SequenceOf(const nb::dict& d, size_t i, const std::vector<std::strin
                                 Joined(models) + ")");
   }
   s.model = Get<std::string>(d, "model", models.front(), what);
-  s.ctrl = GetMatrix(d, "ctrl", what);
-  s.measured = GetMatrix(d, "measured", what);
+  const auto model = std::find(models.begin(), models.end(), s.model);
+  if (model == models.end()) {
+    throw std::invalid_argument(what + ": model '" + s.model + "' is not one of " + Joined(models));
+  }
+  const mjModel& m = *compiled[model - models.begin()];
+  s.no_sensors = Get<bool>(d, "no_sensors", false, what);
+  s.sensors = Get<std::vector<std::string>>(d, "sensors", {}, what);
+  // columns by name (a DataFrame, a dict): every actuator's; every fitted sensor's (`sensors`,
+  // default all; none with no_sensors), the others NaN when absent
+  if (HasNamedColumns(d["ctrl"])) {
+    const Columns actuators = ActuatorColumns(m);
+    s.ctrl = NamedColumns(d["ctrl"], actuators, actuators.names, "ctrl", what, s.model);
+  } else {
+    s.ctrl = GetMatrix(d, "ctrl", what);
+  }
+  if (HasNamedColumns(d["measured"])) {
+    const Columns sensors = SensorColumns(m);
+    const std::vector<std::string> required = s.no_sensors        ? std::vector<std::string>()
+                                              : s.sensors.empty() ? sensors.names
+                                                                  : s.sensors;
+    s.measured = NamedColumns(d["measured"], sensors, required, "measured", what, s.model);
+  } else {
+    s.measured = GetMatrix(d, "measured", what);
+  }
   // qpos, qvel, act: the initial state (1-D), or the logged states (T rows: fitted where
   // options' `states` says so, and their first row the initial state)
   const std::pair<const char*, std::pair<Eigen::VectorXd*, RowMatrix*>> states[] = {
@@ -231,18 +444,15 @@ FitSequence SequenceOf(const nb::dict& d, size_t i, const std::vector<std::strin
       {"act", {&s.x0.act, &s.act}}};
   for (const auto& [key, into] : states) {
     if (!d.contains(key)) continue;
-    nb::module_ np = nb::module_::import_("numpy");
-    if (nb::cast<int>(np.attr("ndim")(d[key])) == 2) {
+    if (nb::cast<int>(FloatArray(d[key], key, what).attr("ndim")) == 2) {
       *into.second = GetMatrix(d, key, what);
       if (into.second->rows() > 0) *into.first = into.second->row(0).transpose();
     } else {
-      *into.first = GetVector(d, key, what);
+      *into.first = GetVector(d, key, what, /*scalar_ok=*/true);
     }
   }
-  s.no_sensors = Get<bool>(d, "no_sensors", false, what);
   s.time = GetVector(d, "time", what);
   if (s.time.size() > 0) s.x0.time = s.time[0];
-  s.sensors = Get<std::vector<std::string>>(d, "sensors", {}, what);
   // the controls' own clock and how they reach the steps (the experiment's `controls:`)
   s.ctrl_time = GetVector(d, "ctrl_time", what);
   if (d.contains("ctrl_hold")) {
@@ -267,7 +477,7 @@ FitSequence SequenceOf(const nb::dict& d, size_t i, const std::vector<std::strin
   }
   if (d.contains("ctrl_delay")) {
     // one delay (s) for every actuator, or one per actuator
-    const Eigen::VectorXd delay = GetVector(d, "ctrl_delay", what);
+    const Eigen::VectorXd delay = GetVector(d, "ctrl_delay", what, /*scalar_ok=*/true);
     if (delay.size() == 1) {
       s.ctrl_delay.assign(s.ctrl.cols(), delay[0]);
     } else {
@@ -298,6 +508,22 @@ FitOptions OptionsOf(const nb::dict& d) {
   o.function_tolerance = Get<double>(d, "function_tolerance", o.function_tolerance, what);
   o.gradient_tolerance = Get<double>(d, "gradient_tolerance", o.gradient_tolerance, what);
   o.parameter_tolerance = Get<double>(d, "parameter_tolerance", o.parameter_tolerance, what);
+  // Ceres refuses these at the solve (status solver_failed); the experiment file's rules, except
+  // that 0 iterations (the start evaluated) stays allowed as before
+  if (o.max_iterations < 0) {
+    throw std::invalid_argument("options: max_iterations must be >= 0, got " +
+                                std::to_string(o.max_iterations));
+  }
+  const std::pair<const char*, double> tolerances[] = {
+      {"function_tolerance", o.function_tolerance},
+      {"gradient_tolerance", o.gradient_tolerance},
+      {"parameter_tolerance", o.parameter_tolerance}};
+  for (const auto& [name, value] : tolerances) {
+    if (!(value >= 0)) {
+      throw std::invalid_argument(std::string("options: ") + name + " must be >= 0, got " +
+                                  FormatDigits(value, 6));
+    }
+  }
   o.threads = CheckedThreads(Get<int>(d, "threads", o.threads, what), what + "['threads']");
   const LossType loss_types[] = {LossType::kNone, LossType::kHuber, LossType::kCauchy};
   std::vector<std::string> losses;
@@ -372,7 +598,7 @@ FitOptions OptionsOf(const nb::dict& d) {
       const char* objects = i < 2 ? "joints" : "actuators";
       CheckKeys(part, {"sigma", objects}, w);
       if (!part.contains("sigma")) throw std::invalid_argument(w + ": 'sigma' is required");
-      const Eigen::VectorXd sigma = GetVector(part, "sigma", w);
+      const Eigen::VectorXd sigma = GetVector(part, "sigma", w, /*scalar_ok=*/true);
       parts[i]->fit = true;
       parts[i]->sigma.assign(sigma.data(), sigma.data() + sigma.size());
       parts[i]->names = Get<std::vector<std::string>>(part, objects, {}, w);
@@ -399,11 +625,62 @@ void ForEachDict(const nb::object& list, const char* what,
   }
 }
 
-// model: a path to an MJCF/MJB file, or MJCF text (anything starting with '<')
-ModelPtr ModelOf(const std::string& model) {
-  const size_t first = model.find_first_not_of(" \t\r\n");
-  if (first != std::string::npos && model[first] == '<') return LoadModelFromString(model);
-  return LoadModel(model);
+// A mujoco.MjModel (or a mujoco.MjSpec, compiled first) as a model of this library: through its
+// MJB bytes (mj_saveModel), which libmujoco loads with its own version check: a wheel's model
+// whose layout differs is refused rather than misread. `what` names the argument in errors.
+ModelPtr ModelOfMujoco(nb::handle model, const std::string& what) {
+  nb::module_ mujoco = nb::module_::import_("mujoco");
+  nb::module_ np = nb::module_::import_("numpy");
+  nb::object compiled = nb::borrow(model);
+  if (nb::isinstance(model, mujoco.attr("MjSpec"))) {
+    try {
+      compiled = model.attr("compile")();
+    } catch (nb::python_error& e) {
+      throw ModelLoadError(
+          what + ": the MjSpec does not compile: " + nb::cast<std::string>(nb::str(e.value())));
+    }
+  }
+  const long long size = nb::cast<long long>(mujoco.attr("mj_sizeModel")(compiled));
+  nb::object buffer = np.attr("zeros")(size, "dtype"_a = "uint8");
+  mujoco.attr("mj_saveModel")(compiled, nb::none(), buffer);
+  const nb::bytes bytes = nb::cast<nb::bytes>(buffer.attr("tobytes")());
+  InstallMujocoHandlers();
+  mjModel* m = nullptr;
+  try {
+    m = mj_loadModelBuffer(bytes.c_str(), static_cast<mjtSize>(bytes.size()));
+  } catch (const MujocoError& e) {
+    throw ModelLoadError(what + ": the MjModel cannot be loaded: " + e.what());
+  }
+  if (m == nullptr) {
+    throw ModelLoadError(what + ": the MjModel cannot be loaded (mujoco " +
+                         nb::cast<std::string>(mujoco.attr("__version__")) + ", this module's " +
+                         MujocoVersion() + ")");
+  }
+  return ModelPtr(m);
+}
+
+// a mujoco.MjModel or mujoco.MjSpec (the mujoco module already imported: such an object exists)
+bool IsMujocoModel(nb::handle model) {
+  nb::module_ sys = nb::module_::import_("sys");
+  nb::object mujoco = sys.attr("modules").attr("get")("mujoco");
+  if (mujoco.is_none()) return false;
+  return nb::isinstance(model, mujoco.attr("MjModel")) ||
+         (nb::hasattr(mujoco, "MjSpec") && nb::isinstance(model, mujoco.attr("MjSpec")));
+}
+
+// model: a path to an MJCF/MJB file, MJCF text (anything starting with '<'), a mujoco.MjModel or a
+// mujoco.MjSpec; `what` names the argument in errors
+ModelPtr ModelOf(nb::handle model, const std::string& what) {
+  if (IsMujocoModel(model)) return ModelOfMujoco(model, what);
+  if (!nb::isinstance<nb::str>(model) && !nb::hasattr(model, "__fspath__")) {
+    throw std::invalid_argument(what + ": expected a path, MJCF text, a mujoco.MjModel or a " +
+                                "mujoco.MjSpec, got " +
+                                nb::cast<std::string>(nb::str(model.type().attr("__name__"))));
+  }
+  const std::string text = nb::cast<std::string>(nb::str(model));
+  const size_t first = text.find_first_not_of(" \t\r\n");
+  if (first != std::string::npos && text[first] == '<') return LoadModelFromString(text);
+  return LoadModel(text);
 }
 
 FitResult Fit(nb::object model, nb::object parameters, nb::object sequences, nb::object options,
@@ -411,29 +688,30 @@ FitResult Fit(nb::object model, nb::object parameters, nb::object sequences, nb:
   // one model (named "model"), or several: {name: model}
   Problem problem;
   std::vector<std::string> models;
+  std::vector<ModelPtr> compiled;  // as given to AddModel, for the sequences' named columns
   if (nb::isinstance<nb::dict>(model)) {
     for (auto [name, value] : nb::cast<nb::dict>(model)) {
       models.push_back(nb::cast<std::string>(nb::str(name)));
-      if (!nb::isinstance<nb::str>(value)) {
-        throw std::invalid_argument("model['" + models.back() + "']: expected a path or MJCF text");
-      }
-      problem.AddModel(models.back(), *ModelOf(nb::cast<std::string>(value)));
+      compiled.push_back(ModelOf(value, "model['" + models.back() + "']"));
+      problem.AddModel(models.back(), *compiled.back());
     }
     if (models.empty()) throw std::invalid_argument("model: an empty dict");
-  } else if (nb::isinstance<nb::str>(model) || nb::hasattr(model, "__fspath__")) {
-    models.push_back("model");
-    problem.AddModel("model", *ModelOf(nb::cast<std::string>(nb::str(model))));
   } else {
-    throw std::invalid_argument("model: expected a path, MJCF text or a dict {name: model}");
+    models.push_back("model");
+    compiled.push_back(ModelOf(model, "model"));
+    problem.AddModel("model", *compiled.back());
   }
+  std::vector<const mjModel*> by_index;
+  for (const ModelPtr& m : compiled) by_index.push_back(m.get());
   ForEachDict(parameters, "parameters",
               [&](const nb::dict& d, size_t i) { problem.AddParameter(ParameterOf(d, i)); });
   ForEachDict(measurements, "measurements",
               [&](const nb::dict& d, size_t i) { problem.AddMeasurement(MeasurementOf(d, i)); });
   ForEachDict(control_delays, "control_delays",
               [&](const nb::dict& d, size_t i) { problem.AddControlDelay(ControlDelayOf(d, i)); });
-  ForEachDict(sequences, "sequences",
-              [&](const nb::dict& d, size_t i) { problem.AddSequence(SequenceOf(d, i, models)); });
+  ForEachDict(sequences, "sequences", [&](const nb::dict& d, size_t i) {
+    problem.AddSequence(SequenceOf(d, i, models, by_index));
+  });
   FitOptions fit_options;
   if (!options.is_none()) {
     if (!nb::isinstance<nb::dict>(options)) throw std::invalid_argument("options: expected a dict");
@@ -449,6 +727,8 @@ FitResult Fit(nb::object model, nb::object parameters, nb::object sequences, nb:
   {
     nb::gil_scoped_release release;
     result = problem.Fit(fit_options);
+    // each sequence's % fit and NRMSE per channel, as the runner gives them
+    for (SequenceResult& sr : result.sequences) sr.channel_fits = ChannelFits(sr);
   }
   table.Flush();
   guard.RaiseCallbackError();
@@ -461,12 +741,15 @@ void BindFitApi(nb::module_& m) {
   // the docstring names the keys of the tables above (it lives as long as the module)
   static const std::string doc =
       "Fits a model's parameters to logged sequences (sysid/problem.h; docs/python.md).\n\n"
-      "model: an MJCF path or MJCF text, or a dict {name: path or text} of several models (each "
+      "model: an MJCF path, MJCF text, a mujoco.MjModel or a mujoco.MjSpec, or a dict {name: "
+      "model} of several models (each "
       "sequence names its `model`, a parameter the `models` it applies to; default all). "
       "parameters: list of dicts {" +
       Joined(kParameterKeys) + "} (name, kind, initial required; object | field). " +
       "sequences: list of dicts {" + Joined(kSequenceKeys) +
-      "} (ctrl T x nu and measured T x nsensordata in model order required; qpos, qvel, act: "
+      "} (ctrl T x nu and measured T x nsensordata required: arrays in model order, or a "
+      "DataFrame or dict whose columns are matched to the actuators and sensors by name; qpos, "
+      "qvel, act: "
       "the initial state, or T rows of logged states). options: dict {" +
       Joined(kOptionKeys) +
       "}. callback(IterationInfo) after every successful iteration. measurements: list of "

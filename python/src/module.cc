@@ -13,17 +13,22 @@
 #include <nanobind/stl/vector.h>
 
 #include <atomic>
+#include <cmath>
 #include <csignal>
 #include <filesystem>
+#include <new>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "bindings.h"
 #include "core/mujoco_env.h"
 #include "core/parameters.h"
 #include "core/simulator.h"
+#include "core/text.h"
 #include "mjsysid/version.h"
+#include "pickle.h"
 #include "sysid/io/experiment.h"
 #include "sysid/io/log.h"
 #include "sysid/io/result.h"
@@ -56,6 +61,24 @@ struct ExperimentFit : io::FitResultFile {
   std::string out_dir;
   int exit_code = 0;
 };
+
+// pickling (pickle.h): ExperimentFit's fields after its ResultFile's
+void Fields(Archive& a, ExperimentFit& f) {
+  a(static_cast<io::FitResultFile&>(f), f.out_dir, f.exit_code);
+}
+
+// __getstate__ / __setstate__ of a result class T (pickle.h): the state is bytes
+template <typename T>
+nb::bytes StateOf(const T& result) {
+  const std::string bytes = Pickled(result);
+  return nb::bytes(bytes.data(), bytes.size());
+}
+template <typename T>
+void SetState(T& result, const nb::bytes& state) {
+  T read;  // read first: a bad state leaves nothing half made
+  Unpickle(std::string(state.c_str(), state.size()), &read);
+  new (&result) T(std::move(read));
+}
 
 // an experiment given as a path or as a loaded ExperimentConfig
 io::ExperimentConfig ConfigOf(nb::handle experiment) {
@@ -326,8 +349,12 @@ NB_MODULE(_mjsysid, m) {
               "the model timestep's bias of the value (the timestep check), None: not run")
       .def_ro("truth", &ParameterEstimate::truth, "the true value (simulated data), else None")
       .def("__repr__", [](const ParameterEstimate& p) {
-        return "ParameterEstimate(" + p.name + " = " + std::to_string(p.value) + " +- " +
-               std::to_string(p.std_error) + ")";
+        return "ParameterEstimate(" + p.name + " = " + FormatDigits(p.value, 6) + " +- " +
+               FormatDigits(p.std_error, 2) + ", initial " + FormatDigits(p.initial, 6) +
+               (p.truth ? ", truth " + FormatDigits(*p.truth, 6) : std::string()) +
+               (p.at_lower ? ", at its lower bound" : "") +
+               (p.at_upper ? ", at its upper bound" : "") +
+               (p.identifiable ? "" : ", unidentifiable") + ")";
       });
 
   nb::class_<IterationInfo>(m, "IterationInfo", "One iteration of the solver")
@@ -339,6 +366,29 @@ NB_MODULE(_mjsysid, m) {
       .def_ro("successful", &IterationInfo::successful)
       .def_ro("parameters", &IterationInfo::parameters,
               "physical values after the iteration (FitResult.parameters order)");
+
+  nb::class_<ChannelFit>(m, "ChannelFit",
+                         "How well one channel (a sensor column) is reproduced, as MATLAB's "
+                         "`compare`: NRMSE = RMS(simulated - measured) / std(measured), % fit = "
+                         "100 (1 - NRMSE); NaN for a constant measured column "
+                         "(sysid/assess/metrics.h)")
+      .def_ro("channel", &ChannelFit::channel, "sensor, or sensor[i] for a wider one")
+      .def_ro("fit_initial", &ChannelFit::fit_initial, "% fit at the initial parameters")
+      .def_ro("fit_final", &ChannelFit::fit_final,
+              "% fit at the estimate (a fit in segments: simulated in one piece)")
+      .def_ro("nrmse_initial", &ChannelFit::nrmse_initial)
+      .def_ro("nrmse_final", &ChannelFit::nrmse_final)
+      .def_ro("fit_segments", &ChannelFit::fit_segments,
+              "a fit in segments: % fit segment by segment; NaN for a fit in one piece")
+      .def_ro("nrmse_segments", &ChannelFit::nrmse_segments)
+      .def("__repr__", [](const ChannelFit& f) {
+        return "ChannelFit(" + f.channel + ", fit " + FormatDigits(f.fit_initial, 4) + " % -> " +
+               FormatDigits(f.fit_final, 4) + " %" +
+               (std::isnan(f.fit_segments)
+                    ? std::string()
+                    : ", segments " + FormatDigits(f.fit_segments, 4) + " %") +
+               ")";
+      });
 
   nb::class_<SequenceResult>(m, "SequenceResult",
                              "Fitted sensor columns of one sequence (T rows, model order)")
@@ -360,7 +410,20 @@ NB_MODULE(_mjsysid, m) {
       .def_ro("state_dims", &SequenceResult::state_dims)
       .def_ro("state_measured", &SequenceResult::state_measured)
       .def_ro("state_simulated_initial", &SequenceResult::state_simulated_initial)
-      .def_ro("state_simulated_final", &SequenceResult::state_simulated_final);
+      .def_ro("state_simulated_final", &SequenceResult::state_simulated_final)
+      .def_ro("channel_fits", &SequenceResult::channel_fits,
+              "per column of measured: % fit and NRMSE, initial and final (a list of "
+              "ChannelFit)")
+      .def("__repr__", [](const SequenceResult& r) {
+        std::string fits;
+        for (const ChannelFit& f : r.channel_fits) {
+          fits += (fits.empty() ? "" : ", ") + f.channel + " " + FormatDigits(f.fit_final, 4);
+        }
+        return "SequenceResult(" + r.name + ", model " + r.model + ", " +
+               std::to_string(r.measured.rows()) + " samples, " +
+               std::to_string(r.measured.cols()) + " channels" +
+               (fits.empty() ? std::string() : "; % fit " + fits) + ")";
+      });
 
   nb::class_<LedgerRow>(m, "LedgerRow",
                         "One phase of a fit's ledger (sysid/solve/fit_ledger.h): entries, "
@@ -469,7 +532,22 @@ NB_MODULE(_mjsysid, m) {
               "ended by the statistical stop (gauss_newton_stop, docs/numerics.md \"Stopping\")")
       .def_ro("diagnostics", &FitResult::diagnostics,
               "how the fit got its answer: simulation steps, Jacobian mode, reduced model, "
-              "ledger, the covariance's Jacobian, folds (FitDiagnostics)");
+              "ledger, the covariance's Jacobian, folds (FitDiagnostics)")
+      .def("__getstate__", &StateOf<FitResult>)
+      .def("__setstate__", &SetState<FitResult>)
+      .def("__repr__", [](const FitResult& r) {
+        std::string estimates;
+        for (const ParameterEstimate& p : r.parameters) {
+          estimates += (estimates.empty() ? "" : ", ") + p.name + " = " + FormatDigits(p.value, 6) +
+                       " +- " + FormatDigits(p.std_error, 2);
+        }
+        return std::string("FitResult(") + FitStatusName(r.outcome) + ", " +
+               std::to_string(r.iterations) + " iterations, cost " +
+               FormatDigits(r.initial_cost, 4) + " -> " + FormatDigits(r.final_cost, 4) + "; " +
+               estimates + "; " + std::to_string(r.sequences.size()) + " sequence" +
+               (r.sequences.size() == 1 ? "" : "s") + ", " + std::to_string(r.warnings.size()) +
+               " warning" + (r.warnings.size() == 1 ? "" : "s") + ")";
+      });
 
   nb::class_<io::FitResultFile, FitResult>(m, "ResultFile",
                                            "A fit as stored in DIR/result.yaml + result.h5")
@@ -480,12 +558,16 @@ NB_MODULE(_mjsysid, m) {
       .def_ro("mjsysid_version", &io::FitResultFile::mjsysid_version)
       .def_ro("mujoco_version", &io::FitResultFile::mujoco_version)
       .def_ro("solver", &io::FitResultFile::solver)
-      .def_ro("identified_models", &io::FitResultFile::identified_models);
+      .def_ro("identified_models", &io::FitResultFile::identified_models)
+      .def("__getstate__", &StateOf<io::FitResultFile>)
+      .def("__setstate__", &SetState<io::FitResultFile>);
 
   nb::class_<ExperimentFit, io::FitResultFile>(m, "ExperimentFit",
                                                "The outcome of fit_experiment (`sysid fit`)")
       .def_ro("out_dir", &ExperimentFit::out_dir)
-      .def_ro("exit_code", &ExperimentFit::exit_code, "the exit code `sysid fit` would give");
+      .def_ro("exit_code", &ExperimentFit::exit_code, "the exit code `sysid fit` would give")
+      .def("__getstate__", &StateOf<ExperimentFit>)
+      .def("__setstate__", &SetState<ExperimentFit>);
 
   // --- logs (sysid/io/log.h) ---
   nb::class_<io::Sequence>(m, "Sequence",

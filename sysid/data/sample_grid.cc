@@ -3,9 +3,16 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <string>
+
+#include "core/text.h"
 
 namespace mjsysid {
 namespace {
+
+// the most simulation steps of one sequence: 1e8 (55 h at a 2 ms timestep; far below the int
+// steps are counted in)
+constexpr double kMaxSteps = 1e8;
 
 // (t - t0) / dt, a whole number when within the tolerance of one
 double Position(double t, double t0, double dt) {
@@ -17,8 +24,11 @@ double Position(double t, double t0, double dt) {
 void CheckTimes(const Eigen::VectorXd& t, const std::string& where, const char* what) {
   for (Eigen::Index k = 0; k < t.size(); ++k) {
     if (!std::isfinite(t[k]) || (k > 0 && !(t[k] > t[k - 1]))) {
-      throw std::invalid_argument(where + what + " times must be finite and strictly increasing " +
-                                  "(row " + std::to_string(k) + ")");
+      // the row and its value (and the one before), to find it in the log
+      throw std::invalid_argument(
+          where + what + " times must be finite and strictly increasing (row " + std::to_string(k) +
+          ": " + FormatDigits(t[k], 9) +
+          (k > 0 ? " after " + FormatDigits(t[k - 1], 9) : std::string()) + ")");
     }
   }
 }
@@ -55,6 +65,15 @@ SampleGrid BuildSampleGrid(const Eigen::VectorXd& time, int T, double x0_time,
   for (int k = 0; k < T; ++k) {
     g.position[k] = time.size() ? Position(time[k], t0, dt) : k;
     g.on_grid = g.on_grid && g.position[k] == std::floor(g.position[k]);
+  }
+  // more steps than a fit can simulate: refused before anything is allocated (their count did
+  // not fit an int, and std::bad_alloc followed); most often stamps in ms or ns read as seconds
+  if (T > 0 && !(g.position[T - 1] < kMaxSteps)) {
+    throw std::invalid_argument(
+        where + "the sample times span " + FormatDigits(time[T - 1] - t0, 6) + " s, " +
+        FormatDigits(g.position[T - 1], 3) + " steps of the model's timestep " +
+        FormatDigits(dt, 6) + " s: more than the " + FormatDigits(kMaxSteps, 3) +
+        " a fit simulates (times are in seconds: stamps in ms or ns are 1e3 or 1e9 times larger)");
   }
   // steps: through the last sample's step, or the step after it when it lies between two
   g.steps = T ? static_cast<int>(std::ceil(g.position[T - 1])) + 1 : 0;

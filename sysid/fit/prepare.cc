@@ -20,6 +20,9 @@
 #include <map>
 #include <memory>
 #include <stdexcept>
+#include <string>
+#include <tuple>
+#include <utility>
 #include <vector>
 
 #include "core/invariant.h"
@@ -215,33 +218,78 @@ void BuildTermVariables(PreparedFit& fit, FitVariables& vars, FitPlan* out) {
   }
 }
 
-// 4a. a sequence's matrices against its model: measured T x ns, ctrl Tc x nu, times, holds, delays
+// "R x C"
+std::string Shape(Eigen::Index rows, Eigen::Index cols) {
+  return std::to_string(rows) + " x " + std::to_string(cols);
+}
+
+// 4a. a sequence's matrices against its model: measured T x ns, ctrl Tc x nu, times, holds,
+// delays, the initial state and the logged states. Each message names the member and the sizes
+// expected and found (a Python caller's keys have the same names, python/src/fit_api.cc).
 void CheckSequenceShapes(const FitSequence& sq, const StateDims& d, const std::string& where) {
-  const int T = static_cast<int>(sq.measured.rows());
-  const int Tc = static_cast<int>(sq.ctrl_time.size() ? sq.ctrl_time.size() : T);
+  const Eigen::Index T = sq.measured.rows();
+  const Eigen::Index Tc = sq.ctrl_time.size() ? sq.ctrl_time.size() : T;
   if (T < 1 || sq.measured.cols() != d.ns) {
-    throw std::invalid_argument(where + "measured must be T x " + std::to_string(d.ns) +
-                                " (T x nsensordata, T >= 1), got " +
-                                std::to_string(sq.measured.rows()) + " x " +
-                                std::to_string(sq.measured.cols()));
+    throw std::invalid_argument(where + "measured must be T x nsensordata = T x " +
+                                std::to_string(d.ns) + " with T >= 1 (one row per sample, the " +
+                                "model's sensor columns in model order), got " +
+                                Shape(sq.measured.rows(), sq.measured.cols()));
   }
   if (sq.ctrl.rows() != Tc || sq.ctrl.cols() != d.nu) {
     throw std::invalid_argument(
-        where + "ctrl must be " + std::to_string(Tc) + " x nu with nu = " + std::to_string(d.nu) +
-        " (" + (sq.ctrl_time.size() ? "one row per ctrl_time" : "T x nu") + "), got " +
-        std::to_string(sq.ctrl.rows()) + " x " + std::to_string(sq.ctrl.cols()));
+        where + "ctrl must be " + Shape(Tc, d.nu) + " (" +
+        (sq.ctrl_time.size() ? "one row per ctrl_time entry" : "one row per row of measured") +
+        ", one column per actuator: nu = " + std::to_string(d.nu) + "), got " +
+        Shape(sq.ctrl.rows(), sq.ctrl.cols()));
   }
   if (sq.time.size() != 0 && sq.time.size() != T) {
     throw std::invalid_argument(where + "time must be empty or have " + std::to_string(T) +
-                                " entries, got " + std::to_string(sq.time.size()));
+                                " entries (one per row of measured), got " +
+                                std::to_string(sq.time.size()));
   }
-  if ((!sq.ctrl_hold.empty() && static_cast<int>(sq.ctrl_hold.size()) != d.nu) ||
-      (!sq.ctrl_delay.empty() && static_cast<int>(sq.ctrl_delay.size()) != d.nu)) {
-    throw std::invalid_argument(where + "ctrl_hold and ctrl_delay need one entry per actuator");
+  const std::pair<const char*, size_t> per_actuator[] = {{"ctrl_hold", sq.ctrl_hold.size()},
+                                                         {"ctrl_delay", sq.ctrl_delay.size()}};
+  for (const auto& [name, size] : per_actuator) {
+    if (size != 0 && static_cast<int>(size) != d.nu) {
+      throw std::invalid_argument(where + name + " must be empty or have one entry per actuator (" +
+                                  std::to_string(d.nu) + "), got " + std::to_string(size));
+    }
   }
   for (double delay : sq.ctrl_delay) {
     if (!(delay >= 0) || !std::isfinite(delay)) {
       throw std::invalid_argument(where + "a control delay must be finite and >= 0");
+    }
+  }
+  // the logged states, when given: one row per sample (checked first: a caller may have taken
+  // the initial state from their first row)
+  const std::tuple<const char*, const RowMatrix*, int, const char*> logged[] = {
+      {"qpos", &sq.qpos, d.nq, "nq"}, {"qvel", &sq.qvel, d.nv, "nv"}, {"act", &sq.act, d.na, "na"}};
+  for (const auto& [name, x, n, dim] : logged) {
+    if (x->rows() != 0 && (x->rows() != T || x->cols() != n)) {
+      throw std::invalid_argument(where + "logged " + name + " must be T x " + dim + " = " +
+                                  Shape(T, n) + " (one row per row of measured), got " +
+                                  Shape(x->rows(), x->cols()));
+    }
+  }
+  // the given initial state (empty parts: the model's qpos0, zeros)
+  const std::tuple<const char*, const Eigen::VectorXd*, int, const char*> initial[] = {
+      {"qpos", &sq.x0.qpos, d.nq, "nq"},
+      {"qvel", &sq.x0.qvel, d.nv, "nv"},
+      {"act", &sq.x0.act, d.na, "na"}};
+  for (const auto& [name, x, n, dim] : initial) {
+    if (x->size() != 0 && x->size() != n) {
+      throw std::invalid_argument(where + "the initial " + name + " has " +
+                                  std::to_string(x->size()) + " entries, expected " + dim + " = " +
+                                  std::to_string(n) + " (the initial state is one row; logged " +
+                                  "states are T x " + dim + ")");
+    }
+    for (Eigen::Index i = 0; i < x->size(); ++i) {
+      if (!std::isfinite((*x)[i])) {
+        throw std::invalid_argument(where + "the initial " + name + " is not finite at entry " +
+                                    std::to_string(i) + " (" + FormatDigits((*x)[i], 6) +
+                                    "; the simulation starts there: with logged states, their " +
+                                    "first row unless given apart)");
+      }
     }
   }
 }
@@ -465,6 +513,16 @@ void PrepareSequences(PreparedFit& fit, FitVariables& vars, const FitOptions& op
       fit.state_channels[q] = BuildStateChannels(m, options.states, "model '" + mo.name + "': ");
       fit.state_missing[q] = CheckLoggedStates(m, fit.state_channels[q],
                                                static_cast<int>(sq.measured.rows()), where, &sq);
+    }
+    // a sequence without a fitted column adds no residual: a mistake (a model without sensors, a
+    // measured without columns, no_sensors without states), and a fit with no residual at all has
+    // nothing to compute its uncertainty from
+    if (fit.channels[q].empty() && fit.state_channels[q].empty()) {
+      throw std::invalid_argument(
+          where + "nothing to fit: no sensor column (measured is " +
+          Shape(sq.measured.rows(), sq.measured.cols()) + ", model '" + mo.name + "' has " +
+          std::to_string(m.nsensor) + " sensors" + (sq.no_sensors ? ", no_sensors is set" : "") +
+          ") and no logged state fitted (FitOptions::states: qpos, qvel or act)");
     }
   }
   for (size_t c = 0; c < fit.control_delays.size(); ++c) {
@@ -704,6 +762,13 @@ FitPlan PrepareFit(const FitParts& parts, const FitOptions& options) {
   CheckParameters(fit);
   BuildSimulators(fit, vars, solve, options);
   BuildTermVariables(fit, vars, &plan);
+  // something must be estimated (as an experiment file's "no parameters to identify"); the
+  // initial states alone are an estimate
+  if (fit.params.empty() && vars.m.empty() && !options.estimate_initial_state) {
+    throw std::invalid_argument(
+        "nothing to estimate: no parameter (AddParameter), no fitted measurement term or control "
+        "delay (AddMeasurement, AddControlDelay) and estimate_initial_state is off");
+  }
   PrepareSequences(fit, vars, options);
   std::vector<Sensitivity> initial_sensitivity;
   InitialRollouts(fit, vars, solve, options, &plan, &initial_sensitivity);

@@ -593,5 +593,104 @@ TEST(JacobianCheckTest, CostFunctionsAgreeWithCeresNumericDifferentiation) {
   EXPECT_LE(check.worst_relative_error, 1e-4) << check.worst_where;
 }
 
+// Bad input is a std::invalid_argument whose message names the member and the sizes expected and
+// found, never a crash. Nothing to fit: a model without sensors (measured T x 0) or no_sensors
+// without fitted states; before the check such a fit ran with no residual and crashed (SIGSEGV)
+// in its uncertainty step. Nothing to estimate: no parameter, term, delay or initial state (a fit
+// that "converged" without estimating anything). Shapes against the model and against measured.
+// The pendulum (nq = nv = nu = 1, sensors angle and rate), 50 steps from 0.3 rad, noise-free; the
+// sensorless copy fits its logged qpos (sigma 0.01 rad) as the control case that still runs.
+TEST(ProblemInputTest, BadInputIsAnInvalidArgumentNamingTheSizes) {
+  ModelPtr m = LoadModel(kModels + "/pendulum.xml");
+  ModelPtr sensorless = LoadModelFromString(R"(<mujoco>
+  <option timestep="0.002" integrator="Euler"/>
+  <worldbody><body name="pole" pos="0 0 1">
+    <joint name="hinge" type="hinge" axis="0 1 0" damping="0.05"/>
+    <geom type="capsule" fromto="0 0 0 0 0 -0.5" size="0.02" mass="0"/>
+    <body name="bob" pos="0 0 -0.5"><geom type="sphere" size="0.05" mass="1"/></body>
+  </body></worldbody>
+  <actuator><motor name="torque" joint="hinge"/></actuator>
+</mujoco>)");
+  const int T = 50;
+  const RowMatrix u = RowMatrix::Zero(T, 1);
+  InitialState x0;
+  x0.qpos = Eigen::VectorXd::Constant(1, 0.3);
+  const RowMatrix y = Measure(*m, {}, x0, u, 0, 0);  // angle (= qpos), rate
+  const FitSequence good("seq0", "pendulum", x0, u, y);
+  // the message of a fit of `seq` (damping fitted when `parameter`); "" when it runs
+  auto error_of = [&](const mjModel& model, const FitSequence& seq, FitOptions opt,
+                      bool parameter) -> std::string {
+    Problem problem;
+    problem.AddModel("pendulum", model);
+    if (parameter) {
+      problem.AddParameter(
+          FitParameter("damping", Spec("joint_damping", "hinge"), 0.2).Bounds(1e-4, 5));
+    }
+    problem.AddSequence(seq);
+    opt.threads = 1;
+    opt.max_iterations = 5;
+    try {
+      problem.Fit(opt);
+    } catch (const std::invalid_argument& e) {
+      std::printf("[ measured ] %s\n", e.what());
+      return e.what();
+    }
+    return "";
+  };
+  auto expect = [](const std::string& message, const std::vector<std::string>& parts) {
+    EXPECT_FALSE(message.empty()) << "no error";
+    for (const std::string& p : parts) EXPECT_NE(message.find(p), std::string::npos) << message;
+  };
+
+  FitSequence none = good;  // a model without sensors: measured T x 0, no state fitted
+  none.measured = RowMatrix(T, 0);
+  expect(error_of(*sensorless, none, FitOptions(), true),
+         {"sequence 'seq0': nothing to fit", "measured is 50 x 0", "0 sensors"});
+  FitOptions states;  // the same with its logged qpos fitted: runs
+  states.states.qpos.fit = true;
+  states.states.qpos.sigma = {0.01};
+  FitSequence logged = none;
+  logged.qpos = y.leftCols(1);
+  EXPECT_EQ(error_of(*sensorless, logged, states, true), "");
+  FitSequence unfitted = good;  // no_sensors without fitted states
+  unfitted.no_sensors = true;
+  expect(error_of(*m, unfitted, FitOptions(), true), {"nothing to fit", "no_sensors is set"});
+  expect(error_of(*m, good, FitOptions(), false), {"nothing to estimate"});
+
+  FitSequence bad = good;  // a T-long initial qpos (a 1-D log taken for the initial state)
+  bad.x0.qpos = y.col(0);
+  expect(error_of(*m, bad, FitOptions(), true), {"initial qpos has 50 entries, expected nq = 1"});
+  bad = good;
+  bad.x0.qvel = Eigen::VectorXd::Constant(1, std::nan(""));
+  expect(error_of(*m, bad, FitOptions(), true), {"initial qvel is not finite at entry 0"});
+  bad = good;  // logged qpos with 3 columns
+  bad.qpos = RowMatrix::Zero(T, 3);
+  expect(error_of(*m, bad, FitOptions(), true), {"logged qpos must be T x nq = 50 x 1", "50 x 3"});
+  bad = good;  // measured 3 rows short of ctrl
+  bad.measured = y.topRows(T - 3);
+  expect(error_of(*m, bad, FitOptions(), true),
+         {"ctrl must be 47 x 1 (one row per row of measured", "got 50 x 1"});
+  bad = good;  // ctrl with 2 columns for 1 actuator
+  bad.ctrl = RowMatrix::Zero(T, 2);
+  expect(error_of(*m, bad, FitOptions(), true), {"ctrl must be 50 x 1", "nu = 1", "got 50 x 2"});
+  bad = good;  // measured with the columns of one sensor
+  bad.measured = y.leftCols(1);
+  expect(error_of(*m, bad, FitOptions(), true),
+         {"measured must be T x nsensordata = T x 2", "got 50 x 1"});
+  bad = good;
+  bad.ctrl_hold = {ControlHold::kZeroOrder, ControlHold::kLinear};
+  expect(error_of(*m, bad, FitOptions(), true),
+         {"ctrl_hold must be empty or have one entry per actuator (1), got 2"});
+  bad = good;  // stamps in ns read as seconds: 1e6 s between samples, 5e8 steps each; the step
+  // count overflowed an int and the fit ended in std::bad_alloc before
+  bad.time = Eigen::VectorXd::LinSpaced(T, 0, (T - 1) * 2e6);
+  expect(error_of(*m, bad, FitOptions(), true),
+         {"the sample times span 9.8e+07 s, 4.9e+10 steps of the model's timestep 0.002 s",
+          "more than the 1e+08"});
+  bad = good;  // time not increasing
+  bad.time = Eigen::VectorXd::Zero(T);
+  expect(error_of(*m, bad, FitOptions(), true), {"strictly increasing", "row 1"});
+}
+
 }  // namespace
 }  // namespace mjsysid
