@@ -47,16 +47,14 @@ void SideBySide(const std::vector<RgbImage>& views, RgbImage* out) {
   }
 }
 
-// the logged qpos in force at time t (the last measured row at or before it: a log's own
-// samples, never interpolated, so that a quaternion stays one); false before the first
-bool LoggedQposAt(const FitSequence& seq, double t, Eigen::VectorXd* q) {
-  bool found = false;
+// the row of the logged qpos in force at time t (the last measured row at or before it: a log's
+// own samples, never interpolated, so that a quaternion stays one); -1 before the first
+Eigen::Index LoggedRowAt(const FitSequence& seq, double t) {
+  Eigen::Index row = -1;
   for (Eigen::Index k = 0; k < seq.qpos.rows() && seq.time[k] <= t + 1e-9; ++k) {
-    if (seq.qpos.row(k).array().isNaN().any()) continue;
-    *q = seq.qpos.row(k).transpose();
-    found = true;
+    if (!seq.qpos.row(k).array().isNaN().any()) row = k;
   }
-  return found;
+  return row;
 }
 
 }  // namespace
@@ -166,9 +164,9 @@ MotionResult MakeMotion(const io::FitResultFile& r, const MotionOptions& o) {
   // fitted simulation's, which starts from the log's state)
   RowMatrix logged(measured ? frames : 0, nq);
   for (int f = 0; f < logged.rows(); ++f) {
-    Eigen::VectorXd q;
-    if (LoggedQposAt(*seq, t0 + f * stride * dt, &q)) {
-      logged.row(f) = q.transpose();
+    const Eigen::Index row = LoggedRowAt(*seq, t0 + f * stride * dt);
+    if (row >= 0) {
+      logged.row(f) = seq->qpos.row(row);
     } else {
       logged.row(f) = fitted_run.states.row(f * stride).head(nq);
     }
