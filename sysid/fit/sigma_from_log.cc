@@ -24,17 +24,16 @@ bool Fits(const FitSequence& sq, const std::string& name) {
          std::find(sq.sensors.begin(), sq.sensors.end(), name) != sq.sensors.end();
 }
 
-// the sensor's sigma_hat pooled over its columns in the sequences that fit it
-double EstimateOne(const PreparedFit& fit, const std::string& name) {
+}  // namespace
+
+double SigmaFromLog(const std::string& name, const std::vector<FitSequence>& sequences,
+                    const std::function<const mjModel*(const std::string&)>& model_of) {
   const std::string where = "sensor '" + name + "' (sigma: auto): ";
   double weighted = 0, samples = 0, largest = 0;
   bool found = false;
-  for (const FitSequence& sq : fit.sequences) {
+  for (const FitSequence& sq : sequences) {
     if (!Fits(sq, name)) continue;
-    const mjModel* m = nullptr;
-    for (const FitModel& mo : fit.models) {
-      if (mo.name == sq.model) m = mo.model.get();
-    }
+    const mjModel* m = model_of(sq.model);
     if (!m) continue;  // PrepareFit names the unknown model
     const int id = mj_name2id(m, mjOBJ_SENSOR, name.c_str());
     if (id < 0) continue;
@@ -72,8 +71,6 @@ double EstimateOne(const PreparedFit& fit, const std::string& name) {
   return std::max(std::sqrt(weighted / samples), kRelativeFloor * largest);
 }
 
-}  // namespace
-
 FitOptions WithSigmasFromLog(const PreparedFit& fit, const FitOptions& options,
                              std::map<std::string, double>* sigmas) {
   FitOptions out = options;
@@ -90,7 +87,12 @@ FitOptions WithSigmasFromLog(const PreparedFit& fit, const FitOptions& options,
         out.sensors_with_sigma.end()) {
       throw std::invalid_argument("sensor '" + name + "' (sigma: auto) listed twice");
     }
-    const double sigma = EstimateOne(fit, name);
+    const double sigma = SigmaFromLog(name, fit.sequences, [&](const std::string& model) {
+      for (const FitModel& mo : fit.models) {
+        if (mo.name == model) return static_cast<const mjModel*>(mo.model.get());
+      }
+      return static_cast<const mjModel*>(nullptr);
+    });
     out.sensor_weights[name] = 1.0 / sigma;
     out.sensors_with_sigma.push_back(name);
     if (sigmas) (*sigmas)[name] = sigma;

@@ -13,12 +13,20 @@
 // model_mismatch and the residual diagnostics show the correlation (docs/real-logs.md).
 #pragma once
 
+#include <functional>
 #include <map>
 #include <string>
+#include <vector>
 
 #include "sysid/solve/fit_state.h"
 
 namespace mjsysid {
+
+// sensor `name`'s sigma_hat from the sequences that fit it (their models by name through
+// model_of; nullptr: skipped), pooled as above; throws std::invalid_argument naming the sensor as
+// WithSigmasFromLog does (run::BuildProblem calls it to refuse an experiment before the fit)
+double SigmaFromLog(const std::string& name, const std::vector<FitSequence>& sequences,
+                    const std::function<const mjModel*(const std::string&)>& model_of);
 
 // options with every sensor of options.sensors_sigma_from_log given the weight 1 / sigma_hat and
 // listed in sensors_with_sigma (sensors_sigma_from_log then empty); *sigmas (may be nullptr)

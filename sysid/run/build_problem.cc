@@ -6,10 +6,12 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <stdexcept>
 #include <thread>
 #include <tuple>
 
 #include "core/text.h"
+#include "sysid/fit/sigma_from_log.h"
 #include "sysid/io/log.h"
 #include "sysid/io/sequence_models.h"
 #include "sysid/run/fit_experiment.h"
@@ -423,7 +425,20 @@ void ResolveOptions(const io::ExperimentConfig& cfg, int threads, BuiltProblem* 
     o.threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   for (const io::SensorSpec& ss : cfg.sensors) {
     if (ss.sigma_from_log) {
-      o.sensors_sigma_from_log.push_back(ss.name);  // Problem::Fit estimates it
+      // Problem::Fit estimates it; an estimate that cannot be made is bad input, said here
+      try {
+        SigmaFromLog(ss.name, out->sequences, [&](const std::string& model) {
+          for (size_t i = 0; i < out->model_names.size(); ++i) {
+            if (out->model_names[i] == model)
+              return static_cast<const mjModel*>(out->models[i].get());
+          }
+          return static_cast<const mjModel*>(nullptr);
+        });
+      } catch (const std::invalid_argument& e) {
+        throw io::ConfigError(ss.marks.Of("sigma"), e.what(),
+                              "sigma: auto estimates the noise from the fitted sequences' logs");
+      }
+      o.sensors_sigma_from_log.push_back(ss.name);
       continue;
     }
     o.sensor_weights[ss.name] = ss.ResidualWeight();

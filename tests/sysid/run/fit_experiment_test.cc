@@ -317,6 +317,25 @@ TEST(FitExperimentTest, BadInputsAreNamedErrors) {
   io::WriteLog(dir + "/cartpole.h5", sim::SimulateExperiment(other, sim::SimulateSettings{}));
   cfg.data = other.data;
   EXPECT_THROW(BuildProblem(cfg), io::LogError);
+  // sigma: auto on a sensor that reads 0 throughout: refused before any fit, at the sensor's
+  // sigma in the experiment (exit 2 for the command line), naming the sensor
+  io::ExperimentConfig zero = io::LoadExperiment(kExperiments + "/pendulum.yaml");
+  zero.data = {io::DataFile{dir + "/zero.h5", {}}};
+  io::Log log = sim::SimulateExperiment(zero, sim::SimulateSettings{});
+  for (io::Sequence& s : log.sequences) s.sensordata.col(1).setZero();
+  io::WriteLog(dir + "/zero.h5", log);
+  for (io::SensorSpec& ss : zero.sensors) {
+    ss.sigma.reset();
+    ss.sigma_from_log = true;
+  }
+  try {
+    BuildProblem(zero);
+    ADD_FAILURE() << "sigma: auto on a column of zeros was accepted";
+  } catch (const io::ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("sensor 'rate' (sigma: auto): it reads 0 throughout"),
+              std::string::npos)
+        << e.what();
+  }
   fs::remove_all(dir);
 }
 
