@@ -35,34 +35,42 @@ double Nrmse(const Eigen::Ref<const Eigen::VectorXd>& measured,
 
 double FitPercent(double nrmse) { return 100.0 * (1.0 - nrmse); }
 
+std::vector<std::string> ChannelNames(const SequenceResult& s) {
+  std::vector<std::string> out;
+  for (size_t i = 0; i < s.sensor_names.size() && i < s.sensor_dims.size(); ++i) {
+    for (int c = 0; c < s.sensor_dims[i]; ++c) {
+      out.push_back(s.sensor_dims[i] == 1 ? s.sensor_names[i]
+                                          : s.sensor_names[i] + "[" + std::to_string(c) + "]");
+    }
+  }
+  return out;
+}
+
 std::vector<ChannelFit> ChannelFits(const SequenceResult& s) {
   std::vector<ChannelFit> out;
-  Eigen::Index col = 0;
-  for (size_t i = 0; i < s.sensor_names.size() && i < s.sensor_dims.size(); ++i) {
-    for (int c = 0; c < s.sensor_dims[i]; ++c, ++col) {
-      if (col >= s.measured.cols()) return out;
-      ChannelFit f;
-      f.channel = s.sensor_dims[i] == 1 ? s.sensor_names[i]
-                                        : s.sensor_names[i] + "[" + std::to_string(c) + "]";
-      const Eigen::VectorXd y = s.measured.col(col);
-      // a simulation that is missing (e.g. failed) gives NaN, not a number for another column
-      f.nrmse_initial =
-          s.simulated_initial.cols() > col ? Nrmse(y, s.simulated_initial.col(col)) : kNaN;
-      const double final_fit =
-          s.simulated_final.cols() > col ? Nrmse(y, s.simulated_final.col(col)) : kNaN;
-      if (s.simulated_one_piece.rows() > 0) {
-        // multiple shooting: the headline is the estimate in one piece, the segments' beside it
-        f.nrmse_final =
-            s.simulated_one_piece.cols() > col ? Nrmse(y, s.simulated_one_piece.col(col)) : kNaN;
-        f.nrmse_segments = final_fit;
-        f.fit_segments = FitPercent(f.nrmse_segments);
-      } else {
-        f.nrmse_final = final_fit;
-      }
-      f.fit_initial = FitPercent(f.nrmse_initial);
-      f.fit_final = FitPercent(f.nrmse_final);
-      out.push_back(std::move(f));
+  const std::vector<std::string> names = ChannelNames(s);
+  for (Eigen::Index col = 0; col < static_cast<Eigen::Index>(names.size()); ++col) {
+    if (col >= s.measured.cols()) return out;
+    ChannelFit f;
+    f.channel = names[static_cast<size_t>(col)];
+    const Eigen::VectorXd y = s.measured.col(col);
+    // a simulation that is missing (e.g. failed) gives NaN, not a number for another column
+    f.nrmse_initial =
+        s.simulated_initial.cols() > col ? Nrmse(y, s.simulated_initial.col(col)) : kNaN;
+    const double final_fit =
+        s.simulated_final.cols() > col ? Nrmse(y, s.simulated_final.col(col)) : kNaN;
+    if (s.simulated_one_piece.rows() > 0) {
+      // multiple shooting: the headline is the estimate in one piece, the segments' beside it
+      f.nrmse_final =
+          s.simulated_one_piece.cols() > col ? Nrmse(y, s.simulated_one_piece.col(col)) : kNaN;
+      f.nrmse_segments = final_fit;
+      f.fit_segments = FitPercent(f.nrmse_segments);
+    } else {
+      f.nrmse_final = final_fit;
     }
+    f.fit_initial = FitPercent(f.nrmse_initial);
+    f.fit_final = FitPercent(f.nrmse_final);
+    out.push_back(std::move(f));
   }
   return out;
 }

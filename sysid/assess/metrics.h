@@ -27,6 +27,11 @@ double Nrmse(const Eigen::Ref<const Eigen::VectorXd>& measured,
 // % fit = 100 (1 - NRMSE)
 double FitPercent(double nrmse);
 
+// the names of s's sensor columns, in order: the sensor's name, with [i] for each column of a
+// multi-column sensor ("accel[2]"); at most sum(sensor_dims) names (the channel names everywhere:
+// ChannelFit::channel, ResidualDiagnostics::channel, the report's plots)
+std::vector<std::string> ChannelNames(const SequenceResult& s);
+
 // one ChannelFit per column of s.measured (sensor_names/sensor_dims name them): the initial and
 // the final simulation against the measured data; with s.simulated_one_piece (multiple shooting)
 // the final is that, and the segments' (s.simulated_final) fill nrmse_segments and fit_segments

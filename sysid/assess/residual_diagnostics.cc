@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "core/text.h"
+#include "sysid/assess/metrics.h"
 
 namespace mjsysid {
 namespace {
@@ -21,6 +22,19 @@ constexpr double kBiasUnits = 4.0;
 // the longest lag the correlation time looks at (samples): residuals correlated beyond it are
 // reported at this length (a model error that slow is a drift, said by the bias and the ratio)
 constexpr int kMaxLag = 2000;
+
+// the sum over pairs of measured rows k apart within one sequence of the residuals' products,
+// centred on `mean` (the autocovariance at lag k times the number of rows)
+double LagSum(const std::vector<Eigen::VectorXd>& residuals, double mean, int k) {
+  double c = 0;
+  for (const Eigen::VectorXd& e : residuals) {
+    for (Eigen::Index t = 0; t + k < e.size(); ++t) {
+      if (std::isnan(e[t]) || std::isnan(e[t + k])) continue;
+      c += (e[t] - mean) * (e[t + k] - mean);
+    }
+  }
+  return c;
+}
 
 }  // namespace
 
@@ -64,16 +78,7 @@ ResidualDiagnostics DiagnoseResiduals(const std::string& channel,
   size_t longest = 0;
   for (const Eigen::VectorXd& e : residuals) longest = std::max<size_t>(longest, e.size());
   const int max_lag = std::min(kMaxLag, std::max(kPortmanteauLags, static_cast<int>(longest / 4)));
-  auto autocovariance = [&](int k) {
-    double c = 0;
-    for (const Eigen::VectorXd& e : residuals) {
-      for (Eigen::Index t = 0; t + k < e.size(); ++t) {
-        if (std::isnan(e[t]) || std::isnan(e[t + k])) continue;
-        c += (e[t] - d.mean) * (e[t + k] - d.mean);
-      }
-    }
-    return c;
-  };
+  auto autocovariance = [&](int k) { return LagSum(residuals, d.mean, k); };
   const double c0 = autocovariance(0);
   if (!(c0 > 0)) {  // residuals exactly constant: nothing to correlate
     d.lag1 = 0;
@@ -109,36 +114,61 @@ ResidualDiagnostics DiagnoseResiduals(const std::string& channel,
   return d;
 }
 
-std::vector<ResidualDiagnostics> DiagnoseFitResiduals(const std::vector<SequenceResult>& sequences,
-                                                      const FitOptions& options) {
-  // the channels in first-seen order, each with its columns over the sequences
-  std::vector<std::string> names;
-  std::map<std::string, std::vector<Eigen::VectorXd>> columns;
-  std::map<std::string, double> sigmas;
+std::vector<ChannelResiduals> PoolResidualsByChannel(const std::vector<SequenceResult>& sequences) {
+  std::vector<ChannelResiduals> out;
+  std::map<std::string, size_t> index;  // channel -> its place in out
   for (const SequenceResult& s : sequences) {
+    const std::vector<std::string> channels = ChannelNames(s);
     Eigen::Index col = 0;
     for (size_t i = 0; i < s.sensor_names.size() && i < s.sensor_dims.size(); ++i) {
-      const std::string& sensor = s.sensor_names[i];
-      const bool has_sigma =
-          std::find(options.sensors_with_sigma.begin(), options.sensors_with_sigma.end(), sensor) !=
-          options.sensors_with_sigma.end();
-      const auto weight = options.sensor_weights.find(sensor);
-      const double sigma = has_sigma && weight != options.sensor_weights.end() && weight->second > 0
-                               ? 1 / weight->second
-                               : kNan;
       for (int c = 0; c < s.sensor_dims[i]; ++c, ++col) {
         if (col >= s.measured.cols() || col >= s.simulated_final.cols()) break;
-        const std::string channel =
-            s.sensor_dims[i] == 1 ? sensor : sensor + "[" + std::to_string(c) + "]";
-        if (!columns.count(channel)) names.push_back(channel);
-        columns[channel].push_back(s.simulated_final.col(col) - s.measured.col(col));
-        sigmas[channel] = sigma;
+        const std::string& channel = channels[static_cast<size_t>(col)];
+        const auto [at, added] = index.emplace(channel, out.size());
+        if (added) out.push_back(ChannelResiduals{channel, s.sensor_names[i], {}});
+        out[at->second].columns.push_back(s.simulated_final.col(col) - s.measured.col(col));
       }
     }
   }
+  return out;
+}
+
+Eigen::VectorXd ResidualAutocorrelation(const std::vector<Eigen::VectorXd>& residuals,
+                                        int max_lag) {
+  Eigen::VectorXd rho = Eigen::VectorXd::Constant(std::max(0, max_lag) + 1, kNan);
+  double sum = 0;
+  int n = 0;
+  for (const Eigen::VectorXd& e : residuals) {
+    for (Eigen::Index k = 0; k < e.size(); ++k) {
+      if (std::isnan(e[k])) continue;
+      sum += e[k];
+      ++n;
+    }
+  }
+  if (n < 2) return rho;
+  const double mean = sum / n, c0 = LagSum(residuals, mean, 0);
+  // constant residuals (up to the rounding of their mean) have no autocorrelation
+  const double rounding = 1e-12 * std::abs(mean);
+  if (!(c0 > n * rounding * rounding)) return rho;
+  for (Eigen::Index k = 0; k < rho.size(); ++k) {
+    rho[k] = LagSum(residuals, mean, static_cast<int>(k)) / c0;
+  }
+  return rho;
+}
+
+std::vector<ResidualDiagnostics> DiagnoseFitResiduals(const std::vector<SequenceResult>& sequences,
+                                                      const FitOptions& options) {
   std::vector<ResidualDiagnostics> out;
-  for (const std::string& name : names) {
-    out.push_back(DiagnoseResiduals(name, columns[name], sigmas[name]));
+  for (const ChannelResiduals& c : PoolResidualsByChannel(sequences)) {
+    // the stated sigma of the channel's sensor: 1 / its weight
+    const bool has_sigma =
+        std::find(options.sensors_with_sigma.begin(), options.sensors_with_sigma.end(), c.sensor) !=
+        options.sensors_with_sigma.end();
+    const auto weight = options.sensor_weights.find(c.sensor);
+    const double sigma = has_sigma && weight != options.sensor_weights.end() && weight->second > 0
+                             ? 1 / weight->second
+                             : kNan;
+    out.push_back(DiagnoseResiduals(c.channel, c.columns, sigma));
   }
   return out;
 }

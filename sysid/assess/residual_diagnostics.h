@@ -42,6 +42,22 @@ ResidualDiagnostics DiagnoseResiduals(const std::string& channel,
 // the upper tail of the chi-square distribution with dof degrees of freedom at x: P(X > x)
 double Chi2Survival(double x, double dof);
 
+// The residual columns simulated_final - measured of every fitted sensor column of sequences,
+// pooled by channel name (metrics.h ChannelNames) over the sequences, in first-seen order (what
+// DiagnoseFitResiduals diagnoses, and the report plots)
+struct ChannelResiduals {
+  std::string channel, sensor;  // "sensor" or "sensor[i]"; the sensor's name
+  std::vector<Eigen::VectorXd>
+      columns;  // one per sequence that has the channel (NaN: not measured)
+};
+std::vector<ChannelResiduals> PoolResidualsByChannel(const std::vector<SequenceResult>& sequences);
+
+// rho(0..max_lag) of the residuals centred on their pooled mean: pairs of measured rows k apart
+// within one sequence (rows with NaN left out), over the sum of squares (the standard biased
+// estimate, as DiagnoseResiduals uses); rho(0) = 1. NaN at every lag when fewer than two rows are
+// measured or the residuals are constant (to the rounding of their mean). max_lag >= 0.
+Eigen::VectorXd ResidualAutocorrelation(const std::vector<Eigen::VectorXd>& residuals, int max_lag);
+
 // Every fitted sensor column of sequences, pooled by channel name over the sequences (first-seen
 // order): residual simulated_final - measured; the sigma of a sensor in options.sensors_with_sigma
 // is 1 / its weight.

@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <string>
+#include <vector>
 
 namespace mjsysid {
 namespace {
@@ -14,6 +16,14 @@ Eigen::VectorXd Sine(int T) {
   Eigen::VectorXd y(T);
   for (int k = 0; k < T; ++k) y[k] = std::sin(2 * M_PI * k / T);
   return y;
+}
+
+TEST(Metrics, ChannelNamesIndexMultiColumnSensors) {
+  SequenceResult s;
+  s.sensor_names = {"angle", "accel", "touch"};
+  s.sensor_dims = {1, 3, 1};
+  EXPECT_EQ(ChannelNames(s),
+            (std::vector<std::string>{"angle", "accel[0]", "accel[1]", "accel[2]", "touch"}));
 }
 
 TEST(Metrics, PerfectMatchIs100Percent) {

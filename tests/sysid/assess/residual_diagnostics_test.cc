@@ -101,6 +101,46 @@ TEST(ResidualDiagnostics, TheInflationIsTheLargestCorrelationTimeOfTheChannelsNo
   EXPECT_EQ(channel, "");
 }
 
+// AR(1) noise has rho(k) = phi^k; the lag-1 value is DiagnoseResiduals' own; NaN cells are left out
+// of the pairs; constant residuals have no autocorrelation
+TEST(ResidualDiagnostics, TheAutocorrelationOfAr1NoiseIsPhiToTheLag) {
+  const std::vector<Eigen::VectorXd> e = {Ar1(20000, 0.8, 0.01, 3), Ar1(20000, 0.8, 0.01, 4)};
+  const Eigen::VectorXd rho = ResidualAutocorrelation(e, 5);
+  ASSERT_EQ(rho.size(), 6);
+  EXPECT_DOUBLE_EQ(rho[0], 1.0);
+  for (int k = 1; k <= 5; ++k) EXPECT_NEAR(rho[k], std::pow(0.8, k), 0.03) << "lag " << k;
+  EXPECT_DOUBLE_EQ(rho[1], DiagnoseResiduals("x", e, 0.01).lag1);
+
+  std::vector<Eigen::VectorXd> gappy = e;
+  gappy[0][100] = std::nan("");
+  EXPECT_TRUE(ResidualAutocorrelation(gappy, 3).allFinite());
+  EXPECT_TRUE(ResidualAutocorrelation({Eigen::VectorXd::Constant(50, 0.2)}, 3).hasNaN());
+  EXPECT_TRUE(ResidualAutocorrelation({Eigen::VectorXd::Constant(1, 0.2)}, 3).hasNaN());
+}
+
+// the residual columns pooled by channel over sequences, multi-column sensors as "name[i]"
+TEST(ResidualDiagnostics, ResidualsArePooledByChannelName) {
+  SequenceResult a, b;
+  for (SequenceResult* s : {&a, &b}) {
+    s->sensor_names = {"angle", "accel"};
+    s->sensor_dims = {1, 3};
+    s->measured = RowMatrix::Zero(4, 4);
+    s->simulated_final = RowMatrix::Ones(4, 4);
+  }
+  b.sensor_names = {"accel", "angle"};
+  b.sensor_dims = {3, 1};
+  const std::vector<ChannelResiduals> pooled = PoolResidualsByChannel({a, b});
+  ASSERT_EQ(pooled.size(), 4u);
+  EXPECT_EQ(pooled[0].channel, "angle");
+  EXPECT_EQ(pooled[1].channel, "accel[0]");
+  EXPECT_EQ(pooled[3].channel, "accel[2]");
+  EXPECT_EQ(pooled[3].sensor, "accel");
+  for (const ChannelResiduals& c : pooled) {
+    ASSERT_EQ(c.columns.size(), 2u) << c.channel;
+    EXPECT_DOUBLE_EQ(c.columns[1].sum(), 4.0);
+  }
+}
+
 TEST(ResidualDiagnostics, Chi2SurvivalMatchesKnownQuantiles) {
   // chi-square with 20 dof: P(X > 31.41) = 0.05, P(X > 45.31) = 0.001
   EXPECT_NEAR(Chi2Survival(31.41, 20), 0.05, 0.003);
