@@ -158,11 +158,29 @@ void CheckTimestep(const FitParts& parts, const FitOptions& options, FitResult* 
       ratio_half = at_half->second;
     }
   }
-  const double excess = ratio - 1, excess_half = ratio_half - 1;
   // (the half-step fit starts at the estimate, so its chi-square bounds its own minimum's from
-  // above whether or not it converged; a failed or interrupted solve tells nothing)
-  const bool explains = std::isfinite(excess_half) && excess_half <= kTimestepExplains * excess &&
-                        h.outcome != FitStatus::kSolverFailed &&
+  // above whether or not it converged; a failed or interrupted solve tells nothing). Every measure
+  // clearly above the noise (ratio above kClearMisfit), and the worst, must shrink: one sensor's
+  // discretisation error must not vouch for another sensor's missing term
+  auto shrinks = [](double full, double half) {
+    return std::isfinite(half) && half - 1 <= kTimestepExplains * (full - 1);
+  };
+  std::string unexplained;  // the measures that did not shrink
+  if (!shrinks(ratio, ratio_half)) unexplained = worst.empty() ? "overall" : "'" + worst + "'";
+  if (r.chi2_ratio > kClearMisfit && !worst.empty() && !shrinks(r.chi2_ratio, h.chi2_ratio)) {
+    unexplained += (unexplained.empty() ? "" : ", ") + std::string("overall");
+  }
+  for (const auto& [sensor, value] : r.sensor_chi2_ratio) {
+    const auto at_half = h.sensor_chi2_ratio.find(sensor);
+    if (sensor == worst || !(value > kClearMisfit)) continue;
+    if (at_half == h.sensor_chi2_ratio.end() || !shrinks(value, at_half->second)) {
+      unexplained += (unexplained.empty() ? "'" : ", '") + sensor + "' " + FormatDigits(value, 3) +
+                     " -> " +
+                     (at_half == h.sensor_chi2_ratio.end() ? std::string("none")
+                                                           : FormatDigits(at_half->second, 3));
+    }
+  }
+  const bool explains = unexplained.empty() && h.outcome != FitStatus::kSolverFailed &&
                         h.outcome != FitStatus::kInterrupted;
   const double dt = fit.models.empty() ? 0 : fit.models[0].model->opt.timestep;
   r.timestep_check = "the same fit at half the timestep (" + FormatDigits(dt / 2, 3) + " s, " +
@@ -186,9 +204,10 @@ void CheckTimestep(const FitParts& parts, const FitOptions& options, FitResult* 
         "interval is widened to hold the value at a finer one (docs/real-logs.md, \"The model's "
         "timestep\")");
   } else {
-    r.warnings.push_back("timestep check: " + r.timestep_check +
-                         ": the misfit does not shrink as a discretisation error would, so it "
-                         "is not the timestep's: the model lacks something (model_mismatch)");
+    r.warnings.push_back("timestep check: " + r.timestep_check + ": the misfit " +
+                         (unexplained.empty() ? std::string() : "of " + unexplained + " ") +
+                         "does not shrink as a discretisation error would, so it is not the "
+                         "timestep's: the model lacks something (model_mismatch)");
   }
 }
 

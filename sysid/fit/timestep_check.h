@@ -7,10 +7,11 @@
 // the estimates are biased by O(dt^p) (measured on robot-style logs: 0.02-0.2 % at 2 ms, many
 // standard errors). The check fits the same problem once more with every model's timestep halved,
 // from the estimate (the samples at their own times, segments of the same duration), and compares:
-// - the excess of the weighted residual variance over the noise, chi2 - 1, of the worst measure
-//   the chi-square test reads (the overall ratio or a sensor's): the discretisation's share
-//   scales with dt^(2p); the misfit is the timestep's when the half step leaves at most
-//   kTimestepExplains of it (a missing term leaves it unchanged);
+// - the excess of the weighted residual variance over the noise, chi2 - 1, of the measures the
+//   chi-square test reads (the overall ratio, each sensor's): the discretisation's share scales
+//   with dt^(2p); the misfit is the timestep's when the half step leaves at most kTimestepExplains
+//   of it on the worst measure and on every measure above kClearMisfit (a missing term leaves its
+//   sensor's unchanged);
 // - every estimate: the shift theta(dt) - theta(dt / 2), and by Richardson extrapolation the
 //   timestep's bias of the estimate, beta = shift * 2^p / (2^p - 1), p the integrator's order (1:
 //   Euler, implicit, implicitfast; 4: RK4).
@@ -44,6 +45,10 @@ namespace mjsysid {
 // the half step must leave at most this share of the misfit's excess chi2 - 1 (a first-order
 // integrator's discretisation leaves 1/4, a missing term ~1)
 constexpr double kTimestepExplains = 0.5;
+// a chi-square ratio above this is a misfit clearly beyond the noise: every such measure (the
+// overall ratio, each sensor's), and the worst, must shrink by kTimestepExplains for the timestep
+// to explain the misfit
+constexpr double kClearMisfit = 2.0;
 // iterations of the half-step fit (from the estimate: the shift is small)
 constexpr int kTimestepCheckIterations = 10;
 

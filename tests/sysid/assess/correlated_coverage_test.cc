@@ -17,8 +17,10 @@
 //   ends converged with valid intervals widened to the timestep's bias; they cover the truth in
 //   >= 85 % per parameter (measured 100 %: the bias, not the noise, sets their width), every
 //   estimate within 1 % (measured: 0.42 %).
-// - The negative control: the same pendulum robot with friction loss 0.3 or 0.03 N m its fitted
-//   model lacks: the misfit does not shrink at half the step, model_mismatch stays.
+// - The negative controls: the same pendulum robot with friction loss 0.3 or 0.03 N m its fitted
+//   model lacks: the misfit does not shrink at half the step, model_mismatch stays; and a sensor
+//   bias on the sensor that is not the worst measure: its misfit does not shrink while the worst's
+//   does, model_mismatch stays.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -27,6 +29,7 @@
 #include <string>
 #include <vector>
 
+#include "sysid/fit/timestep_check.h"
 #include "sysid/problem.h"
 #include "tests/fit_test_util.h"
 #include "tests/robot_log.h"
@@ -289,6 +292,51 @@ TEST(CorrelatedCoverageTest, AMissingTermIsNotTheTimesteps) {
     for (const std::string& w : r.warnings) said = said || w.find("not the timestep's") != w.npos;
     EXPECT_TRUE(said);
   }
+}
+
+// A sensor bias the model lacks on a sensor that is not the worst measure: the worst (the
+// discretisation's misfit) shrinks at half the timestep, the biased sensor's does not. Every
+// measure clearly above the noise must shrink (kClearMisfit), so model_mismatch stays and the
+// warning names the sensor. The bias is set from a first fit without it: its excess chi2 / sigma^2
+// lifts the biased sensor's ratio halfway from kClearMisfit to the worst ratio (measured: see the
+// output).
+TEST(CorrelatedCoverageTest, ASecondSensorsMissingTermIsNotExplainedByTheWorsts) {
+  const Case c = test::Pendulum();
+  RobotSettings rs = c.robot;
+  rs.seed = 500;
+  RobotLog log = test::MakeRobotLog(c.file, c.truth, c.x0, c.amplitude, c.positions, rs);
+  const FitResult clean = FitWithSigmas(c, log, rs);
+  ASSERT_EQ(clean.outcome, FitStatus::kConverged) << clean.timestep_check;
+  ASSERT_EQ(clean.sensor_chi2_ratio.size(), 2u);
+  // the worst measure and the other sensor (index 0: angle, 1: rate in the model)
+  const bool rate_worst = clean.sensor_chi2_ratio.at("rate") > clean.sensor_chi2_ratio.at("angle");
+  const std::string other = rate_worst ? "angle" : "rate";
+  const double worst = std::max(clean.sensor_chi2_ratio.at("rate"),
+                                std::max(clean.sensor_chi2_ratio.at("angle"), clean.chi2_ratio));
+  const double target = 0.5 * (kClearMisfit + worst);
+  const double now = clean.sensor_chi2_ratio.at(other);
+  ASSERT_GT(target, now) << "the other sensor is already above the halfway ratio";
+  const double quantum2 = other == "angle" ? rs.quantum * rs.quantum / 12 : 0.0;
+  const double sigma = std::sqrt(rs.sigma * rs.sigma + quantum2);
+  const double bias = sigma * std::sqrt(target - now);
+  for (Eigen::Index k = 0; k < log.measured.rows(); ++k)
+    log.measured(k, rate_worst ? 0 : 1) += bias;
+  const FitResult r = FitWithSigmas(c, log, rs);
+  std::printf(
+      "[ measured ] clean: chi2 angle %.3g, rate %.3g, overall %.3g; bias %.3g on %s -> "
+      "%s, angle %.3g, rate %.3g: %s\n",
+      clean.sensor_chi2_ratio.at("angle"), clean.sensor_chi2_ratio.at("rate"), clean.chi2_ratio,
+      bias, other.c_str(), FitStatusName(r.outcome), r.sensor_chi2_ratio.at("angle"),
+      r.sensor_chi2_ratio.at("rate"), r.timestep_check.c_str());
+  EXPECT_GT(r.sensor_chi2_ratio.at(other), kClearMisfit);
+  EXPECT_EQ(r.outcome, FitStatus::kModelMismatch);
+  EXPECT_FALSE(r.intervals_valid);
+  bool named = false;
+  for (const std::string& w : r.warnings) {
+    named = named ||
+            (w.find("the misfit of '" + other) != w.npos && w.find("not the timestep's") != w.npos);
+  }
+  EXPECT_TRUE(named) << "no warning names '" << other << "'";
 }
 
 }  // namespace
