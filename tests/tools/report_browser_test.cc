@@ -3,8 +3,11 @@
 //
 // - A copy of the page with a checking script appended is loaded with --dump-dom: on load the
 //   script checks that every section is there and laid out, every <img> decoded
-//   (naturalWidth > 0), every inline <svg> has a non-empty box and every id on the page is
-//   unique with every glyph reference resolved, and writes its verdict into the DOM.
+//   (naturalWidth > 0), every inline <svg> has a non-empty box, every interactive chart (dygraphs)
+//   drawn, counted by kind, and every id on the page is unique with every glyph reference
+//   resolved, and writes its verdict into the DOM.
+// - Another script drives the time plots with mouse events as a user would: hover shows values,
+//   a drag zooms the chart and its sequence's other charts follow, a double-click zooms out.
 // - The page itself is rendered with --screenshot, which must not be blank.
 // - The motion clip (an animated WebP <img>) is screenshotted twice, once as soon as the page has
 //   loaded and once ~2 s later (a page whose load a local server holds open for 2 s): both halves,
@@ -150,10 +153,12 @@ constexpr char kCheckScript[] = R"js(
 window.addEventListener('load', () => {
   const problems = [];
   const box = (e) => { const r = e.getBoundingClientRect(); return r.width > 0 && r.height > 0; };
+  // the still plots are folded under the charts: unfolded to be checked
+  for (const d of document.querySelectorAll('details')) d.open = true;
 
   // every section, laid out
-  const sections = ['Solver settings', 'Parameters', 'Warnings', 'Cost',
-                    'Parameters over the iterations', 'Sequences', 'Motion'];
+  const sections = ['Solver settings', 'Parameters', 'Parameter correlation', 'Warnings', 'Cost',
+                    'Parameters over the iterations', 'Residuals', 'Sequences', 'Motion'];
   const headings = [...document.querySelectorAll('h2')];
   for (const name of sections) {
     const h = headings.find((e) => e.textContent === name);
@@ -178,6 +183,21 @@ window.addEventListener('load', () => {
     if (svg.querySelectorAll('use').length === 0) problems.push('svg ' + i + ' has no text');
   }
 
+  // every interactive chart drawn: a canvas with a box in its plot, by kind
+  const kinds = {};
+  const charts = window.mjsysidCharts || [];
+  for (const g of charts) {
+    kinds[g.mjsysidKind] = (kinds[g.mjsysidKind] || 0) + 1;
+    const canvas = g.graphDiv.querySelector('canvas');
+    if (!canvas || !box(canvas) || g.numRows() < 2) problems.push('chart ' + g.maindiv_.id + ' not drawn');
+  }
+  if (charts.length !== document.querySelectorAll('.chart-plot').length) {
+    problems.push(charts.length + ' charts for ' + document.querySelectorAll('.chart-plot').length +
+                  ' plots');
+  }
+  const chartCounts = ['signal', 'residual', 'inputs', 'autocorrelation']
+                          .map((k) => k + ':' + (kinds[k] || 0)).join(',');
+
   // the motion clip: one image, decoded at its full size (three 320x240 views)
   const clips = document.querySelectorAll('img.motion');
   const motion = clips.length === 1 ? clips[0].naturalWidth + 'x' + clips[0].naturalHeight
@@ -197,7 +217,74 @@ window.addEventListener('load', () => {
   document.getElementById('verdict').textContent = problems.length
       ? 'FAIL ' + [...new Set(problems)].join('; ')
       : 'OK sections=' + sections.length + ' images=' + images.length + ' svgs=' + svgs.length +
-        ' motion=' + motion;
+        ' motion=' + motion + ' charts=' + chartCounts;
+});
+</script>
+)js";
+
+// the script that drives the time plots as a user would (mouse events on the first signal chart):
+// hover shows the values under the pointer in its legend; a drag across 30 %..60 % of its width
+// zooms it to that window and the other charts of its sequence follow; a double-click zooms all of
+// them out again. Its verdict, "OK ..." or "FAIL <problems>", as kCheckScript's.
+constexpr char kInteractionScript[] = R"js(
+<pre id="verdict">no verdict: the script did not run</pre>
+<script>
+window.addEventListener('load', () => {
+  const problems = [];
+  const charts = window.mjsysidCharts || [];
+  const g = charts.find((c) => c.mjsysidKind === 'signal');
+  if (!g) {
+    document.getElementById('verdict').textContent = 'FAIL no signal chart';
+    return;
+  }
+  const others = charts.filter((c) => c !== g && c.mjsysidGroup === g.mjsysidGroup);
+  g.graphDiv.scrollIntoView();
+  const el = g.mouseEventElement_;
+  const r = el.getBoundingClientRect(), area = g.getArea();
+  const at = (f) => ({x: r.left + area.x + f * area.w, y: r.top + area.y + area.h / 2});
+  const fire = (type, f, buttons) => {
+    const p = at(f);
+    el.dispatchEvent(new MouseEvent(type, {bubbles: true, cancelable: true, view: window,
+                                           clientX: p.x, clientY: p.y, button: 0, buttons}));
+  };
+
+  // hover: a row selected, its values in the legend
+  fire('mousemove', 0.5, 0);
+  const legend = g.getOption('labelsDiv').textContent;
+  if (g.getSelection() < 0) problems.push('hover selected no row');
+  if (!/estimate:\s*-?[0-9]/.test(legend)) problems.push('legend without values: ' + legend);
+
+  // drag-zoom from 30 % to 60 % of the width
+  const full = g.xAxisExtremes();
+  fire('mousedown', 0.3, 1);
+  fire('mousemove', 0.45, 1);
+  fire('mousemove', 0.6, 1);
+  fire('mouseup', 0.6, 0);
+  const range = g.xAxisRange();
+  const share = (range[1] - range[0]) / (full[1] - full[0]);
+  if (!g.isZoomed('x') || !(share > 0.25 && share < 0.35)) {
+    problems.push('drag did not zoom to 30 %: ' + share.toFixed(3));
+  }
+  let followed = 0;
+  for (const o of others) {
+    const q = o.xAxisRange();
+    if (Math.abs(q[0] - range[0]) < 1e-9 && Math.abs(q[1] - range[1]) < 1e-9) ++followed;
+  }
+  if (others.length === 0 || followed !== others.length) {
+    problems.push(followed + ' of ' + others.length + ' charts followed the zoom');
+  }
+
+  // double-click (two clicks, then the dblclick event, as a browser sends them): all zoomed out
+  for (let k = 0; k < 2; ++k) {
+    fire('mousedown', 0.5, 1);
+    fire('mouseup', 0.5, 0);
+  }
+  fire('dblclick', 0.5, 0);
+  if (g.isZoomed('x') || others.some((o) => o.isZoomed('x'))) problems.push('not zoomed out');
+
+  document.getElementById('verdict').textContent = problems.length
+      ? 'FAIL ' + problems.join('; ')
+      : 'OK zoom=' + share.toFixed(2) + ' followed=' + followed;
 });
 </script>
 )js";
@@ -247,13 +334,14 @@ class ReportBrowserTest : public ::testing::Test {
     return ReadFile(dir_ + "/chromium.out");
   }
 
-  // the verdict of the checking script on a copy of `page`
-  static std::string Verdict(const std::string& page, const std::string& name) {
+  // the verdict of the checking script (kCheckScript, or `script`) on a copy of `page`
+  static std::string Verdict(const std::string& page, const std::string& name,
+                             const char* script = kCheckScript) {
     const std::string copy = dir_ + "/out/" + name;
     std::string html = page;
     const size_t body_end = html.rfind("</body>");
     EXPECT_NE(body_end, std::string::npos);
-    html.insert(body_end == std::string::npos ? html.size() : body_end, kCheckScript);
+    html.insert(body_end == std::string::npos ? html.size() : body_end, script);
     WriteFile(copy, html);
     const std::string dom = Chromium(copy, "--dump-dom");
     const std::string open = "<pre id=\"verdict\">";
@@ -317,8 +405,28 @@ class ReportBrowserTest : public ::testing::Test {
 std::string ReportBrowserTest::dir_;
 
 TEST_F(ReportBrowserTest, EverySectionAndPlotRenders) {
-  // 7 sections, the 3 sequence PNGs and the motion clip, the cost and parameter SVGs
-  EXPECT_EQ(Verdict(Page(), "check.html"), "OK sections=7 images=4 svgs=2 motion=960x240");
+  // 9 sections, the 3 sequence PNGs and the motion clip, the cost and parameter SVGs; per sequence
+  // (3) and sensor (angle, rate) a signal and a residual chart, per sequence the inputs (the
+  // motor), per sensor the residuals' autocorrelation
+  EXPECT_EQ(Verdict(Page(), "check.html"),
+            "OK sections=9 images=4 svgs=2 motion=960x240 "
+            "charts=signal:6,residual:6,inputs:3,autocorrelation:2");
+}
+
+TEST_F(ReportBrowserTest, TheTimePlotsZoomTogetherAndShowValuesOnHover) {
+  // the sequence's 4 other charts (rate's signal, both residuals, the inputs) follow the zoom
+  EXPECT_EQ(Verdict(Page(), "interaction.html", kInteractionScript), "OK zoom=0.30 followed=4");
+}
+
+TEST_F(ReportBrowserTest, ABrokenChartFailsTheCheck) {
+  // a chart whose library call is gone: its plot stays empty
+  std::string page = Page();
+  const size_t call = page.find("<script>mjsysidChart(\"chart-");
+  ASSERT_NE(call, std::string::npos);
+  page.erase(call, page.find("</script>", call) + 9 - call);
+  const std::string verdict = Verdict(page, "broken_chart.html");
+  EXPECT_EQ(verdict.rfind("FAIL ", 0), 0u) << verdict;
+  EXPECT_NE(verdict.find("charts for"), std::string::npos) << verdict;
 }
 
 TEST_F(ReportBrowserTest, TheMotionClipPlays) {
@@ -340,7 +448,9 @@ TEST_F(ReportBrowserTest, NoVideoSaysSo) {
   EXPECT_EQ(MotionImg(page), "");
   EXPECT_NE(page.find("no video: turned off (sysid report --no-video)"), std::string::npos);
   EXPECT_FALSE(fs::exists(copy + "/motion.webp"));
-  EXPECT_EQ(Verdict(page, "check_novideo.html"), "OK sections=7 images=3 svgs=2 motion=0 clips");
+  EXPECT_EQ(Verdict(page, "check_novideo.html"),
+            "OK sections=9 images=3 svgs=2 motion=0 clips "
+            "charts=signal:6,residual:6,inputs:3,autocorrelation:2");
 }
 
 TEST_F(ReportBrowserTest, TheScreenshotIsNotBlank) {
@@ -373,11 +483,13 @@ TEST_F(ReportBrowserTest, TheScreenshotIsNotBlank) {
 }
 
 TEST_F(ReportBrowserTest, ABrokenPlotFailsTheCheck) {
-  // an image whose data is not a PNG
+  // an image whose data is not a PNG (the first sequence's still plot: the inlined library has a
+  // PNG data URI of its own)
   std::string page = Page();
   const std::string png = "data:image/png;base64,iVBORw0KGgo";  // the PNG signature
-  const size_t at = page.find(png);
-  ASSERT_NE(at, std::string::npos);
+  const std::string seq0 = "<img alt=\"sequence seq0\" src=\"";
+  const size_t at = page.find(seq0 + png) + seq0.size();
+  ASSERT_GT(at, seq0.size());
   page.replace(at, png.size(), "data:image/png;base64,AAAAAAAAAAA");
   const std::string verdict = Verdict(page, "broken_image.html");
   EXPECT_EQ(verdict.rfind("FAIL ", 0), 0u) << verdict;
@@ -396,7 +508,7 @@ TEST_F(ReportBrowserTest, ABrokenPlotFailsTheCheck) {
   std::string still = MotionImg(page);
   const size_t src = still.find("src=\"");
   ASSERT_NE(src, std::string::npos);
-  const size_t from = page.find(png);
+  const size_t from = page.find(seq0 + png) + seq0.size();
   still = still.substr(0, src) + "src=\"" + page.substr(from, page.find('"', from) - from) + "\">";
   const std::string verdict_still = MotionVerdict(still, "still");
   EXPECT_EQ(verdict_still.rfind("FAIL", 0), 0u) << verdict_still;

@@ -13,11 +13,16 @@
 #include <utility>
 #include <vector>
 
+#include "sysid/assess/residual_diagnostics.h"
 #include "tests/file_util.h"
 #include "tests/temp_dir_test.h"
 #include "tests/tools/png_util.h"
 #include "tools/report/axes.h"
 #include "tools/report/canvas.h"
+#include "tools/report/correlation.h"
+#include "tools/report/interactive.h"
+#include "tools/report/logged.h"
+#include "tools/report/page.h"
 
 namespace mjsysid::report {
 namespace {
@@ -219,7 +224,9 @@ TEST_F(ReportTest, WritesAPageAndPlotsFromTheResultFiles) {
                              "<svg", "data:image/png;base64,", "class=\"unid\""}) {
     EXPECT_NE(html.find(needle), std::string::npos) << needle;
   }
-  for (const char* banned : {"http://", "https://", "<script src", "<link", "@import"}) {
+  // nothing loaded from elsewhere (the inlined library's licence comment names its URL)
+  for (const char* banned : {"src=\"http", "href=\"http", "url(http", "url(//", "<script src",
+                             "<link", "@import", "sourceMappingURL"}) {
     EXPECT_EQ(html.find(banned), std::string::npos) << banned;
   }
 
@@ -284,6 +291,115 @@ TEST_F(ReportTest, DerivedQuantitiesGetATable) {
   EXPECT_NE(html.find("<td>link7.mass</td><td>kg</td>", table), std::string::npos);
   EXPECT_NE(html.find("body_inertial (payload_alpha) by the delta method", table),
             std::string::npos);
+}
+
+// how often `needle` occurs in `text`
+size_t Count(const std::string& text, const std::string& needle) {
+  size_t n = 0;
+  for (size_t at = text.find(needle); at != std::string::npos; at = text.find(needle, at + 1)) ++n;
+  return n;
+}
+
+// The page's interactive views: per sensor column a signal chart and a residual chart (its
+// diagnostics in the caption, +-2 sigma shaded), the residuals' autocorrelation per channel, the
+// library inlined once, the still plot folded below; no inputs without the experiment's logs.
+TEST_F(ReportTest, ThePageHasInteractiveChartsForSignalsResidualsAndTheirAutocorrelation) {
+  io::FitResultFile r = Result();
+  // the diagnostics as the fit makes them, with a sigma for the angle (0.02) and none for the rate
+  FitOptions o;
+  o.sensors_with_sigma = {"angle"};
+  o.sensor_weights["angle"] = 1 / 0.02;
+  r.residuals = DiagnoseFitResiduals(r.sequences, o);
+  ASSERT_EQ(r.residuals.size(), 2u);
+  const std::string html = ReportHtml(r);
+  EXPECT_EQ(Count(html, "var mjsysidCharts"), 1u) << "the glue once";
+  EXPECT_EQ(Count(html, "@license https://github.com/danvk/dygraphs"), 1u) << "dygraphs once";
+  EXPECT_EQ(Count(html, "<div class=\"chart signal\">"), 2u);
+  EXPECT_EQ(Count(html, "<div class=\"chart residual\">"), 2u);
+  EXPECT_EQ(Count(html, "<div class=\"chart autocorrelation\">"), 2u);
+  EXPECT_EQ(Count(html, "<div class=\"chart inputs\">"), 0u) << "no logs, no inputs";
+  EXPECT_EQ(Count(html, "mjsysidChart(\"chart-"), 6u);
+  // the angle's residual: its band of +-2 sigma and its diagnostics in the caption
+  EXPECT_NE(html.find("\"band\":[-0.04,0.04]"), std::string::npos);
+  EXPECT_EQ(Count(html, "\"band\":["), 3u) << "angle's +-2 sigma, two autocorrelation bands";
+  const ResidualDiagnostics& angle = r.residuals[0];
+  EXPECT_NE(html.find("rms " + Num(angle.rms, 3) + " = " + Num(angle.ratio, 3) + " &sigma;"),
+            std::string::npos);
+  // the still plot folded under the charts of its sequence
+  const size_t charts = html.find("<div class=\"chart signal\">");
+  const size_t still = html.find("<details class=\"still\">");
+  ASSERT_NE(still, std::string::npos);
+  EXPECT_LT(charts, still);
+  EXPECT_NE(html.find("data:image/png;base64,", still), std::string::npos);
+}
+
+// 200,000 samples: each line of a chart keeps at most kInteractivePoints samples (peaks kept)
+TEST_F(ReportTest, InteractiveChartsAreDecimated) {
+  io::FitResultFile r = Result(200000);
+  r.sequences[0].measured(123457, 0) = 40;  // a one-sample spike
+  const std::string html = ReportHtml(r);
+  const size_t call = html.find("mjsysidChart(\"chart-1\", ");
+  ASSERT_NE(call, std::string::npos);
+  const size_t rows = html.find("\"rows\":[[", call), end = html.find("]],\"steps\"", rows);
+  ASSERT_NE(rows, std::string::npos);
+  const std::string data = html.substr(rows, end - rows);
+  const size_t n = Count(data, "],[") + 1;
+  EXPECT_GT(n, static_cast<size_t>(kInteractivePoints));  // the union of three lines' samples
+  EXPECT_LE(n, 3u * kInteractivePoints);
+  EXPECT_NE(data.find("[1234.57,40.0,"), std::string::npos) << "the spike survives";
+}
+
+// the input plots read the logs again: a file changed since the fit (its recorded SHA-256 differs)
+// gives none, and the page says why
+TEST_F(ReportTest, InputsOfFilesChangedSinceTheFitAreNotPlotted) {
+  io::FitResultFile r = Result(50);
+  test::WriteFile(Path("log.h5"), "not the bytes the fit read");
+  r.input_hashes = {{"log", Path("log.h5"), std::string(64, '0')}};
+  const LoggedExperiment logged = LoadLoggedExperiment(r);
+  EXPECT_EQ(logged.note, Path("log.h5") +
+                             " (log) changed since the fit: the logs read now are "
+                             "not the fit's");
+  EXPECT_EQ(InputsOf(logged, "seq0").ctrl.rows(), 0);
+  const std::string html = Page(r, {"png"}, {}, "", &logged);
+  EXPECT_NE(html.find("no input plots: " + Path("log.h5") + " (log) changed since the fit"),
+            std::string::npos);
+  EXPECT_EQ(Count(html, "<div class=\"chart inputs\">"), 0u);
+}
+
+// a page of many columns keeps fewer samples per line: about kPageLinePoints in all
+TEST(InteractiveTest, PointsPerLineShrinkWithThePagesColumns) {
+  EXPECT_EQ(PointsPerLine(2), kInteractivePoints);
+  EXPECT_EQ(PointsPerLine(200), 250);
+  EXPECT_EQ(PointsPerLine(100000), kMinLinePoints);
+  EXPECT_EQ(PointsPerLine(0), kInteractivePoints);
+}
+
+TEST(CorrelationTest, CorrelationsFromTheCovarianceDashesWithoutAVariance) {
+  Eigen::Matrix3d cov;
+  cov << 4, 2, 0, 2, 9, 0, 0, 0, 0;  // the third has no variance (fixed)
+  const Eigen::MatrixXd r = CorrelationMatrix(cov);
+  EXPECT_DOUBLE_EQ(r(0, 0), 1);
+  EXPECT_DOUBLE_EQ(r(0, 1), 2.0 / 6.0);
+  EXPECT_DOUBLE_EQ(r(1, 0), 2.0 / 6.0);
+  EXPECT_TRUE(std::isnan(r(0, 2)));
+  EXPECT_TRUE(std::isnan(r(2, 2)));
+}
+
+// the matrix on the page: a cell per pair with both names on hover, the strong pairs in words
+TEST(CorrelationTest, TheSectionListsStronglyCorrelatedPairs) {
+  io::FitResultFile r = Result(50);
+  r.uncertainty.covariance << 1.0, -0.97, -0.97, 1.0;
+  std::string html = CorrelationSection(r);
+  EXPECT_NE(html.find("<h2>Parameter correlation</h2>"), std::string::npos);
+  EXPECT_NE(html.find("title=\"damping / bob_mass: &minus;0.97\">&minus;0.97</td>"),
+            std::string::npos)
+      << html;
+  EXPECT_NE(html.find("<li>damping and bob_mass (r = &minus;0.97)</li>"), std::string::npos);
+  r.uncertainty.covariance << 1.0, 0.5, 0.5, 1.0;
+  html = CorrelationSection(r);
+  EXPECT_NE(html.find("no pair correlated beyond"), std::string::npos);
+  r.uncertainty.covariance.resize(0, 0);
+  EXPECT_NE(CorrelationSection(r).find("no covariance of the parameters"), std::string::npos);
 }
 
 TEST_F(ReportTest, EmptyResultsStillMakeAPage) {

@@ -214,14 +214,14 @@ void DrawLegend(Canvas& c, double x, double y, const std::vector<LegendItem>& it
 // ---------------------------------------------------------------------------------------------
 // decimation
 
-std::vector<Eigen::Index> Decimate(const Eigen::Ref<const Eigen::VectorXd>& y) {
+std::vector<Eigen::Index> Decimate(const Eigen::Ref<const Eigen::VectorXd>& y, int max_points) {
   const Eigen::Index n = y.size();
   std::vector<Eigen::Index> out;
-  if (n <= kMaxPoints) {
+  if (n <= std::max(max_points, 4)) {
     for (Eigen::Index i = 0; i < n; ++i) out.push_back(i);
     return out;
   }
-  const Eigen::Index buckets = kMaxPoints / 2 - 1;
+  const Eigen::Index buckets = std::max(max_points, 4) / 2 - 1;
   out.push_back(0);
   for (Eigen::Index b = 0; b < buckets; ++b) {
     const Eigen::Index lo = 1 + b * (n - 2) / buckets, hi = 1 + (b + 1) * (n - 2) / buckets;

@@ -90,8 +90,9 @@ std::string Shorten(const Canvas& c, const std::string& text, double width, bool
 // lines of more points than this are decimated
 constexpr int kMaxPoints = 2000;
 
-// indices of the samples to plot: all up to kMaxPoints, else the first and last sample and the
-// minimum and maximum of each of kMaxPoints / 2 - 1 buckets, in order (peaks survive)
-std::vector<Eigen::Index> Decimate(const Eigen::Ref<const Eigen::VectorXd>& y);
+// indices of the samples to plot: all up to max_points (at least 4), else the first and last sample
+// and the minimum and maximum of each of max_points / 2 - 1 buckets, in order (peaks survive)
+std::vector<Eigen::Index> Decimate(const Eigen::Ref<const Eigen::VectorXd>& y,
+                                   int max_points = kMaxPoints);
 
 }  // namespace mjsysid::report

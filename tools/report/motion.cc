@@ -12,8 +12,6 @@
 
 #include "core/simulator.h"
 #include "sysid/data/sample_grid.h"
-#include "sysid/io/experiment.h"
-#include "sysid/run/fit_experiment.h"
 #include "tools/report/encode.h"
 #include "tools/report/page.h"
 #include "tools/report/render.h"
@@ -60,24 +58,24 @@ Eigen::Index LoggedRowAt(const FitSequence& seq, double t) {
 }  // namespace
 
 MotionResult MakeMotion(const io::FitResultFile& r, const MotionOptions& o) {
+  if (!o.enabled) return MakeMotion(r, LoggedExperiment(), o);  // says it was turned off
+  return MakeMotion(r, LoadLoggedExperiment(r), o);
+}
+
+MotionResult MakeMotion(const io::FitResultFile& r, const LoggedExperiment& logged,
+                        const MotionOptions& o) {
   MotionResult out;
   if (!o.enabled) {
     out.note = "turned off (sysid report --no-video)";
     return out;
   }
-  if (r.experiment.empty()) {
-    out.note = "the results name no experiment file";
+  if (!logged.note.empty()) {
+    out.note = logged.note;
     return out;
   }
 
-  // the experiment, its models and logs, mapped to sequences as the fit did
-  run::BuiltProblem built;
-  try {
-    built = run::BuildProblem(io::LoadExperiment(r.experiment), 1);
-  } catch (const std::exception& e) {
-    out.note = std::string("the experiment could not be read again: ") + e.what();
-    return out;
-  }
+  // the first of the result's sequences that the experiment has, mapped as the fit did
+  const run::BuiltProblem& built = logged.built;
   const FitSequence* seq = nullptr;
   for (const FitSequence& s : built.sequences) {
     const bool in_result = std::any_of(r.sequences.begin(), r.sequences.end(),
@@ -92,9 +90,12 @@ MotionResult MakeMotion(const io::FitResultFile& r, const MotionOptions& o) {
     return out;
   }
   out.sequence = seq->name;
-  const auto mi = std::find(built.model_names.begin(), built.model_names.end(), seq->model) -
-                  built.model_names.begin();
-  const mjModel& m = *built.models.at(mi);
+  const mjModel* model = logged.ModelOf(*seq);
+  if (model == nullptr) {
+    out.note = "sequence " + seq->name + ": its model " + seq->model + " is not in the experiment";
+    return out;
+  }
+  const mjModel& m = *model;
 
   // the parameters of this model: initial values, and the fitted ones of the results by name
   std::map<std::string, double> fitted;
@@ -162,13 +163,13 @@ MotionResult MakeMotion(const io::FitResultFile& r, const MotionOptions& o) {
   const int nq = m.nq;
   // each frame's logged qpos (frame f at t0 + f stride dt; before the first measured row, the
   // fitted simulation's, which starts from the log's state)
-  RowMatrix logged(measured ? frames : 0, nq);
-  for (int f = 0; f < logged.rows(); ++f) {
+  RowMatrix logged_qpos(measured ? frames : 0, nq);
+  for (int f = 0; f < logged_qpos.rows(); ++f) {
     const Eigen::Index row = LoggedRowAt(*seq, t0 + f * stride * dt);
     if (row >= 0) {
-      logged.row(f) = seq->qpos.row(row);
+      logged_qpos.row(f) = seq->qpos.row(row);
     } else {
-      logged.row(f) = fitted_run.states.row(f * stride).head(nq);
+      logged_qpos.row(f) = fitted_run.states.row(f * stride).head(nq);
     }
   }
   const int views = measured ? 3 : 2;
@@ -177,7 +178,7 @@ MotionResult MakeMotion(const io::FitResultFile& r, const MotionOptions& o) {
   for (int f = 0; f < frames; ++f) {
     shown.row(views * f) = initial_run.states.row(f * stride).head(nq);
     shown.row(views * f + 1) = fitted_run.states.row(f * stride).head(nq);
-    if (measured) shown.row(views * f + 2) = logged.row(f);
+    if (measured) shown.row(views * f + 2) = logged_qpos.row(f);
   }
   Progress(o, "rendering motion of sequence " + seq->name + ": " + std::to_string(frames) +
                   " frames, initial and fitted" + (measured ? " and measured, " : ", ") +
@@ -191,7 +192,7 @@ MotionResult MakeMotion(const io::FitResultFile& r, const MotionOptions& o) {
       const int k = f * stride;
       renderer->Render(initial_run.states.row(k).head(nq).transpose(), "initial", &view[0]);
       renderer->Render(fitted_run.states.row(k).head(nq).transpose(), "fitted", &view[1]);
-      if (measured) renderer->Render(logged.row(f).transpose(), "measured", &view[2]);
+      if (measured) renderer->Render(logged_qpos.row(f).transpose(), "measured", &view[2]);
       SideBySide(view, &video[f]);
     }
   } catch (const std::exception& e) {

@@ -27,6 +27,7 @@
 #include <string>
 
 #include "sysid/io/result.h"
+#include "tools/report/logged.h"
 
 namespace mjsysid::report {
 
@@ -52,8 +53,11 @@ struct MotionResult {
   std::string gl_renderer;
 };
 
-// renders the clip of result's first sequence (see above)
+// renders the clip of result's first sequence (see above), the experiment loaded again
+// (LoadLoggedExperiment) or as given
 MotionResult MakeMotion(const io::FitResultFile& result, const MotionOptions& options);
+MotionResult MakeMotion(const io::FitResultFile& result, const LoggedExperiment& logged,
+                        const MotionOptions& options);
 
 // the section: <h2>Motion</h2>, then the clip as <img> (data:image/webp) with a caption, or the
 // note

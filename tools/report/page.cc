@@ -13,6 +13,8 @@
 #include "sysid/io/warnings.h"
 #include "tools/report/axes.h"
 #include "tools/report/canvas.h"
+#include "tools/report/correlation.h"
+#include "tools/report/interactive.h"
 #include "tools/report/plots.h"
 #include "tools/report/report.h"
 
@@ -111,6 +113,8 @@ tr.best td{font-weight:600}
 .flag.unid{background:#c62828;color:#fff}
 ul.warnings li{color:#8a4b00}
 svg,img{max-width:100%;height:auto;border:1px solid #eee;background:#fff}
+details.still summary{cursor:pointer;color:#555;font-size:13px;margin:4px 0 12px}
+table.correlation td.n{text-align:center;min-width:34px;font-size:12px}
 )css";
 
 // the parameter table, with the unidentifiable combinations below it
@@ -213,7 +217,7 @@ void FitQualitySection(std::ostringstream& h, const FitResultFile& r) {
 
 // per fitted channel: the residuals' bias, size against sigma, whiteness and correlation time
 // (sysid/assess/residual_diagnostics.h), non-white rows marked; what the intervals came from
-void ResidualSection(std::ostringstream& h, const FitResultFile& r) {
+void ResidualSection(std::ostringstream& h, const FitResultFile& r, ChartIds& ids) {
   if (r.residuals.empty()) return;
   h << "<h2>Residuals</h2>\n<p class=\"muted\">simulated &minus; measured at the estimate, per "
        "channel over the fitted sequences. White noise has no correlation beyond chance "
@@ -234,6 +238,14 @@ void ResidualSection(std::ostringstream& h, const FitResultFile& r) {
       << (d.white ? "yes" : "<b>no</b>") << "</td></tr>\n";
   }
   h << "</table>\n";
+  const std::string acf = AutocorrelationCharts(r.sequences, r.residuals, ids);
+  if (!acf.empty()) {
+    h << "<h3>Autocorrelation of the residuals</h3>\n<p class=\"muted chart-help\">per channel "
+         "over the fitted sequences; white noise stays inside the shaded band (&plusmn;1.96 / "
+         "&radic;n) at 95 % of the lags, residuals that carry model error decay slowly. Drag to "
+         "zoom, double-click to zoom out.</p>\n"
+      << acf;
+  }
 }
 
 // multi-start: every start (status, costs, start and estimate per parameter, the best marked) and
@@ -295,16 +307,44 @@ void PlotsLeftOut(std::ostringstream& h, size_t count, const std::vector<std::st
        "above)</p>\n";
 }
 
+// one plotted sequence: its heading, the interactive charts (interactive.h), and the still plot
+// (its PNG) folded below them
+void SequenceBlock(std::ostringstream& h, const SequenceResult& s,
+                   const std::vector<ResidualDiagnostics>& diagnostics,
+                   const LoggedExperiment* logged, const std::string& png, bool held_out,
+                   ChartIds& ids) {
+  h << "<h3>" << HtmlEscape(s.name)
+    << (held_out ? " <span class=\"muted\">validation (not fitted)</span>" : "") << "</h3>\n";
+  h << SequenceCharts(s, diagnostics,
+                      logged != nullptr ? InputsOf(*logged, s.name) : LoggedInputs(), ids);
+  h << "<details class=\"still\"><summary>the same as a still image</summary><img alt=\""
+    << (held_out ? "validation sequence " : "sequence ") << HtmlEscape(s.name)
+    << "\" src=\"data:image/png;base64," << Base64(png) << "\"></details>\n";
+}
+
 }  // namespace
 
 std::string Page(const FitResultFile& r, const std::vector<std::string>& sequence_pngs,
-                 const std::vector<std::string>& validation_pngs, const std::string& motion_html) {
+                 const std::vector<std::string>& validation_pngs, const std::string& motion_html,
+                 const LoggedExperiment* logged) {
   std::ostringstream h;
+  // the plotted columns of the page set how many samples each chart line keeps
+  int columns = 0;
+  for (const auto& [list, pngs] :
+       {std::pair(&r.sequences, &sequence_pngs), std::pair(&r.validation, &validation_pngs)}) {
+    for (size_t i = 0; i < list->size() && i < pngs->size(); ++i) {
+      if (!(*pngs)[i].empty()) {
+        const SequenceResult& s = (*list)[i];
+        columns += static_cast<int>(s.measured.cols() + s.state_measured.cols());
+      }
+    }
+  }
+  ChartIds ids(PointsPerLine(columns));
   const std::string name = r.name.empty() ? "(unnamed)" : r.name;
   h << "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
     << "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n"
-    << "<title>mjsysid report: " << HtmlEscape(name) << "</title>\n<style>" << kCss
-    << "</style>\n</head>\n<body>\n";
+    << "<title>mjsysid report: " << HtmlEscape(name) << "</title>\n<style>" << kCss << "</style>\n"
+    << InteractiveHead() << "</head>\n<body>\n";
 
   // header
   h << "<h1>" << HtmlEscape(name) << "</h1>\n<p><span class=\"badge " << StatusClass(r.status)
@@ -344,6 +384,7 @@ std::string Page(const FitResultFile& r, const std::vector<std::string>& sequenc
   h << "</table>\n";
 
   ParameterSection(h, r);
+  h << CorrelationSection(r);
   StartsSection(h, r);
 
   // warnings
@@ -364,15 +405,24 @@ std::string Page(const FitResultFile& r, const std::vector<std::string>& sequenc
   h << "<h2>Parameters over the iterations</h2>\n";
   h << RenderSvg(params.width, params.height, "params", params.draw);
   FitQualitySection(h, r);
-  ResidualSection(h, r);
+  ResidualSection(h, r, ids);
   h << "<h2>Sequences</h2>\n";
-  if (r.sequences.empty()) h << "<p class=\"muted\">no sequences recorded</p>\n";
+  if (r.sequences.empty()) {
+    h << "<p class=\"muted\">no sequences recorded</p>\n";
+  } else {
+    h << "<p class=\"muted chart-help\">per channel, the signals and, beside them, the residual at "
+         "the estimate (the shaded band: &plusmn;2 &sigma;); below, the logged inputs. Drag across "
+         "a "
+         "chart to zoom in (the sequence's charts follow), double-click to zoom out, shift-drag to "
+         "pan; the values under the pointer are above each chart.</p>\n";
+  }
+  if (logged != nullptr && !logged->note.empty() && !r.sequences.empty()) {
+    h << "<p class=\"muted\">no input plots: " << HtmlEscape(logged->note) << "</p>\n";
+  }
   PlotsLeftOut(h, r.sequences.size(), sequence_pngs);
   for (size_t i = 0; i < r.sequences.size() && i < sequence_pngs.size(); ++i) {
     if (sequence_pngs[i].empty()) continue;  // not plotted
-    h << "<h3>" << HtmlEscape(r.sequences[i].name) << "</h3>\n<img alt=\"sequence "
-      << HtmlEscape(r.sequences[i].name) << "\" src=\"data:image/png;base64,"
-      << Base64(sequence_pngs[i]) << "\">\n";
+    SequenceBlock(h, r.sequences[i], r.residuals, logged, sequence_pngs[i], false, ids);
   }
   if (!r.validation.empty()) {
     h << "<h2>Validation sequences (not fitted)</h2>\n<p class=\"muted\">held out of the fit "
@@ -382,11 +432,7 @@ std::string Page(const FitResultFile& r, const std::vector<std::string>& sequenc
   if (!r.validation.empty()) PlotsLeftOut(h, r.validation.size(), validation_pngs);
   for (size_t i = 0; i < r.validation.size() && i < validation_pngs.size(); ++i) {
     if (validation_pngs[i].empty()) continue;  // not plotted
-    h << "<h3>" << HtmlEscape(r.validation[i].name)
-      << " <span class=\"muted\">validation (not fitted)</span></h3>\n<img alt=\"validation "
-         "sequence "
-      << HtmlEscape(r.validation[i].name) << "\" src=\"data:image/png;base64,"
-      << Base64(validation_pngs[i]) << "\">\n";
+    SequenceBlock(h, r.validation[i], {}, logged, validation_pngs[i], true, ids);
   }
   // the motion section (tools/report/motion.h), when the caller made one
   h << motion_html;

@@ -6,6 +6,7 @@
 #include <utility>
 #include <vector>
 
+#include "sysid/assess/metrics.h"
 #include "tools/report/axes.h"
 
 namespace mjsysid::report {
@@ -140,21 +141,6 @@ void DrawParameters(Canvas& c, const FitResultFile& r) {
   }
 }
 
-// the column labels of a sequence: the sensor name, with [i] for multi-column sensors
-std::vector<std::string> ColumnLabels(const SequenceResult& s) {
-  std::vector<std::string> out;
-  for (size_t i = 0; i < s.sensor_names.size() && i < s.sensor_dims.size(); ++i) {
-    for (int k = 0; k < s.sensor_dims[i]; ++k) {
-      out.push_back(s.sensor_dims[i] == 1 ? s.sensor_names[i]
-                                          : s.sensor_names[i] + "[" + std::to_string(k) + "]");
-    }
-  }
-  while (static_cast<Eigen::Index>(out.size()) < s.measured.cols()) {
-    out.push_back("column " + std::to_string(out.size()));
-  }
-  return out;
-}
-
 // the sensor column panels: two per row when there are more than 4
 int SeqColumns(const SequenceResult& s) { return s.measured.cols() > 4 ? 2 : 1; }
 int SeqRows(const SequenceResult& s) {
@@ -243,6 +229,15 @@ void DrawSequence(Canvas& c, const SequenceResult& s, bool held_out) {
 }
 
 }  // namespace
+
+std::vector<std::string> ColumnLabels(const SequenceResult& s) {
+  std::vector<std::string> out = ChannelNames(s);
+  out.resize(std::min<size_t>(out.size(), static_cast<size_t>(s.measured.cols())));
+  while (static_cast<Eigen::Index>(out.size()) < s.measured.cols()) {
+    out.push_back("column " + std::to_string(out.size()));
+  }
+  return out;
+}
 
 Figure CostFigure(const FitResultFile& result) {
   return {kCostWidth, kCostHeight, [&result](Canvas& c) { DrawCost(c, result); }};

@@ -8,6 +8,9 @@
 // A Figure's drawing refers to the result it was made from: keep that alive while drawing.
 #pragma once
 
+#include <string>
+#include <vector>
+
 #include "sysid/io/result.h"
 #include "tools/report/canvas.h"
 
@@ -28,5 +31,9 @@ Figure ParametersFigure(const io::FitResultFile& result);
 // each panel labelled with its % fit at both (sysid/assess/metrics.h); held_out: a `validation:`
 // sequence, its header starting "validation (not fitted)"
 Figure SequenceFigure(const SequenceResult& sequence, bool held_out = false);
+
+// a sequence's column labels: its channel names (sysid/assess/metrics.h ChannelNames), "column k"
+// for any further column of measured
+std::vector<std::string> ColumnLabels(const SequenceResult& sequence);
 
 }  // namespace mjsysid::report

@@ -121,14 +121,17 @@ int WriteReport(const FitResultFile& result, const std::string& dir, const Repor
     }
   }
   // the motion clip, also a file of its own
-  const MotionResult motion = MakeMotion(result, options.motion);
+  // the experiment loaded again: the motion clip and the input plots (never an error)
+  const LoggedExperiment logged = LoadLoggedExperiment(result);
+  const MotionResult motion = MakeMotion(result, logged, options.motion);
   if (!motion.webp.empty()) {
     WriteFile((d / "motion.webp").string(), motion.webp);
     written.push_back("motion.webp");
   } else {
     std::filesystem::remove(d / "motion.webp", ec);  // a clip of an earlier report
   }
-  WriteFile((d / "report.html").string(), Page(result, pngs, held_out_pngs, MotionHtml(motion)));
+  WriteFile((d / "report.html").string(),
+            Page(result, pngs, held_out_pngs, MotionHtml(motion), &logged));
   written.insert(written.begin(), "report.html");
 
   if (summary != nullptr) {
