@@ -1,7 +1,10 @@
 """The installed package: one libmujoco shared with `import mujoco`, the pins, the stubs."""
 
+import os
 import pathlib
 import re
+import subprocess
+import sys
 
 import mujoco
 
@@ -48,3 +51,36 @@ def test_stubs_and_py_typed_installed():
     stub = (package / "_mjsysid.pyi").read_text()
     for name in ("def fit(", "def fit_experiment(", "def simulate(", "class FitResult"):
         assert name in stub
+
+
+def test_extras_pin_what_the_requirements_pin(root):
+    # mjsysid[bags] installs rosbags and PyYAML at the pins of tools/deps/requirements.txt
+    req = _pins((root / "tools/deps/requirements.txt").read_text())
+    block = re.search(r"bags\s*=\s*\[(.*?)\]", (root / "pyproject.toml").read_text(), re.S)
+    pins = _pins(block.group(1).replace(",", "\n"))
+    assert set(pins) == {"rosbags", "PyYAML"}
+    for name, version in pins.items():
+        assert req[name] == version, name
+
+
+def test_the_sysid_command_is_installed_with_the_package():
+    # the console script next to this Python runs the program inside the package
+    script = pathlib.Path(sys.executable).parent / "sysid"
+    assert script.is_file(), script
+    program = pathlib.Path(mjsysid.__file__).parent / "bin" / "sysid"
+    assert os.access(program, os.X_OK), program
+    version = subprocess.run([str(script), "--version"], capture_output=True, text=True,
+                             timeout=60, env={k: v for k, v in os.environ.items()
+                                              if k != "LD_LIBRARY_PATH"})
+    assert version.returncode == 0, version.stderr
+    assert mjsysid.__version__ in version.stdout
+    assert mujoco.mj_versionString() in version.stdout
+    usage = subprocess.run([str(script), "--help"], capture_output=True, text=True, timeout=60)
+    assert usage.returncode == 0, usage.stderr
+    for command in ("simulate", "check", "fit", "report", "import"):
+        assert command in usage.stdout, command
+    # bad input: exit 2 and the reason, through the script as from the program itself
+    bad = subprocess.run([str(script), "fit", "/nonexistent/experiment.yaml"],
+                         capture_output=True, text=True, timeout=60)
+    assert bad.returncode == 2, (bad.returncode, bad.stderr)
+    assert "/nonexistent/experiment.yaml" in bad.stderr
