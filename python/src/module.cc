@@ -41,6 +41,12 @@
 #include "tools/report/report.h"
 
 namespace mjsysid::python {
+
+// pickling (pickle.h): ExperimentFit's fields after its ResultFile's
+void Fields(Archive& a, ExperimentFit& f) {
+  a(static_cast<io::FitResultFile&>(f), f.out_dir, f.exit_code);
+}
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -54,17 +60,6 @@ extern "C" void OnSigint(int) { g_sigint.store(true); }
 bool OnMainThread() {
   nb::module_ threading = nb::module_::import_("threading");
   return threading.attr("current_thread")().is(threading.attr("main_thread")());
-}
-
-// `sysid fit` as a function: the outcome of run::RunFit, flattened
-struct ExperimentFit : io::FitResultFile {
-  std::string out_dir;
-  int exit_code = 0;
-};
-
-// pickling (pickle.h): ExperimentFit's fields after its ResultFile's
-void Fields(Archive& a, ExperimentFit& f) {
-  a(static_cast<io::FitResultFile&>(f), f.out_dir, f.exit_code);
 }
 
 // __getstate__ / __setstate__ of a result class T (pickle.h): the state is bytes
@@ -311,10 +306,11 @@ NB_MODULE(_mjsysid, m) {
       m, "ResidualDiagnostics",
       "One fitted channel's residuals at the estimate, pooled over the fitted sequences "
       "(result.yaml `residuals`, docs/real-logs.md \"Residual diagnostics\")")
-      .def_ro("channel", &ResidualDiagnostics::channel)
+      .def_ro("channel", &ResidualDiagnostics::channel, "sensor, or sensor[i] for a wider one")
       .def_ro("samples", &ResidualDiagnostics::samples, "measured rows")
       .def_ro("mean", &ResidualDiagnostics::mean, "bias, the channel's units")
-      .def_ro("rms", &ResidualDiagnostics::rms)
+      .def_ro("rms", &ResidualDiagnostics::rms,
+              "RMS of the residuals (simulated - measured), the channel's units")
       .def_ro("sigma", &ResidualDiagnostics::sigma, "the stated or estimated sigma (NaN: none)")
       .def_ro("sigma_from_log", &ResidualDiagnostics::sigma_from_log,
               "sigma estimated from the log (sensor_sigmas 'auto')")
@@ -325,7 +321,8 @@ NB_MODULE(_mjsysid, m) {
       .def_ro("correlation_samples", &ResidualDiagnostics::tau,
               "integrated correlation time in samples (1: white)")
       .def_ro("portmanteau_p", &ResidualDiagnostics::portmanteau_p, "Ljung-Box p-value")
-      .def_ro("white", &ResidualDiagnostics::white)
+      .def_ro("white", &ResidualDiagnostics::white,
+              "the residuals pass the whiteness test (portmanteau)")
       .def("__repr__", [](const ResidualDiagnostics& d) {
         return "ResidualDiagnostics(" + d.channel + ", rms " + std::to_string(d.rms) +
                ", correlation_samples " + std::to_string(d.tau) +
@@ -335,16 +332,19 @@ NB_MODULE(_mjsysid, m) {
   nb::class_<ParameterEstimate>(m, "ParameterEstimate",
                                 "One estimated variable: a physical parameter or a measurement "
                                 "term (SENSOR.delay, SENSOR.gain, SENSOR.bias)")
-      .def_ro("name", &ParameterEstimate::name)
-      .def_ro("value", &ParameterEstimate::value)
-      .def_ro("initial", &ParameterEstimate::initial)
+      .def_ro("name", &ParameterEstimate::name,
+              "the parameter's name as given (or SENSOR.delay, controls.delay, ...)")
+      .def_ro("value", &ParameterEstimate::value, "the estimate (physical units)")
+      .def_ro("initial", &ParameterEstimate::initial,
+              "where the fit started (initial 'auto': the solved equation-error start)")
       .def_ro("std_error", &ParameterEstimate::std_error, "+inf unidentifiable, 0 on a bound")
       .def_prop_ro(
           "ci95",
           [](const ParameterEstimate& p) { return std::make_pair(p.ci95_low, p.ci95_high); })
       .def_ro("at_lower", &ParameterEstimate::at_lower)
       .def_ro("at_upper", &ParameterEstimate::at_upper)
-      .def_ro("identifiable", &ParameterEstimate::identifiable)
+      .def_ro("identifiable", &ParameterEstimate::identifiable,
+              "False: the data do not determine it (std_error +inf)")
       .def_ro("timestep_bias", &ParameterEstimate::timestep_bias,
               "the model timestep's bias of the value (the timestep check), None: not run")
       .def_ro("truth", &ParameterEstimate::truth, "the true value (simulated data), else None")
@@ -358,12 +358,12 @@ NB_MODULE(_mjsysid, m) {
       });
 
   nb::class_<IterationInfo>(m, "IterationInfo", "One iteration of the solver")
-      .def_ro("iteration", &IterationInfo::iteration)
+      .def_ro("iteration", &IterationInfo::iteration, "0: the start, then one per iteration")
       .def_ro("cost", &IterationInfo::cost, "0.5 |r|^2")
       .def_ro("step_norm", &IterationInfo::step_norm)
       .def_ro("gradient_norm", &IterationInfo::gradient_norm)
       .def_ro("seconds", &IterationInfo::seconds, "since the fit started")
-      .def_ro("successful", &IterationInfo::successful)
+      .def_ro("successful", &IterationInfo::successful, "the step was accepted")
       .def_ro("parameters", &IterationInfo::parameters,
               "physical values after the iteration (FitResult.parameters order)");
 
@@ -390,14 +390,15 @@ NB_MODULE(_mjsysid, m) {
                ")";
       });
 
-  nb::class_<SequenceResult>(m, "SequenceResult",
-                             "Fitted sensor columns of one sequence (T rows, model order)")
-      .def_ro("name", &SequenceResult::name)
-      .def_ro("model", &SequenceResult::model)
+  nb::class_<SequenceResult> sequence_result(
+      m, "SequenceResult", "Fitted sensor columns of one sequence (T rows, model order)");
+  sequence_result.def_ro("name", &SequenceResult::name, "the sequence's name")
+      .def_ro("model", &SequenceResult::model, "the model it was fitted with")
       .def_ro("sensor_names", &SequenceResult::sensor_names)
       .def_ro("sensor_dims", &SequenceResult::sensor_dims)
-      .def_ro("time", &SequenceResult::time)
-      .def_ro("measured", &SequenceResult::measured)
+      .def_ro("time", &SequenceResult::time, "T sample times (s)")
+      .def_ro("measured", &SequenceResult::measured,
+              "T x columns of the fitted sensors (NaN: not measured)")
       .def_ro("simulated_initial", &SequenceResult::simulated_initial)
       .def_ro("simulated_final", &SequenceResult::simulated_final,
               "at the estimate; segment by segment for a fit in segments")
@@ -428,7 +429,8 @@ NB_MODULE(_mjsysid, m) {
   nb::class_<LedgerRow>(m, "LedgerRow",
                         "One phase of a fit's ledger (sysid/solve/fit_ledger.h): entries, "
                         "simulator steps and seconds")
-      .def_ro("phase", &LedgerRow::phase)
+      .def_ro("phase", &LedgerRow::phase,
+              "the phase's name (sysid/solve/fit_ledger.h FitPhaseName), e.g. \"solve: Jacobians\"")
       .def_ro("entries", &LedgerRow::entries)
       .def_ro("steps", &LedgerRow::steps)
       .def_ro("seconds", &LedgerRow::seconds)
@@ -477,8 +479,11 @@ NB_MODULE(_mjsysid, m) {
       .def_ro("ahead_folds", &Diagnostics::ahead_folds,
               "of the folds, those made ahead on the workers (fold_ahead)");
 
-  nb::class_<FitResult>(m, "FitResult", "The result of a fit (sysid/types.h)")
-      .def_ro("parameters", &FitResult::parameters)
+  nb::class_<FitResult> fit_result(m, "FitResult", "The result of a fit (sysid/types.h)");
+  fit_result
+      .def_ro("parameters", &FitResult::parameters,
+              "a list of ParameterEstimate, in the order given (then the fitted measurement terms "
+              "and control delays)")
       .def_prop_ro("estimates", &Estimates, "dict: name -> estimated value")
       .def_prop_ro(
           "status", [](const FitResult& r) { return FitStatusName(r.outcome); },
@@ -486,9 +491,11 @@ NB_MODULE(_mjsysid, m) {
           "did_not_move, interrupted, solver_failed or local_minimum")
       .def_ro("initial_cost", &FitResult::initial_cost)
       .def_ro("final_cost", &FitResult::final_cost)
-      .def_ro("iterations", &FitResult::iterations)
-      .def_ro("converged", &FitResult::converged)
-      .def_ro("interrupted", &FitResult::interrupted)
+      .def_ro("iterations", &FitResult::iterations, "the solver's iterations")
+      .def_ro("converged", &FitResult::converged,
+              "the optimiser reported convergence (the verdict is status)")
+      .def_ro("interrupted", &FitResult::interrupted,
+              "stopped by an interrupt (Ctrl-C) before it ended by itself")
       .def_ro("intervals_valid", &FitResult::intervals_valid)
       .def_ro("chi2_ratio", &FitResult::chi2_ratio)
       .def_ro("sensor_chi2_ratio", &FitResult::sensor_chi2_ratio)
@@ -519,10 +526,11 @@ NB_MODULE(_mjsysid, m) {
                    [](const FitResult& r) { return r.uncertainty.unidentifiable; })
       .def_ro("jacobian", &FitResult::jacobian,
               "dr/dp at the estimate as its thin-QR triangle R (np x np, R^T R = J^T J)")
-      .def_ro("trace", &FitResult::trace)
-      .def_ro("sequences", &FitResult::sequences)
-      .def_ro("warnings", &FitResult::warnings)
-      .def_ro("seconds", &FitResult::seconds)
+      .def_ro("trace", &FitResult::trace, "a list of IterationInfo, one per successful iteration")
+      .def_ro("sequences", &FitResult::sequences,
+              "a list of SequenceResult, one per fitted sequence")
+      .def_ro("warnings", &FitResult::warnings, "what the fit found worth saying, one string each")
+      .def_ro("seconds", &FitResult::seconds, "wall time of the fit (result.yaml wall_time_s)")
       .def_ro("segment_steps_used", &FitResult::segment_steps_used,
               "multiple shooting: steps per segment (0: single shooting)")
       .def_prop_ro(
@@ -549,25 +557,28 @@ NB_MODULE(_mjsysid, m) {
                " warning" + (r.warnings.size() == 1 ? "" : "s") + ")";
       });
 
-  nb::class_<io::FitResultFile, FitResult>(m, "ResultFile",
-                                           "A fit as stored in DIR/result.yaml + result.h5")
-      .def_ro("name", &io::FitResultFile::name)
-      .def_ro("experiment", &io::FitResultFile::experiment)
-      .def_ro("created", &io::FitResultFile::created)
+  nb::class_<io::FitResultFile, FitResult> result_file(
+      m, "ResultFile", "A fit as stored in DIR/result.yaml + result.h5");
+  result_file.def_ro("name", &io::FitResultFile::name, "the experiment's name")
+      .def_ro("experiment", &io::FitResultFile::experiment, "the experiment file's path")
+      .def_ro("created", &io::FitResultFile::created,
+              "when the fit ran (UTC, YYYY-MM-DDTHH:MM:SSZ)")
       .def_ro("run_id", &io::FitResultFile::run_id)
       .def_ro("mjsysid_version", &io::FitResultFile::mjsysid_version)
       .def_ro("mujoco_version", &io::FitResultFile::mujoco_version)
-      .def_ro("solver", &io::FitResultFile::solver)
+      .def_ro("solver", &io::FitResultFile::solver,
+              "the fit's settings as text (result.yaml solver)")
       .def_ro("identified_models", &io::FitResultFile::identified_models)
       .def("__getstate__", &StateOf<io::FitResultFile>)
       .def("__setstate__", &SetState<io::FitResultFile>);
 
-  nb::class_<ExperimentFit, io::FitResultFile>(m, "ExperimentFit",
-                                               "The outcome of fit_experiment (`sysid fit`)")
-      .def_ro("out_dir", &ExperimentFit::out_dir)
+  nb::class_<ExperimentFit, io::FitResultFile> experiment_fit(
+      m, "ExperimentFit", "The outcome of fit_experiment (`sysid fit`)");
+  experiment_fit.def_ro("out_dir", &ExperimentFit::out_dir)
       .def_ro("exit_code", &ExperimentFit::exit_code, "the exit code `sysid fit` would give")
       .def("__getstate__", &StateOf<ExperimentFit>)
       .def("__setstate__", &SetState<ExperimentFit>);
+  BindResultTables(fit_result, result_file, experiment_fit, sequence_result);
 
   // --- logs (sysid/io/log.h) ---
   nb::class_<io::Sequence>(m, "Sequence",
@@ -575,13 +586,14 @@ NB_MODULE(_mjsysid, m) {
                            "ctrl_time), sensordata (T x ns), optional qpos/qvel/act (T x "
                            "nq|nv|na, else 0 x 0)")
       .def(nb::init<>())
-      .def_rw("name", &io::Sequence::name)
-      .def_rw("time", &io::Sequence::time)
-      .def_rw("ctrl", &io::Sequence::ctrl)
-      .def_rw("sensordata", &io::Sequence::sensordata)
-      .def_rw("qpos", &io::Sequence::qpos)
-      .def_rw("qvel", &io::Sequence::qvel)
-      .def_rw("act", &io::Sequence::act)
+      .def_rw("name", &io::Sequence::name, "the sequence's name")
+      .def_rw("time", &io::Sequence::time, "T sample times (s)")
+      .def_rw("ctrl", &io::Sequence::ctrl, "T x nu controls (Tc x nu at ctrl_time)")
+      .def_rw("sensordata", &io::Sequence::sensordata,
+              "T x nsensordata, the model's sensor layout (NaN: not measured)")
+      .def_rw("qpos", &io::Sequence::qpos, "T x nq logged positions, or 0 x 0")
+      .def_rw("qvel", &io::Sequence::qvel, "T x nv logged velocities, or 0 x 0")
+      .def_rw("act", &io::Sequence::act, "T x na logged activations, or 0 x 0")
       .def_rw("sensor_names", &io::Sequence::sensor_names)
       .def_rw("sensor_dims", &io::Sequence::sensor_dims)
       .def_rw("actuator_names", &io::Sequence::actuator_names)
@@ -592,15 +604,16 @@ NB_MODULE(_mjsysid, m) {
 
   nb::class_<io::Log>(m, "Log", "Sequences recorded with one sensor_time convention")
       .def(nb::init<>())
-      .def_rw("sequences", &io::Log::sequences)
+      .def_rw("sequences", &io::Log::sequences, "a list of Sequence (assign a whole list)")
       .def_rw("sensor_time", &io::Log::sensor_time, "pre (y_k before the step) or post")
-      .def_rw("attributes", &io::Log::attributes);
+      .def_rw("attributes", &io::Log::attributes,
+              "the file's attributes (text): truth.<name>, ...");
 
   // --- experiments (sysid/io/experiment.h) ---
   nb::class_<io::ExperimentConfig>(m, "Experiment", "A loaded YAML experiment file")
-      .def_ro("name", &io::ExperimentConfig::name)
+      .def_ro("name", &io::ExperimentConfig::name, "the experiment's name")
       .def_ro("source_file", &io::ExperimentConfig::source_file)
-      .def_ro("output", &io::ExperimentConfig::output)
+      .def_ro("output", &io::ExperimentConfig::output, "the output folder of a fit")
       .def_prop_ro("models",
                    [](const io::ExperimentConfig& c) {
                      std::map<std::string, std::string> out;
