@@ -59,7 +59,8 @@ def test_the_experiment_files_names_give_the_same_fit(root, frames):  # noqa: F8
     ("upper", "bounds", [1e-4, 5.0]),
     ("log", "transform", "log"),
 ])
-def test_both_spellings_of_one_thing_are_a_value_error(root, frames, ours, yaml_key, value):  # noqa: F811
+def test_both_spellings_of_one_thing_are_a_value_error(root, frames,  # noqa: F811
+                                                       ours, yaml_key, value):
     p = dict(PARAMETERS[0])
     p[yaml_key] = value
     if ours not in p:
