@@ -462,6 +462,46 @@ NB_MODULE(_mjsysid, m) {
       .def_ro("batch_cpu_seconds", &LedgerRow::batch_cpu_seconds,
               "the fit thread's CPU time inside the batches");
 
+  nb::class_<StartResult>(m, "StartResult",
+                          "One fit of a multi-start run (options starts, solver.starts; "
+                          "sysid/run/multi_start.h): where it started, where it ended")
+      .def_ro("start", &StartResult::start, "physical start values (FitResult.parameters order)")
+      .def_ro("estimate", &StartResult::estimate, "the fit's values; empty when the fit failed")
+      .def_ro("initial_cost", &StartResult::initial_cost, "+inf when the fit failed")
+      .def_ro("final_cost", &StartResult::final_cost, "+inf when the fit failed")
+      .def_prop_ro(
+          "status", [](const StartResult& r) { return FitStatusName(r.status); },
+          "the fit's own status; local_minimum: it ended in another minimum than the best")
+      .def_ro("iterations", &StartResult::iterations, "the fit's iterations")
+      .def_ro("error", &StartResult::error, "why the fit failed; \"\" otherwise");
+
+  nb::class_<ParameterSpread>(m, "ParameterSpread",
+                              "The spread of one estimated value over the starts of a multi-start "
+                              "run that did not fail")
+      .def_ro("name", &ParameterSpread::name, "the estimated value's name")
+      .def_ro("min", &ParameterSpread::min, "the lowest estimate")
+      .def_ro("max", &ParameterSpread::max, "the highest estimate")
+      .def_ro("relative", &ParameterSpread::relative,
+              "(max - min) / |best estimate| (inf when the best is 0 and max > min)");
+
+  nb::class_<DerivedQuantity>(
+      m, "DerivedQuantity",
+      "A quantity computed from estimated variables, not itself estimated "
+      "(a body's mass, centre of mass, principal moments from body_inertial; "
+      "sysid/assess/derived_inertials.h), with a first-order standard "
+      "error and 95 % interval")
+      .def_ro("name", &DerivedQuantity::name, "e.g. payload.mass, payload.com[0]")
+      .def_ro("unit", &DerivedQuantity::unit, "kg, m, kg m^2")
+      .def_ro("value", &DerivedQuantity::value, "at the estimate")
+      .def_ro("std_error", &DerivedQuantity::std_error,
+              "NaN without intervals, +inf when an estimate it depends on is unidentifiable")
+      .def_prop_ro(
+          "ci95", [](const DerivedQuantity& d) { return std::make_pair(d.ci95_low, d.ci95_high); },
+          "(low, high): the 95 % interval")
+      .def_ro("derived_from", &DerivedQuantity::derived_from,
+              "how: the estimated variables and the method, one line")
+      .def_ro("truth", &DerivedQuantity::truth, "the true value (simulated data), else None");
+
   using Diagnostics = FitResult::Diagnostics;
   nb::class_<Diagnostics>(m, "FitDiagnostics",
                           "How a fit got its answer, not the answer (FitResult::Diagnostics, "
@@ -559,6 +599,19 @@ NB_MODULE(_mjsysid, m) {
       .def_ro("jacobian", &FitResult::jacobian,
               "dr/dp at the estimate as its thin-QR triangle R (np x np, R^T R = J^T J)")
       .def_ro("trace", &FitResult::trace, "a list of IterationInfo, one per successful iteration")
+      .def_ro("validation", &FitResult::validation,
+              "held-out sequences (the experiment's validation:), a list of SequenceResult "
+              "simulated at the start and at the estimate, never fitted")
+      .def_ro("starts", &FitResult::starts,
+              "a multi-start fit: every start in order (a list of StartResult); empty for one "
+              "start")
+      .def_ro("best_start", &FitResult::best_start,
+              "a multi-start fit: the index in starts of the start this result is")
+      .def_ro("start_spread", &FitResult::start_spread,
+              "a multi-start fit: per estimated value its spread over the starts (a list of "
+              "ParameterSpread)")
+      .def_ro("derived", &FitResult::derived,
+              "quantities derived from the estimate (a list of DerivedQuantity; empty when none)")
       .def_ro("sequences", &FitResult::sequences,
               "a list of SequenceResult, one per fitted sequence")
       .def_ro("warnings", &FitResult::warnings, "what the fit found worth saying, one string each")

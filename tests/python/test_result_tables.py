@@ -150,3 +150,33 @@ def test_docstrings_of_the_tables():
         assert "result.yaml" in cls.to_dict.__doc__
         assert "pandas" in cls.to_pandas.__doc__
     assert "measured:CHANNEL" in mjsysid.SequenceResult.to_pandas.__doc__
+
+
+def test_validation_starts_and_spread_are_attributes(pendulum, tmp_path):
+    # the pendulum experiment fitted on seq0 and seq1 with seq2 held out, from 2 starts (seed 0)
+    text = pendulum.read_text().replace("max_iterations: 50", "max_iterations: 50\n  starts: 2")
+    pendulum.write_text(text + "sequences: [seq0, seq1]\nvalidation: [seq2]\n")
+    mjsysid.simulate(str(pendulum))
+    fit = mjsysid.fit_experiment(str(pendulum), out=str(tmp_path / "out"))
+    d = fit.to_dict()
+    assert [s.name for s in fit.sequences] == ["seq0", "seq1"]
+    (held_out,) = fit.validation
+    assert held_out.name == "seq2" and held_out.measured.shape == (2000, 2)
+    (metrics,) = [m for m in d["fit_metrics"] if m["role"] == "validation"]
+    assert metrics["sequence"] == "seq2"
+    assert [c["fit_final"] for c in metrics["channels"]] == [
+        f.fit_final for f in held_out.channel_fits]
+    rate = held_out.to_pandas()["measured:rate"].to_numpy()
+    assert rate.tolist() == held_out.measured[:, 1].tolist()
+    # the starts as typed attributes, the same as result.yaml's `starts`
+    assert len(fit.starts) == 2 and fit.best_start == d["starts"]["best"]
+    for s, run in zip(fit.starts, d["starts"]["runs"]):
+        assert s.start.tolist() == run["start"] and s.estimate.tolist() == run["estimate"]
+        assert (s.status, s.iterations, s.final_cost) == (run["status"], run["iterations"],
+                                                          run["final_cost"])
+    assert [(p.name, p.min, p.max, p.relative) for p in fit.start_spread] == [
+        (p["name"], p["min"], p["max"], p["relative"]) for p in d["starts"]["spread"]]
+    assert fit.derived == [] and "derived" not in d
+    back = mjsysid.read_result(str(tmp_path / "out"))
+    assert [s.start.tolist() for s in back.starts] == [s.start.tolist() for s in fit.starts]
+    assert back.validation[0].name == "seq2"
