@@ -22,6 +22,7 @@
 #include <string>
 
 #include "core/thread_pool.h"
+#include "sysid/io/result.h"
 #include "sysid/types.h"
 
 namespace mjsysid::python {
@@ -78,5 +79,18 @@ inline int CheckedThreads(int threads, const std::string& what, bool allow_defau
 
 // fit(model, parameters, sequences, options, callback): the library API on numpy arrays
 void BindFitApi(nb::module_& m);
+
+// `sysid fit` as a function (fit_experiment): the outcome of run::RunFit, flattened
+struct ExperimentFit : io::FitResultFile {
+  std::string out_dir;
+  int exit_code = 0;
+};
+
+// to_dict() of FitResult, ResultFile and ExperimentFit (result.yaml's keys) and to_pandas() of
+// them and of SequenceResult (result_dict.cc)
+void BindResultTables(nb::class_<FitResult>& fit_result,
+                      nb::class_<io::FitResultFile, FitResult>& result_file,
+                      nb::class_<ExperimentFit, io::FitResultFile>& experiment_fit,
+                      nb::class_<SequenceResult>& sequence);
 
 }  // namespace mjsysid::python

@@ -13,21 +13,26 @@
 #include <nanobind/stl/vector.h>
 
 #include <algorithm>
+#include <cstdint>
 #include <functional>
 #include <limits>
 #include <map>
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
 #include "bindings.h"
 #include "core/mujoco_env.h"
 #include "core/text.h"
+#include "core/thread_pool.h"
 #include "sysid/assess/metrics.h"
 #include "sysid/problem.h"
+#include "sysid/run/fit_experiment.h"
 #include "sysid/run/fit_table.h"
+#include "sysid/run/multi_start.h"
 
 namespace mjsysid::python {
 namespace {
@@ -47,9 +52,11 @@ std::string Joined(const std::vector<std::string>& names) {
 // The keys of the three kinds of dict, each list written once: CheckKeys, the docstring of
 // fit() and the ValueError for an unknown key read it (tests/python/test_fit_options.py
 // compares the options with docs/python.md).
-const std::vector<std::string> kParameterKeys = {"name",  "kind",    "object", "field",
-                                                 "index", "initial", "lower",  "upper",
-                                                 "log",   "scale",   "prior",  "models"};
+// kParameterKeys: today's spellings and the experiment file's (target, bounds, transform), one of
+// each pair per dict (ParameterOf)
+const std::vector<std::string> kParameterKeys = {
+    "name",  "kind",   "target", "object", "field", "index",     "initial", "lower",
+    "upper", "bounds", "log",    "scale",  "prior", "transform", "models"};
 const std::vector<std::string> kSequenceKeys = {
     "name", "model",   "ctrl",      "measured",  "qpos",       "qvel",        "act",
     "time", "sensors", "ctrl_time", "ctrl_hold", "ctrl_delay", "ctrl_before", "no_sensors"};
@@ -76,6 +83,8 @@ const std::vector<std::string> kOptionKeys = {"max_iterations",
                                               "global_budget",
                                               "timestep_check",
                                               "states",
+                                              "starts",
+                                              "seed",
                                               "verbose"};
 const std::vector<std::string> kMeasurementKeys = {"sensor", "delay", "gain", "bias"};
 const std::vector<std::string> kTermKeys = {"initial", "fit", "lower", "upper"};
@@ -85,6 +94,8 @@ const std::vector<std::string> kControlDelayKeys = {"actuator", "initial", "lowe
 const std::vector<std::string> kDifferences = {"forward", "central"};
 const std::vector<std::string> kContinuityScales = {"relative", "absolute"};
 const std::vector<std::string> kJumpingSensors = {"omit", "fit"};
+// in the order of Transform (sysid/types.h), as sysid/io/experiment_fit.cc spells them
+const std::vector<std::string> kTransforms = {"none", "log", "scale"};
 
 // the keys of `d` must be in `valid`; `what` names the dict in messages
 void CheckKeys(const nb::dict& d, const std::vector<std::string>& valid, const std::string& what) {
@@ -326,30 +337,92 @@ RowMatrix NamedColumns(nb::handle value, const Columns& cols,
   return out;
 }
 
+// d has at most one of two spellings of one thing (today's and the experiment file's); a
+// ValueError names both
+void OneSpelling(const nb::dict& d, const std::vector<const char*>& ours, const char* yaml,
+                 const std::string& what) {
+  if (!d.contains(yaml)) return;
+  for (const char* key : ours) {
+    if (!d.contains(key)) continue;
+    std::string both;
+    for (const char* k : ours) both += std::string(both.empty() ? "'" : "/'") + k + "'";
+    throw std::invalid_argument(what + ": '" + key + "' and '" + yaml +
+                                "' are two spellings of one thing (" + both +
+                                " here, the experiment file's '" + yaml + "'): give one");
+  }
+}
+
+// d[key] as [a, b] or {names[0]: a, names[1]: b} (the experiment file's map); `what` names d
+std::pair<double, double> GetPair(const nb::dict& d, const char* key,
+                                  const std::pair<const char*, const char*>& names,
+                                  const std::string& what) {
+  const std::string expected = std::string("'") + key + "' is [" + names.first + ", " +
+                               names.second + "] or {" + names.first + ": .., " + names.second +
+                               ": ..}";
+  if (nb::isinstance<nb::dict>(d[key])) {
+    const nb::dict m = nb::cast<nb::dict>(d[key]);
+    const std::string w = what + "." + key;
+    CheckKeys(m, {names.first, names.second}, w);
+    if (!m.contains(names.first) || !m.contains(names.second)) {
+      throw std::invalid_argument(what + ": " + expected);
+    }
+    return {Get<double>(m, names.first, 0, w), Get<double>(m, names.second, 0, w)};
+  }
+  const auto v = Get<std::vector<double>>(d, key, {}, what);
+  if (v.size() != 2) throw std::invalid_argument(what + ": " + expected);
+  return {v[0], v[1]};
+}
+
+// The parameter's keys are today's (kind, lower/upper, log: true, scale alone) or the experiment
+// file's (target, bounds: [lower, upper], transform: none | log | scale with scale); both
+// spellings of one thing in one dict are a ValueError. initial: a number or "auto" (the
+// equation-error start of Problem::Fit, FitParameter::initial_auto, as `initial: auto`).
 FitParameter ParameterOf(const nb::dict& d, size_t i) {
   const std::string what = "parameters[" + std::to_string(i) + "]";
   CheckKeys(d, kParameterKeys, what);
-  for (const char* key : {"name", "kind", "initial"}) {
+  OneSpelling(d, {"kind"}, "target", what);
+  OneSpelling(d, {"lower", "upper"}, "bounds", what);
+  OneSpelling(d, {"log"}, "transform", what);
+  for (const char* key : {"name", "initial"}) {
     if (!d.contains(key)) throw std::invalid_argument(what + ": '" + key + "' is required");
+  }
+  if (!d.contains("kind") && !d.contains("target")) {
+    throw std::invalid_argument(what + ": 'target' (or 'kind') is required");
   }
   FitParameter p;
   p.name = Get<std::string>(d, "name", "", what);
-  p.target.kind = Get<std::string>(d, "kind", "", what);
+  p.target.kind = Get<std::string>(d, d.contains("target") ? "target" : "kind", "", what);
   p.target.object = Get<std::string>(d, "object", "", what);
   p.target.field = Get<std::string>(d, "field", "", what);
   p.target.index = Get<int>(d, "index", 0, what);
-  p.initial = Get<double>(d, "initial", 0, what);
+  if (nb::isinstance<nb::str>(d["initial"])) {
+    if (nb::cast<std::string>(d["initial"]) != "auto") {
+      throw std::invalid_argument(what + ": 'initial' is a number or 'auto', got '" +
+                                  nb::cast<std::string>(d["initial"]) + "'");
+    }
+    // decided by the fit (the equation-error start); NaN until then, as from the experiment file
+    p.initial_auto = true;
+    p.initial = kNaN;
+  } else {
+    p.initial = Get<double>(d, "initial", 0, what);
+  }
   p.lower = Get<double>(d, "lower", p.lower, what);
   p.upper = Get<double>(d, "upper", p.upper, what);
+  if (d.contains("bounds")) {
+    std::tie(p.lower, p.upper) = GetPair(d, "bounds", {"lower", "upper"}, what);
+  }
   if (Get<bool>(d, "log", false, what)) p.transform = Transform::kLog;
-  if (d.contains("scale")) {
+  if (d.contains("transform")) {
+    p.transform = static_cast<Transform>(GetChoice(d, "transform", kTransforms, 0, what));
+    // as in the experiment file: scale is the factor of transform: scale, ignored otherwise
+    p.scale = Get<double>(d, "scale", p.scale, what);
+  } else if (d.contains("scale")) {
     p.transform = Transform::kScale;
     p.scale = Get<double>(d, "scale", 1, what);
   }
   if (d.contains("prior")) {
-    const auto prior = Get<std::vector<double>>(d, "prior", {}, what);
-    if (prior.size() != 2) throw std::invalid_argument(what + ": 'prior' is [mean, sigma]");
-    p.Prior(prior[0], prior[1]);
+    const auto [mean, sigma] = GetPair(d, "prior", {"mean", "sigma"}, what);
+    p.Prior(mean, sigma);
   }
   p.models = Get<std::vector<std::string>>(d, "models", {}, what);
   return p;
@@ -500,10 +573,28 @@ FitSequence SequenceOf(const nb::dict& d, size_t i, const std::vector<std::strin
   return s;
 }
 
-FitOptions OptionsOf(const nb::dict& d) {
+// How many fits from different starts, and the seed that draws them (the experiment's
+// solver.starts and solver.seed; sysid/run/multi_start.h)
+struct Starts {
+  int count = 1;
+  std::uint64_t seed = 0;
+};
+
+FitOptions OptionsOf(const nb::dict& d, Starts* starts) {
   const std::string what = "options";
   CheckKeys(d, kOptionKeys, what);
   FitOptions o;
+  // the experiment file's ranges: starts 1..10000, seed >= 0
+  starts->count = Get<int>(d, "starts", 1, what);
+  if (starts->count < 1 || starts->count > 10000) {
+    throw std::invalid_argument("options: starts must be 1..10000, got " +
+                                std::to_string(starts->count));
+  }
+  const long long seed = Get<long long>(d, "seed", 0, what);
+  if (seed < 0) {
+    throw std::invalid_argument("options: seed must be >= 0, got " + std::to_string(seed));
+  }
+  starts->seed = static_cast<std::uint64_t>(seed);
   o.max_iterations = Get<int>(d, "max_iterations", o.max_iterations, what);
   o.function_tolerance = Get<double>(d, "function_tolerance", o.function_tolerance, what);
   o.gradient_tolerance = Get<double>(d, "gradient_tolerance", o.gradient_tolerance, what);
@@ -703,20 +794,33 @@ FitResult Fit(nb::object model, nb::object parameters, nb::object sequences, nb:
   }
   std::vector<const mjModel*> by_index;
   for (const ModelPtr& m : compiled) by_index.push_back(m.get());
-  ForEachDict(parameters, "parameters",
-              [&](const nb::dict& d, size_t i) { problem.AddParameter(ParameterOf(d, i)); });
-  ForEachDict(measurements, "measurements",
-              [&](const nb::dict& d, size_t i) { problem.AddMeasurement(MeasurementOf(d, i)); });
-  ForEachDict(control_delays, "control_delays",
-              [&](const nb::dict& d, size_t i) { problem.AddControlDelay(ControlDelayOf(d, i)); });
+  // what is added to the problem, kept for the starts of a multi-start fit (each start a Problem
+  // of its own: run::ProblemFrom)
+  run::BuiltProblem added;
+  ForEachDict(parameters, "parameters", [&](const nb::dict& d, size_t i) {
+    added.parameters.push_back(ParameterOf(d, i));
+    problem.AddParameter(added.parameters.back());
+  });
+  ForEachDict(measurements, "measurements", [&](const nb::dict& d, size_t i) {
+    added.measurements.push_back(MeasurementOf(d, i));
+    problem.AddMeasurement(added.measurements.back());
+  });
+  ForEachDict(control_delays, "control_delays", [&](const nb::dict& d, size_t i) {
+    added.control_delays.push_back(ControlDelayOf(d, i));
+    problem.AddControlDelay(added.control_delays.back());
+  });
   ForEachDict(sequences, "sequences", [&](const nb::dict& d, size_t i) {
-    problem.AddSequence(SequenceOf(d, i, models, by_index));
+    added.sequences.push_back(SequenceOf(d, i, models, by_index));
+    problem.AddSequence(added.sequences.back());
   });
   FitOptions fit_options;
+  Starts starts;
   if (!options.is_none()) {
     if (!nb::isinstance<nb::dict>(options)) throw std::invalid_argument("options: expected a dict");
-    fit_options = OptionsOf(nb::cast<nb::dict>(options));
+    fit_options = OptionsOf(nb::cast<nb::dict>(options), &starts);
   }
+  added.model_names = models;
+  added.models = std::move(compiled);
   FitGuard guard(std::move(callback));
   fit_options.interrupt = guard.interrupt();
   fit_options.on_iteration = guard.OnIteration(nullptr);
@@ -726,7 +830,15 @@ FitResult Fit(nb::object model, nb::object parameters, nb::object sequences, nb:
   FitResult result;
   {
     nb::gil_scoped_release release;
-    result = problem.Fit(fit_options);
+    if (starts.count > 1) {
+      // the runner's multi-start (sysid/run/multi_start.h): min(starts, threads) fits at a time,
+      // every thread counted (0: all cores), one line per finished start with verbose
+      FitOptions multi = fit_options;
+      multi.threads = ThreadCount(fit_options.threads);
+      result = run::FitFromStarts(added, multi, starts.count, starts.seed, fit_options.verbose);
+    } else {
+      result = problem.Fit(fit_options);
+    }
     // each sequence's % fit and NRMSE per channel, as the runner gives them
     for (SequenceResult& sr : result.sequences) sr.channel_fits = ChannelFits(sr);
   }
@@ -745,14 +857,20 @@ void BindFitApi(nb::module_& m) {
       "model} of several models (each "
       "sequence names its `model`, a parameter the `models` it applies to; default all). "
       "parameters: list of dicts {" +
-      Joined(kParameterKeys) + "} (name, kind, initial required; object | field). " +
+      Joined(kParameterKeys) +
+      "} (name, target, initial required; object | field; the experiment file's names target, "
+      "bounds: [lower, upper], transform: none|log|scale, prior: {mean, sigma}, or kind, lower, "
+      "upper, log: True, prior: [mean, sigma], one spelling of each; initial a number or 'auto', "
+      "the equation-error start from the logged qpos and qvel). " +
       "sequences: list of dicts {" + Joined(kSequenceKeys) +
       "} (ctrl T x nu and measured T x nsensordata required: arrays in model order, or a "
       "DataFrame or dict whose columns are matched to the actuators and sensors by name; qpos, "
       "qvel, act: "
       "the initial state, or T rows of logged states). options: dict {" +
       Joined(kOptionKeys) +
-      "}. callback(IterationInfo) after every successful iteration. measurements: list of "
+      "} (starts > 1: the experiment runner's multi-start from starts spread by seed; the "
+      "callback is then not called). callback(IterationInfo) after every successful iteration. "
+      "measurements: list of "
       "dicts {" +
       Joined(kMeasurementKeys) + "}, each term a dict {" + Joined(kTermKeys) +
       "}: measured = gain * simulated(t - delay) + bias, fitted terms estimated as "
@@ -761,7 +879,8 @@ void BindFitApi(nb::module_& m) {
       "} (s; no actuator: shared by every actuator without its own), estimated as "
       "controls.delay[.ACTUATOR]."
       " The GIL is released during "
-      "the fit; Ctrl-C stops it after the current iteration (status interrupted).";
+      "the fit; Ctrl-C stops it after the current iteration (status interrupted). Returns a "
+      "FitResult (to_dict(): result.yaml's names; to_pandas(): the parameters' table).";
   m.def("fit", &Fit, arg("model"), arg("parameters"), arg("sequences"), arg("options") = nb::none(),
         arg("callback") = nb::none(), arg("measurements") = nb::none(),
         arg("control_delays") = nb::none(), doc.c_str());

@@ -41,6 +41,12 @@
 #include "tools/report/report.h"
 
 namespace mjsysid::python {
+
+// pickling (pickle.h): ExperimentFit's fields after its ResultFile's
+void Fields(Archive& a, ExperimentFit& f) {
+  a(static_cast<io::FitResultFile&>(f), f.out_dir, f.exit_code);
+}
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -54,17 +60,6 @@ extern "C" void OnSigint(int) { g_sigint.store(true); }
 bool OnMainThread() {
   nb::module_ threading = nb::module_::import_("threading");
   return threading.attr("current_thread")().is(threading.attr("main_thread")());
-}
-
-// `sysid fit` as a function: the outcome of run::RunFit, flattened
-struct ExperimentFit : io::FitResultFile {
-  std::string out_dir;
-  int exit_code = 0;
-};
-
-// pickling (pickle.h): ExperimentFit's fields after its ResultFile's
-void Fields(Archive& a, ExperimentFit& f) {
-  a(static_cast<io::FitResultFile&>(f), f.out_dir, f.exit_code);
 }
 
 // __getstate__ / __setstate__ of a result class T (pickle.h): the state is bytes
@@ -311,21 +306,23 @@ NB_MODULE(_mjsysid, m) {
       m, "ResidualDiagnostics",
       "One fitted channel's residuals at the estimate, pooled over the fitted sequences "
       "(result.yaml `residuals`, docs/real-logs.md \"Residual diagnostics\")")
-      .def_ro("channel", &ResidualDiagnostics::channel)
+      .def_ro("channel", &ResidualDiagnostics::channel, "sensor, or sensor[i] for a wider one")
       .def_ro("samples", &ResidualDiagnostics::samples, "measured rows")
       .def_ro("mean", &ResidualDiagnostics::mean, "bias, the channel's units")
-      .def_ro("rms", &ResidualDiagnostics::rms)
+      .def_ro("rms", &ResidualDiagnostics::rms,
+              "RMS of the residuals (simulated - measured), the channel's units")
       .def_ro("sigma", &ResidualDiagnostics::sigma, "the stated or estimated sigma (NaN: none)")
       .def_ro("sigma_from_log", &ResidualDiagnostics::sigma_from_log,
               "sigma estimated from the log (sensor_sigmas 'auto')")
-      .def_ro("rms_over_sigma", &ResidualDiagnostics::ratio)
+      .def_ro("rms_over_sigma", &ResidualDiagnostics::ratio, "rms / sigma (NaN without a sigma)")
       .def_ro("bias_std_errors", &ResidualDiagnostics::bias_units,
               "|mean| in standard errors of a mean of these (correlated) residuals")
       .def_ro("lag1", &ResidualDiagnostics::lag1, "autocorrelation at one sample")
       .def_ro("correlation_samples", &ResidualDiagnostics::tau,
               "integrated correlation time in samples (1: white)")
       .def_ro("portmanteau_p", &ResidualDiagnostics::portmanteau_p, "Ljung-Box p-value")
-      .def_ro("white", &ResidualDiagnostics::white)
+      .def_ro("white", &ResidualDiagnostics::white,
+              "the residuals pass the whiteness test (portmanteau)")
       .def("__repr__", [](const ResidualDiagnostics& d) {
         return "ResidualDiagnostics(" + d.channel + ", rms " + std::to_string(d.rms) +
                ", correlation_samples " + std::to_string(d.tau) +
@@ -335,16 +332,22 @@ NB_MODULE(_mjsysid, m) {
   nb::class_<ParameterEstimate>(m, "ParameterEstimate",
                                 "One estimated variable: a physical parameter or a measurement "
                                 "term (SENSOR.delay, SENSOR.gain, SENSOR.bias)")
-      .def_ro("name", &ParameterEstimate::name)
-      .def_ro("value", &ParameterEstimate::value)
-      .def_ro("initial", &ParameterEstimate::initial)
+      .def_ro("name", &ParameterEstimate::name,
+              "the parameter's name as given (or SENSOR.delay, controls.delay, ...)")
+      .def_ro("value", &ParameterEstimate::value, "the estimate (physical units)")
+      .def_ro("initial", &ParameterEstimate::initial,
+              "where the fit started (initial 'auto': the solved equation-error start)")
       .def_ro("std_error", &ParameterEstimate::std_error, "+inf unidentifiable, 0 on a bound")
       .def_prop_ro(
           "ci95",
-          [](const ParameterEstimate& p) { return std::make_pair(p.ci95_low, p.ci95_high); })
-      .def_ro("at_lower", &ParameterEstimate::at_lower)
-      .def_ro("at_upper", &ParameterEstimate::at_upper)
-      .def_ro("identifiable", &ParameterEstimate::identifiable)
+          [](const ParameterEstimate& p) { return std::make_pair(p.ci95_low, p.ci95_high); },
+          "(low, high): the 95 % interval (valid when the result's intervals_valid)")
+      .def_ro("at_lower", &ParameterEstimate::at_lower,
+              "stopped on its lower bound (then fixed there: std_error 0)")
+      .def_ro("at_upper", &ParameterEstimate::at_upper,
+              "stopped on its upper bound (then fixed there: std_error 0)")
+      .def_ro("identifiable", &ParameterEstimate::identifiable,
+              "False: the data do not determine it (std_error +inf)")
       .def_ro("timestep_bias", &ParameterEstimate::timestep_bias,
               "the model timestep's bias of the value (the timestep check), None: not run")
       .def_ro("truth", &ParameterEstimate::truth, "the true value (simulated data), else None")
@@ -358,12 +361,14 @@ NB_MODULE(_mjsysid, m) {
       });
 
   nb::class_<IterationInfo>(m, "IterationInfo", "One iteration of the solver")
-      .def_ro("iteration", &IterationInfo::iteration)
+      .def_ro("iteration", &IterationInfo::iteration, "0: the start, then one per iteration")
       .def_ro("cost", &IterationInfo::cost, "0.5 |r|^2")
-      .def_ro("step_norm", &IterationInfo::step_norm)
-      .def_ro("gradient_norm", &IterationInfo::gradient_norm)
+      .def_ro("step_norm", &IterationInfo::step_norm,
+              "size of the step in the optimiser's variables")
+      .def_ro("gradient_norm", &IterationInfo::gradient_norm,
+              "max norm of the gradient in the optimiser's variables")
       .def_ro("seconds", &IterationInfo::seconds, "since the fit started")
-      .def_ro("successful", &IterationInfo::successful)
+      .def_ro("successful", &IterationInfo::successful, "the step was accepted")
       .def_ro("parameters", &IterationInfo::parameters,
               "physical values after the iteration (FitResult.parameters order)");
 
@@ -376,11 +381,14 @@ NB_MODULE(_mjsysid, m) {
       .def_ro("fit_initial", &ChannelFit::fit_initial, "% fit at the initial parameters")
       .def_ro("fit_final", &ChannelFit::fit_final,
               "% fit at the estimate (a fit in segments: simulated in one piece)")
-      .def_ro("nrmse_initial", &ChannelFit::nrmse_initial)
-      .def_ro("nrmse_final", &ChannelFit::nrmse_final)
+      .def_ro("nrmse_initial", &ChannelFit::nrmse_initial,
+              "RMS(simulated - measured) / std(measured) at the initial parameters")
+      .def_ro("nrmse_final", &ChannelFit::nrmse_final,
+              "the same at the estimate (a fit in segments: simulated in one piece)")
       .def_ro("fit_segments", &ChannelFit::fit_segments,
               "a fit in segments: % fit segment by segment; NaN for a fit in one piece")
-      .def_ro("nrmse_segments", &ChannelFit::nrmse_segments)
+      .def_ro("nrmse_segments", &ChannelFit::nrmse_segments,
+              "a fit in segments: segment by segment; NaN for a fit in one piece")
       .def("__repr__", [](const ChannelFit& f) {
         return "ChannelFit(" + f.channel + ", fit " + FormatDigits(f.fit_initial, 4) + " % -> " +
                FormatDigits(f.fit_final, 4) + " %" +
@@ -390,27 +398,36 @@ NB_MODULE(_mjsysid, m) {
                ")";
       });
 
-  nb::class_<SequenceResult>(m, "SequenceResult",
-                             "Fitted sensor columns of one sequence (T rows, model order)")
-      .def_ro("name", &SequenceResult::name)
-      .def_ro("model", &SequenceResult::model)
-      .def_ro("sensor_names", &SequenceResult::sensor_names)
-      .def_ro("sensor_dims", &SequenceResult::sensor_dims)
-      .def_ro("time", &SequenceResult::time)
-      .def_ro("measured", &SequenceResult::measured)
-      .def_ro("simulated_initial", &SequenceResult::simulated_initial)
+  nb::class_<SequenceResult> sequence_result(
+      m, "SequenceResult", "Fitted sensor columns of one sequence (T rows, model order)");
+  sequence_result.def_ro("name", &SequenceResult::name, "the sequence's name")
+      .def_ro("model", &SequenceResult::model, "the model it was fitted with")
+      .def_ro("sensor_names", &SequenceResult::sensor_names, "the fitted sensors, in model order")
+      .def_ro("sensor_dims", &SequenceResult::sensor_dims,
+              "their dimensions: the columns of measured, in order")
+      .def_ro("time", &SequenceResult::time, "T sample times (s)")
+      .def_ro("measured", &SequenceResult::measured,
+              "T x columns of the fitted sensors (NaN: not measured)")
+      .def_ro("simulated_initial", &SequenceResult::simulated_initial,
+              "T x columns, at the initial parameters")
       .def_ro("simulated_final", &SequenceResult::simulated_final,
               "at the estimate; segment by segment for a fit in segments")
       .def_ro("simulated_one_piece", &SequenceResult::simulated_one_piece,
               "a fit in segments: the estimate simulated in one piece from the first state "
               "(empty for a fit in one piece)")
-      .def_ro("x0_final", &SequenceResult::x0_final)
+      .def_ro("x0_final", &SequenceResult::x0_final,
+              "the estimated initial physics state (or the given one); may be empty")
       .def_ro("state_names", &SequenceResult::state_names,
               "fitted states: qpos:<joint>, qvel:<joint>, act:<actuator>")
-      .def_ro("state_dims", &SequenceResult::state_dims)
-      .def_ro("state_measured", &SequenceResult::state_measured)
-      .def_ro("state_simulated_initial", &SequenceResult::state_simulated_initial)
-      .def_ro("state_simulated_final", &SequenceResult::state_simulated_final)
+      .def_ro(
+          "state_dims", &SequenceResult::state_dims,
+          "their widths in physics coordinates (a free joint's qpos 7, a ball joint's 4, else 1)")
+      .def_ro("state_measured", &SequenceResult::state_measured,
+              "T x sum(state_dims) logged states (NaN: not measured)")
+      .def_ro("state_simulated_initial", &SequenceResult::state_simulated_initial,
+              "T x sum(state_dims) at the initial parameters")
+      .def_ro("state_simulated_final", &SequenceResult::state_simulated_final,
+              "T x sum(state_dims) at the estimate")
       .def_ro("channel_fits", &SequenceResult::channel_fits,
               "per column of measured: % fit and NRMSE, initial and final (a list of "
               "ChannelFit)")
@@ -428,18 +445,62 @@ NB_MODULE(_mjsysid, m) {
   nb::class_<LedgerRow>(m, "LedgerRow",
                         "One phase of a fit's ledger (sysid/solve/fit_ledger.h): entries, "
                         "simulator steps and seconds")
-      .def_ro("phase", &LedgerRow::phase)
-      .def_ro("entries", &LedgerRow::entries)
-      .def_ro("steps", &LedgerRow::steps)
-      .def_ro("seconds", &LedgerRow::seconds)
+      .def_ro("phase", &LedgerRow::phase,
+              "the phase's name (sysid/solve/fit_ledger.h FitPhaseName), e.g. \"solve: Jacobians\"")
+      .def_ro("entries", &LedgerRow::entries, "how often the fit entered the phase")
+      .def_ro("steps", &LedgerRow::steps, "simulator steps in the phase")
+      .def_ro("seconds", &LedgerRow::seconds, "wall time in the phase")
       .def_ro("critical_steps", &LedgerRow::critical_steps,
               "of steps, those on the critical path at 2 workers")
       .def_ro("batch_seconds", &LedgerRow::batch_seconds,
               "of seconds, those inside the simulators' batches")
-      .def_ro("batches", &LedgerRow::batches)
-      .def_ro("wake_seconds", &LedgerRow::wake_seconds)
-      .def_ro("wait_seconds", &LedgerRow::wait_seconds)
-      .def_ro("batch_cpu_seconds", &LedgerRow::batch_cpu_seconds);
+      .def_ro("batches", &LedgerRow::batches, "the simulators' parallel batches in the phase")
+      .def_ro("wake_seconds", &LedgerRow::wake_seconds,
+              "of batch_seconds, from each batch's publication to its last worker's start")
+      .def_ro("wait_seconds", &LedgerRow::wait_seconds,
+              "of batch_seconds, the fit thread's wait for the workers after its own last task")
+      .def_ro("batch_cpu_seconds", &LedgerRow::batch_cpu_seconds,
+              "the fit thread's CPU time inside the batches");
+
+  nb::class_<StartResult>(m, "StartResult",
+                          "One fit of a multi-start run (options starts, solver.starts; "
+                          "sysid/run/multi_start.h): where it started, where it ended")
+      .def_ro("start", &StartResult::start, "physical start values (FitResult.parameters order)")
+      .def_ro("estimate", &StartResult::estimate, "the fit's values; empty when the fit failed")
+      .def_ro("initial_cost", &StartResult::initial_cost, "+inf when the fit failed")
+      .def_ro("final_cost", &StartResult::final_cost, "+inf when the fit failed")
+      .def_prop_ro(
+          "status", [](const StartResult& r) { return FitStatusName(r.status); },
+          "the fit's own status; local_minimum: it ended in another minimum than the best")
+      .def_ro("iterations", &StartResult::iterations, "the fit's iterations")
+      .def_ro("error", &StartResult::error, "why the fit failed; \"\" otherwise");
+
+  nb::class_<ParameterSpread>(m, "ParameterSpread",
+                              "The spread of one estimated value over the starts of a multi-start "
+                              "run that did not fail")
+      .def_ro("name", &ParameterSpread::name, "the estimated value's name")
+      .def_ro("min", &ParameterSpread::min, "the lowest estimate")
+      .def_ro("max", &ParameterSpread::max, "the highest estimate")
+      .def_ro("relative", &ParameterSpread::relative,
+              "(max - min) / |best estimate| (inf when the best is 0 and max > min)");
+
+  nb::class_<DerivedQuantity>(
+      m, "DerivedQuantity",
+      "A quantity computed from estimated variables, not itself estimated "
+      "(a body's mass, centre of mass, principal moments from body_inertial; "
+      "sysid/assess/derived_inertials.h), with a first-order standard "
+      "error and 95 % interval")
+      .def_ro("name", &DerivedQuantity::name, "e.g. payload.mass, payload.com[0]")
+      .def_ro("unit", &DerivedQuantity::unit, "kg, m, kg m^2")
+      .def_ro("value", &DerivedQuantity::value, "at the estimate")
+      .def_ro("std_error", &DerivedQuantity::std_error,
+              "NaN without intervals, +inf when an estimate it depends on is unidentifiable")
+      .def_prop_ro(
+          "ci95", [](const DerivedQuantity& d) { return std::make_pair(d.ci95_low, d.ci95_high); },
+          "(low, high): the 95 % interval")
+      .def_ro("derived_from", &DerivedQuantity::derived_from,
+              "how: the estimated variables and the method, one line")
+      .def_ro("truth", &DerivedQuantity::truth, "the true value (simulated data), else None");
 
   using Diagnostics = FitResult::Diagnostics;
   nb::class_<Diagnostics>(m, "FitDiagnostics",
@@ -477,22 +538,35 @@ NB_MODULE(_mjsysid, m) {
       .def_ro("ahead_folds", &Diagnostics::ahead_folds,
               "of the folds, those made ahead on the workers (fold_ahead)");
 
-  nb::class_<FitResult>(m, "FitResult", "The result of a fit (sysid/types.h)")
-      .def_ro("parameters", &FitResult::parameters)
+  nb::class_<FitResult> fit_result(m, "FitResult", "The result of a fit (sysid/types.h)");
+  fit_result
+      .def_ro("parameters", &FitResult::parameters,
+              "a list of ParameterEstimate, in the order given (then the fitted measurement terms "
+              "and control delays)")
       .def_prop_ro("estimates", &Estimates, "dict: name -> estimated value")
       .def_prop_ro(
           "status", [](const FitResult& r) { return FitStatusName(r.outcome); },
           "converged, not_converged, model_mismatch, jacobian_unreliable, "
           "did_not_move, interrupted, solver_failed or local_minimum")
-      .def_ro("initial_cost", &FitResult::initial_cost)
-      .def_ro("final_cost", &FitResult::final_cost)
-      .def_ro("iterations", &FitResult::iterations)
-      .def_ro("converged", &FitResult::converged)
-      .def_ro("interrupted", &FitResult::interrupted)
-      .def_ro("intervals_valid", &FitResult::intervals_valid)
-      .def_ro("chi2_ratio", &FitResult::chi2_ratio)
-      .def_ro("sensor_chi2_ratio", &FitResult::sensor_chi2_ratio)
-      .def_ro("sensor_noise_ratio", &FitResult::sensor_noise_ratio)
+      .def_ro("initial_cost", &FitResult::initial_cost, "0.5 |r|^2 at the start")
+      .def_ro("final_cost", &FitResult::final_cost, "0.5 |r|^2 at the estimate")
+      .def_ro("iterations", &FitResult::iterations, "the solver's iterations")
+      .def_ro("converged", &FitResult::converged,
+              "the optimiser reported convergence (the verdict is status)")
+      .def_ro("interrupted", &FitResult::interrupted,
+              "stopped by an interrupt (Ctrl-C) before it ended by itself")
+      .def_ro("intervals_valid", &FitResult::intervals_valid,
+              "std_error and ci95 mean something: status converged (and the uncertainty step ran)")
+      .def_ro("chi2_ratio", &FitResult::chi2_ratio,
+              "with sigmas: the weighted residual variance sum(r^2) / (m - p) of the sensors with "
+              "a sigma (expected 1); NaN without sigmas")
+      .def_ro(
+          "sensor_chi2_ratio", &FitResult::sensor_chi2_ratio,
+          "with sigmas: sensor (or fitted state) -> its weighted residual variance (expected 1)")
+      .def_ro("sensor_noise_ratio", &FitResult::sensor_noise_ratio,
+              "sensors without a sigma: sensor -> residual RMS at the estimate over the noise the "
+              "log itself shows (about 1 when the model explains the data; absent where the log "
+              "gives no noise estimate: a warning 'model check not possible' then)")
       .def_ro("sigma_from_log", &FitResult::sigma_from_log,
               "sensor -> sigma estimated from the log (sensor_sigmas 'auto')")
       .def_ro("residuals", &FitResult::residuals,
@@ -512,17 +586,36 @@ NB_MODULE(_mjsysid, m) {
           "solver_convergence, iteration_limit, solver_failure, callback_stop, callback_abort, "
           "gauss_newton_stop, interrupted, checkpoint; none (no solve) or unknown (a file "
           "written before the kinds)")
-      .def_ro("num_residuals", &FitResult::num_residuals)
-      .def_prop_ro("covariance",
-                   [](const FitResult& r) -> Eigen::MatrixXd { return r.uncertainty.covariance; })
-      .def_prop_ro("unidentifiable",
-                   [](const FitResult& r) { return r.uncertainty.unidentifiable; })
+      .def_ro("num_residuals", &FitResult::num_residuals,
+              "rows of the residual vector at the estimate")
+      .def_prop_ro(
+          "covariance",
+          [](const FitResult& r) -> Eigen::MatrixXd { return r.uncertainty.covariance; },
+          "np x np covariance of the estimates, parameters order (zero rows for fixed and "
+          "unidentifiable ones)")
+      .def_prop_ro(
+          "unidentifiable", [](const FitResult& r) { return r.uncertainty.unidentifiable; },
+          "one line per direction the data do not determine (result.yaml unidentifiable)")
       .def_ro("jacobian", &FitResult::jacobian,
               "dr/dp at the estimate as its thin-QR triangle R (np x np, R^T R = J^T J)")
-      .def_ro("trace", &FitResult::trace)
-      .def_ro("sequences", &FitResult::sequences)
-      .def_ro("warnings", &FitResult::warnings)
-      .def_ro("seconds", &FitResult::seconds)
+      .def_ro("trace", &FitResult::trace, "a list of IterationInfo, one per successful iteration")
+      .def_ro("validation", &FitResult::validation,
+              "held-out sequences (the experiment's validation:), a list of SequenceResult "
+              "simulated at the start and at the estimate, never fitted")
+      .def_ro("starts", &FitResult::starts,
+              "a multi-start fit: every start in order (a list of StartResult); empty for one "
+              "start")
+      .def_ro("best_start", &FitResult::best_start,
+              "a multi-start fit: the index in starts of the start this result is")
+      .def_ro("start_spread", &FitResult::start_spread,
+              "a multi-start fit: per estimated value its spread over the starts (a list of "
+              "ParameterSpread)")
+      .def_ro("derived", &FitResult::derived,
+              "quantities derived from the estimate (a list of DerivedQuantity; empty when none)")
+      .def_ro("sequences", &FitResult::sequences,
+              "a list of SequenceResult, one per fitted sequence")
+      .def_ro("warnings", &FitResult::warnings, "what the fit found worth saying, one string each")
+      .def_ro("seconds", &FitResult::seconds, "wall time of the fit (result.yaml wall_time_s)")
       .def_ro("segment_steps_used", &FitResult::segment_steps_used,
               "multiple shooting: steps per segment (0: single shooting)")
       .def_prop_ro(
@@ -549,25 +642,33 @@ NB_MODULE(_mjsysid, m) {
                " warning" + (r.warnings.size() == 1 ? "" : "s") + ")";
       });
 
-  nb::class_<io::FitResultFile, FitResult>(m, "ResultFile",
-                                           "A fit as stored in DIR/result.yaml + result.h5")
-      .def_ro("name", &io::FitResultFile::name)
-      .def_ro("experiment", &io::FitResultFile::experiment)
-      .def_ro("created", &io::FitResultFile::created)
-      .def_ro("run_id", &io::FitResultFile::run_id)
-      .def_ro("mjsysid_version", &io::FitResultFile::mjsysid_version)
-      .def_ro("mujoco_version", &io::FitResultFile::mujoco_version)
-      .def_ro("solver", &io::FitResultFile::solver)
-      .def_ro("identified_models", &io::FitResultFile::identified_models)
+  nb::class_<io::FitResultFile, FitResult> result_file(
+      m, "ResultFile", "A fit as stored in DIR/result.yaml + result.h5");
+  result_file.def_ro("name", &io::FitResultFile::name, "the experiment's name")
+      .def_ro("experiment", &io::FitResultFile::experiment, "the experiment file's path")
+      .def_ro("created", &io::FitResultFile::created,
+              "when the fit ran (UTC, YYYY-MM-DDTHH:MM:SSZ)")
+      .def_ro("run_id", &io::FitResultFile::run_id,
+              "the run that wrote the files (\"\" in results of older versions)")
+      .def_ro("mjsysid_version", &io::FitResultFile::mjsysid_version,
+              "the mjsysid that wrote the result")
+      .def_ro("mujoco_version", &io::FitResultFile::mujoco_version, "the MuJoCo it ran with")
+      .def_ro("solver", &io::FitResultFile::solver,
+              "the fit's settings as text (result.yaml solver)")
+      .def_ro("identified_models", &io::FitResultFile::identified_models,
+              "model name -> file of the identified model in the folder")
       .def("__getstate__", &StateOf<io::FitResultFile>)
       .def("__setstate__", &SetState<io::FitResultFile>);
 
-  nb::class_<ExperimentFit, io::FitResultFile>(m, "ExperimentFit",
-                                               "The outcome of fit_experiment (`sysid fit`)")
-      .def_ro("out_dir", &ExperimentFit::out_dir)
+  nb::class_<ExperimentFit, io::FitResultFile> experiment_fit(
+      m, "ExperimentFit", "The outcome of fit_experiment (`sysid fit`)");
+  experiment_fit
+      .def_ro("out_dir", &ExperimentFit::out_dir,
+              "the folder written: result.yaml, result.h5, the identified models")
       .def_ro("exit_code", &ExperimentFit::exit_code, "the exit code `sysid fit` would give")
       .def("__getstate__", &StateOf<ExperimentFit>)
       .def("__setstate__", &SetState<ExperimentFit>);
+  BindResultTables(fit_result, result_file, experiment_fit, sequence_result);
 
   // --- logs (sysid/io/log.h) ---
   nb::class_<io::Sequence>(m, "Sequence",
@@ -575,16 +676,19 @@ NB_MODULE(_mjsysid, m) {
                            "ctrl_time), sensordata (T x ns), optional qpos/qvel/act (T x "
                            "nq|nv|na, else 0 x 0)")
       .def(nb::init<>())
-      .def_rw("name", &io::Sequence::name)
-      .def_rw("time", &io::Sequence::time)
-      .def_rw("ctrl", &io::Sequence::ctrl)
-      .def_rw("sensordata", &io::Sequence::sensordata)
-      .def_rw("qpos", &io::Sequence::qpos)
-      .def_rw("qvel", &io::Sequence::qvel)
-      .def_rw("act", &io::Sequence::act)
-      .def_rw("sensor_names", &io::Sequence::sensor_names)
-      .def_rw("sensor_dims", &io::Sequence::sensor_dims)
-      .def_rw("actuator_names", &io::Sequence::actuator_names)
+      .def_rw("name", &io::Sequence::name, "the sequence's name")
+      .def_rw("time", &io::Sequence::time, "T sample times (s)")
+      .def_rw("ctrl", &io::Sequence::ctrl, "T x nu controls (Tc x nu at ctrl_time)")
+      .def_rw("sensordata", &io::Sequence::sensordata,
+              "T x nsensordata, the model's sensor layout (NaN: not measured)")
+      .def_rw("qpos", &io::Sequence::qpos, "T x nq logged positions, or 0 x 0")
+      .def_rw("qvel", &io::Sequence::qvel, "T x nv logged velocities, or 0 x 0")
+      .def_rw("act", &io::Sequence::act, "T x na logged activations, or 0 x 0")
+      .def_rw("sensor_names", &io::Sequence::sensor_names, "the logged sensors, in model order")
+      .def_rw("sensor_dims", &io::Sequence::sensor_dims,
+              "their dimensions (the sensordata columns, in order)")
+      .def_rw("actuator_names", &io::Sequence::actuator_names,
+              "the logged actuators (the ctrl columns, in order)")
       // the controls' own times (dataset ctrl_time; empty: one control row per `time`): what
       // the bag reader writes for commands at their own stamps
       .def_rw("ctrl_time", &io::Sequence::ctrl_time,
@@ -592,38 +696,48 @@ NB_MODULE(_mjsysid, m) {
 
   nb::class_<io::Log>(m, "Log", "Sequences recorded with one sensor_time convention")
       .def(nb::init<>())
-      .def_rw("sequences", &io::Log::sequences)
+      .def_rw("sequences", &io::Log::sequences, "a list of Sequence (assign a whole list)")
       .def_rw("sensor_time", &io::Log::sensor_time, "pre (y_k before the step) or post")
-      .def_rw("attributes", &io::Log::attributes);
+      .def_rw("attributes", &io::Log::attributes,
+              "the file's attributes (text): truth.<name>, ...");
 
   // --- experiments (sysid/io/experiment.h) ---
   nb::class_<io::ExperimentConfig>(m, "Experiment", "A loaded YAML experiment file")
-      .def_ro("name", &io::ExperimentConfig::name)
-      .def_ro("source_file", &io::ExperimentConfig::source_file)
-      .def_ro("output", &io::ExperimentConfig::output)
-      .def_prop_ro("models",
-                   [](const io::ExperimentConfig& c) {
-                     std::map<std::string, std::string> out;
-                     for (const io::ModelSpec& s : c.models) out[s.name] = s.path;
-                     return out;
-                   })
-      .def_prop_ro("data",
-                   [](const io::ExperimentConfig& c) {
-                     std::vector<std::string> out;
-                     for (const io::DataFile& d : c.data) out.push_back(d.path);
-                     return out;
-                   })
-      .def_prop_ro("parameters",
-                   [](const io::ExperimentConfig& c) {
-                     std::vector<std::string> out;
-                     for (const io::ParameterSpec& p : c.parameters) out.push_back(p.name);
-                     return out;
-                   })
-      .def_prop_ro("truth", [](const io::ExperimentConfig& c) {
-        std::map<std::string, double> out;
-        for (const io::NamedValue& t : c.simulate.truth) out[t.name] = t.value;
-        return out;
-      });
+      .def_ro("name", &io::ExperimentConfig::name, "the experiment's name")
+      .def_ro("source_file", &io::ExperimentConfig::source_file, "the YAML file read")
+      .def_ro("output", &io::ExperimentConfig::output, "the output folder of a fit")
+      .def_prop_ro(
+          "models",
+          [](const io::ExperimentConfig& c) {
+            std::map<std::string, std::string> out;
+            for (const io::ModelSpec& s : c.models) out[s.name] = s.path;
+            return out;
+          },
+          "model name -> MJCF path")
+      .def_prop_ro(
+          "data",
+          [](const io::ExperimentConfig& c) {
+            std::vector<std::string> out;
+            for (const io::DataFile& d : c.data) out.push_back(d.path);
+            return out;
+          },
+          "the logs' paths (`data:`)")
+      .def_prop_ro(
+          "parameters",
+          [](const io::ExperimentConfig& c) {
+            std::vector<std::string> out;
+            for (const io::ParameterSpec& p : c.parameters) out.push_back(p.name);
+            return out;
+          },
+          "the parameters' names")
+      .def_prop_ro(
+          "truth",
+          [](const io::ExperimentConfig& c) {
+            std::map<std::string, double> out;
+            for (const io::NamedValue& t : c.simulate.truth) out[t.name] = t.value;
+            return out;
+          },
+          "name -> true value (simulate.truth)");
 
   // --- what the command line offers ---
   m.def("load_experiment", &io::LoadExperiment, arg("path"),

@@ -50,11 +50,16 @@ bool HasSigma(const FitOptions& options, const std::string& sensor) {
 // Sensors without a sigma: each column's residual at the estimate against the noise estimated
 // from the log itself, pooled over sequences (sysid/assess/noise_estimate.h). Sets
 // r->sensor_noise_ratio, appends the warning naming the columns that fail the test; true when one
-// does.
+// does. A sensor none of whose columns can be tested (its noise cannot be estimated: too few
+// consecutive measured samples, or a constant column) has no ratio and gets a warning of its own:
+// the model check was not possible, the status says nothing about it (its % fit, and whether that
+// is below kUnexplainedFitPercent, in the warning).
 bool UnexplainedWithoutSigmas(const FitOptions& options, FitResult* result) {
   FitResult& r = *result;
   struct Pooled {
-    double residual2 = 0, noise2 = 0, spread2 = 0;  // sums over measured rows
+    double residual2 = 0, noise2 = 0, spread2 = 0;        // sums over measured rows
+    double untested_residual2 = 0, untested_spread2 = 0;  // the rows without a noise estimate
+    double rows = 0;                                      // measured rows, tested or not
   };
   std::map<std::string, std::vector<Pooled>> columns;  // sensor -> its columns
   for (const SequenceResult& sr : r.sequences) {
@@ -69,21 +74,30 @@ bool UnexplainedWithoutSigmas(const FitOptions& options, FitResult* result) {
         for (int c = 0; c < dim; ++c) {
           const Eigen::VectorXd y = sr.measured.col(col + c);
           const double noise = EstimateNoiseStd(y, sr.time);
-          if (!std::isfinite(noise)) continue;
           const auto measured = !y.array().isNaN();
           const double rows = static_cast<double>(measured.count());
+          if (rows == 0) continue;
           const double mean = measured.select(y.array(), 0.0).sum() / rows;
           const auto diff = y.array() - sr.simulated_final.col(col + c).array();
+          const double residual2 = measured.select(diff, 0.0).square().sum();
+          const double spread2 = measured.select(y.array() - mean, 0.0).square().sum();
           Pooled& p = pooled[static_cast<size_t>(c)];
-          p.residual2 += measured.select(diff, 0.0).square().sum();
-          p.spread2 += measured.select(y.array() - mean, 0.0).square().sum();
+          p.rows += rows;
+          if (!std::isfinite(noise)) {
+            p.untested_residual2 += residual2;
+            p.untested_spread2 += spread2;
+            continue;
+          }
+          p.residual2 += residual2;
+          p.spread2 += spread2;
           p.noise2 += noise * noise * rows;
         }
       }
       col += dim;
     }
   }
-  std::string unexplained;
+  std::string unexplained, untested;
+  bool untested_low_fit = false;
   for (const auto& [name, pooled] : columns) {
     // the sensor's worst column, and its worst column that fails the test
     double worst = -1, flagged_ratio = -1, flagged_fit = 0;
@@ -99,6 +113,22 @@ bool UnexplainedWithoutSigmas(const FitOptions& options, FitResult* result) {
       }
     }
     if (worst >= 0) r.sensor_noise_ratio[name] = worst;
+    double rows = 0;
+    for (const Pooled& p : pooled) rows += p.rows;
+    if (worst < 0 && rows > 0) {
+      // no column tested: the sensor's worst % fit over all its rows (NaN: constant columns)
+      double fit = std::numeric_limits<double>::quiet_NaN();
+      for (const Pooled& p : pooled) {
+        const double spread2 = p.spread2 + p.untested_spread2;
+        if (!(spread2 > 0)) continue;
+        const double f = FitPercent(std::sqrt((p.residual2 + p.untested_residual2) / spread2));
+        fit = std::isnan(fit) ? f : std::min(fit, f);
+      }
+      untested_low_fit = untested_low_fit || fit < kUnexplainedFitPercent;
+      untested += (untested.empty() ? "" : ", ") + name + " (% fit " +
+                  (std::isnan(fit) ? std::string("undefined: constant") : FormatDigits(fit, 3)) +
+                  ")";
+    }
     if (flagged_ratio >= 0) {
       unexplained += (unexplained.empty() ? "" : ", ") + name + " " +
                      FormatDigits(flagged_ratio, 3) + " x (% fit " + FormatDigits(flagged_fit, 3) +
@@ -113,6 +143,16 @@ bool UnexplainedWithoutSigmas(const FitOptions& options, FitResult* result) {
         ": the start is in another minimum (try other starts or multiple_shooting) or the "
         "model lacks an effect in the data; give the sensors' sigmas if their noise is "
         "filtered or known; the intervals are not valid");
+  }
+  if (!untested.empty()) {
+    r.warnings.push_back(
+        "model check not possible: no sigma, and the noise of the log cannot be estimated (fewer "
+        "than 8 triples of consecutive measured samples, or a constant column), for " +
+        untested + ": the status does not say whether the model explains these sensors" +
+        (untested_low_fit ? "; a % fit below " + FormatDigits(kUnexplainedFitPercent, 3) +
+                                " leaves a visible part of the motion unexplained"
+                          : std::string()) +
+        "; give their sigmas (or longer sequences) for the model check");
   }
   return !unexplained.empty();
 }

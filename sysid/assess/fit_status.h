@@ -28,7 +28,10 @@
 //   Also for sensors without a sigma: a column whose residual RMS at the estimate is above
 //   kUnexplainedNoiseFactor x the noise estimated from the log itself while its % fit is below
 //   kUnexplainedFitPercent (sysid/assess/noise_estimate.h); result->sensor_noise_ratio records
-//   the ratio per sensor. Each test's warning is appended whatever the verdict.
+//   the ratio per sensor. Each test's warning is appended whatever the verdict. A sensor without a
+//   sigma whose noise cannot be estimated from the log (too few consecutive measured samples, a
+//   constant column) cannot be tested: no ratio, and a warning "model check not possible: ..." with
+//   its % fit (saying so when below kUnexplainedFitPercent); the verdict does not cover it.
 // - jacobian_unreliable when cost_not_local: the cost at the estimate +- one standard error is
 //   not what the Jacobian predicts (sysid/assess/interval_check.h) and, on rollouts that can make
 //   the cost rugged, the envelope check (CheckRuggedEnvelope) did not hold either. Needs no sigmas.

@@ -1,7 +1,8 @@
 // Internal to sysid/io/result*.cc: the one table of result.yaml's fields (and of the ones result.h5
 // keeps as root attributes). VisitResultFields lists every field once, in file order, with its key,
 // its type and when it is written; the YAML writer, the YAML reader and result.h5's root attributes
-// are visitors of it, so a new field is one line here.
+// are visitors of it, so a new field is one line here. One visitor lives outside sysid/io: the
+// Python results' to_dict() (python/src/result_dict.cc), result.yaml's keys in Python objects.
 //
 // A visitor V has, for a key K (FieldKey) and a value of the result (const for writers):
 //   Text(K, std::string), Int(K, int), Number(K, double), Number(K, std::optional<double>: written
@@ -25,6 +26,9 @@
 #include "sysid/io/result.h"
 
 namespace mjsysid::io::result_internal {
+
+// the names of a parameter's `flags` (Flags below)
+inline constexpr const char* kFlags[] = {"at_lower_bound", "at_upper_bound", "unidentifiable"};
 
 // when a field is written, and whether a reader needs it
 enum class Presence {
@@ -144,6 +148,28 @@ void VisitResidualFields(V& v, D& d) {
   v.Number({"correlation_samples"}, d.tau);
   v.Number({"portmanteau_p"}, d.portmanteau_p);
   v.Bool({"white"}, d.white);
+}
+
+// one entry of `fit_metrics` (sysid/assess/metrics.h): a sequence, its role (fit | validation)
+// and per channel the % fit and NRMSE at the start and at the estimate; a fit in segments
+// (simulated_one_piece set) also segment by segment, fit_final then the estimate in one piece.
+// Written only: ReadResult recomputes them from result.h5.
+template <class V, class S>
+void VisitFitMetricsFields(V& v, const S& s, const std::string& role) {
+  v.Text({"sequence"}, s.name);
+  v.Text({"role"}, role);
+  const bool segments = s.simulated_one_piece.rows() > 0;
+  v.List({"channels"}, Style::kFlow, s.channel_fits, [segments](auto& e, const auto& f) {
+    e.Text({"channel"}, f.channel);
+    e.Number({"fit_initial"}, f.fit_initial);
+    e.Number({"fit_final"}, f.fit_final);
+    e.Number({"nrmse_initial"}, f.nrmse_initial);
+    e.Number({"nrmse_final"}, f.nrmse_final);
+    if (segments) {
+      e.Number({"fit_segments"}, f.fit_segments);
+      e.Number({"nrmse_segments"}, f.nrmse_segments);
+    }
+  });
 }
 
 // one entry of `starts.runs` (values in the order of `parameters`)

@@ -14,7 +14,6 @@ namespace mjsysid::io::result_internal {
 
 inline constexpr char kFormat[] = "mjsysid-result";
 inline constexpr int kFormatVersion = 1;
-inline constexpr const char* kFlags[] = {"at_lower_bound", "at_upper_bound", "unidentifiable"};
 inline constexpr const char* kTraceColumns[] = {"iteration",     "cost",    "step_norm",
                                                 "gradient_norm", "seconds", "successful"};
 

@@ -106,29 +106,7 @@ class YamlWriter {
     for (const std::vector<SequenceResult>* list : {&r.sequences, &r.validation}) {
       for (const SequenceResult& s : *list) {
         out_ << YAML::BeginMap;
-        out_ << YAML::Key << "sequence" << YAML::Value << s.name;
-        out_ << YAML::Key << "role" << YAML::Value << (list == &r.sequences ? "fit" : "validation");
-        out_ << YAML::Key << "channels" << YAML::Value << YAML::BeginSeq;
-        for (const ChannelFit& f : s.channel_fits) {
-          out_ << YAML::Flow << YAML::BeginMap;
-          out_ << YAML::Key << "channel" << YAML::Value << f.channel;
-          const std::pair<const char*, double> values[] = {{"fit_initial", f.fit_initial},
-                                                           {"fit_final", f.fit_final},
-                                                           {"nrmse_initial", f.nrmse_initial},
-                                                           {"nrmse_final", f.nrmse_final}};
-          for (const auto& [key, x] : values) {
-            out_ << YAML::Key << key << YAML::Value << result_internal::Number(x);
-          }
-          // multiple shooting: fit_final is the estimate in one piece, these segment by segment
-          if (s.simulated_one_piece.rows() > 0) {
-            out_ << YAML::Key << "fit_segments" << YAML::Value
-                 << result_internal::Number(f.fit_segments);
-            out_ << YAML::Key << "nrmse_segments" << YAML::Value
-                 << result_internal::Number(f.nrmse_segments);
-          }
-          out_ << YAML::EndMap;
-        }
-        out_ << YAML::EndSeq;
+        VisitFitMetricsFields(*this, s, list == &r.sequences ? "fit" : "validation");
         out_ << YAML::EndMap;
       }
     }

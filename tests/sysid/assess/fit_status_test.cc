@@ -1,10 +1,12 @@
 // DecideFitStatus (sysid/assess/fit_status.h) on hand-made results: a Ceres failure is its own
 // status, solver_failed, whatever steps were accepted before it, never did_not_move or
-// not_converged, with Ceres' message and the way out in its warning.
+// not_converged, with Ceres' message and the way out in its warning. Without sigmas, a sensor
+// whose noise the log does not show is not checked, and a warning says so with its % fit.
 #include "sysid/assess/fit_status.h"
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <string>
 
 namespace mjsysid {
@@ -75,6 +77,58 @@ TEST(DecideFitStatusTest, AnInterruptComesBeforeTheFailure) {
   r.termination.kind = FitTermination::Kind::kSolverFailure;
   DecideFitStatus(FitOptions(), 3, false, &r);
   EXPECT_EQ(r.outcome, FitStatus::kInterrupted);
+}
+
+// a converged result with one sequence of `rows` samples of a 1-D sensor `angle`: measured a
+// sine with white-ish noise 1e-3 (a fixed pattern), simulated the sine scaled by `scale`
+FitResult WithSequence(int rows, double scale) {
+  FitResult r = Solved(true);
+  r.converged = true;
+  SequenceResult s;
+  s.name = "seq0";
+  s.sensor_names = {"angle"};
+  s.sensor_dims = {1};
+  s.time.resize(rows);
+  s.measured.resize(rows, 1);
+  s.simulated_final.resize(rows, 1);
+  for (int k = 0; k < rows; ++k) {
+    s.time[k] = 0.01 * k;
+    const double motion = std::sin(2.0 * s.time[k]);
+    s.measured(k, 0) = motion + 1e-3 * ((k * 7919) % 13 - 6) / 6.0;
+    s.simulated_final(k, 0) = scale * motion;
+  }
+  r.sequences.push_back(s);
+  return r;
+}
+
+TEST(DecideFitStatusTest, WithoutANoiseEstimateTheModelCheckIsNotPossible) {
+  // 9 samples: 7 triples of consecutive samples, too few for a noise estimate; half the motion
+  // unexplained (% fit far below 90): converged (nothing tested it), and the warning says so
+  FitResult r = WithSequence(9, 0.5);
+  DecideFitStatus(FitOptions(), 3, false, &r);
+  EXPECT_EQ(r.outcome, FitStatus::kConverged);
+  EXPECT_TRUE(r.sensor_noise_ratio.empty());
+  EXPECT_TRUE(HasWarning(r, "model check not possible: no sigma"));
+  EXPECT_TRUE(HasWarning(r, "for angle (% fit "));
+  EXPECT_TRUE(HasWarning(r, "a % fit below 90 leaves a visible part of the motion unexplained"));
+  // the same motion reproduced: still not checked, no low-fit clause
+  FitResult good = WithSequence(9, 1.0);
+  DecideFitStatus(FitOptions(), 3, false, &good);
+  EXPECT_TRUE(HasWarning(good, "model check not possible: no sigma"));
+  EXPECT_FALSE(HasWarning(good, "a % fit below 90"));
+  // with a sigma the chi-square test applies: nothing to say about a check not made
+  FitOptions sigma;
+  sigma.sensor_weights["angle"] = 1e3;
+  sigma.sensors_with_sigma = {"angle"};
+  FitResult with_sigma = WithSequence(9, 1.0);
+  DecideFitStatus(sigma, 3, false, &with_sigma);
+  EXPECT_FALSE(HasWarning(with_sigma, "model check not possible"));
+  // 200 samples: the noise is estimated and the unexplained half is a model mismatch
+  FitResult longer = WithSequence(200, 0.5);
+  DecideFitStatus(FitOptions(), 3, false, &longer);
+  EXPECT_EQ(longer.outcome, FitStatus::kModelMismatch);
+  EXPECT_EQ(longer.sensor_noise_ratio.count("angle"), 1u);
+  EXPECT_FALSE(HasWarning(longer, "model check not possible"));
 }
 
 }  // namespace
