@@ -2,7 +2,8 @@
 # Installs what is missing, builds with warnings as errors, checks formatting, runs every ctest
 # label that fits CI (unit, recovery, stress, browser), installs into a temporary prefix and builds
 # and runs tests/consumer against it (find_package(mjsysid)), installs the Python package into the
-# venv (pip install .) and runs its tests (pytest tests/python: bindings, bag/MCAP import), then the
+# venv (pip install .) and runs its tests (pytest tests/python: bindings, bag/MCAP import), builds
+# the wheel and checks it in a bare venv (tools/check_wheel.sh), then the
 # address+undefined sanitizer build of the unit tests. Idempotent; incremental when the builds
 # exist.
 #
@@ -59,6 +60,9 @@ venv="${MJSYSID_VENV:-$root/.venv}"
 # the tests compare with this build's sysid, whose bag import runs the same venv's python
 MJSYSID_VENV="$venv" MJSYSID_SYSID="$root/build/default/bin/sysid" \
   "$venv/bin/python" -m pytest -q -p no:cacheprovider "$root/tests/python"
+
+step "the built wheel in a bare venv (tools/check_wheel.sh)"
+MJSYSID_VENV="$venv" tools/check_wheel.sh
 
 if ((quick == 0)); then
   step "sanitizer build (address, undefined) of the unit tests (target unit_tests)"
