@@ -1,11 +1,13 @@
 // mjsysid.fit(model, parameters, sequences, options=None, callback=None, measurements=None,
-// control_delays=None): the library API (sysid/problem.h) on Python data. The dicts are read into
-// FitParameter / FitSequence / FitOptions / FitMeasurement / FitControlDelay; unknown keys and
-// wrong shapes raise ValueError naming the key; everything else (names, bounds, shapes against the
-// model, something to fit) is checked by Problem as for a C++ caller. A `measured` or `ctrl` with
-// named columns (a pandas DataFrame, a dict) is matched to the model's sensors or actuators by
-// name; a plain array is in model order. The model is a path, MJCF text, a mujoco.MjModel or a
-// mujoco.MjSpec. Each sequence of the result gets its % fit per channel (channel_fits).
+// control_delays=None, validation=None): the library API (sysid/problem.h) on Python data. The
+// dicts are read into FitParameter / FitSequence / FitOptions / FitMeasurement / FitControlDelay;
+// unknown keys and wrong shapes raise ValueError naming the key; everything else (names, bounds,
+// shapes against the model, something to fit) is checked by Problem as for a C++ caller. A
+// `measured` or `ctrl` with named columns (a pandas DataFrame, a dict) is matched to the model's
+// sensors or actuators by name; a plain array is in model order. The model is a path, MJCF text, a
+// mujoco.MjModel or a mujoco.MjSpec. Each sequence of the result gets its % fit per channel
+// (channel_fits); held-out sequences (validation) are checked before the fit and simulated after
+// it, as the runner does.
 #include <nanobind/eigen/dense.h>
 #include <nanobind/nanobind.h>
 #include <nanobind/stl/map.h>
@@ -29,10 +31,12 @@
 #include "core/text.h"
 #include "core/thread_pool.h"
 #include "sysid/assess/metrics.h"
+#include "sysid/fit/prepare.h"
 #include "sysid/problem.h"
 #include "sysid/run/fit_experiment.h"
 #include "sysid/run/fit_table.h"
 #include "sysid/run/multi_start.h"
+#include "sysid/run/validation.h"
 
 namespace mjsysid::python {
 namespace {
@@ -472,8 +476,9 @@ FitControlDelay ControlDelayOf(const nb::dict& d, size_t i) {
 // several), in order, and their models (`measured` and `ctrl` with named columns are placed by
 // the model's sensor and actuator names)
 FitSequence SequenceOf(const nb::dict& d, size_t i, const std::vector<std::string>& models,
-                       const std::vector<const mjModel*>& compiled) {
-  const std::string what = "sequences[" + std::to_string(i) + "]";
+                       const std::vector<const mjModel*>& compiled,
+                       const std::string& list = "sequences") {
+  const std::string what = list + "[" + std::to_string(i) + "]";
   CheckKeys(d, kSequenceKeys, what);
   for (const char* key : {"ctrl", "measured"}) {
     if (!d.contains(key)) throw std::invalid_argument(what + ": '" + key + "' is required");
@@ -775,7 +780,8 @@ ModelPtr ModelOf(nb::handle model, const std::string& what) {
 }
 
 FitResult Fit(nb::object model, nb::object parameters, nb::object sequences, nb::object options,
-              nb::object callback, nb::object measurements, nb::object control_delays) {
+              nb::object callback, nb::object measurements, nb::object control_delays,
+              nb::object validation) {
   // one model (named "model"), or several: {name: model}
   Problem problem;
   std::vector<std::string> models;
@@ -813,6 +819,16 @@ FitResult Fit(nb::object model, nb::object parameters, nb::object sequences, nb:
     added.sequences.push_back(SequenceOf(d, i, models, by_index));
     problem.AddSequence(added.sequences.back());
   });
+  // held-out sequences (as the experiment's `validation:`): checked now as a fitted sequence is,
+  // simulated at the start and at the estimate after the fit (sysid/run/validation.h)
+  std::vector<FitSequence> held_out;
+  ForEachDict(validation, "validation", [&](const nb::dict& d, size_t i) {
+    held_out.push_back(SequenceOf(d, i, models, by_index, "validation"));
+    const FitSequence& sq = held_out.back();
+    const auto mi = std::find(models.begin(), models.end(), sq.model) - models.begin();
+    CheckHeldOutSequence(sq, *by_index[static_cast<size_t>(mi)],
+                         "validation[" + std::to_string(i) + "] ('" + sq.name + "'): ");
+  });
   FitOptions fit_options;
   Starts starts;
   if (!options.is_none()) {
@@ -841,6 +857,14 @@ FitResult Fit(nb::object model, nb::object parameters, nb::object sequences, nb:
     }
     // each sequence's % fit and NRMSE per channel, as the runner gives them
     for (SequenceResult& sr : result.sequences) sr.channel_fits = ChannelFits(sr);
+    for (FitSequence& sq : held_out) {
+      const auto mi = std::find(models.begin(), models.end(), sq.model) - models.begin();
+      const mjModel& m = *by_index[static_cast<size_t>(mi)];
+      run::ApplyFittedControlDelays(m, added.control_delays, result.parameters, &sq);
+      result.validation.push_back(
+          run::SimulateHeldOut(m, added.parameters, added.measurements, result.parameters, sq,
+                               ThreadCount(fit_options.threads), &result.warnings));
+    }
   }
   table.Flush();
   guard.RaiseCallbackError();
@@ -877,13 +901,16 @@ void BindFitApi(nb::module_& m) {
       "SENSOR.delay, SENSOR.gain, SENSOR.bias. control_delays: list of dicts {" +
       Joined(kControlDelayKeys) +
       "} (s; no actuator: shared by every actuator without its own), estimated as "
-      "controls.delay[.ACTUATOR]."
+      "controls.delay[.ACTUATOR]. validation: list of dicts as `sequences`, held out (the "
+      "experiment's validation:): never fitted, checked before the fit, simulated from their "
+      "logged initial state at the start and at the estimate into FitResult.validation, each with "
+      "its channel_fits."
       " The GIL is released during "
       "the fit; Ctrl-C stops it after the current iteration (status interrupted). Returns a "
       "FitResult (to_dict(): result.yaml's names; to_pandas(): the parameters' table).";
   m.def("fit", &Fit, arg("model"), arg("parameters"), arg("sequences"), arg("options") = nb::none(),
         arg("callback") = nb::none(), arg("measurements") = nb::none(),
-        arg("control_delays") = nb::none(), doc.c_str());
+        arg("control_delays") = nb::none(), arg("validation") = nb::none(), doc.c_str());
 }
 
 }  // namespace mjsysid::python

@@ -357,7 +357,8 @@ void BuildChannels(PreparedFit& fit, const FitOptions& options, int q, const std
 
 // 4c. controls: Inf is an error; NaN is held from the last valid value (warned), an error before
 // the first one
-void CheckControls(PreparedFit& fit, const FitSequence& sq, int nu, const std::string& where) {
+void CheckControls(const FitSequence& sq, int nu, const std::string& where,
+                   std::vector<std::string>* warnings) {
   const int Tc = static_cast<int>(sq.ctrl.rows());
   std::string held;
   int held_rows = 0;
@@ -382,25 +383,19 @@ void CheckControls(PreparedFit& fit, const FitSequence& sq, int nu, const std::s
     }
   }
   if (held_rows > 0) {
-    fit.prepare_warnings.push_back(where + std::to_string(held_rows) +
-                                   " NaN control value(s) held from the last valid " +
-                                   "one (rows " + held + (held_rows > 5 ? ", ..." : "") + ")");
+    warnings->push_back(where + std::to_string(held_rows) +
+                        " NaN control value(s) held from the last valid " + "one (rows " + held +
+                        (held_rows > 5 ? ", ..." : "") + ")");
   }
 }
 
 // 4d. the fitted control delay each actuator of sequence q follows (its own, else the shared
 // one), if any; marks the delays used
 void AssignControlDelays(PreparedFit& fit, int q, const mjModel& m, std::vector<bool>* used) {
+  const std::vector<int> follows = ControlDelayOfActuators(fit.control_delays, m);
   fit.ctrl_delay_var[q].assign(m.nu, -1);
   for (int i = 0; i < m.nu; ++i) {
-    const char* actuator = mj_id2name(&m, mjOBJ_ACTUATOR, i);
-    int shared = -1, own = -1;
-    for (size_t c = 0; c < fit.control_delays.size(); ++c) {
-      const std::string& name = fit.control_delays[c].actuator;
-      if (name.empty()) shared = static_cast<int>(c);
-      if (!name.empty() && actuator && name == actuator) own = static_cast<int>(c);
-    }
-    const int c = own >= 0 ? own : shared;
+    const int c = follows[static_cast<size_t>(i)];
     if (c < 0) continue;
     fit.ctrl_delay_var[q][i] = fit.control_delay_index[c];
     (*used)[c] = true;
@@ -500,7 +495,7 @@ void PrepareSequences(PreparedFit& fit, FitVariables& vars, const FitOptions& op
     const int iq = static_cast<int>(q);
     CheckSequenceShapes(sq, d, where);
     BuildChannels(fit, options, iq, where);
-    CheckControls(fit, sq, d.nu, where);
+    CheckControls(sq, d.nu, where, &fit.prepare_warnings);
     AssignControlDelays(fit, iq, m, &delay_used);
     fit.grids[q] = BuildSampleGrid(
         sq.time, static_cast<int>(sq.measured.rows()), sq.x0.time, sq.ctrl, sq.ctrl_time,
@@ -748,6 +743,31 @@ void SeedCache(PreparedFit& fit, FitVariables& vars, SolveContext& solve, const 
 }
 
 }  // namespace
+
+std::vector<int> ControlDelayOfActuators(const std::vector<FitControlDelay>& delays,
+                                         const mjModel& m) {
+  std::vector<int> follows(static_cast<size_t>(m.nu), -1);
+  for (int i = 0; i < m.nu; ++i) {
+    const char* actuator = mj_id2name(&m, mjOBJ_ACTUATOR, i);
+    int shared = -1, own = -1;
+    for (size_t c = 0; c < delays.size(); ++c) {
+      const std::string& name = delays[c].actuator;
+      if (name.empty()) shared = static_cast<int>(c);
+      if (!name.empty() && actuator && name == actuator) own = static_cast<int>(c);
+    }
+    follows[static_cast<size_t>(i)] = own >= 0 ? own : shared;
+  }
+  return follows;
+}
+
+void CheckHeldOutSequence(const FitSequence& sq, const mjModel& m, const std::string& where) {
+  const StateDims d(m);
+  CheckSequenceShapes(sq, d, where);
+  std::vector<std::string> warnings;  // held NaN controls: the simulation holds them, as a fit's
+  CheckControls(sq, d.nu, where, &warnings);
+  BuildSampleGrid(sq.time, static_cast<int>(sq.measured.rows()), sq.x0.time, sq.ctrl, sq.ctrl_time,
+                  sq.ctrl_hold, sq.ctrl_delay, m.opt.timestep, where, sq.ctrl_before);
+}
 
 FitPlan PrepareFit(const FitParts& parts, const FitOptions& options) {
   PreparedFit& fit = *parts.fit;

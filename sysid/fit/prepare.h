@@ -54,6 +54,17 @@ void RolloutUnowned(PreparedFit* fit, std::vector<Trajectory>* initial);
 // threads: the fit's (FitOptions::threads), for the samples' inverse dynamics.
 std::vector<std::string> SolveAutoStarts(PreparedFit* fit, int threads);
 
+// the fitted control delay each actuator of m follows: the index into `delays` of its own (actuator
+// named), else of the shared one (actuator ""); -1 for an actuator that follows none. nu entries.
+std::vector<int> ControlDelayOfActuators(const std::vector<FitControlDelay>& delays,
+                                         const mjModel& m);
+
+// A held-out sequence (never fitted: sysid/run/validation.h) checked against its model as
+// PrepareFit checks a fitted one: its matrices' shapes, its initial and logged states, its
+// controls (no infinite value, no NaN before the first valid one) and its times on the model's
+// steps (sysid/data/sample_grid.h). Throws std::invalid_argument starting with `where`.
+void CheckHeldOutSequence(const FitSequence& sequence, const mjModel& m, const std::string& where);
+
 // The parts of problem's fit state (borrowed: valid while problem lives)
 FitParts PartsOf(Problem* problem);
 

@@ -407,29 +407,16 @@ FitResult FitProblem(const io::ExperimentConfig& run_cfg, const Starts& starts,
   }
 }
 
-// Held-out controls: takes a held-out sequence sq of model vm and the estimates; gives sq's
-// controls at the estimated control delays (at the start and at the estimate alike), the shared
-// one first, an actuator's own over it.
-void SetFittedControlDelays(const io::ExperimentConfig& cfg, const mjModel& vm,
-                            const std::vector<ParameterEstimate>& estimates, FitSequence* sq) {
-  std::map<std::string, double> fitted;
-  for (const ParameterEstimate& e : estimates) {
-    if (cfg.FindFittedControlDelay(e.name)) fitted[e.name] = e.value;
-  }
-  sq->ctrl_delay = cfg.ActuatorControlsOf(vm, fitted).delay;
-}
-
 // Metrics and validation: takes the fit; gives the fit metrics per channel of every fitted
 // sequence, and the held-out sequences simulated at the start and at the estimate (never
 // fitted), with theirs.
-void AssessFit(const io::ExperimentConfig& cfg, const BuiltProblem& bp, int threads,
-               io::FitResultFile* file) {
+void AssessFit(const BuiltProblem& bp, int threads, io::FitResultFile* file) {
   for (SequenceResult& sr : file->sequences) sr.channel_fits = ChannelFits(sr);
   for (FitSequence sq : bp.validation) {
     const size_t mi = static_cast<size_t>(
         std::find(bp.model_names.begin(), bp.model_names.end(), sq.model) - bp.model_names.begin());
     const mjModel& vm = *bp.models[mi];
-    SetFittedControlDelays(cfg, vm, file->parameters, &sq);
+    ApplyFittedControlDelays(vm, bp.control_delays, file->parameters, &sq);  // as fitted
     file->validation.push_back(SimulateHeldOut(vm, bp.parameters, bp.measurements, file->parameters,
                                                sq, threads, &file->warnings));
   }
@@ -612,7 +599,7 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
 
   // the assessment and verdict; the estimates are shown before any file is written (a full disk
   // loses no result); then the files, and the staging folder replaces DIR
-  AssessFit(cfg, bp, options.threads, &file);
+  AssessFit(bp, options.threads, &file);
   Conclude(bp, truth, &file, &out);
   if (ro.on_estimates) ro.on_estimates(file);
   WriteResultFiles(cfg, staging, &file);

@@ -6,6 +6,7 @@
 #include "core/simulator.h"
 #include "sysid/assess/metrics.h"
 #include "sysid/data/sample_grid.h"
+#include "sysid/fit/prepare.h"
 #include "sysid/solve/residual_model.h"
 
 namespace mjsysid::run {
@@ -118,6 +119,19 @@ SequenceResult SimulateHeldOut(const mjModel& m, const std::vector<FitParameter>
   }
   sr.channel_fits = ChannelFits(sr);
   return sr;
+}
+
+void ApplyFittedControlDelays(const mjModel& m, const std::vector<FitControlDelay>& delays,
+                              const std::vector<ParameterEstimate>& estimates,
+                              FitSequence* sequence) {
+  if (delays.empty()) return;
+  const std::vector<int> follows = ControlDelayOfActuators(delays, m);
+  sequence->ctrl_delay.resize(static_cast<size_t>(m.nu), 0.0);
+  for (size_t i = 0; i < follows.size(); ++i) {
+    if (follows[i] < 0) continue;
+    const FitControlDelay& cd = delays[static_cast<size_t>(follows[i])];
+    sequence->ctrl_delay[i] = EstimateOr(estimates, cd.Name(), true, cd.initial);
+  }
 }
 
 }  // namespace mjsysid::run

@@ -32,4 +32,12 @@ SequenceResult SimulateHeldOut(const mjModel& m, const std::vector<FitParameter>
                                const FitSequence& sequence, int threads,
                                std::vector<std::string>* warnings);
 
+// The fitted control delays at their estimates in sequence's ctrl_delay: each actuator of m that
+// follows one of `delays` (its own, else the shared one: sysid/fit/prepare.h
+// ControlDelayOfActuators, the fit's rule) takes the estimate named delays[c].Name(); the other
+// actuators keep their given delay (an empty ctrl_delay is first filled with zeros)
+void ApplyFittedControlDelays(const mjModel& m, const std::vector<FitControlDelay>& delays,
+                              const std::vector<ParameterEstimate>& estimates,
+                              FitSequence* sequence);
+
 }  // namespace mjsysid::run
