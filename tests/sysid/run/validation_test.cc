@@ -12,7 +12,9 @@
 #include <cmath>
 #include <filesystem>
 #include <string>
+#include <vector>
 
+#include "core/mujoco_env.h"
 #include "sysid/assess/metrics.h"
 #include "sysid/io/log.h"
 #include "sysid/run/fit_experiment.h"
@@ -192,6 +194,29 @@ simulate:
     EXPECT_TRUE(s.name == "cart_seq1" || s.name == "cart_payload_seq0") << s.name;
   }
   fs::remove_all(dir);
+}
+
+// a held-out sequence takes the fitted control delays by the fit's rule: an actuator's own over the
+// shared one, at the estimate (its initial value without one); other actuators keep theirs
+TEST(ValidationTest, FittedControlDelaysReachHeldOutSequencesByTheFitsRule) {
+  ModelPtr m = LoadModel(std::string(MJSYSID_MODELS_DIR) + "/pendulum.xml");  // actuator torque
+  FitSequence sq("held", "m", InitialState{}, RowMatrix::Zero(3, 1), RowMatrix::Zero(3, 2));
+  ApplyFittedControlDelays(*m, {}, {}, &sq);
+  EXPECT_TRUE(sq.ctrl_delay.empty()) << "no fitted delay: the sequence's own stay";
+  ParameterEstimate shared, own;
+  shared.name = "controls.delay";
+  shared.value = 0.012;
+  own.name = "controls.delay.torque";
+  own.value = 0.007;
+  ApplyFittedControlDelays(*m, {{"", 0.01, 0, 0.05}}, {shared}, &sq);
+  EXPECT_EQ(sq.ctrl_delay, std::vector<double>{0.012});
+  ApplyFittedControlDelays(*m, {{"", 0.01, 0, 0.05}, {"torque", 0.02, 0, 0.05}}, {shared, own},
+                           &sq);
+  EXPECT_EQ(sq.ctrl_delay, std::vector<double>{0.007});
+  ApplyFittedControlDelays(*m, {{"torque", 0.02, 0, 0.05}}, {}, &sq);
+  EXPECT_EQ(sq.ctrl_delay, std::vector<double>{0.02}) << "no estimate: the initial value";
+  ApplyFittedControlDelays(*m, {{"other", 0.02, 0, 0.05}}, {}, &sq);
+  EXPECT_EQ(sq.ctrl_delay, std::vector<double>{0.02}) << "another actuator's: unchanged";
 }
 
 TEST(ValidationTest, BadValidationEntriesAreNamedErrors) {
