@@ -25,6 +25,12 @@ std::string FormatShortest(double x) {
   return buf;
 }
 
+std::string FormatYamlNumber(double x) {
+  if (std::isnan(x)) return ".nan";
+  if (std::isinf(x)) return x > 0 ? ".inf" : "-.inf";
+  return FormatShortest(x);
+}
+
 std::string Quote(const std::string& s) {
   constexpr size_t kShown = 60;
   std::string out = "'";

@@ -19,6 +19,9 @@ std::string FormatG17(double x);
 // the shortest of "%.15g", "%.16g", "%.17g" that reads back as x (17 digits for non-finite x)
 std::string FormatShortest(double x);
 
+// x as a YAML 1.2 scalar: FormatShortest, or .nan, .inf, -.inf (result files, design files)
+std::string FormatYamlNumber(double x);
+
 // 'text' for a message: control bytes as \xNN, cut after 60 bytes with the length said
 // ('abc...' (10485760 bytes)), so a huge or binary value is never echoed whole
 std::string Quote(const std::string& s);

@@ -98,5 +98,6 @@ Command AddReport(CLI::App* app);    // tools/sysid_report.cc
 Command AddImport(CLI::App* app);    // tools/sysid_import.cc
 Command AddCheck(CLI::App* app);     // tools/sysid_check.cc
 Command AddRollout(CLI::App* app);   // tools/sysid_rollout.cc
+Command AddDesign(CLI::App* app);    // tools/sysid_design.cc
 
 }  // namespace mjsysid::cli

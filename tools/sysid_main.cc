@@ -119,7 +119,8 @@ int main(int argc, char** argv) {
                          "  sysid fit experiments/pendulum.yaml --out results/pendulum\n"
                          "  sysid report results/pendulum\n"
                          "  sysid check experiments/pendulum.yaml\n"
-                         "  sysid rollout models/pendulum.xml --steps 500\n") +
+                         "  sysid rollout models/pendulum.xml --steps 500\n"
+                         "  sysid design experiments/pendulum.yaml --out designs/pendulum\n") +
              cli::kExitCodesFooter);
 
   // subcommands, in the order --help lists them
@@ -130,6 +131,7 @@ int main(int argc, char** argv) {
   commands.push_back(cli::AddImport(&app));
   commands.push_back(cli::AddCheck(&app));
   commands.push_back(cli::AddRollout(&app));
+  commands.push_back(cli::AddDesign(&app));
 
   // an unknown subcommand is named (CLI11 would say "A subcommand is required")
   if (argc > 1 && argv[1][0] != '-') {

@@ -22,6 +22,7 @@
 #include <string>
 
 #include "core/thread_pool.h"
+#include "sysid/io/experiment.h"
 #include "sysid/io/result.h"
 #include "sysid/types.h"
 
@@ -79,6 +80,11 @@ inline int CheckedThreads(int threads, const std::string& what, bool allow_defau
 
 // fit(model, parameters, sequences, options, callback): the library API on numpy arrays
 void BindFitApi(nb::module_& m);
+// mjsysid.design (design_api.cc)
+void BindDesignApi(nb::module_& m);
+
+// an experiment given as a path (str, os.PathLike) or as a loaded ExperimentConfig (module.cc)
+io::ExperimentConfig ConfigOf(nb::handle experiment);
 
 // `sysid fit` as a function (fit_experiment): the outcome of run::RunFit, flattened
 struct ExperimentFit : io::FitResultFile {

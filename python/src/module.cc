@@ -75,17 +75,6 @@ void SetState(T& result, const nb::bytes& state) {
   new (&result) T(std::move(read));
 }
 
-// an experiment given as a path or as a loaded ExperimentConfig
-io::ExperimentConfig ConfigOf(nb::handle experiment) {
-  if (nb::isinstance<io::ExperimentConfig>(experiment)) {
-    return nb::cast<io::ExperimentConfig>(experiment);
-  }
-  if (nb::isinstance<nb::str>(experiment) || nb::hasattr(experiment, "__fspath__")) {
-    return io::LoadExperiment(nb::cast<std::string>(nb::str(experiment)));
-  }
-  throw nb::type_error("experiment: expected a path (str, os.PathLike) or an Experiment");
-}
-
 // simulate: the experiment's `simulate` block; written to `out`, else to the first `data:` path
 // (as `sysid simulate`), unless write is false
 io::Log Simulate(nb::handle experiment, std::optional<std::string> out,
@@ -211,6 +200,16 @@ nb::dict Estimates(const FitResult& r) {
 }
 
 }  // namespace
+
+io::ExperimentConfig ConfigOf(nb::handle experiment) {
+  if (nb::isinstance<io::ExperimentConfig>(experiment)) {
+    return nb::cast<io::ExperimentConfig>(experiment);
+  }
+  if (nb::isinstance<nb::str>(experiment) || nb::hasattr(experiment, "__fspath__")) {
+    return io::LoadExperiment(nb::cast<std::string>(nb::str(experiment)));
+  }
+  throw nb::type_error("experiment: expected a path (str, os.PathLike) or an Experiment");
+}
 
 // --- FitGuard (bindings.h) ---
 
@@ -765,4 +764,5 @@ NB_MODULE(_mjsysid, m) {
         "Writes an HDF5 log atomically; with model (an MJCF path), checked against it first as "
         "`sysid import` does");
   BindFitApi(m);
+  BindDesignApi(m);
 }

@@ -87,7 +87,7 @@ struct MeasurementSpec : FitMeasurement {
   Marks delay_marks, gain_marks, bias_marks;
 };
 
-enum class ExcitationType { kSines, kChirp, kPrbs, kZero };
+enum class ExcitationType { kSines, kChirp, kPrbs, kZero, kFile };
 
 // the control signal of one actuator (or of all, actuator == "") in `sysid simulate`
 struct Excitation {
@@ -98,6 +98,7 @@ struct Excitation {
   double f0 = 0.1;                                 // Hz, chirp start
   double f1 = 5.0;                                 // Hz, chirp end
   double switch_period = 0.1;                      // s, prbs
+  std::string path;  // file: a CSV of controls (time, one column per actuator), absolute
   Marks marks;
 };
 

@@ -18,13 +18,14 @@ namespace mjsysid::io::experiment_internal {
 
 namespace {
 
-const std::vector<std::string> kExcitationTypes = {"sines", "chirp", "prbs", "zero"};
+const std::vector<std::string> kExcitationTypes = {"sines", "chirp", "prbs", "zero", "file"};
 
 }  // namespace
 
 Excitation Parser::ParseExcitation(const Field& f, bool needs_actuator) const {
-  const MapReader r(*this, f,
-                    {"actuator", "type", "amplitude", "frequencies", "f0", "f1", "switch_period"});
+  const MapReader r(
+      *this, f,
+      {"actuator", "type", "amplitude", "frequencies", "f0", "f1", "switch_period", "path"});
   Excitation e;
   e.marks = r.marks();
   if (needs_actuator) {
@@ -44,6 +45,18 @@ Excitation Parser::ParseExcitation(const Field& f, bool needs_actuator) const {
   if (r.Has("f0")) e.f0 = Positive(r.Get("f0"));
   if (r.Has("f1")) e.f1 = Positive(r.Get("f1"));
   if (r.Has("switch_period")) e.switch_period = Positive(r.Get("switch_period"));
+  // file: every actuator's control from a CSV (e.g. sysid design's controls.csv)
+  if (e.type == ExcitationType::kFile) {
+    if (needs_actuator) {
+      Fail(r.marks().Of("type"), f.path + ": a `file` excitation gives every actuator's control",
+           "use it as the single map: excitation: {type: file, path: controls.csv}");
+    }
+    r.Require("path", "a `file` excitation names its CSV of controls");
+    e.path = ResolvePath(r.Get("path"));
+  } else if (r.Has("path")) {
+    Fail(r.marks().Of("path"), f.path + ".path: only a `file` excitation reads a path",
+         "add type: file");
+  }
   return e;
 }
 

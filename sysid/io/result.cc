@@ -34,11 +34,7 @@ namespace result_internal {
 }
 
 // the shortest of %.15g..%.17g that reads back as x; YAML's .inf, -.inf, .nan otherwise
-std::string Number(double x) {
-  if (std::isnan(x)) return ".nan";
-  if (std::isinf(x)) return x > 0 ? ".inf" : "-.inf";
-  return FormatShortest(x);
-}
+std::string Number(double x) { return FormatYamlNumber(x); }
 
 // ---------------------------------------------------------------------------------------------
 // checks shared by the writers and the reader

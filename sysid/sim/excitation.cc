@@ -8,6 +8,7 @@
 #include <string>
 
 #include "core/text.h"
+#include "sysid/io/csv.h"
 
 namespace mjsysid::sim {
 namespace {
@@ -41,8 +42,36 @@ const char* TypeName(io::ExcitationType type) {
       return "prbs";
     case io::ExcitationType::kZero:
       return "zero";
+    case io::ExcitationType::kFile:
+      return "file";
   }
   return "?";
+}
+
+// a file excitation's controls at t_k = k * dt: the file's last row at or before t_k
+RowMatrix FileControls(const mjModel& m, const std::string& path, int steps) {
+  const io::Sequence seq = io::ImportCsv(path, m, "excitation");
+  const double dt = m.opt.timestep;
+  if (!seq.ctrl.allFinite()) {
+    throw io::LogError(path +
+                       ": a control cell is empty or NaN; an excitation file gives every "
+                       "actuator's control at every row");
+  }
+  const Eigen::Index rows = seq.time.size();
+  const double need = (steps - 1) * dt;
+  // a hundredth of a step of slack: times written in decimal
+  if (steps > 0 && (seq.time[0] > 0.01 * dt || seq.time[rows - 1] < need - 0.01 * dt)) {
+    throw io::LogError(path + ": the controls cover t = " + FormatDigits(seq.time[0], 6) + " .. " +
+                       FormatDigits(seq.time[rows - 1], 6) + " s; simulate needs 0 .. " +
+                       FormatDigits(need, 6) + " s (steps x the model's timestep)");
+  }
+  RowMatrix ctrl(steps, m.nu);
+  Eigen::Index row = 0;
+  for (int k = 0; k < steps; ++k) {
+    while (row + 1 < rows && seq.time[row + 1] <= k * dt + 0.01 * dt) ++row;
+    ctrl.row(k) = seq.ctrl.row(row);
+  }
+  return ctrl;
 }
 
 }  // namespace
@@ -114,6 +143,8 @@ Eigen::VectorXd ExcitationSignal(const io::Excitation& e, int steps, double dt,
     }
     case io::ExcitationType::kZero:
       break;
+    case io::ExcitationType::kFile:
+      throw std::invalid_argument("excitation: a file excitation has no signal of its own");
   }
   return u;
 }
@@ -137,6 +168,12 @@ RowMatrix GenerateControls(const mjModel& m, const std::vector<io::Excitation>& 
   const int nu = static_cast<int>(m.nu);
   if (steps < 0) throw std::invalid_argument("GenerateControls: steps must be >= 0");
 
+  // a file gives every actuator's control
+  if (excitation.size() == 1 && excitation[0].type == io::ExcitationType::kFile) {
+    RowMatrix ctrl = FileControls(m, excitation[0].path, steps);
+    ClipToCtrlRange(m, &ctrl);
+    return ctrl;
+  }
   // which entry drives each actuator: a named entry, else the entry for all, else none (zero)
   std::vector<const io::Excitation*> source(nu, nullptr);
   for (const io::Excitation& e : excitation) {
@@ -197,6 +234,10 @@ std::string DescribeExcitation(const std::vector<io::Excitation>& excitation) {
     if (!out.empty()) out += "; ";
     out += (e.actuator.empty() ? std::string("all") : e.actuator) + ": " + TypeName(e.type);
     if (e.type == io::ExcitationType::kZero) continue;
+    if (e.type == io::ExcitationType::kFile) {
+      out += " path=" + e.path;
+      continue;
+    }
     out += " amplitude=" + FormatDigits(e.amplitude, 6);
     switch (e.type) {
       case io::ExcitationType::kSines: {
@@ -214,6 +255,7 @@ std::string DescribeExcitation(const std::vector<io::Excitation>& excitation) {
         out += " switch_period=" + FormatDigits(e.switch_period, 6);
         break;
       case io::ExcitationType::kZero:
+      case io::ExcitationType::kFile:
         break;
     }
   }

@@ -1329,3 +1329,54 @@ states:
 
 }  // namespace
 }  // namespace mjsysid::io
+
+namespace mjsysid::io {
+namespace {
+
+class ExcitationFileTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("excitation_file_" + std::to_string(::getpid()));
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string Write(const std::string& text) {
+    const std::string path = (dir_ / "exp.yaml").string();
+    std::ofstream(path) << text;
+    return path;
+  }
+  fs::path dir_;
+};
+
+// `excitation: {type: file, path}`: the path resolved against the YAML file's folder; a file
+// without a path, a path on another type, and a file in the per-actuator list are errors at
+// their line and column
+TEST_F(ExcitationFileTest, AFileExcitationNamesItsCsvAndStandsAlone) {
+  const std::string head =
+      "model: pendulum.xml\nparameters:\n"
+      "  - {name: m, target: body_mass, object: bob, initial: 1.0}\nsimulate:\n";
+  const ExperimentConfig c =
+      LoadExperiment(Write(head + "  excitation: {type: file, path: designs/controls.csv}\n"));
+  ASSERT_EQ(c.simulate.excitation.size(), 1u);
+  EXPECT_EQ(c.simulate.excitation[0].type, ExcitationType::kFile);
+  EXPECT_EQ(c.simulate.excitation[0].path, (dir_ / "designs/controls.csv").string());
+  const auto expect_error = [&](const std::string& text, int line, int column,
+                                const std::string& message) {
+    try {
+      LoadExperiment(Write(head + text));
+      ADD_FAILURE() << "no error for " << text;
+    } catch (const ConfigError& e) {
+      EXPECT_EQ(e.line(), line) << e.what();
+      EXPECT_EQ(e.column(), column) << e.what();
+      EXPECT_NE(std::string(e.what()).find(message), std::string::npos) << e.what();
+    }
+  };
+  expect_error("  excitation: {type: file}\n", 5, 15, "missing required key 'path'");
+  expect_error("  excitation: {type: sines, path: a.csv}\n", 5, 35,
+               "only a `file` excitation reads a path");
+  expect_error("  excitation:\n    - {actuator: torque, type: file, path: a.csv}\n", 6, 32,
+               "a `file` excitation gives every actuator's control");
+}
+
+}  // namespace
+}  // namespace mjsysid::io
