@@ -10,6 +10,7 @@
 #include "sysid/design/design.h"
 #include "sysid/design/design_write.h"
 #include "sysid/io/experiment.h"
+#include "tools/report/design_page.h"
 #include "tools/sysid_cli.h"
 
 namespace mjsysid::cli {
@@ -127,6 +128,7 @@ int RunDesign(const DesignArgs& args) {
     throw InputError(e.what());
   }
   const auto [csv, yaml] = design::WriteDesign(r, dir, config);
+  const std::string html = report::WriteDesignPage(r, config.source_file, dir);
 
   // summary: the predicted relative standard errors, current excitation beside the design
   std::printf("designed %s (%s)\n", config.name.c_str(), args.experiment.c_str());
@@ -144,12 +146,18 @@ int RunDesign(const DesignArgs& args) {
   }
   std::printf("  %-24s %14s %14s\n", "worst", Pct(r.current.info.worst_relative_std).c_str(),
               Pct(r.design.info.worst_relative_std).c_str());
+  if (r.time_limited) {
+    std::printf(
+        "  note        the time limit (%.0f s) ended the search after %d of %d candidates: "
+        "another run may find another design (raise --time-limit to repeat it exactly)\n",
+        r.options.time_limit, r.evaluations, r.options.evaluations);
+  }
   if (!r.current.violation.empty()) {
     std::printf("  note        the current excitation breaks a constraint: %s\n",
                 r.current.violation.c_str());
   }
-  std::printf("  wrote       %s\n              %s in %.1f s\n", csv.c_str(), yaml.c_str(),
-              Seconds(start));
+  std::printf("  wrote       %s\n              %s\n              %s in %.1f s\n", csv.c_str(),
+              yaml.c_str(), html.c_str(), Seconds(start));
   return kExitOk;
 }
 

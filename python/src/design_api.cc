@@ -13,6 +13,7 @@
 #include "bindings.h"
 #include "sysid/design/design.h"
 #include "sysid/design/design_write.h"
+#include "tools/report/design_page.h"
 
 namespace mjsysid::python {
 namespace {
@@ -86,6 +87,7 @@ nb::dict Design(nb::handle experiment, std::optional<std::string> out, double du
 
   design::DesignResult r;
   std::pair<std::string, std::string> files;
+  std::string page;
   {
     nb::gil_scoped_release release;
     try {
@@ -93,7 +95,10 @@ nb::dict Design(nb::handle experiment, std::optional<std::string> out, double du
     } catch (const design::DesignError& e) {
       throw std::invalid_argument(e.what());
     }
-    if (out) files = design::WriteDesign(r, *out, config);
+    if (out) {
+      files = design::WriteDesign(r, *out, config);
+      page = report::WriteDesignPage(r, config.source_file, *out);
+    }
   }
   nb::dict d;
   d["parameters"] = r.parameters;
@@ -108,11 +113,13 @@ nb::dict Design(nb::handle experiment, std::optional<std::string> out, double du
   d["design"] = ExcitationDict(r, r.design);
   d["evaluations"] = r.evaluations;
   d["feasible"] = r.feasible;
+  d["time_limited"] = r.time_limited;
   d["seconds"] = r.seconds;
   if (out) {
     nb::dict f;
     f["controls"] = files.first;
     f["design"] = files.second;
+    f["page"] = page;
     d["files"] = f;
   } else {
     d["files"] = nb::none();
@@ -136,12 +143,14 @@ void BindDesignApi(nb::module_& m) {
         "information (criterion: d_optimal, worst_relative_std or condition_number) within the "
         "amplitudes of simulate.excitation, the joint ranges shrunk by range_margin, "
         "max_joint_speed (None: no limit) and, with contacts=False, no contact. duration in s "
-        "(0: simulate.steps x timestep). With out (a folder), writes out/controls.csv and "
-        "out/design.yaml atomically. Returns a dict: parameters, actuators, values (where the "
+        "(0: simulate.steps x timestep). With out (a folder), writes out/controls.csv, "
+        "out/design.yaml and out/design.html atomically. Returns a dict: parameters, actuators, "
+        "values (where the "
         "information was computed), time, criterion, current and design (each: controls as a "
         "steps x nu array, predicted_std and relative_std per parameter, criteria, "
         "amplitude_scale, joint_range, max_joint_speed, steps_with_contact, "
-        "meets_constraints), evaluations, feasible, seconds, files. Raises ValueError for bad "
+        "meets_constraints), evaluations, feasible, time_limited (the time limit ended the "
+        "search), seconds, files. Raises ValueError for bad "
         "arguments, a sensor without a sigma, or constraints no candidate meets.");
 }
 

@@ -324,6 +324,13 @@ DesignResult DesignExcitation(const io::ExperimentConfig& config, const DesignOp
     r.actuators.push_back(name ? name : "actuator " + std::to_string(i));
   }
   for (const Constraints::Joint& j : cx.constraints.limited) r.joints_checked.push_back(j.name);
+  for (const Constraints::Joint& j : cx.constraints.speed) {
+    DesignResult::JointColumn col{j.name, j.qpos, false, 0, 0};
+    for (const Constraints::Joint& l : cx.constraints.limited) {
+      if (l.qpos == j.qpos) col = {j.name, j.qpos, true, l.lower, l.upper};
+    }
+    r.joints.push_back(col);
+  }
   if (cx.amplitude.isZero()) {
     throw io::ConfigError(config.simulate.marks.self,
                           "simulate.excitation gives no actuator an amplitude: nothing to design",
@@ -407,6 +414,7 @@ DesignResult DesignExcitation(const io::ExperimentConfig& config, const DesignOp
                       "simulate.excitation and simulate.initial_state)");
   }
   r.coefficients = spectrum.cwiseProduct(best_c);
+  r.time_limited = r.evaluations < options.evaluations;
 
   // the design simulated and checked once more, as written
   Margins check;

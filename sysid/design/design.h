@@ -25,10 +25,11 @@
 //   (when > 0); no contact at any step unless contacts are allowed. A candidate that breaks one
 //   is simulated again at 0.7 times its amplitude (the same shape), up to 6 times; after that it
 //   is rejected.
-// - Search (reproducible from seed; the same result for any thread count): evaluations / 4
-//   random shapes (coefficients N(0, 1)), then a (1+1) evolution strategy from the best with
-//   the one-fifth success rule, until `evaluations` candidates or time_limit seconds. Every
-//   candidate costs one rollout per amplitude tried and one Jacobian (core/simulator.h).
+// - Search: evaluations / 8 random shapes (coefficients N(0, 1) / h for harmonic h), then
+//   CMA-ES (sysid/design/cma_es.h) from the best, until `evaluations` candidates or time_limit
+//   seconds. Reproducible from seed, the same result for any thread count, when the evaluation
+//   budget ends the search (time_limited false); the time limit is a bound on a slow machine.
+//   Every candidate costs one rollout per amplitude tried and one Jacobian (core/simulator.h).
 // - Failure: a bad config or option throws io::ConfigError / std::invalid_argument (the
 //   message names the key or option); no candidate meets the constraints: DesignError;
 //   simulation failures as core's Simulator.
@@ -61,7 +62,7 @@ struct DesignOptions {
   double range_margin = 0.05;  // share of a limited joint's range kept free at each end, [0, 0.5)
   double max_joint_speed = 0;  // rad/s (hinge) and m/s (slide); <= 0: no limit
   bool contacts = true;        // false: any contact makes a candidate infeasible
-  int evaluations = 800;       // candidates, >= 1
+  int evaluations = 1200;      // candidates, >= 1
   double time_limit = 120;     // s of search (the last candidate finishes)
   std::uint64_t seed = 1;
   bool at_truth = false;  // information at simulate.truth instead of the initial values
@@ -105,7 +106,15 @@ struct DesignProgress {
 };
 
 struct DesignResult {
+  // a hinge or slide joint's position in the motion's states, and its allowed band when limited
+  struct JointColumn {
+    std::string name;
+    int qpos = 0;
+    bool limited = false;
+    double lower = 0, upper = 0;  // range shrunk by the margin (limited only)
+  };
   std::string model_name, model_path;
+  std::vector<JointColumn> joints;      // every hinge and slide joint, model order
   std::vector<std::string> parameters;  // names, in the information's order
   std::vector<std::string> actuators;
   std::vector<std::string> joints_checked;
@@ -117,6 +126,7 @@ struct DesignResult {
   Evaluated current, design;
   Eigen::VectorXd coefficients;  // the design's Fourier coefficients (nu * (2 H + 1))
   int evaluations = 0, feasible = 0;
+  bool time_limited = false;  // the time limit, not the evaluation budget, ended the search
   double seconds = 0;
 };
 

@@ -123,6 +123,8 @@ std::string DesignYaml(const DesignResult& r, const std::string& experiment) {
   out << YAML::Key << "search" << YAML::Value << YAML::BeginMap;
   out << YAML::Key << "evaluations" << YAML::Value << r.evaluations;
   out << YAML::Key << "feasible" << YAML::Value << r.feasible;
+  out << YAML::Key << "stopped_by" << YAML::Value
+      << (r.time_limited ? "time_limit" : "evaluations");
   out << YAML::Key << "seed" << YAML::Value << o.seed;
   out << YAML::Key << "seconds" << YAML::Value << N(r.seconds);
   out << YAML::Key << "coefficients" << YAML::Value << YAML::Flow << YAML::BeginSeq;

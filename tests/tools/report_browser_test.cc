@@ -289,6 +289,39 @@ window.addEventListener('load', () => {
 </script>
 )js";
 
+// The checking script of `sysid design`'s page: its four sections laid out, every chart drawn (by
+// kind), and the standard-error bars with a width. Its verdict: "OK sections=4 charts=controls:N,
+// motion:M bars=B" or "FAIL <problems>".
+constexpr char kDesignCheckScript[] = R"js(
+<pre id="verdict">no verdict: the script did not run</pre>
+<script>
+window.addEventListener('load', () => {
+  const problems = [];
+  const box = (e) => { const r = e.getBoundingClientRect(); return r.width > 0 && r.height > 0; };
+  const sections = ['Predicted standard errors', 'Controls', 'Predicted motion', 'Constraints'];
+  const headings = [...document.querySelectorAll('h2')];
+  let found = 0;
+  for (const name of sections) {
+    const h = headings.find((e) => e.textContent === name);
+    if (!h || !box(h)) problems.push('section "' + name + '" missing or without a box');
+    else found++;
+  }
+  const kinds = {};
+  const charts = window.mjsysidCharts || [];
+  for (const g of charts) {
+    kinds[g.mjsysidKind] = (kinds[g.mjsysidKind] || 0) + 1;
+    const canvas = g.graphDiv.querySelector('canvas');
+    if (!canvas || !box(canvas) || g.numRows() < 2) problems.push('chart ' + g.maindiv_.id + ' not drawn');
+  }
+  const bars = [...document.querySelectorAll('.bar')].filter(box).length;
+  document.getElementById('verdict').textContent = problems.length
+      ? 'FAIL ' + problems.join('; ')
+      : 'OK sections=' + found + ' charts=controls:' + (kinds.controls || 0) + ',motion:' +
+        (kinds.motion || 0) + ' bars=' + bars;
+});
+</script>
+)js";
+
 class ReportBrowserTest : public ::testing::Test {
  protected:
   // one fit and report for all tests
@@ -411,6 +444,18 @@ TEST_F(ReportBrowserTest, EverySectionAndPlotRenders) {
   EXPECT_EQ(Verdict(Page(), "check.html"),
             "OK sections=9 images=4 svgs=2 motion=960x240 "
             "charts=signal:6,residual:6,inputs:3,autocorrelation:2");
+}
+
+// `sysid design` of the cart-pole (1 actuator, 2 joints, 3 parameters; 10 candidates): the page's
+// sections, one controls chart, two motion charts, two bars per parameter
+TEST_F(ReportBrowserTest, TheDesignPageRenders) {
+  const std::string cmd = "timeout -s KILL 300 " + std::string(MJSYSID_SYSID_BIN) + " design " +
+                          MJSYSID_EXPERIMENTS_DIR + "/cartpole.yaml --evaluations 10 --out " +
+                          dir_ + "/design >" + dir_ + "/design.txt 2>&1";
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << ReadFile(dir_ + "/design.txt");
+  EXPECT_EQ(
+      Verdict(ReadFile(dir_ + "/design/design.html"), "design_check.html", kDesignCheckScript),
+      "OK sections=4 charts=controls:1,motion:2 bars=6");
 }
 
 TEST_F(ReportBrowserTest, TheTimePlotsZoomTogetherAndShowValuesOnHover) {

@@ -98,27 +98,36 @@ double Round6(double v) {
   return std::strtod(buf, nullptr);
 }
 
-struct Line {
-  std::string label;
-  Eigen::VectorXd y;  // one value per x
-  Rgb color;
-  double width = 1.2;
-  bool dashed = false, step = false;
-};
+// the diagnostics of a channel, nullptr when there are none
+const ResidualDiagnostics* DiagnosticsOf(const std::vector<ResidualDiagnostics>& all,
+                                         const std::string& channel) {
+  for (const ResidualDiagnostics& d : all) {
+    if (d.channel == channel) return &d;
+  }
+  return nullptr;
+}
 
-struct Chart {
-  std::string kind;   // "signal", "residual", "inputs", "autocorrelation" (for the tests)
-  std::string title;  // HTML (escaped by the caller)
-  std::string xlabel, ylabel;
-  Eigen::VectorXd x;  // increasing
-  std::vector<Line> lines;
-  double band_lo = kNan, band_hi = kNan;  // a shaded band (NaN: none)
-  std::string band_color = "rgba(46,125,50,0.13)";
-  bool points = false;
-  std::string group;  // charts sharing the time axis ("": none)
-};
+// the residual chart's caption: the channel's diagnostics in one line
+std::string ResidualCaption(const std::string& label, const ResidualDiagnostics* d,
+                            bool segmented) {
+  std::string t = HtmlEscape(label) +
+                  " residual <span class=\"muted\">(simulated &minus; measured" +
+                  std::string(segmented ? ", segment by segment" : "") + ")</span>";
+  if (d == nullptr) return t;
+  t += "<br><span class=\"muted\">rms " + HtmlEscape(Num(d->rms, 3));
+  if (std::isfinite(d->ratio)) {
+    t += " = " + HtmlEscape(Num(d->ratio, 3)) + " &sigma;" +
+         (d->sigma_from_log ? " (&sigma; from the log)" : "");
+  }
+  if (std::isfinite(d->lag1)) t += ", lag-1 " + HtmlEscape(Num(d->lag1, 2));
+  if (std::isfinite(d->tau)) t += ", correlation " + HtmlEscape(Num(d->tau, 3)) + " samples";
+  t += std::string(", ") + (d->white ? "white" : "<b>not white</b>");
+  if (std::isfinite(d->portmanteau_p)) t += " (p " + HtmlEscape(Num(d->portmanteau_p, 2)) + ")";
+  return t + "</span>";
+}
 
-// the chart as its caption, legend and plot <div>s and the call that draws it; "" without data
+}  // namespace
+
 std::string ChartHtml(const Chart& c, ChartIds& ids) {
   if (c.x.size() == 0 || c.lines.empty()) return "";
   // the rows: the union of the lines' decimated samples
@@ -168,36 +177,6 @@ std::string ChartHtml(const Chart& c, ChartIds& ids) {
     << ");</script>\n";
   return h.str();
 }
-
-// the diagnostics of a channel, nullptr when there are none
-const ResidualDiagnostics* DiagnosticsOf(const std::vector<ResidualDiagnostics>& all,
-                                         const std::string& channel) {
-  for (const ResidualDiagnostics& d : all) {
-    if (d.channel == channel) return &d;
-  }
-  return nullptr;
-}
-
-// the residual chart's caption: the channel's diagnostics in one line
-std::string ResidualCaption(const std::string& label, const ResidualDiagnostics* d,
-                            bool segmented) {
-  std::string t = HtmlEscape(label) +
-                  " residual <span class=\"muted\">(simulated &minus; measured" +
-                  std::string(segmented ? ", segment by segment" : "") + ")</span>";
-  if (d == nullptr) return t;
-  t += "<br><span class=\"muted\">rms " + HtmlEscape(Num(d->rms, 3));
-  if (std::isfinite(d->ratio)) {
-    t += " = " + HtmlEscape(Num(d->ratio, 3)) + " &sigma;" +
-         (d->sigma_from_log ? " (&sigma; from the log)" : "");
-  }
-  if (std::isfinite(d->lag1)) t += ", lag-1 " + HtmlEscape(Num(d->lag1, 2));
-  if (std::isfinite(d->tau)) t += ", correlation " + HtmlEscape(Num(d->tau, 3)) + " samples";
-  t += std::string(", ") + (d->white ? "white" : "<b>not white</b>");
-  if (std::isfinite(d->portmanteau_p)) t += " (p " + HtmlEscape(Num(d->portmanteau_p, 2)) + ")";
-  return t + "</span>";
-}
-
-}  // namespace
 
 int PointsPerLine(int columns) {
   return std::clamp(kPageLinePoints / std::max(1, 4 * columns), kMinLinePoints, kInteractivePoints);

@@ -26,10 +26,13 @@
 // HTML-escaped; the data are JSON (nlohmann).
 #pragma once
 
+#include <Eigen/Core>
+#include <limits>
 #include <string>
 #include <vector>
 
 #include "sysid/io/result.h"
+#include "tools/report/canvas.h"
 #include "tools/report/logged.h"
 
 namespace mjsysid::report {
@@ -60,6 +63,31 @@ class ChartIds {
  private:
   int charts_ = 0, groups_ = 0;
 };
+
+// One chart: lines over a common increasing x (a time axis, or lags), each line one value per x
+// (NaN: a gap); an optional shaded horizontal band; charts with the same group share their x
+// axis. ChartHtml gives its caption, legend and plot <div>s and the call that draws it ("" without
+// data), each line decimated to ids.points samples.
+struct Line {
+  std::string label;
+  Eigen::VectorXd y;  // one value per x
+  Rgb color;
+  double width = 1.2;
+  bool dashed = false, step = false;
+};
+struct Chart {
+  std::string kind;   // the <div>'s class: "signal", "residual", "inputs", ... (for the tests)
+  std::string title;  // HTML (escaped by the caller)
+  std::string xlabel, ylabel;
+  Eigen::VectorXd x;  // increasing
+  std::vector<Line> lines;
+  double band_lo = std::numeric_limits<double>::quiet_NaN();  // a shaded band (NaN: none)
+  double band_hi = std::numeric_limits<double>::quiet_NaN();
+  std::string band_color = "rgba(46,125,50,0.13)";
+  bool points = false;
+  std::string group;  // charts sharing the time axis ("": none)
+};
+std::string ChartHtml(const Chart& c, ChartIds& ids);
 
 // a sequence's charts (see above); diagnostics: the result's residual diagnostics (matched to the
 // columns by channel name; empty: none, e.g. a held-out sequence); inputs: its logged controls

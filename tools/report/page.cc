@@ -324,6 +324,8 @@ void SequenceBlock(std::ostringstream& h, const SequenceResult& s,
 
 }  // namespace
 
+const char* PageCss() { return kCss; }
+
 std::string Page(const FitResultFile& r, const std::vector<std::string>& sequence_pngs,
                  const std::vector<std::string>& validation_pngs, const std::string& motion_html,
                  const LoggedExperiment* logged) {

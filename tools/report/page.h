@@ -26,6 +26,8 @@ namespace mjsysid::report {
 
 // text for html: & < > " ' escaped
 std::string HtmlEscape(const std::string& s);
+// the pages' style sheet (the fit report's and the design page's)
+const char* PageCss();
 // standard base64 with padding (RFC 4648), for data URIs
 std::string Base64(const std::string& bytes);
 
