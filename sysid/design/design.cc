@@ -391,7 +391,8 @@ DesignResult DesignExcitation(const io::ExperimentConfig& config, const DesignOp
            (r.evaluations == 0 || seconds() < options.time_limit);
   };
   const int random = std::max(1, options.evaluations / 8);
-  while (budget_left() && r.evaluations < random) {
+  // (random shapes go on while none met the constraints)
+  while (budget_left() && (r.evaluations < random || !have)) {
     Eigen::VectorXd x(nvar);
     for (Eigen::Index v = 0; v < nvar; ++v) x[v] = normal(rng);
     candidate(x);
@@ -407,8 +408,8 @@ DesignResult DesignExcitation(const io::ExperimentConfig& config, const DesignOp
     }
   }
   if (!have) {
-    throw DesignError("no candidate met the constraints in " + std::to_string(r.evaluations) +
-                      " tries, even at " + std::to_string(std::pow(kShrink, kShrinks)) +
+    throw DesignError("no candidate met the constraints (" + std::to_string(r.evaluations) +
+                      " tried), even at " + std::to_string(std::pow(kShrink, kShrinks)) +
                       " of the amplitude limits; the last one: " + last_violation +
                       " (see --range-margin, --max-joint-speed, --contacts, the amplitudes of "
                       "simulate.excitation and simulate.initial_state)");

@@ -26,7 +26,8 @@
 //   is simulated again at 0.7 times its amplitude (the same shape), up to 6 times; after that it
 //   is rejected.
 // - Search: evaluations / 8 random shapes (coefficients N(0, 1) / h for harmonic h), then
-//   CMA-ES (sysid/design/cma_es.h) from the best, until `evaluations` candidates or time_limit
+//   CMA-ES (sysid/design/cma_es.h) from the best (random shapes go on while none met the
+//   constraints), until `evaluations` candidates or time_limit
 //   seconds. Reproducible from seed, the same result for any thread count, when the evaluation
 //   budget ends the search (time_limited false); the time limit is a bound on a slow machine.
 //   Every candidate costs one rollout per amplitude tried and one Jacobian (core/simulator.h).

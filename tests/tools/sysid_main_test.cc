@@ -26,7 +26,7 @@ const std::string kModels = MJSYSID_MODELS_DIR;
 TEST(SysidCliTest, HelpListsEverySubcommand) {
   const CliRun r = Sysid("--help");
   EXPECT_EQ(r.code, 0);
-  for (const char* sub : {"simulate", "fit", "report", "check", "import", "rollout"}) {
+  for (const char* sub : {"simulate", "fit", "report", "check", "import", "rollout", "design"}) {
     EXPECT_NE(r.output.find(sub), std::string::npos) << sub;
   }
   EXPECT_EQ(Sysid("fit --help").code, 0);
