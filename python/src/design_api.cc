@@ -2,10 +2,12 @@
 // runs with the GIL released; the result is a dict of plain Python values and numpy arrays.
 #include <nanobind/eigen/dense.h>
 #include <nanobind/nanobind.h>
+#include <nanobind/stl/filesystem.h>
 #include <nanobind/stl/optional.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/vector.h>
 
+#include <filesystem>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -56,13 +58,15 @@ nb::dict ExcitationDict(const design::DesignResult& r, const design::Evaluated& 
   return d;
 }
 
-nb::dict Design(nb::handle experiment, std::optional<std::string> out, double duration,
-                const std::string& criterion, double base_frequency, int harmonics, double ramp,
-                double range_margin, std::optional<double> max_joint_speed, bool contacts,
-                int evaluations, double time_limit, unsigned long long seed, bool at_truth,
-                int threads) {
+nb::dict Design(nb::handle experiment, std::optional<std::filesystem::path> out_path,
+                double duration, const std::string& criterion, double base_frequency, int harmonics,
+                double ramp, double range_margin, std::optional<double> max_joint_speed,
+                bool contacts, int evaluations, double time_limit, unsigned long long seed,
+                bool at_truth, int threads) {
   const io::ExperimentConfig config = ConfigOf(experiment);
   io::CheckModelFilesExist(config);
+  const std::optional<std::string> out =
+      out_path ? std::optional<std::string>(out_path->string()) : std::nullopt;
   design::DesignOptions o;
   if (!design::ParseCriterion(criterion, &o.criterion)) {
     throw std::invalid_argument("criterion: '" + criterion +
