@@ -75,16 +75,17 @@ TEST_F(DesignTest, CartPoleDesignIsThreeTimesSharperThanTheShippedPrbs) {
 }
 
 // the shipped 7-dof arm (21 parameters) and the servo-driven arm with native delays, with the
-// default budget (1200 candidates, 120 s; measured on 2 threads: servo_arm7 3.15x after 1121)
+// default candidate budget (1200; the time limit raised so that the run is the same on any machine;
+// BENCHMARKS.md has the times)
 TEST_F(DesignTest, ArmsDesignsAreThreeTimesSharperLong) {
   if (!std::getenv("MJSYSID_DESIGN_LONG")) GTEST_SKIP() << "long: MJSYSID_DESIGN_LONG=1";
   for (const char* name : {"arm7", "servo_arm7"}) {
     const io::ExperimentConfig c = io::LoadExperiment(kExperiments + "/" + name + ".yaml");
-    DesignOptions o = WorstStd(DesignOptions().evaluations);
-    o.time_limit = DesignOptions().time_limit;
+    const DesignOptions o = WorstStd(DesignOptions().evaluations);
     const DesignResult r = DesignExcitation(c, o);
     EXPECT_GE(Ratio(r), 3.0) << name << ": " << r.current.info.worst_relative_std << " vs "
                              << r.design.info.worst_relative_std << " after " << r.evaluations;
+    EXPECT_EQ(r.evaluations, o.evaluations) << name;
   }
 }
 
