@@ -145,14 +145,36 @@ RegionCount CountRegion(cairo_surface_t* a, cairo_surface_t* b, int x0, int y0, 
   return n;
 }
 
-// the script appended to a copy of the page: its verdict, "OK ..." or "FAIL <problems>", goes
-// into <pre id="verdict"> once the page has loaded
-constexpr char kCheckScript[] = R"js(
+// What the checking scripts share (before each): the verdict element, box(e) (laid out with a
+// size) and drawnCharts(problems): every interactive chart drawn (a canvas with a box in its
+// plot, at least 2 rows), one per plot <div>; returns the count of charts by kind.
+constexpr char kCheckPrelude[] = R"js(
 <pre id="verdict">no verdict: the script did not run</pre>
+<script>
+const box = (e) => { const r = e.getBoundingClientRect(); return r.width > 0 && r.height > 0; };
+function drawnCharts(problems) {
+  const kinds = {};
+  const charts = window.mjsysidCharts || [];
+  for (const g of charts) {
+    kinds[g.mjsysidKind] = (kinds[g.mjsysidKind] || 0) + 1;
+    const canvas = g.graphDiv.querySelector('canvas');
+    if (!canvas || !box(canvas) || g.numRows() < 2) problems.push('chart ' + g.maindiv_.id + ' not drawn');
+  }
+  if (charts.length !== document.querySelectorAll('.chart-plot').length) {
+    problems.push(charts.length + ' charts for ' + document.querySelectorAll('.chart-plot').length +
+                  ' plots');
+  }
+  return kinds;
+}
+</script>
+)js";
+
+// the fit report's check, appended to a copy of the page after kCheckPrelude: its verdict, "OK
+// ..." or "FAIL <problems>", goes into <pre id="verdict"> once the page has loaded
+constexpr char kCheckBody[] = R"js(
 <script>
 window.addEventListener('load', () => {
   const problems = [];
-  const box = (e) => { const r = e.getBoundingClientRect(); return r.width > 0 && r.height > 0; };
   // the still plots are folded under the charts: unfolded to be checked
   for (const d of document.querySelectorAll('details')) d.open = true;
 
@@ -183,18 +205,8 @@ window.addEventListener('load', () => {
     if (svg.querySelectorAll('use').length === 0) problems.push('svg ' + i + ' has no text');
   }
 
-  // every interactive chart drawn: a canvas with a box in its plot, by kind
-  const kinds = {};
-  const charts = window.mjsysidCharts || [];
-  for (const g of charts) {
-    kinds[g.mjsysidKind] = (kinds[g.mjsysidKind] || 0) + 1;
-    const canvas = g.graphDiv.querySelector('canvas');
-    if (!canvas || !box(canvas) || g.numRows() < 2) problems.push('chart ' + g.maindiv_.id + ' not drawn');
-  }
-  if (charts.length !== document.querySelectorAll('.chart-plot').length) {
-    problems.push(charts.length + ' charts for ' + document.querySelectorAll('.chart-plot').length +
-                  ' plots');
-  }
+  // every interactive chart drawn, by kind
+  const kinds = drawnCharts(problems);
   const chartCounts = ['signal', 'residual', 'inputs', 'autocorrelation']
                           .map((k) => k + ':' + (kinds[k] || 0)).join(',');
 
@@ -225,9 +237,8 @@ window.addEventListener('load', () => {
 // the script that drives the time plots as a user would (mouse events on the first signal chart):
 // hover shows the values under the pointer in its legend; a drag across 30 %..60 % of its width
 // zooms it to that window and the other charts of its sequence follow; a double-click zooms all of
-// them out again. Its verdict, "OK ..." or "FAIL <problems>", as kCheckScript's.
+// them out again. Its verdict, "OK ..." or "FAIL <problems>", as kCheckBody's.
 constexpr char kInteractionScript[] = R"js(
-<pre id="verdict">no verdict: the script did not run</pre>
 <script>
 window.addEventListener('load', () => {
   const problems = [];
@@ -292,12 +303,10 @@ window.addEventListener('load', () => {
 // The checking script of `sysid design`'s page: its four sections laid out, every chart drawn (by
 // kind), and the standard-error bars with a width. Its verdict: "OK sections=4 charts=controls:N,
 // motion:M bars=B" or "FAIL <problems>".
-constexpr char kDesignCheckScript[] = R"js(
-<pre id="verdict">no verdict: the script did not run</pre>
+constexpr char kDesignCheckBody[] = R"js(
 <script>
 window.addEventListener('load', () => {
   const problems = [];
-  const box = (e) => { const r = e.getBoundingClientRect(); return r.width > 0 && r.height > 0; };
   const sections = ['Predicted standard errors', 'Controls', 'Predicted motion', 'Constraints'];
   const headings = [...document.querySelectorAll('h2')];
   let found = 0;
@@ -306,13 +315,7 @@ window.addEventListener('load', () => {
     if (!h || !box(h)) problems.push('section "' + name + '" missing or without a box');
     else found++;
   }
-  const kinds = {};
-  const charts = window.mjsysidCharts || [];
-  for (const g of charts) {
-    kinds[g.mjsysidKind] = (kinds[g.mjsysidKind] || 0) + 1;
-    const canvas = g.graphDiv.querySelector('canvas');
-    if (!canvas || !box(canvas) || g.numRows() < 2) problems.push('chart ' + g.maindiv_.id + ' not drawn');
-  }
+  const kinds = drawnCharts(problems);
   const bars = [...document.querySelectorAll('.bar')].filter(box).length;
   document.getElementById('verdict').textContent = problems.length
       ? 'FAIL ' + problems.join('; ')
@@ -367,14 +370,16 @@ class ReportBrowserTest : public ::testing::Test {
     return ReadFile(dir_ + "/chromium.out");
   }
 
-  // the verdict of the checking script (kCheckScript, or `script`) on a copy of `page`
+  // the verdict of the checking script (kCheckBody, or `script`) after kCheckPrelude on a copy
+  // of `page`
   static std::string Verdict(const std::string& page, const std::string& name,
-                             const char* script = kCheckScript) {
+                             const char* script = kCheckBody) {
     const std::string copy = dir_ + "/out/" + name;
     std::string html = page;
     const size_t body_end = html.rfind("</body>");
     EXPECT_NE(body_end, std::string::npos);
-    html.insert(body_end == std::string::npos ? html.size() : body_end, script);
+    html.insert(body_end == std::string::npos ? html.size() : body_end,
+                std::string(kCheckPrelude) + script);
     WriteFile(copy, html);
     const std::string dom = Chromium(copy, "--dump-dom");
     const std::string open = "<pre id=\"verdict\">";
@@ -453,9 +458,8 @@ TEST_F(ReportBrowserTest, TheDesignPageRenders) {
                           MJSYSID_EXPERIMENTS_DIR + "/cartpole.yaml --evaluations 10 --out " +
                           dir_ + "/design >" + dir_ + "/design.txt 2>&1";
   ASSERT_EQ(std::system(cmd.c_str()), 0) << ReadFile(dir_ + "/design.txt");
-  EXPECT_EQ(
-      Verdict(ReadFile(dir_ + "/design/design.html"), "design_check.html", kDesignCheckScript),
-      "OK sections=4 charts=controls:1,motion:2 bars=6");
+  EXPECT_EQ(Verdict(ReadFile(dir_ + "/design/design.html"), "design_check.html", kDesignCheckBody),
+            "OK sections=4 charts=controls:1,motion:2 bars=6");
 }
 
 TEST_F(ReportBrowserTest, TheTimePlotsZoomTogetherAndShowValuesOnHover) {
