@@ -179,6 +179,25 @@ struct Sensitivity {
   std::vector<std::string> warnings;
 };
 
+// The one-step derivative blocks of rollouts (Simulator::StepJacobians), what the chain rule of
+// core/step_chain.h composes into rollout derivatives. For step k of a sequence, in tangent space
+// (nx = 2nv+na, the layout of mjd_transitionFD; ns = nsensordata, nu controls, np parameters):
+//   A_k = dx_{k+1}/dx_k, B_k = dx_{k+1}/du_k, F_k = dx_{k+1}/dp,
+//   C_k = dy_k/dx_k,     D_k = dy_k/du_k,     G_k = dy_k/dp.
+// Row-major stacks over k: block k of A is rows [k nx, (k+1) nx). B, D have 0 columns without
+// controls, F, G without parameters; C, D, G have 0 rows without sensors.
+struct StepBlocks {
+  int T = 0;
+  RowMatrix A;    // (T nx) x nx
+  RowMatrix B;    // (T nx) x nu
+  RowMatrix F;    // (T nx) x np
+  RowMatrix C;    // (T ns) x nx
+  RowMatrix D;    // (T ns) x nu
+  RowMatrix G;    // (T ns) x np
+  int kinks = 0;  // one-sided differences used where the two sides disagreed (as Sensitivity)
+  std::vector<std::string> warnings;  // constraint-solver warnings (as Sensitivity)
+};
+
 // Progress inside one long step loop (Simulator::SetStepProgress): a rollout or a Jacobian
 // column over a sequence of `total` steps calls Step(what, done, total) from the thread that runs
 // it when it starts (done = 0) and each time another tenth of its steps is done; the loop pays one
@@ -272,6 +291,20 @@ class Simulator {
   void RolloutAndJacobians(const std::vector<SequenceInput>& sequences,
                            const JacobianOptions& options, std::vector<Trajectory>* nominal,
                            std::vector<Sensitivity>* out);
+
+  // --- One-step blocks ----------------------------------------------------------------------
+  // The blocks of every time step of every sequence (StepBlocks) around nominal trajectories
+  // computed by Rollout with the current parameters, as matrix mode computes them: A, C (and B, D
+  // with controls) by mjd_transitionFD at x_k with options.state_step, F, G (with parameters) by
+  // one perturbed step per parameter that skips the stages the parameter cannot affect; both sides
+  // where options.central or where contacts are near, with the kink rule. In parallel over all
+  // time steps of all sequences. options.initial_state and state_jacobians are ignored. A model
+  // with RK4 or native delays: std::invalid_argument (mjd_transitionFD supports neither); a
+  // nominal that does not match its sequence: std::invalid_argument; simulation failures as
+  // Rollout.
+  void StepJacobians(const std::vector<SequenceInput>& sequences,
+                     const std::vector<Trajectory>& nominal, const JacobianOptions& options,
+                     bool controls, bool parameters, std::vector<StepBlocks>* out);
 
   // --- Speculative columns (filled into workers that a batch of rollouts leaves idle) --------
   // Rollout, and in the same parallel pass the first columns[i] (at most ncol) directional
@@ -434,6 +467,8 @@ class Simulator {
   void SizeSensitivities(const std::vector<SequenceInput>& sequences,
                          const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
                          JacobianMode mode, int ncol, std::vector<Sensitivity>* out) const;
+  // matrix mode: each worker's scratch for steps with nu control columns
+  void SizeMatrixScratch(int nu);
   // matrix mode: each worker's model copies with one parameter at p + steps and p - steps
   void PrepareMatrixModels(const Eigen::VectorXd& steps);
   // matrix mode: the blocks of time step k, step kk of the chunk c (simulator_matrix.cc)

@@ -26,7 +26,8 @@ struct Simulator::Worker {
   Eigen::VectorXd s, s_next, xp, xm, yp, ym, e;
   Eigen::VectorXd fx, fy;  // directional columns past kSplitGrowth: the parameter part
   RowMatrix states_p, sensors_p, states_m, sensors_m;
-  long long steps = 0;  // step calls made by this worker (see Simulator::StepCount)
+  RowMatrix Ab, Cb, Bb, Db;  // matrix mode: the backward side of one step (SizeMatrixScratch)
+  long long steps = 0;       // step calls made by this worker (see Simulator::StepCount)
 };
 
 // what one Jacobian task reports besides its column

@@ -17,20 +17,21 @@ using internal::CopyModelInto;
 using internal::kGrowthLimit;
 using internal::Tenths;
 
-// The per-step blocks of one chunk of time steps (A, C: forward side; Ab, Cb: backward side; F, G:
-// the parameter columns), row-major, step kk of the chunk at offset kk times the block's size;
-// with the kinks and constraint solves of each step.
+// The per-step blocks of one chunk of time steps, row-major stacks as StepBlocks (A, C, B, D: the
+// state and control columns, B and D with nu columns only when the controls are differentiated;
+// F, G: the parameter columns), step kk of the chunk at rows kk times the block's rows; with the
+// kinks and constraint solves of each step. The backward sides of a step are worker scratch.
 struct Simulator::MatrixChunk {
-  MatrixChunk(int chunk, int nx, int ns, int np)
-      : A(static_cast<size_t>(chunk) * nx * nx),
-        C(static_cast<size_t>(chunk) * ns * nx),
-        Ab(A.size()),
-        Cb(C.size()),
-        F(static_cast<size_t>(chunk) * nx, np),
-        G(static_cast<size_t>(chunk) * ns, np),
+  MatrixChunk(int chunk, int nx, int ns, int np, int nu)
+      : A(static_cast<Eigen::Index>(chunk) * nx, nx),
+        C(static_cast<Eigen::Index>(chunk) * ns, nx),
+        B(A.rows(), nu),
+        D(C.rows(), nu),
+        F(A.rows(), np),
+        G(C.rows(), np),
         kinks(chunk, 0),
         solver(chunk) {}
-  std::vector<double> A, C, Ab, Cb;
+  RowMatrix A, C, B, D;
   RowMatrix F, G;
   std::vector<int> kinks;
   std::vector<SolverStats> solver;
@@ -49,18 +50,17 @@ struct ColumnGrowth {
 
 // chain through the chunk that starts at step k0 (kn steps): dy_k = C_k S_k + G_k,
 // S_{k+1} = A_k S_k + F_k
-void ChainChunk(const std::vector<double>& A, const std::vector<double>& C, const RowMatrix& F,
-                const RowMatrix& G, int k0, int kn, int np, int nx, int ns, int ncol,
-                const JacobianOptions& opt, RowMatrix* S_in, RowMatrix* S_next_in, ColumnGrowth* g,
-                Sensitivity* out) {
+void ChainChunk(const RowMatrix& A, const RowMatrix& C, const RowMatrix& F, const RowMatrix& G,
+                int k0, int kn, int np, int nx, int ns, int ncol, const JacobianOptions& opt,
+                RowMatrix* S_in, RowMatrix* S_next_in, ColumnGrowth* g, Sensitivity* out) {
   RowMatrix& S = *S_in;
   RowMatrix& S_next = *S_next_in;
   for (int kk = 0; kk < kn; ++kk) {
     const int k = k0 + kk;
-    Eigen::Map<const RowMatrix> Ak(A.data() + static_cast<size_t>(kk) * nx * nx, nx, nx);
+    const auto Ak = A.middleRows(static_cast<Eigen::Index>(kk) * nx, nx);
     if (opt.state_jacobians) out->DxDp.middleRows(k * nx, nx) = S;
     if (ns) {
-      Eigen::Map<const RowMatrix> Ck(C.data() + static_cast<size_t>(kk) * ns * nx, ns, nx);
+      const auto Ck = C.middleRows(static_cast<Eigen::Index>(kk) * ns, ns);
       auto dy = out->DyDp.middleRows(k * ns, ns);
       dy.noalias() = Ck * S;
       dy.leftCols(np) += G.middleRows(kk * ns, ns);
@@ -79,6 +79,24 @@ void ChainChunk(const std::vector<double>& A, const std::vector<double>& C, cons
 }
 
 }  // namespace
+
+// the workers' scratch of MatrixStep for nu control columns (before the parallel steps: no
+// allocation inside them)
+void Simulator::SizeMatrixScratch(int nu) {
+  const int nx = dims_.nx, ns = options_.sensors ? dims_.ns : 0;
+  for (auto& w : workers_) {
+    w->s_next.resize(nx);
+    w->e.resize(nx);
+    w->xp.resize(dims_.nphys);
+    w->xm.resize(dims_.nphys);
+    w->yp.resize(ns);
+    w->ym.resize(ns);
+    w->Ab.resize(nx, nx);
+    w->Cb.resize(ns, nx);
+    w->Bb.resize(nx, nu);
+    w->Db.resize(ns, nu);
+  }
+}
 
 // one perturbed model per parameter and side, per worker (mj_setConst uses its mjData)
 void Simulator::PrepareMatrixModels(const Eigen::VectorXd& steps) {
@@ -104,7 +122,7 @@ void Simulator::PrepareMatrixModels(const Eigen::VectorXd& steps) {
 void Simulator::MatrixStep(Worker& w, const RowMatrix& ctrl, int seq_index, const Trajectory& nom,
                            const JacobianOptions& opt, const Eigen::VectorXd& steps,
                            const std::vector<int>& order, int k, int kk, MatrixChunk* c) const {
-  const int np = params_.size(), nx = dims_.nx, ns = options_.sensors ? dims_.ns : 0;
+  const int nx = dims_.nx, ns = options_.sensors ? dims_.ns : 0;
   const int T = nom.T;
   const bool both_sides = opt.central;
   mjData* d = w.data.get();
@@ -116,38 +134,52 @@ void Simulator::MatrixStep(Worker& w, const RowMatrix& ctrl, int seq_index, cons
   c->kinks[kk] = 0;
   c->solver[kk] = SolverStats();
 
-  // state columns: forward differences (eps), and backward ones (-eps) for central, so that
-  // each column can be checked for a kink (centered mjd_transitionFD cannot)
-  double* Ak = c->A.data() + static_cast<size_t>(kk) * nx * nx;
-  double* Ck = ns ? c->C.data() + static_cast<size_t>(kk) * ns * nx : nullptr;
+  // state (and control) columns: forward differences (eps), and backward ones (-eps) for
+  // central, so that each column can be checked for a kink (centered mjd_transitionFD cannot)
+  const int nu = static_cast<int>(c->B.cols());
+  auto block = [&](RowMatrix& M, int rows) {
+    return rows && M.cols() ? M.data() + static_cast<size_t>(kk) * rows * M.cols() : nullptr;
+  };
+  double* Ak = block(c->A, nx);
+  double* Ck = block(c->C, ns);
+  double* Bk = block(c->B, nx);
+  double* Dk = block(c->D, ns);
   CallMujoco([&] {
     RestoreStep(*model_, dims_, nom, k, u, d);
-    mjd_transitionFD(model_.get(), d, opt.state_step, 0, Ak, nullptr, Ck, nullptr);
+    mjd_transitionFD(model_.get(), d, opt.state_step, 0, Ak, Bk, Ck, Dk);
   });
-  w.steps += 1 + nx;
+  w.steps += 1 + nx + nu;
   CheckStep(*d, t, seq_index, k, "mjd_transitionFD");
   // forward differences are checked too where the contact set may change near x_k
   const bool contact_near = nom.ncon[k] > 0 || (k + 1 < T && nom.ncon[k + 1] != nom.ncon[k]) ||
                             (k > 0 && nom.ncon[k - 1] != nom.ncon[k]);
   if (both_sides || contact_near) {
-    double* Abk = c->Ab.data() + static_cast<size_t>(kk) * nx * nx;
-    double* Cbk = ns ? c->Cb.data() + static_cast<size_t>(kk) * ns * nx : nullptr;
+    // the backward side in the worker's scratch (SizeMatrixScratch)
+    double* Abk = w.Ab.data();
+    double* Cbk = ns ? w.Cb.data() : nullptr;
+    double* Bbk = nu ? w.Bb.data() : nullptr;
+    double* Dbk = ns && nu ? w.Db.data() : nullptr;
     CallMujoco([&] {
       RestoreStep(*model_, dims_, nom, k, u, d);
-      mjd_transitionFD(model_.get(), d, -opt.state_step, 0, Abk, nullptr, Cbk, nullptr);
+      mjd_transitionFD(model_.get(), d, -opt.state_step, 0, Abk, Bbk, Cbk, Dbk);
     });
-    w.steps += 1 + nx;
+    w.steps += 1 + nx + nu;
     CheckStep(*d, t, seq_index, k, "mjd_transitionFD");
-    Eigen::Map<RowMatrix> Af(Ak, nx, nx), Abm(Abk, nx, nx);
-    Eigen::Map<RowMatrix> Cf(Ck, ns, nx), Cbm(Cbk, ns, nx);
-    for (int col = 0; col < nx; ++col) {
-      if (CombineSides(Af.col(col), Abm.col(col), Cf.col(col), Cbm.col(col), opt.central,
-                       Af.col(col), Cf.col(col))) {
-        ++c->kinks[kk];
+    // each column of [A | B] with its sensor column of [C | D]
+    auto combine = [&](double* f, double* b, double* fy, double* by, int cols) {
+      Eigen::Map<RowMatrix> Mf(f, nx, cols), Mb(b, nx, cols);
+      Eigen::Map<RowMatrix> Yf(fy, ns, cols), Yb(by, ns, cols);
+      for (int col = 0; col < cols; ++col) {
+        if (CombineSides(Mf.col(col), Mb.col(col), Yf.col(col), Yb.col(col), opt.central,
+                         Mf.col(col), Yf.col(col))) {
+          ++c->kinks[kk];
+        }
       }
-    }
+    };
+    combine(Ak, Abk, Ck, Cbk, nx);
+    if (nu) combine(Bk, Bbk, Dk, Dbk, nu);
   }
-  if (np == 0) return;
+  if (order.empty()) return;
 
   // parameter columns: base pass at x_k with the nominal model, then one step per parameter
   // that skips the stages before the one the parameter enters
@@ -199,7 +231,8 @@ void Simulator::MatrixJacobian(const RowMatrix& ctrl, int seq_index, const Traje
   std::stable_sort(order.begin(), order.end(),
                    [&](int a, int b) { return params_[a].stage() > params_[b].stage(); });
 
-  MatrixChunk blocks(chunk, nx, ns, np);
+  MatrixChunk blocks(chunk, nx, ns, np, 0);
+  SizeMatrixScratch(0);
 
   // S_0 = [0 | I]
   RowMatrix S = RowMatrix::Zero(nx, ncol), S_next(nx, ncol);
@@ -242,6 +275,82 @@ void Simulator::MatrixJacobian(const RowMatrix& ctrl, int seq_index, const Traje
     throw SimulationError(
         "matrix chain: sequence " + std::to_string(seq_index) + ": non-finite sensitivity",
         seq_index, T);
+  }
+}
+
+// every time step of every sequence in one parallel pass, each step's blocks written in place
+void Simulator::StepJacobians(const std::vector<SequenceInput>& sequences,
+                              const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
+                              bool controls, bool parameters, std::vector<StepBlocks>* out) {
+  CheckInputs(sequences);
+  if (nominal.size() != sequences.size()) {
+    throw std::invalid_argument("StepJacobians: " + std::to_string(sequences.size()) +
+                                " sequences but " + std::to_string(nominal.size()) +
+                                " nominal trajectories");
+  }
+  JacobianOptions matrix = opt;
+  matrix.mode = JacobianMode::kMatrix;
+  CheckedJacobianMode(matrix, 0.0);
+  const int np = parameters ? params_.size() : 0, nx = dims_.nx;
+  const int ns = options_.sensors ? dims_.ns : 0, nu = controls ? dims_.nu : 0;
+  const Eigen::VectorXd steps = ParameterSteps(opt);
+  std::vector<int> order;
+  if (parameters) {
+    // as MatrixJacobian: actuation parameters first, then velocity, then position ones
+    for (int j = 0; j < np; ++j) order.push_back(j);
+    std::stable_sort(order.begin(), order.end(),
+                     [&](int a, int b) { return params_[a].stage() > params_[b].stage(); });
+    PrepareMatrixModels(steps);
+  }
+  SizeMatrixScratch(nu);
+
+  // one chunk per sequence holding all its steps; tasks (i, k) in order of sequences, then steps
+  const int n = static_cast<int>(sequences.size());
+  std::vector<MatrixChunk> chunks;
+  std::vector<int> first(n + 1, 0);
+  chunks.reserve(n);
+  for (int i = 0; i < n; ++i) {
+    const int T = nominal[i].T;
+    if (T != sequences[i].ctrl.rows() || nominal[i].states.rows() != T + 1) {
+      throw std::invalid_argument("StepJacobians: nominal trajectory " + std::to_string(i) +
+                                  " does not match its sequence");
+    }
+    chunks.emplace_back(T, nx, ns, np, nu);
+    first[i + 1] = first[i] + T;
+  }
+  pool_.ParallelFor(first[n], [&](int worker, int task) {
+    const int i =
+        static_cast<int>(std::upper_bound(first.begin(), first.end(), task) - first.begin()) - 1;
+    const int k = task - first[i];
+    Worker& w = *workers_[worker];
+    OnWorker(w, [&] {
+      MatrixStep(w, sequences[i].ctrl, i, nominal[i], opt, steps, order, k, k, &chunks[i]);
+    });
+  });
+
+  out->resize(n);
+  for (int i = 0; i < n; ++i) {
+    MatrixChunk& c = chunks[i];
+    StepBlocks& b = (*out)[i];
+    b.T = nominal[i].T;
+    b.A.swap(c.A);
+    b.B.swap(c.B);
+    b.C.swap(c.C);
+    b.D.swap(c.D);
+    b.F.swap(c.F);
+    b.G.swap(c.G);
+    b.kinks = 0;
+    SolverStats perturbed;
+    for (int k = 0; k < b.T; ++k) {
+      b.kinks += c.kinks[k];
+      perturbed += c.solver[k];
+    }
+    b.warnings = SolverWarnings(*model_, nominal[i].solver, perturbed);
+    if (!b.A.allFinite() || !b.B.allFinite() || !b.C.allFinite() || !b.D.allFinite() ||
+        !b.F.allFinite() || !b.G.allFinite()) {
+      throw SimulationError(
+          "step Jacobians: sequence " + std::to_string(i) + ": non-finite derivative", i, b.T);
+    }
   }
 }
 
