@@ -21,6 +21,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "core/mujoco_env.h"
 #include "core/thread_pool.h"
 #include "sysid/io/experiment.h"
 #include "sysid/io/result.h"
@@ -82,6 +83,13 @@ inline int CheckedThreads(int threads, const std::string& what, bool allow_defau
 void BindFitApi(nb::module_& m);
 // mjsysid.design (design_api.cc)
 void BindDesignApi(nb::module_& m);
+
+// model: a path to an MJCF/MJB file, MJCF text (anything starting with '<'), a mujoco.MjModel or a
+// mujoco.MjSpec (through its MJB bytes; fit_api.cc); `what` names the argument in errors
+ModelPtr ModelOf(nb::handle model, const std::string& what);
+
+// mjsysid.RolloutModel and Linearization: differentiable rollouts (rollout_api.cc)
+void BindRolloutApi(nb::module_& m);
 
 // an experiment given as a path (str, os.PathLike) or as a loaded ExperimentConfig (module.cc)
 io::ExperimentConfig ConfigOf(nb::handle experiment);

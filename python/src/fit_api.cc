@@ -721,6 +721,10 @@ void ForEachDict(const nb::object& list, const char* what,
   }
 }
 
+}  // namespace
+
+namespace {
+
 // A mujoco.MjModel (or a mujoco.MjSpec, compiled first) as a model of this library: through its
 // MJB bytes (mj_saveModel), which libmujoco loads with its own version check: a wheel's model
 // whose layout differs is refused rather than misread. `what` names the argument in errors.
@@ -764,8 +768,8 @@ bool IsMujocoModel(nb::handle model) {
          (nb::hasattr(mujoco, "MjSpec") && nb::isinstance(model, mujoco.attr("MjSpec")));
 }
 
-// model: a path to an MJCF/MJB file, MJCF text (anything starting with '<'), a mujoco.MjModel or a
-// mujoco.MjSpec; `what` names the argument in errors
+}  // namespace
+
 ModelPtr ModelOf(nb::handle model, const std::string& what) {
   if (IsMujocoModel(model)) return ModelOfMujoco(model, what);
   if (!nb::isinstance<nb::str>(model) && !nb::hasattr(model, "__fspath__")) {
@@ -778,6 +782,8 @@ ModelPtr ModelOf(nb::handle model, const std::string& what) {
   if (first != std::string::npos && text[first] == '<') return LoadModelFromString(text);
   return LoadModel(text);
 }
+
+namespace {
 
 FitResult Fit(nb::object model, nb::object parameters, nb::object sequences, nb::object options,
               nb::object callback, nb::object measurements, nb::object control_delays,

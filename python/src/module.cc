@@ -765,4 +765,5 @@ NB_MODULE(_mjsysid, m) {
         "`sysid import` does");
   BindFitApi(m);
   BindDesignApi(m);
+  BindRolloutApi(m);
 }
