@@ -158,9 +158,14 @@ struct JacobianOptions {
   double relative_step = 1e-6;  // parameter step h_j = relative_step * max(|p_j|, step_floor)
   double step_floor = 1e-3;
   std::vector<double> parameter_steps;  // absolute steps per parameter (overrides), or empty
-  double state_step = 1e-6;          // absolute step for state directions (initial state, mjd_*FD)
-  bool initial_state = false;        // add the nx columns of dx_0
-  bool state_jacobians = true;       // fill DxDp (dy/dcol is always filled when sensors are on)
+  double state_step = 1e-6;     // absolute step for state directions (initial state, mjd_*FD)
+  bool initial_state = false;   // add the nx columns of dx_0
+  bool state_jacobians = true;  // fill DxDp (dy/dcol is always filled when sensors are on)
+  // matrix mode and StepJacobians: near contacts (and where a perturbed parameter step finds
+  // another number of contacts) also difference the backward side and apply the kink rule; false:
+  // forward differences only there too (half the steps at contacts; a difference straddling a
+  // contact onset is kept as it is)
+  bool kink_check = true;
   bool zero_column_is_error = true;  // a parameter whose column is exactly zero in every
                                      // sequence (its write changes nothing here) throws
                                      // ParameterError instead of returning a zero column

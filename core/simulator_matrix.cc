@@ -153,7 +153,7 @@ void Simulator::MatrixStep(Worker& w, const RowMatrix& ctrl, int seq_index, cons
   // forward differences are checked too where the contact set may change near x_k
   const bool contact_near = nom.ncon[k] > 0 || (k + 1 < T && nom.ncon[k + 1] != nom.ncon[k]) ||
                             (k > 0 && nom.ncon[k - 1] != nom.ncon[k]);
-  if (both_sides || contact_near) {
+  if (both_sides || (contact_near && opt.kink_check)) {
     // the backward side in the worker's scratch (SizeMatrixScratch)
     double* Abk = w.Ab.data();
     double* Cbk = ns ? w.Cb.data() : nullptr;
@@ -204,7 +204,7 @@ void Simulator::MatrixStep(Worker& w, const RowMatrix& ctrl, int seq_index, cons
     const double h = steps[j];
     const int skip = params_[j].stage();
     const int ncon = side(w.param_plus[j].get(), skip, 1.0, h, w.s_next, w.yp);
-    if (opt.central || ncon != nom.ncon[k]) {
+    if (opt.central || (opt.kink_check && ncon != nom.ncon[k])) {
       side(w.param_minus[j].get(), skip, -1.0, h, w.e, w.ym);
       if (CombineSides(w.s_next, w.e, w.yp, w.ym, opt.central, w.xm.head(nx), w.yp)) {
         ++c->kinks[kk];

@@ -296,6 +296,9 @@ NB_MODULE(_mjsysid, m) {
   // initialized glog itself; SuiteSparse's printf into the fit's warnings)
   QuietThirdPartyLibraries("mjsysid");
   RegisterExceptions();
+  // objects held by Python's own state at exit (e.g. a Linearization an autograd graph keeps) are
+  // freed by the OS; nanobind's leak report would only alarm the user
+  nb::set_leak_warnings(false);
   m.doc() = "mjsysid: system identification for MuJoCo models (C++ library bindings)";
   m.attr("__version__") = MJSYSID_VERSION;
   m.def("mujoco_version", &MujocoVersion, "X.Y.Z of the libmujoco loaded in this process");

@@ -187,7 +187,7 @@ class Linearization {
 class RolloutModel : public std::enable_shared_from_this<RolloutModel> {
  public:
   RolloutModel(nb::handle model, nb::handle parameters, int threads, bool sensors, bool central,
-               double relative_step, double state_step) {
+               double relative_step, double state_step, bool kink_check) {
     ModelPtr m = ModelOf(model, "model");
     std::vector<ParameterSpec> specs;
     if (!parameters.is_none()) {
@@ -211,6 +211,7 @@ class RolloutModel : public std::enable_shared_from_this<RolloutModel> {
     jopt_.central = central;
     jopt_.relative_step = relative_step;
     jopt_.state_step = state_step;
+    jopt_.kink_check = kink_check;
   }
 
   const StateDims& dims() const { return sim_->dims(); }
@@ -243,6 +244,15 @@ class RolloutModel : public std::enable_shared_from_this<RolloutModel> {
 
   std::shared_ptr<Linearization> Linearize(nb::handle x0, nb::handle ctrl, nb::handle params,
                                            const std::vector<std::string>& wrt, double time) {
+    const mjModel& m = model();
+    if (m.opt.integrator == mjINT_RK4 || m.nhistory > 0) {
+      throw std::invalid_argument(
+          std::string("linearize: the one-step derivatives come from mjd_transitionFD, which "
+                      "supports ") +
+          (m.nhistory > 0 ? "no native delays (this model has history buffers)"
+                          : "no RK4 integrator (this model's integrator)") +
+          "; rollout() works, linearize() needs Euler, implicit or implicitfast and no delays");
+    }
     auto [values, job] = Prepare(x0, ctrl, params, time);
     Linearization& lin = *job.lin;
     lin.wrt = WrtOf(wrt);
@@ -585,7 +595,9 @@ constexpr const char* kRolloutModelDoc =
     "the time steps. sensors: False skips MuJoCo's sensor stage (sensors have 0 columns). "
     "central: central instead of forward differences (twice the steps). relative_step: a "
     "parameter's step is relative_step * max(|p|, 1e-3). state_step: the step of mjd_transitionFD "
-    "for state and control columns.";
+    "for state and control columns. kink_check: near contacts also difference the backward side "
+    "and keep the smaller one where the two disagree (a contact onset inside the step), up to "
+    "twice the steps there; False (default): forward differences as mjd_transitionFD gives them.";
 
 }  // namespace
 
@@ -625,12 +637,13 @@ void BindRolloutApi(nb::module_& m) {
 
   nb::class_<RolloutModel>(m, "RolloutModel", kRolloutModelDoc)
       .def(nb::new_([](nb::handle model, nb::handle parameters, int threads, bool sensors,
-                       bool central, double relative_step, double state_step) {
+                       bool central, double relative_step, double state_step, bool kink_check) {
              return std::make_shared<RolloutModel>(model, parameters, threads, sensors, central,
-                                                   relative_step, state_step);
+                                                   relative_step, state_step, kink_check);
            }),
            arg("model"), arg("parameters") = nb::none(), arg("threads") = 1, arg("sensors") = true,
-           arg("central") = false, arg("relative_step") = 1e-6, arg("state_step") = 1e-6)
+           arg("central") = false, arg("relative_step") = 1e-6, arg("state_step") = 1e-6,
+           arg("kink_check") = false)
       .def_prop_ro(
           "nq", [](const RolloutModel& r) { return r.dims().nq; }, "qpos size")
       .def_prop_ro(
@@ -667,8 +680,8 @@ void BindRolloutApi(nb::module_& m) {
       "rollout",
       [](nb::handle model, nb::handle x0, nb::handle ctrl, nb::handle params, nb::handle parameters,
          int threads) {
-        auto r =
-            std::make_shared<RolloutModel>(model, parameters, threads, true, false, 1e-6, 1e-6);
+        auto r = std::make_shared<RolloutModel>(model, parameters, threads, true, false, 1e-6, 1e-6,
+                                                false);
         return r->Rollout(x0, ctrl, params, 0.0);
       },
       arg("model"), arg("x0"), arg("ctrl"), arg("params") = nb::none(),

@@ -63,6 +63,20 @@ def test_extras_pin_what_the_requirements_pin(root):
         assert req[name] == version, name
 
 
+def test_gradient_extras_pin_what_the_dev_requirements_pin(root):
+    # mjsysid[torch] and mjsysid[jax] install what tests/python/test_torch.py and test_jax.py ran
+    # with: the pins of tools/deps/requirements-dev.txt
+    dev = _pins((root / "tools/deps/requirements-dev.txt").read_text())
+    pyproject = (root / "pyproject.toml").read_text()
+    for extra, names in (("torch", {"torch"}), ("jax", {"jax", "jaxlib"})):
+        block = re.search(r"^" + extra + r"\s*=\s*\[(.*?)\]", pyproject, re.S | re.M)
+        assert block, extra
+        pins = _pins(block.group(1).replace(",", "\n"))
+        assert set(pins) == names, extra
+        for name, version in pins.items():
+            assert dev[name] == version, name
+
+
 def test_the_sysid_command_is_installed_with_the_package():
     # the console script next to this Python runs the program inside the package
     script = pathlib.Path(sys.executable).parent / "sysid"

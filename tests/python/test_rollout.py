@@ -4,62 +4,18 @@ and full Jacobians agree with central differences of whole rollouts done with th
 package (hinges with parameters, a free body's quaternion in x0, activation states); batches and
 broadcasting; bad input is a ValueError naming the argument."""
 
-import copy
-
 import mujoco
 import numpy as np
 import pytest
 
 import mjsysid
-
 from conftest import ROOT
+from rollout_oracle import (ACTIVATION, ARM7_PARAMETERS, FREE_BODY, central_gradient,
+                            mj_rollout)
 
 PENDULUM = str(ROOT / "models/pendulum.xml")
 ARM7 = str(ROOT / "models/arm7.xml")
 
-# a free body in the air (smooth: no contacts) turned by two motors, orientation sensors
-FREE_BODY = """
-<mujoco>
-  <option timestep="0.004"/>
-  <worldbody>
-    <body name="b" pos="0 0 1">
-      <freejoint/>
-      <geom type="box" size="0.1 0.2 0.05" mass="1.2" contype="0" conaffinity="0"/>
-      <site name="s" pos="0.05 0.02 0"/>
-    </body>
-  </worldbody>
-  <actuator>
-    <motor site="s" gear="1 0 0.5 0 0 0"/>
-    <motor site="s" gear="0 0 0 0.2 0.1 0.3"/>
-  </actuator>
-  <sensor>
-    <framequat objtype="body" objname="b"/>
-    <frameangvel objtype="body" objname="b"/>
-  </sensor>
-</mujoco>"""
-
-# a hinge behind a filter actuator and an integrator (na = 2)
-ACTIVATION = """
-<mujoco>
-  <option timestep="0.002"/>
-  <worldbody>
-    <body name="link">
-      <joint name="j" type="hinge" axis="0 1 0" damping="0.2"/>
-      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03" mass="0.5"/>
-    </body>
-  </worldbody>
-  <actuator>
-    <general name="filter" joint="j" dyntype="filter" dynprm="0.03" gainprm="2"/>
-    <general name="integrator" joint="j" dyntype="integrator" gainprm="0.5"/>
-  </actuator>
-  <sensor>
-    <jointpos joint="j"/>
-    <actuatorfrc actuator="filter"/>
-  </sensor>
-</mujoco>"""
-
-ARM7_PARAMS = [{"target": "joint_damping", "object": "j2"},
-               {"target": "joint_armature", "object": "j5"}]
 
 
 def controls(T, nu, seed, amplitude=1.0):
@@ -67,38 +23,6 @@ def controls(T, nu, seed, amplitude=1.0):
     phase = rng.uniform(0, 2 * np.pi, nu)
     k = np.arange(T)[:, None]
     return amplitude * np.sin(0.09 * k + phase)
-
-
-def mujoco_rollout(model, x0, ctrl, params=None, writers=()):
-    """The oracle: states and sensors with plain mujoco calls (model: MJCF text, a path or an
-    MjModel, copied; x0 quaternions normalised first; writers: functions (model, value) setting
-    each parameter)."""
-    if isinstance(model, mujoco.MjModel):
-        m = copy.copy(model)
-    elif model.lstrip().startswith("<"):
-        m = mujoco.MjModel.from_xml_string(model)
-    else:
-        m = mujoco.MjModel.from_xml_path(model)
-    for write, value in zip(writers, params if params is not None else []):
-        write(m, value)
-    d = mujoco.MjData(m)
-    d.qpos[:] = x0[:m.nq]
-    d.qvel[:] = x0[m.nq:m.nq + m.nv]
-    d.act[:] = x0[m.nq + m.nv:]
-    mujoco.mj_normalizeQuat(m, d.qpos)
-    states = [np.concatenate([d.qpos, d.qvel, d.act])]
-    sensors = []
-    for u in ctrl:
-        d.ctrl[:] = u
-        mujoco.mj_forward(m, d)
-        sensors.append(d.sensordata.copy())
-        mujoco.mj_step(m, d)
-        states.append(np.concatenate([d.qpos, d.qvel, d.act]))
-    return np.array(states), np.array(sensors)
-
-
-def loss(states, sensors, ws, wy):
-    return float(np.sum(ws * states) + np.sum(wy * sensors))
 
 
 def test_rollout_is_mujocos_own_steps_with_the_models_options():
@@ -112,15 +36,15 @@ def test_rollout_is_mujocos_own_steps_with_the_models_options():
     x0[:7] = 0.1
     u = controls(50, rm.nu, 1, 3.0)
     states, sensors = rm.rollout(x0, u)
-    ref_states, ref_sensors = mujoco_rollout(m, x0, u)
+    ref_states, ref_sensors = mj_rollout(m, x0, u)
     np.testing.assert_array_equal(states, ref_states)
     np.testing.assert_array_equal(sensors, ref_sensors)
     assert m.opt.tolerance == 1e-5  # the caller's model is not changed
 
 
 def test_batches_broadcast_and_thread_counts_agree():
-    rm1 = mjsysid.RolloutModel(ARM7, ARM7_PARAMS, threads=1)
-    rm2 = mjsysid.RolloutModel(ARM7, ARM7_PARAMS, threads=2)
+    rm1 = mjsysid.RolloutModel(ARM7, ARM7_PARAMETERS, threads=1)
+    rm2 = mjsysid.RolloutModel(ARM7, ARM7_PARAMETERS, threads=2)
     x0 = np.zeros((3, rm1.nstate))
     x0[:, 0] = [0.0, 0.2, -0.3]
     u = np.stack([controls(20, rm1.nu, s, 2.0) for s in range(3)])
@@ -141,61 +65,32 @@ def test_batches_broadcast_and_thread_counts_agree():
     np.testing.assert_allclose(gp, gp_3, rtol=1e-12, atol=1e-12)
 
 
-def whole_rollout_gradient(model, x0, ctrl, params, writers, ws, wy, h=1e-6):
-    """Central differences of the loss over whole mujoco rollouts, every coordinate of x0, ctrl
-    and params (the oracle of the vjp)."""
-    def f(x, u, p):
-        return loss(*mujoco_rollout(model, x, u, p, writers), ws, wy)
-    out = []
-    for arr in (x0, ctrl, params):
-        g = np.zeros_like(arr)
-        for i in np.ndindex(arr.shape):
-            plus, minus = arr.copy(), arr.copy()
-            plus[i] += h
-            minus[i] -= h
-            args_p = [plus if a is arr else a for a in (x0, ctrl, params)]
-            args_m = [minus if a is arr else a for a in (x0, ctrl, params)]
-            g[i] = (f(*args_p) - f(*args_m)) / (2 * h)
-        out.append(g)
-    return out
-
-
-def set_dof(field, joint):
-    def write(m, value):
-        getattr(m, field)[m.joint(joint).dofadr[0]] = value
-    return write
-
-
 @pytest.mark.parametrize("case", ["arm7", "free_body", "activation"])
 def test_vjp_matches_whole_rollout_differences(case):
-    # truth: central differences of a linear loss over whole mujoco rollouts (h = 1e-6); the vjp
-    # from central-difference blocks (state step 1e-6) agrees to 1e-6 of the largest entry
-    # (measured: 4e-8 at most, arm7's params; a wrong map or block is off by O(1))
+    # truth: central differences of a linear loss over whole mj_step rollouts (rollout_oracle.py,
+    # good to ~1e-9); the numpy-level vjp from central-difference blocks (state step 1e-6) agrees
+    # to 1e-6 of the largest entry (measured: 4e-8 at most, arm7's params; a wrong map or block
+    # is off by O(1))
     rng = np.random.default_rng(5)
+    parameters, T = [], 15
     if case == "arm7":
-        model, params, T = ARM7, ARM7_PARAMS, 12
-        writers = [set_dof("dof_damping", "j2"), set_dof("dof_armature", "j5")]
-        rm = mjsysid.RolloutModel(model, params, central=True)
-        x0 = np.zeros(rm.nstate)
-        x0[:7] = rng.normal(0, 0.3, 7)
+        model, parameters, T = mujoco.MjModel.from_xml_path(ARM7), ARM7_PARAMETERS, 12
+        x0 = np.concatenate([rng.normal(0, 0.3, 7), [1.0], rng.uniform(-1, 1, 6)])
     elif case == "free_body":
-        model, writers, T = FREE_BODY, [], 15
-        rm = mjsysid.RolloutModel(model, central=True)
-        x0 = np.zeros(rm.nstate)
-        x0[:3] = [0.1, -0.2, 1.0]
-        x0[3:7] = np.array([0.9, 0.3, -0.2, 0.25]) * 1.2  # not unit: normalised by the rollout
-        x0[7:] = rng.normal(0, 1, 6)
+        model = mujoco.MjModel.from_xml_string(FREE_BODY)
+        x0 = np.concatenate([[0.1, -0.2, 1.0], np.array([0.9, 0.3, -0.2, 0.25]) * 1.2,
+                             rng.normal(0, 1, 6)])  # a quaternion of norm 1.2: normalised
     else:
-        model, writers, T = ACTIVATION, [], 15
-        rm = mjsysid.RolloutModel(model, central=True)
-        x0 = np.array([0.3, -0.5, 0.1, -0.2])
-    u = controls(T, rm.nu, 2, 2.0)
+        model = mujoco.MjModel.from_xml_string(ACTIVATION)
+        x0 = np.array([0.3, -0.5, 0.2, 0.4, 0.8, -0.6])
+    rm = mjsysid.RolloutModel(model, parameters, central=True)
+    u = controls(T, rm.nu, 2, 1.0)
     p = rm.parameter_values()
-    lin = rm.linearize(x0, u, p if rm.np else None)
-    ws = rng.normal(size=lin.states.shape)
-    wy = rng.normal(size=lin.sensors.shape)
-    gx0, gu, gp = lin.vjp(ws, wy)
-    ref = whole_rollout_gradient(model, x0, u, p, writers, ws, wy)
+    lin = rm.linearize(x0, u, p)
+    # the oracle's loss, sum(ws * states) + sum(wy * sensors^2) / 2: cotangents ws and wy y
+    ws, wy = rng.normal(size=lin.states.shape), rng.normal(size=lin.sensors.shape)
+    gx0, gu, gp = lin.vjp(ws, wy * lin.sensors)
+    ref = central_gradient(model, parameters, x0, u, p, ws, wy)
     for got, want, name in zip((gx0, gu, gp), ref, ("x0", "ctrl", "params")):
         assert got.shape == want.shape, name
         if want.size == 0:
@@ -239,18 +134,18 @@ def test_jvp_is_the_transpose_of_vjp_and_jacobians_agree():
 
 
 def test_only_what_wrt_names_is_differentiated():
-    rm = mjsysid.RolloutModel(ARM7, ARM7_PARAMS)
+    rm = mjsysid.RolloutModel(ARM7, ARM7_PARAMETERS)
     x0 = np.zeros(rm.nstate)
     u = controls(10, rm.nu, 4)
     lin = rm.linearize(x0, u, wrt=["params"])
     gx0, gu, gp = lin.vjp(sensors_grad=np.ones_like(lin.sensors))
-    assert gx0 is None and gu is None and gp.shape == (2,)
+    assert gx0 is None and gu is None and gp.shape == (4,)
     assert lin.B.shape == (10, rm.ntangent, 0)
     with pytest.raises(ValueError, match="ctrl: linearize\\(\\) was called without 'ctrl'"):
         lin.jvp(ctrl_dot=u)
     # params moves the rollout, and the model's values are restored for params=None
     s_default, _ = rm.rollout(x0, u)
-    s_moved, _ = rm.rollout(x0, u, params=[2.0, 0.5])
+    s_moved, _ = rm.rollout(x0, u, params=[0.5, 0.5, 2.0, 2.0])
     assert np.abs(s_moved - s_default).max() > 1e-6
     np.testing.assert_array_equal(rm.rollout(x0, u)[0], s_default)
 
@@ -294,3 +189,28 @@ def test_memory_bound_of_full_control_jacobians():
     lin = rm.linearize(np.zeros(rm.nstate), controls(8000, rm.nu, 5), wrt=["ctrl"])
     with pytest.raises(ValueError, match="of the available memory"):
         lin.jacobians()
+
+
+def test_models_without_one_step_derivatives_are_refused_by_linearize_only():
+    # RK4: mjd_transitionFD supports it not; the rollout runs, linearize names the reason
+    spec = mujoco.MjSpec.from_file(PENDULUM)
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_RK4
+    rm = mjsysid.RolloutModel(spec)
+    x0, u = np.array([0.2, 0.0]), np.zeros((5, 1))
+    assert rm.rollout(x0, u)[0].shape == (6, 2)
+    with pytest.raises(ValueError, match="linearize: .*no RK4 integrator"):
+        rm.linearize(x0, u)
+
+
+def test_kink_check_differences_both_sides_near_contacts():
+    # the humanoid falls onto the floor: with kink_check the steps near contacts also difference
+    # the backward side (kinks counted where the sides disagree); both gradients stay close
+    model = str(ROOT / "models/outside/humanoid27.xml")
+    plain = mjsysid.RolloutModel(model)
+    checked = mjsysid.RolloutModel(model, kink_check=True)
+    x0 = np.concatenate([mujoco.MjModel.from_xml_path(model).qpos0, np.zeros(plain.nv)])
+    u = controls(40, plain.nu, 6, 0.3)
+    lin_plain, lin_checked = plain.linearize(x0, u), checked.linearize(x0, u)
+    assert lin_plain.kinks == [0]
+    assert lin_checked.kinks[0] > 0
+    np.testing.assert_array_equal(lin_plain.states, lin_checked.states)
