@@ -472,6 +472,8 @@ class Simulator {
   void SizeSensitivities(const std::vector<SequenceInput>& sequences,
                          const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
                          JacobianMode mode, int ncol, std::vector<Sensitivity>* out) const;
+  // each worker's vectors of one perturbed step
+  void SizeColumnScratch();
   // matrix mode: each worker's scratch for steps with nu control columns
   void SizeMatrixScratch(int nu);
   // matrix mode: each worker's model copies with one parameter at p + steps and p - steps

@@ -62,25 +62,10 @@ void Simulator::SizeSensitivities(const std::vector<SequenceInput>& sequences,
   }
 }
 
-void Simulator::JacobiansImpl(const std::vector<SequenceInput>& sequences,
-                              const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
-                              std::vector<Sensitivity>* out, std::vector<Trajectory>* rollouts,
-                              std::vector<ColumnsAhead>* ahead, const std::vector<int>* ahead_end) {
-  CheckInputs(sequences);
-  if (nominal.size() != sequences.size()) {
-    throw std::invalid_argument("Jacobians: " + std::to_string(sequences.size()) +
-                                " sequences but " + std::to_string(nominal.size()) +
-                                " nominal trajectories");
-  }
-  const int np = params_.size(), nx = dims_.nx, ns = options_.sensors ? dims_.ns : 0;
-  const int ncol = np + (opt.initial_state ? nx : 0);
-  // pipelined: the rollouts are still to come, and the mode is the same for any contact share
-  const JacobianMode mode = CheckedJacobianMode(opt, rollouts ? 0.0 : ContactFraction(nominal));
-  const Eigen::VectorXd steps = ParameterSteps(opt);
-  SizeSensitivities(sequences, nominal, opt, mode, ncol, out);
-  if (ncol == 0) return;
-
-  // worker scratch
+// the workers' vectors of one perturbed step (a column's or a matrix step's), before the parallel
+// tasks: no allocation inside them
+void Simulator::SizeColumnScratch() {
+  const int nx = dims_.nx, ns = options_.sensors ? dims_.ns : 0;
   for (auto& w : workers_) {
     w->s.resize(nx);
     w->s_next.resize(nx);
@@ -92,6 +77,27 @@ void Simulator::JacobiansImpl(const std::vector<SequenceInput>& sequences,
     w->fx.resize(nx);
     w->fy.resize(ns);
   }
+}
+
+void Simulator::JacobiansImpl(const std::vector<SequenceInput>& sequences,
+                              const std::vector<Trajectory>& nominal, const JacobianOptions& opt,
+                              std::vector<Sensitivity>* out, std::vector<Trajectory>* rollouts,
+                              std::vector<ColumnsAhead>* ahead, const std::vector<int>* ahead_end) {
+  CheckInputs(sequences);
+  if (nominal.size() != sequences.size()) {
+    throw std::invalid_argument("Jacobians: " + std::to_string(sequences.size()) +
+                                " sequences but " + std::to_string(nominal.size()) +
+                                " nominal trajectories");
+  }
+  const int np = params_.size(), nx = dims_.nx;
+  const int ncol = np + (opt.initial_state ? nx : 0);
+  // pipelined: the rollouts are still to come, and the mode is the same for any contact share
+  const JacobianMode mode = CheckedJacobianMode(opt, rollouts ? 0.0 : ContactFraction(nominal));
+  const Eigen::VectorXd steps = ParameterSteps(opt);
+  SizeSensitivities(sequences, nominal, opt, mode, ncol, out);
+  if (ncol == 0) return;
+
+  SizeColumnScratch();
 
   // constraint solves of the perturbed steps, per sequence
   std::vector<SolverStats> perturbed(sequences.size());

@@ -80,17 +80,12 @@ void ChainChunk(const RowMatrix& A, const RowMatrix& C, const RowMatrix& F, cons
 
 }  // namespace
 
-// the workers' scratch of MatrixStep for nu control columns (before the parallel steps: no
-// allocation inside them)
+// the workers' scratch of MatrixStep for nu control columns: a perturbed step's vectors and the
+// backward side's blocks (before the parallel steps: no allocation inside them)
 void Simulator::SizeMatrixScratch(int nu) {
   const int nx = dims_.nx, ns = options_.sensors ? dims_.ns : 0;
+  SizeColumnScratch();
   for (auto& w : workers_) {
-    w->s_next.resize(nx);
-    w->e.resize(nx);
-    w->xp.resize(dims_.nphys);
-    w->xm.resize(dims_.nphys);
-    w->yp.resize(ns);
-    w->ym.resize(ns);
     w->Ab.resize(nx, nx);
     w->Cb.resize(ns, nx);
     w->Bb.resize(nx, nu);
