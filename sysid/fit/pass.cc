@@ -24,23 +24,19 @@ FitPass::FitPass(const FitParts& parts, const FitOptions& options)
       ledger_(
           [fit = parts.fit] {
             long long steps = 0;
-            for (const auto& mo : fit->models) steps += mo.sim ? mo.sim->StepCount() : 0;
+            for (const auto& mo : fit->models) steps += mo.Steps();
             return steps;
           },
           [fit = parts.fit] {
             // the task model's critical path at 2 workers (core/thread_pool.h)
             long long steps = 0;
-            for (const auto& mo : fit->models) {
-              steps += mo.sim ? mo.sim->ParallelLoad().span[2] : 0;
-            }
+            for (const auto& mo : fit->models) steps += mo.CriticalSteps();
             return steps;
           }) {
   // the time inside the simulators' batches (serial time = the rest)
   ledger_.MeasureBatches([fit = parts.fit] {
     PoolTime sum;
-    for (const auto& mo : fit->models) {
-      if (mo.sim) sum += mo.sim->ParallelTime();
-    }
+    for (const auto& mo : fit->models) sum += mo.Time();
     return sum;
   });
   solve_.ledger = &ledger_;

@@ -161,6 +161,11 @@ void BuildSimulators(PreparedFit& fit, FitVariables& vars, SolveContext& solve,
       specs.push_back(spec);
       mo.global.push_back(g);
     }
+    if (mo.sim) {
+      mo.retired_steps = mo.Steps();
+      mo.retired_critical = mo.CriticalSteps();
+      mo.retired_time = mo.Time();
+    }
     try {
       mo.sim = std::make_unique<Simulator>(*mo.model, specs, so);
     } catch (const ParameterError& e) {

@@ -60,6 +60,20 @@ struct FitModel {
   std::unique_ptr<Simulator> sim;           // PrepareFit: with the parameters that apply to it
   std::vector<int> global;                  // index in z of each simulator parameter
   std::unique_ptr<StateManifold> manifold;  // its physics state as a Ceres manifold
+  // what the simulators PrepareFit replaced had counted: step calls, steps on the 2-worker critical
+  // path, the pool's time. A pass's ledger reads the counts across its PrepareFit, which builds new
+  // simulators: these totals keep growing where a simulator's own count restarts from 0.
+  long long retired_steps = 0, retired_critical = 0;
+  PoolTime retired_time;
+  long long Steps() const { return retired_steps + (sim ? sim->StepCount() : 0); }
+  long long CriticalSteps() const {
+    return retired_critical + (sim ? sim->ParallelLoad().span[2] : 0);
+  }
+  PoolTime Time() const {
+    PoolTime t = retired_time;
+    if (sim) t += sim->ParallelTime();
+    return t;
+  }
 };
 
 struct PreparedFit {
