@@ -4,6 +4,8 @@
 // package turns them into callbacks and `warnings`; a library user may ignore them (no observer).
 //
 // Events, in the order a fit sends them:
+//   OnStage(kSubset, ...)        the subset start: a first pass on a part of the data, whose
+//                                own kStart and iterations follow
 //   OnStage(kStart, ...)         the rollouts and Jacobians at the initial values (per model)
 //   OnIteration(info)            every Ceres iteration (iteration 0: the start), accepted or not
 //   OnStepTest(ratio, before, text) the statistical stop's test of an iterate
@@ -30,6 +32,7 @@ enum class FitStage {
   kStart,          // rollouts and Jacobians at the initial values
   kRefit,          // auto: the fit starts again in multiple-shooting segments
   kGlobal,         // a pass of the global stage (sysid/fit/global_stage.h)
+  kSubset,         // the subset start's pass (sysid/fit/subset_start.h)
   kUncertainty,    // the Jacobian at the estimate
   kIntervalCheck,  // the intervals' quadratic model against the cost
 };

@@ -294,6 +294,10 @@ struct FitOptions {
   // starts once the stage has simulated this many steps (steps, not seconds: the same rounds on
   // any machine at any load)
   double global_budget = 3.0;
+  // the subset start (sysid/fit/subset_start.h): the first iterations on the first 1/8 of every
+  // sequence, their estimate the start of the fit on all the data; false: every iteration on all
+  // the data
+  bool subset_start = true;
   // the timestep check (sysid/fit/timestep_check.h): when a fit with sigmas ends model_mismatch on
   // the chi-square test with residuals that are not white, the same fit at half the timestep tells
   // whether the misfit is the model's discretisation; false: never
@@ -627,6 +631,9 @@ struct FitResult {
   std::string intervals_from;
   // the timestep check (sysid/fit/timestep_check.h): what it ran and found; "" when it did not run
   std::string timestep_check;
+  // the subset start (sysid/fit/subset_start.h): what it ran and whether its estimate was the
+  // start; "" when it did not run
+  std::string subset_start;
   // dr/dp at the estimate (physical units) as its thin-QR triangle R: min(num_residuals, np) x
   // np, upper triangular, R^T R = J^T J (the per-sample rows are not kept:
   // sysid/assess/uncertainty.h RowTriangle)

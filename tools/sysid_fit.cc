@@ -193,6 +193,7 @@ void PrintResiduals(const mjsysid::io::FitResultFile& f) {
   }
   if (f.interval_inflation > 1) std::printf("  intervals from %s\n", f.intervals_from.c_str());
   if (!f.timestep_check.empty()) std::printf("  timestep check: %s\n", f.timestep_check.c_str());
+  if (!f.subset_start.empty()) std::printf("  subset start: %s\n", f.subset_start.c_str());
 }
 
 // multi-start: how many starts ended with each status (local_minimum: in another minimum than the

@@ -86,6 +86,7 @@ const std::vector<std::string> kOptionKeys = {"max_iterations",
                                               "global_stage",
                                               "global_budget",
                                               "timestep_check",
+                                              "subset_start",
                                               "states",
                                               "starts",
                                               "seed",
@@ -676,6 +677,8 @@ FitOptions OptionsOf(const nb::dict& d, Starts* starts) {
   if (!(o.global_budget > 0)) throw std::invalid_argument("options: global_budget must be > 0");
   // the timestep check (sysid/fit/timestep_check.h)
   o.timestep_check = Get<bool>(d, "timestep_check", o.timestep_check, what);
+  // the subset start (sysid/fit/subset_start.h)
+  o.subset_start = Get<bool>(d, "subset_start", o.subset_start, what);
   // logged states fitted as data: {qpos: {sigma, joints?}, qvel: ..., act: {sigma, actuators?}}
   if (d.contains("states")) {
     if (!nb::isinstance<nb::dict>(d["states"])) {

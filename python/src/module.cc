@@ -579,6 +579,8 @@ NB_MODULE(_mjsysid, m) {
               "what the intervals come from (white or correlated residuals)")
       .def_ro("timestep_check", &FitResult::timestep_check,
               "the timestep check: what it ran and found (\"\": not run)")
+      .def_ro("subset_start", &FitResult::subset_start,
+              "the subset start: what it ran and whether it gave the start (\"\": not run)")
       .def_prop_ro(
           "termination", [](const FitResult& r) { return TerminationText(r.termination); },
           "why the optimiser stopped, one line (result.yaml's termination)")

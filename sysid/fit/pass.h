@@ -97,6 +97,8 @@ class FitPass {
   double Seconds() const;
   // the solve's final cost (after Solve; with max_iterations 0: the cost at the start)
   double SolvedCost() const { return summary_.final_cost; }
+  // ... and its initial cost (the cost at the start)
+  double SolvedInitialCost() const { return summary_.initial_cost; }
   // the physical parameters' values now (after Solve: the solve's end point)
   std::vector<double> Estimate() const;
   // the later segments' states start from the data (logged states or joint sensors), not from a

@@ -33,6 +33,7 @@
 #include "sysid/fit/pass.h"
 #include "sysid/fit/records.h"
 #include "sysid/fit/restart.h"
+#include "sysid/fit/subset_start.h"
 #include "sysid/fit/timestep_check.h"
 #include "sysid/fit_observer.h"
 #include "sysid/solve/multiple_shooting.h"
@@ -226,8 +227,16 @@ void CheckInOnePiece(const FitParts& parts, const FitOptions& options, FitResult
 }  // namespace
 
 FitResult FitWithPolicy(const FitParts& parts, const FitOptions& options) {
+  SubsetStartRun subset = SubsetStart(parts, options);
   LocalMode mode;
-  FitResult local = LocalFit(parts, options, &mode);
+  FitResult local;
+  try {
+    local = LocalFit(parts, options, &mode);
+  } catch (...) {
+    JoinSubsetStart(parts, std::move(subset), nullptr);  // the user's starts back
+    throw;
+  }
+  JoinSubsetStart(parts, std::move(subset), &local);
   FitResult result = GlobalStage(parts, options, mode, std::move(local));
   CheckInOnePiece(parts, options, &result);
   CheckTimestep(parts, options, &result);

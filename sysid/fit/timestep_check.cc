@@ -74,6 +74,7 @@ FitResult FitAtHalfStep(const PreparedFit& fit, const FitOptions& options, const
   o.max_iterations = kTimestepCheckIterations;
   o.timestep_check = false;
   o.global_stage = false;
+  o.subset_start = false;  // it starts from the estimate
   o.observer = nullptr;
   o.on_iteration = nullptr;
   if (r.segment_steps_used > 0) o.segment_steps = 2 * r.segment_steps_used;

@@ -28,8 +28,8 @@ const std::vector<std::string> kTransforms = {"none", "log", "scale"};
 const std::vector<std::string> kJacobianModes = {"auto", "directional", "matrix", "whole_rollout"};
 const std::vector<std::string> kDifferences = {"forward", "central"};
 const std::vector<std::string> kLossTypes = {"none", "huber", "cauchy"};
-const std::vector<std::string> kGlobalStage = {"auto", "off"};
-const std::vector<std::string> kTimestepCheck = {"auto", "off"};
+// the choice of the global stage, the subset start and the timestep check
+const std::vector<std::string> kAutoOff = {"auto", "off"};
 
 }  // namespace
 
@@ -187,7 +187,8 @@ void Parser::ParseSolver(const Field& f, ExperimentConfig* c) const {
                     {"max_iterations", "function_tolerance", "gradient_tolerance",
                      "parameter_tolerance", "jacobian", "differences", "relative_step", "threads",
                      "loss", "verbose", "starts", "seed", "reduce_model", "gauss_newton_stop",
-                     "memory_limit_gb", "global", "global_budget", "timestep_check"});
+                     "memory_limit_gb", "global", "global_budget", "timestep_check",
+                     "subset_start"});
   c->solver_marks = r.marks();
   FitOptions* o = &c->options;
   const long long kIntMax = std::numeric_limits<int>::max();
@@ -229,11 +230,13 @@ void Parser::ParseSolver(const Field& f, ExperimentConfig* c) const {
     o->gauss_newton_stop = NonNegative(r.Get("gauss_newton_stop"));
   }
   // the global stage (sysid/fit/global_stage.h): auto | off, and its budget in local fits
-  if (r.Has("global")) o->global_stage = Enum(r.Get("global"), kGlobalStage) == 0;
+  if (r.Has("global")) o->global_stage = Enum(r.Get("global"), kAutoOff) == 0;
   if (r.Has("global_budget")) o->global_budget = Positive(r.Get("global_budget"));
+  // the subset start (sysid/fit/subset_start.h): auto | off
+  if (r.Has("subset_start")) o->subset_start = Enum(r.Get("subset_start"), kAutoOff) == 0;
   // the timestep check (sysid/fit/timestep_check.h): auto | off
   if (r.Has("timestep_check")) {
-    o->timestep_check = Enum(r.Get("timestep_check"), kTimestepCheck) == 0;
+    o->timestep_check = Enum(r.Get("timestep_check"), kAutoOff) == 0;
   }
   // multi-start (sysid/run/multi_start.h)
   if (r.Has("starts")) c->starts = static_cast<int>(Integer(r.Get("starts"), 1, 10000));

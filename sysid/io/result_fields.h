@@ -222,6 +222,9 @@ void VisitResultFields(V& v, R& r) {
   v.Number({"interval_inflation", Presence::kOptional}, r.interval_inflation);
   // the timestep check (sysid/fit/timestep_check.h): what it ran and found; absent: not run
   v.Text({"timestep_check", Presence::kWhenSet}, r.timestep_check);
+  // the subset start (sysid/fit/subset_start.h): what it ran and whether it gave the start;
+  // absent: not run
+  v.Text({"subset_start", Presence::kWhenSet}, r.subset_start);
   v.Int({"iterations"}, r.iterations);
   v.Number({"initial_cost"}, r.initial_cost);
   v.Number({"final_cost"}, r.final_cost);

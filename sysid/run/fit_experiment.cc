@@ -230,6 +230,7 @@ void SetRunHeader(const io::ExperimentConfig& cfg, const FitOptions& options, co
       {"global", options.global_stage ? "auto" : "off"},
       {"global_budget", FormatG17(options.global_budget)},
       {"timestep_check", options.timestep_check ? "auto" : "off"},
+      {"subset_start", options.subset_start ? "auto" : "off"},
       {"jacobian", JacobianModeName(options.jacobian.mode)},
       {"differences", options.jacobian.central ? "central" : "forward"},
       {"relative_step", FormatG17(options.jacobian.relative_step)},

@@ -29,6 +29,8 @@ const char* StageName(FitStage stage) {
       return "refit";
     case FitStage::kGlobal:
       return "global";
+    case FitStage::kSubset:
+      return "subset";
     case FitStage::kUncertainty:
     case FitStage::kIntervalCheck:
       return "unc";

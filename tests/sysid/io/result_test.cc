@@ -412,6 +412,7 @@ TEST_F(ResultTest, ResidualDiagnosticsRoundTripAndAreAbsentWhenNone) {
   r.residuals = {angle, rate};
   r.parameters[0].timestep_bias = -3.5e-4;
   r.timestep_check = "the same fit at half the timestep (0.001 s, 3 iterations, converged)";
+  r.subset_start = "ran on the first 500 of 4000 samples (1/8 of each sequence) in 0.05 s";
   r.interval_inflation = 29.0;
   r.intervals_from =
       "correlated residuals: s^2 (J^T J)^-1 x 29, the correlation time (samples) of 'angle'";
@@ -437,6 +438,7 @@ TEST_F(ResultTest, ResidualDiagnosticsRoundTripAndAreAbsentWhenNone) {
   EXPECT_EQ(back.interval_inflation, 29.0);
   EXPECT_EQ(back.intervals_from, r.intervals_from);
   EXPECT_EQ(back.timestep_check, r.timestep_check);
+  EXPECT_EQ(back.subset_start, r.subset_start);
   EXPECT_EQ(back.parameters[0].timestep_bias, -3.5e-4);
   EXPECT_FALSE(back.parameters[1].timestep_bias.has_value());
 }
