@@ -119,9 +119,10 @@ Row MeasureRow(Case* c, int threads, const Repeats& r, const std::function<Row()
 
 // ours and the whole-rollout oracle: the product's own fit with one Jacobian setting
 // auto_start: every parameter `initial: auto` (the equation-error start,
-// sysid/data/equation_error.h) reduce: the reduced model (FitOptions::reduce_model)
+// sysid/data/equation_error.h) reduce: the reduced model (FitOptions::reduce_model); subset: the
+// subset start (FitOptions::subset_start)
 Row FitOurs(const Case& c, const std::string& method, JacobianMode mode, bool central, int threads,
-            int max_iterations, bool auto_start = false, bool reduce = true);
+            int max_iterations, bool auto_start = false, bool reduce = true, bool subset = true);
 // the hand-written baseline: Ceres numeric differentiation of whole rollouts
 Row FitNumDiff(const Case& c, int max_iterations);
 // a row of the peer, from the driver's JSON in dir
@@ -135,6 +136,7 @@ Row PeerRow(const Case& c, const std::string& dir, int threads, const std::strin
 // against the peer's fewest (any row). speedup = peer wall / our wall (> 1: ours is faster).
 struct Ratio {
   std::string case_name;
+  bool own_start = false;  // ours from the experiment's own starts only (no `+auto` row)
   int threads = 1;
   const Row* ours = nullptr;
   const Row* peer = nullptr;
@@ -146,7 +148,9 @@ std::string Num(double v, const char* fmt = "%.6g");
 // the table's header line and one row of it, on stdout
 void PrintHeader();
 void PrintRow(const Row& r);
-std::vector<Ratio> Ratios(const std::vector<std::string>& cases, const std::vector<Row>& rows);
+// own_start: our rows from the experiment's own starts only (not the equation-error start's)
+std::vector<Ratio> Ratios(const std::vector<std::string>& cases, const std::vector<Row>& rows,
+                          bool own_start);
 std::string RatioLine(const Ratio& q, const char* sep);
 void WriteCsv(const std::string& path, const std::vector<Row>& rows);
 // the table as Markdown (BENCHMARKS.md is made from it)

@@ -124,7 +124,7 @@ bool JsonNumber(const nlohmann::json& j, const char* key, double* out) {
 }  // namespace
 
 Row FitOurs(const Case& c, const std::string& method, JacobianMode mode, bool central, int threads,
-            int max_iterations, bool auto_start, bool reduce) {
+            int max_iterations, bool auto_start, bool reduce, bool subset) {
   Row row;
   row.method = method;
   row.threads = threads;
@@ -140,6 +140,7 @@ Row FitOurs(const Case& c, const std::string& method, JacobianMode mode, bool ce
   o.verbose = false;
   o.on_iteration = nullptr;
   o.reduce_model = reduce;
+  o.subset_start = subset;
   if (max_iterations > 0) o.max_iterations = max_iterations;
   row.np = static_cast<int>(b.parameters.size());
   try {

@@ -53,7 +53,8 @@ bool IsPeer(const Row& r) {
 
 }  // namespace
 
-std::vector<Ratio> Ratios(const std::vector<std::string>& cases, const std::vector<Row>& rows) {
+std::vector<Ratio> Ratios(const std::vector<std::string>& cases, const std::vector<Row>& rows,
+                          bool own_start) {
   std::vector<Ratio> out;
   for (const std::string& name : cases) {
     int fewest = 0;
@@ -65,11 +66,13 @@ std::vector<Ratio> Ratios(const std::vector<std::string>& cases, const std::vect
     for (int threads : {1, 2}) {
       Ratio q;
       q.case_name = name;
+      q.own_start = own_start;
       q.threads = threads;
       q.peer_fewest_iterations = fewest;
       for (const Row& r : rows) {
         if (r.case_name != name || r.threads != threads || !Finished(r)) continue;
-        if (IsOurs(r) && (!q.ours || r.wall_s < q.ours->wall_s)) q.ours = &r;
+        const bool eligible = IsOurs(r) && !(own_start && r.method.find("+auto") != std::string::npos);
+        if (eligible && (!q.ours || r.wall_s < q.ours->wall_s)) q.ours = &r;
         if (IsPeer(r) && (!q.peer || r.wall_s < q.peer->wall_s)) q.peer = &r;
       }
       if (q.ours && q.peer) q.speedup = q.peer->wall_s / q.ours->wall_s;
@@ -124,11 +127,16 @@ void WriteMarkdown(const std::string& path, const std::vector<Row>& rows,
       << Num(r.floor_ratio, "%.2f") << " | " << Num(r.path_floor_ratio, "%.2f") << " | " << r.note
       << " |\n";
   }
-  f << "\nOurs against the best peer at equal threads (speed-up = peer wall / our wall):\n\n"
-    << "| case | threads | ours (fastest) | wall [s] | iterations | best peer | wall [s] | "
-       "speed-up | peer's fewest iterations | load |\n"
-    << "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n";
-  for (const Ratio& q : ratios) f << "| " << RatioLine(q, " | ") << " |\n";
+  for (const bool own : {false, true}) {
+    f << "\nOurs" << (own ? " from the experiment's own starts" : "")
+      << " against the best peer at equal threads (speed-up = peer wall / our wall):\n\n"
+      << "| case | threads | ours (fastest) | wall [s] | iterations | best peer | wall [s] | "
+         "speed-up | peer's fewest iterations | load |\n"
+      << "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n";
+    for (const Ratio& q : ratios) {
+      if (q.own_start == own) f << "| " << RatioLine(q, " | ") << " |\n";
+    }
+  }
   io::WriteFileAtomically(path, f.str());
 }
 
@@ -181,6 +189,7 @@ void WriteJson(const std::string& path, const std::vector<Row>& rows,
   j["ratios"] = nlohmann::ordered_json::array();
   for (const Ratio& q : ratios) {
     j["ratios"].push_back({{"case", q.case_name},
+                           {"own_start", q.own_start},
                            {"threads", q.threads},
                            {"ours", q.ours->method},
                            {"ours_wall_s", q.ours->wall_s},
