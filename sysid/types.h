@@ -295,9 +295,9 @@ struct FitOptions {
   // any machine at any load)
   double global_budget = 3.0;
   // the subset start (sysid/fit/subset_start.h): the first iterations on the first 1/8 of every
-  // sequence, their estimate the start of the fit on all the data; false: every iteration on all
-  // the data
-  bool subset_start = true;
+  // sequence, their estimate the start of the fit on all the data; false (the default for now,
+  // docs/numerics.md "Subset start"): every iteration on all the data
+  bool subset_start = false;
   // the timestep check (sysid/fit/timestep_check.h): when a fit with sigmas ends model_mismatch on
   // the chi-square test with residuals that are not white, the same fit at half the timestep tells
   // whether the misfit is the model's discretisation; false: never

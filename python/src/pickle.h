@@ -235,9 +235,10 @@ inline void Fields(Archive& a, FitResult& r) {
   a(r.parameters, r.initial_cost, r.final_cost, r.iterations, r.converged, r.interrupted, r.outcome,
     r.intervals_valid, r.chi2_ratio, r.sensor_chi2_ratio, r.sensor_noise_ratio, r.sigma_from_log,
     r.termination, r.num_residuals, r.uncertainty, r.residuals, r.interval_inflation,
-    r.intervals_from, r.timestep_check, r.subset_start, r.jacobian, r.trace, r.sequences, r.warnings, r.seconds,
-    r.validation, r.starts, r.best_start, r.start_spread, r.segment_steps_used, r.segment_reason,
-    r.derived, r.interval_check, r.event_windows, r.gauss_newton_converged, r.diagnostics);
+    r.intervals_from, r.timestep_check, r.subset_start, r.jacobian, r.trace, r.sequences,
+    r.warnings, r.seconds, r.validation, r.starts, r.best_start, r.start_spread,
+    r.segment_steps_used, r.segment_reason, r.derived, r.interval_check, r.event_windows,
+    r.gauss_newton_converged, r.diagnostics);
 }
 inline void Fields(Archive& a, io::InputHash& h) { a(h.role, h.path, h.sha256); }
 inline void Fields(Archive& a, io::FitResultFile& f) {

@@ -81,7 +81,8 @@ SubsetStartRun SubsetStart(const FitParts& parts, const FitOptions& options) {
   long long whole = 0, subset = 0;
   for (const FitSequence& s : fit.sequences) {
     const int T = static_cast<int>(s.measured.rows());
-    const int n = std::min(T, std::max(kSubsetMinSamples, (T + kSubsetDivisor - 1) / kSubsetDivisor));
+    const int n =
+        std::min(T, std::max(kSubsetMinSamples, (T + kSubsetDivisor - 1) / kSubsetDivisor));
     lengths.push_back(n);
     whole += T;
     subset += n;

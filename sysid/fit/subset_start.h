@@ -1,8 +1,8 @@
-// The subset start (FitOptions::subset_start, experiment `solver.subset_start`): the local fit's
-// first iterations on less data. Before the local fit (sysid/fit/policy.cc), a fit pass on the
-// first 1 / kSubsetDivisor of every sequence's samples from the user's starts; its estimate is the
-// local fit's start on all the data, whose last iterations, statistical stop and covariance are
-// always on everything.
+// The subset start (FitOptions::subset_start, experiment `solver.subset_start`; off by default for
+// now, docs/numerics.md "Subset start"): the local fit's first iterations on less data. Before the
+// local fit (sysid/fit/policy.cc), a fit pass on the first 1 / kSubsetDivisor of every sequence's
+// samples from the user's starts; its estimate is the local fit's start on all the data, whose last
+// iterations, statistical stop and covariance are always on everything.
 //
 // Why: from a start 20-40 % off, a fit spends most of its iterations far from the minimum, each at
 // the price of a whole Jacobian of every sequence ((1 + np) rollouts of all the data). Far from

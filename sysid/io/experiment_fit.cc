@@ -183,12 +183,12 @@ MeasurementSpec Parser::ParseMeasurement(const Field& f, const ExperimentConfig&
 }
 
 void Parser::ParseSolver(const Field& f, ExperimentConfig* c) const {
-  const MapReader r(*this, f,
-                    {"max_iterations", "function_tolerance", "gradient_tolerance",
-                     "parameter_tolerance", "jacobian", "differences", "relative_step", "threads",
-                     "loss", "verbose", "starts", "seed", "reduce_model", "gauss_newton_stop",
-                     "memory_limit_gb", "global", "global_budget", "timestep_check",
-                     "subset_start"});
+  const MapReader r(
+      *this, f,
+      {"max_iterations", "function_tolerance", "gradient_tolerance", "parameter_tolerance",
+       "jacobian", "differences", "relative_step", "threads", "loss", "verbose", "starts", "seed",
+       "reduce_model", "gauss_newton_stop", "memory_limit_gb", "global", "global_budget",
+       "timestep_check", "subset_start"});
   c->solver_marks = r.marks();
   FitOptions* o = &c->options;
   const long long kIntMax = std::numeric_limits<int>::max();

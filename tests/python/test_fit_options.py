@@ -323,15 +323,15 @@ def test_global_stage_options(root, frames):  # noqa: F811
 
 def test_subset_start_option(root, frames):  # noqa: F811
     # the subset start (docs/numerics.md "Subset start") on the pendulum log (truth and start
-    # above, two sequences): on by default, its estimate the start of the fit on all the data,
+    # above, two sequences): on, its estimate the start of the fit on all the data,
     # which ends at the estimate of the fit without it within 0.1 standard error with the same
     # standard errors within 1 %, and fewer simulation steps; off: "" and every iteration on all
     # the data
     model = str(root / "models/pendulum.xml")
     seqs = sequences_of(frames)[:2]
     base = {"sensor_sigmas": SIGMAS, "max_iterations": 30, "threads": 1}
-    on = mjsysid.fit(model, PARAMETERS, seqs, options=base)
-    off = mjsysid.fit(model, PARAMETERS, seqs, options=dict(base, subset_start=False))
+    on = mjsysid.fit(model, PARAMETERS, seqs, options=dict(base, subset_start=True))
+    off = mjsysid.fit(model, PARAMETERS, seqs, options=base)  # off by default
     assert on.status == off.status == "converged", (on.status, off.status)
     assert on.subset_start.startswith("ran on the first "), on.subset_start
     assert "its estimate was the start" in on.subset_start, on.subset_start

@@ -13,6 +13,8 @@
 // - full-model/directional/forward/<threads>t: ours without the reduced model
 //   (solver.reduce_model: false, core/reduced_model.h), method `full` (issue 15 item 6):
 //   the same estimate bit for bit, so only the time differs from ours/directional/forward;
+// - ours (every row above but `+auto`) runs with the subset start (solver.subset_start: auto,
+//   sysid/fit/subset_start.h; off by default for now);
 // - ours/directional/forward-subset/<threads>t: ours without the subset start
 //   (solver.subset_start: off, sysid/fit/subset_start.h), method `nosubset` (issue 38): every
 //   iteration on all the data, as before the subset start existed;

@@ -71,7 +71,8 @@ std::vector<Ratio> Ratios(const std::vector<std::string>& cases, const std::vect
       q.peer_fewest_iterations = fewest;
       for (const Row& r : rows) {
         if (r.case_name != name || r.threads != threads || !Finished(r)) continue;
-        const bool eligible = IsOurs(r) && !(own_start && r.method.find("+auto") != std::string::npos);
+        const bool eligible =
+            IsOurs(r) && !(own_start && r.method.find("+auto") != std::string::npos);
         if (eligible && (!q.ours || r.wall_s < q.ours->wall_s)) q.ours = &r;
         if (IsPeer(r) && (!q.peer || r.wall_s < q.peer->wall_s)) q.peer = &r;
       }

@@ -93,8 +93,8 @@ class SubsetStartTest : public ::testing::Test {
     FitOptions o;
     o.threads = 2;
     o.subset_start = subset;
-    o.sensor_weights = {{"q1", 1 / kSigmaQ}, {"q2", 1 / kSigmaQ}, {"v1", 1 / kSigmaV},
-                        {"v2", 1 / kSigmaV}};
+    o.sensor_weights = {
+        {"q1", 1 / kSigmaQ}, {"q2", 1 / kSigmaQ}, {"v1", 1 / kSigmaV}, {"v2", 1 / kSigmaV}};
     o.sensors_with_sigma = {"q1", "q2", "v1", "v2"};
     return o;
   }
@@ -153,8 +153,7 @@ TEST_F(SubsetStartTest, SameEstimateFromFewerSteps) {
 // parameter moves its data), and the fit starts from the given starts, as without the stage
 TEST_F(SubsetStartTest, NotUsedWhereThePrefixCarriesNoInformation) {
   const FitResult r = Fit(true, 2, 2000, 400);
-  EXPECT_NE(r.subset_start.find("not used (its pass failed"), std::string::npos)
-      << r.subset_start;
+  EXPECT_NE(r.subset_start.find("not used (its pass failed"), std::string::npos) << r.subset_start;
   ASSERT_EQ(r.outcome, FitStatus::kConverged) << FitStatusName(r.outcome);
   for (const Truth& t : kTruth) {
     const ParameterEstimate& e = Estimate(r, t.name);
