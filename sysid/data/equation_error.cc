@@ -12,6 +12,7 @@
 #include "core/parameters.h"
 #include "core/text.h"
 #include "core/thread_pool.h"
+#include "sysid/data/state_smoothing.h"
 #include "sysid/solve/variable_manifold.h"
 
 namespace mjsysid {
@@ -44,19 +45,6 @@ enum class ColumnForm {
   kVelocityStage,  // enters the velocity stage: mj_inverseSkip past the position stage
   kFull,           // anything else: a full mj_inverse at p0 + h (after mj_setConst)
 };
-
-// the time of sample k of s
-double SampleTime(const mjModel& m, const FitSequence& s, int k) {
-  return s.time.size() ? s.time[k] : s.x0.time + k * m.opt.timestep;
-}
-
-// the control row held at time t (zero-order hold on ctrl_time, or the sample's own row)
-int ControlRow(const FitSequence& s, int k, double t) {
-  if (s.ctrl_time.size() == 0) return k;
-  const double* b = s.ctrl_time.data();
-  const double* it = std::upper_bound(b, b + s.ctrl_time.size(), t);
-  return std::max(0, static_cast<int>(it - b) - 1);
-}
 
 // the number of dofs of joint j
 int JointDofs(const mjModel& m, int j) {
@@ -120,12 +108,12 @@ bool ImplicitDamping(const mjModel& m) {
 // the state, acceleration and control of sample sm into d (no allocation)
 void LoadSample(const mjModel& m, const Sample& sm, mjData* d) {
   const FitSequence& s = *sm.seq;
-  const double t = SampleTime(m, s, sm.k);
+  const double t = LogSampleTime(m, s, sm.k);
   mju_copy(d->qpos, s.qpos.row(sm.k).data(), m.nq);
   mju_copy(d->qvel, s.qvel.row(sm.k).data(), m.nv);
   mju_copy(d->qacc, sm.qacc.data(), m.nv);
   if (m.na) mju_copy(d->act, s.act.row(sm.k).data(), m.na);
-  if (m.nu) mju_copy(d->ctrl, s.ctrl.row(ControlRow(s, sm.k, t)).data(), m.nu);
+  if (m.nu) mju_copy(d->ctrl, s.ctrl.row(HeldControlRow(s, sm.k, t)).data(), m.nu);
   d->time = t;
 }
 
@@ -158,9 +146,10 @@ bool StatesAreIntegratorsOwn(const mjModel& m, const std::vector<const FitSequen
   const int nv = m.nv;
   std::vector<double> dq(nv);
   for (const FitSequence* s : sequences) {
+    if (s->qpos.rows() && !s->qvel.rows()) return false;  // encoders only
     if (!UsableSequence(m, *s)) continue;
     for (int k = 0; k + 1 < s->qvel.rows(); ++k) {
-      const double dt = SampleTime(m, *s, k + 1) - SampleTime(m, *s, k);
+      const double dt = LogSampleTime(m, *s, k + 1) - LogSampleTime(m, *s, k);
       if (!(std::abs(dt - m.opt.timestep) <= 1e-9 * m.opt.timestep)) return false;
       mj_differentiatePos(&m, dq.data(), dt, s->qpos.row(k).data(), s->qpos.row(k + 1).data());
       for (int j = 0; j < nv; ++j) {
@@ -172,18 +161,18 @@ bool StatesAreIntegratorsOwn(const mjModel& m, const std::vector<const FitSequen
   return true;
 }
 
-// The samples of one usable sequence s: around every stride-th logged sample k, the steps
-// k - window .. k + window - 1 (own states: each step's equation at its one-step acceleration,
-// each step added once however many windows hold it, a window's steps consecutive in samples),
-// else the sample k at the central difference of qvel over the window. Steps with a non-finite
-// state or acceleration are left out, and so is every window that holds one.
-void AddSequenceSamples(const mjModel& m, const FitSequence* s, int window, int stride, bool own,
-                        std::vector<Sample>* samples, std::vector<Window>* windows) {
+// The steps of one usable sequence s whose states are the integrator's own: around every
+// stride-th logged sample k, the steps k - window .. k + window - 1, each step's equation at its
+// one-step acceleration (each step added once however many windows hold it, a window's steps
+// consecutive in samples). Steps with a non-finite state or acceleration are left out, and so is
+// every window that holds one.
+void AddOwnSteps(const mjModel& m, const FitSequence* s, int window, int stride,
+                 std::vector<Sample>* samples, std::vector<Window>* windows) {
   const int T = static_cast<int>(s->qvel.rows());
   std::vector<int> index(T, -1);  // step k's index in samples, -2: not finite
-  auto add = [&](int k, int k0, int k1) {
-    const double dt = SampleTime(m, *s, k1) - SampleTime(m, *s, k0);
-    Sample sm{s, k, (s->qvel.row(k1) - s->qvel.row(k0)).transpose() / dt};
+  auto add = [&](int k) {
+    const double dt = LogSampleTime(m, *s, k + 1) - LogSampleTime(m, *s, k);
+    Sample sm{s, k, (s->qvel.row(k + 1) - s->qvel.row(k)).transpose() / dt};
     bool finite = sm.qacc.allFinite() && s->qpos.row(k).allFinite() && s->qvel.row(k).allFinite();
     if (m.na) finite = finite && s->act.row(k).allFinite();
     if (!finite) return -2;
@@ -191,19 +180,30 @@ void AddSequenceSamples(const mjModel& m, const FitSequence* s, int window, int 
     return static_cast<int>(samples->size()) - 1;
   };
   for (int k = window; k + window < T; k += stride) {
-    if (!own) {
-      const int i = add(k, k - window, k + window);
-      if (i >= 0) windows->push_back(Window{i, 1});
-      continue;
-    }
     bool finite = true;
     int first = -1;
     for (int j = k - window; j < k + window; ++j) {
-      if (index[j] == -1) index[j] = add(j, j, j + 1);
+      if (index[j] == -1) index[j] = add(j);
       finite = finite && index[j] >= 0;
       if (j == k - window) first = index[j];
     }
     if (finite) windows->push_back(Window{first, 2 * window});
+  }
+}
+
+// The samples of one smoothed sequence (sysid/data/state_smoothing.h): every stride-th sample k
+// whose filtered states, control and acceleration are finite, one equation each
+void AddSmoothedSamples(const mjModel& m, const SmoothedStates& sm, int stride,
+                        std::vector<Sample>* samples, std::vector<Window>* windows) {
+  const FitSequence& f = sm.states;
+  const int T = static_cast<int>(f.qpos.rows());
+  for (int k = 0; k < T; k += stride) {
+    bool finite = sm.qacc.row(k).allFinite() && f.qpos.row(k).allFinite() &&
+                  f.qvel.row(k).allFinite() && (m.nu == 0 || f.ctrl.row(k).allFinite());
+    if (m.na) finite = finite && f.act.row(k).allFinite();
+    if (!finite) continue;
+    samples->push_back(Sample{&f, k, sm.qacc.row(k).transpose()});
+    windows->push_back(Window{static_cast<int>(samples->size()) - 1, 1});
   }
 }
 
@@ -484,29 +484,53 @@ EquationErrorSystem EquationErrorRegressor(const mjModel& model,
   set.Prepare(m);
   sys.p0 = StartValues(*m, set, params);
 
-  // the windows: around every stride-th logged sample k with qpos, qvel (and act), the steps
-  // k - window .. k + window - 1 (their accelerations span qvel_{k-window} .. qvel_{k+window})
+  // own states (a simulator's log): each step's equation at its one-step acceleration
+  // (qvel_{k+1} - qvel_k) / dt, the integrator's (mjENBL_INVDISCRETE), and a window's rows the
+  // mean of its 2 x window steps' equations, around every stride-th sample; else the states and
+  // controls filtered alike (sysid/data/state_smoothing.h), one equation per stride-th sample
+  const bool own = StatesAreIntegratorsOwn(*m, sequences);
+  std::vector<SmoothedStates> smoothed;
+  std::vector<std::string> why;
   int usable = 0;
-  for (const FitSequence* s : sequences) {
-    if (UsableSequence(*m, *s)) {
-      usable += std::max(0, static_cast<int>(s->qvel.rows()) - 2 * window);
+  if (own) {
+    for (const FitSequence* s : sequences) {
+      if (UsableSequence(*m, *s))
+        usable += std::max(0, static_cast<int>(s->qvel.rows()) - 2 * window);
+    }
+  } else {
+    smoothed.reserve(sequences.size());
+    for (const FitSequence* s : sequences) {
+      SmoothedStates sm;
+      std::string reason;
+      if (SmoothLoggedStates(*m, *s, &sm, &reason)) {
+        usable += static_cast<int>(sm.states.qpos.rows());
+        sys.half_width = std::max(sys.half_width, sm.half_width);
+        sys.from_positions = sys.from_positions || sm.velocities_from_positions;
+        smoothed.push_back(std::move(sm));
+      } else if (std::find(why.begin(), why.end(), reason) == why.end()) {
+        why.push_back(reason);
+      }
     }
   }
   if (usable == 0) {
-    sys.note = "the log has no qpos and qvel" + std::string(m->na ? " and act" : "");
+    sys.note = why.empty() ? "the log has no qpos and qvel" + std::string(m->na ? " and act" : "")
+                           : JoinNames(why);
     return sys;
   }
   const int stride = std::max(1, usable / max_samples);
-  // own states: each step's equation at its one-step acceleration (qvel_{k+1} - qvel_k) / dt, the
-  // integrator's (mjENBL_INVDISCRETE), and a window's rows the mean of its 2 x window steps'
-  // equations; else one equation per window at the central difference of qvel over it
-  const bool own = StatesAreIntegratorsOwn(*m, sequences);
-  std::vector<Sample> samples;  // the steps (own states) or the windows' centres
+  std::vector<Sample> samples;  // the steps (own states) or the smoothed samples
   std::vector<Window> windows;
-  for (const FitSequence* s : sequences) {
-    if (UsableSequence(*m, *s)) AddSequenceSamples(*m, s, window, stride, own, &samples, &windows);
+  if (own) {
+    for (const FitSequence* s : sequences) {
+      if (UsableSequence(*m, *s)) AddOwnSteps(*m, s, window, stride, &samples, &windows);
+    }
+  } else {
+    for (const SmoothedStates& sm : smoothed)
+      AddSmoothedSamples(*m, sm, stride, &samples, &windows);
   }
-  if (own) m->opt.enableflags |= mjENBL_INVDISCRETE;
+  // the discrete-time inverse wherever MuJoCo has one (not RK4): the smoothed velocities follow
+  // the integrator's convention (sysid/data/state_smoothing.h)
+  if (own || m->opt.integrator != mjINT_RK4) m->opt.enableflags |= mjENBL_INVDISCRETE;
   sys.discrete = own;
   sys.samples = static_cast<int>(windows.size());
   const int steps = static_cast<int>(samples.size());
@@ -617,11 +641,13 @@ EquationErrorStart SolveEquationError(const mjModel& model, const std::vector<Fi
     out.solved[cols[c]] = true;
     values += (values.empty() ? "" : ", ") + p.name + " " + FormatDigits(v, 4);
   }
-  out.note = "equation-error start from " + std::to_string(out.samples) +
-             " logged samples (mj_inverse, " +
-             (sys.discrete ? std::string("the integrator's steps")
-                           : "central differences over +-" + std::to_string(window) + " samples") +
-             "): " + values;
+  out.note =
+      "equation-error start from " + std::to_string(out.samples) + " logged samples (mj_inverse, " +
+      (sys.discrete
+           ? std::string("the integrator's steps")
+           : std::string(sys.from_positions ? "positions" : "states") +
+                 " smoothed by cubics over +-" + std::to_string(sys.half_width) + " samples") +
+      "): " + values;
   return out;
 }
 

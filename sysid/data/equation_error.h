@@ -13,12 +13,15 @@
 //   parameters satisfy exactly; the rows of a window of 2 x window steps around every used sample
 //   are the mean of its steps' equations (the same filter on the forces and on the regressor, so
 //   the control held at each step enters as it was applied and the filter adds no bias);
-// - else (noisy, filtered or resampled states): one equation per used sample at the central
-//   difference of qvel over +-window samples with the continuous-time inverse, the window
-//   averaging the noise of differenced velocities (the weak part; the LM removes what bias
-//   remains: this is only a start). The one-step form is not used there: measured on noisy
-//   copies of the arm7, cartpole and pendulum logs, the friction rows' zones follow the noise of
-//   the one-step accelerations and the friction loss comes out low.
+// - else (noisy, quantized, jittered or resampled states, or joint encoders only): the states
+//   and the applied controls filtered alike by local cubics whose width is chosen from the data,
+//   the accelerations (and, without logged qvel, the velocities) central differences of the
+//   filtered signals, a logged qvel's lag behind qpos removed, and the velocities in the
+//   integrator's convention (sysid/data/state_smoothing.h), with the discrete-time inverse (RK4:
+//   the continuous-time one), one equation per used sample. Measured on noisy and encoder-only
+//   copies of the shipped logs in docs/numerics.md ("The equation-error start on noisy logs").
+//   (Before: central differences of the raw qvel over +-5 samples against the raw control with
+//   the continuous-time inverse, 6-81 % off at 1 % noise, and no start from encoders alone.)
 // For the kinds of EntersInverseDynamicsLinearly (sysid/solve/variable_manifold.h) e is linear in p
 // (friction loss: as long as the velocity keeps its sign), and the start is p = p0 - pinv(A)
 // e(p0) with the regressor A = de/dp, clipped into the bounds. Parameters of other kinds keep
@@ -68,15 +71,16 @@ struct EquationErrorStart {
 
 // params: the fit's parameters (values p0 = initial, or the model's value where the initial is
 // not finite); which: the indices to solve (others stay fixed at p0); sequences: the logged
-// sequences of this model. Samples are thinned to at most max_samples. Solves nothing (note says
-// why) when no sequence has qpos and qvel, no parameter's kind is linear, a logged sample has
-// contacts (their inverse forces are not linear in p and amplify the noise of qacc), or the
-// regressor is rank deficient. Throws MuJoCo errors (core/mujoco_env.h) only for a broken model.
-// How the regressor's columns are formed: the closed forms and stage skips above where they
-// hold (the fit's), or every column by a forward difference of full mj_inverse calls (the
-// reference the closed forms are tested against). threads: the samples' inverse dynamics on up
-// to this many threads (<= 0: every core; each with its own model copy, chunks of at least 256
-// samples); the result is the same bit for bit at any count.
+// sequences of this model; window: the half-window of the integrator's own steps (above).
+// Samples are thinned to at most max_samples. Solves nothing (note says
+// why) when no sequence has qpos and qvel (or qpos alone for hinge and slide joints), no
+// parameter's kind is linear, a logged sample has contacts (their inverse forces are not linear in
+// p and amplify the noise of qacc), or the regressor is rank deficient. Throws MuJoCo errors
+// (core/mujoco_env.h) only for a broken model. How the regressor's columns are formed: the closed
+// forms and stage skips above where they hold (the fit's), or every column by a forward difference
+// of full mj_inverse calls (the reference the closed forms are tested against). threads: the
+// samples' inverse dynamics on up to this many threads (<= 0: every core; each with its own model
+// copy, chunks of at least 256 samples); the result is the same bit for bit at any count.
 enum class RegressorColumns { kFastest, kForwardDifference };
 
 // The linear system of the start: e0 = e(p0) and A = de/dp, rows sample by sample (samples x nv,
@@ -90,6 +94,8 @@ struct EquationErrorSystem {
   int samples = 0;                // samples used (rows / nv)
   int contacts = 0;               // samples whose window has contacts at p0
   bool discrete = false;          // the integrator's steps (the log's states are its own)
+  int half_width = 0;             // else: the smoothing's widest half-width (samples)
+  bool from_positions = false;    // else: some sequence's velocities came from its positions
   std::string note;               // why there are no samples, else empty
 };
 
