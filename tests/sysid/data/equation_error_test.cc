@@ -337,5 +337,72 @@ TEST(EquationErrorTest, ClosedFormColumnsEqualForwardDifferences) {
   }
 }
 
+// The equation-error start (states smoothed: sysid/data/state_smoothing.h) on the shipped
+// experiments' simulated logs (3 x 2000 samples) with
+// Gaussian noise of 1 % of each channel's standard deviation added to qpos and qvel (seed 5),
+// and from the positions alone quantized to 2 pi / 2^14 (a 14-bit encoder). The largest
+// relative error from the truth over the parameters is within each case's tolerance, each above
+// the value measured at this seed (printed in [ measured ]). The issue's goal is 5 %: with noise,
+// spring-mass, double pendulum and cart-pole meet it here; pendulum (its friction loss) and arm7
+// do not, and neither do the pendulum's encoders (docs/numerics.md, "The equation-error start on
+// noisy logs": the noise of the differentiated velocities in the regressor's acceleration columns,
+// errors in variables, and the friction rows' zones near zero velocity). Their tolerances guard
+// today's level, far below the 6-81 % of the unsmoothed start with noise (encoders: no start).
+TEST(EquationErrorTest, StartOnNoisyAndEncoderLogs) {
+  InstallMujocoHandlers();
+  struct Case {
+    const char* name;
+    bool encoder;
+    double tolerance;
+  };
+  for (const Case& c : {Case{"spring_mass", false, 0.05}, Case{"pendulum", false, 0.12},
+                        Case{"double_pendulum", false, 0.05}, Case{"cartpole", false, 0.05},
+                        Case{"arm7", false, 0.12}, Case{"spring_mass", true, 0.02},
+                        Case{"double_pendulum", true, 0.06}, Case{"pendulum", true, 0.20}}) {
+    const std::string name = c.name;
+    const io::ExperimentConfig cfg = test::ShippedExperimentWithLog(
+        name + ".yaml", 3, 2000, "equation_error_smoothed_" + name + (c.encoder ? "_enc" : ""));
+    run::BuiltProblem b = run::BuildProblem(cfg, 1);
+    std::mt19937 rng(5);
+    std::normal_distribution<double> normal;
+    const double quantum = 2 * M_PI / 16384;
+    std::vector<const FitSequence*> sequences;
+    for (FitSequence& s : b.sequences) {
+      for (RowMatrix* x : {&s.qpos, &s.qvel}) {
+        for (Eigen::Index j = 0; j < x->cols(); ++j) {
+          const Eigen::VectorXd col = x->col(j);
+          const double sd = std::sqrt((col.array() - col.mean()).square().mean());
+          for (Eigen::Index k = 0; k < x->rows(); ++k) {
+            if (c.encoder) {
+              (*x)(k, j) = quantum * std::round((*x)(k, j) / quantum);
+            } else {
+              (*x)(k, j) += 0.01 * sd * normal(rng);
+            }
+          }
+        }
+      }
+      if (c.encoder) s.qvel.resize(0, s.qvel.cols());
+      sequences.push_back(&s);
+    }
+    std::vector<int> which;
+    for (size_t g = 0; g < b.parameters.size(); ++g) which.push_back(static_cast<int>(g));
+    const EquationErrorStart start =
+        SolveEquationError(*b.models[0], b.parameters, which, sequences);
+    double worst = 0;
+    for (size_t g = 0; g < b.parameters.size(); ++g) {
+      ASSERT_TRUE(start.solved[g]) << name << ": " << start.note;
+      for (const io::NamedValue& t : cfg.simulate.truth) {
+        if (t.name == b.parameters[g].name) {
+          worst = std::max(worst, std::abs(start.values[g] / t.value - 1));
+        }
+      }
+    }
+    std::printf("[ measured ] %s%s: largest error %.2f %% (%s)\n", c.name,
+                c.encoder ? " (14-bit encoders only)" : " (1 % noise)", 100 * worst,
+                start.note.c_str());
+    EXPECT_LT(worst, c.tolerance) << name;
+  }
+}
+
 }  // namespace
 }  // namespace mjsysid
