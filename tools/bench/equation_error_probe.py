@@ -6,11 +6,11 @@ experiment's `simulate.truth` (with FULL=auto or FULL=shipped: the whole fit, it
 iterations, final error and wall time). docs/numerics.md, "The equation-error start on noisy logs".
 
 Modes: exact (the log as shipped: the integrator's own states), noisy (Gaussian noise of LEVEL,
-default 1 %, of each channel's standard deviation on qpos and qvel, numpy seed 7), quant (qpos
-rounded to 2 pi / 2^14, a 14-bit encoder, and no qvel).
+default 1 %, of each channel's standard deviation on qpos and qvel, numpy seed SEED, default 7),
+quant (qpos rounded to 2 pi / 2^14, a 14-bit encoder, and no qvel).
 
 usage: python tools/bench/equation_error_probe.py [cases] [modes] [--out DIR]
-  env: SYSID (default build/default/bin/sysid), LEVEL, FULL
+  env: SYSID (default build/default/bin/sysid), LEVEL, SEED, FULL
 """
 import os
 import subprocess
@@ -25,7 +25,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 
 
 def copy_log(src_path, dst_path, mode, level):
-    rng = np.random.default_rng(7)
+    rng = np.random.default_rng(int(os.environ.get("SEED", "7")))
     quantum = 2 * np.pi / 2**14
     with h5py.File(src_path) as src, h5py.File(dst_path, "w") as dst:
         for a in src.attrs:

@@ -345,9 +345,11 @@ TEST(EquationErrorTest, ClosedFormColumnsEqualForwardDifferences) {
 // the value measured at this seed (printed in [ measured ]). The issue's goal is 5 %: with noise,
 // spring-mass, double pendulum and cart-pole meet it here; pendulum (its friction loss) and arm7
 // do not, and neither do the pendulum's encoders (docs/numerics.md, "The equation-error start on
-// noisy logs": the noise of the differentiated velocities in the regressor's acceleration columns,
-// errors in variables, and the friction rows' zones near zero velocity). Their tolerances guard
+// noisy logs": both times a friction loss, a small force whose estimate the acceleration noise
+// swamps, and the friction rows' zones near zero velocity). Their tolerances guard
 // today's level, far below the 6-81 % of the unsmoothed start with noise (encoders: no start).
+// arm5 (five armatures of a planar arm) is a case the smoothing was never tuned on, added after
+// it was built: the goal's 5 % with noise (measured 0.44 %), 10 % from encoders (5.2 %).
 TEST(EquationErrorTest, StartOnNoisyAndEncoderLogs) {
   InstallMujocoHandlers();
   struct Case {
@@ -358,7 +360,8 @@ TEST(EquationErrorTest, StartOnNoisyAndEncoderLogs) {
   for (const Case& c : {Case{"spring_mass", false, 0.05}, Case{"pendulum", false, 0.12},
                         Case{"double_pendulum", false, 0.05}, Case{"cartpole", false, 0.05},
                         Case{"arm7", false, 0.12}, Case{"spring_mass", true, 0.02},
-                        Case{"double_pendulum", true, 0.06}, Case{"pendulum", true, 0.20}}) {
+                        Case{"double_pendulum", true, 0.06}, Case{"pendulum", true, 0.20},
+                        Case{"arm5", false, 0.05}, Case{"arm5", true, 0.10}}) {
     const std::string name = c.name;
     const io::ExperimentConfig cfg = test::ShippedExperimentWithLog(
         name + ".yaml", 3, 2000, "equation_error_smoothed_" + name + (c.encoder ? "_enc" : ""));
