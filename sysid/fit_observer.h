@@ -13,7 +13,8 @@
 //   OnStage(kUncertainty, ...)   the Jacobian at the estimate
 //   OnStage(kIntervalCheck, ...) the cost along the intervals
 // The runner adds OnWarning (the data's warnings before the fit, a checkpoint that could not be
-// written) and, for several starts, OnStartDone per finished start. FitResult::warnings holds the
+// written), OnStage(kCheck, ...) for a diagnosis after the fit (sysid/run/initial_state_check.h)
+// and, for several starts, OnStartDone per finished start. FitResult::warnings holds the
 // fit's own warnings.
 // OnProgress comes inside a long rollout or Jacobian column (every tenth of its steps, at most one
 // per FitOptions::advanced.progress_seconds), from the simulator's worker threads: it must be
@@ -35,6 +36,7 @@ enum class FitStage {
   kSubset,         // the subset start's pass (sysid/fit/subset_start.h)
   kUncertainty,    // the Jacobian at the estimate
   kIntervalCheck,  // the intervals' quadratic model against the cost
+  kCheck,          // a diagnosis: the fit again with one setting changed (sysid/run/)
 };
 
 class FitObserver {

@@ -23,6 +23,7 @@
 #include "sysid/assess/metrics.h"
 #include "sysid/io/atomic_file.h"
 #include "sysid/io/warnings.h"
+#include "sysid/run/initial_state_check.h"
 #include "sysid/run/input_hashes.h"
 #include "sysid/run/multi_start.h"
 #include "sysid/run/output_folder.h"
@@ -560,13 +561,11 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   BuiltProblem bp = BuildProblem(run_cfg, ro.threads);
   const Starts starts = ResolveStarts(cfg, ro, out.out_dir, base.has_value());
   // the memory the fit will hold, against the limit, before anything is simulated or written
-  {
-    std::string source;
-    const long long limit = MemoryLimitBytes(cfg, ro.memory_limit_gb, &source);
-    const MemoryEstimate estimate = EstimateRunMemory(bp, starts.count);
-    if (ro.on_memory_estimate) ro.on_memory_estimate(estimate, limit);
-    CheckRunMemory(cfg, estimate, limit, source);
-  }
+  std::string memory_source;
+  const long long memory_limit = MemoryLimitBytes(cfg, ro.memory_limit_gb, &memory_source);
+  const MemoryEstimate memory = EstimateRunMemory(bp, starts.count);
+  if (ro.on_memory_estimate) ro.on_memory_estimate(memory, memory_limit);
+  CheckRunMemory(cfg, memory, memory_limit, memory_source);
 
   // the output folder; one fit at a time into it; everything written into the staging folder
   // DIR.partial, which replaces DIR only once complete
@@ -591,6 +590,11 @@ FitRunOutcome RunFit(const io::ExperimentConfig& cfg, const FitRunOptions& ro) {
   // the fit, continued from the checkpoint when resumed
   ReportDataWarnings(ro.observer, bp.warnings);
   static_cast<FitResult&>(file) = FitProblem(run_cfg, starts, ro, &bp, &options);
+  // a model_mismatch that the logged first rows' noise may explain: tested by fitting them (not
+  // for a resumed, multi-start or sharded fit), in the memory the fit left under the limit
+  if (!base && starts.count == 1 && !ro.on_problem) {
+    CheckLoggedInitialStates(run_cfg, bp, options, memory_limit - memory.bytes, &file);
+  }
   if (base) {
     AppendToCheckpoint(*base, &file);
     file.warnings.push_back("resumed from the checkpoint of run " + base->run_id +

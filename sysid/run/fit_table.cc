@@ -34,6 +34,8 @@ const char* StageName(FitStage stage) {
     case FitStage::kUncertainty:
     case FitStage::kIntervalCheck:
       return "unc";
+    case FitStage::kCheck:
+      return "check";
   }
   return "stage";
 }
