@@ -1,6 +1,8 @@
 // Helper of tests that fit a shipped experiment on a log of their own size.
 #pragma once
 
+#include <cmath>
+#include <random>
 #include <string>
 
 #include "sysid/io/experiment.h"
@@ -26,6 +28,25 @@ inline io::ExperimentConfig ShippedExperimentWithLog(const std::string& name, in
   settings.threads = 1;
   io::WriteLog(log, sim::SimulateExperiment(cfg, settings));
   return cfg;
+}
+
+// standard normal draws from a seeded generator (one distribution, so that consecutive calls
+// continue one sequence of draws)
+struct NormalNoise {
+  explicit NormalNoise(unsigned seed) : rng(seed) {}
+  double operator()() { return normal(rng); }
+  std::mt19937 rng;
+  std::normal_distribution<double> normal;
+};
+
+// Gaussian noise of `level` times each column's standard deviation added to x, column by column,
+// row by row (a state log made noisy as a robot's encoders and velocity estimates)
+inline void AddRelativeNoise(double level, NormalNoise* noise, RowMatrix* x) {
+  for (Eigen::Index j = 0; j < x->cols(); ++j) {
+    const Eigen::VectorXd col = x->col(j);
+    const double sd = std::sqrt((col.array() - col.mean()).square().mean());
+    for (Eigen::Index k = 0; k < x->rows(); ++k) (*x)(k, j) += level * sd * (*noise)();
+  }
 }
 
 }  // namespace mjsysid::test

@@ -366,25 +366,16 @@ TEST(EquationErrorTest, StartOnNoisyAndEncoderLogs) {
     const io::ExperimentConfig cfg = test::ShippedExperimentWithLog(
         name + ".yaml", 3, 2000, "equation_error_smoothed_" + name + (c.encoder ? "_enc" : ""));
     run::BuiltProblem b = run::BuildProblem(cfg, 1);
-    std::mt19937 rng(5);
-    std::normal_distribution<double> normal;
+    test::NormalNoise noise(5);
     const double quantum = 2 * M_PI / 16384;
     std::vector<const FitSequence*> sequences;
     for (FitSequence& s : b.sequences) {
-      for (RowMatrix* x : {&s.qpos, &s.qvel}) {
-        for (Eigen::Index j = 0; j < x->cols(); ++j) {
-          const Eigen::VectorXd col = x->col(j);
-          const double sd = std::sqrt((col.array() - col.mean()).square().mean());
-          for (Eigen::Index k = 0; k < x->rows(); ++k) {
-            if (c.encoder) {
-              (*x)(k, j) = quantum * std::round((*x)(k, j) / quantum);
-            } else {
-              (*x)(k, j) += 0.01 * sd * normal(rng);
-            }
-          }
-        }
+      if (c.encoder) {
+        s.qpos = (s.qpos / quantum).array().round().matrix() * quantum;
+        s.qvel.resize(0, s.qvel.cols());
+      } else {
+        for (RowMatrix* x : {&s.qpos, &s.qvel}) test::AddRelativeNoise(0.01, &noise, x);
       }
-      if (c.encoder) s.qvel.resize(0, s.qvel.cols());
       sequences.push_back(&s);
     }
     std::vector<int> which;

@@ -15,7 +15,7 @@
 
 #include "sysid/io/log.h"
 #include "sysid/sim/simulate.h"
-#include "tests/file_util.h"
+#include "tests/experiment_log.h"
 
 namespace mjsysid::run {
 namespace {
@@ -33,16 +33,9 @@ io::ExperimentConfig NoisyStatesCartpole(const std::string& tag) {
   sim::SimulateSettings settings;
   settings.threads = 1;
   io::Log log = sim::SimulateExperiment(cfg, settings);
-  std::mt19937 rng(11);
-  std::normal_distribution<double> normal;
+  test::NormalNoise noise(11);
   for (io::Sequence& s : log.sequences) {
-    for (RowMatrix* x : {&s.qpos, &s.qvel}) {
-      for (Eigen::Index j = 0; j < x->cols(); ++j) {
-        const Eigen::VectorXd col = x->col(j);
-        const double sd = std::sqrt((col.array() - col.mean()).square().mean());
-        for (Eigen::Index k = 0; k < x->rows(); ++k) (*x)(k, j) += 0.01 * sd * normal(rng);
-      }
-    }
+    for (RowMatrix* x : {&s.qpos, &s.qvel}) test::AddRelativeNoise(0.01, &noise, x);
   }
   cfg.data = {io::DataFile{dir + "/log.h5", {}}};
   io::WriteLog(dir + "/log.h5", log);
