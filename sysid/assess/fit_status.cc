@@ -229,8 +229,12 @@ bool ResidualsAboveNoise(const FitOptions& options, FitResult* result) {
             FormatDigits(Chi2RatioLimit(dof), 3) + ", chi-square with " + std::to_string(m - p) +
             " degrees of freedom)" +
             (sensors.empty() ? std::string() : "; per sensor: " + sensors) +
-            ": the model lacks an effect in the data, the start is in another minimum, or the "
-            "sigmas are too small; the intervals are not valid");
+            ": the model lacks an effect in the data, the start is in another minimum, " +
+            (options.estimate_initial_state
+                 ? std::string()
+                 : "the initial states (taken from the log or the model, not estimated) are "
+                   "off, ") +
+            "or the sigmas are too small; the intervals are not valid");
       }
     }
   }

@@ -208,7 +208,7 @@ void CheckTimestep(const FitParts& parts, const FitOptions& options, FitResult* 
     r.warnings.push_back("timestep check: " + r.timestep_check + ": the misfit " +
                          (unexplained.empty() ? std::string() : "of " + unexplained + " ") +
                          "does not shrink as a discretisation error would, so it is not the "
-                         "timestep's: the model lacks something (model_mismatch)");
+                         "timestep's (model_mismatch stands)");
   }
 }
 

@@ -45,6 +45,7 @@ void CheckLoggedInitialStates(const io::ExperimentConfig& run_cfg, const BuiltPr
     }
     FitOptions o = b.options;
     o.global_stage = false;
+    o.timestep_check = false;  // a refit that ends model_mismatch says nothing anyway
     o.max_iterations = std::min(o.max_iterations, kInitialStateCheckIterations);
     o.threads = options.threads;
     o.interrupt = options.interrupt;
