@@ -2,6 +2,7 @@
 
 #include <GL/gl.h>
 #include <GL/osmesa.h>
+#include <dlfcn.h>
 
 #include <algorithm>
 #include <cmath>
@@ -21,6 +22,46 @@ extern "C" const char* __lsan_default_suppressions() { return "leak:libOSMesa.so
 #endif
 
 namespace mjsysid::report {
+namespace {
+
+// libOSMesa loaded at run time, not linked: a program or Python package without it runs, and
+// only the motion clip is skipped (Create says why). RTLD_GLOBAL: mjr_makeContext finds
+// OSMesaGetProcAddress in the process. Loaded once per process, never unloaded.
+struct OsMesa {
+  decltype(&OSMesaCreateContextExt) create_context = nullptr;
+  decltype(&OSMesaMakeCurrent) make_current = nullptr;
+  decltype(&OSMesaDestroyContext) destroy_context = nullptr;
+  decltype(&glGetString) get_string = nullptr;
+  std::string error;  // "": loaded
+};
+
+template <typename F>
+void Symbol(void* library, const char* name, F* f, std::string* error) {
+  *f = reinterpret_cast<F>(dlsym(library, name));
+  if (*f == nullptr && error->empty()) *error = std::string("libOSMesa has no ") + name;
+}
+
+const OsMesa& LoadOsMesa() {
+  static const OsMesa api = [] {
+    OsMesa a;
+    void* library = dlopen(kOsMesaLibrary, RTLD_NOW | RTLD_GLOBAL);
+    if (library == nullptr) {
+      const char* why = dlerror();
+      a.error = std::string("cannot load ") + kOsMesaLibrary + " (" +
+                (why != nullptr ? why : "not found") +
+                "; Debian and Ubuntu: apt install libosmesa6)";
+      return a;
+    }
+    Symbol(library, "OSMesaCreateContextExt", &a.create_context, &a.error);
+    Symbol(library, "OSMesaMakeCurrent", &a.make_current, &a.error);
+    Symbol(library, "OSMesaDestroyContext", &a.destroy_context, &a.error);
+    Symbol(library, "glGetString", &a.get_string, &a.error);
+    return a;
+  }();
+  return api;
+}
+
+}  // namespace
 
 // the OpenGL context and MuJoCo's visualization state, one model copy
 struct OffscreenRenderer::Gl {
@@ -39,11 +80,12 @@ struct OffscreenRenderer::Gl {
     if (context != nullptr) {
       // MuJoCo's GL objects need the context current; then release it before destroying it
       // (OSMesa frees the framebuffer it made for the window only when it is released)
-      if (con_made && OSMesaMakeCurrent(context, window.data(), GL_UNSIGNED_BYTE, width, height)) {
+      const OsMesa& gl = LoadOsMesa();
+      if (con_made && gl.make_current(context, window.data(), GL_UNSIGNED_BYTE, width, height)) {
         mjr_freeContext(&con);
       }
-      OSMesaMakeCurrent(nullptr, nullptr, GL_UNSIGNED_BYTE, 0, 0);
-      OSMesaDestroyContext(context);
+      gl.make_current(nullptr, nullptr, GL_UNSIGNED_BYTE, 0, 0);
+      gl.destroy_context(context);
     }
     if (scene_made) mjv_freeScene(&scene);
   }
@@ -60,7 +102,12 @@ std::unique_ptr<OffscreenRenderer> OffscreenRenderer::Create(const mjModel& m, i
   Gl& g = *r->gl_;
 
   // the software context: RGBA, 24-bit depth, 8-bit stencil, no accumulation buffer
-  g.context = OSMesaCreateContextExt(OSMESA_RGBA, 24, 8, 0, nullptr);
+  const OsMesa& gl = LoadOsMesa();
+  if (!gl.error.empty()) {
+    if (why != nullptr) *why = gl.error;
+    return nullptr;
+  }
+  g.context = gl.create_context(OSMESA_RGBA, 24, 8, 0, nullptr);
   if (g.context == nullptr) {
     if (why != nullptr) *why = "OSMesa could not create an OpenGL context";
     return nullptr;
@@ -68,11 +115,11 @@ std::unique_ptr<OffscreenRenderer> OffscreenRenderer::Create(const mjModel& m, i
   g.window.assign(static_cast<size_t>(width) * height * 4, 0);
   g.width = width;
   g.height = height;
-  if (!OSMesaMakeCurrent(g.context, g.window.data(), GL_UNSIGNED_BYTE, width, height)) {
+  if (!gl.make_current(g.context, g.window.data(), GL_UNSIGNED_BYTE, width, height)) {
     if (why != nullptr) *why = "OSMesa could not make its OpenGL context current";
     return nullptr;
   }
-  const auto* name = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
+  const auto* name = reinterpret_cast<const char*>(gl.get_string(GL_RENDERER));
   r->gl_renderer_ = name != nullptr ? name : "";
 
   // the model copy with an offscreen buffer large enough; scene, camera, options
@@ -117,7 +164,8 @@ std::unique_ptr<OffscreenRenderer> OffscreenRenderer::Create(const mjModel& m, i
 OffscreenRenderer::~OffscreenRenderer() = default;
 
 void OffscreenRenderer::MakeCurrent() {
-  if (!OSMesaMakeCurrent(gl_->context, gl_->window.data(), GL_UNSIGNED_BYTE, width_, height_)) {
+  if (!LoadOsMesa().make_current(gl_->context, gl_->window.data(), GL_UNSIGNED_BYTE, width_,
+                                 height_)) {
     throw MujocoError("OSMesa could not make its OpenGL context current");
   }
 }

@@ -1,5 +1,6 @@
 // Offscreen rendering of a MuJoCo model with MuJoCo's own renderer (mjv_/mjr_ in libmujoco) in a
-// software OpenGL context (OSMesa from Debian's libosmesa6: Mesa's llvmpipe, no GPU, no display).
+// software OpenGL context (OSMesa from Debian's libosmesa6: Mesa's llvmpipe, no GPU, no display),
+// loaded at run time (kOsMesaLibrary, dlopen): without it only the renderer is unavailable.
 //
 // Contract:
 // - OffscreenRenderer::Create makes an OSMesa context (RGBA, 24-bit depth, 8-bit stencil,
@@ -30,6 +31,9 @@
 #include "core/state.h"
 
 namespace mjsysid::report {
+
+// the library Create loads (Debian's libosmesa6)
+inline constexpr char kOsMesaLibrary[] = "libOSMesa.so.8";
 
 // an RGB image: width * height * 3 bytes, top row first
 struct RgbImage {
