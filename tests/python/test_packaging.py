@@ -7,6 +7,7 @@ import subprocess
 import sys
 
 import mujoco
+import pytest
 
 import mjsysid
 
@@ -98,3 +99,25 @@ def test_the_sysid_command_is_installed_with_the_package():
                          capture_output=True, text=True, timeout=60)
     assert bad.returncode == 2, (bad.returncode, bad.stderr)
     assert "/nonexistent/experiment.yaml" in bad.stderr
+
+
+def test_the_report_renderer_leaves_pytorch_importable(pendulum, tmp_path):
+    # the motion clip loads libOSMesa at run time (tools/report/render.cc); loaded globally, its
+    # libLLVM's symbols crashed PyTorch's triton (its own LLVM) on import afterwards. A fresh
+    # interpreter: report with a motion clip, then import torch and triton
+    pytest.importorskip("torch")
+    pytest.importorskip("triton")
+    script = f"""
+import mjsysid
+exp = mjsysid.load_experiment({str(pendulum)!r})
+mjsysid.simulate(exp)
+mjsysid.fit_experiment(exp, out={str(tmp_path / "out")!r})
+summary = mjsysid.report({str(tmp_path / "out")!r})
+assert "frames" in summary, summary  # the clip was rendered: libOSMesa was loaded
+import torch, triton
+print("imported", torch.__version__, triton.__version__)
+"""
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         timeout=300)
+    assert run.returncode == 0, (run.returncode, run.stderr[-2000:])
+    assert "imported" in run.stdout

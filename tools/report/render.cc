@@ -25,8 +25,10 @@ namespace mjsysid::report {
 namespace {
 
 // libOSMesa loaded at run time, not linked: a program or Python package without it runs, and
-// only the motion clip is skipped (Create says why). RTLD_GLOBAL: mjr_makeContext finds
-// OSMesaGetProcAddress in the process. Loaded once per process, never unloaded.
+// only the motion clip is skipped (Create says why). RTLD_LOCAL: its libLLVM's symbols must not
+// become global (PyTorch's triton, which carries its own LLVM, crashed on import in its static
+// initializers after a global load; measured in tests/python); mjr_makeContext finds the GL
+// functions without it (tests/tools/render_test.cc). Loaded once per process, never unloaded.
 struct OsMesa {
   decltype(&OSMesaCreateContextExt) create_context = nullptr;
   decltype(&OSMesaMakeCurrent) make_current = nullptr;
@@ -44,7 +46,7 @@ void Symbol(void* library, const char* name, F* f, std::string* error) {
 const OsMesa& LoadOsMesa() {
   static const OsMesa api = [] {
     OsMesa a;
-    void* library = dlopen(kOsMesaLibrary, RTLD_NOW | RTLD_GLOBAL);
+    void* library = dlopen(kOsMesaLibrary, RTLD_NOW | RTLD_LOCAL);
     if (library == nullptr) {
       const char* why = dlerror();
       a.error = std::string("cannot load ") + kOsMesaLibrary + " (" +

@@ -6,9 +6,8 @@
 // - OffscreenRenderer::Create makes an OSMesa context (RGBA, 24-bit depth, 8-bit stencil,
 //   compatibility profile), makes it current on the calling thread, and builds MuJoCo's
 //   mjrContext for a private copy of the model (its offscreen buffer at least width x height).
-//   mjr_makeContext loads the GL functions itself (MuJoCo finds OSMesaGetProcAddress in the
-//   process). When no context can be made it returns nullptr and says why: never an error, the
-//   caller reports the reason.
+//   mjr_makeContext loads the GL functions itself. When no context can be made (no libOSMesa, or
+//   it fails) it returns nullptr and says why: never an error, the caller reports the reason.
 // - Render draws the model at one configuration (qpos: nq values; qvel and act zero, mj_forward)
 //   from a fixed free camera: at first MuJoCo's default (mjv_defaultFreeCamera: the model's
 //   center and extent at qpos0); after Frame, looking at the center of the moving bodies' geoms
