@@ -6,13 +6,13 @@
 # libc, libstdc++, libX11, libz and the like, stay the system's), installs it into a bare virtual
 # environment (only the wheel and its declared dependencies, at their pins: mujoco, mujoco-core,
 # numpy), and checks there:
-# - every library the extension module and the `sysid` program load resolves inside that venv or
-#   to one of the policy's system libraries (ldd);
+# - every library that the package's ELF files (the module, `sysid`, mjsysid.libs/) link directly
+#   resolves inside that venv or is one of the policy's system libraries (readelf, ldd);
 # - the import beside `import mujoco` (one libmujoco), `sysid --version`, and the shipped pendulum
 #   experiment through the `sysid` command (simulate, fit: converged, report) read back with
 #   mjsysid.read_result;
 # - where the machine allows a private mount namespace (unshare -m, as root), the same again with
-#   the Debian libraries of tools/deps/apt-packages.txt hidden (each file bind-mounted over by
+#   the Debian libraries of tools/deps/hidden-libraries.txt hidden (each file bind-mounted over by
 #   /dev/null), libOSMesa among them: the report is written without its motion clip and says why.
 #
 # usage: tools/check_wheel.sh [--keep DIR]   (tools/run_tests.sh runs it after the Python tests;
@@ -24,7 +24,11 @@ work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 
 keep=""
-if [[ "${1:-}" == "--keep" ]]; then keep="${2:?--keep needs a folder}"; fi
+case "${1:-}" in
+  "") ;;
+  --keep) keep="${2:?--keep needs a folder}" ;;
+  *) echo "usage: tools/check_wheel.sh [--keep DIR]" >&2; exit 2 ;;
+esac
 
 "$venv/bin/pip" wheel -q --disable-pip-version-check --no-build-isolation --no-deps \
   -w "$work/dist" "$root"
