@@ -3,7 +3,9 @@
 #include <array>
 #include <csetjmp>
 #include <cstdio>
+#include <cstring>
 #include <mutex>
+#include <new>
 #include <string>
 
 namespace mjsysid {
@@ -51,7 +53,15 @@ namespace internal {
 
 JumpTarget*& ArmedTarget() { return tls_armed; }
 
-void ThrowSavedError() { throw MujocoError(std::string("MuJoCo error: ") + tls_error_message); }
+// MuJoCo's own allocation failure (mj_makeData and its arena: "Could not allocate memory") is
+// the machine out of memory, as a failed new: std::bad_alloc, which the runners report as out of
+// memory (exit 5), not as a MuJoCo error
+void ThrowSavedError() {
+  if (std::strstr(tls_error_message, "ould not allocate memory") != nullptr) {
+    throw std::bad_alloc();
+  }
+  throw MujocoError(std::string("MuJoCo error: ") + tls_error_message);
+}
 
 }  // namespace internal
 

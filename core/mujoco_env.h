@@ -3,9 +3,10 @@
 // Contract:
 // - InstallMujocoHandlers() is called once (idempotent, thread-safe). After it, a MuJoCo error
 //   (mju_error, e.g. arena overflow or an invalid argument) becomes a MujocoError carrying
-//   MuJoCo's message instead of exiting the process, and MuJoCo's text warnings are kept per
-//   thread (TakeWarningText) instead of printed or written to MUJOCO_LOG.TXT. Every entry point of
-//   core/ calls it.
+//   MuJoCo's message instead of exiting the process (but MuJoCo's "Could not allocate memory",
+//   which becomes std::bad_alloc: the machine is out of memory), and MuJoCo's text warnings are
+//   kept per thread (TakeWarningText) instead of printed or written to MUJOCO_LOG.TXT. Every entry
+//   point of core/ calls it.
 // - Errors never unwind through MuJoCo's C frames when the call runs inside CallMujoco (every call
 //   of core/ into the engine does): CallMujoco arms a setjmp target on its own C++ frame, the error
 //   handler copies MuJoCo's message into a thread-local slot and longjmps back to it, and
